@@ -1,0 +1,143 @@
+# wfiscene - a fast Roman WFI scene simulator.  Plain GNU make.
+#
+#   make            build build/wfiscene and the model plugins
+#   make check      install missing packages (as root), build, run the tests
+#   make demo       install missing packages, build, simulate a globular cluster
+#   make help       list the targets
+#
+# Knobs: CC, CFLAGS, LDFLAGS, PKG_CONFIG, PREFIX, DESTDIR, V=1 (show commands),
+# SANITIZE=1 (AddressSanitizer + UBSan), TESTS='tests/t1*.sh' (a subset).
+# Local overrides go in config.mak.
+
+-include config.mak
+
+PREFIX     ?= /usr/local
+BINDIR     ?= $(PREFIX)/bin
+LIBDIR     ?= $(PREFIX)/lib
+PLUGINDIR  ?= $(LIBDIR)/wfiscene
+INCLUDEDIR ?= $(PREFIX)/include
+PKGCONFIGDIR ?= $(LIBDIR)/pkgconfig
+MANDIR     ?= $(PREFIX)/share/man
+DESTDIR    ?=
+
+VERSION    := 0.1.0
+CC         ?= cc
+PKG_CONFIG ?= pkg-config
+CFLAGS     ?= -O2 -g
+PKGS       := cfitsio wcslib fftw3 libzstd zlib libpng
+
+Q = $(if $(filter 1,$(V)),,@)
+B := build
+
+ifeq ($(SANITIZE),1)
+  B := build-san
+  CFLAGS += -O1 -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+  LDFLAGS += -fsanitize=address,undefined
+endif
+
+PKG_CFLAGS := $(shell $(PKG_CONFIG) --cflags $(PKGS) 2>/dev/null)
+PKG_LIBS   := $(shell $(PKG_CONFIG) --libs $(PKGS) 2>/dev/null)
+ALL_CFLAGS  = -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE \
+	-Wall -Wextra -Wno-unused-parameter -pthread -Iinclude -Isrc -I$(B) \
+	-DWFS_VERSION='"$(VERSION)"' -DWFS_PLUGINDIR='"$(PLUGINDIR)"' \
+	$(PKG_CFLAGS) $(CFLAGS)
+ALL_LIBS    = $(PKG_LIBS) -lfftw3_threads -lltdl -lm -lpthread
+
+LIB_SRC  := $(filter-out src/main.c,$(wildcard src/*.c))
+LIB_OBJ  := $(patsubst src/%.c,$(B)/obj/%.o,$(LIB_SRC)) $(B)/obj/data_tables.o
+PLUGINS  := $(patsubst plugins/%.c,$(B)/plugins/%.so,$(subst _,-,$(wildcard plugins/*.c)))
+UNIT_SRC := $(wildcard tests/unit/*.c)
+UNIT_BIN := $(patsubst tests/unit/%.c,$(B)/tests/%,$(UNIT_SRC))
+TOOL_SRC := $(wildcard contrib/*.c)
+TOOL_BIN := $(patsubst contrib/%.c,$(B)/contrib/%,$(TOOL_SRC))
+DATA     := $(wildcard data/*.tsv)
+TESTS    ?= tests/t*.sh
+
+## all: build wfiscene, the plugins and the contrib tools (default)
+all: $(B)/wfiscene $(PLUGINS) $(TOOL_BIN)
+
+$(B)/wfiscene: $(B)/obj/main.o $(B)/libwfs.a
+	@echo "  LD      $@"
+	$(Q)$(CC) $(LDFLAGS) -o $@ $^ $(ALL_LIBS)
+
+$(B)/libwfs.a: $(LIB_OBJ)
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(B)/obj/%.o: src/%.c $(wildcard src/*.h) include/wfiscene/model.h | $(B)/obj
+	@echo "  CC      $<"
+	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
+
+$(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
+	@echo "  EMBED   data/*.tsv"
+	$(Q)sh src/embed.sh $(DATA) > $@.tmp && mv $@.tmp $@
+
+$(B)/obj/data_tables.o: $(B)/data_tables.c
+	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
+
+# Plugins see nothing of the host but include/wfiscene/model.h.
+$(B)/plugins/%.so: plugins/$$(subst -,_,%).c include/wfiscene/model.h | $(B)/plugins
+	@echo "  PLUGIN  $@"
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra -Wno-unused-parameter -Iinclude \
+		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(LDFLAGS) -o $@ $< -lm
+
+.SECONDEXPANSION:
+
+$(B)/tests/%: tests/unit/%.c tests/unit/tap.h $(B)/libwfs.a | $(B)/tests
+	@echo "  CC      $@"
+	$(Q)$(CC) $(ALL_CFLAGS) -Itests/unit $(LDFLAGS) -o $@ $< $(B)/libwfs.a $(ALL_LIBS)
+
+$(B)/contrib/%: contrib/%.c | $(B)/contrib
+	@echo "  CC      $@"
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra $(CFLAGS) $(LDFLAGS) -o $@ $< -lzstd -lm
+
+$(B)/obj $(B)/plugins $(B)/tests $(B)/contrib:
+	$(Q)mkdir -p $@
+
+## deps: install missing Debian packages (as root), else print the command
+deps:
+	$(Q)sh contrib/install-deps.sh
+
+## check: run the whole test suite (installs missing packages first)
+check: deps
+	$(Q)$(MAKE) --no-print-directory all unit
+	$(Q)WFS_BUILD=$(B) prove -j2 --exec sh $(TESTS) :: && \
+	  WFS_BUILD=$(B) prove -j2 $(UNIT_BIN)
+
+## unit: build the C unit tests
+unit: $(UNIT_BIN)
+
+## demo: simulate a crowded globular cluster on several SCAs
+demo: deps
+	$(Q)$(MAKE) --no-print-directory all
+	$(Q)WFS_BUILD=$(B) sh contrib/demo.sh
+
+## bench: the benchmark suite (not part of check); figures go to BENCHMARKS.md
+bench: all
+	$(Q)WFS_BUILD=$(B) sh contrib/bench.sh
+
+## lint-man: check the man pages with mandoc
+lint-man:
+	$(Q)mandoc -Tlint -W warning man/* || true
+
+## install: install the program, plugins, header, pkg-config file, man pages
+install: all
+	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(PLUGINDIR) $(DESTDIR)$(INCLUDEDIR)/wfiscene \
+		$(DESTDIR)$(PKGCONFIGDIR) $(DESTDIR)$(MANDIR)/man1 $(DESTDIR)$(MANDIR)/man5 $(DESTDIR)$(MANDIR)/man7
+	install -m 755 $(B)/wfiscene $(DESTDIR)$(BINDIR)/wfiscene
+	install -m 755 $(PLUGINS) $(DESTDIR)$(PLUGINDIR)/
+	install -m 644 include/wfiscene/model.h $(DESTDIR)$(INCLUDEDIR)/wfiscene/model.h
+	sed -e 's|@PREFIX@|$(PREFIX)|; s|@INCLUDEDIR@|$(INCLUDEDIR)|; s|@PLUGINDIR@|$(PLUGINDIR)|; s|@VERSION@|$(VERSION)|' \
+		contrib/wfiscene-model.pc.in > $(DESTDIR)$(PKGCONFIGDIR)/wfiscene-model.pc
+	for m in man/*.1; do install -m 644 $$m $(DESTDIR)$(MANDIR)/man1/; done
+	for m in man/*.5; do install -m 644 $$m $(DESTDIR)$(MANDIR)/man5/; done
+	for m in man/*.7; do [ -f $$m ] && install -m 644 $$m $(DESTDIR)$(MANDIR)/man7/ || true; done
+
+## clean: remove build outputs
+clean:
+	rm -rf build build-san
+
+## help: list the targets
+help:
+	@sed -n 's/^## //p' $(MAKEFILE_LIST)
+
+.PHONY: all deps check unit demo bench lint-man install clean help

@@ -1,0 +1,24 @@
+#!/bin/sh
+# Install the Debian packages wfiscene needs to build, test and run its demo,
+# when some are missing.  As root it runs apt-get; otherwise it prints the
+# command to run.  Called by `make deps`, `make check` and `make demo`.
+set -e
+build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev zstd"
+tests="perl gzip python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc"
+missing=
+for p in $build $tests; do
+	dpkg-query -W -f='${Status}\n' "$p" 2>/dev/null | grep -q '^install ok installed' ||
+		missing="$missing $p"
+done
+[ -z "$missing" ] && exit 0
+cmd="apt-get install -y --no-install-recommends$missing"
+if [ "$(id -u)" = 0 ]; then
+	echo "wfiscene: installing$missing" >&2
+	export DEBIAN_FRONTEND=noninteractive
+	apt-get update -qq >/dev/null || apt-get update
+	$cmd >/dev/null || $cmd
+else
+	echo "wfiscene: missing packages; run as root:" >&2
+	echo "  $cmd" >&2
+	exit 1
+fi

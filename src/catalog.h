@@ -1,0 +1,90 @@
+/*
+ * catalog.h - reading source catalogs in chunks of rows.
+ *
+ * Two layers.  The table layer reads any supported format (CSV, whitespace
+ * separated, IPAC with \key=value metadata, ECSV, FITS binary tables through
+ * cfitsio), plain or compressed (input.h), into a chunk of at most
+ * chunk_rows rows: every column as text, with the file line of each row.
+ * The catalog layer gives the columns their meaning (wfiscene-catalog(5)):
+ * positions, fluxes and units, model type, id, and STIPS's catalog types
+ * (internal, mixed, multifilter, generic), and reports a bad value with its
+ * place: "stars.csv:12: column 'flux': not a number: 'abc'".
+ *
+ * Memory is bounded by chunk_rows and the longest line, not by catalog
+ * length.  Column names are case-insensitive; they are stored lower-case.
+ */
+#ifndef WFS_CATALOG_H
+#define WFS_CATALOG_H
+
+#include <stddef.h>
+
+struct err;
+
+/* Units a flux value can carry (per file or per row). */
+enum flux_unit {
+	UNIT_COUNTS = 'c',      /* counts/s (e-/s), the default */
+	UNIT_ABMAG = 'm',       /* AB magnitude */
+	UNIT_JY = 'j',          /* Jansky */
+	UNIT_PHOT = 'p',        /* STIPS mixed 'p' */
+	UNIT_ERG = 'e',         /* STIPS mixed 'e' */
+};
+
+struct catalog_opts {
+	int filter;             /* enum wfs_filter of the scene */
+	int flux_unit;          /* default unit of a flux column, or 0 for the
+	                           file's metadata, else counts/s */
+	size_t chunk_rows;      /* rows per chunk; 0 for the default 65536 */
+};
+
+/*
+ * One chunk of interpreted rows.  Arrays have n entries and belong to the
+ * catalog; they are valid until the next catalog_read() or catalog_close().
+ */
+struct rows {
+	size_t n;
+	const char *file;       /* name for messages: path or "<stdin>" */
+	long *line;             /* 1-based line (text) or row (FITS) of each row */
+	double *ra, *dec;       /* degrees; NaN in both when the row gives x, y */
+	double *x, *y;          /* 0-based pixels (the catalog's 1-based minus 1);
+	                           NaN when the row gives ra, dec */
+	int *sca;               /* SCA of x, y; 0 = the scene's first SCA */
+	double *flux;           /* value in unit[i] (NaN never passes: an error) */
+	unsigned char *unit;    /* enum flux_unit of each row */
+	const char **type;      /* model name, lower-case; "point" by default */
+	long long *id;          /* the id column, else the 1-based row number */
+	int sersic_ie;          /* 1 when this catalog's Sersic fluxes are the
+	                           surface brightness at re (STIPS internal) */
+
+	/* Every column, as text, for models that read columns by name. */
+	int ncol;
+	char **colname;         /* lower-case names */
+	const char ***text;     /* text[col][row]; "" for an empty cell */
+};
+
+struct catalog;
+
+/* Open a catalog file, or stdin for "-".  The format is recognised from the
+ * content.  Reads the header (and metadata) so that column errors such as a
+ * missing position or flux column are reported here, with the file name. */
+struct catalog *catalog_open(const char *path, const struct catalog_opts *o,
+			     struct err *e);
+
+/* Read the next chunk.  Returns the number of rows (> 0), 0 at the end of
+ * the catalog, or -1 with a message naming file, line, column and value. */
+long catalog_read(struct catalog *c, struct rows *r, struct err *e);
+
+/* The index of column name (case-insensitive) in r, or -1. */
+int rows_column(const struct rows *r, const char *name);
+
+/* Parse text cell (col, i) as a finite double.  An empty cell gives
+ * fallback; a bad one is an error naming the place.  Returns 0 or -1. */
+int rows_number(const struct rows *r, int col, size_t i, double fallback,
+		double *out, struct err *e);
+
+/* Rows read and raw bytes consumed so far, for reports. */
+unsigned long long catalog_rows(const struct catalog *c);
+unsigned long long catalog_bytes(const struct catalog *c);
+
+void catalog_close(struct catalog *c);
+
+#endif

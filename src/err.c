@@ -1,0 +1,85 @@
+/* err.c - error messages as values; see err.h. */
+#include <errno.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include <fitsio.h>
+
+#include "err.h"
+
+static void vset(struct err *e, int code, const char *fmt, va_list ap)
+{
+	if (!e || e->code != EXIT_OK)
+		return;
+	e->code = code;
+	vsnprintf(e->msg, sizeof(e->msg), fmt, ap);
+}
+
+int err_set(struct err *e, int code, const char *fmt, ...)
+{
+	va_list ap;
+
+	va_start(ap, fmt);
+	vset(e, code, fmt, ap);
+	va_end(ap);
+	return -1;
+}
+
+int err_sys(struct err *e, const char *fmt, ...)
+{
+	int saved = errno;
+	va_list ap;
+	size_t len;
+
+	if (!e || e->code != EXIT_OK)
+		return -1;
+	va_start(ap, fmt);
+	vset(e, EXIT_SYSTEM, fmt, ap);
+	va_end(ap);
+	len = strlen(e->msg);
+	snprintf(e->msg + len, sizeof(e->msg) - len, ": %s", strerror(saved));
+	return -1;
+}
+
+int err_fits(struct err *e, int status, const char *fmt, ...)
+{
+	char text[FLEN_STATUS], line[FLEN_ERRMSG], first[FLEN_ERRMSG] = "";
+	va_list ap;
+	size_t len;
+
+	/* Drain cfitsio's message stack; its first line names the cause. */
+	while (fits_read_errmsg(line))
+		if (!first[0])
+			snprintf(first, sizeof(first), "%s", line);
+	fits_get_errstatus(status, text);
+	if (!e || e->code != EXIT_OK)
+		return -1;
+	va_start(ap, fmt);
+	vset(e, EXIT_SYSTEM, fmt, ap);
+	va_end(ap);
+	len = strlen(e->msg);
+	snprintf(e->msg + len, sizeof(e->msg) - len, ": %s%s%s", text,
+		 first[0] ? ": " : "", first);
+	return -1;
+}
+
+void err_prefix(struct err *e, const char *fmt, ...)
+{
+	char pre[1024], old[sizeof(e->msg)];
+	va_list ap;
+
+	if (!e || e->code == EXIT_OK)
+		return;
+	va_start(ap, fmt);
+	vsnprintf(pre, sizeof(pre), fmt, ap);
+	va_end(ap);
+	memcpy(old, e->msg, sizeof(old));
+	snprintf(e->msg, sizeof(e->msg), "%s: %s", pre, old);
+}
+
+void err_clear(struct err *e)
+{
+	e->code = EXIT_OK;
+	e->msg[0] = 0;
+}

@@ -1,0 +1,51 @@
+/*
+ * noise.h - backgrounds, noise and detector residuals, applied tile by tile
+ * after the last catalog chunk.  Every random number comes from a
+ * counter-based generator keyed by (seed, filter, SCA, stage) and counted by
+ * absolute pixel, so an image is bit-identical for any thread count, tile
+ * size or tile order, and for runs split by SCA.
+ */
+#ifndef WFS_NOISE_H
+#define WFS_NOISE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+enum noise_stage {
+	NOISE_POISSON = 1 << 0,
+	NOISE_READ = 1 << 1,
+	NOISE_DARK = 1 << 2,
+	NOISE_FLAT = 1 << 3,
+	NOISE_COSMIC = 1 << 4,
+	NOISE_ALL = 0x1f,
+};
+
+struct noise_opts {
+	unsigned stages;        /* enum noise_stage bits */
+	double background;      /* counts/s/pixel added first; 0 for none */
+	double exptime;         /* seconds, > 0 */
+	double readnoise;       /* e- per read, default 12 */
+	double dark_current;    /* e-/s/pixel mean of the dark stage */
+	double cosmic_rate;     /* hits/cm^2/s per population, default 5 */
+	double cosmic_residual; /* fraction of each hit kept, default 0.01 */
+	uint64_t seed;
+	int filter;             /* enum wfs_filter: part of the key */
+	int counts;             /* 1: leave the image in counts, else counts/s */
+};
+
+/* Parse a --noise value ("all", "none", "poisson,readnoise"), setting
+ * *stages.  Returns 0 or -1 with a message. */
+struct err;
+int noise_parse(const char *s, unsigned *stages, struct err *e);
+
+/*
+ * Apply background, exposure time, the selected stages and the unit
+ * conversion to the tile of SCA sca whose pixel (x0, y0) is pix[0]; pixel
+ * (x, y) is pix[(y - y0) * stride + (x - x0)], in counts/s on entry.  The
+ * result depends only on the options, sca and absolute pixel coordinates.
+ * Thread-safe.  Returns 0 or -1.
+ */
+int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
+	       int ny, double *pix, ptrdiff_t stride);
+
+#endif

@@ -1,0 +1,86 @@
+/*
+ * psf.h - PSF grids: a few PSFs of one SCA at known detector positions,
+ * interpolated bilinearly in position for any source.
+ *
+ * A grid is read from an STPSF/WebbPSF gridded PSF file (a cube with
+ * DET_YX0..n keywords), or built from the Roman optical model (optics.h)
+ * and cached.  Node positions always come from the DET_YX keywords (or the
+ * builder), never from index order, and are kept in the 0-based 4088-pixel
+ * science frame (STPSF's 4096 frame minus 4).
+ */
+#ifndef WFS_PSF_H
+#define WFS_PSF_H
+
+#include <stddef.h>
+
+struct err;
+struct wfs_epsf;
+
+enum psf_kind { PSF_OPTICAL = 0, PSF_EPSF = 1 };
+
+/* Samples per side of each size class (44, 88 and 176 pixel boxes at 4x). */
+#define PSF_OVER 4
+static const int psf_class_n[3] = { 177, 353, 705 };
+
+struct psf_grid {
+	int n;                  /* samples per side, odd */
+	int over;               /* samples per detector pixel */
+	int nx, ny;             /* nodes along x and y */
+	double *xs, *ys;        /* node positions, ascending, 0-based pixels */
+	float *data;            /* node (ix, iy) at data + (iy * nx + ix) * n * n,
+	                           each n x n row-major (row = y) */
+	double pixscale;        /* arcsec per sample */
+	int sca;                /* 1..18 */
+	int filter;             /* enum wfs_filter, -1 if unknown */
+	int kind;               /* enum psf_kind */
+	char origin[256];       /* "builtin" or the file it came from */
+};
+
+struct psf_grid *psf_grid_new(int n, int over, int nx, int ny);
+void psf_grid_free(struct psf_grid *g);
+
+/* Read a gridded PSF file.  Its PSFs are taken to be optical PSFs sampled
+ * `over` (OVERSAMP keyword, else DET_SAMP/PIXELSCL) times per pixel unless
+ * the file says it holds ePSFs (WFSKIND = 'EPSF').  NULL on error. */
+struct psf_grid *psf_grid_read(const char *path, struct err *e);
+
+/* Write a grid in the STPSF gridded format: primary HDU cube of nx*ny planes
+ * (x-major order as STPSF writes), DET_YX* (4096 frame), NUM_PSFS, FILTER,
+ * DETECTOR, OVERSAMP, PIXELSCL, WFSKIND.  Atomic (temp file + rename). */
+int psf_grid_write(const char *path, const struct psf_grid *g,
+		   const char *const *extra_cards, struct err *e);
+
+/* Turn an optical PSF grid into an ePSF grid in place: convolve with the
+ * 4x4-subsample pixel box (the EPSF4 kernel, sum 16) and the IPC kernel at
+ * detector-pixel spacing (sum 0.9946), as STIPS does but over the whole array
+ * (no unconvolved border).  Only for over == 4. */
+int psf_make_epsf(struct psf_grid *g, struct err *e);
+
+/* The interpolation nodes and weights for position (x, y), clamped to the
+ * node range.  Fills out (see wfiscene/model.h). */
+void psf_grid_at(const struct psf_grid *g, double x, double y,
+		 struct wfs_epsf *out);
+
+/* The ePSF sample sum over pixel-spaced samples for phase (px, py) in
+ * samples [0, over), i.e. the enclosed flux fraction, of node k. */
+double psf_enclosed(const struct psf_grid *g, int k, int px, int py);
+
+/*
+ * The built-in PSF from the Roman optical model, with the on-disk cache.
+ * kind is PSF_EPSF (what the point plugin uses) or PSF_OPTICAL.  cls is the
+ * size class (0, 1, 2 for 177, 353, 705 samples).
+ */
+struct psf_build_opts {
+	const char *cache_dir;  /* NULL: $WFISCENE_CACHE, $XDG_CACHE_HOME/wfiscene,
+	                           ~/.cache/wfiscene; "" disables the cache */
+	int nwave;              /* wavelengths; 0 for the measured default */
+	int pupil_n;            /* pupil samples across; 0 for the default */
+	int grid;               /* nodes per axis; 0 for 3 */
+	int threads;            /* for building; 0 for all cores */
+	int verbose;
+	int built, loaded;      /* out: grids built and loaded from the cache */
+};
+struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
+			     struct psf_build_opts *o, struct err *e);
+
+#endif

@@ -1,0 +1,85 @@
+# tests/lib.sh - a small TAP test library in the manner of git's t/test-lib.sh.
+#
+#   . "$(dirname "$0")/lib.sh"
+#   test_expect_success 'title' 'commands && more commands'
+#   test_must_fail [--status N] wfiscene ...   fails in a controlled way
+#   test_done
+#
+# Each test runs in a fresh scratch directory ($TRASH); $WFS is the built
+# program, $SHARED the shared reference data (may be absent: use
+# require_shared to skip).  PY is Debian's python3 (with astropy etc.).
+
+TOP=$(cd "$(dirname "$0")/.." && pwd)
+BUILD=${WFS_BUILD:-build}
+case $BUILD in /*) ;; *) BUILD=$TOP/$BUILD ;; esac
+WFS=$BUILD/wfiscene
+WFISCENE_PLUGIN_PATH=$BUILD/plugins
+export WFISCENE_PLUGIN_PATH
+SHARED=${WFS_SHARED:-$TOP/../shared}
+PY=/usr/bin/python3
+TRASH=$(mktemp -d "${TMPDIR:-/tmp}/wfs-test.XXXXXX")
+WFISCENE_CACHE=$TRASH/cache
+export WFISCENE_CACHE
+# A shared PSF cache between test scripts keeps the suite fast; tests that
+# exercise the cache itself set WFISCENE_CACHE to a private directory.
+if [ -n "${WFS_TEST_CACHE:-}" ]; then WFISCENE_CACHE=$WFS_TEST_CACHE; else
+	WFISCENE_CACHE=$BUILD/test-cache; fi
+export WFISCENE_CACHE
+test_count=0
+test_fail=0
+trap 'rm -rf "$TRASH"' EXIT
+cd "$TRASH" || exit 1
+
+say() { printf '# %s\n' "$*"; }
+
+test_expect_success() {
+	test_count=$((test_count + 1))
+	if (eval "$2") >"$TRASH/.out" 2>&1; then
+		echo "ok $test_count - $1"
+	else
+		echo "not ok $test_count - $1"
+		sed 's/^/#   /' "$TRASH/.out" | tail -n 30
+		test_fail=$((test_fail + 1))
+	fi
+}
+
+# test_skip 'title' 'why'
+test_skip() {
+	test_count=$((test_count + 1))
+	echo "ok $test_count # skip $1: $2"
+}
+
+# Run a command that must fail with a normal non-zero exit (not a crash).
+# With --status N, the exit status must be exactly N.
+test_must_fail() {
+	want=
+	if [ "$1" = --status ]; then want=$2; shift 2; fi
+	"$@"
+	rc=$?
+	if [ $rc -eq 0 ]; then echo "test_must_fail: command succeeded: $*" >&2; return 1; fi
+	if [ $rc -gt 128 ]; then echo "test_must_fail: killed by signal $((rc - 128)): $*" >&2; return 1; fi
+	if [ -n "$want" ] && [ $rc -ne "$want" ]; then
+		echo "test_must_fail: exit $rc, want $want: $*" >&2; return 1; fi
+	return 0
+}
+
+test_cmp() { cmp "$1" "$2" || { diff -u "$1" "$2" | head -n 40; return 1; }; }
+
+# test_grep PATTERN FILE: like grep, but shows the file on failure.
+test_grep() {
+	grep -q -e "$1" "$2" && return 0
+	echo "test_grep: no '$1' in $2:" >&2; sed 's/^/| /' "$2" >&2; return 1
+}
+
+have_shared() { [ -d "$SHARED/roman" ]; }
+have_python() { "$PY" -c 'import numpy, astropy' 2>/dev/null; }
+
+# Skip the whole script cleanly.
+skip_all() { echo "1..0 # SKIP $*"; exit 0; }
+require_shared() { have_shared || skip_all "../shared is absent"; }
+require_python() { have_python || skip_all "python3 with numpy and astropy is absent"; }
+
+test_done() {
+	echo "1..$test_count"
+	[ $test_fail -eq 0 ]
+}

@@ -47,4 +47,7 @@ int sca_parse_list(const char *s, unsigned *mask, struct err *e);
  * wfiscene-catalog(5). */
 double unit_to_counts(int filter, int sca, int unit);
 
+/* STIPS 2.3's fixed AB zeropoint of a filter (for --zeropoints stips). */
+double filter_stips_zp(int filter);
+
 #endif

@@ -1,0 +1,554 @@
+/*
+ * psf.c - PSF grids: allocation, the STPSF/WebbPSF gridded FITS format,
+ * the ePSF kernels and bilinear interpolation between nodes; see psf.h.
+ */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <unistd.h>
+
+#include <fitsio.h>
+
+#include "err.h"
+#include "instrument.h"
+#include "psf.h"
+#include "wfiscene/model.h"
+
+/* STPSF counts detector pixels in the 4096-pixel frame that includes the
+ * 4-pixel reference border; ours is the 4088-pixel science frame. */
+#define PSF_FRAME_OFFSET 4.0
+
+struct psf_grid *psf_grid_new(int n, int over, int nx, int ny)
+{
+	struct psf_grid *g;
+
+	if (n < 1 || over < 1 || nx < 1 || ny < 1)
+		return NULL;
+	if (!(g = calloc(1, sizeof(*g))))
+		return NULL;
+	g->n = n;
+	g->over = over;
+	g->nx = nx;
+	g->ny = ny;
+	g->filter = -1;
+	g->pixscale = WFS_PIXSCALE / over;
+	g->xs = calloc(nx, sizeof(*g->xs));
+	g->ys = calloc(ny, sizeof(*g->ys));
+	g->data = calloc((size_t)nx * ny * n * n, sizeof(*g->data));
+	if (!g->xs || !g->ys || !g->data) {
+		psf_grid_free(g);
+		return NULL;
+	}
+	return g;
+}
+
+void psf_grid_free(struct psf_grid *g)
+{
+	if (!g)
+		return;
+	free(g->xs);
+	free(g->ys);
+	free(g->data);
+	free(g);
+}
+
+/* Parse STPSF's "(y, x)" position string. */
+static int parse_yx(const char *s, double *y, double *x)
+{
+	char *end;
+
+	while (*s == ' ' || *s == '(' || *s == '[')
+		s++;
+	errno = 0;
+	*y = strtod(s, &end);
+	if (end == s || errno)
+		return -1;
+	s = end;
+	while (*s == ' ' || *s == ',')
+		s++;
+	*x = strtod(s, &end);
+	if (end == s || errno)
+		return -1;
+	return 0;
+}
+
+/* Insert v into the ascending list a[0..*n) unless a value within half a
+ * pixel is there; returns its index. */
+static int add_node(double *a, int *n, double v)
+{
+	int i;
+
+	for (i = 0; i < *n; i++)
+		if (fabs(a[i] - v) < 0.5)
+			return i;
+	for (i = *n; i > 0 && a[i - 1] > v; i--)
+		a[i] = a[i - 1];
+	a[i] = v;
+	(*n)++;
+	return i;
+}
+
+static int find_node(const double *a, int n, double v)
+{
+	for (int i = 0; i < n; i++)
+		if (fabs(a[i] - v) < 0.5)
+			return i;
+	return -1;
+}
+
+/* "SCA05", "WFI05", "wfi5" -> 5; 0 when not recognised. */
+static int parse_detector(const char *s)
+{
+	while (*s && !(*s >= '0' && *s <= '9'))
+		s++;
+	int v = atoi(s);
+	return v >= 1 && v <= WFS_NSCA ? v : 0;
+}
+
+/*
+ * The sampling of a file.  PIXELSCL (arcsec per sample) is authoritative
+ * when present; STPSF's older grids (such as the STIPS sample) carry
+ * OVERSAMP = DET_SAMP = 1 even though they were computed at 0.11"/4, so the
+ * field of view over its sample count (FOV / FOVPIXEL) comes next, and the
+ * OVERSAMP keyword only last.
+ */
+static int read_sampling(fitsfile *f, double *pixscale, int *over,
+			 const char *path, struct err *e)
+{
+	double ps = 0, fov;
+	int st = 0, fovpix, os;
+
+	if (fits_read_key(f, TDOUBLE, "PIXELSCL", &ps, NULL, &st)) {
+		st = 0;
+		ps = 0;
+		if (!fits_read_key(f, TDOUBLE, "FOV", &fov, NULL, &st) &&
+		    !fits_read_key(f, TINT, "FOVPIXEL", &fovpix, NULL, &st) &&
+		    fovpix > 0)
+			ps = fov / fovpix;
+		st = 0;
+		if (ps <= 0 && !fits_read_key(f, TINT, "OVERSAMP", &os, NULL, &st)
+		    && os > 0)
+			ps = WFS_PIXSCALE / os;
+		st = 0;
+	}
+	if (!(ps > 0) || !isfinite(ps))
+		return err_set(e, EXIT_INPUT, "%s: no PIXELSCL, FOV/FOVPIXEL or "
+			       "OVERSAMP: cannot tell the PSF sampling", path);
+	double r = WFS_PIXSCALE / ps;
+	*over = (int)lround(r);
+	if (*over < 1 || fabs(r - *over) > 0.02 * r)
+		return err_set(e, EXIT_INPUT, "%s: sampling %.6g arcsec is not "
+			       "an integer fraction of the %.2g arcsec pixel",
+			       path, ps, WFS_PIXSCALE);
+	*pixscale = ps;
+	return 0;
+}
+
+struct psf_grid *psf_grid_read(const char *path, struct err *e)
+{
+	fitsfile *f = NULL;
+	struct psf_grid *g = NULL;
+	float *buf = NULL;
+	double *px = NULL, *py = NULL, *xs = NULL, *ys = NULL;
+	int st = 0, naxis = 0, nplane, nxs = 0, nys = 0, over = 0;
+	long nax[3] = { 0, 0, 1 };
+	double pixscale = 0;
+	char str[FLEN_VALUE], key[FLEN_KEYWORD];
+
+	if (fits_open_diskfile(&f, path, READONLY, &st)) {
+		/* compressed or remote files: cfitsio's general opener */
+		st = 0;
+		if (fits_open_file(&f, path, READONLY, &st)) {
+			err_fits(e, st, "%s", path);
+			return NULL;
+		}
+	}
+	if (fits_get_img_dim(f, &naxis, &st) || naxis < 2 || naxis > 3 ||
+	    fits_get_img_size(f, naxis, nax, &st)) {
+		if (!st)
+			err_set(e, EXIT_INPUT, "%s: not a PSF cube (NAXIS = %d)",
+				path, naxis);
+		else
+			err_fits(e, st, "%s", path);
+		goto fail;
+	}
+	if (nax[0] != nax[1] || nax[0] % 2 == 0 || nax[0] < 5) {
+		err_set(e, EXIT_INPUT, "%s: PSF planes are %ldx%ld; want square "
+			"with an odd side", path, nax[0], nax[1]);
+		goto fail;
+	}
+	nplane = naxis == 3 ? (int)nax[2] : 1;
+	if (nplane < 1 || nplane > 10000) {
+		err_set(e, EXIT_INPUT, "%s: %d PSF planes", path, nplane);
+		goto fail;
+	}
+	if (read_sampling(f, &pixscale, &over, path, e))
+		goto fail;
+
+	px = malloc(nplane * sizeof(*px));
+	py = malloc(nplane * sizeof(*py));
+	xs = malloc(nplane * sizeof(*xs));
+	ys = malloc(nplane * sizeof(*ys));
+	if (!px || !py || !xs || !ys) {
+		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
+		goto fail;
+	}
+	for (int k = 0; k < nplane; k++) {
+		snprintf(key, sizeof(key), "DET_YX%d", k);
+		st = 0;
+		if (fits_read_key(f, TSTRING, key, str, NULL, &st)) {
+			if (nplane > 1) {
+				err_set(e, EXIT_INPUT, "%s: no %s for plane %d",
+					path, key, k);
+				goto fail;
+			}
+			/* a lone PSF without a position: the SCA centre */
+			py[k] = px[k] = 2044 + PSF_FRAME_OFFSET;
+		} else if (parse_yx(str, &py[k], &px[k])) {
+			err_set(e, EXIT_INPUT, "%s: %s: not a '(y, x)' position: "
+				"'%s'", path, key, str);
+			goto fail;
+		}
+		px[k] -= PSF_FRAME_OFFSET;
+		py[k] -= PSF_FRAME_OFFSET;
+		add_node(xs, &nxs, px[k]);
+		add_node(ys, &nys, py[k]);
+	}
+	st = 0;
+	if (nxs * nys != nplane) {
+		err_set(e, EXIT_INPUT, "%s: the %d DET_YX positions do not form "
+			"a grid (%d x positions, %d y positions)", path, nplane,
+			nxs, nys);
+		goto fail;
+	}
+	if (!(g = psf_grid_new((int)nax[0], over, nxs, nys))) {
+		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
+		goto fail;
+	}
+	memcpy(g->xs, xs, nxs * sizeof(*xs));
+	memcpy(g->ys, ys, nys * sizeof(*ys));
+	g->pixscale = pixscale;
+
+	size_t np = (size_t)g->n * g->n;
+	if (!(buf = malloc(np * nplane * sizeof(*buf)))) {
+		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
+		goto fail;
+	}
+	int anynul = 0;
+	if (fits_read_img(f, TFLOAT, 1, (LONGLONG)(np * nplane), NULL, buf,
+			  &anynul, &st)) {
+		err_fits(e, st, "%s", path);
+		goto fail;
+	}
+	/* Place each plane at its own node, whatever order the file uses
+	 * (STPSF writes x-major; photutils-sorted files are y-major). */
+	unsigned char *seen = calloc(nplane, 1);
+	if (!seen) {
+		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
+		goto fail;
+	}
+	for (int k = 0; k < nplane; k++) {
+		int ix = find_node(g->xs, nxs, px[k]);
+		int iy = find_node(g->ys, nys, py[k]);
+		int slot = iy * nxs + ix;
+
+		if (seen[slot]) {
+			free(seen);
+			err_set(e, EXIT_INPUT, "%s: two planes at (y, x) = "
+				"(%g, %g)", path, py[k] + PSF_FRAME_OFFSET,
+				px[k] + PSF_FRAME_OFFSET);
+			goto fail;
+		}
+		seen[slot] = 1;
+		for (size_t i = 0; i < np; i++) {
+			float v = buf[k * np + i];
+			g->data[slot * np + i] = isfinite(v) ? v : 0.0f;
+		}
+	}
+	free(seen);
+
+	st = 0;
+	if (!fits_read_key(f, TSTRING, "DETECTOR", str, NULL, &st))
+		g->sca = parse_detector(str);
+	st = 0;
+	if (!fits_read_key(f, TSTRING, "FILTER", str, NULL, &st))
+		g->filter = filter_lookup(str);
+	st = 0;
+	g->kind = PSF_OPTICAL;
+	if (!fits_read_key(f, TSTRING, "WFSKIND", str, NULL, &st) &&
+	    !strcasecmp(str, "EPSF"))
+		g->kind = PSF_EPSF;
+	st = 0;
+	snprintf(g->origin, sizeof(g->origin), "%s", path);
+	fits_close_file(f, &st);
+	free(buf);
+	free(px);
+	free(py);
+	free(xs);
+	free(ys);
+	return g;
+fail:
+	st = 0;
+	if (f)
+		fits_close_file(f, &st);
+	psf_grid_free(g);
+	free(buf);
+	free(px);
+	free(py);
+	free(xs);
+	free(ys);
+	return NULL;
+}
+
+static const char *filter_name(int filter)
+{
+	const struct filter_info *fi;
+
+	if (filter < 0 || filter >= WFS_NFILTER || !(fi = filter_get(filter)))
+		return "UNKNOWN";
+	return fi->name;
+}
+
+int psf_grid_write(const char *path, const struct psf_grid *g,
+		   const char *const *extra_cards, struct err *e)
+{
+	char tmp[4096], fname[4200], key[FLEN_KEYWORD], val[FLEN_VALUE];
+	const char *slash = strrchr(path, '/');
+	fitsfile *f = NULL;
+	int st = 0, fd, nplane = g->nx * g->ny;
+	size_t np = (size_t)g->n * g->n;
+	long nax[3] = { g->n, g->n, nplane };
+
+	if (slash)
+		snprintf(tmp, sizeof(tmp), "%.*s/.%s.XXXXXX",
+			 (int)(slash - path), path, slash + 1);
+	else
+		snprintf(tmp, sizeof(tmp), ".%s.XXXXXX", path);
+	if ((fd = mkstemp(tmp)) < 0)
+		return err_sys(e, "%s", path);
+	close(fd);
+	/* cfitsio will not create over an existing file without "!" */
+	snprintf(fname, sizeof(fname), "!%s", tmp);
+	if (fits_create_file(&f, fname, &st) ||
+	    fits_create_img(f, FLOAT_IMG, 3, nax, &st))
+		goto fitsfail;
+
+	fits_write_key_str(f, "INSTRUME", "WFI", "Instrument name", &st);
+	snprintf(val, sizeof(val), "SCA%02d", g->sca);
+	fits_write_key_str(f, "DETECTOR", val, "Detector name", &st);
+	fits_write_key_str(f, "FILTER", filter_name(g->filter), "Filter name",
+			   &st);
+	fits_write_key_lng(f, "OVERSAMP", g->over,
+			   "Samples per detector pixel", &st);
+	fits_write_key_lng(f, "DET_SAMP", g->over,
+			   "Samples per detector pixel", &st);
+	fits_write_key_dbl(f, "PIXELSCL", g->pixscale, 10,
+			   "[arcsec] Scale of one PSF sample", &st);
+	fits_write_key_lng(f, "FOVPIXEL", g->n, "Samples per side", &st);
+	fits_write_key_dbl(f, "FOV", g->pixscale * g->n, 10,
+			   "[arcsec] Field of view of a plane", &st);
+	/* STPSF's order: x-major, plane k at node (ix, iy) = (k / ny, k % ny),
+	 * its position in the 4096-pixel frame as "(y, x)". */
+	for (int k = 0; k < nplane; k++) {
+		int ix = k / g->ny, iy = k % g->ny;
+
+		snprintf(key, sizeof(key), "DET_YX%d", k);
+		snprintf(val, sizeof(val), "(%.1f, %.1f)",
+			 g->ys[iy] + PSF_FRAME_OFFSET,
+			 g->xs[ix] + PSF_FRAME_OFFSET);
+		char com[FLEN_COMMENT];
+		snprintf(com, sizeof(com), "The #%d PSF's (y,x) detector pixel "
+			 "position", k);
+		fits_write_key_str(f, key, val, com, &st);
+	}
+	fits_write_key_lng(f, "NUM_PSFS", nplane,
+			   "The total number of fiducial PSFs", &st);
+	fits_write_key_str(f, "WFSKIND", g->kind == PSF_EPSF ? "EPSF" : "PSF",
+			   g->kind == PSF_EPSF ? "ePSF: pixel and IPC kernels "
+			   "applied" : "optical PSF", &st);
+	fits_write_key_str(f, "ORIGIN", "wfiscene", NULL, &st);
+	for (const char *const *c = extra_cards; c && *c; c++)
+		fits_write_record(f, *c, &st);
+	if (st)
+		goto fitsfail;
+	for (int k = 0; k < nplane && !st; k++) {
+		int ix = k / g->ny, iy = k % g->ny;
+		LONGLONG first = (LONGLONG)k * np + 1;
+
+		fits_write_img(f, TFLOAT, first, (LONGLONG)np,
+			       g->data + (size_t)(iy * g->nx + ix) * np, &st);
+	}
+	if (st || fits_write_chksum(f, &st) || fits_close_file(f, &st)) {
+		f = NULL;
+		goto fitsfail;
+	}
+	f = NULL;
+	/* Make the bytes durable before the name appears. */
+	if ((fd = open(tmp, O_RDONLY)) >= 0) {
+		fsync(fd);
+		close(fd);
+	}
+	if (rename(tmp, path)) {
+		err_sys(e, "%s", path);
+		unlink(tmp);
+		return -1;
+	}
+	return 0;
+fitsfail:
+	err_fits(e, st, "%s", path);
+	st = 0;
+	if (f)
+		fits_close_file(f, &st);
+	unlink(tmp);
+	return -1;
+}
+
+/*
+ * EPSF4 is the detector pixel seen on the 4x grid: a box 4 samples wide
+ * centred on a sample reaches 2 samples either side, and integrating it by
+ * the trapezoid rule on the sample lattice weights those samples 1/2, 1, 1,
+ * 1, 1/2 along each axis.  The 5x5 kernel is the outer product of that row
+ * (corners 1/4, other outer-ring entries 1/2, inner 3x3 1, sum 16), so the
+ * convolution is done as two 1-D passes.  One pass over n samples of each
+ * line: element i of a line is at line * stride_line + i * stride_i.
+ */
+static void epsf4_pass(const float *in, float *out, int n, int stride_line,
+		       int stride_i)
+{
+	static const double w[5] = { 0.5, 1, 1, 1, 0.5 };
+
+	for (int line = 0; line < n; line++)
+		for (int i = 0; i < n; i++) {
+			double s = 0;
+
+			for (int k = -2; k <= 2; k++) {
+				int j = i - k;
+				if (j >= 0 && j < n)
+					s += w[k + 2] * in[line * stride_line +
+							   j * stride_i];
+			}
+			out[line * stride_line + i * stride_i] = (float)s;
+		}
+}
+
+/* STIPS's IPC kernel in percent: rows are y offsets -1, 0, +1 of the pixel
+ * that receives charge, columns x offsets -1, 0, +1.  Sum 99.46. */
+static const double psf_ipc[3][3] = {
+	{ 0.21, 1.62, 0.20 },
+	{ 1.88, 91.59, 1.87 },
+	{ 0.21, 1.66, 0.22 },
+};
+
+int psf_make_epsf(struct psf_grid *g, struct err *e)
+{
+	int n = g->n, s = g->over;
+	size_t np = (size_t)n * n;
+	float *a, *b;
+
+	if (g->kind == PSF_EPSF)
+		return 0;
+	if (g->over != 4)
+		return err_set(e, EXIT_INPUT, "%s: the ePSF kernel needs 4 "
+			       "samples per pixel, not %d", g->origin, g->over);
+	if (!(a = malloc(np * sizeof(*a))) || !(b = malloc(np * sizeof(*b)))) {
+		free(a);
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	}
+	for (int k = 0; k < g->nx * g->ny; k++) {
+		float *p = g->data + k * np;
+
+		/* rows (along x), then columns (along y) */
+		epsf4_pass(p, a, n, n, 1);
+		epsf4_pass(a, b, n, 1, n);
+		/* IPC at detector-pixel spacing: sample (y, x) receives
+		 * ipc[a][b] of the charge of the sample s*a, s*b away on
+		 * the other side, i.e. out(y, x) = sum in(y - s a, x - s b)
+		 * ipc(a, b); outside the array counts as zero. */
+		for (int y = 0; y < n; y++)
+			for (int x = 0; x < n; x++) {
+				double v = 0;
+
+				for (int dy = -1; dy <= 1; dy++) {
+					int yy = y - s * dy;
+					if (yy < 0 || yy >= n)
+						continue;
+					for (int dx = -1; dx <= 1; dx++) {
+						int xx = x - s * dx;
+						if (xx < 0 || xx >= n)
+							continue;
+						v += b[yy * n + xx] *
+						     psf_ipc[dy + 1][dx + 1];
+					}
+				}
+				p[y * n + x] = (float)(v * 0.01);
+			}
+	}
+	free(a);
+	free(b);
+	g->kind = PSF_EPSF;
+	return 0;
+}
+
+/* Interval of the ascending nodes a[0..n) holding v and the weight of the
+ * upper end, clamped so positions beyond the outer nodes take the edge. */
+static void bracket(const double *a, int n, double v, int *i0, double *t)
+{
+	int i;
+
+	if (n < 2 || v <= a[0]) {
+		*i0 = 0;
+		*t = 0;
+		return;
+	}
+	if (v >= a[n - 1]) {
+		*i0 = n - 2;
+		*t = 1;
+		return;
+	}
+	for (i = 0; i < n - 2 && v > a[i + 1]; i++)
+		;
+	*i0 = i;
+	*t = (v - a[i]) / (a[i + 1] - a[i]);
+}
+
+void psf_grid_at(const struct psf_grid *g, double x, double y,
+		 struct wfs_epsf *out)
+{
+	int ix, iy, ix1, iy1;
+	double tx, ty;
+	size_t np = (size_t)g->n * g->n;
+
+	bracket(g->xs, g->nx, x, &ix, &tx);
+	bracket(g->ys, g->ny, y, &iy, &ty);
+	ix1 = g->nx > 1 ? ix + 1 : ix;
+	iy1 = g->ny > 1 ? iy + 1 : iy;
+	out->n = g->n;
+	out->over = g->over;
+	out->centre = (g->n - 1) / 2;
+	out->node[0] = g->data + (size_t)(iy * g->nx + ix) * np;
+	out->node[1] = g->data + (size_t)(iy * g->nx + ix1) * np;
+	out->node[2] = g->data + (size_t)(iy1 * g->nx + ix) * np;
+	out->node[3] = g->data + (size_t)(iy1 * g->nx + ix1) * np;
+	out->weight[0] = (1 - tx) * (1 - ty);
+	out->weight[1] = tx * (1 - ty);
+	out->weight[2] = (1 - tx) * ty;
+	out->weight[3] = tx * ty;
+}
+
+double psf_enclosed(const struct psf_grid *g, int k, int px, int py)
+{
+	int n = g->n, s = g->over, c = (n - 1) / 2;
+	const float *p = g->data + (size_t)k * n * n;
+	double sum = 0;
+	/* first sample on the lattice through centre + phase */
+	int x0 = ((c + px) % s + s) % s, y0 = ((c + py) % s + s) % s;
+
+	for (int y = y0; y < n; y += s)
+		for (int x = x0; x < n; x += s)
+			sum += p[y * n + x];
+	return sum;
+}

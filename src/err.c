@@ -66,7 +66,7 @@ int err_fits(struct err *e, int status, const char *fmt, ...)
 
 void err_prefix(struct err *e, const char *fmt, ...)
 {
-	char pre[1024], old[sizeof(e->msg)];
+	char pre[512], old[sizeof(e->msg) - sizeof(pre) - 2];
 	va_list ap;
 
 	if (!e || e->code == EXIT_OK)
@@ -74,7 +74,8 @@ void err_prefix(struct err *e, const char *fmt, ...)
 	va_start(ap, fmt);
 	vsnprintf(pre, sizeof(pre), fmt, ap);
 	va_end(ap);
-	memcpy(old, e->msg, sizeof(old));
+	memcpy(old, e->msg, sizeof(old) - 1);
+	old[sizeof(old) - 1] = 0;
 	snprintf(e->msg, sizeof(e->msg), "%s: %s", pre, old);
 }
 

@@ -1,0 +1,69 @@
+/*
+ * sky.h - where each SCA looks: the focal-plane layout for a pointing and a
+ * TAN WCS per SCA (wcslib).
+ *
+ * The pointing (ra, dec, pa) is the centre of WFI01 (STIPS's convention) or
+ * the WFI boresight.  pa is the position angle of the detectors' +y axis,
+ * degrees east of north.  SCA centres sit at their focal-plane offsets
+ * (data/sca.tsv) rotated by pa and projected gnomonically about the
+ * reference, so the whole layout turns with pa (STIPS spins each detector
+ * about its own centre instead).  Each SCA gets its own TAN projection about
+ * its centre, 0.11"/pixel, CRPIX at the geometric centre (2044.5, 2044.5),
+ * standard parity (east left when north is up), rotated by the position
+ * angle of its +y axis measured at its own centre, which differs from pa
+ * away from the reference and near the poles.
+ */
+#ifndef WFS_SKY_H
+#define WFS_SKY_H
+
+#include <stddef.h>
+
+#include <wcslib/wcs.h>
+
+#include "instrument.h"
+
+struct err;
+
+struct sky_sca {
+	int sca;                /* 1..18; 0 when not requested */
+	double ra, dec;         /* centre, degrees */
+	double pa;              /* position angle of +y at the centre, degrees */
+	double fx, fy;          /* centre in the focal-plane frame, arcsec */
+	struct wcsprm wcs;      /* set up; one thread at a time */
+};
+
+struct sky {
+	double ra0, dec0, pa0;  /* the reference point and position angle */
+	int boresight;          /* reference is the boresight, not WFI01 */
+	double rot[3][3];       /* sky unit vector -> frame with ref on +x */
+	struct sky_sca sca[WFS_NSCA];
+};
+
+/* Set up the layout for the SCAs in mask (bit s-1 for SCA s). */
+int sky_init(struct sky *sky, double ra, double dec, double pa,
+	     int boresight, unsigned mask, struct err *e);
+void sky_free(struct sky *sky);
+
+/* Focal-plane coordinates (arcsec, ideal frame of the reference: +x along
+ * the detectors' +x, +y along +y) of n sky positions.  Rows more than 80
+ * degrees from the reference get NaN. */
+void sky_to_focal(const struct sky *sky, size_t n, const double *ra,
+		  const double *dec, double *fx, double *fy);
+
+/* The focal-plane point (fx, fy) on the sky. */
+void sky_from_focal(const struct sky *sky, double fx, double fy, double *ra,
+		    double *dec);
+
+/* Exact 0-based pixel coordinates on SCA s of n sky positions through its
+ * wcslib WCS.  Positions that do not project get NaN.  Returns 0 or -1. */
+int sky_to_pixel(struct sky *sky, int s, size_t n, const double *ra,
+		 const double *dec, double *x, double *y, struct err *e);
+
+/* The WCS header cards of SCA s (concatenated 80-char cards; free()). */
+int sky_header(struct sky *sky, int s, char **cards, int *ncards,
+	       struct err *e);
+
+/* Half the SCA side in arcsec, for culling in the focal plane. */
+#define SKY_SCA_HALF (WFS_NPIX * WFS_PIXSCALE / 2.0)
+
+#endif

@@ -11,6 +11,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+struct err;
+
 enum noise_stage {
 	NOISE_POISSON = 1 << 0,
 	NOISE_READ = 1 << 1,
@@ -31,11 +33,30 @@ struct noise_opts {
 	uint64_t seed;
 	int filter;             /* enum wfs_filter: part of the key */
 	int counts;             /* 1: leave the image in counts, else counts/s */
+	/* Appended fields; 0 selects the documented default. */
+	double dark_residual;   /* sigma of the fixed dark residual field, e-/s */
+	double flat_residual;   /* sigma of the fixed flat residual field */
 };
+
+/* Defaults, as STIPS or the Roman WFI ground tests give them (see noise.c
+ * and wfiscene(1)). */
+#define NOISE_READNOISE 12.0        /* e-, STIPS WFI.generateReadnoise */
+#define NOISE_DARK_CURRENT 0.028    /* e-/s, WFI mean, all 18 SCAs at 89.5 K */
+#define NOISE_DARK_RESIDUAL 0.0037  /* e-/s, sigma of STIPS' mock dark (#198) */
+#define NOISE_FLAT_RESIDUAL 0.00068 /* sigma of STIPS' mock flat (#142) */
+#define NOISE_COSMIC_RATE 5.0       /* hits/cm^2/s per population */
+#define NOISE_COSMIC_RESIDUAL 0.01  /* fraction of each hit left */
+
+/* Set every field to its default: no stages, no background, exptime 1 s,
+ * counts/s output, seed 0. */
+void noise_opts_default(struct noise_opts *o);
+
+/* Check the option values (exptime > 0, finite background, non-negative
+ * rates and sigmas).  Returns 0 or -1 with a message naming the option. */
+int noise_check(const struct noise_opts *o, struct err *e);
 
 /* Parse a --noise value ("all", "none", "poisson,readnoise"), setting
  * *stages.  Returns 0 or -1 with a message. */
-struct err;
 int noise_parse(const char *s, unsigned *stages, struct err *e);
 
 /*

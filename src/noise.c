@@ -1,0 +1,384 @@
+/*
+ * noise.c - backgrounds, noise and detector residuals; see noise.h.
+ *
+ * The model is STIPS' (the paper, section 2.4; Instrument.addError), in its
+ * order, with its defects fixed.  Per pixel, with S the rendered signal in
+ * counts/s, B the background and t the exposure time:
+ *
+ *   c = (S + B) t                       counts
+ *   c = Poisson(c)                      poisson: a true Poisson count
+ *   c = c + R z1                        readnoise: R = 12 e-, own stream
+ *   c = c f(x, y)                       flat: f = 1 + s_f z2, fixed field
+ *   c = c + Poisson(D t) + s_d t z3     dark: current with shot noise plus
+ *                                       the fixed residual field
+ *   c = c + r sum(hits)                 cosmic: two populations, r = 0.01
+ *   out = c / t  (or c with counts)
+ *
+ * z1, z2, z3 are independent N(0, 1) deviates.  Every number is Philox
+ * keyed by the seed and counted by (cell, draw, domain), where the cell is
+ * the absolute pixel y * 4088 + x (cosmic-ray centres: (y + 1) * 4090 +
+ * x + 1, since they reach one pixel beyond the detector) and the domain is
+ * (stage, filter, SCA).  So each stage, filter and SCA has its own numbers,
+ * and the image does not depend on the tiling, threads or split runs.
+ *
+ * The fixed fields are the seed's "detector": the flat residual f is keyed
+ * by (filter, SCA), since flats depend on wavelength; the dark residual by
+ * SCA alone, since dark current does not see the filter.  The Poisson, read
+ * and cosmic-ray numbers are keyed by filter and SCA.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "err.h"
+#include "instrument.h"
+#include "noise.h"
+#include "rng.h"
+
+/* Domains: the stage in bits 0-7, the filter in 8-15, the SCA in 16-23. */
+enum {
+	DOM_POISSON = 1,
+	DOM_READ = 2,
+	DOM_DARK_SHOT = 3,
+	DOM_DARK_FIELD = 4,
+	DOM_FLAT_FIELD = 5,
+	DOM_CR_HIT = 6,
+	DOM_CR_LOW = 7,
+	DOM_CR_HIGH = 8,
+	DOM_ANY_FILTER = 0xff,
+};
+
+#define CR_PIXEL_AREA 1e-6      /* cm^2: 10 micron pixels */
+#define CR_E_LOW 600.0          /* e-, STIPS' "galactic" population */
+#define CR_E_HIGH 5000.0        /* e-, STIPS' "solar" population */
+#define CR_FWHM 0.9             /* px, of the 3x3 Gaussian template */
+#define CR_SPAN (WFS_NPIX + 2)  /* the grid of hit centres, -1 .. 4088 */
+#define CHUNK 256               /* pixels per pass of a row */
+
+static uint32_t domain(int stage, int filter, int sca)
+{
+	return (uint32_t)stage | (uint32_t)(filter & 0xff) << 8 |
+	       (uint32_t)(sca & 0xff) << 16;
+}
+
+void noise_opts_default(struct noise_opts *o)
+{
+	memset(o, 0, sizeof(*o));
+	o->exptime = 1;
+	o->readnoise = NOISE_READNOISE;
+	o->dark_current = NOISE_DARK_CURRENT;
+	o->cosmic_rate = NOISE_COSMIC_RATE;
+	o->cosmic_residual = NOISE_COSMIC_RESIDUAL;
+	o->dark_residual = NOISE_DARK_RESIDUAL;
+	o->flat_residual = NOISE_FLAT_RESIDUAL;
+}
+
+static int bad_value(double v, int may_be_zero)
+{
+	return !isfinite(v) || v < 0 || (!may_be_zero && v == 0);
+}
+
+int noise_check(const struct noise_opts *o, struct err *e)
+{
+	if (bad_value(o->exptime, 0))
+		return err_set(e, EXIT_INPUT, "--exptime: must be a positive number of seconds: '%g'",
+			       o->exptime);
+	if (!isfinite(o->background))
+		return err_set(e, EXIT_INPUT, "--background: not a finite number: '%g'",
+			       o->background);
+	if (bad_value(o->readnoise, 1))
+		return err_set(e, EXIT_INPUT, "--readnoise: must be a non-negative number of electrons: '%g'",
+			       o->readnoise);
+	if (bad_value(o->dark_current, 1))
+		return err_set(e, EXIT_INPUT, "--dark-current: must be a non-negative rate: '%g'",
+			       o->dark_current);
+	if (bad_value(o->cosmic_rate, 1))
+		return err_set(e, EXIT_INPUT, "--cosmic-rate: must be a non-negative rate: '%g'",
+			       o->cosmic_rate);
+	if (bad_value(o->cosmic_residual, 1) || o->cosmic_residual > 1)
+		return err_set(e, EXIT_INPUT, "--cosmic-residual: must be a fraction between 0 and 1: '%g'",
+			       o->cosmic_residual);
+	if (bad_value(o->dark_residual, 1))
+		return err_set(e, EXIT_INPUT, "--dark-residual: must be a non-negative sigma: '%g'",
+			       o->dark_residual);
+	if (bad_value(o->flat_residual, 1))
+		return err_set(e, EXIT_INPUT, "--flat-residual: must be a non-negative sigma: '%g'",
+			       o->flat_residual);
+	return 0;
+}
+
+static const struct {
+	const char *name;
+	unsigned bit;
+} stage_names[] = {
+	{ "poisson", NOISE_POISSON },
+	{ "readnoise", NOISE_READ },
+	{ "read", NOISE_READ },
+	{ "dark", NOISE_DARK },
+	{ "flat", NOISE_FLAT },
+	{ "cosmic", NOISE_COSMIC },
+};
+
+int noise_parse(const char *s, unsigned *stages, struct err *e)
+{
+	unsigned bits = 0;
+	const char *p = s;
+
+	if (!strcmp(s, "all")) {
+		*stages = NOISE_ALL;
+		return 0;
+	}
+	if (!strcmp(s, "none")) {
+		*stages = 0;
+		return 0;
+	}
+	for (;;) {
+		size_t len = strcspn(p, ",");
+		size_t i, n = sizeof(stage_names) / sizeof(stage_names[0]);
+
+		for (i = 0; i < n; i++)
+			if (strlen(stage_names[i].name) == len &&
+			    !strncmp(p, stage_names[i].name, len))
+				break;
+		if (i == n)
+			return err_set(e, EXIT_INPUT,
+				       "--noise: unknown stage '%.*s' in '%s' (expected all, none, or a list of poisson, readnoise, dark, flat, cosmic)",
+				       (int)len, p, s);
+		bits |= stage_names[i].bit;
+		if (!p[len])
+			break;
+		p += len + 1;
+	}
+	*stages = bits;
+	return 0;
+}
+
+/*
+ * A Poisson count for a mean m in counts.  Negative means have no Poisson
+ * distribution (they come only from negative catalog fluxes or
+ * backgrounds); they get the mirror image -Poisson(-m), which keeps STIPS'
+ * variance |m|.  NaN and infinities pass through.
+ */
+static double poisson_signed(double m, const struct rng *g, uint32_t cell)
+{
+	struct rng_cell c;
+
+	if (m == 0 || !isfinite(m))
+		return m;
+	rng_cell_init(&c, g, cell, 0);
+	if (m < 0)
+		return -rng_poisson(-m, &c);
+	return rng_poisson(m, &c);
+}
+
+/*
+ * The 3x3 cosmic-ray template of STIPS (GetCrTemplate): a Gaussian of FWHM
+ * 0.9 px sampled at the pixel centres and normalised to 1; sigma =
+ * 0.9 / (2 sqrt(2 ln 2)) = 0.3822 px, weights 0.88127 (centre), 0.02875
+ * (edges), 0.00094 (corners).
+ */
+static void cr_template(double w[3][3])
+{
+	double s = CR_FWHM / (2 * sqrt(2 * log(2.0))), sum = 0;
+
+	for (int dy = -1; dy <= 1; dy++)
+		for (int dx = -1; dx <= 1; dx++)
+			sum += w[dy + 1][dx + 1] = exp(-(dx * dx + dy * dy) / (2 * s * s));
+	for (int i = 0; i < 3; i++)
+		for (int j = 0; j < 3; j++)
+			w[i][j] /= sum;
+}
+
+/* Hits of one population at one centre: the smallest k with u < F(k) for
+ * Poisson(lambda), lambda < 10 (inversion, see rng.c), continued from the
+ * u that already decided "no hit" in the common case. */
+static int cr_hits(double u, double lambda, double emu)
+{
+	double pk = emu, f = pk;
+	int k = 0;
+
+	while (u >= f && k < 200) {
+		k++;
+		pk *= lambda / k;
+		f += pk;
+	}
+	return k;
+}
+
+/*
+ * Cosmic rays: each population is a Poisson process of rate `rate`
+ * hits/cm^2/s over pixels of 1e-6 cm^2, so a pixel is the centre of
+ * Poisson(lambda) hits, lambda = rate * 1e-6 * t, independently for the two
+ * populations (STIPS draws both from one seed, so they land on the same
+ * pixels).  A hit deposits Poisson(E) electrons (STIPS: E + sqrt(E) z, the
+ * same mean and variance, but never negative), spread by the template over
+ * the 3x3 pixels around its centre, and a fraction r of it is left.
+ *
+ * Centres run over -1 .. 4088, one pixel beyond the science area: the H4RG
+ * has a 4-pixel border of reference pixels there that cosmic rays hit too,
+ * and their charge spreads into the edge pixels, so every science pixel
+ * receives the same expected dose.  A hit on an edge pixel loses the part
+ * of its template that falls off the science area (STIPS drops such hits
+ * whole).  The tile looks at the centres one pixel around itself.
+ */
+static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
+			int nx, int ny, double *pix, ptrdiff_t stride)
+{
+	double lambda = o->cosmic_rate * CR_PIXEL_AREA * o->exptime;
+	double resid = o->cosmic_residual;
+	double w[3][3];
+	struct rng hit, low, high;
+	struct rng_poisson big;
+	double emu;
+	int ya = y0 - 1 < -1 ? -1 : y0 - 1, yb = y0 + ny;
+	int xa = x0 - 1 < -1 ? -1 : x0 - 1, xb = x0 + nx;
+
+	if (!(lambda > 0) || resid == 0)
+		return;
+	if (yb > WFS_NPIX)
+		yb = WFS_NPIX;
+	if (xb > WFS_NPIX)
+		xb = WFS_NPIX;
+	cr_template(w);
+	rng_init(&hit, o->seed, domain(DOM_CR_HIT, o->filter, sca));
+	rng_init(&low, o->seed, domain(DOM_CR_LOW, o->filter, sca));
+	rng_init(&high, o->seed, domain(DOM_CR_HIGH, o->filter, sca));
+	emu = exp(-lambda);
+	rng_poisson_setup(&big, lambda);
+	for (int cy = ya; cy <= yb; cy++) {
+		for (int cx = xa; cx <= xb; cx++) {
+			uint32_t cell = (uint32_t)(cy + 1) * CR_SPAN + (uint32_t)(cx + 1);
+			uint32_t wd[4];
+			double u[2], e = 0;
+
+			rng_bits(&hit, cell, 0, wd);
+			u[0] = rng_u01(wd[0], wd[1]);
+			u[1] = rng_u01(wd[2], wd[3]);
+			if (u[0] < emu && u[1] < emu)
+				continue;
+			for (int p = 0; p < 2; p++) {
+				struct rng_cell c;
+				double n;
+
+				rng_cell_init(&c, p ? &high : &low, cell, 0);
+				/* lambda >= 10 needs t > 2e6 s; then the
+				 * count comes from PTRS on the energy stream. */
+				if (lambda < 10)
+					n = cr_hits(u[p], lambda, emu);
+				else
+					n = rng_poisson_draw(&big, &c);
+				if (n > 0)
+					e += rng_poisson(n * (p ? CR_E_HIGH : CR_E_LOW), &c);
+			}
+			if (e == 0)
+				continue;
+			e *= resid;
+			for (int dy = -1; dy <= 1; dy++) {
+				int y = cy + dy;
+
+				if (y < y0 || y >= y0 + ny)
+					continue;
+				for (int dx = -1; dx <= 1; dx++) {
+					int x = cx + dx;
+
+					if (x < x0 || x >= x0 + nx)
+						continue;
+					pix[(ptrdiff_t)(y - y0) * stride + (x - x0)] +=
+						e * w[dy + 1][dx + 1];
+				}
+			}
+		}
+	}
+}
+
+int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
+	       int ny, double *pix, ptrdiff_t stride)
+{
+	unsigned st = o ? o->stages & NOISE_ALL : 0;
+	double t, bkg, rn, sf, sdt;
+	struct rng g_pois, g_read, g_flat, g_dshot, g_dfield;
+	struct rng_poisson dark;
+	double z[CHUNK];
+
+	if (!o || !pix || sca < 1 || sca > WFS_NSCA || nx < 0 || ny < 0 ||
+	    x0 < 0 || y0 < 0 || x0 > WFS_NPIX - nx || y0 > WFS_NPIX - ny ||
+	    stride < nx || !(o->exptime > 0) || !isfinite(o->exptime))
+		return -1;
+	t = o->exptime;
+	bkg = o->background;
+
+	/* No stage: background and units only, and no random-number code. */
+	if (!st) {
+		for (int y = 0; y < ny; y++) {
+			double *r = pix + (ptrdiff_t)y * stride;
+
+			if (o->counts)
+				for (int x = 0; x < nx; x++)
+					r[x] = (r[x] + bkg) * t;
+			else
+				for (int x = 0; x < nx; x++)
+					r[x] += bkg;
+		}
+		return 0;
+	}
+
+	rn = o->readnoise;
+	sf = o->flat_residual > 0 ? o->flat_residual : NOISE_FLAT_RESIDUAL;
+	sdt = (o->dark_residual > 0 ? o->dark_residual : NOISE_DARK_RESIDUAL) * t;
+	rng_init(&g_pois, o->seed, domain(DOM_POISSON, o->filter, sca));
+	rng_init(&g_read, o->seed, domain(DOM_READ, o->filter, sca));
+	rng_init(&g_flat, o->seed, domain(DOM_FLAT_FIELD, o->filter, sca));
+	rng_init(&g_dshot, o->seed, domain(DOM_DARK_SHOT, o->filter, sca));
+	rng_init(&g_dfield, o->seed, domain(DOM_DARK_FIELD, DOM_ANY_FILTER, sca));
+	rng_poisson_setup(&dark, o->dark_current * t);
+
+	for (int y = 0; y < ny; y++) {
+		double *row = pix + (ptrdiff_t)y * stride;
+		uint64_t base = (uint64_t)(y0 + y) * WFS_NPIX + (uint64_t)x0;
+
+		for (int x = 0; x < nx; x += CHUNK) {
+			int n = nx - x < CHUNK ? nx - x : CHUNK;
+			double *c = row + x;
+			uint64_t cell = base + (uint64_t)x;
+
+			for (int i = 0; i < n; i++)
+				c[i] = (c[i] + bkg) * t;
+			if (st & NOISE_POISSON)
+				for (int i = 0; i < n; i++)
+					c[i] = poisson_signed(c[i], &g_pois,
+							      (uint32_t)(cell + i));
+			if ((st & NOISE_READ) && rn > 0) {
+				rng_normal_fill(&g_read, cell, n, 0, z);
+				for (int i = 0; i < n; i++)
+					c[i] += rn * z[i];
+			}
+			if (st & NOISE_FLAT) {
+				rng_normal_fill(&g_flat, cell, n, 0, z);
+				for (int i = 0; i < n; i++)
+					c[i] *= 1 + sf * z[i];
+			}
+			if (st & NOISE_DARK) {
+				rng_normal_fill(&g_dfield, cell, n, 0, z);
+				for (int i = 0; i < n; i++)
+					c[i] += sdt * z[i];
+				if (dark.method)
+					for (int i = 0; i < n; i++) {
+						struct rng_cell rc;
+
+						rng_cell_init(&rc, &g_dshot,
+							      (uint32_t)(cell + i), 0);
+						c[i] += rng_poisson_draw(&dark, &rc);
+					}
+			}
+		}
+	}
+	if (st & NOISE_COSMIC)
+		cosmic_tile(o, sca, x0, y0, nx, ny, pix, stride);
+	if (!o->counts)
+		for (int y = 0; y < ny; y++) {
+			double *r = pix + (ptrdiff_t)y * stride;
+
+			for (int x = 0; x < nx; x++)
+				r[x] /= t;
+		}
+	return 0;
+}

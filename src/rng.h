@@ -1,0 +1,96 @@
+/*
+ * rng.h - a counter-based random number generator and the samplers the
+ * noise stages need.
+ *
+ * The generator is Philox4x32-10 (Salmon, Moraes, Dror & Shaw, "Parallel
+ * random numbers: as easy as 1, 2, 3", SC11), implemented here from the
+ * published algorithm and checked against the Random123 known-answer
+ * vectors.  It is a pure function of a 128-bit counter and a 64-bit key, so
+ * there is no state to share between threads and a number depends only on
+ * what it is for: key = seed, counter = (cell, draw, domain, version), where
+ * a cell is usually an absolute pixel and a domain names the stage, filter
+ * and SCA.  Tiles, threads and split runs therefore see identical numbers.
+ */
+#ifndef WFS_RNG_H
+#define WFS_RNG_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* A keyed generator: the seed and the two domain words of the counter. */
+struct rng {
+	uint32_t key[2];
+	uint32_t dom[2];
+};
+
+/* The key for seed and the domain dom (any 32 bits that name the stream,
+ * e.g. stage | filter << 8 | sca << 16). */
+void rng_init(struct rng *g, uint64_t seed, uint32_t dom);
+
+/* Philox4x32-10 of counter ctr with key key, the raw primitive. */
+void rng_philox(const uint32_t ctr[4], const uint32_t key[2], uint32_t out[4]);
+
+/* The 128 random bits of (cell, draw) in generator g. */
+void rng_bits(const struct rng *g, uint32_t cell, uint32_t draw, uint32_t out[4]);
+
+/* 53-bit uniforms from two 32-bit words: in [0, 1) and in (0, 1]. */
+static inline double rng_u01(uint32_t hi, uint32_t lo)
+{
+	return (double)((((uint64_t)hi << 32) | lo) >> 11) * 0x1p-53;
+}
+
+static inline double rng_u01_open0(uint32_t hi, uint32_t lo)
+{
+	return (double)(((((uint64_t)hi << 32) | lo) >> 11) + 1) * 0x1p-53;
+}
+
+/* The numbers of one cell: a stream of uniforms, two per Philox call, from
+ * draw number first on.  Cheap to set up on the stack per pixel. */
+struct rng_cell {
+	const struct rng *g;
+	uint32_t cell, draw;
+	double buf[2];
+	int left;
+};
+
+static inline void rng_cell_init(struct rng_cell *c, const struct rng *g,
+				 uint32_t cell, uint32_t first_draw)
+{
+	c->g = g;
+	c->cell = cell;
+	c->draw = first_draw;
+	c->left = 0;
+}
+
+/* The next uniform in [0, 1) of the cell. */
+double rng_cell_u01(struct rng_cell *c);
+
+/* Poisson sampling for a mean fixed across many draws (the dark current,
+ * cosmic-ray rates): the set-up is done once. */
+struct rng_poisson {
+	double mu;
+	int method;             /* 0 zero, 1 inversion, 2 PTRS, 3 normal */
+	double emu;             /* exp(-mu) for inversion */
+	double smu, b, a, inv_alpha, vr, log_mu, log_ia; /* PTRS constants */
+};
+
+void rng_poisson_setup(struct rng_poisson *p, double mu);
+
+/* A Poisson count with the set-up mean, using the uniforms of cell c.
+ * Exact (to the precision of the double arithmetic) for every mean up to
+ * RNG_POISSON_EXACT_MAX; see rng.c for the methods and the argument. */
+double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c);
+
+/* Same, for a mean used once. */
+double rng_poisson(double mu, struct rng_cell *c);
+
+/* Above this mean the count is a rounded Gaussian (see rng.c). */
+#define RNG_POISSON_EXACT_MAX 0x1p52
+
+/* Standard normal deviates number first .. first + n - 1 of generator g
+ * into out: deviate i comes from Philox call (i / 2, draw) through the
+ * Box-Muller transform, so any slice gives the same numbers as the whole. */
+void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, uint32_t draw,
+		     double *out);
+
+#endif

@@ -1,0 +1,66 @@
+/*
+ * fftconv.h - the host side of the plugins' convolve service: linear
+ * (zero-padded) 2-D convolution of a small image with a small odd kernel
+ * through FFTW real-to-complex transforms.
+ *
+ * FFTW's planner is not thread-safe, but fftw_execute_dft_r2c/c2r on arrays
+ * other than the planned ones is ("the only thread-safe routine in FFTW is
+ * fftw_execute (and the new-array variants thereof)").  So:
+ *
+ *   struct fftconv        one per scene, shared by all threads: a cache of
+ *                         r2c/c2r plan pairs keyed by the padded size, each
+ *                         made once, under a mutex, with FFTW_ESTIMATE (the
+ *                         planner never touches the arrays, and a stamp of a
+ *                         new size costs microseconds to plan, not seconds);
+ *   struct fftconv_thread one per worker thread: fftw_malloc'd buffers that
+ *                         grow to the largest size the thread has seen.
+ *
+ * Every plan is made out of place on fftw_malloc'd (SIMD-aligned) arrays and
+ * executed with the new-array interface on the thread's own fftw_malloc'd
+ * buffers, which have the same alignment, as FFTW requires.
+ *
+ * The padded size is the smallest 2^a 3^b 5^c 7^d >= nx + kn - 1 (and the
+ * same for y), so the circular convolution of the padded arrays equals the
+ * linear one on the image: nothing wraps around.  The result does not
+ * depend on the thread or on which plans exist, only on (nx, ny, kn).
+ */
+#ifndef WFS_FFTCONV_H
+#define WFS_FFTCONV_H
+
+struct fftconv;
+struct fftconv_thread;
+
+/* A new, empty plan cache.  Also makes FFTW's planner thread-safe for the
+ * process (fftw_make_planner_thread_safe), since other modules may plan
+ * concurrently.  NULL when out of memory. */
+struct fftconv *fftconv_new(void);
+
+/* Destroy the cache and its plans.  NULL is a no-op.  No thread may be
+ * inside fftconv_convolve. */
+void fftconv_free(struct fftconv *fc);
+
+/* Per-thread buffers, initially empty.  NULL when out of memory. */
+struct fftconv_thread *fftconv_thread_new(void);
+void fftconv_thread_free(struct fftconv_thread *t);
+
+/*
+ * Convolve the nx x ny image img (row-major, row = y) in place with the
+ * kn x kn kernel (kn odd, centre at (kn - 1) / 2):
+ *
+ *   out(x, y) = sum_{x', y'} img(x', y') kernel(x - x' + h, y - y' + h),
+ *   h = (kn - 1) / 2,
+ *
+ * with img taken as zero outside the image.  So a kernel sample at
+ * (h + dx, h + dy) is what a unit pixel sends to the pixel (dx, dy) away.
+ * Safe to call from several threads at once, each with its own t.
+ * Returns 0, or -1 on bad sizes or when out of memory (nothing is changed
+ * then).
+ */
+int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
+		     double *img, int nx, int ny, const double *kernel, int kn);
+
+/* The FFT size fftconv uses for a linear convolution of length n: the
+ * smallest 2^a 3^b 5^c 7^d >= n.  Exposed for tests and cost models. */
+int fftconv_good_size(int n);
+
+#endif

@@ -1,0 +1,175 @@
+/* plugin.c - loading model plugins; see plugin.h. */
+#include <errno.h>
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "err.h"
+#include "plugin.h"
+
+/* Appends dir to a colon-separated path. */
+static int path_add(char **path, const char *dir)
+{
+	size_t old = *path ? strlen(*path) : 0, add = strlen(dir);
+	char *p;
+
+	if (!add)
+		return 0;
+	if (!(p = realloc(*path, old + add + 2)))
+		return -1;
+	if (old)
+		p[old++] = ':';
+	memcpy(p + old, dir, add + 1);
+	*path = p;
+	return 0;
+}
+
+int plugins_init(struct plugins *ps, const char *user_path,
+		 const struct wfs_host *host, struct err *e)
+{
+	char exe[PATH_MAX], *slash;
+	const char *env = getenv("WFISCENE_PLUGIN_PATH");
+	ssize_t len;
+
+	memset(ps, 0, sizeof(*ps));
+	ps->host = host;
+	if (lt_dlinit())
+		return err_set(e, EXIT_PLUGIN, "libltdl: %s", lt_dlerror());
+	if ((user_path && path_add(&ps->path, user_path) < 0) ||
+	    (env && path_add(&ps->path, env) < 0) ||
+	    path_add(&ps->path, WFS_PLUGINDIR) < 0)
+		return err_sys(e, "plugin path");
+	/* Run from the build tree: plugins/ beside the program. */
+	len = readlink("/proc/self/exe", exe, sizeof(exe) - 16);
+	if (len > 0) {
+		exe[len] = 0;
+		if ((slash = strrchr(exe, '/'))) {
+			strcpy(slash, "/plugins");
+			if (path_add(&ps->path, exe) < 0)
+				return err_sys(e, "plugin path");
+		}
+	}
+	return 0;
+}
+
+static int valid_name(const char *name)
+{
+	if (!*name || strlen(name) >= 64)
+		return 0;
+	for (const char *p = name; *p; p++)
+		if (!((*p >= 'a' && *p <= 'z') || (*p >= '0' && *p <= '9') ||
+		      *p == '-' || *p == '_'))
+			return 0;
+	return 1;
+}
+
+/* The first NAME.so or NAME.la on the search path, into out. */
+static int find_file(const char *path, const char *name, char *out, size_t cap)
+{
+	const char *p = path;
+
+	while (p && *p) {
+		const char *colon = strchr(p, ':');
+		size_t n = colon ? (size_t)(colon - p) : strlen(p);
+		static const char *const ext[] = { ".so", ".la" };
+
+		for (int i = 0; i < 2 && n; i++) {
+			snprintf(out, cap, "%.*s/%s%s", (int)n, p, name, ext[i]);
+			if (access(out, R_OK) == 0)
+				return 0;
+		}
+		p = colon ? colon + 1 : NULL;
+	}
+	return -1;
+}
+
+static int refuse(struct plugin *pl, struct err *e, const char *fmt, const char *detail,
+		  long a, long b)
+{
+	char why[512];
+
+	snprintf(why, sizeof(why), fmt, detail, a, b);
+	if (pl->handle)
+		lt_dlclose(pl->handle);
+	pl->handle = NULL;
+	return err_set(e, EXIT_PLUGIN, "model '%s' (%s): %s", pl->name, pl->path, why);
+}
+
+int plugins_get(struct plugins *ps, const char *name, struct err *e)
+{
+	struct plugin *pl;
+	wfs_model_entry_fn entry;
+	const struct wfs_model *m;
+	size_t need = offsetof(struct wfs_model, render) + sizeof(m->render);
+
+	for (int i = 0; i < ps->n; i++)
+		if (!strcmp(ps->p[i].name, name))
+			return ps->p[i].ready ? i : -1;
+	if (!valid_name(name))
+		return err_set(e, EXIT_INPUT, "unknown source type '%s'", name);
+	if (ps->n == PLUGIN_MAX)
+		return err_set(e, EXIT_PLUGIN, "too many source models (at most %d)",
+			       PLUGIN_MAX);
+	pl = &ps->p[ps->n];
+	memset(pl, 0, sizeof(*pl));
+	snprintf(pl->name, sizeof(pl->name), "%s", name);
+	if (find_file(ps->path, name, pl->path, sizeof(pl->path)) < 0)
+		return err_set(e, EXIT_INPUT,
+			       "unknown source type '%s': no model plugin '%s.so' on the "
+			       "plugin path %s", name, name, ps->path);
+	ps->n++;        /* remembered, so a refused model is refused once */
+	lt_dlerror();
+	if (!(pl->handle = lt_dlopen(pl->path)))
+		return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
+			      lt_dlerror(), 0, 0);
+	entry = (wfs_model_entry_fn)(uintptr_t)lt_dlsym(pl->handle, WFS_MODEL_ENTRY);
+	if (!entry)
+		return refuse(pl, e, "no symbol '%s': not a wfiscene model plugin",
+			      WFS_MODEL_ENTRY, 0, 0);
+	if (!(m = entry(WFS_ABI_VERSION)))
+		return refuse(pl, e, "%sthe plugin declined this host's ABI version %ld",
+			      "", WFS_ABI_VERSION, 0);
+	if (m->abi != WFS_ABI_VERSION)
+		return refuse(pl, e, "%splugin ABI version %ld, this wfiscene speaks "
+			      "version %ld: rebuild the plugin", "", (long)m->abi,
+			      WFS_ABI_VERSION);
+	if (m->size < need)
+		return refuse(pl, e, "%sdescriptor of %ld bytes is too small (at least "
+			      "%ld): built against another model.h?", "", (long)m->size,
+			      (long)need);
+	if (!m->name || strcmp(m->name, name))
+		return refuse(pl, e, "descriptor names the model '%s', not the file's name",
+			      m->name ? m->name : "(null)", 0, 0);
+	if (!m->footprint || !m->render || (m->ncolumns > 0 && !m->columns) ||
+	    m->ncolumns < 0)
+		return refuse(pl, e, "%sdescriptor lacks footprint(), render() or its "
+			      "columns", "", 0, 0);
+	pl->m = m;
+	if (m->init && m->init(ps->host, &pl->state) < 0) {
+		err_prefix(e, "model '%s' (%s): set-up failed", name, pl->path);
+		if (e->code == EXIT_OK)
+			err_set(e, EXIT_PLUGIN, "model '%s' (%s): set-up failed", name, pl->path);
+		e->code = EXIT_PLUGIN;
+		return -1;
+	}
+	pl->ready = 1;
+	return ps->n - 1;
+}
+
+void plugins_free(struct plugins *ps)
+{
+	for (int i = 0; i < ps->n; i++) {
+		struct plugin *pl = &ps->p[i];
+
+		if (pl->ready && pl->m->fini)
+			pl->m->fini(pl->state);
+		if (pl->handle)
+			lt_dlclose(pl->handle);
+	}
+	if (ps->path)
+		lt_dlexit();
+	free(ps->path);
+	memset(ps, 0, sizeof(*ps));
+}

@@ -1,0 +1,50 @@
+/*
+ * plugin.h - finding and loading source-model plugins with libltdl.
+ *
+ * A model named NAME lives in NAME.so (or NAME.la) on the search path:
+ * --plugin-path, then $WFISCENE_PLUGIN_PATH (colon-separated), then the
+ * installed plugin directory, then the build tree's plugins/ beside the
+ * running program.  Loading happens in the main thread, before workers use
+ * the model.  A model name is a word of [a-z0-9_-], so it can never name a
+ * path.
+ */
+#ifndef WFS_PLUGIN_H
+#define WFS_PLUGIN_H
+
+#include <ltdl.h>
+
+#include "wfiscene/model.h"
+
+struct err;
+
+#define PLUGIN_MAX 64
+
+struct plugin {
+	char name[64];
+	char path[1024];
+	lt_dlhandle handle;
+	const struct wfs_model *m;
+	void *state;            /* from init() */
+	int ready;              /* init() succeeded */
+};
+
+struct plugins {
+	char *path;             /* the search path, colon-separated */
+	const struct wfs_host *host;
+	int n;
+	struct plugin p[PLUGIN_MAX];
+};
+
+/* Prepare the search path.  host is what models' init() receives. */
+int plugins_init(struct plugins *ps, const char *user_path,
+		 const struct wfs_host *host, struct err *e);
+
+/* The index of model name, loading and initialising it on first use.
+ * Returns the index or -1: EXIT_INPUT when no plugin of that name exists
+ * (an unknown source type), EXIT_PLUGIN when one exists but is refused. */
+int plugins_get(struct plugins *ps, const char *name, struct err *e);
+
+/* Call fini() of every model and unload them. */
+void plugins_free(struct plugins *ps);
+
+#endif

@@ -1,0 +1,144 @@
+/* pool.c - worker threads for parallel loops; see pool.h. */
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include "pool.h"
+
+struct pool {
+	int n;
+	pthread_t *tid;
+	pthread_mutex_t mu;
+	pthread_cond_t go, done;
+	unsigned long generation;       /* bumped for each loop started */
+	int quit;
+	pool_fn fn;
+	void *arg;
+	size_t ntasks;
+	atomic_size_t next;             /* next task index to claim */
+	int running;                    /* workers still in the current loop */
+};
+
+struct start {
+	struct pool *p;
+	int id;
+};
+
+static void *worker_main(void *v)
+{
+	struct start *st = v;
+	struct pool *p = st->p;
+	int id = st->id;
+	unsigned long seen = 0;
+
+	free(st);
+	for (;;) {
+		size_t t;
+
+		pthread_mutex_lock(&p->mu);
+		while (!p->quit && p->generation == seen)
+			pthread_cond_wait(&p->go, &p->mu);
+		if (p->quit) {
+			pthread_mutex_unlock(&p->mu);
+			return NULL;
+		}
+		seen = p->generation;
+		pthread_mutex_unlock(&p->mu);
+
+		while ((t = atomic_fetch_add(&p->next, 1)) < p->ntasks)
+			p->fn(p->arg, id, t);
+
+		pthread_mutex_lock(&p->mu);
+		if (--p->running == 0)
+			pthread_cond_broadcast(&p->done);
+		pthread_mutex_unlock(&p->mu);
+	}
+}
+
+int pool_cpus(void)
+{
+	long n = sysconf(_SC_NPROCESSORS_ONLN);
+
+	return n > 0 ? (int)n : 1;
+}
+
+struct pool *pool_new(int nthreads)
+{
+	struct pool *p = calloc(1, sizeof(*p));
+
+	if (!p)
+		return NULL;
+	p->n = nthreads > 0 ? nthreads : 1;
+	pthread_mutex_init(&p->mu, NULL);
+	pthread_cond_init(&p->go, NULL);
+	pthread_cond_init(&p->done, NULL);
+	if (!(p->tid = calloc(p->n, sizeof(*p->tid))))
+		goto fail;
+	for (int i = 0; i < p->n; i++) {
+		struct start *st = malloc(sizeof(*st));
+
+		if (!st)
+			goto fail;
+		st->p = p;
+		st->id = i;
+		if (pthread_create(&p->tid[i], NULL, worker_main, st)) {
+			free(st);
+			p->n = i;
+			goto fail;
+		}
+	}
+	return p;
+fail:
+	pool_free(p);
+	return NULL;
+}
+
+int pool_threads(const struct pool *p)
+{
+	return p->n;
+}
+
+void pool_start(struct pool *p, pool_fn fn, void *arg, size_t ntasks)
+{
+	pthread_mutex_lock(&p->mu);
+	p->fn = fn;
+	p->arg = arg;
+	p->ntasks = ntasks;
+	atomic_store(&p->next, 0);
+	p->running = p->n;
+	p->generation++;
+	pthread_cond_broadcast(&p->go);
+	pthread_mutex_unlock(&p->mu);
+}
+
+void pool_wait(struct pool *p)
+{
+	pthread_mutex_lock(&p->mu);
+	while (p->running > 0)
+		pthread_cond_wait(&p->done, &p->mu);
+	pthread_mutex_unlock(&p->mu);
+}
+
+void pool_run(struct pool *p, pool_fn fn, void *arg, size_t ntasks)
+{
+	pool_start(p, fn, arg, ntasks);
+	pool_wait(p);
+}
+
+void pool_free(struct pool *p)
+{
+	if (!p)
+		return;
+	pthread_mutex_lock(&p->mu);
+	p->quit = 1;
+	pthread_cond_broadcast(&p->go);
+	pthread_mutex_unlock(&p->mu);
+	for (int i = 0; p->tid && i < p->n; i++)
+		pthread_join(p->tid[i], NULL);
+	free(p->tid);
+	pthread_mutex_destroy(&p->mu);
+	pthread_cond_destroy(&p->go);
+	pthread_cond_destroy(&p->done);
+	free(p);
+}

@@ -1,0 +1,29 @@
+/*
+ * pool.h - a fixed set of worker threads running one parallel loop at a
+ * time.  The caller starts a loop of ntasks tasks and may do other work (read
+ * the next catalog chunk) before it waits.  Workers claim task indices in
+ * increasing order from a shared counter; which worker runs which task varies,
+ * so a task must write only memory it owns (a tile).
+ */
+#ifndef WFS_POOL_H
+#define WFS_POOL_H
+
+#include <stddef.h>
+
+struct pool;
+
+/* fn(arg, worker, task): worker is 0..nthreads-1, for per-worker state. */
+typedef void (*pool_fn)(void *arg, int worker, size_t task);
+
+struct pool *pool_new(int nthreads);
+int pool_threads(const struct pool *p);
+void pool_start(struct pool *p, pool_fn fn, void *arg, size_t ntasks);
+void pool_wait(struct pool *p);
+/* pool_start then pool_wait. */
+void pool_run(struct pool *p, pool_fn fn, void *arg, size_t ntasks);
+void pool_free(struct pool *p);
+
+/* The number of online processors, at least 1. */
+int pool_cpus(void);
+
+#endif

@@ -1,0 +1,1090 @@
+/* scene.c - the streaming engine: catalogs in, FITS out; see scene.h. */
+#include <errno.h>
+#include <float.h>
+#include <limits.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "catalog.h"
+#include "err.h"
+#include "fftconv.h"
+#include "fitsout.h"
+#include "instrument.h"
+#include "noise.h"
+#include "plugin.h"
+#include "pool.h"
+#include "psf.h"
+#include "scene.h"
+#include "sky.h"
+#include "wfiscene/model.h"
+
+/* Room beyond an SCA edge, in pixels, within which a point source may still
+ * throw light onto it: the 176-pixel extra-bright box's half-width. */
+#define POINT_REACH 88.0
+#define MAX_COLUMNS 32
+
+/* One requested SCA: its image as a grid of tiles, allocated on first touch. */
+struct slot {
+	int sca;
+	double **tile;          /* ntx * nty tiles, NULL until touched */
+};
+
+/* A source placed on one SCA. */
+struct placement {
+	struct wfs_source src;
+	struct wfs_box box;     /* footprint clipped to the detector */
+	int model;
+	int slot;
+	size_t param_off;       /* into batch.param */
+};
+
+/* The placements of one chunk, binned by tile. */
+struct batch {
+	struct placement *p;
+	size_t n, cap;
+	double *param;
+	size_t nparam, capparam;
+	uint32_t *count;        /* per global tile, then start offsets */
+	uint32_t *items;        /* placement indices grouped by tile */
+	size_t nitems, capitems;
+	uint32_t *active;       /* global tiles with placements */
+	size_t nactive;
+};
+
+/* Per worker thread: scratch memory, FFT buffers, models' thread state. */
+struct worker {
+	struct engine *g;
+	void *scratch;
+	size_t scratch_cap;
+	struct fftconv_thread *fft;
+	void *tstate[PLUGIN_MAX];
+	unsigned char started[PLUGIN_MAX];
+};
+
+struct type_cache {
+	char name[64];
+	int model;
+};
+
+struct engine {
+	const struct scene_opts *o;
+	struct err *e;
+	pthread_mutex_t err_mu;
+	atomic_int failed;
+
+	struct sky sky;
+	int tile, ntx, nty, ntile;      /* tile side, tiles per axis, per SCA */
+	int nslot;
+	struct slot slot[WFS_NSCA];
+	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
+
+	struct psf_grid *grid[WFS_NSCA][3];
+	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
+	struct psf_build_opts pbo;
+
+	struct plugins plugins;
+	struct wfs_host host;
+	struct fftconv *fft;
+	struct pool *pool;
+	struct worker *w;
+	int nworker;
+
+	char filter_name[16], exptime_str[32], seed_str[32];
+	const char *sersic_flux_now;    /* "total" or "ie" for the catalog being read */
+
+	struct type_cache types[PLUGIN_MAX];
+	int ntypes;
+	int colidx[PLUGIN_MAX][MAX_COLUMNS];
+	const struct rows *colidx_rows[PLUGIN_MAX];
+
+	double *fx, *fy, *px, *py, *reach;
+	uint32_t *cand;
+	size_t cap_rows;
+
+	struct batch b[2];
+	const struct batch *rendering;
+
+	FILE *placed;
+	char placed_tmp[PATH_MAX];
+
+	unsigned long long rows_read, placements, culled;
+};
+
+/* Name of the --placed temporary file, for the signal handler. */
+static char placed_tmp_signal[PATH_MAX];
+
+/* ---- host services lent to plugins ---- */
+
+static int host_error(void *ctx, const char *fmt, ...)
+{
+	struct engine *g = ctx;
+	char msg[1024];
+	va_list ap;
+
+	va_start(ap, fmt);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	va_end(ap);
+	pthread_mutex_lock(&g->err_mu);
+	err_set(g->e, EXIT_PLUGIN, "%s", msg);
+	pthread_mutex_unlock(&g->err_mu);
+	return -1;
+}
+
+static void host_log(void *ctx, int level, const char *fmt, ...)
+{
+	struct engine *g = ctx;
+	va_list ap;
+
+	if (level > g->o->verbose)
+		return;
+	va_start(ap, fmt);
+	fputs("wfiscene: ", stderr);
+	vfprintf(stderr, fmt, ap);
+	fputc('\n', stderr);
+	va_end(ap);
+}
+
+static const char *host_setting(void *ctx, const char *key)
+{
+	struct engine *g = ctx;
+
+	if (!strcmp(key, "filter"))
+		return g->filter_name;
+	if (!strcmp(key, "exptime"))
+		return g->exptime_str;
+	if (!strcmp(key, "seed"))
+		return g->seed_str;
+	if (!strcmp(key, "sersic-flux"))
+		return g->sersic_flux_now;
+	if (!strcmp(key, "sersic"))
+		return g->o->sersic;
+	return NULL;
+}
+
+static const struct psf_grid *grid_for(const struct engine *g, int sca, int cls)
+{
+	if (g->user_grid)
+		return g->user_grid;
+	return g->grid[sca - 1][cls];
+}
+
+static int host_epsf(void *ctx, int sca, double x, double y, int cls,
+		     struct wfs_epsf *out)
+{
+	struct engine *g = ctx;
+	const struct psf_grid *grid;
+
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2 ||
+	    !(grid = grid_for(g, sca, cls)))
+		return host_error(ctx, "ePSF of SCA %d class %d is not loaded", sca, cls);
+	psf_grid_at(grid, x, y, out);
+	return 0;
+}
+
+static void *host_scratch(void *thread, size_t bytes)
+{
+	struct worker *w = thread;
+
+	if (bytes > w->scratch_cap) {
+		size_t cap = bytes + bytes / 4 + 4096;
+
+		free(w->scratch);
+		w->scratch_cap = 0;
+		if (posix_memalign(&w->scratch, 64, cap))
+			return w->scratch = NULL;
+		w->scratch_cap = cap;
+	}
+	return w->scratch;
+}
+
+static int host_convolve(void *ctx, void *thread, double *img, int nx, int ny,
+			 const double *kernel, int kn)
+{
+	struct engine *g = ctx;
+	struct worker *w = thread;
+
+	if (!w->fft && !(w->fft = fftconv_thread_new()))
+		return host_error(ctx, "out of memory for FFT buffers");
+	if (fftconv_convolve(g->fft, w->fft, img, nx, ny, kernel, kn) < 0)
+		return host_error(ctx, "FFT convolution of a %d x %d image failed", nx, ny);
+	return 0;
+}
+
+/* ---- PSF grids ---- */
+
+/* Make sure the ePSF grid of (sca, cls) is loaded.  Main thread only. */
+static int need_grid(struct engine *g, int sca, int cls)
+{
+	const struct scene_opts *o = g->o;
+	struct psf_grid *grid;
+
+	if (grid_for(g, sca, cls))
+		return 0;
+	if (strcmp(o->psf, "builtin")) {
+		/* A user file: per SCA when the name holds %d, and then its one
+		 * size serves every brightness class. */
+		char path[PATH_MAX];
+
+		if (g->grid[sca - 1][0]) {
+			g->grid[sca - 1][cls] = g->grid[sca - 1][0];
+			return 0;
+		}
+		snprintf(path, sizeof(path), o->psf, sca);
+		if (!(grid = psf_grid_read(path, g->e)))
+			return -1;
+		if (grid->kind == PSF_OPTICAL && psf_make_epsf(grid, g->e) < 0) {
+			psf_grid_free(grid);
+			return -1;
+		}
+		g->grid[sca - 1][0] = grid;
+		g->grid[sca - 1][cls] = grid;
+		return 0;
+	}
+	host_log(g, 1, "ePSF grid for %s SCA %d, %d samples: building or loading",
+		 g->filter_name, sca, psf_class_n[cls]);
+	if (!(grid = psf_builtin(o->filter, sca, cls, PSF_EPSF, &g->pbo, g->e)))
+		return -1;
+	g->grid[sca - 1][cls] = grid;
+	return 0;
+}
+
+/* ---- reading rows into placements ---- */
+
+static int grow(void **p, size_t *cap, size_t need, size_t size)
+{
+	size_t n = *cap ? *cap : 256;
+	void *q;
+
+	if (need <= *cap)
+		return 0;
+	while (n < need)
+		n *= 2;
+	if (!(q = realloc(*p, n * size)))
+		return -1;
+	*p = q;
+	*cap = n;
+	return 0;
+}
+
+/* The model drawing rows of type name ("sersic" picks the scene's method). */
+static int resolve_type(struct engine *g, const char *name)
+{
+	char real[64];
+	int m;
+
+	for (int i = 0; i < g->ntypes; i++)
+		if (!strcmp(g->types[i].name, name))
+			return g->types[i].model;
+	if (!strcmp(name, "sersic"))
+		snprintf(real, sizeof(real), "sersic-%s", g->o->sersic);
+	else
+		snprintf(real, sizeof(real), "%s", name);
+	if ((m = plugins_get(&g->plugins, real, g->e)) < 0)
+		return -1;
+	if (g->ntypes < PLUGIN_MAX) {
+		snprintf(g->types[g->ntypes].name, sizeof(g->types[0].name), "%s", name);
+		g->types[g->ntypes++].model = m;
+	}
+	return m;
+}
+
+/* The chunk's column index of each column model m reads (-1 if absent). */
+static int model_columns(struct engine *g, const struct rows *r, int m)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+
+	if (g->colidx_rows[m] == r)
+		return 0;
+	if (md->ncolumns > MAX_COLUMNS)
+		return err_set(g->e, EXIT_PLUGIN, "model '%s' reads %d columns; at most %d",
+			       md->name, md->ncolumns, MAX_COLUMNS);
+	for (int c = 0; c < md->ncolumns; c++) {
+		g->colidx[m][c] = rows_column(r, md->columns[c].name);
+		if (g->colidx[m][c] < 0 && md->columns[c].required)
+			return err_set(g->e, EXIT_INPUT,
+				       "%s: column '%s', required by model '%s', is missing",
+				       r->file, md->columns[c].name, md->name);
+	}
+	g->colidx_rows[m] = r;
+	return 0;
+}
+
+static double zeropoint(const struct engine *g, int sca)
+{
+	return g->o->zp_stips ? filter_stips_zp(g->o->filter)
+			      : filter_get(g->o->filter)->zp_ab[sca - 1];
+}
+
+/* The row's flux in counts/s on SCA sca. */
+static double counts_on(const struct engine *g, const struct rows *r, size_t i, int sca)
+{
+	double v = r->flux[i];
+
+	switch (r->unit[i]) {
+	case UNIT_COUNTS:
+		return v;
+	case UNIT_ABMAG:
+		return pow(10.0, -0.4 * (v - zeropoint(g, sca)));
+	default:
+		if (g->o->zp_stips)     /* STIPS converts with its fixed zeropoint */
+			return v * pow(10.0, 0.4 * (8.9 - filter_stips_zp(g->o->filter))) *
+			       unit_to_counts(g->o->filter, sca, r->unit[i]) /
+			       pow(10.0, 0.4 * (8.9 - zeropoint(g, sca)));
+		return v * unit_to_counts(g->o->filter, sca, r->unit[i]);
+	}
+}
+
+/* Bright sources get the bigger ePSF boxes; a magnitude equal to a limit
+ * counts as the brighter class (STIPS drops such sources). */
+static int psf_class_of(const struct engine *g, double mag)
+{
+	if (mag <= g->o->xbright_limit)
+		return WFS_PSF_XBRIGHT;
+	if (mag <= g->o->bright_limit)
+		return WFS_PSF_BRIGHT;
+	return WFS_PSF_NORMAL;
+}
+
+/* Fill src for row i on SCA sca at pixel (x, y), load its ePSF class and let
+ * the model check and prepare it.  Returns 0 or -1. */
+static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
+		       const double *param, int sca, double x, double y,
+		       struct wfs_source *src)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+
+	memset(src, 0, sizeof(*src));
+	src->x = x;
+	src->y = y;
+	src->sca = sca;
+	src->flux = counts_on(g, r, i, sca);
+	src->mag = zeropoint(g, sca) - 2.5 * log10(src->flux);
+	src->psf_class = psf_class_of(g, src->mag);
+	src->id = r->id[i];
+	src->param = param;
+	if (!isfinite(src->flux) || src->flux <= 0)
+		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g converts to %g counts/s "
+			       "on SCA %d: not a positive finite number", r->file,
+			       r->line[i], r->flux[i], src->flux, sca);
+	if (need_grid(g, sca, src->psf_class) < 0)
+		return -1;
+	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
+		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
+		g->e->code = EXIT_INPUT;
+		return -1;
+	}
+	return 0;
+}
+
+static int footprint(struct engine *g, int m, const struct wfs_source *src,
+		     struct wfs_box *box)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+
+	if (md->footprint(g->plugins.p[m].state, src, box) < 0) {
+		err_prefix(g->e, "model '%s': footprint of source %lld", md->name, src->id);
+		return -1;
+	}
+	return 0;
+}
+
+static int add_placement(struct engine *g, struct batch *b, const struct rows *r,
+			 size_t i, int m, const double *param, int slot, double x,
+			 double y)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+	struct placement *p;
+	struct wfs_source src;
+	struct wfs_box box;
+
+	if (make_source(g, r, i, m, param, g->slot[slot].sca, x, y, &src) < 0 ||
+	    footprint(g, m, &src, &box) < 0)
+		return -1;
+	if (box.x0 < 0) box.x0 = 0;
+	if (box.y0 < 0) box.y0 = 0;
+	if (box.x1 > WFS_NPIX) box.x1 = WFS_NPIX;
+	if (box.y1 > WFS_NPIX) box.y1 = WFS_NPIX;
+	if (box.x0 >= box.x1 || box.y0 >= box.y1)
+		return 0;       /* all its light misses this SCA */
+	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
+	    grow((void **)&b->param, &b->capparam, b->nparam + md->ncolumns + 1,
+		 sizeof(double)) < 0)
+		return err_sys(g->e, "placements");
+	p = &b->p[b->n++];
+	p->src = src;
+	p->box = box;
+	p->model = m;
+	p->slot = slot;
+	p->param_off = b->nparam;
+	memcpy(b->param + b->nparam, param, md->ncolumns * sizeof(double));
+	b->nparam += md->ncolumns;
+	g->placements++;
+	if (g->placed &&
+	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
+		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
+		return err_sys(g->e, "%s", g->o->placed);
+	return 0;
+}
+
+/* How far (arcsec) beyond an SCA edge row i can still send light: its
+ * footprint's extent for a provisional placement at the origin. */
+static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
+		     const double *param, double *reach)
+{
+	struct wfs_source src;
+	struct wfs_box box;
+	double ext;
+
+	if (!strcmp(g->plugins.p[m].name, "point")) {
+		*reach = POINT_REACH * WFS_PIXSCALE;
+		return 0;
+	}
+	if (make_source(g, r, i, m, param, g->slot[0].sca, 0, 0, &src) < 0 ||
+	    footprint(g, m, &src, &box) < 0)
+		return -1;
+	ext = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1));
+	*reach = (ext + 2) * WFS_PIXSCALE;
+	return 0;
+}
+
+/* Turn one chunk of rows into the placements of batch b. */
+static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
+{
+	double *param = NULL;
+	size_t nparam_row = 0;
+	int rc = -1;
+
+	b->n = b->nparam = 0;
+	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)
+		return err_sys(g->e, "rows");
+	/* all per-row arrays share cap_rows: grow them together */
+	if (!(g->fy = realloc(g->fy, g->cap_rows * sizeof(double))) ||
+	    !(g->px = realloc(g->px, g->cap_rows * sizeof(double))) ||
+	    !(g->py = realloc(g->py, g->cap_rows * sizeof(double))) ||
+	    !(g->reach = realloc(g->reach, g->cap_rows * sizeof(double))) ||
+	    !(g->cand = realloc(g->cand, g->cap_rows * sizeof(uint32_t))))
+		return err_sys(g->e, "rows");
+	sky_to_focal(&g->sky, r->n, r->ra, r->dec, g->fx, g->fy);
+	g->sersic_flux_now = g->o->sersic_flux ? g->o->sersic_flux
+			   : r->sersic_ie ? "ie" : "total";
+
+	/* Resolve models, read their columns, and work out each row's reach.
+	 * Parameters of all rows are kept in one array, MAX_COLUMNS a row. */
+	nparam_row = MAX_COLUMNS;
+	if (!(param = malloc(r->n * nparam_row * sizeof(double))))
+		return err_sys(g->e, "rows");
+	int *model = malloc(r->n * sizeof(int));
+	if (!model) {
+		free(param);
+		return err_sys(g->e, "rows");
+	}
+	for (size_t i = 0; i < r->n; i++) {
+		int m = resolve_type(g, r->type[i]);
+		const struct wfs_model *md;
+
+		if (m < 0) {
+			err_prefix(g->e, "%s:%ld", r->file, r->line[i]);
+			goto out;
+		}
+		md = g->plugins.p[m].m;
+		model[i] = m;
+		if (model_columns(g, r, m) < 0)
+			goto out;
+		for (int c = 0; c < md->ncolumns; c++) {
+			double *v = &param[i * nparam_row + c];
+
+			if (g->colidx[m][c] < 0)
+				*v = md->columns[c].fallback;
+			else if (rows_number(r, g->colidx[m][c], i, md->columns[c].fallback,
+					     v, g->e) < 0)
+				goto out;
+		}
+		g->reach[i] = 0;
+		if (!isnan(r->ra[i]) &&
+		    row_reach(g, r, i, m, &param[i * nparam_row], &g->reach[i]) < 0)
+			goto out;
+	}
+
+	for (int s = 0; s < g->nslot; s++) {
+		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+		size_t nc = 0;
+
+		/* Sky rows whose reach touches this SCA, then their exact pixels. */
+		for (size_t i = 0; i < r->n; i++) {
+			double lim;
+
+			if (isnan(r->ra[i]))
+				continue;
+			lim = SKY_SCA_HALF + g->reach[i] + 2.0;
+			if (fabs(g->fx[i] - ss->fx) < lim && fabs(g->fy[i] - ss->fy) < lim)
+				g->cand[nc++] = i;
+			else if (s == 0)
+				g->culled++;
+		}
+		for (size_t k = 0; k < nc; k++) {
+			g->px[k] = r->ra[g->cand[k]];
+			g->py[k] = r->dec[g->cand[k]];
+		}
+		if (sky_to_pixel(&g->sky, g->slot[s].sca, nc, g->px, g->py, g->px, g->py,
+				 g->e) < 0)
+			goto out;
+		/* Pixel rows for this SCA are merged in catalog order. */
+		size_t k = 0;
+		for (size_t i = 0; i < r->n; i++) {
+			double x, y;
+
+			if (isnan(r->ra[i])) {
+				int sca = r->sca[i] ? r->sca[i] : g->slot[0].sca;
+
+				if (sca != g->slot[s].sca)
+					continue;
+				x = r->x[i];
+				y = r->y[i];
+			} else {
+				if (k >= nc || g->cand[k] != i)
+					continue;
+				x = g->px[k];
+				y = g->py[k];
+				k++;
+				if (isnan(x))
+					continue;
+			}
+			if (add_placement(g, b, r, i, model[i], &param[i * nparam_row], s,
+					  x, y) < 0)
+				goto out;
+		}
+	}
+	for (size_t i = 0; i < b->n; i++)
+		b->p[i].src.param = b->param + b->p[i].param_off;
+	rc = 0;
+out:
+	free(param);
+	free(model);
+	return rc;
+}
+
+/* Bin the placements of b by the tiles their boxes touch, in placement
+ * order, and allocate the tiles they need. */
+static int bin_batch(struct engine *g, struct batch *b)
+{
+	size_t ntot = (size_t)g->nslot * g->ntile, total = 0;
+	int T = g->tile;
+
+	if (!b->count && !(b->count = calloc(ntot + 1, sizeof(*b->count))))
+		return err_sys(g->e, "tiles");
+	memset(b->count, 0, (ntot + 1) * sizeof(*b->count));
+	for (size_t i = 0; i < b->n; i++) {
+		const struct wfs_box *bx = &b->p[i].box;
+		size_t base = (size_t)b->p[i].slot * g->ntile;
+
+		for (int ty = bx->y0 / T; ty <= (bx->y1 - 1) / T; ty++)
+			for (int tx = bx->x0 / T; tx <= (bx->x1 - 1) / T; tx++) {
+				b->count[base + ty * g->ntx + tx]++;
+				total++;
+			}
+	}
+	if (total > UINT32_MAX)
+		return err_set(g->e, EXIT_SYSTEM, "too many placements in one chunk");
+	if (grow((void **)&b->items, &b->capitems, total + 1, sizeof(*b->items)) < 0 ||
+	    grow((void **)&b->active, &(size_t){b->nactive ? ntot : 0}, ntot, 0) < 0)
+		return err_sys(g->e, "tiles");
+	if (!b->active && !(b->active = malloc(ntot * sizeof(*b->active))))
+		return err_sys(g->e, "tiles");
+	/* counts -> start offsets, and the list of active tiles */
+	b->nactive = 0;
+	uint32_t run = 0;
+	for (size_t t = 0; t < ntot; t++) {
+		uint32_t c = b->count[t];
+
+		b->count[t] = run;
+		if (c) {
+			struct slot *sl = &g->slot[t / g->ntile];
+			size_t lt = t % g->ntile;
+
+			b->active[b->nactive++] = t;
+			if (!sl->tile[lt] &&
+			    !(sl->tile[lt] = calloc((size_t)T * T, sizeof(double))))
+				return err_sys(g->e, "tile memory");
+		}
+		run += c;
+	}
+	b->count[ntot] = run;
+	/* fill: count[t] advances to the end of tile t's range */
+	for (size_t i = 0; i < b->n; i++) {
+		const struct wfs_box *bx = &b->p[i].box;
+		size_t base = (size_t)b->p[i].slot * g->ntile;
+
+		for (int ty = bx->y0 / T; ty <= (bx->y1 - 1) / T; ty++)
+			for (int tx = bx->x0 / T; tx <= (bx->x1 - 1) / T; tx++)
+				b->items[b->count[base + ty * g->ntx + tx]++] = i;
+	}
+	/* shift back so count[t] is tile t's start again */
+	for (size_t t = ntot; t > 0; t--)
+		b->count[t] = b->count[t - 1];
+	b->count[0] = 0;
+	b->nitems = total;
+	return 0;
+}
+
+/* Worker: render every placement of one active tile, in placement order. */
+static void render_tile(void *arg, int wid, size_t task)
+{
+	struct engine *g = arg;
+	const struct batch *b = g->rendering;
+	struct worker *w = &g->w[wid];
+	size_t t = b->active[task], lt = t % g->ntile;
+	int T = g->tile, tx = lt % g->ntx, ty = lt / g->ntx;
+	int x0 = tx * T, y0 = ty * T;
+	double *tile = g->slot[t / g->ntile].tile[lt];
+
+	if (atomic_load(&g->failed))
+		return;
+	for (uint32_t k = b->count[t]; k < b->count[t + 1]; k++) {
+		const struct placement *p = &b->p[b->items[k]];
+		struct plugin *pl = &g->plugins.p[p->model];
+		struct wfs_window win;
+
+		if (!w->started[p->model]) {
+			if (pl->m->thread_start &&
+			    pl->m->thread_start(pl->state, &w->tstate[p->model]) < 0) {
+				atomic_store(&g->failed, 1);
+				return;
+			}
+			w->started[p->model] = 1;
+		}
+		win.x0 = p->box.x0 > x0 ? p->box.x0 : x0;
+		win.y0 = p->box.y0 > y0 ? p->box.y0 : y0;
+		win.nx = (p->box.x1 < x0 + T ? p->box.x1 : x0 + T) - win.x0;
+		win.ny = (p->box.y1 < y0 + T ? p->box.y1 : y0 + T) - win.y0;
+		win.stride = T;
+		win.pix = tile + (size_t)(win.y0 - y0) * T + (win.x0 - x0);
+		if (pl->m->render(pl->state, w->tstate[p->model], w, &p->src, &win) < 0) {
+			pthread_mutex_lock(&g->err_mu);
+			err_prefix(g->e, "model '%s': source %lld on SCA %d", pl->name,
+				   p->src.id, p->src.sca);
+			pthread_mutex_unlock(&g->err_mu);
+			atomic_store(&g->failed, 1);
+			return;
+		}
+	}
+}
+
+/* ---- output ---- */
+
+struct strip_job {
+	struct engine *g;
+	struct noise_opts *no;
+	int slot, ty;
+};
+
+static void noise_strip_tile(void *arg, int wid, size_t tx)
+{
+	struct strip_job *j = arg;
+	struct engine *g = j->g;
+	int T = g->tile, x0 = tx * T, y0 = j->ty * T;
+	int nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+	int ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
+	double *tile = g->slot[j->slot].tile[j->ty * g->ntx + tx];
+
+	if (noise_tile(j->no, g->slot[j->slot].sca, x0, y0, nx, ny, tile, T) < 0)
+		atomic_store(&g->failed, 1);
+}
+
+static int add_card(char **cards, int *n, int *cap, const char *card)
+{
+	if (*n == *cap) {
+		char *more = realloc(*cards, (size_t)(*cap ? 2 * *cap : 64) * 80 + 1);
+
+		if (!more)
+			return -1;
+		*cards = more;
+		*cap = *cap ? 2 * *cap : 64;
+	}
+	memcpy(*cards + (size_t)*n * 80, card, 80);
+	(*n)++;
+	return 0;
+}
+
+static int primary_cards(struct engine *g, char **cards, int *n)
+{
+	const struct scene_opts *o = g->o;
+	char c[81], buf[64];
+	int cap = 0, bad = 0;
+	time_t now = time(NULL);
+	struct tm tm;
+
+	*cards = NULL;
+	*n = 0;
+#define CARD(fn, k, v, com) (fn(c, k, v, com), bad |= add_card(cards, n, &cap, c))
+	CARD(fits_card_str, "ORIGIN", "wfiscene", "Roman WFI scene simulator");
+	CARD(fits_card_str, "WFSVERS", WFS_VERSION, "wfiscene version");
+	gmtime_r(&now, &tm);
+	strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%S", &tm);
+	CARD(fits_card_str, "DATE", buf, "file creation date (UTC)");
+	CARD(fits_card_str, "TELESCOP", "ROMAN", NULL);
+	CARD(fits_card_str, "INSTRUME", "WFI", NULL);
+	CARD(fits_card_str, "FILTER", g->filter_name, "optical element");
+	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
+	CARD(fits_card_dbl, "RA_TARG", g->sky.ra0, "pointing RA (deg)");
+	CARD(fits_card_dbl, "DEC_TARG", g->sky.dec0, "pointing Dec (deg)");
+	CARD(fits_card_dbl, "PA_APER", g->sky.pa0, "position angle of detector +y (deg E of N)");
+	CARD(fits_card_str, "POINTREF", o->boresight ? "BORESIGHT" : "WFI01",
+	     "what RA_TARG/DEC_TARG point at");
+	CARD(fits_card_int, "SEED", (long long)o->seed, "random seed");
+	CARD(fits_card_str, "PSFSRC", o->psf, "PSF source");
+	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
+	CARD(fits_card_str, "BKGRND", o->background_arg ? o->background_arg : "none",
+	     "background setting");
+	CARD(fits_card_dbl, "BKGRATE", o->background, "background (counts/s/pixel)");
+	snprintf(buf, sizeof(buf), "%s%s%s%s%s", o->noise & NOISE_POISSON ? "P" : "",
+		 o->noise & NOISE_READ ? "R" : "", o->noise & NOISE_DARK ? "D" : "",
+		 o->noise & NOISE_FLAT ? "F" : "", o->noise & NOISE_COSMIC ? "C" : "");
+	CARD(fits_card_str, "NOISE", buf[0] ? buf : "NONE",
+	     "P poisson R read D dark F flat C cosmic");
+	if (o->noise & NOISE_READ)
+		CARD(fits_card_dbl, "RDNOISE", o->readnoise, "read noise (e-)");
+	CARD(fits_card_str, "ZPTABLE", o->zp_stips ? "STIPS" : "RTI-20240301",
+	     "AB zeropoints used");
+	CARD(fits_card_dbl, "BRIGHTLM", o->bright_limit, "bright ePSF box limit (AB)");
+	CARD(fits_card_dbl, "XBRITELM", o->xbright_limit, "extra-bright box limit (AB)");
+	CARD(fits_card_int, "NSOURCES", (long long)g->placements, "placements rendered");
+#undef CARD
+	return bad ? -1 : 0;
+}
+
+static int image_cards(struct engine *g, int s, char **cards, int *n)
+{
+	const struct scene_opts *o = g->o;
+	char c[81], name[16], *wcs = NULL;
+	int nwcs = 0, cap = 0, bad = 0, sca = g->slot[s].sca;
+
+	*cards = NULL;
+	*n = 0;
+	if (sky_header(&g->sky, sca, &wcs, &nwcs, g->e) < 0)
+		return -1;
+	snprintf(name, sizeof(name), "WFI%02d", sca);
+#define CARD(fn, k, v, com) (fn(c, k, v, com), bad |= add_card(cards, n, &cap, c))
+	CARD(fits_card_str, "EXTNAME", name, "detector");
+	CARD(fits_card_str, "DETECTOR", name, NULL);
+	CARD(fits_card_str, "FILTER", g->filter_name, NULL);
+	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
+	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
+	CARD(fits_card_dbl, "PHOTZPAB", zeropoint(g, sca), "AB mag of 1 count/s");
+	CARD(fits_card_dbl, "PA_APER", g->sky.sca[sca - 1].pa, "position angle of +y (deg)");
+	CARD(fits_card_dbl, "RA_APER", g->sky.sca[sca - 1].ra, "detector centre RA");
+	CARD(fits_card_dbl, "DEC_APER", g->sky.sca[sca - 1].dec, "detector centre Dec");
+#undef CARD
+	for (int k = 0; k < nwcs; k++)
+		if (strncmp(wcs + 80 * k, "WCSAXES ", 8) && strncmp(wcs + 80 * k, "COMMENT", 7))
+			bad |= add_card(cards, n, &cap, wcs + 80 * k);
+	free(wcs);
+	return bad ? err_sys(g->e, "header") : 0;
+}
+
+static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_opts *no,
+		      int apply_noise, float *strip)
+{
+	int T = g->tile;
+	char *cards;
+	int ncards;
+
+	if (image_cards(g, s, &cards, &ncards) < 0)
+		return -1;
+	if (fitsout_image_begin(f, WFS_NPIX, WFS_NPIX, cards, ncards, g->e) < 0) {
+		free(cards);
+		return -1;
+	}
+	free(cards);
+	for (int ty = 0; ty < g->nty; ty++) {
+		int y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
+		double **row = &g->slot[s].tile[ty * g->ntx];
+
+		if (apply_noise) {
+			struct strip_job j = { g, no, s, ty };
+
+			for (int tx = 0; tx < g->ntx; tx++)
+				if (!row[tx] && !(row[tx] = calloc((size_t)T * T, sizeof(double))))
+					return err_sys(g->e, "tile memory");
+			pool_run(g->pool, noise_strip_tile, &j, g->ntx);
+			if (atomic_load(&g->failed))
+				return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
+		}
+		for (int y = 0; y < ny; y++)
+			for (int tx = 0; tx < g->ntx; tx++) {
+				int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+				float *out = strip + (size_t)y * WFS_NPIX + x0;
+
+				if (row[tx])
+					for (int x = 0; x < nx; x++)
+						out[x] = (float)row[tx][(size_t)y * T + x];
+				else
+					memset(out, 0, nx * sizeof(float));
+			}
+		if (fitsout_image_rows(f, strip, ny, g->e) < 0)
+			return -1;
+		for (int tx = 0; tx < g->ntx; tx++) {
+			free(row[tx]);
+			row[tx] = NULL;
+		}
+	}
+	return fitsout_image_end(f, g->e);
+}
+
+static int write_output(struct engine *g)
+{
+	const struct scene_opts *o = g->o;
+	struct noise_opts no = {
+		.stages = o->noise, .background = o->background, .exptime = o->exptime,
+		.readnoise = o->readnoise, .dark_current = o->dark_current,
+		.cosmic_rate = o->cosmic_rate, .cosmic_residual = o->cosmic_residual,
+		.seed = o->seed, .filter = o->filter, .counts = o->bunit_counts,
+	};
+	int apply_noise = o->noise || o->background != 0 || o->bunit_counts;
+	int per_sca = strstr(o->output, "%") != NULL;
+	float *strip = malloc((size_t)g->tile * WFS_NPIX * sizeof(float));
+	struct fitsout *f = NULL;
+	char *cards = NULL;
+	int ncards;
+
+	if (!strip)
+		return err_sys(g->e, "output buffer");
+	if (primary_cards(g, &cards, &ncards) < 0) {
+		err_sys(g->e, "header");
+		goto fail;
+	}
+	for (int s = 0; s < g->nslot; s++) {
+		if (!f || per_sca) {
+			char path[PATH_MAX];
+
+			snprintf(path, sizeof(path), o->output, g->slot[s].sca);
+			if (!(f = fitsout_open(path, o->compress, g->e)) ||
+			    fitsout_primary(f, cards, ncards, g->e) < 0)
+				goto fail;
+		}
+		if (write_slot(g, f, s, &no, apply_noise, strip) < 0)
+			goto fail;
+		if (per_sca || s == g->nslot - 1) {
+			struct fitsout *done = f;
+
+			f = NULL;
+			if (fitsout_commit(done, g->e) < 0)
+				goto fail;
+		}
+	}
+	free(cards);
+	free(strip);
+	return 0;
+fail:
+	fitsout_abort(f);
+	free(cards);
+	free(strip);
+	return -1;
+}
+
+/* ---- the run ---- */
+
+static int engine_init(struct engine *g, const struct scene_opts *o, struct err *e)
+{
+	memset(g, 0, sizeof(*g));
+	g->o = o;
+	g->e = e;
+	pthread_mutex_init(&g->err_mu, NULL);
+	snprintf(g->filter_name, sizeof(g->filter_name), "%s", filter_get(o->filter)->name);
+	snprintf(g->exptime_str, sizeof(g->exptime_str), "%.17g", o->exptime);
+	snprintf(g->seed_str, sizeof(g->seed_str), "%llu", (unsigned long long)o->seed);
+	g->sersic_flux_now = o->sersic_flux ? o->sersic_flux : "total";
+	if (sky_init(&g->sky, o->ra, o->dec, o->pa, o->boresight, o->sca_mask, e) < 0)
+		return -1;
+	g->tile = o->tile;
+	g->ntx = g->nty = (WFS_NPIX + g->tile - 1) / g->tile;
+	g->ntile = g->ntx * g->nty;
+	for (int s = 0; s <= WFS_NSCA; s++)
+		g->slot_of[s] = -1;
+	for (int s = 1; s <= WFS_NSCA; s++)
+		if (o->sca_mask & (1u << (s - 1))) {
+			struct slot *sl = &g->slot[g->nslot];
+
+			sl->sca = s;
+			if (!(sl->tile = calloc(g->ntile, sizeof(*sl->tile))))
+				return err_sys(e, "tiles");
+			g->slot_of[s] = g->nslot++;
+		}
+	g->pbo.cache_dir = o->psf_cache;
+	g->pbo.threads = o->threads;
+	g->pbo.verbose = o->verbose;
+	g->host = (struct wfs_host){
+		.abi = WFS_ABI_VERSION, .size = sizeof(struct wfs_host), .ctx = g,
+		.error = host_error, .log = host_log, .setting = host_setting,
+		.epsf = host_epsf, .scratch = host_scratch, .convolve = host_convolve,
+	};
+	if (plugins_init(&g->plugins, o->plugin_path, &g->host, e) < 0)
+		return -1;
+	if (!(g->fft = fftconv_new()))
+		return err_sys(e, "FFT set-up");
+	g->nworker = o->threads > 0 ? o->threads : pool_cpus();
+	if (!(g->w = calloc(g->nworker, sizeof(*g->w))) ||
+	    !(g->pool = pool_new(g->nworker)))
+		return err_sys(e, "threads");
+	for (int i = 0; i < g->nworker; i++)
+		g->w[i].g = g;
+	if (o->psf && strcmp(o->psf, "builtin") && !strstr(o->psf, "%")) {
+		if (!(g->user_grid = psf_grid_read(o->psf, e)))
+			return -1;
+		if (g->user_grid->kind == PSF_OPTICAL && psf_make_epsf(g->user_grid, e) < 0)
+			return -1;
+	}
+	return 0;
+}
+
+static void engine_free(struct engine *g)
+{
+	if (g->pool)
+		pool_free(g->pool);
+	for (int i = 0; g->w && i < g->nworker; i++) {
+		for (int m = 0; m < g->plugins.n; m++)
+			if (g->w[i].started[m] && g->plugins.p[m].m->thread_stop)
+				g->plugins.p[m].m->thread_stop(g->plugins.p[m].state,
+							       g->w[i].tstate[m]);
+		free(g->w[i].scratch);
+		fftconv_thread_free(g->w[i].fft);
+	}
+	free(g->w);
+	plugins_free(&g->plugins);
+	fftconv_free(g->fft);
+	for (int s = 0; s < g->nslot; s++) {
+		for (int t = 0; t < g->ntile; t++)
+			free(g->slot[s].tile[t]);
+		free(g->slot[s].tile);
+	}
+	for (int s = 0; s < WFS_NSCA; s++)
+		for (int c = 0; c < 3; c++)
+			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
+				psf_grid_free(g->grid[s][c]);
+	psf_grid_free(g->user_grid);
+	for (int i = 0; i < 2; i++) {
+		free(g->b[i].p);
+		free(g->b[i].param);
+		free(g->b[i].count);
+		free(g->b[i].items);
+		free(g->b[i].active);
+	}
+	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand);
+	sky_free(&g->sky);
+	pthread_mutex_destroy(&g->err_mu);
+}
+
+static int open_placed(struct engine *g)
+{
+	const char *path = g->o->placed;
+	const char *slash = strrchr(path, '/');
+	int fd;
+
+	snprintf(g->placed_tmp, sizeof(g->placed_tmp), "%.*s.%s.XXXXXX",
+		 slash ? (int)(slash - path + 1) : 0, path, slash ? slash + 1 : path);
+	if ((fd = mkstemp(g->placed_tmp)) < 0)
+		return err_sys(g->e, "%s", path);
+	memcpy(placed_tmp_signal, g->placed_tmp, sizeof(placed_tmp_signal));
+	if (!(g->placed = fdopen(fd, "w"))) {
+		close(fd);
+		unlink(g->placed_tmp);
+		return err_sys(g->e, "%s", path);
+	}
+	fputs("id,sca,x,y,flux,mag,model\n", g->placed);
+	return 0;
+}
+
+static int close_placed(struct engine *g, int keep)
+{
+	int bad = 0;
+
+	if (!g->placed)
+		return 0;
+	bad |= fflush(g->placed) != 0 || fsync(fileno(g->placed)) != 0;
+	bad |= fclose(g->placed) != 0;
+	g->placed = NULL;
+	if (keep && !bad && rename(g->placed_tmp, g->o->placed) == 0) {
+		placed_tmp_signal[0] = 0;
+		return 0;
+	}
+	unlink(g->placed_tmp);
+	placed_tmp_signal[0] = 0;
+	return keep ? err_sys(g->e, "%s", g->o->placed) : 0;
+}
+
+void scene_remove_temporaries(void)
+{
+	if (placed_tmp_signal[0])
+		unlink(placed_tmp_signal);
+}
+
+int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
+{
+	struct engine *g = malloc(sizeof(*g));
+	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
+				   .chunk_rows = o->chunk };
+	struct timespec t0, t1;
+	int cur = 0, pending = 0, rc = -1;
+
+	if (!g)
+		return err_sys(e, "memory");
+	clock_gettime(CLOCK_MONOTONIC, &t0);
+	if (engine_init(g, o, e) < 0 || (o->placed && open_placed(g) < 0))
+		goto out;
+	for (char *const *cat = catalogs; *cat; cat++) {
+		struct catalog *c = catalog_open(*cat, &co, e);
+		struct rows rows;
+		long n;
+
+		if (!c)
+			goto out;
+		while ((n = catalog_read(c, &rows, e)) > 0) {
+			struct batch *b = &g->b[cur];
+
+			g->rows_read += n;
+			if (build_batch(g, &rows, b) < 0)
+				break;
+			if (pending) {
+				pool_wait(g->pool);
+				pending = 0;
+				if (atomic_load(&g->failed))
+					break;
+			}
+			if (bin_batch(g, b) < 0)
+				break;
+			g->rendering = b;
+			pool_start(g->pool, render_tile, g, b->nactive);
+			pending = 1;
+			cur ^= 1;
+		}
+		catalog_close(c);
+		if (n < 0 || e->code != EXIT_OK)
+			break;
+	}
+	if (pending)
+		pool_wait(g->pool);
+	if (e->code != EXIT_OK || atomic_load(&g->failed)) {
+		if (e->code == EXIT_OK)
+			err_set(e, EXIT_PLUGIN, "rendering failed");
+		goto out;
+	}
+	if (write_output(g) < 0 || close_placed(g, 1) < 0)
+		goto out;
+	clock_gettime(CLOCK_MONOTONIC, &t1);
+	host_log(g, 1, "%llu rows read, %llu culled far from every SCA, %llu placements on "
+		 "%d SCA%s, %.3f s", g->rows_read, g->culled, g->placements, g->nslot,
+		 g->nslot == 1 ? "" : "s",
+		 (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec));
+	rc = 0;
+out:
+	close_placed(g, 0);
+	engine_free(g);
+	free(g);
+	return rc;
+}

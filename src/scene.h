@@ -1,0 +1,57 @@
+/*
+ * scene.h - one simulated exposure, from catalogs to FITS.
+ *
+ * The engine streams: each catalog chunk is projected onto the requested
+ * SCAs, its rows become placements (a source on one SCA), placements are
+ * binned by the tiles their footprints touch, and worker threads render whole
+ * tiles, each tile by one worker in catalog order, while the main thread
+ * reads the next chunk.  After the last chunk, each strip of tiles gets its
+ * background and noise in parallel and is written out.
+ */
+#ifndef WFS_SCENE_H
+#define WFS_SCENE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+struct err;
+
+struct scene_opts {
+	int filter;                     /* enum wfs_filter */
+	unsigned sca_mask;              /* bit s-1 for SCA s */
+	double ra, dec, pa;             /* pointing, degrees */
+	int boresight;                  /* ra/dec is the boresight, not WFI01 */
+	double exptime;                 /* seconds */
+	int bunit_counts;               /* output counts instead of counts/s */
+	const char *psf;                /* "builtin" or a gridded PSF file */
+	const char *psf_cache;          /* NULL: default cache directory */
+	int threads;                    /* 0: all cores */
+	uint64_t seed;
+	int verbose;                    /* -1 quiet, 0 normal, 1.. -v */
+	double background;              /* counts/s/pixel */
+	const char *background_arg;     /* as given, for the header */
+	unsigned noise;                 /* enum noise_stage bits */
+	double readnoise, dark_current, cosmic_rate, cosmic_residual;
+	const char *output;             /* "-", a path, or a path with %d */
+	const char *placed;             /* --placed file or NULL */
+	const char *compress;           /* NULL, "none", "rice", "gzip" */
+	const char *plugin_path;
+	const char *sersic;             /* default method: "quick"/"precise" */
+	const char *sersic_flux;        /* NULL (per catalog), "total", "ie" */
+	double bright_limit, xbright_limit;
+	int tile;                       /* tile side in pixels */
+	size_t chunk;                   /* rows per chunk */
+	int flux_unit;                  /* enum flux_unit default */
+	int zp_stips;                   /* STIPS's fixed zeropoints */
+	const char *cmdline;            /* for the header */
+};
+
+/* Simulate the scene from the catalogs (NULL-terminated; "-" is stdin).
+ * Returns 0, or -1 with the message and exit status in e. */
+int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e);
+
+/* Remove the temporary --placed file (async-signal-safe, for a fatal
+ * signal handler; fitsout_abort_all_signal() removes the FITS ones). */
+void scene_remove_temporaries(void);
+
+#endif

@@ -457,6 +457,8 @@ static int fz_fail(struct fitsout *f, int status, int saved_errno,
 			    status == FILE_NOT_CLOSED)) {
 		fits_clear_errmsg();
 		errno = saved_errno;
+		if (status == WRITE_ERROR)
+			what = "write error";
 		return err_sys(e, "%s: %s", f->name, what);
 	}
 	return err_fits(e, status, "%s: %s", f->name, what);

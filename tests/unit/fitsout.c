@@ -509,6 +509,37 @@ static void test_errors(const char *dir)
 		   "/dev/null stays a device: %s", e.msg);
 	}
 
+	/* A full device: the error names it and says why. */
+	err_clear(&e);
+	if (access("/dev/full", W_OK) == 0)
+		ok(write_sample("/dev/full", NULL, &e) == -1 &&
+		   strstr(e.msg, "/dev/full") &&
+		   strstr(e.msg, "No space left on device"),
+		   "writing to /dev/full: %s", e.msg);
+
+	/* A reader that went away: EPIPE is an error, not silence (with
+	 * SIGPIPE ignored, as a program may do). */
+	{
+		int pfd[2], st;
+		fflush(stdout);
+		if (pipe(pfd) == 0 && fork() == 0) {
+			struct err ce = { 0 };
+			signal(SIGPIPE, SIG_IGN);
+			close(pfd[0]);
+			dup2(pfd[1], STDOUT_FILENO);
+			close(pfd[1]);
+			if (write_sample("-", NULL, &ce) == 0)
+				_exit(1);
+			_exit(strstr(ce.msg, "<stdout>") &&
+			      strstr(ce.msg, "Broken pipe") ? 0 : 2);
+		}
+		close(pfd[0]);
+		close(pfd[1]);
+		wait(&st);
+		ok(WIFEXITED(st) && WEXITSTATUS(st) == 0,
+		   "a closed pipe is reported as '<stdout>: ... Broken pipe'");
+	}
+
 	snprintf(path, sizeof(path), "%s/bad.fits", dir);
 	err_clear(&e);
 	f = fitsout_open(path, NULL, &e);

@@ -74,13 +74,15 @@ $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 $(B)/obj/data_tables.o: $(B)/data_tables.c
 	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
 
-# Plugins see nothing of the host but include/wfiscene/model.h.
-$(B)/plugins/%.so: plugins/$$(subst -,_,%).c include/wfiscene/model.h | $(B)/plugins
-	@echo "  PLUGIN  $@"
+# Plugins see nothing of the host but include/wfiscene/model.h.  A plugin
+# plugins/foo_bar.c becomes build/plugins/foo-bar.so, the model 'foo-bar'.
+define plugin_rule
+$(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
+	@echo "  PLUGIN  $$@"
 	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra -Wno-unused-parameter -Iinclude \
-		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(LDFLAGS) -o $@ $< -lm
-
-.SECONDEXPANSION:
+		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(LDFLAGS) -o $$@ $$< -lm
+endef
+$(foreach p,$(basename $(notdir $(wildcard plugins/*.c))),$(eval $(call plugin_rule,$(p))))
 
 $(B)/tests/%: tests/unit/%.c tests/unit/tap.h $(B)/libwfs.a | $(B)/tests
 	@echo "  CC      $@"

@@ -81,6 +81,12 @@ int rows_column(const struct rows *r, const char *name);
 int rows_number(const struct rows *r, int col, size_t i, double fallback,
 		double *out, struct err *e);
 
+/* Parse s (blanks around it allowed) as a decimal number, correctly
+ * rounded.  Returns 0 with *out, 1 when s is not a number, 2 when it is
+ * NaN or infinite.  (Used by rows_number; public for plugins' hosts and
+ * tests.) */
+int catalog_parse_double(const char *s, double *out);
+
 /* Rows read and raw bytes consumed so far, for reports. */
 unsigned long long catalog_rows(const struct catalog *c);
 unsigned long long catalog_bytes(const struct catalog *c);

@@ -1,0 +1,666 @@
+/*
+ * catalog.c - the catalog layer: gives the columns of a table (table.h)
+ * their meaning, as wfiscene-catalog(5) documents; see catalog.h.
+ *
+ * Numbers are parsed by a hand-written decimal parser (catalog_parse_double)
+ * that is exact for the common case and falls back to strtod for the rest,
+ * since parsing dominates the cost of a faint-star catalog.
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "catalog.h"
+#include "err.h"
+#include "instrument.h"
+#include "table.h"
+
+/* Magnitudes outside this range are surely a mistake (99 for "no data",
+ * a flux in the magnitude column); an error beats a blank or blinding
+ * image. */
+#define CATALOG_MAG_MIN (-20.0)
+#define CATALOG_MAG_MAX 50.0
+
+enum stips_type { STIPS_NONE, STIPS_INTERNAL, STIPS_MIXED, STIPS_MULTI,
+	STIPS_GENERIC };
+
+struct catalog {
+	struct table *t;
+	struct catalog_opts o;
+	enum stips_type stips;
+	int sky;                /* 1: ra, dec; 0: x, y */
+	int c_ra, c_dec, c_x, c_y, c_sca, c_flux, c_mag, c_units, c_type, c_id;
+	int flux_unit;          /* unit of the flux column, per file */
+	unsigned long long nrows;
+	size_t cap;
+	char **colname;
+
+	double *ra, *dec, *x, *y, *flux;
+	int *sca;
+	unsigned char *unit;
+	const char **type;
+	long long *id;
+};
+
+/* Exact powers of ten: every one up to 1e22 is a double without rounding. */
+static const double pow10_exact[23] = {
+	1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
+	1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+};
+
+/*
+ * Parse s (surrounding blanks allowed) as a decimal number.  Returns 0 and
+ * *out, 1 when s is not a number, 2 when it is NaN or infinite.
+ *
+ * Fast path (Clinger 1990): when the significant digits form an integer
+ * m < 2^53 and the decimal exponent k has |k| <= 22, m and 10^|k| are both
+ * exact doubles, so one IEEE multiplication or division gives the
+ * correctly rounded result.  Everything else (more than 15 digits, large
+ * exponents, hex, "inf") goes to strtod, which is also correctly rounded.
+ */
+int catalog_parse_double(const char *s, double *out)
+{
+	const char *p = s, *start;
+	uint64_t m = 0;
+	int nd = 0, k = 0, neg = 0, digits = 0, exact = 1;
+	char *end;
+	double v;
+
+	while (*p == ' ' || *p == '\t')
+		p++;
+	start = p;
+	if (*p == '-' || *p == '+')
+		neg = *p++ == '-';
+	for (; *p >= '0' && *p <= '9'; p++, digits++) {
+		if (nd < 19) {
+			m = m * 10 + (uint64_t)(*p - '0');
+			if (m)
+				nd++;
+		} else {
+			k++;
+			exact = 0;
+		}
+	}
+	if (*p == '.') {
+		p++;
+		for (; *p >= '0' && *p <= '9'; p++, digits++) {
+			if (nd < 19) {
+				m = m * 10 + (uint64_t)(*p - '0');
+				if (m)
+					nd++;
+				k--;
+			} else {
+				exact = 0;
+			}
+		}
+	}
+	if (!digits)
+		goto slow;
+	if (*p == 'e' || *p == 'E') {
+		int eneg = 0, ex = 0, ed = 0;
+
+		p++;
+		if (*p == '-' || *p == '+')
+			eneg = *p++ == '-';
+		for (; *p >= '0' && *p <= '9'; p++, ed++)
+			if (ex < 100000)
+				ex = ex * 10 + (*p - '0');
+		if (!ed)
+			return 1;
+		k += eneg ? -ex : ex;
+	}
+	while (*p == ' ' || *p == '\t')
+		p++;
+	if (*p)
+		return 1;
+	if (exact && m < (1ull << 53) && k >= -22 && k <= 22) {
+		v = (double)m;
+		v = k < 0 ? v / pow10_exact[-k] : v * pow10_exact[k];
+		*out = neg ? -v : v;
+		return 0;
+	}
+	if (exact && m == 0) {
+		*out = neg ? -0.0 : 0.0;
+		return 0;
+	}
+slow:
+	errno = 0;
+	v = strtod(start, &end);
+	if (end == start)
+		return 1;
+	while (*end == ' ' || *end == '\t')
+		end++;
+	if (*end)
+		return 1;
+	if (!isfinite(v))
+		return 2;
+	/* Overflow gives HUGE_VAL (not finite, caught above); underflow to
+	 * a denormal or zero is a fine value. */
+	*out = v;
+	return 0;
+}
+
+static int is_empty(const char *s)
+{
+	while (*s == ' ' || *s == '\t')
+		s++;
+	return *s == 0;
+}
+
+static int bad_number(struct err *e, const char *file, long line,
+		      const char *col, const char *text, int why)
+{
+	if (is_empty(text))
+		return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': empty value",
+			       file, line, col);
+	return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': %s: '%.200s'", file,
+		       line, col, why == 2 ? "not a finite number" : "not a number",
+		       text);
+}
+
+int rows_column(const struct rows *r, const char *name)
+{
+	for (int i = 0; i < r->ncol; i++)
+		if (strcasecmp(r->colname[i], name) == 0)
+			return i;
+	return -1;
+}
+
+int rows_number(const struct rows *r, int col, size_t i, double fallback,
+		double *out, struct err *e)
+{
+	const char *s = r->text[col][i];
+	int rc;
+
+	if (is_empty(s)) {
+		*out = fallback;
+		return 0;
+	}
+	rc = catalog_parse_double(s, out);
+	if (rc)
+		return bad_number(e, r->file, r->line[i], r->colname[col], s, rc);
+	return 0;
+}
+
+/* Unit names for flux columns and the fluxunit metadata. */
+static int unit_code(const char *s)
+{
+	char b[32];
+	size_t n = 0;
+	static const struct { const char *name; int code; } names[] = {
+		{ "c", UNIT_COUNTS }, { "counts", UNIT_COUNTS },
+		{ "count", UNIT_COUNTS }, { "counts/s", UNIT_COUNTS },
+		{ "ct/s", UNIT_COUNTS }, { "e/s", UNIT_COUNTS },
+		{ "e-/s", UNIT_COUNTS }, { "electron/s", UNIT_COUNTS },
+		{ "electrons/s", UNIT_COUNTS }, { "cps", UNIT_COUNTS },
+		{ "m", UNIT_ABMAG }, { "abmag", UNIT_ABMAG }, { "ab", UNIT_ABMAG },
+		{ "mag", UNIT_ABMAG }, { "mag(ab)", UNIT_ABMAG },
+		{ "j", UNIT_JY }, { "jy", UNIT_JY }, { "jansky", UNIT_JY },
+		{ "p", UNIT_PHOT }, { "e", UNIT_ERG },
+	};
+
+	for (; *s && n + 1 < sizeof(b); s++)
+		if (!isspace((unsigned char)*s))
+			b[n++] = (char)tolower((unsigned char)*s);
+	if (*s)
+		return 0;
+	b[n] = 0;
+	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]); i++)
+		if (strcmp(b, names[i].name) == 0)
+			return names[i].code;
+	return 0;
+}
+
+static int col_of(const struct table *t, const char *name)
+{
+	for (int i = 0; i < table_ncol(t); i++)
+		if (strcmp(table_colname(t, i), name) == 0)
+			return i;
+	return -1;
+}
+
+static int alloc_rows(struct catalog *c, struct err *e)
+{
+	size_t n = c->cap;
+
+	c->ra = malloc(n * sizeof(double));
+	c->dec = malloc(n * sizeof(double));
+	c->x = malloc(n * sizeof(double));
+	c->y = malloc(n * sizeof(double));
+	c->flux = malloc(n * sizeof(double));
+	c->sca = malloc(n * sizeof(int));
+	c->unit = malloc(n);
+	c->type = malloc(n * sizeof(char *));
+	c->id = malloc(n * sizeof(long long));
+	c->colname = calloc((size_t)table_ncol(c->t) + 1, sizeof(char *));
+	if (!c->ra || !c->dec || !c->x || !c->y || !c->flux || !c->sca ||
+	    !c->unit || !c->type || !c->id || !c->colname)
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	for (int i = 0; i < table_ncol(c->t); i++)
+		c->colname[i] = (char *)table_colname(c->t, i);
+	return 0;
+}
+
+/* The column a numeric meaning needs must not be a FITS string column. */
+static int want_number(struct catalog *c, int col, struct err *e)
+{
+	if (col >= 0 && table_colkind(c->t, col) == TABLE_STRING)
+		return err_set(e, EXIT_INPUT, "%s: column '%s' is a string column, not a number",
+			       table_name(c->t), table_colname(c->t, col));
+	return 0;
+}
+
+/* Decide what the columns mean.  The header is known; no row is read. */
+static int catalog_plan(struct catalog *c, struct err *e)
+{
+	struct table *t = c->t;
+	const char *name = table_name(t);
+	long hl = table_header_line(t);
+	const char *type = table_meta(t, "type");
+	const char *fname = filter_get(c->o.filter)->name;
+	char where[64] = "";
+	char lc[16];
+	size_t n;
+
+	if (hl > 0)
+		snprintf(where, sizeof(where), ":%ld", hl);
+	c->c_ra = col_of(t, "ra");
+	c->c_dec = col_of(t, "dec");
+	c->c_x = col_of(t, "x");
+	c->c_y = col_of(t, "y");
+	c->c_sca = col_of(t, "sca");
+	c->c_flux = col_of(t, "flux");
+	c->c_mag = col_of(t, "mag");
+	c->c_units = col_of(t, "units");
+	c->c_type = col_of(t, "type");
+	c->c_id = col_of(t, "id");
+	for (n = 0; fname[n] && n + 1 < sizeof(lc); n++)
+		lc[n] = (char)tolower((unsigned char)fname[n]);
+	lc[n] = 0;
+
+	c->stips = STIPS_NONE;
+	if (type && *type) {
+		if (strcasecmp(type, "internal") == 0)
+			c->stips = STIPS_INTERNAL;
+		else if (strcasecmp(type, "mixed") == 0)
+			c->stips = STIPS_MIXED;
+		else if (strcasecmp(type, "multifilter") == 0)
+			c->stips = STIPS_MULTI;
+		else if (strcasecmp(type, "generic") == 0)
+			c->stips = STIPS_GENERIC;
+		else if (strcasecmp(type, "phoenix") == 0 ||
+			 strcasecmp(type, "phoenix_realtime") == 0 ||
+			 strcasecmp(type, "pandeia") == 0 ||
+			 strcasecmp(type, "bc95") == 0)
+			return err_set(e, EXIT_INPUT,
+				       "%s: catalog type '%s' needs stellar or galaxy spectra: "
+				       "convert it to an 'internal' catalog with STIPS first",
+				       name, type);
+		else
+			return err_set(e, EXIT_INPUT,
+				       "%s: unknown catalog type '%s' (want internal, mixed, multifilter or generic)",
+				       name, type);
+	}
+	if (c->stips == STIPS_INTERNAL || c->stips == STIPS_MIXED) {
+		const char *f = table_meta(t, "filter");
+
+		if (!f || !*f)
+			return err_set(e, EXIT_INPUT,
+				       "%s: catalog type '%s' needs metadata 'filter'",
+				       name, type);
+		if (strcasecmp(f, fname) != 0)
+			return err_set(e, EXIT_INPUT,
+				       "%s: catalog type '%s' is for filter '%s', the scene's is '%s'",
+				       name, type, f, fname);
+	}
+	if (c->stips == STIPS_MIXED && c->c_units < 0)
+		return err_set(e, EXIT_INPUT, "%s%s: catalog type 'mixed' needs a 'units' column",
+			       name, where);
+	if (c->stips == STIPS_MULTI) {
+		c->c_flux = col_of(t, lc);
+		if (c->c_flux < 0)
+			return err_set(e, EXIT_INPUT,
+				       "%s%s: catalog type 'multifilter' has no column '%s' for the scene's filter",
+				       name, where, fname);
+		c->c_mag = -1;
+	}
+	if (c->stips == STIPS_GENERIC && c->c_flux < 0) {
+		c->c_flux = col_of(t, lc);
+		if (c->c_flux < 0)
+			return err_set(e, EXIT_INPUT,
+				       "%s%s: catalog type 'generic' needs a 'flux' or '%s' column",
+				       name, where, lc);
+	}
+
+	if (c->c_ra >= 0 && c->c_dec >= 0) {
+		c->sky = 1;
+	} else if (c->c_x >= 0 && c->c_y >= 0) {
+		c->sky = 0;
+	} else if (c->c_ra >= 0 || c->c_dec >= 0) {
+		return err_set(e, EXIT_INPUT, "%s%s: column '%s' without '%s'", name, where,
+			       c->c_ra >= 0 ? "ra" : "dec", c->c_ra >= 0 ? "dec" : "ra");
+	} else if (c->c_x >= 0 || c->c_y >= 0) {
+		return err_set(e, EXIT_INPUT, "%s%s: column '%s' without '%s'", name, where,
+			       c->c_x >= 0 ? "x" : "y", c->c_x >= 0 ? "y" : "x");
+	} else {
+		return err_set(e, EXIT_INPUT,
+			       "%s%s: no position columns: need 'ra' and 'dec', or 'x' and 'y'",
+			       name, where);
+	}
+	if (c->c_flux < 0 && c->c_mag < 0)
+		return err_set(e, EXIT_INPUT, "%s%s: no flux column: need 'flux' or 'mag'",
+			       name, where);
+
+	/* The unit of the flux column: its own unit (ECSV, IPAC, FITS
+	 * TUNIT), else the fluxunit metadata, else the scene's --flux-unit,
+	 * else counts/s.  STIPS's own types are in counts/s by definition,
+	 * so the scene's default does not apply to them. */
+	c->flux_unit = UNIT_COUNTS;
+	if (c->o.flux_unit && c->stips == STIPS_NONE)
+		c->flux_unit = c->o.flux_unit;
+	{
+		const char *mu = table_meta(t, "fluxunit");
+
+		if (mu && *mu) {
+			c->flux_unit = unit_code(mu);
+			if (!c->flux_unit)
+				return err_set(e, EXIT_INPUT,
+					       "%s: metadata 'fluxunit': unknown unit '%s' (want counts, abmag or jy)",
+					       name, mu);
+		}
+	}
+	if (c->c_flux >= 0 && *table_colunit(t, c->c_flux)) {
+		const char *cu = table_colunit(t, c->c_flux);
+
+		c->flux_unit = unit_code(cu);
+		if (!c->flux_unit)
+			return err_set(e, EXIT_INPUT,
+				       "%s: column '%s': unknown unit '%s' (want counts/s, mag(AB) or Jy)",
+				       name, table_colname(t, c->c_flux), cu);
+	}
+	if (want_number(c, c->c_ra, e) || want_number(c, c->c_dec, e) ||
+	    want_number(c, c->c_x, e) || want_number(c, c->c_y, e) ||
+	    want_number(c, c->c_sca, e) || want_number(c, c->c_flux, e) ||
+	    want_number(c, c->c_mag, e))
+		return -1;
+	return 0;
+}
+
+struct catalog *catalog_open(const char *path, const struct catalog_opts *o,
+			     struct err *e)
+{
+	struct catalog *c = calloc(1, sizeof(*c));
+
+	if (!c) {
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		return NULL;
+	}
+	c->o = *o;
+	if (!c->o.chunk_rows)
+		c->o.chunk_rows = 65536;
+	c->cap = c->o.chunk_rows;
+	/* The filter's name is needed for STIPS catalog types; the tables
+	 * load once, so this is free when main has loaded them. */
+	if (instrument_init(e) < 0)
+		goto fail;
+	if (!filter_get(c->o.filter)) {
+		err_set(e, EXIT_INPUT, "catalog: unknown filter %d", c->o.filter);
+		goto fail;
+	}
+	c->t = table_open(path, c->cap, e);
+	if (!c->t)
+		goto fail;
+	if (table_format(c->t) != TABLE_EMPTY && catalog_plan(c, e) < 0)
+		goto fail;
+	if (alloc_rows(c, e) < 0)
+		goto fail;
+	return c;
+fail:
+	catalog_close(c);
+	return NULL;
+}
+
+/* The value of numeric column col in row i: from FITS directly, else
+ * parsed from text. */
+static inline int cell_number(const struct table_chunk *ch, int col, size_t i,
+			      const char *colname, double *v, struct err *e)
+{
+	int rc;
+
+	if (ch->num[col]) {
+		*v = ch->num[col][i];
+		if (isfinite(*v))
+			return 0;
+		rc = isnan(*v) && !*ch->text[col][i] ? 1 : 2;
+		return bad_number(e, ch->file, ch->line[i], colname,
+				  ch->text[col][i], rc);
+	}
+	rc = catalog_parse_double(ch->text[col][i], v);
+	if (rc)
+		return bad_number(e, ch->file, ch->line[i], colname,
+				  ch->text[col][i], rc);
+	return 0;
+}
+
+static int row_unit(const struct table_chunk *ch, int col, size_t i,
+		    int dflt, struct err *e)
+{
+	const char *s = ch->text[col][i];
+	int u;
+
+	while (*s == ' ')
+		s++;
+	if (!*s)
+		return dflt;
+	u = unit_code(s);
+	if (!u)
+		return err_set(e, EXIT_INPUT,
+			       "%s:%ld: column 'units': unknown unit '%.40s' (want c, j, p, e or m)",
+			       ch->file, ch->line[i], s);
+	return u;
+}
+
+static int integer_value(const struct table_chunk *ch, int col, size_t i,
+			 const char *colname, long long *out, struct err *e)
+{
+	const char *s = ch->text[col][i];
+	const char *p = s;
+	long long v = 0;
+	int neg = 0, nd = 0;
+	double d;
+
+	while (*p == ' ')
+		p++;
+	if (*p == '-' || *p == '+')
+		neg = *p++ == '-';
+	for (; *p >= '0' && *p <= '9' && nd < 18; p++, nd++)
+		v = v * 10 + (*p - '0');
+	while (*p == ' ')
+		p++;
+	if (nd && !*p) {
+		*out = neg ? -v : v;
+		return 0;
+	}
+	/* "12.0", "1e3", or a long number: exact if it is an integer. */
+	if (cell_number(ch, col, i, colname, &d, e) < 0)
+		return -1;
+	if (d != floor(d) || fabs(d) > 9.2e18)
+		return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': not an integer: '%.200s'",
+			       ch->file, ch->line[i], colname, s);
+	*out = (long long)d;
+	return 0;
+}
+
+static void lower_trim(char **s)
+{
+	char *p = *s, *q;
+
+	while (*p == ' ' || *p == '\t')
+		p++;
+	for (q = p; *q; q++)
+		if (*q >= 'A' && *q <= 'Z')
+			*q = (char)(*q + 32);
+	while (q > p && (q[-1] == ' ' || q[-1] == '\t'))
+		*--q = 0;
+	*s = p;
+}
+
+long catalog_read(struct catalog *c, struct rows *r, struct err *e)
+{
+	struct table_chunk ch;
+	long n;
+	size_t i;
+	const char *fn;
+
+	memset(r, 0, sizeof(*r));
+	n = table_read(c->t, &ch, e);
+	if (n <= 0) {
+		r->file = table_name(c->t);
+		return n;
+	}
+	fn = ch.file;
+	for (i = 0; i < (size_t)n; i++) {
+		double v, f;
+		int u;
+
+		if (c->sky) {
+			if (cell_number(&ch, c->c_ra, i, "ra", &v, e) < 0)
+				return -1;
+			c->ra[i] = v;
+			if (cell_number(&ch, c->c_dec, i, "dec", &v, e) < 0)
+				return -1;
+			if (v < -90 || v > 90)
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: column 'dec': out of range [-90, 90]: '%.40s'",
+					       fn, ch.line[i], ch.text[c->c_dec][i]);
+			c->dec[i] = v;
+			c->x[i] = c->y[i] = NAN;
+			c->sca[i] = 0;
+		} else {
+			c->ra[i] = c->dec[i] = NAN;
+			if (cell_number(&ch, c->c_x, i, "x", &v, e) < 0)
+				return -1;
+			c->x[i] = v - 1;
+			if (cell_number(&ch, c->c_y, i, "y", &v, e) < 0)
+				return -1;
+			c->y[i] = v - 1;
+			c->sca[i] = 0;
+			if (c->c_sca >= 0) {
+				long long s;
+
+				if (integer_value(&ch, c->c_sca, i, "sca", &s, e) < 0)
+					return -1;
+				if (s < 1 || s > WFS_NSCA)
+					return err_set(e, EXIT_INPUT,
+						       "%s:%ld: column 'sca': not an SCA (1 to %d): '%.40s'",
+						       fn, ch.line[i], WFS_NSCA, ch.text[c->c_sca][i]);
+				c->sca[i] = (int)s;
+			}
+		}
+
+		if (c->c_flux >= 0) {
+			const char *cn = table_colname(c->t, c->c_flux);
+
+			if (cell_number(&ch, c->c_flux, i, cn, &f, e) < 0)
+				return -1;
+			u = c->flux_unit;
+			if (c->c_units >= 0 && c->stips != STIPS_INTERNAL) {
+				u = row_unit(&ch, c->c_units, i, u, e);
+				if (u < 0)
+					return -1;
+			}
+			if (u == UNIT_ABMAG) {
+				if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)
+					return err_set(e, EXIT_INPUT,
+						       "%s:%ld: column '%s': magnitude out of range [%g, %g]: '%.40s'",
+						       fn, ch.line[i], cn, CATALOG_MAG_MIN,
+						       CATALOG_MAG_MAX, ch.text[c->c_flux][i]);
+			} else if (!(f > 0)) {
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: column '%s': flux must be positive: '%.40s'",
+					       fn, ch.line[i], cn, ch.text[c->c_flux][i]);
+			}
+		} else {
+			if (cell_number(&ch, c->c_mag, i, "mag", &f, e) < 0)
+				return -1;
+			if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: column 'mag': magnitude out of range [%g, %g]: '%.40s'",
+					       fn, ch.line[i], CATALOG_MAG_MIN, CATALOG_MAG_MAX,
+					       ch.text[c->c_mag][i]);
+			u = UNIT_ABMAG;
+		}
+		c->flux[i] = f;
+		c->unit[i] = (unsigned char)u;
+
+		if (c->c_type >= 0 && c->stips != STIPS_GENERIC) {
+			/* Cells live in the table's own buffers, which
+			 * are writable: lower-case them in place. */
+			char *s = (char *)ch.text[c->c_type][i];
+
+			lower_trim(&s);
+			c->type[i] = *s ? s : "point";
+		} else {
+			c->type[i] = "point";
+		}
+
+		if (c->c_id >= 0 && !is_empty(ch.text[c->c_id][i])) {
+			if (integer_value(&ch, c->c_id, i, "id", &c->id[i], e) < 0)
+				return -1;
+		} else {
+			c->id[i] = (long long)(c->nrows + i + 1);
+		}
+	}
+	c->nrows += (unsigned long long)n;
+
+	r->n = (size_t)n;
+	r->file = fn;
+	r->line = ch.line;
+	r->ra = c->ra;
+	r->dec = c->dec;
+	r->x = c->x;
+	r->y = c->y;
+	r->sca = c->sca;
+	r->flux = c->flux;
+	r->unit = c->unit;
+	r->type = c->type;
+	r->id = c->id;
+	r->sersic_ie = c->stips == STIPS_INTERNAL || c->stips == STIPS_MIXED ||
+		c->stips == STIPS_MULTI;
+	r->ncol = table_ncol(c->t);
+	r->colname = c->colname;
+	r->text = ch.text;
+	return n;
+}
+
+unsigned long long catalog_rows(const struct catalog *c)
+{
+	return c->nrows;
+}
+
+unsigned long long catalog_bytes(const struct catalog *c)
+{
+	return table_raw_bytes(c->t);
+}
+
+void catalog_close(struct catalog *c)
+{
+	if (!c)
+		return;
+	table_close(c->t);
+	free(c->ra);
+	free(c->dec);
+	free(c->x);
+	free(c->y);
+	free(c->flux);
+	free(c->sca);
+	free(c->unit);
+	free(c->type);
+	free(c->id);
+	free(c->colname);
+	free(c);
+}

@@ -1,0 +1,85 @@
+/*
+ * table.h - the table layer under catalog.h (internal to the catalog
+ * module): any supported format, plain or compressed, read as chunks of
+ * rows whose cells are text, plus the file's metadata and column units.
+ *
+ * Formats are recognised from the content (table_open):
+ *   FITS        "SIMPLE  =" at byte 0; binary (and ASCII) table HDUs in turn
+ *   ECSV        a first line "# %ECSV"
+ *   IPAC        a "|name|name|" header line, optionally after "\key=value"
+ *   CSV         a header line containing a comma
+ *   whitespace  anything else: fields separated by blanks or tabs
+ * "\key=value" metadata lines are accepted before the header of every text
+ * format, not only IPAC.
+ */
+#ifndef WFS_TABLE_H
+#define WFS_TABLE_H
+
+#include <stddef.h>
+
+struct err;
+struct input;
+
+enum table_format { TABLE_CSV, TABLE_WS, TABLE_IPAC, TABLE_ECSV, TABLE_FITS,
+	TABLE_EMPTY };
+
+/* What a column holds: text formats say nothing (TEXT); FITS tables say
+ * whether the column is numeric or a string. */
+enum table_kind { TABLE_TEXT, TABLE_NUMBER, TABLE_STRING };
+
+/* The longest line (or quoted row) a text table may have. */
+#define TABLE_MAX_LINE (16u << 20)
+
+struct table_chunk {
+	size_t n;
+	const char *file;       /* name for messages, e.g. "cat.fits[2]" */
+	long *line;             /* per row: file line (text) or table row (FITS) */
+	const char ***text;     /* text[col][row], NUL-terminated, trimmed */
+	const double **num;     /* num[col][row] for TABLE_NUMBER columns, else
+	                           num[col] == NULL */
+};
+
+struct table;
+
+/* Open path ("-" for stdin), decompress, recognise the format and read the
+ * header: column names, units, metadata.  chunk_rows > 0. */
+struct table *table_open(const char *path, size_t chunk_rows, struct err *e);
+
+/* Next chunk: > 0 rows, 0 at the end, -1 with a message.  The chunk's
+ * memory belongs to the table and lasts until the next table_read(). */
+long table_read(struct table *t, struct table_chunk *c, struct err *e);
+
+enum table_format table_format(const struct table *t);
+const char *table_name(const struct table *t);
+int table_ncol(const struct table *t);
+/* Lower-case column name; its unit ("" when none); its kind. */
+const char *table_colname(const struct table *t, int col);
+const char *table_colunit(const struct table *t, int col);
+enum table_kind table_colkind(const struct table *t, int col);
+/* Line of the header (for messages about columns), 0 for FITS. */
+long table_header_line(const struct table *t);
+/* Metadata value of key (case-insensitive), or NULL. */
+const char *table_meta(const struct table *t, const char *key);
+unsigned long long table_raw_bytes(const struct table *t);
+void table_close(struct table *t);
+
+/* Shared by the format readers (table.c, table_text.c, table_fits.c). */
+int table_add_column(struct table *t, const char *name, size_t len,
+		     struct err *e);
+int table_add_meta(struct table *t, const char *key, size_t klen,
+		   const char *val, size_t vlen, struct err *e);
+int table_set_unit(struct table *t, int col, const char *unit, size_t len,
+		   struct err *e);
+void table_set_kind(struct table *t, int col, enum table_kind kind);
+
+/* The FITS reader (table_fits.c).  in is the opened input; a plain file is
+ * opened again by path, anything else is spooled to an unlinked temporary
+ * file first, because cfitsio needs to seek. */
+struct table_fits;
+struct table_fits *table_fits_open(struct table *t, struct input *in,
+				   size_t chunk_rows, struct err *e);
+long table_fits_read(struct table_fits *f, struct table_chunk *c,
+		     struct err *e);
+void table_fits_close(struct table_fits *f);
+
+#endif

@@ -592,8 +592,7 @@ static int bin_batch(struct engine *g, struct batch *b)
 	}
 	if (total > UINT32_MAX)
 		return err_set(g->e, EXIT_SYSTEM, "too many placements in one chunk");
-	if (grow((void **)&b->items, &b->capitems, total + 1, sizeof(*b->items)) < 0 ||
-	    grow((void **)&b->active, &(size_t){b->nactive ? ntot : 0}, ntot, 0) < 0)
+	if (grow((void **)&b->items, &b->capitems, total + 1, sizeof(*b->items)) < 0)
 		return err_sys(g->e, "tiles");
 	if (!b->active && !(b->active = malloc(ntot * sizeof(*b->active))))
 		return err_sys(g->e, "tiles");
@@ -717,7 +716,8 @@ static int primary_cards(struct engine *g, char **cards, int *n)
 	const struct scene_opts *o = g->o;
 	char c[81], buf[64];
 	int cap = 0, bad = 0;
-	time_t now = time(NULL);
+	const char *epoch = getenv("SOURCE_DATE_EPOCH");
+	time_t now = epoch && *epoch ? (time_t)strtoll(epoch, NULL, 10) : time(NULL);
 	struct tm tm;
 
 	*cards = NULL;
@@ -727,6 +727,7 @@ static int primary_cards(struct engine *g, char **cards, int *n)
 	CARD(fits_card_str, "WFSVERS", WFS_VERSION, "wfiscene version");
 	gmtime_r(&now, &tm);
 	strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%S", &tm);
+	/* SOURCE_DATE_EPOCH pins the date, so two runs can give the same bytes */
 	CARD(fits_card_str, "DATE", buf, "file creation date (UTC)");
 	CARD(fits_card_str, "TELESCOP", "ROMAN", NULL);
 	CARD(fits_card_str, "INSTRUME", "WFI", NULL);

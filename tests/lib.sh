@@ -25,6 +25,9 @@ export WFISCENE_CACHE
 if [ -n "${WFS_TEST_CACHE:-}" ]; then WFISCENE_CACHE=$WFS_TEST_CACHE; else
 	WFISCENE_CACHE=$BUILD/test-cache; fi
 export WFISCENE_CACHE
+# Pin the DATE card so that runs can be compared byte for byte.
+SOURCE_DATE_EPOCH=1700000000
+export SOURCE_DATE_EPOCH
 test_count=0
 test_fail=0
 trap 'rm -rf "$TRASH"' EXIT
@@ -70,6 +73,13 @@ test_grep() {
 	grep -q -e "$1" "$2" && return 0
 	echo "test_grep: no '$1' in $2:" >&2; sed 's/^/| /' "$2" >&2; return 1
 }
+
+# The PSF that scene tests draw with: the built-in one unless a test run
+# chooses another grid file.
+PSF=${WFS_TEST_PSF:-builtin}
+
+# fitsinfo FILE: one line per image HDU: name sum max x y (0-based argmax).
+fitsinfo() { "$PY" "$TOP/tests/fitsinfo.py" "$@"; }
 
 have_shared() { [ -d "$SHARED/roman" ]; }
 have_python() { "$PY" -c 'import numpy, astropy' 2>/dev/null; }

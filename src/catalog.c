@@ -7,7 +7,7 @@
  * since parsing dominates the cost of a faint-star catalog.
  */
 #include <ctype.h>
-#include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -64,9 +64,9 @@ static const double pow10_exact[23] = {
  */
 int catalog_parse_double(const char *s, double *out)
 {
-	const char *p = s, *start;
+	const char *p = s, *start, *d0;
 	uint64_t m = 0;
-	int nd = 0, k = 0, neg = 0, digits = 0, exact = 1;
+	int k = 0, neg = 0, digits;
 	char *end;
 	double v;
 
@@ -75,41 +75,32 @@ int catalog_parse_double(const char *s, double *out)
 	start = p;
 	if (*p == '-' || *p == '+')
 		neg = *p++ == '-';
-	for (; *p >= '0' && *p <= '9'; p++, digits++) {
-		if (nd < 19) {
-			m = m * 10 + (uint64_t)(*p - '0');
-			if (m)
-				nd++;
-		} else {
-			k++;
-			exact = 0;
-		}
-	}
+	d0 = p;
+	for (; (unsigned)(*p - '0') < 10; p++)
+		m = m * 10 + (uint64_t)(*p - '0');
+	digits = (int)(p - d0);
 	if (*p == '.') {
-		p++;
-		for (; *p >= '0' && *p <= '9'; p++, digits++) {
-			if (nd < 19) {
-				m = m * 10 + (uint64_t)(*p - '0');
-				if (m)
-					nd++;
-				k--;
-			} else {
-				exact = 0;
-			}
-		}
+		const char *f0 = ++p;
+
+		for (; (unsigned)(*p - '0') < 10; p++)
+			m = m * 10 + (uint64_t)(*p - '0');
+		k = -(int)(p - f0);
+		digits -= k;
 	}
 	if (!digits)
-		goto slow;
+		goto slow;      /* "inf", "nan", ".", garbage */
 	if (*p == 'e' || *p == 'E') {
-		int eneg = 0, ex = 0, ed = 0;
+		int eneg = 0, ex = 0;
+		const char *e0;
 
 		p++;
 		if (*p == '-' || *p == '+')
 			eneg = *p++ == '-';
-		for (; *p >= '0' && *p <= '9'; p++, ed++)
+		e0 = p;
+		for (; (unsigned)(*p - '0') < 10; p++)
 			if (ex < 100000)
 				ex = ex * 10 + (*p - '0');
-		if (!ed)
+		if (p == e0)
 			return 1;
 		k += eneg ? -ex : ex;
 	}
@@ -117,18 +108,14 @@ int catalog_parse_double(const char *s, double *out)
 		p++;
 	if (*p)
 		return 1;
-	if (exact && m < (1ull << 53) && k >= -22 && k <= 22) {
+	/* More than 19 digits may have wrapped m: let strtod decide. */
+	if (digits <= 19 && m < (1ull << 53) && k >= -22 && k <= 22) {
 		v = (double)m;
 		v = k < 0 ? v / pow10_exact[-k] : v * pow10_exact[k];
 		*out = neg ? -v : v;
 		return 0;
 	}
-	if (exact && m == 0) {
-		*out = neg ? -0.0 : 0.0;
-		return 0;
-	}
 slow:
-	errno = 0;
 	v = strtod(start, &end);
 	if (end == start)
 		return 1;
@@ -136,10 +123,10 @@ slow:
 		end++;
 	if (*end)
 		return 1;
+	/* Overflow gives HUGE_VAL, caught here; underflow to a denormal
+	 * or zero is a fine value. */
 	if (!isfinite(v))
 		return 2;
-	/* Overflow gives HUGE_VAL (not finite, caught above); underflow to
-	 * a denormal or zero is a fine value. */
 	*out = v;
 	return 0;
 }
@@ -469,7 +456,7 @@ static int integer_value(const struct table_chunk *ch, int col, size_t i,
 {
 	const char *s = ch->text[col][i];
 	const char *p = s;
-	long long v = 0;
+	unsigned long long v = 0;
 	int neg = 0, nd = 0;
 	double d;
 
@@ -477,12 +464,13 @@ static int integer_value(const struct table_chunk *ch, int col, size_t i,
 		p++;
 	if (*p == '-' || *p == '+')
 		neg = *p++ == '-';
-	for (; *p >= '0' && *p <= '9' && nd < 18; p++, nd++)
-		v = v * 10 + (*p - '0');
+	for (; *p >= '0' && *p <= '9' && nd < 19; p++, nd++)
+		v = v * 10 + (unsigned long long)(*p - '0');
 	while (*p == ' ')
 		p++;
-	if (nd && !*p) {
-		*out = neg ? -v : v;
+	/* 19 digits cannot wrap 64 bits; the sign bit must stay clear. */
+	if (nd && !*p && v <= (unsigned long long)LLONG_MAX) {
+		*out = neg ? -(long long)v : (long long)v;
 		return 0;
 	}
 	/* "12.0", "1e3", or a long number: exact if it is an integer. */

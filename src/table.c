@@ -105,6 +105,7 @@ static void unquote(const char **s, size_t *n)
 	    (*s)[*n - 1] == (*s)[0]) {
 		(*s)++;
 		*n -= 2;
+		trim(s, n);
 	}
 }
 
@@ -407,17 +408,22 @@ static int bad_byte(struct table *t, long line, const char *s, const char *p,
 		       t->name, line, c, (long)(p - s) + 1);
 }
 
-static int push_field(struct table *t, int *nf, char *f, struct err *e)
+static int grow_fields(struct table *t, struct err *e)
 {
-	if (*nf == t->fields_cap) {
-		int cap = t->fields_cap ? 2 * t->fields_cap : 32;
-		char **n = realloc(t->fields, (size_t)cap * sizeof(*n));
+	int cap = t->fields_cap ? 2 * t->fields_cap : 32;
+	char **n = realloc(t->fields, (size_t)cap * sizeof(*n));
 
-		if (!n)
-			return oom(e);
-		t->fields = n;
-		t->fields_cap = cap;
-	}
+	if (!n)
+		return oom(e);
+	t->fields = n;
+	t->fields_cap = cap;
+	return 0;
+}
+
+static inline int push_field(struct table *t, int *nf, char *f, struct err *e)
+{
+	if (*nf == t->fields_cap && grow_fields(t, e) < 0)
+		return -1;
 	t->fields[(*nf)++] = f;
 	return 0;
 }
@@ -811,7 +817,11 @@ static int ecsv_yaml_line(struct table *t, struct ecsv_state *st, const char *s,
 			return oom(ep);
 		v = colon + 1;
 		vn = (size_t)(e - v);
-		unquote(&v, &vn);
+		trim(&v, &vn);
+		if (vn == 3 && (v[0] == '\'' || v[0] == '"') && v[2] == v[0])
+			v++, vn = 1;    /* ' ' must keep its blank */
+		else
+			unquote(&v, &vn);
 		if (strcmp(st->section, "delimiter") == 0) {
 			if (vn != 1 || (v[0] != ',' && v[0] != ' '))
 				return err_set(ep, EXIT_INPUT,
@@ -1047,7 +1057,10 @@ static long text_read(struct table *t, struct table_chunk *c, struct err *e)
 
 	if (t->fmt == TABLE_EMPTY)
 		return 0;
-	if (t->pos > 0) {
+	/* Move the unparsed rest to the front only when the free space at
+	 * the end runs low: moving it every chunk would copy the buffer
+	 * over and over. */
+	if (t->pos > 0 && (t->pos == t->len || t->cap - t->len < t->cap / 4)) {
 		memmove(t->buf, t->buf + t->pos, t->len - t->pos);
 		t->len -= t->pos;
 		t->pos = 0;
@@ -1159,8 +1172,6 @@ struct table *table_open(const char *path, size_t chunk_rows, struct err *e)
 		t->fmt = TABLE_FITS;
 		t->fits = table_fits_open(t, t->in, t->chunk_rows, e);
 		if (!t->fits)
-			goto fail;
-		if (alloc_chunk(t, e) < 0)
 			goto fail;
 		return t;
 	}

@@ -1,28 +1,486 @@
-/* table_fits.c - FITS binary tables through cfitsio; see table.h. */
+/*
+ * table_fits.c - FITS binary (and ASCII) tables through cfitsio; see
+ * table.h.
+ *
+ * Every table HDU is read in turn, as STIPS writes one HDU per chunk of
+ * 100,000 rows; all must have the columns of the first.  Rows are read in
+ * chunks with fits_read_col on row ranges, so memory stays flat however
+ * long an HDU is.  Keywords of the primary header and the first table's
+ * header are the metadata (TYPE, FILTER, FLUXUNIT).  cfitsio must seek, so
+ * stdin and compressed input are first spooled to an unlinked temporary
+ * file.
+ */
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <fitsio.h>
 
 #include "err.h"
+#include "input.h"
 #include "table.h"
 
-struct table_fits {
-	int unused;
+/* Text of one chunk at most this size: a table with very wide string
+ * columns is read in fewer rows per chunk. */
+#define FITS_ARENA_MAX (64u << 20)
+
+struct fits_col {
+	int num;                /* cfitsio column number */
+	int type;               /* cfitsio type code */
+	long width;             /* characters of a string column */
+	size_t text_width;      /* bytes of text per cell, NUL included */
 };
+
+struct table_fits {
+	struct table *t;
+	fitsfile *f;
+	int nhdu, hdu;          /* cfitsio HDU numbers, 1-based */
+	long long nrows, row;   /* rows of the current HDU; next row, 0-based */
+	int ncol;
+	struct fits_col *col;
+	size_t chunk_rows;
+	char *fname;            /* "name[ext]" for messages */
+	size_t fname_cap;
+
+	double *num;            /* ncol x chunk_rows */
+	long long *ibuf;        /* chunk_rows */
+	char *lbuf;             /* chunk_rows */
+	char **sptr;            /* chunk_rows */
+	char *arena;
+	size_t arena_cap;
+	const char **cells;     /* ncol x chunk_rows */
+	const char ***text;
+	const double **nums;
+	long *line;
+};
+
+static int is_integer_type(int type)
+{
+	return type == TBYTE || type == TSBYTE || type == TSHORT ||
+		type == TUSHORT || type == TINT || type == TUINT ||
+		type == TLONG || type == TULONG || type == TLONGLONG;
+}
+
+/* Copy the decompressed input to an unlinked temporary file, open it. */
+static int spool(struct table_fits *x, struct input *in, struct err *e)
+{
+	const char *dir = getenv("TMPDIR");
+	char name[4096];
+	char *buf;
+	int fd, status = 0;
+	ssize_t r;
+
+	if (!dir || !*dir)
+		dir = "/tmp";
+	snprintf(name, sizeof(name), "%s/wfiscene-fits-XXXXXX", dir);
+	fd = mkstemp(name);
+	if (fd < 0)
+		return err_sys(e, "%s: cannot create a temporary file in %s", input_name(in), dir);
+	buf = malloc(1u << 20);
+	if (!buf) {
+		close(fd);
+		unlink(name);
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	}
+	while ((r = input_read(in, buf, 1u << 20, e)) > 0) {
+		char *p = buf;
+
+		while (r > 0) {
+			ssize_t w = write(fd, p, (size_t)r);
+
+			if (w < 0 && errno == EINTR)
+				continue;
+			if (w < 0) {
+				err_sys(e, "%s: cannot write %s", input_name(in), name);
+				r = -1;
+				break;
+			}
+			p += w;
+			r -= w;
+		}
+		if (r < 0)
+			break;
+	}
+	free(buf);
+	if (r < 0) {
+		close(fd);
+		unlink(name);
+		return -1;
+	}
+	fits_open_diskfile(&x->f, name, READONLY, &status);
+	/* cfitsio holds its own descriptor: the name can go now, so the
+	 * file disappears however the run ends. */
+	unlink(name);
+	close(fd);
+	if (status)
+		return err_fits(e, status, "%s", input_name(in));
+	return 0;
+}
+
+static int set_fname(struct table_fits *x)
+{
+	const char *n = table_name(x->t);
+	size_t need = strlen(n) + 32;
+
+	if (need > x->fname_cap) {
+		char *f = realloc(x->fname, need);
+
+		if (!f)
+			return -1;
+		x->fname = f;
+		x->fname_cap = need;
+	}
+	snprintf(x->fname, x->fname_cap, "%s[%d]", n, x->hdu - 1);
+	return 0;
+}
+
+static int read_keywords(struct table_fits *x, struct err *e)
+{
+	int nkeys = 0, status = 0;
+
+	fits_get_hdrspace(x->f, &nkeys, NULL, &status);
+	for (int k = 1; k <= nkeys && !status; k++) {
+		char key[FLEN_KEYWORD], val[FLEN_VALUE], com[FLEN_COMMENT];
+
+		fits_read_keyn(x->f, k, key, val, com, &status);
+		if (status || !key[0] || !val[0] || strcmp(key, "COMMENT") == 0 ||
+		    strcmp(key, "HISTORY") == 0)
+			continue;
+		if (table_add_meta(x->t, key, strlen(key), val, strlen(val), e) < 0)
+			return -1;
+	}
+	if (status)
+		return err_fits(e, status, "%s: header", x->fname);
+	return 0;
+}
+
+/* Move to the next table HDU after x->hdu; 0 when there is none. */
+static int next_table(struct table_fits *x, struct err *e)
+{
+	int status = 0, type;
+
+	while (++x->hdu <= x->nhdu) {
+		fits_movabs_hdu(x->f, x->hdu, &type, &status);
+		if (status)
+			return err_fits(e, status, "%s: HDU %d", table_name(x->t), x->hdu);
+		if (type == BINARY_TBL || type == ASCII_TBL) {
+			fits_get_num_rowsll(x->f, &x->nrows, &status);
+			if (status)
+				return err_fits(e, status, "%s: HDU %d", table_name(x->t), x->hdu);
+			x->row = 0;
+			if (set_fname(x) < 0)
+				return err_set(e, EXIT_SYSTEM, "out of memory");
+			return 1;
+		}
+	}
+	return 0;
+}
+
+/* Columns of the current HDU: define them (first table) or check that
+ * they are the first table's. */
+static int read_columns(struct table_fits *x, int first, struct err *e)
+{
+	int ncol = 0, status = 0;
+
+	fits_get_num_cols(x->f, &ncol, &status);
+	if (status)
+		return err_fits(e, status, "%s", x->fname);
+	if (!first && ncol != x->ncol)
+		return err_set(e, EXIT_INPUT, "%s: %d columns, the first table has %d",
+			       x->fname, ncol, x->ncol);
+	if (first) {
+		x->col = calloc((size_t)(ncol ? ncol : 1), sizeof(*x->col));
+		if (!x->col)
+			return err_set(e, EXIT_SYSTEM, "out of memory");
+		x->ncol = ncol;
+	}
+	for (int i = 0; i < ncol; i++) {
+		char kw[FLEN_KEYWORD], name[FLEN_VALUE] = "", unit[FLEN_VALUE] = "";
+		int type = 0;
+		long repeat = 0, width = 0;
+		struct fits_col *c = &x->col[i];
+		enum table_kind kind;
+		size_t tw;
+
+		fits_make_keyn("TTYPE", i + 1, kw, &status);
+		fits_read_key(x->f, TSTRING, kw, name, NULL, &status);
+		if (status == KEY_NO_EXIST)
+			return err_set(e, EXIT_INPUT, "%s: column %d has no name (TTYPE%d)",
+				       x->fname, i + 1, i + 1);
+		fits_make_keyn("TUNIT", i + 1, kw, &status);
+		fits_read_key(x->f, TSTRING, kw, unit, NULL, &status);
+		if (status == KEY_NO_EXIST) {
+			status = 0;
+			fits_clear_errmsg();
+		}
+		fits_get_eqcoltype(x->f, i + 1, &type, &repeat, &width, &status);
+		if (status)
+			return err_fits(e, status, "%s: column %d", x->fname, i + 1);
+		if (first) {
+			if (table_add_column(x->t, name, strlen(name), e) < 0)
+				return -1;
+			if (unit[0] && table_set_unit(x->t, i, unit, strlen(unit), e) < 0)
+				return -1;
+		} else if (strcasecmp(name, table_colname(x->t, i)) != 0) {
+			return err_set(e, EXIT_INPUT,
+				       "%s: column %d is '%s', in the first table it is '%s'",
+				       x->fname, i + 1, name, table_colname(x->t, i));
+		}
+		if (type < 0)
+			return err_set(e, EXIT_INPUT,
+				       "%s: column '%s': variable-length arrays are not supported",
+				       x->fname, table_colname(x->t, i));
+		if (type == TBIT || type == TCOMPLEX || type == TDBLCOMPLEX)
+			return err_set(e, EXIT_INPUT,
+				       "%s: column '%s': bit and complex columns are not supported",
+				       x->fname, table_colname(x->t, i));
+		if (type == TSTRING) {
+			if (width < 1)
+				width = 1;
+			kind = TABLE_STRING;
+			tw = (size_t)width + 1;
+		} else if (repeat != 1) {
+			goto vector;
+		} else if (type == TLOGICAL) {
+			kind = TABLE_STRING;
+			tw = 2;
+		} else {
+			kind = TABLE_NUMBER;
+			tw = 26;
+		}
+		if (first) {
+			table_set_kind(x->t, i, kind);
+			c->text_width = tw;
+		} else if (kind != table_colkind(x->t, i) ||
+			   (type == TLOGICAL) != (c->type == TLOGICAL)) {
+			return err_set(e, EXIT_INPUT,
+				       "%s: column '%s' has another type than in the first table",
+				       x->fname, table_colname(x->t, i));
+		} else if (tw > c->text_width) {
+			return err_set(e, EXIT_INPUT,
+				       "%s: column '%s' is wider than in the first table",
+				       x->fname, table_colname(x->t, i));
+		}
+		c->num = i + 1;
+		c->type = type;
+		c->width = width;
+		continue;
+vector:
+		return err_set(e, EXIT_INPUT,
+			       "%s: column '%s': vector column (%ld values per row) is not supported",
+			       x->fname, table_colname(x->t, i), repeat);
+	}
+	return 0;
+}
+
+static int alloc_buffers(struct table_fits *x, struct err *e)
+{
+	size_t row_bytes = 0, n = x->chunk_rows, nc = (size_t)(x->ncol ? x->ncol : 1);
+
+	for (int i = 0; i < x->ncol; i++)
+		row_bytes += x->col[i].text_width;
+	if (row_bytes && n > FITS_ARENA_MAX / row_bytes)
+		n = FITS_ARENA_MAX / row_bytes;
+	if (n < 1)
+		n = 1;
+	x->chunk_rows = n;
+	x->arena_cap = row_bytes * n + 1;
+	x->arena = malloc(x->arena_cap);
+	x->num = malloc(nc * n * sizeof(double));
+	x->ibuf = malloc(n * sizeof(long long));
+	x->lbuf = malloc(n);
+	x->sptr = malloc(n * sizeof(char *));
+	x->cells = malloc(nc * n * sizeof(char *));
+	x->text = calloc(nc, sizeof(*x->text));
+	x->nums = calloc(nc, sizeof(*x->nums));
+	x->line = malloc(n * sizeof(long));
+	if (!x->arena || !x->num || !x->ibuf || !x->lbuf || !x->sptr ||
+	    !x->cells || !x->text || !x->nums || !x->line)
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	for (int i = 0; i < x->ncol; i++) {
+		x->text[i] = x->cells + (size_t)i * n;
+		if (table_colkind(x->t, i) == TABLE_NUMBER)
+			x->nums[i] = x->num + (size_t)i * n;
+	}
+	return 0;
+}
 
 struct table_fits *table_fits_open(struct table *t, struct input *in,
 				   size_t chunk_rows, struct err *e)
 {
-	err_set(e, EXIT_INPUT, "%s: FITS tables are not supported yet",
-		table_name(t));
+	struct table_fits *x = calloc(1, sizeof(*x));
+	int status = 0, r;
+
+	if (!x) {
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		return NULL;
+	}
+	x->t = t;
+	x->chunk_rows = chunk_rows;
+	if (input_codec(in) == INPUT_PLAIN && input_path(in)) {
+		/* fits_open_diskfile: the name is a plain path, never
+		 * cfitsio's extended syntax ("cat.fits[2]"). */
+		fits_open_diskfile(&x->f, input_path(in), READONLY, &status);
+		if (status) {
+			err_fits(e, status, "%s", input_name(in));
+			goto fail;
+		}
+	} else if (spool(x, in, e) < 0) {
+		goto fail;
+	}
+	x->hdu = 1;
+	if (set_fname(x) < 0) {
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		goto fail;
+	}
+	fits_get_num_hdus(x->f, &x->nhdu, &status);
+	if (status) {
+		err_fits(e, status, "%s", input_name(in));
+		goto fail;
+	}
+	if (read_keywords(x, e) < 0)
+		goto fail;
+	r = next_table(x, e);
+	if (r < 0)
+		goto fail;
+	if (r == 0) {
+		err_set(e, EXIT_INPUT, "%s: no table in this FITS file", input_name(in));
+		goto fail;
+	}
+	if (read_keywords(x, e) < 0 || read_columns(x, 1, e) < 0 ||
+	    alloc_buffers(x, e) < 0)
+		goto fail;
+	return x;
+fail:
+	table_fits_close(x);
 	return NULL;
 }
 
-long table_fits_read(struct table_fits *f, struct table_chunk *c,
+long table_fits_read(struct table_fits *x, struct table_chunk *c,
 		     struct err *e)
 {
-	return 0;
+	size_t n, used = 0;
+	int status = 0;
+
+	while (x->row >= x->nrows) {
+		int r = next_table(x, e);
+
+		if (r <= 0)
+			return r;
+		if (read_columns(x, 0, e) < 0)
+			return -1;
+	}
+	n = x->chunk_rows;
+	if ((long long)n > x->nrows - x->row)
+		n = (size_t)(x->nrows - x->row);
+	for (int i = 0; i < x->ncol; i++) {
+		struct fits_col *fc = &x->col[i];
+		const char **cell = x->text[i];
+		LONGLONG first = x->row + 1;
+		int anynul = 0;
+
+		if (fc->type == TSTRING) {
+			for (size_t k = 0; k < n; k++)
+				x->sptr[k] = x->arena + used + k * fc->text_width;
+			fits_read_col_str(x->f, fc->num, first, 1, (LONGLONG)n, "",
+					  x->sptr, &anynul, &status);
+			for (size_t k = 0; k < n; k++) {
+				char *s = x->sptr[k];
+				size_t len = strlen(s);
+
+				while (len && s[len - 1] == ' ')
+					s[--len] = 0;
+				while (*s == ' ')
+					s++;
+				cell[k] = s;
+			}
+			used += n * fc->text_width;
+		} else if (fc->type == TLOGICAL) {
+			fits_read_col(x->f, TLOGICAL, fc->num, first, 1, (LONGLONG)n,
+				      NULL, x->lbuf, &anynul, &status);
+			for (size_t k = 0; k < n; k++) {
+				char *s = x->arena + used + 2 * k;
+
+				s[0] = x->lbuf[k] == 1 ? 'T' : x->lbuf[k] == 0 ? 'F' : 0;
+				s[1] = 0;
+				cell[k] = s;
+			}
+			used += 2 * n;
+		} else if (is_integer_type(fc->type)) {
+			LONGLONG nul = LLONG_MIN;
+			double *d = x->num + (size_t)i * x->chunk_rows;
+
+			/* As integers, so large ids stay exact in the text. */
+			fits_read_col(x->f, TLONGLONG, fc->num, first, 1, (LONGLONG)n,
+				      &nul, x->ibuf, &anynul, &status);
+			for (size_t k = 0; k < n; k++) {
+				char *s = x->arena + used + k * fc->text_width;
+
+				if (x->ibuf[k] == LLONG_MIN) {
+					s[0] = 0;
+					d[k] = NAN;
+				} else {
+					snprintf(s, fc->text_width, "%lld", x->ibuf[k]);
+					d[k] = (double)x->ibuf[k];
+				}
+				cell[k] = s;
+			}
+			used += n * fc->text_width;
+		} else {
+			double nul = NAN;
+			double *d = x->num + (size_t)i * x->chunk_rows;
+			/* The shortest text that reads back to the same value:
+			 * 9 digits for a float, 17 for a double. */
+			int digits = fc->type == TFLOAT ? 9 : 17;
+
+			fits_read_col(x->f, TDOUBLE, fc->num, first, 1, (LONGLONG)n,
+				      &nul, d, &anynul, &status);
+			for (size_t k = 0; k < n; k++) {
+				char *s = x->arena + used + k * fc->text_width;
+
+				snprintf(s, fc->text_width, "%.*g", digits, d[k]);
+				cell[k] = s;
+			}
+			used += n * fc->text_width;
+		}
+		if (status)
+			return err_fits(e, status, "%s: column '%s', rows %lld to %lld",
+					x->fname, table_colname(x->t, i), x->row + 1,
+					x->row + (long long)n);
+	}
+	for (size_t k = 0; k < n; k++)
+		x->line[k] = (long)(x->row + (long long)k + 1);
+	x->row += (long long)n;
+	c->n = n;
+	c->file = x->fname;
+	c->line = x->line;
+	c->text = x->text;
+	c->num = x->nums;
+	return (long)n;
 }
 
-void table_fits_close(struct table_fits *f)
+void table_fits_close(struct table_fits *x)
 {
-	free(f);
+	int status = 0;
+
+	if (!x)
+		return;
+	if (x->f)
+		fits_close_file(x->f, &status);
+	free(x->col);
+	free(x->fname);
+	free(x->num);
+	free(x->ibuf);
+	free(x->lbuf);
+	free(x->sptr);
+	free(x->arena);
+	free(x->cells);
+	free(x->text);
+	free(x->nums);
+	free(x->line);
+	free(x);
 }

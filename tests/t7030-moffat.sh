@@ -21,6 +21,135 @@ test_expect_success 'exports wfs_model_entry and nothing else' '
 	test_cmp want syms
 '
 
+# A mock host: the plugin's source compiled into a test program that lends
+# it error() and nothing else, as wfiscene-model(7) suggests.  No wfiscene
+# needed: this checks the model itself.
+cat >mock.c <<'EOF'
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+#include "moffat.c"
+
+static char msg[512];
+static int fails;
+
+static int mock_error(void *ctx, const char *fmt, ...)
+{
+	va_list ap;
+
+	(void)ctx;
+	va_start(ap, fmt);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	va_end(ap);
+	return -1;
+}
+
+#define CHECK(c, ...) do { if (!(c)) { fails++; printf("FAIL %d: ", __LINE__); \
+	printf(__VA_ARGS__); printf("\n"); } } while (0)
+
+#define N 96
+static double img[N * N], part[N * N];
+
+/* Render src into [x0, x0 + nx) x [y0, y0 + ny) of a buffer whose pixel
+ * (0, 0) is detector pixel (ox, oy). */
+static void draw(const struct wfs_model *m, void *st, const struct wfs_source *s,
+		 double *buf, int ox, int oy, int x0, int y0, int nx, int ny)
+{
+	struct wfs_window w = { buf + (y0 - oy) * N + (x0 - ox), N, x0, y0, nx, ny };
+
+	CHECK(m->render(st, NULL, NULL, s, &w) == 0, "render");
+}
+
+int main(void)
+{
+	struct wfs_host h = { .abi = WFS_ABI_VERSION, .size = sizeof(h), .error = mock_error };
+	const struct wfs_model *m = wfs_model_entry(WFS_ABI_VERSION);
+	double p[4] = { 3, 2.5, 0, 0 }, sum = 0;
+	struct wfs_source s = { .x = 1047.3, .y = 2046.6, .flux = 1000, .param = p };
+	struct wfs_box b;
+	void *st;
+	int i, k;
+
+	CHECK(m && m->abi == WFS_ABI_VERSION && m->size == sizeof(*m), "descriptor");
+	CHECK(!wfs_model_entry(WFS_ABI_VERSION + 1), "declines another ABI");
+	CHECK(m->init(&h, &st) == 0, "init");
+
+	/* flux, round and elliptical, narrow and wide */
+	for (k = 0; k < 4; k++) {
+		static const double par[4][4] = {
+			{ 3, 2.5, 0, 0 }, { 4.765, 0.4, 0, 0 }, { 2.5, 4, 0.6, 33 }, { 8, 1, 0.3, -70 },
+		};
+		memcpy(p, par[k], sizeof(p));
+		memset(img, 0, sizeof(img));
+		CHECK(m->prepare(st, &s) == 0, "prepare %d: %s", k, msg);
+		m->footprint(st, &s, &b);
+		CHECK(b.x0 >= 1000 && b.x1 <= 1000 + N && b.y0 >= 2000 && b.y1 <= 2000 + N,
+		      "box %d %d %d %d", b.x0, b.y0, b.x1, b.y1);
+		draw(m, st, &s, img, 1000, 2000, 1000, 2000, N, N);
+		for (sum = 0, i = 0; i < N * N; i++)
+			sum += img[i];
+		CHECK(fabs(sum / 1000 - 1) < 1e-4, "star %d: sum %.6f, want 1000", k, sum);
+	}
+
+	/* split into windows anywhere: the same pixels, bit for bit */
+	p[0] = 3; p[1] = 2.5; p[2] = 0.2; p[3] = 10;
+	memset(img, 0, sizeof(img));
+	memset(part, 0, sizeof(part));
+	m->prepare(st, &s);
+	draw(m, st, &s, img, 1000, 2000, 1000, 2000, N, N);
+	draw(m, st, &s, part, 1000, 2000, 1000, 2000, 47, 46);
+	draw(m, st, &s, part, 1000, 2000, 1047, 2000, N - 47, 46);
+	draw(m, st, &s, part, 1000, 2000, 1047, 2046, N - 47, N - 46);
+	draw(m, st, &s, part, 1000, 2000, 1000, 2047, 47, N - 47);
+	draw(m, st, &s, part, 1000, 2000, 1047, 2046, 0, 0);
+	draw(m, st, &s, part, 1000, 2000, 1000, 2046, 47, 1);
+	CHECK(!memcmp(img, part, sizeof(img)), "windows change pixels");
+
+	/* only inside the window, and adding */
+	for (i = 0; i < N * N; i++)
+		part[i] = 7;
+	draw(m, st, &s, part, 1000, 2000, 1040, 2040, 10, 10);
+	for (i = 0; i < N * N; i++) {
+		int x = 1000 + i % N, y = 2000 + i / N;
+		int in = x >= 1040 && x < 1050 && y >= 2040 && y < 2050;
+
+		CHECK(in ? part[i] == 7 + img[i] : part[i] == 7, "pixel %d %d", x, y);
+	}
+
+	/* far off the detector: no overflow in the box */
+	s.x = 1e15;
+	s.y = -1e15;
+	m->prepare(st, &s);
+	m->footprint(st, &s, &b);
+	CHECK(b.x0 <= b.x1 && b.y0 <= b.y1, "far box");
+
+	/* bad rows */
+	{
+		static const double bad[][4] = {
+			{ 1, 2, 0, 0 }, { 0.5, 2, 0, 0 }, { NAN, 2, 0, 0 }, { 3, 0, 0, 0 },
+			{ 3, -1, 0, 0 }, { 3, INFINITY, 0, 0 }, { 3, 2, 1, 0 }, { 3, 2, -0.1, 0 },
+			{ 3, 2, 0, NAN }, { 1.02, 3, 0, 0 },
+		};
+		for (k = 0; k < (int)(sizeof(bad) / sizeof(bad[0])); k++) {
+			memcpy(p, bad[k], sizeof(p));
+			msg[0] = 0;
+			s.x = s.y = 100;
+			CHECK(m->prepare(st, &s) == -1 && msg[0], "bad row %d accepted", k);
+		}
+	}
+	m->fini(st);
+	printf("%s\n", fails ? "failed" : "ok");
+	return fails != 0;
+}
+EOF
+
+test_expect_success 'against a mock host: flux, windows, clipping, bad rows' '
+	${CC:-cc} -std=c11 -Wall -Wextra -Werror -I"$TOP/include" -Isrc-tree \
+		-o mock mock.c -lm &&
+	./mock
+'
+
 # stars: three Moffat stars on SCA 1 (1-based catalog pixels) and the
 # checks on the image: flux, centroid and orientation of each.
 cat >stars.csv <<'EOF'

@@ -28,7 +28,9 @@ enum table_format { TABLE_CSV, TABLE_WS, TABLE_IPAC, TABLE_ECSV, TABLE_FITS,
 enum table_kind { TABLE_TEXT, TABLE_NUMBER, TABLE_STRING };
 
 /* The longest line (or quoted row) a text table may have. */
+#ifndef TABLE_MAX_LINE
 #define TABLE_MAX_LINE (16u << 20)
+#endif
 
 struct table_chunk {
 	size_t n;

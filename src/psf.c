@@ -308,7 +308,13 @@ static const char *filter_name(int filter)
 {
 	const struct filter_info *fi;
 
-	if (filter < 0 || filter >= WFS_NFILTER || !(fi = filter_get(filter)))
+	if (filter < 0 || filter >= WFS_NFILTER)
+		return "UNKNOWN";
+	if (!(fi = filter_get(filter)) || !fi->name) {
+		instrument_init(NULL);  /* the tables are constants: cannot fail */
+		fi = filter_get(filter);
+	}
+	if (!fi || !fi->name)
 		return "UNKNOWN";
 	return fi->name;
 }

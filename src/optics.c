@@ -1,0 +1,913 @@
+/*
+ * optics.c - the Roman WFI optical model and polychromatic PSFs; see
+ * optics.h for the recipe and the conventions.
+ */
+#include <complex.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <unistd.h>
+
+#include <fftw3.h>
+
+#include "data.h"
+#include "err.h"
+#include "instrument.h"
+#include "optics.h"
+
+#define NFP 5                   /* field points per SCA */
+#define MAXWAVE 32              /* table wavelengths (21 in Cycle 9) */
+#define ARCSEC (M_PI / (180.0 * 3600.0))
+
+struct optics {
+	struct optics_pupil pupil[2][WFS_NSCA];         /* [wide][sca-1] */
+	/* Zernikes: [sca-1][fp][wave][j] in nm; field points in the 4096
+	 * frame as STPSF places them */
+	int nwave;
+	double wave[MAXWAVE];
+	double zt[WFS_NSCA][NFP][MAXWAVE][OPTICS_NZ];
+	double fpx[WFS_NSCA][NFP], fpy[WFS_NSCA][NFP];
+	/* effective area, m^2, on a common 5 nm grid per filter */
+	int nthr[WFS_NFILTER];
+	double *thr_lam[WFS_NFILTER];
+	double *thr_area[WFS_NFILTER];  /* [k * WFS_NSCA + sca-1] */
+};
+
+/*
+ * FFTW's planner is process-global state shared with every other module
+ * that plans transforms, so planning is made thread-safe once for the
+ * whole process and serialised here as well; executing a plan on new
+ * arrays is thread-safe by FFTW's contract.
+ */
+static pthread_mutex_t plan_lock = PTHREAD_MUTEX_INITIALIZER;
+static pthread_once_t plan_once = PTHREAD_ONCE_INIT;
+
+static void plan_init(void)
+{
+	fftw_make_planner_thread_safe();
+}
+
+static int mask_index(const char *s)
+{
+	return !strcmp(s, "wide") ? 1 : !strcmp(s, "skinny") ? 0 : -1;
+}
+
+static int load_pupils(struct optics *o, struct err *e)
+{
+	struct tsv t;
+	int cm, cs, ce, cr;
+
+	if (tsv_parse(&t, "pupil_edge.tsv"))
+		return err_set(e, EXIT_SYSTEM, "broken build: no pupil_edge.tsv");
+	cm = tsv_col(&t, "mask");
+	cs = tsv_col(&t, "sca");
+	ce = tsv_col(&t, "edge");
+	cr = tsv_col(&t, "r0");
+	if (cm < 0 || cs < 0 || ce < 0 || cr < 0 || t.ncol < cr + OPTICS_NANG)
+		goto bad;
+	for (int r = 1; r < t.nrow; r++) {
+		int w = mask_index(t.cell[r][cm]), sca = atoi(t.cell[r][cs]);
+		if (w < 0 || sca < 1 || sca > WFS_NSCA)
+			goto bad;
+		struct optics_pupil *p = &o->pupil[w][sca - 1];
+		double *rr = !strcmp(t.cell[r][ce], "out") ? p->rout : p->rin;
+		long acc = 0;   /* delta-coded radii in 0.1 mm */
+		for (int k = 0; k < OPTICS_NANG; k++) {
+			acc += atol(t.cell[r][cr + k]);
+			rr[k] = acc * 1e-4;
+		}
+		p->half = OPTICS_HALF;
+	}
+	tsv_free(&t);
+	for (int w = 0; w < 2; w++)
+		for (int s = 0; s < WFS_NSCA; s++) {
+			struct optics_pupil *p = &o->pupil[w][s];
+			p->rmax = 0;
+			for (int k = 0; k < OPTICS_NANG; k++)
+				if (p->rout[k] > p->rmax)
+					p->rmax = p->rout[k];
+			if (p->rmax <= 0)
+				return err_set(e, EXIT_SYSTEM, "broken build: "
+					       "pupil_edge.tsv lacks SCA %d", s + 1);
+		}
+
+	if (tsv_parse(&t, "pupil_strut.tsv"))
+		return err_set(e, EXIT_SYSTEM, "broken build: no pupil_strut.tsv");
+	const char *names[] = { "mask", "sca", "x0", "y0", "phi", "lo_a", "lo_b",
+				"hi_a", "hi_b", "smin", "smax" };
+	int c[11];
+	for (int i = 0; i < 11; i++)
+		if ((c[i] = tsv_col(&t, names[i])) < 0)
+			goto bad;
+	for (int r = 1; r < t.nrow; r++) {
+		int w = mask_index(t.cell[r][c[0]]), sca = atoi(t.cell[r][c[1]]);
+		if (w < 0 || sca < 1 || sca > WFS_NSCA)
+			goto bad;
+		struct optics_pupil *p = &o->pupil[w][sca - 1];
+		if (p->nstrut == OPTICS_MAXSTRUT)
+			goto bad;
+		struct optics_strut *s = &p->strut[p->nstrut++];
+		double phi = atof(t.cell[r][c[4]]);
+		s->x0 = atof(t.cell[r][c[2]]);
+		s->y0 = atof(t.cell[r][c[3]]);
+		s->c = cos(phi);
+		s->sn = sin(phi);
+		s->lo_a = atof(t.cell[r][c[5]]);
+		s->lo_b = atof(t.cell[r][c[6]]);
+		s->hi_a = atof(t.cell[r][c[7]]);
+		s->hi_b = atof(t.cell[r][c[8]]);
+		s->smin = atof(t.cell[r][c[9]]);
+		s->smax = atof(t.cell[r][c[10]]);
+	}
+	tsv_free(&t);
+	return 0;
+bad:
+	tsv_free(&t);
+	return err_set(e, EXIT_SYSTEM, "broken build: malformed pupil table");
+}
+
+static int load_zernikes(struct optics *o, struct err *e)
+{
+	struct tsv t;
+	int cs, cf, cx, cy, cw, cz;
+
+	if (tsv_parse(&t, "zernike.tsv"))
+		return err_set(e, EXIT_SYSTEM, "broken build: no zernike.tsv");
+	cs = tsv_col(&t, "sca");
+	cf = tsv_col(&t, "fp");
+	cx = tsv_col(&t, "local_x");
+	cy = tsv_col(&t, "local_y");
+	cw = tsv_col(&t, "wave");
+	cz = tsv_col(&t, "Z4");
+	if (cs < 0 || cf < 0 || cx < 0 || cy < 0 || cw < 0 || cz < 0 ||
+	    t.ncol < cz + OPTICS_NZ)
+		goto bad;
+	o->nwave = 0;
+	for (int r = 1; r < t.nrow; r++) {
+		int sca = atoi(t.cell[r][cs]), fp = atoi(t.cell[r][cf]), k;
+		double w = atof(t.cell[r][cw]);
+
+		if (sca < 1 || sca > WFS_NSCA || fp < 1 || fp > NFP)
+			goto bad;
+		for (k = 0; k < o->nwave && fabs(o->wave[k] - w) > 1e-9; k++)
+			;
+		if (k == o->nwave) {
+			/* the table lists wavelengths in ascending order */
+			if (k == MAXWAVE || (k && w < o->wave[k - 1]))
+				goto bad;
+			o->wave[o->nwave++] = w;
+		}
+		for (int j = 0; j < OPTICS_NZ; j++)
+			o->zt[sca - 1][fp - 1][k][j] = atof(t.cell[r][cz + j]);
+		/* STPSF's placement of a field point on the 4096 frame */
+		o->fpx[sca - 1][fp - 1] = round(2048 - 100 * atof(t.cell[r][cx]));
+		o->fpy[sca - 1][fp - 1] = round(2048 + 100 * atof(t.cell[r][cy]));
+	}
+	tsv_free(&t);
+	return o->nwave ? 0 : err_set(e, EXIT_SYSTEM, "broken build: empty zernike.tsv");
+bad:
+	tsv_free(&t);
+	return err_set(e, EXIT_SYSTEM, "broken build: malformed zernike.tsv");
+}
+
+static int load_throughput(struct optics *o, struct err *e)
+{
+	struct tsv t;
+	int cf, cw, cs[WFS_NSCA];
+	char name[16];
+
+	if (tsv_parse(&t, "throughput.tsv"))
+		return err_set(e, EXIT_SYSTEM, "broken build: no throughput.tsv");
+	cf = tsv_col(&t, "filter");
+	cw = tsv_col(&t, "wave");
+	for (int s = 0; s < WFS_NSCA; s++) {
+		snprintf(name, sizeof(name), "sca%02d", s + 1);
+		if ((cs[s] = tsv_col(&t, name)) < 0)
+			cf = -1;
+	}
+	if (cf < 0 || cw < 0) {
+		tsv_free(&t);
+		return err_set(e, EXIT_SYSTEM, "broken build: malformed throughput.tsv");
+	}
+	for (int r = 1; r < t.nrow; r++) {
+		int f = filter_lookup(t.cell[r][cf]);
+		if (f >= 0)
+			o->nthr[f]++;
+	}
+	for (int f = 0; f < WFS_NFILTER; f++) {
+		o->thr_lam[f] = malloc((o->nthr[f] + 1) * sizeof(double));
+		o->thr_area[f] = malloc((o->nthr[f] + 1) * WFS_NSCA * sizeof(double));
+		if (!o->thr_lam[f] || !o->thr_area[f]) {
+			tsv_free(&t);
+			return err_set(e, EXIT_SYSTEM, "out of memory");
+		}
+		o->nthr[f] = 0;
+	}
+	for (int r = 1; r < t.nrow; r++) {
+		int f = filter_lookup(t.cell[r][cf]);
+		if (f < 0)
+			continue;
+		int k = o->nthr[f]++;
+		o->thr_lam[f][k] = atof(t.cell[r][cw]);
+		for (int s = 0; s < WFS_NSCA; s++)
+			o->thr_area[f][k * WFS_NSCA + s] = atof(t.cell[r][cs[s]]);
+	}
+	tsv_free(&t);
+	return 0;
+}
+
+struct optics *optics_new(struct err *e)
+{
+	struct optics *o = calloc(1, sizeof(*o));
+
+	if (!o) {
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		return NULL;
+	}
+	if (load_pupils(o, e) || load_zernikes(o, e) || load_throughput(o, e)) {
+		optics_free(o);
+		return NULL;
+	}
+	return o;
+}
+
+void optics_free(struct optics *o)
+{
+	if (!o)
+		return;
+	for (int f = 0; f < WFS_NFILTER; f++) {
+		free(o->thr_lam[f]);
+		free(o->thr_area[f]);
+	}
+	free(o);
+}
+
+const struct optics_pupil *optics_pupil(const struct optics *o, int sca,
+					int wide)
+{
+	if (sca < 1 || sca > WFS_NSCA)
+		return NULL;
+	return &o->pupil[!!wide][sca - 1];
+}
+
+void optics_pupil_annulus(struct optics_pupil *p, double r_out, double r_in)
+{
+	memset(p, 0, sizeof(*p));
+	for (int k = 0; k < OPTICS_NANG; k++) {
+		p->rout[k] = r_out;
+		p->rin[k] = r_in;
+	}
+	p->rmax = r_out;
+	p->half = 1e9;
+}
+
+/*
+ * Signed distance-like clearance of a point: positive inside the clear
+ * aperture, negative outside, in metres.  For the rim and the obscuration
+ * the radial gap stands in for the distance (the edges are nearly circles,
+ * so it is within a few percent of it); for the struts and the clipping
+ * square it is the exact perpendicular distance.
+ */
+static double clearance(const struct optics_pupil *p, double x, double y)
+{
+	double r = hypot(x, y);
+	double a = (atan2(y, x) + M_PI) * (OPTICS_NANG / (2 * M_PI));
+	int k0 = (int)a;
+	double f = a - k0;
+	k0 %= OPTICS_NANG;
+	int k1 = (k0 + 1) % OPTICS_NANG;
+	double ro = p->rout[k0] + f * (p->rout[k1] - p->rout[k0]);
+	double ri = p->rin[k0] + f * (p->rin[k1] - p->rin[k0]);
+	double d = fmin(ro - r, r - ri);
+
+	d = fmin(d, p->half - fabs(x));
+	d = fmin(d, p->half - fabs(y));
+	for (int i = 0; i < p->nstrut; i++) {
+		const struct optics_strut *s = &p->strut[i];
+		double u = (x - s->x0) * s->c + (y - s->y0) * s->sn;
+		double v = -(x - s->x0) * s->sn + (y - s->y0) * s->c;
+		/* distance out of the strip: the largest violation of its four
+		 * half-planes (negative inside) */
+		double out = fmax(fmax(s->smin - u, u - s->smax),
+				  fmax(s->lo_a + s->lo_b * u - v,
+				       v - s->hi_a - s->hi_b * u));
+		d = fmin(d, out);
+	}
+	return d;
+}
+
+double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
+			  double d)
+{
+	double c = clearance(p, x, y);
+	/* a cell is whole when the nearest edge is beyond its corner */
+	if (c > 0.75 * d)
+		return 1;
+	if (c < -0.75 * d)
+		return 0;
+	int hit = 0;
+	for (int j = 0; j < 8; j++)
+		for (int i = 0; i < 8; i++)
+			hit += clearance(p, x + (i - 3.5) * d / 8,
+					 y + (j - 3.5) * d / 8) >= 0;
+	return hit / 64.0;
+}
+
+/*
+ * Field interpolation as STPSF does it (scipy griddata 'linear' over the
+ * five field points): the Delaunay triangles of centre + four corners are
+ * the four triangles (centre, corner, next corner around the centre), and
+ * inside one the values are blended barycentrically.  Outside their hull
+ * the point is projected onto the line through its two nearest corners
+ * and interpolated there, or takes the nearest corner if the projection
+ * falls outside that edge.  The result is a weight per field point.
+ */
+static void field_weights(const double *fx, const double *fy, double x,
+			  double y, double w[NFP])
+{
+	int ord[4] = { 1, 2, 3, 4 };
+	double ang[NFP];
+
+	memset(w, 0, NFP * sizeof(double));
+	for (int i = 1; i < NFP; i++)
+		ang[i] = atan2(fy[i] - fy[0], fx[i] - fx[0]);
+	for (int i = 0; i < 4; i++)     /* corners in angle order */
+		for (int j = i + 1; j < 4; j++)
+			if (ang[ord[j]] < ang[ord[i]]) {
+				int t = ord[i];
+				ord[i] = ord[j];
+				ord[j] = t;
+			}
+	for (int t = 0; t < 4; t++) {
+		int a = 0, b = ord[t], c = ord[(t + 1) % 4];
+		double det = (fx[b] - fx[a]) * (fy[c] - fy[a]) -
+			     (fx[c] - fx[a]) * (fy[b] - fy[a]);
+		double lb = ((x - fx[a]) * (fy[c] - fy[a]) -
+			     (fx[c] - fx[a]) * (y - fy[a])) / det;
+		double lc = ((fx[b] - fx[a]) * (y - fy[a]) -
+			     (x - fx[a]) * (fy[b] - fy[a])) / det;
+		double la = 1 - lb - lc;
+		const double eps = -1e-12;
+		if (la >= eps && lb >= eps && lc >= eps) {
+			w[a] = la;
+			w[b] = lb;
+			w[c] = lc;
+			return;
+		}
+	}
+	/* outside: the two nearest corners */
+	int n1 = 1, n2 = 2;
+	double d[NFP];
+	for (int i = 1; i < NFP; i++)
+		d[i] = hypot(x - fx[i], y - fy[i]);
+	if (d[n2] < d[n1]) {
+		n1 = 2;
+		n2 = 1;
+	}
+	for (int i = 3; i < NFP; i++)
+		if (d[i] < d[n1]) {
+			n2 = n1;
+			n1 = i;
+		} else if (d[i] < d[n2]) {
+			n2 = i;
+		}
+	double ex = fx[n2] - fx[n1], ey = fy[n2] - fy[n1];
+	double t = ((x - fx[n1]) * ex + (y - fy[n1]) * ey) / (ex * ex + ey * ey);
+	if (t < 0 || t > 1) {
+		w[n1] = 1;
+		return;
+	}
+	w[n1] = 1 - t;
+	w[n2] = t;
+}
+
+void optics_zernike(const struct optics *o, int sca, double x, double y,
+		    double lam, double z[OPTICS_NZ])
+{
+	double w[NFP], f;
+	int k;
+
+	field_weights(o->fpx[sca - 1], o->fpy[sca - 1], x + 4, y + 4, w);
+	/* linear in wavelength, clipped to the table's range */
+	if (lam <= o->wave[0]) {
+		k = 0;
+		f = 0;
+	} else if (lam >= o->wave[o->nwave - 1]) {
+		k = o->nwave - 2;
+		f = 1;
+	} else {
+		for (k = 0; k < o->nwave - 2 && lam > o->wave[k + 1]; k++)
+			;
+		f = (lam - o->wave[k]) / (o->wave[k + 1] - o->wave[k]);
+	}
+	for (int j = 0; j < OPTICS_NZ; j++) {
+		double v = 0;
+		for (int p = 0; p < NFP; p++)
+			v += w[p] * ((1 - f) * o->zt[sca - 1][p][k][j] +
+				     f * o->zt[sca - 1][p][k + 1][j]);
+		z[j] = v;
+	}
+}
+
+/* Effective area of filter f on SCA sca at lam (micron), linear. */
+static double area_at(const struct optics *o, int f, int sca, double lam)
+{
+	const double *l = o->thr_lam[f];
+	int n = o->nthr[f];
+
+	if (n < 2 || lam <= l[0] || lam >= l[n - 1])
+		return 0;
+	int k = (int)((lam - l[0]) / (l[1] - l[0]));   /* uniform 5 nm grid */
+	if (k > n - 2)
+		k = n - 2;
+	double t = (lam - l[k]) / (l[k + 1] - l[k]);
+	return (1 - t) * o->thr_area[f][k * WFS_NSCA + sca - 1] +
+	       t * o->thr_area[f][(k + 1) * WFS_NSCA + sca - 1];
+}
+
+/* Photons per unit wavelength from a blackbody at temperature T, up to a
+ * constant: B_lambda / (h c / lambda) ~ lambda^-4 / (exp(c2 / lambda T) - 1)
+ * with c2 = h c / k = 14387.77 micron K. */
+static double bb_photons(double lam, double temp)
+{
+	return pow(lam, -4) / expm1(14387.77 / (lam * temp));
+}
+
+int optics_weights(const struct optics *o, int filter, int sca, int nwave,
+		   double *lam, double *w, struct err *e)
+{
+	if (filter < 0 || filter >= WFS_NFILTER || sca < 1 || sca > WFS_NSCA ||
+	    o->nthr[filter] < 2 || nwave < 1)
+		return err_set(e, EXIT_INPUT, "no throughput for filter %d SCA %d",
+			       filter, sca);
+	const double *l = o->thr_lam[filter];
+	int n = o->nthr[filter];
+	double peak = 0, lo = l[0], hi = l[n - 1];
+
+	for (int k = 0; k < n; k++)
+		peak = fmax(peak, o->thr_area[filter][k * WFS_NSCA + sca - 1]);
+	/* the band: first and last crossing of 10% of the peak */
+	for (int k = 1; k < n; k++) {
+		double a = o->thr_area[filter][(k - 1) * WFS_NSCA + sca - 1];
+		double b = o->thr_area[filter][k * WFS_NSCA + sca - 1];
+		if (a < 0.1 * peak && b >= 0.1 * peak) {
+			lo = l[k - 1] + (0.1 * peak - a) / (b - a) * (l[k] - l[k - 1]);
+			break;
+		}
+	}
+	for (int k = n - 1; k > 0; k--) {
+		double a = o->thr_area[filter][(k - 1) * WFS_NSCA + sca - 1];
+		double b = o->thr_area[filter][k * WFS_NSCA + sca - 1];
+		if (b < 0.1 * peak && a >= 0.1 * peak) {
+			hi = l[k - 1] + (a - 0.1 * peak) / (a - b) * (l[k] - l[k - 1]);
+			break;
+		}
+	}
+	double total = 0;
+	for (int b = 0; b < nwave; b++) {
+		double a0 = lo + (hi - lo) * b / nwave, a1 = lo + (hi - lo) * (b + 1) / nwave;
+		double s = 0, sl = 0;
+		int m = 200;    /* midpoint rule, sub-nm steps */
+		for (int i = 0; i < m; i++) {
+			double x = a0 + (a1 - a0) * (i + 0.5) / m;
+			double v = area_at(o, filter, sca, x) *
+				   bb_photons(x, OPTICS_BB_TEMP);
+			s += v;
+			sl += v * x;
+		}
+		w[b] = s;
+		lam[b] = s > 0 ? sl / s : 0.5 * (a0 + a1);
+		total += s;
+	}
+	if (!(total > 0))
+		return err_set(e, EXIT_SYSTEM, "filter %d SCA %d: zero throughput",
+			       filter, sca);
+	for (int b = 0; b < nwave; b++)
+		w[b] /= total;
+	return 0;
+}
+
+double optics_lam_max(const struct optics *o, int filter)
+{
+	if (filter < 0 || filter >= WFS_NFILTER || o->nthr[filter] < 1)
+		return 2.5;
+	return o->thr_lam[filter][o->nthr[filter] - 1];
+}
+
+/* Noll index j -> (n, m), m signed: cos for even j, sin for odd j. */
+static void noll(int j, int *n, int *m)
+{
+	int nn = 0;
+
+	while (j > (nn + 1) * (nn + 2) / 2)
+		nn++;
+	int k = j - nn * (nn + 1) / 2 - 1;      /* 0-based within the row */
+	int mm = (nn % 2) + 2 * ((k + ((nn + 1) % 2)) / 2);
+	*n = nn;
+	*m = mm == 0 ? 0 : (j % 2 == 0 ? mm : -mm);
+}
+
+/*
+ * Z4..Z22 at one point, unit RMS over the unit disk (Noll 1976):
+ * Z = sqrt(n+1) R_n^0(rho) for m = 0, else sqrt(2(n+1)) R_n^|m|(rho) times
+ * cos |m| theta (even j) or sin |m| theta (odd j), with
+ * R_n^m(rho) = sum_k (-1)^k (n-k)! / (k! ((n+m)/2-k)! ((n-m)/2-k)!) rho^(n-2k).
+ * The coefficients are fixed integers, so they are tabulated once per
+ * call by zernike_table() and the powers and multiple angles come from
+ * products rather than pow/cos/sin.
+ */
+struct zterm {
+	int n, m;               /* m signed as in noll() */
+	int nk;
+	double c[4];            /* c[k] multiplies rho^(n-2k), norm included */
+};
+
+static void zernike_table(struct zterm zt[OPTICS_NZ])
+{
+	static const double fact[] = { 1, 1, 2, 6, 24, 120, 720 };
+
+	for (int q = 0; q < OPTICS_NZ; q++) {
+		struct zterm *z = &zt[q];
+		noll(q + 4, &z->n, &z->m);
+		int am = abs(z->m);
+		double norm = z->m == 0 ? sqrt(z->n + 1.0) : sqrt(2.0 * (z->n + 1));
+		z->nk = (z->n - am) / 2 + 1;
+		for (int k = 0; k < z->nk; k++)
+			z->c[k] = norm * (k % 2 ? -1 : 1) * fact[z->n - k] /
+				  (fact[k] * fact[(z->n + am) / 2 - k] *
+				   fact[(z->n - am) / 2 - k]);
+	}
+}
+
+static void zernike_eval(const struct zterm zt[OPTICS_NZ], double x, double y,
+			 double out[OPTICS_NZ])
+{
+	double rp[7], cm[6], sm[6];
+	double r = hypot(x, y);
+	double c1 = r > 0 ? x / r : 1, s1 = r > 0 ? y / r : 0;
+
+	rp[0] = 1;
+	for (int i = 1; i < 7; i++)
+		rp[i] = rp[i - 1] * r;
+	cm[0] = 1;
+	sm[0] = 0;
+	for (int i = 1; i < 6; i++) {   /* angle addition: (m+1) theta */
+		cm[i] = cm[i - 1] * c1 - sm[i - 1] * s1;
+		sm[i] = sm[i - 1] * c1 + cm[i - 1] * s1;
+	}
+	for (int q = 0; q < OPTICS_NZ; q++) {
+		const struct zterm *z = &zt[q];
+		double v = 0;
+		for (int k = 0; k < z->nk; k++)
+			v += z->c[k] * rp[z->n - 2 * k];
+		int am = abs(z->m);
+		out[q] = z->m == 0 ? v : v * (z->m > 0 ? cm[am] : sm[am]);
+	}
+}
+
+/* The smallest size >= n of the form 2^a 3^b 5^c, which FFTW does fastest. */
+static int good_size(int n)
+{
+	for (int m = n;; m++) {
+		int r = m;
+		while (r % 2 == 0)
+			r /= 2;
+		while (r % 3 == 0)
+			r /= 3;
+		while (r % 5 == 0)
+			r /= 5;
+		if (r == 1)
+			return m;
+	}
+}
+
+/* One wavelength's pupil, shared by all positions: the lit samples, their
+ * amplitude and the Zernike basis there. */
+struct mono_pupil {
+	int p;                  /* samples per side */
+	int nlit;
+	int *idx;               /* row * p + col of each lit sample */
+	double *amp;
+	double *basis;          /* [j * nlit + i] */
+	double norm;            /* sum amp^2 */
+};
+
+struct job {
+	const struct optics_psf_req *r;
+	int nfft, h;
+	fftw_plan rows, cols;
+	double *acc;            /* npos x n x n, the weighted sum */
+	double lam, wt;         /* the wavelength being done */
+	int k;
+	struct mono_pupil mp;
+	int pmax;
+	fftw_complex **b1, **b2;
+	double **tmp;
+	struct zterm zt[OPTICS_NZ];
+	atomic_int next;
+	int ntask;
+	void (*fn)(struct job *, int task, int tid);
+};
+
+static void *worker(void *arg)
+{
+	void **a = arg;
+	struct job *j = a[0];
+	int tid = (int)(intptr_t)a[1];
+	int t;
+
+	while ((t = atomic_fetch_add(&j->next, 1)) < j->ntask)
+		j->fn(j, t, tid);
+	return NULL;
+}
+
+/* Run fn for tasks 0..ntask-1 on nthreads threads (the caller is one). */
+static void par_for(struct job *j, int nthreads, int ntask,
+		    void (*fn)(struct job *, int, int))
+{
+	pthread_t th[64];
+	void *args[64][2];
+	int started = 0;
+
+	atomic_store(&j->next, 0);
+	j->ntask = ntask;
+	j->fn = fn;
+	if (nthreads > ntask)
+		nthreads = ntask;
+	for (int t = 1; t < nthreads && t < 64; t++) {
+		args[t][0] = j;
+		args[t][1] = (void *)(intptr_t)t;
+		if (pthread_create(&th[t], NULL, worker, args[t]))
+			break;
+		started = t;
+	}
+	args[0][0] = j;
+	args[0][1] = (void *)(intptr_t)0;
+	worker(args[0]);
+	for (int t = 1; t <= started; t++)
+		pthread_join(th[t], NULL);
+}
+
+/* Rasterise rows of the pupil for the current wavelength: task = row. */
+static void pupil_row(struct job *j, int row, int tid)
+{
+	const struct optics_psf_req *r = j->r;
+	int p = j->mp.p;
+	double dx = j->lam * 1e-6 / (j->nfft * r->scale * ARCSEC);
+	double y = (row - (p - 1) / 2.0) * dx;
+	double *out = j->tmp[tid];      /* amp, then basis per column */
+
+	for (int c = 0; c < p; c++) {
+		double x = (c - (p - 1) / 2.0) * dx;
+		/* STPSF flips the wavefront in y after the mask: the Zernike
+		 * plane at (x, y) sees the mask at (x, -y). */
+		out[c] = optics_pupil_cover(r->pupil, x, r->flip_y ? -y : y, dx);
+	}
+	/* stored by row into the shared amplitude image */
+	memcpy(j->mp.amp + (size_t)row * p, out, p * sizeof(double));
+}
+
+static void basis_task(struct job *j, int blk, int tid)
+{
+	int i0 = blk * 4096, i1 = i0 + 4096;
+	int p = j->mp.p;
+	double dx = j->lam * 1e-6 / (j->nfft * j->r->scale * ARCSEC);
+
+	if (i1 > j->mp.nlit)
+		i1 = j->mp.nlit;
+	for (int i = i0; i < i1; i++) {
+		int row = j->mp.idx[i] / p, col = j->mp.idx[i] % p;
+		double x = (col - (p - 1) / 2.0) * dx, y = (row - (p - 1) / 2.0) * dx;
+		double zv[OPTICS_NZ];
+		/* poppy's ZernikeWFE is zero beyond its radius */
+		if (hypot(x, y) <= OPTICS_ZRADIUS)
+			zernike_eval(j->zt, x / OPTICS_ZRADIUS,
+				     y / OPTICS_ZRADIUS, zv);
+		else
+			memset(zv, 0, sizeof(zv));
+		for (int z = 0; z < OPTICS_NZ; z++)
+			j->mp.basis[(size_t)z * j->mp.nlit + i] = zv[z];
+	}
+}
+
+/* One position at the current wavelength: field, two pruned FFT passes,
+ * intensity normalised in the box, added with the wavelength's weight. */
+static void position_task(struct job *j, int pos, int tid)
+{
+	const struct optics_psf_req *r = j->r;
+	int n = r->n, h = j->h, nfft = j->nfft, p = j->mp.p;
+	fftw_complex *b1 = j->b1[tid], *b2 = j->b2[tid];
+	const double *z = r->zern ? r->zern + ((size_t)pos * r->nwave + j->k) *
+			  OPTICS_NZ : NULL;
+	double k2pi = 2 * M_PI / (j->lam * 1000);      /* rad per nm */
+
+	memset(b1, 0, (size_t)p * nfft * sizeof(fftw_complex));
+	for (int i = 0; i < j->mp.nlit; i++) {
+		double ph = 0;
+		if (z)
+			for (int q = 0; q < OPTICS_NZ; q++)
+				ph += z[q] * j->mp.basis[(size_t)q * j->mp.nlit + i];
+		int row = j->mp.idx[i] / p, col = j->mp.idx[i] % p;
+		double a = j->mp.amp[j->mp.idx[i]];
+		b1[(size_t)row * nfft + col] = a * cexp(I * k2pi * ph);
+	}
+	fftw_execute_dft(j->rows, b1, b1);
+	/* gather the n wanted frequencies of every row into columns */
+	memset(b2, 0, (size_t)n * nfft * sizeof(fftw_complex));
+	for (int c = 0; c < n; c++) {
+		int f = (c - h + nfft) % nfft;
+		for (int row = 0; row < p; row++)
+			b2[(size_t)c * nfft + row] = b1[(size_t)row * nfft + f];
+	}
+	fftw_execute_dft(j->cols, b2, b2);
+	double *img = j->tmp[tid], sum = 0;
+	for (int yy = 0; yy < n; yy++) {
+		int f = (yy - h + nfft) % nfft;
+		for (int c = 0; c < n; c++) {
+			fftw_complex v = b2[(size_t)c * nfft + f];
+			double in = creal(v) * creal(v) + cimag(v) * cimag(v);
+			img[yy * n + c] = in;
+			sum += in;
+		}
+	}
+	double *acc = j->acc + (size_t)pos * n * n, s = sum > 0 ? j->wt / sum : 0;
+	for (int i = 0; i < n * n; i++)
+		acc[i] += s * img[i];
+}
+
+/* Gaussian jitter on an n x n image through its DFT: multiply by the
+ * Gaussian's transfer function exp(-2 pi^2 sigma^2 f^2) (f in cycles per
+ * sample).  This is the exact convolution for a band-limited image,
+ * which a 4x-sampled PSF nearly is; a sampled kernel would not be at
+ * sigma ~ 0.4 samples.  Normalised to sum 1 afterwards. */
+static int jitter(double *img, int n, double sigma, struct err *e)
+{
+	int nc = n / 2 + 1;
+	fftw_complex *spec = fftw_malloc(sizeof(fftw_complex) * n * nc);
+	double *buf = fftw_malloc(sizeof(double) * n * n);
+	fftw_plan fw, bw;
+
+	if (!spec || !buf) {
+		fftw_free(spec);
+		fftw_free(buf);
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	}
+	pthread_mutex_lock(&plan_lock);
+	fw = fftw_plan_dft_r2c_2d(n, n, buf, spec, FFTW_ESTIMATE);
+	bw = fftw_plan_dft_c2r_2d(n, n, spec, buf, FFTW_ESTIMATE);
+	pthread_mutex_unlock(&plan_lock);
+	memcpy(buf, img, sizeof(double) * n * n);
+	fftw_execute(fw);
+	for (int y = 0; y < n; y++) {
+		double fy = (y <= n / 2 ? y : y - n) / (double)n;
+		for (int x = 0; x < nc; x++) {
+			double fx = x / (double)n;
+			spec[y * nc + x] *= exp(-2 * M_PI * M_PI * sigma * sigma *
+						(fx * fx + fy * fy));
+		}
+	}
+	fftw_execute(bw);
+	double sum = 0;
+	for (int i = 0; i < n * n; i++)
+		sum += buf[i];
+	for (int i = 0; i < n * n; i++)
+		img[i] = buf[i] / sum;
+	pthread_mutex_lock(&plan_lock);
+	fftw_destroy_plan(fw);
+	fftw_destroy_plan(bw);
+	pthread_mutex_unlock(&plan_lock);
+	fftw_free(spec);
+	fftw_free(buf);
+	return 0;
+}
+
+int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
+{
+	struct job j;
+	int nth = r->threads > 0 ? r->threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
+	int pupil_n = r->pupil_n > 0 ? r->pupil_n : 256, rc = -1;
+	double lmax = 0, lmin = 1e9, dth = r->scale * ARCSEC;
+
+	if (nth < 1)
+		nth = 1;
+	if (nth > 64)
+		nth = 64;
+	if (r->n < 3 || r->n % 2 == 0 || r->nwave < 1 || r->npos < 1)
+		return err_set(e, EXIT_INPUT, "optics_psf: bad request");
+	memset(&j, 0, sizeof(j));
+	j.r = r;
+	j.h = (r->n - 1) / 2;
+	zernike_table(j.zt);
+	for (int k = 0; k < r->nwave; k++) {
+		lmax = fmax(lmax, r->lam[k]);
+		lmin = fmin(lmin, r->lam[k]);
+	}
+	/* FFT size: the pupil array (2 half, or the rim for an unclipped
+	 * pupil) gets >= pupil_n samples at the longest wavelength, and the
+	 * field of view is >= 2 n samples, so the periodic copies of the PSF
+	 * that an FFT implies sit at least n samples beyond the box. */
+	double span = fmin(2 * r->pupil->half, 2 * r->pupil->rmax);
+	int need = (int)ceil(pupil_n * lmax * 1e-6 / (span * dth));
+	j.nfft = good_size(need > 2 * r->n ? need : 2 * r->n);
+	/* pupil samples per side at the shortest wavelength */
+	j.pmax = (int)ceil(2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
+			   (lmin * 1e-6 / (j.nfft * dth))) + 2;
+	if (j.pmax > j.nfft)
+		return err_set(e, EXIT_INPUT, "optics_psf: pupil does not fit "
+			       "the FFT (%d > %d)", j.pmax, j.nfft);
+	j.acc = calloc((size_t)r->npos * r->n * r->n, sizeof(double));
+	j.b1 = calloc(nth, sizeof(*j.b1));
+	j.b2 = calloc(nth, sizeof(*j.b2));
+	j.tmp = calloc(nth, sizeof(*j.tmp));
+	j.mp.amp = malloc((size_t)j.pmax * j.pmax * sizeof(double));
+	j.mp.idx = malloc((size_t)j.pmax * j.pmax * sizeof(int));
+	j.mp.basis = malloc((size_t)j.pmax * j.pmax * OPTICS_NZ * sizeof(double));
+	if (!j.acc || !j.b1 || !j.b2 || !j.tmp || !j.mp.amp || !j.mp.idx ||
+	    !j.mp.basis) {
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		goto done;
+	}
+	size_t tmpn = (size_t)r->n * r->n > (size_t)j.pmax ? (size_t)r->n * r->n : (size_t)j.pmax;
+	for (int t = 0; t < nth; t++) {
+		j.b1[t] = fftw_malloc(sizeof(fftw_complex) * j.pmax * j.nfft);
+		j.b2[t] = fftw_malloc(sizeof(fftw_complex) * r->n * j.nfft);
+		j.tmp[t] = malloc(sizeof(double) * tmpn);
+		if (!j.b1[t] || !j.b2[t] || !j.tmp[t]) {
+			err_set(e, EXIT_SYSTEM, "out of memory");
+			goto done;
+		}
+	}
+	pthread_once(&plan_once, plan_init);
+
+	for (int k = 0; k < r->nwave; k++) {
+		double dx = r->lam[k] * 1e-6 / (j.nfft * dth);
+		int p = (int)ceil(2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) / dx) + 2;
+
+		if (p > j.pmax)
+			p = j.pmax;
+		j.lam = r->lam[k];
+		j.wt = r->wt[k];
+		j.k = k;
+		j.mp.p = p;
+		par_for(&j, nth, p, pupil_row);
+		j.mp.nlit = 0;
+		j.mp.norm = 0;
+		for (int i = 0; i < p * p; i++)
+			if (j.mp.amp[i] > 0) {
+				j.mp.idx[j.mp.nlit++] = i;
+				j.mp.norm += j.mp.amp[i] * j.mp.amp[i];
+			}
+		if (r->zern)
+			par_for(&j, nth, (j.mp.nlit + 4095) / 4096, basis_task);
+		/* plans for this pupil size: p rows, then n columns, each a
+		 * length-nfft transform of a contiguous line */
+		pthread_mutex_lock(&plan_lock);
+		j.rows = fftw_plan_many_dft(1, &j.nfft, p, j.b1[0], NULL, 1, j.nfft,
+					    j.b1[0], NULL, 1, j.nfft, FFTW_BACKWARD,
+					    FFTW_ESTIMATE);
+		j.cols = fftw_plan_many_dft(1, &j.nfft, r->n, j.b2[0], NULL, 1,
+					    j.nfft, j.b2[0], NULL, 1, j.nfft,
+					    FFTW_BACKWARD, FFTW_ESTIMATE);
+		pthread_mutex_unlock(&plan_lock);
+		if (!j.rows || !j.cols) {
+			err_set(e, EXIT_SYSTEM, "FFTW could not plan a %d-point "
+				"transform", j.nfft);
+			goto done;
+		}
+		par_for(&j, nth, r->npos, position_task);
+		pthread_mutex_lock(&plan_lock);
+		fftw_destroy_plan(j.rows);
+		fftw_destroy_plan(j.cols);
+		pthread_mutex_unlock(&plan_lock);
+		j.rows = j.cols = NULL;
+	}
+	for (int pos = 0; pos < r->npos; pos++) {
+		double *img = j.acc + (size_t)pos * r->n * r->n;
+		if (r->jitter > 0 && jitter(img, r->n, r->jitter / r->scale, e))
+			goto done;
+		memcpy(out + (size_t)pos * r->n * r->n, img,
+		       sizeof(double) * r->n * r->n);
+	}
+	rc = 0;
+done:
+	for (int t = 0; t < nth; t++) {
+		if (j.b1)
+			fftw_free(j.b1[t]);
+		if (j.b2)
+			fftw_free(j.b2[t]);
+		if (j.tmp)
+			free(j.tmp[t]);
+	}
+	free(j.b1);
+	free(j.b2);
+	free(j.tmp);
+	free(j.acc);
+	free(j.mp.amp);
+	free(j.mp.idx);
+	free(j.mp.basis);
+	return rc;
+}

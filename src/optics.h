@@ -1,0 +1,114 @@
+/*
+ * optics.h - the Roman WFI optical model: pupil geometry, field- and
+ * wavelength-dependent Zernike aberrations, filter photon weights, and
+ * polychromatic optical PSFs computed from them with FFTW.
+ *
+ * The tables come from data/pupil_edge.tsv, pupil_strut.tsv, zernike.tsv
+ * and throughput.tsv (embedded; derived by contrib/tables/derive_optics.py
+ * from the public files, see their headers).  The recipe follows STPSF
+ * (reference/roman-data.md sections 4 and 5): the pupil mask flipped in y
+ * relative to the Zernike plane, circular Noll Zernikes Z4..Z22 over a
+ * 1.2 m radius, barycentric interpolation over the five field points and
+ * linear interpolation in wavelength, Fraunhofer propagation to a grid of
+ * fixed angular sampling, photon-weighted sum over wavelengths, Gaussian
+ * jitter.  Positions are 0-based pixels of the 4088 science frame.
+ */
+#ifndef WFS_OPTICS_H
+#define WFS_OPTICS_H
+
+struct err;
+
+#define OPTICS_NANG 720         /* edge radii per turn in pupil_edge.tsv */
+#define OPTICS_MAXSTRUT 8
+#define OPTICS_NZ 19            /* Z4..Z22 */
+#define OPTICS_ZRADIUS 1.2      /* m, STPSF's PUPIL_RADIUS */
+#define OPTICS_HALF 1.20810221  /* m, half the 2048 x 1.17979 mm mask array */
+#define OPTICS_JITTER 0.012     /* arcsec per axis, STPSF's default */
+#define OPTICS_BB_TEMP 5700.0   /* K, the default source (STPSF's default) */
+
+/* A strut blocks the strip smin <= s <= smax, lo_a + lo_b s <= t <=
+ * hi_a + hi_b s, with s along the unit axis (c, sn) through (x0, y0) and t
+ * across it (the axis turned +90 degrees).  Metres. */
+struct optics_strut {
+	double x0, y0, c, sn, lo_a, lo_b, hi_a, hi_b, smin, smax;
+};
+
+/* A pupil in the frame of the mask files (metres from the array centre, x
+ * along NAXIS1, y along NAXIS2): clear where rin(theta) <= r <= rout(theta)
+ * (radii at theta_k = -pi + 2 pi k / OPTICS_NANG, linear between), inside
+ * the square |x|, |y| <= half, and outside every strut. */
+struct optics_pupil {
+	double rout[OPTICS_NANG], rin[OPTICS_NANG];
+	double rmax;            /* largest rim radius */
+	double half;            /* half-width of the clipping square */
+	int nstrut;
+	struct optics_strut strut[OPTICS_MAXSTRUT];
+};
+
+struct optics;
+
+/* Parse the embedded tables.  NULL on error (a broken build). */
+struct optics *optics_new(struct err *e);
+void optics_free(struct optics *o);
+
+/* The pupil of SCA sca (1..18), skinny (wide = 0) or wide (F184, F213). */
+const struct optics_pupil *optics_pupil(const struct optics *o, int sca,
+					int wide);
+
+/* An analytic pupil: a circle of radius r_out with a central circular
+ * obscuration of radius r_in (0 for none), no struts, no clipping. */
+void optics_pupil_annulus(struct optics_pupil *p, double r_out, double r_in);
+
+/* Fraction of the square cell of side d centred at (x, y) that is clear:
+ * exact 0 or 1 well inside or outside, else 8 x 8 sub-samples. */
+double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
+			  double d);
+
+/* Z4..Z22 in nm of wavefront for SCA sca at pixel (x, y) of the 4088 frame
+ * and wavelength lam (micron), interpolated as STPSF does. */
+void optics_zernike(const struct optics *o, int sca, double x, double y,
+		    double lam, double z[OPTICS_NZ]);
+
+/* nwave wavelengths (micron) and photon weights (sum 1) for filter and
+ * SCA: the range where the effective area exceeds 10% of its peak, cut in
+ * nwave equal bins; each bin weighted by the photons a 5700 K blackbody
+ * gives through the effective area, at its photon-weighted mean
+ * wavelength.  Returns 0 or -1 (unknown filter or SCA). */
+int optics_weights(const struct optics *o, int filter, int sca, int nwave,
+		   double *lam, double *w, struct err *e);
+
+/* The largest wavelength optics_weights can return for a filter, micron. */
+double optics_lam_max(const struct optics *o, int filter);
+
+/*
+ * Polychromatic optical PSFs at npos field positions on one pupil.  For
+ * each position p, out + p n n receives an n x n image (row = y, n odd,
+ * the optical axis at sample ((n-1)/2, (n-1)/2)), `scale` arcsec per
+ * sample, summing to 1: sum_k wt[k] PSF(lam[k]), each PSF(lam) normalised
+ * to 1 in the box (STPSF's normalize='last'), then convolved with a
+ * Gaussian of sigma `jitter` arcsec per axis and normalised again.
+ * zern[(p * nwave + k) * OPTICS_NZ + j] is Z(4+j) in nm for position p and
+ * wavelength k (NULL for none).
+ *
+ * The pupil is sampled so that a padded FFT of size nfft lands exactly on
+ * the output sampling (dx = lam / (nfft scale)): nfft is the smallest
+ * FFTW-friendly size with at least pupil_n samples across the 2 half
+ * wide array at the longest wavelength and at least 2 n samples of field.
+ * Only the pupil rows and the output columns are transformed.
+ */
+struct optics_psf_req {
+	const struct optics_pupil *pupil;
+	int flip_y;             /* mask seen at (x, -y) in the Zernike frame */
+	int n;
+	double scale;           /* arcsec per sample */
+	int pupil_n;            /* 0: 256 */
+	int nwave;
+	const double *lam, *wt;
+	int npos;
+	const double *zern;
+	double jitter;          /* arcsec, 0 for none */
+	int threads;            /* 0: all cores */
+};
+int optics_psf(const struct optics_psf_req *r, double *out, struct err *e);
+
+#endif

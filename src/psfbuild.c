@@ -1,0 +1,329 @@
+/*
+ * psfbuild.c - the built-in PSF: grids computed from the Roman optical
+ * model (optics.h) at the positions STPSF uses, kept in an on-disk cache;
+ * see psf_builtin() in psf.h.
+ *
+ * Cache files are named after what they hold and a 64-bit key over every
+ * input that changes the result (the optics tables' checksums, filter,
+ * SCA, size, sampling, wavelengths, pupil sampling, grid, kind and the
+ * code's own version), so a stale file is simply never looked up.  A file
+ * is written under a temporary name and renamed, so concurrent runs see
+ * either no file or a whole one; two runs that both miss both build and
+ * the second rename wins with identical content.  A file that fails its
+ * FITS checksum or whose key keyword does not match is rebuilt.
+ */
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <fitsio.h>
+
+#include "data.h"
+#include "err.h"
+#include "instrument.h"
+#include "optics.h"
+#include "psf.h"
+
+/* Bump when the computation changes in a way the key cannot see. */
+#define PSF_CODE_VERSION "psfbuild-1"
+
+/*
+ * Defaults, from the convergence measurements in BENCHMARKS.md ("Built-in
+ * PSF"): the number of wavelengths at which the PSF's largest per-sample
+ * change against 41 wavelengths falls below 1e-3 of its peak (the wide
+ * F146 needs more), and a pupil sampling of 256 samples across the 2.416 m
+ * mask array at the longest wavelength (1.6 mm steps at 1.3 micron).
+ */
+static int default_nwave(int filter)
+{
+	return filter == F146 ? 18 : 8;
+}
+#define DEFAULT_PUPIL_N 256
+
+/*
+ * The parsed optics tables are constants of the build; they are parsed
+ * once per process on first use and only read afterwards.
+ */
+static pthread_once_t optics_once = PTHREAD_ONCE_INIT;
+static struct optics *optics_tables;
+static struct err optics_err;
+
+static void optics_load(void)
+{
+	optics_tables = optics_new(&optics_err);
+}
+
+static uint64_t fnv(uint64_t h, const void *p, size_t n)
+{
+	const unsigned char *c = p;
+
+	for (size_t i = 0; i < n; i++)
+		h = (h ^ c[i]) * 0x100000001b3ULL;
+	return h;
+}
+
+static const char *const table_names[] = {
+	"pupil_edge.tsv", "pupil_strut.tsv", "zernike.tsv", "throughput.tsv"
+};
+
+static uint64_t cache_key(int filter, int sca, int n, int kind, int nwave,
+			  int pupil_n, int grid)
+{
+	char buf[512];
+	uint64_t h = 0xcbf29ce484222325ULL;
+
+	for (size_t i = 0; i < sizeof(table_names) / sizeof(*table_names); i++) {
+		uint64_t c = data_checksum(table_names[i]);
+		h = fnv(h, &c, sizeof(c));
+	}
+	snprintf(buf, sizeof(buf), "%s|f%d|s%d|n%d|o%d|k%d|w%d|p%d|g%d|j%.6f|"
+		 "T%.1f|ps%.6f", PSF_CODE_VERSION, filter, sca, n, PSF_OVER,
+		 kind, nwave, pupil_n, grid, OPTICS_JITTER, OPTICS_BB_TEMP,
+		 WFS_PIXSCALE / PSF_OVER);
+	return fnv(h, buf, strlen(buf));
+}
+
+/* The cache directory into buf, or "" when disabled. */
+static void cache_dir(const char *opt, char *buf, size_t n)
+{
+	const char *v;
+
+	if (opt) {
+		snprintf(buf, n, "%s", opt);
+	} else if ((v = getenv("WFISCENE_CACHE"))) {
+		snprintf(buf, n, "%s", v);
+	} else if ((v = getenv("XDG_CACHE_HOME")) && *v) {
+		snprintf(buf, n, "%s/wfiscene", v);
+	} else if ((v = getenv("HOME")) && *v) {
+		snprintf(buf, n, "%s/.cache/wfiscene", v);
+	} else {
+		buf[0] = 0;
+	}
+}
+
+/* mkdir -p; 0 when the directory exists afterwards. */
+static int make_dirs(const char *path)
+{
+	char tmp[4096];
+	size_t len = strlen(path);
+
+	if (len == 0 || len >= sizeof(tmp))
+		return -1;
+	memcpy(tmp, path, len + 1);
+	for (char *p = tmp + 1; *p; p++)
+		if (*p == '/') {
+			*p = 0;
+			if (mkdir(tmp, 0755) && errno != EEXIST)
+				return -1;
+			*p = '/';
+		}
+	if (mkdir(tmp, 0755) && errno != EEXIST)
+		return -1;
+	return 0;
+}
+
+/* Load a cache file if it is whole and holds what key names. */
+static struct psf_grid *cache_load(const char *path, uint64_t key, int n,
+				   int kind, int grid)
+{
+	fitsfile *f = NULL;
+	int st = 0, dataok = 0, hduok = 0;
+	char want[32], got[FLEN_VALUE];
+	struct err e = { 0 };
+	struct psf_grid *g;
+
+	if (access(path, R_OK))
+		return NULL;
+	if (fits_open_diskfile(&f, path, READONLY, &st))
+		return NULL;
+	snprintf(want, sizeof(want), "%016llx", (unsigned long long)key);
+	fits_verify_chksum(f, &dataok, &hduok, &st);
+	if (!st)
+		fits_read_key(f, TSTRING, "WFSKEY", got, NULL, &st);
+	int good = !st && dataok == 1 && hduok == 1 && !strcmp(got, want);
+	st = 0;
+	fits_close_file(f, &st);
+	if (!good)
+		return NULL;
+	if (!(g = psf_grid_read(path, &e)))
+		return NULL;
+	if (g->n != n || g->kind != kind || g->nx != grid || g->ny != grid) {
+		psf_grid_free(g);
+		return NULL;
+	}
+	return g;
+}
+
+static double now(void)
+{
+	struct timespec ts;
+
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* Compute a grid. */
+static struct psf_grid *build(const struct optics *o, int filter, int sca,
+			      int n, int kind, int nwave, int pupil_n, int grid,
+			      int threads, struct err *e)
+{
+	const struct filter_info *fi = filter_get(filter);
+	double lam[64], wt[64];
+	double *zern = NULL, *img = NULL;
+	struct psf_grid *g = NULL;
+	int npos = grid * grid;
+
+	if (nwave > 64)
+		nwave = 64;
+	if (optics_weights(o, filter, sca, nwave, lam, wt, e))
+		return NULL;
+	if (!(g = psf_grid_new(n, PSF_OVER, grid, grid)) ||
+	    !(zern = malloc(sizeof(double) * npos * nwave * OPTICS_NZ)) ||
+	    !(img = malloc(sizeof(double) * npos * n * n))) {
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		goto fail;
+	}
+	/* STPSF's nodes: round(linspace(0, 4095, grid)) in the 4096 frame */
+	for (int i = 0; i < grid; i++) {
+		double v = grid > 1 ? round(4095.0 * i / (grid - 1)) : 2048;
+		g->xs[i] = g->ys[i] = v - 4;
+	}
+	for (int iy = 0; iy < grid; iy++)
+		for (int ix = 0; ix < grid; ix++) {
+			int p = iy * grid + ix;
+			for (int k = 0; k < nwave; k++)
+				optics_zernike(o, sca, g->xs[ix], g->ys[iy], lam[k],
+					       zern + ((size_t)p * nwave + k) *
+					       OPTICS_NZ);
+		}
+	struct optics_psf_req r = {
+		.pupil = optics_pupil(o, sca, fi && fi->wide_pupil),
+		.flip_y = 1,
+		.n = n,
+		.scale = WFS_PIXSCALE / PSF_OVER,
+		.pupil_n = pupil_n,
+		.nwave = nwave,
+		.lam = lam,
+		.wt = wt,
+		.npos = npos,
+		.zern = zern,
+		.jitter = OPTICS_JITTER,
+		.threads = threads,
+	};
+	if (!r.pupil) {
+		err_set(e, EXIT_INPUT, "no SCA %d", sca);
+		goto fail;
+	}
+	if (optics_psf(&r, img, e))
+		goto fail;
+	for (size_t i = 0; i < (size_t)npos * n * n; i++)
+		g->data[i] = (float)img[i];
+	g->sca = sca;
+	g->filter = filter;
+	g->kind = PSF_OPTICAL;
+	g->pixscale = WFS_PIXSCALE / PSF_OVER;
+	snprintf(g->origin, sizeof(g->origin), "builtin");
+	if (kind == PSF_EPSF && psf_make_epsf(g, e))
+		goto fail;
+	free(zern);
+	free(img);
+	return g;
+fail:
+	psf_grid_free(g);
+	free(zern);
+	free(img);
+	return NULL;
+}
+
+struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
+			     struct psf_build_opts *o, struct err *e)
+{
+	struct psf_build_opts none = { 0 };
+	char dir[4096], path[4400];
+	struct psf_grid *g;
+
+	if (!o)
+		o = &none;
+	if (filter < 0 || filter >= WFS_NFILTER)
+		return err_set(e, EXIT_INPUT, "unknown filter %d", filter), NULL;
+	if (sca < 1 || sca > WFS_NSCA)
+		return err_set(e, EXIT_INPUT, "no SCA %d", sca), NULL;
+	if (cls < 0 || cls > 2)
+		return err_set(e, EXIT_INPUT, "no PSF size class %d", cls), NULL;
+	if (instrument_init(e))
+		return NULL;
+	pthread_once(&optics_once, optics_load);
+	if (!optics_tables) {
+		err_set(e, optics_err.code, "%s", optics_err.msg);
+		return NULL;
+	}
+	int n = psf_class_n[cls];
+	int nwave = o->nwave > 0 ? o->nwave : default_nwave(filter);
+	int pupil_n = o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N;
+	int grid = o->grid > 0 ? o->grid : 3;
+	uint64_t key = cache_key(filter, sca, n, kind, nwave, pupil_n, grid);
+	const char *fname = filter_get(filter)->name;
+
+	cache_dir(o->cache_dir, dir, sizeof(dir));
+	if (dir[0]) {
+		snprintf(path, sizeof(path), "%s/psf-%s-sca%02d-%d-%s-%016llx.fits",
+			 dir, fname, sca, n, kind == PSF_EPSF ? "epsf" : "psf",
+			 (unsigned long long)key);
+		double t0 = now();
+		if ((g = cache_load(path, key, n, kind, grid))) {
+			o->loaded++;
+			snprintf(g->origin, sizeof(g->origin), "builtin");
+			if (o->verbose)
+				fprintf(stderr, "wfiscene: PSF %s SCA%02d %d: "
+					"cache %s (%.1f ms)\n", fname, sca, n,
+					path, 1e3 * (now() - t0));
+			return g;
+		}
+	}
+	double t0 = now();
+	if (!(g = build(optics_tables, filter, sca, n, kind, nwave, pupil_n,
+			grid, o->threads, e))) {
+		err_prefix(e, "PSF %s SCA%02d", fname, sca);
+		return NULL;
+	}
+	o->built++;
+	if (o->verbose)
+		fprintf(stderr, "wfiscene: PSF %s SCA%02d %d: built with %d "
+			"wavelengths in %.2f s\n", fname, sca, n, nwave, now() - t0);
+	if (dir[0]) {
+		char cards[6][81];
+		const char *list[7];
+		struct err we = { 0 };
+
+		snprintf(cards[0], 81, "WFSKEY  = '%016llx' / cache key of the "
+			 "inputs", (unsigned long long)key);
+		snprintf(cards[1], 81, "NWAVES  = %d / Number of wavelengths used "
+			 "in calculation", nwave);
+		snprintf(cards[2], 81, "PUPILN  = %d / Pupil samples across 2.416 "
+			 "m at the longest wavelength", pupil_n);
+		snprintf(cards[3], 81, "JITRSIGM= %g / Gaussian sigma for jitter, "
+			 "per axis [arcsec]", OPTICS_JITTER);
+		snprintf(cards[4], 81, "SRCTEMP = %g / [K] Blackbody source for "
+			 "the wavelength weights", OPTICS_BB_TEMP);
+		snprintf(cards[5], 81, "PSFCODE = '%s' / wfiscene PSF code "
+			 "version", PSF_CODE_VERSION);
+		for (int i = 0; i < 6; i++)
+			list[i] = cards[i];
+		list[6] = NULL;
+		if (make_dirs(dir) || psf_grid_write(path, g, list, &we)) {
+			/* a cache that cannot be written costs time, not
+			 * correctness */
+			if (o->verbose)
+				fprintf(stderr, "wfiscene: PSF cache %s: %s\n",
+					dir, we.code ? we.msg : strerror(errno));
+		}
+	}
+	return g;
+}

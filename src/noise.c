@@ -153,21 +153,24 @@ int noise_parse(const char *s, unsigned *stages, struct err *e)
 }
 
 /*
- * A Poisson count for a mean m in counts.  Negative means have no Poisson
- * distribution (they come only from negative catalog fluxes or
+ * A Poisson count for a mean m in counts, its set-up kept in *ps between
+ * pixels (a flat sky has one mean for many pixels).  Negative means have
+ * no Poisson distribution (they come only from negative catalog fluxes or
  * backgrounds); they get the mirror image -Poisson(-m), which keeps STIPS'
  * variance |m|.  NaN and infinities pass through.
  */
-static double poisson_signed(double m, const struct rng *g, uint32_t cell)
+static double poisson_signed(double m, struct rng_poisson *ps, const struct rng *g,
+			     uint32_t cell, const uint32_t w[4])
 {
 	struct rng_cell c;
+	double a = fabs(m);
 
 	if (m == 0 || !isfinite(m))
 		return m;
-	rng_cell_init(&c, g, cell, 0);
-	if (m < 0)
-		return -rng_poisson(-m, &c);
-	return rng_poisson(m, &c);
+	if (a != ps->mu)
+		rng_poisson_setup(ps, a);
+	rng_cell_preload(&c, g, cell, w);
+	return m < 0 ? -rng_poisson_draw(ps, &c) : rng_poisson_draw(ps, &c);
 }
 
 /*
@@ -220,15 +223,60 @@ static int cr_hits(double u, double lambda, double emu)
  * of its template that falls off the science area (STIPS drops such hits
  * whole).  The tile looks at the centres one pixel around itself.
  */
+/* The hits of both populations centred on cell (cx, cy) whose "any hit"
+ * uniforms are u[0] (600 e-) and u[1] (5000 e-), into the tile. */
+static void cr_centre(const struct rng *pop[2], const struct rng_poisson *big,
+		      double lambda, double emu, const double u[2], double resid,
+		      const double tw[3][3], uint32_t cell, int cx, int cy,
+		      int x0, int y0, int nx, int ny, double *pix, ptrdiff_t stride)
+{
+	static const double energy[2] = { CR_E_LOW, CR_E_HIGH };
+	double e = 0;
+
+	for (int p = 0; p < 2; p++) {
+		struct rng_cell c;
+		double n;
+
+		rng_cell_init(&c, pop[p], cell, 0);
+		/* lambda >= 10 needs t > 2e6 s; then the count comes from
+		 * PTRS on the energy stream. */
+		if (lambda < 10)
+			n = cr_hits(u[p], lambda, emu);
+		else
+			n = rng_poisson_draw(big, &c);
+		/* n hits of Poisson(E) each: Poisson(n E) in all. */
+		if (n > 0)
+			e += rng_poisson(n * energy[p], &c);
+	}
+	if (e == 0)
+		return;
+	e *= resid;
+	for (int dy = -1; dy <= 1; dy++) {
+		int y = cy + dy;
+
+		if (y < y0 || y >= y0 + ny)
+			continue;
+		for (int dx = -1; dx <= 1; dx++) {
+			int x = cx + dx;
+
+			if (x >= x0 && x < x0 + nx)
+				pix[(ptrdiff_t)(y - y0) * stride + (x - x0)] +=
+					e * tw[dy + 1][dx + 1];
+		}
+	}
+}
+
 static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
 			int nx, int ny, double *pix, ptrdiff_t stride)
 {
 	double lambda = o->cosmic_rate * CR_PIXEL_AREA * o->exptime;
 	double resid = o->cosmic_residual;
-	double w[3][3];
+	double tw[3][3], emu;
 	struct rng hit, low, high;
+	const struct rng *pop[2] = { &low, &high };
 	struct rng_poisson big;
-	double emu;
+	uint32_t w[CHUNK][4];
+	uint64_t thr;
 	int ya = y0 - 1 < -1 ? -1 : y0 - 1, yb = y0 + ny;
 	int xa = x0 - 1 < -1 ? -1 : x0 - 1, xb = x0 + nx;
 
@@ -238,53 +286,35 @@ static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
 		yb = WFS_NPIX;
 	if (xb > WFS_NPIX)
 		xb = WFS_NPIX;
-	cr_template(w);
+	cr_template(tw);
 	rng_init(&hit, o->seed, domain(DOM_CR_HIT, o->filter, sca));
 	rng_init(&low, o->seed, domain(DOM_CR_LOW, o->filter, sca));
 	rng_init(&high, o->seed, domain(DOM_CR_HIGH, o->filter, sca));
 	emu = exp(-lambda);
 	rng_poisson_setup(&big, lambda);
+	/* u = m 2^-53 < exp(-lambda) (no hit) exactly when the 53-bit
+	 * integer m < ceil(exp(-lambda) 2^53): scaling by 2^53 is exact. */
+	thr = (uint64_t)ceil(emu * 0x1p53);
 	for (int cy = ya; cy <= yb; cy++) {
-		for (int cx = xa; cx <= xb; cx++) {
-			uint32_t cell = (uint32_t)(cy + 1) * CR_SPAN + (uint32_t)(cx + 1);
-			uint32_t wd[4];
-			double u[2], e = 0;
+		uint32_t row = (uint32_t)(cy + 1) * CR_SPAN;
 
-			rng_bits(&hit, cell, 0, wd);
-			u[0] = rng_u01(wd[0], wd[1]);
-			u[1] = rng_u01(wd[2], wd[3]);
-			if (u[0] < emu && u[1] < emu)
-				continue;
-			for (int p = 0; p < 2; p++) {
-				struct rng_cell c;
-				double n;
+		for (int cx0 = xa; cx0 <= xb; cx0 += CHUNK) {
+			int n = xb + 1 - cx0 < CHUNK ? xb + 1 - cx0 : CHUNK;
+			uint32_t cell0 = row + (uint32_t)(cx0 + 1);
 
-				rng_cell_init(&c, p ? &high : &low, cell, 0);
-				/* lambda >= 10 needs t > 2e6 s; then the
-				 * count comes from PTRS on the energy stream. */
-				if (lambda < 10)
-					n = cr_hits(u[p], lambda, emu);
-				else
-					n = rng_poisson_draw(&big, &c);
-				if (n > 0)
-					e += rng_poisson(n * (p ? CR_E_HIGH : CR_E_LOW), &c);
-			}
-			if (e == 0)
-				continue;
-			e *= resid;
-			for (int dy = -1; dy <= 1; dy++) {
-				int y = cy + dy;
+			rng_bits_n(&hit, cell0, 0, (size_t)n, w);
+			for (int k = 0; k < n; k++) {
+				uint64_t m0 = ((uint64_t)w[k][0] << 32 | w[k][1]) >> 11;
+				uint64_t m1 = ((uint64_t)w[k][2] << 32 | w[k][3]) >> 11;
+				double u[2];
 
-				if (y < y0 || y >= y0 + ny)
+				if ((m0 < thr) & (m1 < thr))
 					continue;
-				for (int dx = -1; dx <= 1; dx++) {
-					int x = cx + dx;
-
-					if (x < x0 || x >= x0 + nx)
-						continue;
-					pix[(ptrdiff_t)(y - y0) * stride + (x - x0)] +=
-						e * w[dy + 1][dx + 1];
-				}
+				u[0] = rng_u01(w[k][0], w[k][1]);
+				u[1] = rng_u01(w[k][2], w[k][3]);
+				cr_centre(pop, &big, lambda, emu, u, resid, tw,
+					  cell0 + (uint32_t)k, cx0 + k, cy, x0, y0,
+					  nx, ny, pix, stride);
 			}
 		}
 	}
@@ -296,8 +326,9 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 	unsigned st = o ? o->stages & NOISE_ALL : 0;
 	double t, bkg, rn, sf, sdt;
 	struct rng g_pois, g_read, g_flat, g_dshot, g_dfield;
-	struct rng_poisson dark;
+	struct rng_poisson dark, pois = { .mu = -1 };
 	double z[CHUNK];
+	uint32_t w[CHUNK][4];
 
 	if (!o || !pix || sca < 1 || sca > WFS_NSCA || nx < 0 || ny < 0 ||
 	    x0 < 0 || y0 < 0 || x0 > WFS_NPIX - nx || y0 > WFS_NPIX - ny ||
@@ -330,6 +361,7 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 	rng_init(&g_dshot, o->seed, domain(DOM_DARK_SHOT, o->filter, sca));
 	rng_init(&g_dfield, o->seed, domain(DOM_DARK_FIELD, DOM_ANY_FILTER, sca));
 	rng_poisson_setup(&dark, o->dark_current * t);
+	rng_poisson_tabulate(&dark);
 
 	for (int y = 0; y < ny; y++) {
 		double *row = pix + (ptrdiff_t)y * stride;
@@ -342,32 +374,36 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 
 			for (int i = 0; i < n; i++)
 				c[i] = (c[i] + bkg) * t;
-			if (st & NOISE_POISSON)
+			if (st & NOISE_POISSON) {
+				rng_bits_n(&g_pois, (uint32_t)cell, 0, n, w);
 				for (int i = 0; i < n; i++)
-					c[i] = poisson_signed(c[i], &g_pois,
-							      (uint32_t)(cell + i));
+					c[i] = poisson_signed(c[i], &pois, &g_pois,
+							      (uint32_t)(cell + i), w[i]);
+			}
 			if ((st & NOISE_READ) && rn > 0) {
-				rng_normal_fill(&g_read, cell, n, 0, z);
+				rng_normal_fill(&g_read, cell, n, z);
 				for (int i = 0; i < n; i++)
 					c[i] += rn * z[i];
 			}
 			if (st & NOISE_FLAT) {
-				rng_normal_fill(&g_flat, cell, n, 0, z);
+				rng_normal_fill(&g_flat, cell, n, z);
 				for (int i = 0; i < n; i++)
 					c[i] *= 1 + sf * z[i];
 			}
 			if (st & NOISE_DARK) {
-				rng_normal_fill(&g_dfield, cell, n, 0, z);
+				rng_normal_fill(&g_dfield, cell, n, z);
 				for (int i = 0; i < n; i++)
 					c[i] += sdt * z[i];
-				if (dark.method)
+				if (dark.method) {
+					rng_bits_n(&g_dshot, (uint32_t)cell, 0, n, w);
 					for (int i = 0; i < n; i++) {
 						struct rng_cell rc;
 
-						rng_cell_init(&rc, &g_dshot,
-							      (uint32_t)(cell + i), 0);
+						rng_cell_preload(&rc, &g_dshot,
+								 (uint32_t)(cell + i), w[i]);
 						c[i] += rng_poisson_draw(&dark, &rc);
 					}
+				}
 			}
 		}
 	}

@@ -1,7 +1,16 @@
 /* rng.c - Philox4x32-10 and the Poisson and normal samplers; see rng.h. */
 #include <math.h>
+#include <string.h>
 
 #include "rng.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define RNG_AVX2 1
+#endif
 
 /*
  * Philox4x32: each round multiplies words 0 and 2 by two constants (32x32 ->
@@ -58,17 +67,179 @@ void rng_bits(const struct rng *g, uint32_t cell, uint32_t draw, uint32_t out[4]
 	rng_philox(ctr, g->key, out);
 }
 
-double rng_cell_u01(struct rng_cell *c)
+#if defined(__SSE2__)
+/*
+ * Eight Philox calls at once with SSE2: two groups of four lanes, so that
+ * the two multiply chains overlap.  _mm_mul_epu32 multiplies lanes 0 and 2
+ * to 64 bits; lanes 1 and 3 are shifted down and multiplied separately, and
+ * the high and low halves are gathered back into lane order.
+ */
+static inline void mulhilo4(__m128i x, __m128i m, __m128i *hi, __m128i *lo)
 {
-	if (!c->left) {
-		uint32_t w[4];
+	const __m128i low = _mm_set_epi32(0, -1, 0, -1);
+	__m128i even = _mm_mul_epu32(x, m);
+	__m128i odd = _mm_mul_epu32(_mm_srli_epi64(x, 32), m);
 
-		rng_bits(c->g, c->cell, c->draw++, w);
-		c->buf[0] = rng_u01(w[0], w[1]);
-		c->buf[1] = rng_u01(w[2], w[3]);
-		c->left = 2;
+	*hi = _mm_or_si128(_mm_srli_epi64(even, 32), _mm_andnot_si128(low, odd));
+	*lo = _mm_or_si128(_mm_and_si128(even, low), _mm_slli_epi64(odd, 32));
+}
+
+static inline void store4(__m128i x0, __m128i x1, __m128i x2, __m128i x3,
+			  uint32_t out[4][4])
+{
+	__m128i t0 = _mm_unpacklo_epi32(x0, x1), t1 = _mm_unpacklo_epi32(x2, x3);
+	__m128i t2 = _mm_unpackhi_epi32(x0, x1), t3 = _mm_unpackhi_epi32(x2, x3);
+
+	_mm_storeu_si128((__m128i *)out[0], _mm_unpacklo_epi64(t0, t1));
+	_mm_storeu_si128((__m128i *)out[1], _mm_unpackhi_epi64(t0, t1));
+	_mm_storeu_si128((__m128i *)out[2], _mm_unpacklo_epi64(t2, t3));
+	_mm_storeu_si128((__m128i *)out[3], _mm_unpackhi_epi64(t2, t3));
+}
+
+static void philox8(const struct rng *g, uint32_t cell0, uint32_t draw,
+		    uint32_t out[8][4])
+{
+	const __m128i m0 = _mm_set1_epi32((int)PHILOX_M0);
+	const __m128i m1 = _mm_set1_epi32((int)PHILOX_M1);
+	__m128i a0 = _mm_add_epi32(_mm_set1_epi32((int)cell0), _mm_set_epi32(3, 2, 1, 0));
+	__m128i b0 = _mm_add_epi32(a0, _mm_set1_epi32(4));
+	__m128i a1 = _mm_set1_epi32((int)draw), b1 = a1;
+	__m128i a2 = _mm_set1_epi32((int)g->dom[0]), b2 = a2;
+	__m128i a3 = _mm_set1_epi32((int)g->dom[1]), b3 = a3;
+	uint32_t k0 = g->key[0], k1 = g->key[1];
+
+	for (int r = 0; r < 10; r++) {
+		__m128i k0v = _mm_set1_epi32((int)k0), k1v = _mm_set1_epi32((int)k1);
+		__m128i ah0, al0, ah1, al1, bh0, bl0, bh1, bl1;
+
+		mulhilo4(a0, m0, &ah0, &al0);
+		mulhilo4(a2, m1, &ah1, &al1);
+		mulhilo4(b0, m0, &bh0, &bl0);
+		mulhilo4(b2, m1, &bh1, &bl1);
+		a0 = _mm_xor_si128(_mm_xor_si128(ah1, a1), k0v);
+		a2 = _mm_xor_si128(_mm_xor_si128(ah0, a3), k1v);
+		a1 = al1;
+		a3 = al0;
+		b0 = _mm_xor_si128(_mm_xor_si128(bh1, b1), k0v);
+		b2 = _mm_xor_si128(_mm_xor_si128(bh0, b3), k1v);
+		b1 = bl1;
+		b3 = bl0;
+		k0 += PHILOX_W0;
+		k1 += PHILOX_W1;
 	}
-	return c->buf[2 - c->left--];
+	store4(a0, a1, a2, a3, out);
+	store4(b0, b1, b2, b3, out + 4);
+}
+#else
+static void philox8(const struct rng *g, uint32_t cell0, uint32_t draw,
+		    uint32_t out[8][4])
+{
+	for (uint32_t l = 0; l < 8; l++)
+		rng_bits(g, cell0 + l, draw, out[l]);
+}
+#endif
+
+#ifdef RNG_AVX2
+/*
+ * Sixteen calls with AVX2, the same arithmetic as philox8 on eight lanes
+ * per register, chosen at run time (the results are the same integers, so
+ * the choice never changes an image).
+ */
+__attribute__((target("avx2"))) static inline void
+mulhilo8(__m256i x, __m256i m, __m256i *hi, __m256i *lo)
+{
+	const __m256i low = _mm256_set1_epi64x(0xffffffff);
+	__m256i even = _mm256_mul_epu32(x, m);
+	__m256i odd = _mm256_mul_epu32(_mm256_srli_epi64(x, 32), m);
+
+	*hi = _mm256_or_si256(_mm256_srli_epi64(even, 32), _mm256_andnot_si256(low, odd));
+	*lo = _mm256_or_si256(_mm256_and_si256(even, low), _mm256_slli_epi64(odd, 32));
+}
+
+__attribute__((target("avx2"))) static void
+philox16_avx2(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t out[16][4])
+{
+	const __m256i m0 = _mm256_set1_epi32((int)PHILOX_M0);
+	const __m256i m1 = _mm256_set1_epi32((int)PHILOX_M1);
+	__m256i a0 = _mm256_add_epi32(_mm256_set1_epi32((int)cell0),
+				      _mm256_set_epi32(7, 6, 5, 4, 3, 2, 1, 0));
+	__m256i b0 = _mm256_add_epi32(a0, _mm256_set1_epi32(8));
+	__m256i a1 = _mm256_set1_epi32((int)draw), b1 = a1;
+	__m256i a2 = _mm256_set1_epi32((int)g->dom[0]), b2 = a2;
+	__m256i a3 = _mm256_set1_epi32((int)g->dom[1]), b3 = a3;
+	uint32_t k0 = g->key[0], k1 = g->key[1];
+	__m256i t0, t1, t2, t3, u0, u1, u2, u3;
+
+	for (int r = 0; r < 10; r++) {
+		__m256i k0v = _mm256_set1_epi32((int)k0), k1v = _mm256_set1_epi32((int)k1);
+		__m256i ah0, al0, ah1, al1, bh0, bl0, bh1, bl1;
+
+		mulhilo8(a0, m0, &ah0, &al0);
+		mulhilo8(a2, m1, &ah1, &al1);
+		mulhilo8(b0, m0, &bh0, &bl0);
+		mulhilo8(b2, m1, &bh1, &bl1);
+		a0 = _mm256_xor_si256(_mm256_xor_si256(ah1, a1), k0v);
+		a2 = _mm256_xor_si256(_mm256_xor_si256(ah0, a3), k1v);
+		a1 = al1;
+		a3 = al0;
+		b0 = _mm256_xor_si256(_mm256_xor_si256(bh1, b1), k0v);
+		b2 = _mm256_xor_si256(_mm256_xor_si256(bh0, b3), k1v);
+		b1 = bl1;
+		b3 = bl0;
+		k0 += PHILOX_W0;
+		k1 += PHILOX_W1;
+	}
+	/* 4x4 transposes within each 128-bit half: lanes 0-3 land in the
+	 * low halves, lanes 4-7 in the high halves. */
+	for (int h = 0; h < 2; h++) {
+		__m256i x0 = h ? b0 : a0, x1 = h ? b1 : a1, x2 = h ? b2 : a2, x3 = h ? b3 : a3;
+		uint32_t (*o)[4] = out + 8 * h;
+
+		t0 = _mm256_unpacklo_epi32(x0, x1);
+		t1 = _mm256_unpacklo_epi32(x2, x3);
+		t2 = _mm256_unpackhi_epi32(x0, x1);
+		t3 = _mm256_unpackhi_epi32(x2, x3);
+		u0 = _mm256_unpacklo_epi64(t0, t1);
+		u1 = _mm256_unpackhi_epi64(t0, t1);
+		u2 = _mm256_unpacklo_epi64(t2, t3);
+		u3 = _mm256_unpackhi_epi64(t2, t3);
+		_mm256_storeu_si256((__m256i *)o[0], _mm256_permute2x128_si256(u0, u1, 0x20));
+		_mm256_storeu_si256((__m256i *)o[2], _mm256_permute2x128_si256(u2, u3, 0x20));
+		_mm256_storeu_si256((__m256i *)o[4], _mm256_permute2x128_si256(u0, u1, 0x31));
+		_mm256_storeu_si256((__m256i *)o[6], _mm256_permute2x128_si256(u2, u3, 0x31));
+	}
+}
+#endif
+
+void rng_bits_n(const struct rng *g, uint32_t cell0, uint32_t draw, size_t n,
+		uint32_t (*out)[4])
+{
+	size_t i = 0;
+
+#ifdef RNG_AVX2
+	if (n >= 16 && __builtin_cpu_supports("avx2"))
+		for (; i + 16 <= n; i += 16)
+			philox16_avx2(g, cell0 + (uint32_t)i, draw, out + i);
+#endif
+
+	for (; i + 8 <= n; i += 8)
+		philox8(g, cell0 + (uint32_t)i, draw, out + i);
+	if (i < n) {
+		uint32_t tmp[8][4];
+
+		philox8(g, cell0 + (uint32_t)i, draw, tmp);
+		memcpy(out + i, tmp, (n - i) * sizeof(tmp[0]));
+	}
+}
+
+void rng_cell_refill(struct rng_cell *c)
+{
+	uint32_t w[4];
+
+	rng_bits(c->g, c->cell, c->draw++, w);
+	c->buf[0] = rng_u01(w[0], w[1]);
+	c->buf[1] = rng_u01(w[2], w[3]);
+	c->left = 2;
 }
 
 /* log k! for k < 10, exactly rounded. */
@@ -95,47 +266,54 @@ static double stirling_err(double k)
 }
 
 /*
- * The deviance term  bd0(k, mu) = k log(k/mu) + mu - k  >= 0, without the
- * cancellation of the direct formula when k is close to mu (at mu = 1e12 the
- * three terms are ~1e13 and the result ~1).  With d = k - mu and
- * v = d / (k + mu), k/mu = (1 + v)/(1 - v), so
- *   k log(k/mu) = 2k atanh(v) = 2k (v + v^3/3 + v^5/5 + ...)
- * and since 2kv - d = d v,
- *   bd0 = d v + 2k (v^3/3 + v^5/5 + ...),
- * a sum of terms of one sign.  The same idea as C. Loader's "Fast and
- * accurate computation of binomial probabilities" (2000).  For |v| < 0.1 the
- * terms fall by v^2 < 0.01, so 8 terms reach 1e-17 relative; otherwise the
- * direct formula loses nothing because bd0 is not small against k.
- * d must be computed exactly by the caller (k and mu are both large).
+ * log P(k; mu) = k log mu - mu - log k! for k >= 10, without the
+ * cancellation of the direct formula when k is close to mu (at mu = 1e12
+ * the terms are ~1e13 and the result ~-15).  Stirling's formula gives
+ *
+ *   log P = -bd0 - (log(2 pi) + log k) / 2 - s(k),
+ *   bd0 = k log(k/mu) + mu - k >= 0,
+ *
+ * and with d = k - mu (exact, from the caller), v = d / (k + mu), so that
+ * k/mu = (1 + v)/(1 - v):
+ *
+ *   log(k/mu) = 2 atanh(v) = 2 (v + v^3/3 + v^5/5 + ...)
+ *   bd0 = 2k atanh(v) - d = d v + 2k (v^3/3 + v^5/5 + ...)   (2kv - d = dv)
+ *
+ * a sum of terms of one sign (the idea of C. Loader, "Fast and accurate
+ * computation of binomial probabilities", 2000).  For |v| < 0.1 the terms
+ * fall by v^2 < 0.01, so 8 of them reach 1e-17 relative, and log k comes
+ * from the same series; otherwise the direct formula loses nothing because
+ * bd0 is not small against k.
  */
-static double bd0(double k, double mu, double d)
-{
-	double v = d / (k + mu);
+#define LOG_2PI 1.8378770664093455
 
+static double poisson_logpmf(double k, double mu, double log_mu, double d)
+{
+	double v, bd, log_k;
+
+	if (k < 10)
+		return k * log_mu - mu - log_fact[(int)k];
+	v = d / (k + mu);
 	if (fabs(v) < 0.1) {
 		double v2 = v * v, t = v * v2, s = t / 3;
 
-		for (int j = 2; j <= 9; j++) {
+		for (int j = 2; j <= 8; j++) {
 			t *= v2;
 			s += t / (2 * j + 1);
 		}
-		return d * v + 2 * k * s;
+		bd = d * v + 2 * k * s;
+		log_k = log_mu + 2 * (v + s);
+	} else {
+		log_k = log(k);
+		bd = k * (log_k - log_mu) + mu - k;
 	}
-	return k * log(k / mu) + mu - k;
-}
-
-/* log P(k; mu) = k log mu - mu - log k!, accurate for any mu >= 10 and
- * integer k >= 0; d = k - mu computed exactly. */
-static double poisson_logpmf(double k, double mu, double log_mu, double d)
-{
-	if (k < 10)
-		return k * log_mu - mu - log_fact[(int)k];
-	return -bd0(k, mu, d) - 0.5 * log(2 * M_PI * k) - stirling_err(k);
+	return -bd - 0.5 * (LOG_2PI + log_k) - stirling_err(k);
 }
 
 void rng_poisson_setup(struct rng_poisson *p, double mu)
 {
 	p->mu = mu;
+	p->ncdf = 0;
 	if (!(mu > 0)) {
 		p->method = 0;
 	} else if (mu < 10) {
@@ -147,10 +325,7 @@ void rng_poisson_setup(struct rng_poisson *p, double mu)
 		p->smu = sqrt(mu);
 		p->b = 0.931 + 2.53 * p->smu;
 		p->a = -0.059 + 0.02483 * p->b;
-		p->inv_alpha = 1.1239 + 1.1328 / (p->b - 3.4);
 		p->vr = 0.9277 - 3.6224 / (p->b - 2);
-		p->log_mu = log(mu);
-		p->log_ia = log(p->inv_alpha);
 	} else {
 		p->method = 3;
 		p->smu = sqrt(mu);
@@ -192,6 +367,18 @@ double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c)
 		double u = rng_cell_u01(c), pk = p->emu, f = pk;
 		int k = 0;
 
+		if (p->ncdf) {
+			/* F is increasing, so the count of F(i) <= u is the
+			 * smallest k with u < F(k); counting without branches
+			 * avoids a mispredicted exit per draw. */
+			int n = 0;
+
+			for (int i = 0; i < p->ncdf; i++)
+				n += u >= p->cdf[i];
+			if (n < p->ncdf)
+				return n;
+		}
+
 		while (u >= f && k < 200) {
 			k++;
 			pk *= p->mu / k;
@@ -201,6 +388,7 @@ double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c)
 	}
 	case 2: {
 		double m_int = floor(p->mu), m_frac = p->mu - m_int;
+		double log_mu = 0, inv_alpha = 0;
 
 		for (;;) {
 			double u = rng_cell_u01(c) - 0.5;
@@ -213,8 +401,14 @@ double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c)
 				return k;
 			if (!(k >= 0) || (us < 0.013 && v > us))
 				continue;
-			if (log(v) + p->log_ia - log(p->a / (us * us) + p->b) <=
-			    poisson_logpmf(k, p->mu, p->log_mu, j - m_frac))
+			/* log mu and 1/alpha only here: most draws never get
+			 * this far. */
+			if (log_mu == 0) {
+				log_mu = log(p->mu);
+				inv_alpha = 1.1239 + 1.1328 / (p->b - 3.4);
+			}
+			if (log(v * inv_alpha / (p->a / (us * us) + p->b)) <=
+			    poisson_logpmf(k, p->mu, log_mu, j - m_frac))
 				return k;
 		}
 	}
@@ -224,6 +418,26 @@ double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c)
 
 		return nearbyint(p->mu + p->smu * z);
 	}
+	}
+}
+
+void rng_poisson_tabulate(struct rng_poisson *p)
+{
+	double pk, f;
+
+	if (p->method != 1)
+		return;
+	pk = f = p->emu;
+	p->cdf[0] = f;
+	/* Up to mu + 7 sqrt(mu) + 8, where 1 - F < 1e-10; draws beyond the
+	 * table fall back to the search, which gives the same count. */
+	p->ncdf = (int)(p->mu + 7 * sqrt(p->mu) + 8);
+	if (p->ncdf > 64)
+		p->ncdf = 64;
+	for (int k = 1; k < p->ncdf; k++) {
+		pk *= p->mu / k;
+		f += pk;
+		p->cdf[k] = f;
 	}
 }
 
@@ -237,6 +451,7 @@ double rng_poisson(double mu, struct rng_cell *c)
 		/* The set-up of the inversion is one exp; skip the rest. */
 		p.mu = mu;
 		p.method = 1;
+		p.ncdf = 0;
 		p.emu = exp(-mu);
 		return rng_poisson_draw(&p, c);
 	}
@@ -245,32 +460,180 @@ double rng_poisson(double mu, struct rng_cell *c)
 }
 
 /*
- * Box-Muller (Box & Muller 1958): for u1 in (0, 1] and u2 in [0, 1),
- * sqrt(-2 log u1) (cos 2 pi u2, sin 2 pi u2) are two independent N(0, 1).
- * With 53-bit u1 the largest |z| is sqrt(106 log 2) = 8.57, so the tails
- * beyond 8.57 sigma (probability 1e-17) are missing.  Deviate 2m and 2m+1
- * share Philox call m.
+ * Normal deviates by the ziggurat method (G. Marsaglia & W. W. Tsang, "The
+ * ziggurat method for generating random variables", J. Stat. Software 5(8),
+ * 2000), with 256 layers of equal area v under f(x) = exp(-x^2/2):
+ *
+ *   x_1 = r = 3.6541528853610088,   v = r f(r) + int_r^inf f = 4.9286732e-3,
+ *   x_0 = v / f(r)  (the base layer: a rectangle plus the tail beyond r),
+ *   x_{i+1} = f^-1(f(x_i) + v / x_i),  down to x_256 = 0
+ *
+ * (the recurrence closes at f = 1 + 3e-15; the table below is that
+ * recurrence in double precision, and tests/unit/rng_philox.c recomputes
+ * it).  A deviate takes 64 bits: 8 pick the layer i, the top 53 a signed
+ * uniform u in [-1, 1); x = u x_i is accepted at once when |x| < x_{i+1}
+ * (99.3% of draws).  Otherwise it is in a wedge (accept when a uniform
+ * height under layer i falls below f(x)) or, in layer 0, beyond r, where
+ * Marsaglia's tail method applies; a rejected draw starts over.  These rare
+ * paths take their numbers from the pixel's own cell, draws 1, 2, ...
+ *
+ * Deviate 2m takes words 0-1 and deviate 2m+1 words 2-3 of Philox call
+ * (m, draw 0), so any slice gives the same numbers as the whole.
  */
-void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, uint32_t draw,
-		     double *out)
+static const double zig_x[257] = {
+	3.9107579595249167, 3.6541528853610088, 3.4492782985614312,
+	3.3202447338398251, 3.2245750520478009, 3.147889289518,
+	3.0835261320021425, 3.0278377917695929, 2.9786032798818427,
+	2.9343668672088872, 2.8941210536134121, 2.8571387308732241,
+	2.8228773968264425, 2.7909211740019271, 2.7609440052799856,
+	2.732685359044011, 2.7059336561230616, 2.6805146432857443,
+	2.6562830375767423, 2.6331163936315818, 2.6109105184888226,
+	2.5895759867082857, 2.5690354526818426, 2.5492215503247819,
+	2.5300752321598527, 2.5115444416266928, 2.4935830412710454,
+	2.4761499396705218, 2.4592083743347035, 2.4427253182003628,
+	2.4266709849371453, 2.4110184139011182, 2.3957431197819261,
+	2.3808227951720844, 2.3662370567172899, 2.3519672273791441,
+	2.337996148796528, 2.324308018871132, 2.3108882506013715,
+	2.297723348902863, 2.2848008027244915, 2.2721089902283813,
+	2.2596370951737872, 2.2473750329473887, 2.2353133849299205,
+	2.2234433400925098, 2.21175664288416, 2.2002455466112756,
+	2.1889027716263598, 2.1777214677402918, 2.1666951803543073,
+	2.1558178198767362, 2.1450836340478876, 2.1344871828460157,
+	2.1240233156895223, 2.1136871506866517, 2.1034740557148757,
+	2.0933796311387902, 2.0833996939983028, 2.0735302635187414,
+	2.0637675478117306, 2.0541079316506505, 2.04454796521753,
+	2.0350843537296175, 2.0257139478638528, 2.0164337349062027,
+	2.0072408305605274, 1.9981324713584183, 1.9891060076174367,
+	1.9801588969004753, 1.9712886979336579, 1.9624930649443617,
+	1.9537697423846454, 1.9451165600086768, 1.9365314282756931,
+	1.928012334052664, 1.9195573365931864, 1.9111645637712515,
+	1.9028322085504275, 1.8945585256707029, 1.886341828536781,
+	1.8781804862929941, 1.870072921071265, 1.8620176053996724,
+	1.8540130597602003, 1.8460578502851839, 1.8381505865828049,
+	1.8302899196827553, 1.8224745400938844, 1.8147031759662813,
+	1.8069745913508195, 1.7992875845497187, 1.791640986552161,
+	1.7840336595494399, 1.7764644955245215, 1.7689324149112673,
+	1.7614363653189091, 1.7539753203176704, 1.7465482782817214,
+	1.7391542612859108, 1.7317923140529623, 1.7244615029480441,
+	1.7171609150178224, 1.7098896570713011, 1.7026468547999223,
+	1.6954316519345607, 1.6882432094371944, 1.681080704725173,
+	1.6739433309261242, 1.6668302961616648, 1.6597408228581818,
+	1.6526741470830553, 1.6456295179047817, 1.638606196775547,
+	1.6316034569348727, 1.624620582833034, 1.6176568695730149,
+	1.6107116223698297, 1.6037841560260941, 1.5968737944227878,
+	1.5899798700241905, 1.5831017233960289, 1.5762387027359059,
+	1.5693901634151233, 1.5625554675310445, 1.5557339834691761,
+	1.5489250854741732, 1.5421281532290017, 1.5353425714415139,
+	1.528567729437712, 1.5218030207609978, 1.5150478427767144,
+	1.5083015962813113, 1.5015636851154637, 1.4948335157804935,
+	1.4881104970574472, 1.4813940396281871, 1.4746835556978553,
+	1.4679784586180793, 1.4612781625102753, 1.4545820818884101,
+	1.4478896312805758, 1.4412002248487237, 1.4345132760058918,
+	1.4278281970302555, 1.4211443986753085, 1.4144612897754707,
+	1.4077782768463982, 1.4010947636792503, 1.3944101509281404,
+	1.3877238356899755, 1.3810352110758548, 1.3743436657731656,
+	1.3676485835974754, 1.3609493430332822, 1.354245316762634,
+	1.3475358711805863, 1.3408203658964031, 1.334098153219359,
+	1.3273685776279247, 1.3206309752210552, 1.3138846731502194,
+	1.30712898903073, 1.3003632303308361, 1.2935866937369467,
+	1.2867986644932425, 1.2799984157138169, 1.2731852076653554,
+	1.2663582870182284, 1.2595168860637131, 1.2526602218948961,
+	1.2457874955486261, 1.2388978911056863, 1.231990574746135,
+	1.2250646937565297, 1.2181193754854807, 1.2111537262436982,
+	1.2041668301443804, 1.1971577478794404, 1.190125515426691,
+	1.1830691426826856, 1.1759876120154509, 1.1688798767308322,
+	1.1617448594456106, 1.1545814503599268, 1.1473885054208481,
+	1.1401648443681505, 1.132909248652533, 1.1256204592155323,
+	1.1182971741193437, 1.1109380460135743, 1.1035416794246382,
+	1.09610662785202, 1.0886313906539782, 1.0811144097034022,
+	1.0735540657924345, 1.0659486747621207, 1.0582964833306734,
+	1.0505956645909282, 1.0428443131441474, 1.0350404398334394,
+	1.0271819660356445, 1.019266717465483, 1.0112924174399947,
+	1.003256679544672, 0.99515699963509008, 0.98699074709906154,
+	0.97875515529422374, 0.97044731106422355, 0.96206414322303968,
+	0.95360240988108524, 0.94505868446816454, 0.93642934028657421,
+	0.92771053340199916, 0.91889818364958964, 0.90998795349671757,
+	0.9009752244612208, 0.89185507073294046, 0.88262222958516456,
+	0.87327106808885968, 0.86379554555330784, 0.85418917100816283,
+	0.84444495490915294, 0.83455535408638104, 0.82451220875229114,
+	0.81430667013521418, 0.80392911698997016, 0.79336905884062225,
+	0.78261502330723198, 0.77165442422456687, 0.76047340643010686,
+	0.74905666201781407, 0.73738721143429442, 0.72544614090999848,
+	0.71321228519097479, 0.70066184110681384, 0.68776789279578721,
+	0.67449982283729248, 0.66082257424441826, 0.64669571489499222,
+	0.63207223638605947, 0.61689699000774956, 0.60110461775599078,
+	0.58461676610637747, 0.5673382570538168, 0.54915170232716304,
+	0.52990972066155595, 0.50942332960208958, 0.48744396613923352,
+	0.4636343367908794, 0.43751840220786858, 0.40838913461198767,
+	0.37512133287837662, 0.33573751921442047, 0.28617459179206622,
+	0.21524189598487156, 0,
+};
+
+const double *const rng_zig_x = zig_x;
+
+static double zig_slow(const struct rng *g, uint32_t cell, int i, double u)
 {
+	struct rng_cell c;
+
+	rng_cell_init(&c, g, cell, 1);
+	for (;;) {
+		double x = u * zig_x[i];
+
+		if (fabs(x) < zig_x[i + 1])
+			return x;
+		if (i == 0) {
+			double a, b;
+
+			do {
+				a = -log(1 - rng_cell_u01(&c)) / zig_x[1];
+				b = -log(1 - rng_cell_u01(&c));
+			} while (2 * b < a * a);
+			return u < 0 ? -(zig_x[1] + a) : zig_x[1] + a;
+		} else {
+			double f0 = exp(-0.5 * zig_x[i] * zig_x[i]);
+			double f1 = exp(-0.5 * zig_x[i + 1] * zig_x[i + 1]);
+
+			if (f0 + rng_cell_u01(&c) * (f1 - f0) < exp(-0.5 * x * x))
+				return x;
+		}
+		i = (int)(rng_cell_u01(&c) * 256);
+		u = 2 * rng_cell_u01(&c) - 1;
+	}
+}
+
+static inline double zig_normal(const struct rng *g, uint32_t cell, uint32_t hi, uint32_t lo)
+{
+	uint64_t w = (uint64_t)hi << 32 | lo;
+	int i = (int)(w & 0xff);
+	double u = (double)((int64_t)w >> 11) * 0x1p-52;
+	double x = u * zig_x[i];
+
+	if (fabs(x) < zig_x[i + 1])
+		return x;
+	return zig_slow(g, cell, i, u);
+}
+
+void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, double *out)
+{
+	uint32_t w[64][4];
 	uint64_t i = first, end = first + n;
-	uint32_t w[4];
 
 	while (i < end) {
-		uint32_t pair = (uint32_t)(i >> 1);
-		double r, s, co;
+		uint64_t p0 = i >> 1, p1 = ((end - 1) >> 1) + 1;
+		size_t np = p1 - p0 < 64 ? (size_t)(p1 - p0) : 64;
 
-		rng_bits(g, pair, draw, w);
-		r = sqrt(-2 * log(rng_u01_open0(w[0], w[1])));
-		s = 2 * M_PI * rng_u01(w[2], w[3]);
-		co = cos(s);
-		if (!(i & 1)) {
-			*out++ = r * co;
-			if (++i == end)
-				break;
+		rng_bits_n(g, (uint32_t)p0, 0, np, w);
+		for (size_t k = 0; k < np && i < end; k++) {
+			uint64_t pair = p0 + k;
+
+			if (i == 2 * pair) {
+				*out++ = zig_normal(g, (uint32_t)i, w[k][0], w[k][1]);
+				i++;
+			}
+			if (i < end) {
+				*out++ = zig_normal(g, (uint32_t)i, w[k][2], w[k][3]);
+				i++;
+			}
 		}
-		*out++ = r * sin(s);
-		i++;
 	}
 }

@@ -33,6 +33,11 @@ void rng_philox(const uint32_t ctr[4], const uint32_t key[2], uint32_t out[4]);
 /* The 128 random bits of (cell, draw) in generator g. */
 void rng_bits(const struct rng *g, uint32_t cell, uint32_t draw, uint32_t out[4]);
 
+/* The 128 bits of cells cell0 .. cell0 + n - 1 at draw into out, eight
+ * Philox calls at a time (SSE2 where available). */
+void rng_bits_n(const struct rng *g, uint32_t cell0, uint32_t draw, size_t n,
+		uint32_t (*out)[4]);
+
 /* 53-bit uniforms from two 32-bit words: in [0, 1) and in (0, 1]. */
 static inline double rng_u01(uint32_t hi, uint32_t lo)
 {
@@ -53,6 +58,19 @@ struct rng_cell {
 	int left;
 };
 
+/* A cell whose first Philox call (draw 0) was made already, in bulk: w
+ * holds its bits, and the stream goes on at draw 1. */
+static inline void rng_cell_preload(struct rng_cell *c, const struct rng *g,
+				    uint32_t cell, const uint32_t w[4])
+{
+	c->g = g;
+	c->cell = cell;
+	c->draw = 1;
+	c->buf[0] = rng_u01(w[0], w[1]);
+	c->buf[1] = rng_u01(w[2], w[3]);
+	c->left = 2;
+}
+
 static inline void rng_cell_init(struct rng_cell *c, const struct rng *g,
 				 uint32_t cell, uint32_t first_draw)
 {
@@ -62,8 +80,15 @@ static inline void rng_cell_init(struct rng_cell *c, const struct rng *g,
 	c->left = 0;
 }
 
+void rng_cell_refill(struct rng_cell *c);
+
 /* The next uniform in [0, 1) of the cell. */
-double rng_cell_u01(struct rng_cell *c);
+static inline double rng_cell_u01(struct rng_cell *c)
+{
+	if (!c->left)
+		rng_cell_refill(c);
+	return c->buf[2 - c->left--];
+}
 
 /* Poisson sampling for a mean fixed across many draws (the dark current,
  * cosmic-ray rates): the set-up is done once. */
@@ -71,10 +96,18 @@ struct rng_poisson {
 	double mu;
 	int method;             /* 0 zero, 1 inversion, 2 PTRS, 3 normal */
 	double emu;             /* exp(-mu) for inversion */
-	double smu, b, a, inv_alpha, vr, log_mu, log_ia; /* PTRS constants */
+	double smu, b, a, vr;   /* PTRS constants */
+	int ncdf;               /* entries of cdf, 0 until tabulated */
+	double cdf[64];         /* F(0) .. F(63) for inversion */
 };
 
 void rng_poisson_setup(struct rng_poisson *p, double mu);
+
+/* For a mean below 10 drawn many times: tabulate the distribution
+ * function once, so that a draw is a few comparisons.  The table holds the
+ * very numbers the sequential search would compute, so the counts do not
+ * change. */
+void rng_poisson_tabulate(struct rng_poisson *p);
 
 /* A Poisson count with the set-up mean, using the uniforms of cell c.
  * Exact (to the precision of the double arithmetic) for every mean up to
@@ -88,9 +121,13 @@ double rng_poisson(double mu, struct rng_cell *c);
 #define RNG_POISSON_EXACT_MAX 0x1p52
 
 /* Standard normal deviates number first .. first + n - 1 of generator g
- * into out: deviate i comes from Philox call (i / 2, draw) through the
- * Box-Muller transform, so any slice gives the same numbers as the whole. */
-void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, uint32_t draw,
-		     double *out);
+ * into out, by the ziggurat method: deviate i comes from half of Philox
+ * call (i / 2, draw 0), and in the rare slow cases from cell i, draws 1, 2,
+ * ...; so any slice gives the same numbers as the whole.  One generator
+ * (domain) serves one purpose: do not mix this with other uses of g. */
+void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, double *out);
+
+/* The ziggurat's layer edges x_0 .. x_256, for the tests. */
+extern const double *const rng_zig_x;
 
 #endif

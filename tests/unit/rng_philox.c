@@ -75,13 +75,63 @@ int main(void)
 
 	/* A slice of the deviates equals the same slice of the whole, from
 	 * odd and even starts: the property tiles rely on. */
-	rng_normal_fill(&g, 0, N, 0, z);
-	rng_normal_fill(&g, 37, 500, 0, part);
+	rng_normal_fill(&g, 0, N, z);
+	rng_normal_fill(&g, 37, 500, part);
 	ok(!memcmp(part, z + 37, 500 * sizeof(double)), "normal slice from an odd start");
-	rng_normal_fill(&g, 1000, 999, 0, part);
+	rng_normal_fill(&g, 1000, 999, part);
 	ok(!memcmp(part, z + 1000, 999 * sizeof(double)), "normal slice from an even start");
-	rng_normal_fill(&g, 0, 10, 1, part);
-	ok(memcmp(part, z, 10 * sizeof(double)), "another draw number gives other numbers");
+	rng_normal_fill(&g, 3, 1, part);
+	ok(part[0] == z[3], "a single deviate");
+	{
+		struct rng h;
+
+		rng_init(&h, 12345, 3);
+		rng_normal_fill(&h, 0, 10, part);
+		ok(memcmp(part, z, 10 * sizeof(double)), "another domain gives other numbers");
+	}
+
+	/* Bulk Philox equals one call at a time, at any start and length. */
+	{
+		uint32_t bulk[21][4], one[4];
+		int same = 1;
+
+		rng_bits_n(&g, 0xfffffff5u, 9, 21, bulk);
+		for (uint32_t i = 0; i < 21; i++) {
+			rng_bits(&g, 0xfffffff5u + i, 9, one);
+			same &= !memcmp(one, bulk[i], sizeof(one));
+		}
+		ok(same, "rng_bits_n = rng_bits, across the 2^32 wrap");
+	}
+
+	/* The ziggurat table is the recurrence of rng.c. */
+	{
+		const double *x = rng_zig_x;
+		double r = x[1], fr = exp(-0.5 * r * r);
+		double v = r * fr + sqrt(M_PI / 2) * erfc(r / sqrt(2));
+		double worst = fabs(x[0] - v / fr) / x[0];
+
+		for (int i = 1; i < 255; i++) {
+			double y = exp(-0.5 * x[i] * x[i]) + v / x[i];
+			double want = sqrt(-2 * log(y));
+
+			worst = fmax(worst, fabs(x[i + 1] - want) / want);
+		}
+		ok(worst < 1e-12 && x[256] == 0 &&
+		   fabs(exp(-0.5 * x[255] * x[255]) + v / x[255] - 1) < 1e-12,
+		   "ziggurat layers have equal areas (worst %.2g)", worst);
+	}
+
+	{
+		long tail3 = 0, tail4 = 0;
+
+		for (int i = 0; i < N; i++) {
+			tail3 += fabs(z[i]) > 3;
+			tail4 += fabs(z[i]) > 4;
+		}
+		/* P(|z| > 3) = 2.6998e-3, P(|z| > 4) = 6.3342e-5 */
+		is_near(tail3, N * 2.6998e-3, 5 * sqrt(N * 2.6998e-3), "tail beyond 3 sigma (%ld)", tail3);
+		is_near(tail4, N * 6.3342e-5, 5 * sqrt(N * 6.3342e-5), "tail beyond 4 sigma (%ld)", tail4);
+	}
 
 	for (int i = 0; i < N; i++) {
 		double x = z[i];

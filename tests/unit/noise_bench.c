@@ -1,0 +1,100 @@
+/*
+ * noise_bench - Mpixel/s of each noise stage on one full SCA (4088^2 in
+ * 512^2 tiles, one thread, CPU seconds), against writing the same SCA as
+ * float32 FITS with cfitsio.  Skipped unless WFS_BENCH is set (make bench, or by hand:
+ * WFS_BENCH=1 build/tests/noise_bench).
+ */
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include <fitsio.h>
+
+#include "tap.h"
+#include "noise.h"
+#include "instrument.h"
+
+enum { S = WFS_NPIX, T = 512 };
+
+/* CPU time of the process (user + system): on a shared machine it varies
+ * far less than the wall clock, and writing is charged its system time. */
+static double now(void)
+{
+	struct timespec ts;
+
+	clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+	return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+static double run(const struct noise_opts *o, double *a)
+{
+	double t0;
+
+	memset(a, 0, (size_t)S * S * sizeof(double));
+	t0 = now();
+	for (int y = 0; y < S; y += T)
+		for (int x = 0; x < S; x += T)
+			noise_tile(o, 1, x, y, S - x < T ? S - x : T, S - y < T ? S - y : T,
+				   a + (size_t)y * S + x, S);
+	return now() - t0;
+}
+
+int main(void)
+{
+	static const struct {
+		const char *name;
+		unsigned stages;
+		double bkg;
+	} cases[] = {
+		{ "none (background, units)", 0, 0.54 },
+		{ "poisson, mean 75", NOISE_POISSON, 0.54 },
+		{ "poisson, mean 0.5", NOISE_POISSON, 0.5 / 139.8 },
+		{ "poisson, mean 3000", NOISE_POISSON, 3000 / 139.8 },
+		{ "readnoise", NOISE_READ, 0.54 },
+		{ "flat", NOISE_FLAT, 0.54 },
+		{ "dark", NOISE_DARK, 0.54 },
+		{ "cosmic", NOISE_COSMIC, 0.54 },
+		{ "all", NOISE_ALL, 0.54 },
+	};
+	const char *path = "/tmp/wfs-noise-bench.fits";
+	double *a, t0, tw;
+	float *f;
+	fitsfile *fp;
+	int status = 0;
+	long naxes[2] = { S, S };
+
+	if (!getenv("WFS_BENCH"))
+		skip_all("set WFS_BENCH=1 to run the noise benchmark");
+	a = malloc((size_t)S * S * sizeof(double));
+	f = malloc((size_t)S * S * sizeof(float));
+	for (size_t i = 0; i < (size_t)S * S; i++)
+		f[i] = (float)i;
+	remove(path);
+	t0 = now();
+	fits_create_file(&fp, path, &status);
+	fits_create_img(fp, FLOAT_IMG, 2, naxes, &status);
+	fits_write_img(fp, TFLOAT, 1, (LONGLONG)S * S, f, &status);
+	fits_close_file(fp, &status);
+	tw = now() - t0;
+	remove(path);
+	ok(status == 0, "wrote one SCA as float32 FITS");
+	diag("%-26s %7.1f Mpixel/s  (%.3f s per SCA)", "write float32 FITS", S * (double)S / tw / 1e6, tw);
+	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
+		struct noise_opts o;
+		double t;
+
+		noise_opts_default(&o);
+		o.stages = cases[c].stages;
+		o.background = cases[c].bkg;
+		o.exptime = 139.8;
+		o.seed = 7;
+		o.filter = F158;
+		t = run(&o, a);
+		diag("%-26s %7.1f Mpixel/s  (%.3f s per SCA, %.2f x write)", cases[c].name,
+		     S * (double)S / t / 1e6, t, t / tw);
+		ok(1, "%s", cases[c].name);
+	}
+	free(a);
+	free(f);
+	return done_testing();
+}

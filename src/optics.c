@@ -569,6 +569,14 @@ static void zernike_eval(const struct zterm zt[OPTICS_NZ], double x, double y,
 	}
 }
 
+void optics_zernike_basis(double x, double y, double z[OPTICS_NZ])
+{
+	struct zterm zt[OPTICS_NZ];
+
+	zernike_table(zt);
+	zernike_eval(zt, x, y, z);
+}
+
 /* The smallest size >= n of the form 2^a 3^b 5^c, which FFTW does fastest. */
 static int good_size(int n)
 {

@@ -64,6 +64,9 @@ void optics_pupil_annulus(struct optics_pupil *p, double r_out, double r_in);
 double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
 			  double d);
 
+/* The unit-RMS Noll Zernikes Z4..Z22 at (x, y) of the unit disk. */
+void optics_zernike_basis(double x, double y, double z[OPTICS_NZ]);
+
 /* Z4..Z22 in nm of wavefront for SCA sca at pixel (x, y) of the 4088 frame
  * and wavelength lam (micron), interpolated as STPSF does. */
 void optics_zernike(const struct optics *o, int sca, double x, double y,

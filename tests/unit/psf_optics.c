@@ -1,0 +1,166 @@
+/*
+ * psf_optics.c - the optics against cases with known answers: aberration-
+ * free circular and annular pupils must give the Airy and obscured-Airy
+ * patterns (peak, first dark ring, encircled energy) to 1e-3; the Noll
+ * Zernikes are the textbook polynomials; field and wavelength weights.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "tap.h"
+#include "err.h"
+#include "instrument.h"
+#include "optics.h"
+
+#define ARCSEC (M_PI / (180.0 * 3600.0))
+
+/* Amplitude of an annular aperture with obscuration eps at v = pi D theta
+ * / lambda, 1 at the centre. */
+static double airy_amp(double v, double eps)
+{
+	if (v < 1e-9)
+		return 1;
+	double a = 2 * j1(v) / v;
+	if (eps > 0)
+		a -= eps * eps * 2 * j1(eps * v) / (eps * v);
+	return a / (1 - eps * eps);
+}
+
+/* First zero of airy_amp, by bisection from its sign change. */
+static double first_zero(double eps)
+{
+	double lo = 2, hi = 2;
+	while (airy_amp(hi, eps) > 0)
+		hi += 0.05;
+	lo = hi - 0.05;
+	for (int i = 0; i < 100; i++) {
+		double m = 0.5 * (lo + hi);
+		if (airy_amp(m, eps) > 0)
+			lo = m;
+		else
+			hi = m;
+	}
+	return 0.5 * (lo + hi);
+}
+
+static void airy_case(double eps)
+{
+	struct err e = { 0 };
+	struct optics_pupil pup;
+	const int n = 63, h = 31, zs = 5;
+	const double scale = 0.0275, lam = 1.2;        /* arcsec, micron */
+	double dth = scale * ARCSEC;
+	/* put the first dark ring exactly on sample zs */
+	double v0 = first_zero(eps);
+	double d = v0 * lam * 1e-6 / (M_PI * zs * dth);
+	double wt = 1, *img = malloc(sizeof(double) * n * n);
+	double *ref = malloc(sizeof(double) * n * n), sref = 0;
+
+	optics_pupil_annulus(&pup, d / 2, eps * d / 2);
+	struct optics_psf_req r = {
+		.pupil = &pup, .n = n, .scale = scale, .pupil_n = 512,
+		.nwave = 1, .lam = &lam, .wt = &wt, .npos = 1, .threads = 2,
+	};
+	ok(optics_psf(&r, img, &e) == 0, "eps %.2f: optics_psf: %s", eps, e.msg);
+	/* the analytic pattern at the same samples, normalised in the same
+	 * box as optics_psf normalises (STPSF's normalize='last') */
+	for (int y = 0; y < n; y++)
+		for (int x = 0; x < n; x++) {
+			double th = hypot(x - h, y - h) * dth;
+			double a = airy_amp(M_PI * d * th / (lam * 1e-6), eps);
+			ref[y * n + x] = a * a;
+			sref += a * a;
+		}
+	double peak_abs = M_PI * d * d / 4 * (1 - eps * eps) /
+			  (lam * lam * 1e-12) * dth * dth;
+	double maxd = 0;
+	for (int i = 0; i < n * n; i++) {
+		ref[i] /= sref;
+		maxd = fmax(maxd, fabs(img[i] - ref[i]));
+	}
+	double pk = img[h * n + h];
+	diag("eps %.2f: D = %.4f m, peak %.6f (analytic %.6f), ring %.2e, "
+	     "max |diff| %.2e of peak", eps, d, pk, ref[h * n + h],
+	     img[h * n + h + zs], maxd / ref[h * n + h]);
+	is_near(pk / ref[h * n + h], 1, 1e-3, "eps %.2f: peak to 1e-3", eps);
+	/* the box holds sref * peak_abs of the light, so the unnormalised
+	 * peak is pk * sref * peak_abs */
+	is_near(pk * (sref * peak_abs), peak_abs, 1e-3 * peak_abs,
+		"eps %.2f: absolute peak fraction pi D^2 (1-eps^2) dth^2 / 4 "
+		"lam^2 to 1e-3", eps);
+	ok(img[h * n + h + zs] < 1e-3 * pk && img[(h + zs) * n + h] < 1e-3 * pk,
+	   "eps %.2f: first dark ring at %.4f lam/D is dark to 1e-3 of the peak",
+	   eps, v0 / M_PI);
+	ok(img[h * n + h + zs] < img[h * n + h + zs - 1] &&
+	   img[h * n + h + zs] < img[h * n + h + zs + 1],
+	   "eps %.2f: and is a minimum", eps);
+	for (double rad = 2; rad <= 30; rad *= 2.5) {
+		double eo = 0, er = 0;
+		for (int y = 0; y < n; y++)
+			for (int x = 0; x < n; x++)
+				if (hypot(x - h, y - h) <= rad) {
+					eo += img[y * n + x];
+					er += ref[y * n + x];
+				}
+		is_near(eo, er, 1e-3, "eps %.2f: encircled energy in %.0f "
+			"samples to 1e-3", eps, rad);
+	}
+	is_near(maxd / ref[h * n + h], 0, 1e-3,
+		"eps %.2f: every sample to 1e-3 of the peak", eps);
+	free(img);
+	free(ref);
+}
+
+int main(void)
+{
+	struct err e = { 0 };
+	double z[OPTICS_NZ];
+
+	/* textbook Noll polynomials at rho = 0.7, theta = 0.3 */
+	double rho = 0.7, th = 0.3, x = rho * cos(th), y = rho * sin(th);
+	optics_zernike_basis(x, y, z);
+	is_near(z[0], sqrt(3) * (2 * rho * rho - 1), 1e-12, "Z4 defocus");
+	is_near(z[1], sqrt(6) * rho * rho * sin(2 * th), 1e-12, "Z5");
+	is_near(z[2], sqrt(6) * rho * rho * cos(2 * th), 1e-12, "Z6");
+	is_near(z[3], sqrt(8) * (3 * pow(rho, 3) - 2 * rho) * sin(th), 1e-12, "Z7");
+	is_near(z[4], sqrt(8) * (3 * pow(rho, 3) - 2 * rho) * cos(th), 1e-12, "Z8");
+	is_near(z[7], sqrt(5) * (6 * pow(rho, 4) - 6 * rho * rho + 1), 1e-12,
+		"Z11 spherical");
+	is_near(z[13], sqrt(12) * (10 * pow(rho, 5) - 12 * pow(rho, 3) +
+		3 * rho) * sin(th), 1e-12, "Z17");
+	is_near(z[18], sqrt(7) * (20 * pow(rho, 6) - 30 * pow(rho, 4) +
+		12 * rho * rho - 1), 1e-12, "Z22");
+
+	airy_case(0);
+	airy_case(0.3);
+
+	if (instrument_init(&e) < 0)
+		return printf("# %s\n", e.msg), 1;
+	struct optics *o = optics_new(&e);
+	ok(o != NULL, "optics tables load: %s", e.msg);
+	if (!o)
+		return done_testing();
+	double lam[8], w[8], s = 0, zz[OPTICS_NZ];
+	ok(optics_weights(o, F129, 1, 8, lam, w, &e) == 0, "weights");
+	for (int k = 0; k < 8; k++)
+		s += w[k];
+	is_near(s, 1, 1e-12, "weights sum to 1");
+	ok(lam[0] > 1.12 && lam[7] < 1.47 && lam[0] < lam[7],
+	   "F129 wavelengths in the band: %.4f .. %.4f", lam[0], lam[7]);
+	/* Table row: SCA 1, field point 1, 1.293 micron: Z4 = -0.0149871 waves
+	 * (roman-data.md 1.2), at its own STPSF position (2042, 2079) - 4 */
+	optics_zernike(o, 1, 2042 - 4, 2079 - 4, 1.293, zz);
+	is_near(zz[0], -0.0149871 * 1293, 0.01, "Z4 at SCA01 field point 1, "
+		"1.293 micron, in nm");
+	const struct optics_pupil *p = optics_pupil(o, 1, 0);
+	ok(p && p->nstrut >= 6 && p->rmax > 1.1 && p->rmax < 1.22,
+	   "SCA01 skinny pupil: %d struts, rim %.3f m", p ? p->nstrut : 0,
+	   p ? p->rmax : 0);
+	ok(optics_pupil_cover(p, 0, 0, 0.005) == 0 &&
+	   optics_pupil_cover(p, 0, 0.8, 0.005) == 1,
+	   "centre obscured, mid-pupil between struts clear");
+	optics_free(o);
+	return done_testing();
+}

@@ -1,0 +1,110 @@
+#!/bin/sh
+# Catalogs through the command line: every format and compression on files
+# and stdin, empty catalogs, and each bad catalog refused with exit status 1,
+# a message naming file, line, column and value, and no output file left.
+. "$(dirname "$0")/lib.sh"
+
+run() { "$WFS" --filter F129 --ra 270 --dec -30 "$@"; }
+
+printf 'ra,dec,flux\n270,-30,100\n270.001,-30,50\n' > ok.csv
+
+test_expect_success 'a CSV catalog renders' '
+	run -o ok.fits ok.csv && test -s ok.fits
+'
+test_expect_success 'zstd and gzip catalogs, from files and stdin' '
+	zstd -q -c ok.csv > ok.csv.zst && gzip -c ok.csv > ok.gz &&
+	run -o a.fits ok.csv.zst && run -o b.fits ok.gz &&
+	run -o c.fits - < ok.csv.zst && gzip -dc ok.gz | run -o d.fits &&
+	test -s a.fits && test -s b.fits && test -s c.fits && test -s d.fits
+'
+test_expect_success 'CRLF, BOM, comments and blank lines' '
+	printf "\357\273\277# stars\r\nra,dec,flux\r\n\r\n270,-30,100\r\n# more\n270,-30,5\n" > crlf.csv &&
+	run -o crlf.fits crlf.csv
+'
+test_expect_success 'an empty file is an empty catalog' '
+	: > empty.csv && run -o e.fits empty.csv && test -s e.fits
+'
+test_expect_success 'a header-only file is an empty catalog' '
+	printf "ra dec flux\n" > hdr.txt && run -o h.fits hdr.txt && test -s h.fits
+'
+test_expect_success 'the IPAC example of wfiscene-catalog(5)' '
+	cat > ex.tbl <<-\EOF &&
+	\type = '"'"'internal'"'"'
+	\filter = '"'"'F129'"'"'
+	|       ra|      dec| flux|   type| n| re| phi| ratio| id|
+	  270.6231  -29.7712  15.2  sersic  1  10   30    0.5   1
+	EOF
+	"$WFS" --filter F129 --ra 270.6231 --dec -29.7712 -o ex.fits ex.tbl
+'
+test_expect_success 'the other examples of wfiscene-catalog(5)' '
+	printf "ra,dec,mag\n270.6231,-29.7712,21.3\n270.6229,-29.7720,24.05\n" > m.csv &&
+	printf "\\\\fluxunit=jy\n# ra dec flux\nra         dec       flux\n270.6231   -29.7712  1.1e-5\n" > j.txt &&
+	printf "x,y,sca,flux,type,n,re,phi,ratio\n2044.5,2044.5,3,500,sersic,4,8.5,45,0.7\n" > g.csv &&
+	"$WFS" --filter F129 --ra 270.6231 --dec -29.7712 -o m.fits m.csv &&
+	"$WFS" --filter F129 --ra 270.6231 --dec -29.7712 -o j.fits j.txt &&
+	"$WFS" --filter F129 --sca 3 -o g.fits g.csv
+'
+if have_python; then
+	test_expect_success 'astropy FITS, ECSV and IPAC tables' '
+		"$PY" -c "
+from astropy.table import Table
+t = Table({\"ra\": [270.0, 270.001], \"dec\": [-30.0, -30.0], \"flux\": [100.0, 5.0],
+           \"type\": [\"point\", \"point\"]})
+t.write(\"ap.fits\"); t.write(\"ap.ecsv\"); t.write(\"ap.ipac\", format=\"ascii.ipac\")
+" &&
+		run -o f1.fits ap.fits && run -o f2.fits ap.ecsv && run -o f3.fits ap.ipac &&
+		gzip -c ap.fits | run -o f4.fits
+	'
+else
+	test_skip 'astropy FITS, ECSV and IPAC tables' 'no python3 with astropy'
+fi
+
+# bad NAME 'CONTENT' 'MESSAGE': the catalog is refused with status 1 and a
+# message starting "wfiscene: NAME" and holding MESSAGE; no output is left.
+bad() {
+	printf "$2" > "$1"
+	printf '%s\n' "$3" > "$1.want"
+	test_expect_success "refused: $1: $3" "
+		test_must_fail --status 1 \"\$WFS\" --filter F129 -o out.fits $1 2> err &&
+		test_grep 'wfiscene: $1' err && grep -F -f $1.want err && ! test -e out.fits
+	"
+}
+bad nan.csv 'ra,dec,flux\n1,2,3\n1,2,abc\n' ":3: column 'flux': not a number: 'abc'"
+bad nan2.csv 'ra,dec,flux\n1,2,NaN\n' ":2: column 'flux': not a finite number: 'NaN'"
+bad inf.csv 'ra,dec,flux\n1,inf,3\n' ":2: column 'dec': not a finite number: 'inf'"
+bad neg.csv 'ra,dec,flux\n1,2,-1\n' ":2: column 'flux': flux must be positive: '-1'"
+bad zero.csv 'ra,dec,flux\n1,2,0\n' ":2: column 'flux': flux must be positive: '0'"
+bad mag.csv 'ra,dec,mag\n1,2,99\n' ":2: column 'mag': magnitude out of range"
+bad nopos.csv 'flux\n1\n' ":1: no position columns"
+bad noflux.csv 'ra,dec\n1,2\n' ":1: no flux column"
+bad dup.csv 'ra,dec,flux,Flux\n1,2,3,4\n' ":1: duplicate column 'flux'"
+bad fields.csv 'ra,dec,flux\n1,2,3,4\n' ":2: row has 4 fields, the header has 3"
+bad nul.csv 'ra,dec,flux\n1,2,\0003\n' ":2: binary data: byte 0x00"
+bad utf.csv 'ra,dec,flux\n1,2,\377\n' ":2: invalid UTF-8"
+bad quote.csv 'ra,dec,flux\n1,2,"3\n' ":2: unterminated quoted field"
+bad phoenix.tbl '\\type=phoenix\nra dec flux\n1 2 3\n' "catalog type 'phoenix' needs stellar or galaxy spectra"
+bad other.tbl '\\type=internal\n\\filter=F158\nra dec flux\n1 2 3\n' "is for filter 'F158', the scene's is 'F129'"
+
+test_expect_success 'refused: a line longer than 16 MiB' '
+	{ printf "ra,dec,flux,notes\n1,2,3,"; head -c 17000000 /dev/zero | tr "\\0" a; echo; } > long.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o out.fits long.csv 2> err &&
+	test_grep "long.csv:2: line longer than 16 MiB" err && ! test -e out.fits
+'
+test_expect_success 'refused: truncated zstd and gzip streams, also on stdin' '
+	seq 1 20000 | sed "s/.*/270,-30,&/" | sed "1i ra,dec,flux" > many.csv &&
+	zstd -q -c many.csv | head -c 3000 > t.zst && gzip -c many.csv | head -c 3000 > t.gz &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o out.fits t.zst 2> err &&
+	test_grep "t.zst: truncated zstd stream" err &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o out.fits - < t.gz 2> err &&
+	test_grep "<stdin>: truncated gzip stream" err && ! test -e out.fits
+'
+test_expect_success 'refused: a missing catalog file is a system error (2)' '
+	test_must_fail --status 2 "$WFS" --filter F129 -o out.fits nosuch.csv 2> err &&
+	test_grep "nosuch.csv: cannot open" err && ! test -e out.fits
+'
+test_expect_success 'wfiscene-catalog(5) is mandoc -Tlint clean' '
+	if command -v mandoc > /dev/null; then
+		mandoc -Tlint -W warning "$TOP/man/wfiscene-catalog.5" > lint 2>&1; test ! -s lint
+	fi
+'
+test_done

@@ -27,6 +27,8 @@ CFLAGS     ?= -O2 -g
 PKGS       := cfitsio wcslib fftw3 libzstd zlib libpng
 
 Q = $(if $(filter 1,$(V)),,@)
+# The plugins' inner loops are worth the vectoriser's full effort.
+PLUGIN_OPT ?= -O3
 B := build
 
 ifeq ($(SANITIZE),1)
@@ -80,7 +82,7 @@ define plugin_rule
 $(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
 	@echo "  PLUGIN  $$@"
 	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra -Wno-unused-parameter -Iinclude \
-		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(LDFLAGS) -o $$@ $$< -lm
+		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(PLUGIN_OPT) $(LDFLAGS) -o $$@ $$< -lm
 endef
 $(foreach p,$(basename $(notdir $(wildcard plugins/*.c))),$(eval $(call plugin_rule,$(p))))
 

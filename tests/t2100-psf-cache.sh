@@ -1,0 +1,82 @@
+#!/bin/sh
+# The built-in PSF cache: a miss builds and stores, a hit loads, a corrupt
+# or truncated file is rebuilt, two runs at once both succeed, and the
+# cache can be turned off.  Cheap settings (2 wavelengths, coarse pupil)
+# keep it fast; the key includes them, so these files never serve a scene.
+. "$(dirname "$0")/lib.sh"
+
+C=$TRASH/cache-own
+C2=$TRASH/cache-two
+cheap='--filter F158 --sca 3 --nwave 2 --pupil-n 128'
+nfiles() { find "$1" -type f | wc -l | tr -d ' '; }
+samedata() { "$PY" -c '
+import sys; from astropy.io import fits; import numpy as np
+a, b = (fits.getdata(f) for f in sys.argv[1:3])
+sys.exit(0 if a.shape == b.shape and np.array_equal(a, b) else 1)' "$1" "$2"; }
+
+test_expect_success 'a miss builds the grid and stores one file' '
+	WFISCENE_CACHE=$C $WFS psf $cheap -v -o a.fits 2>err &&
+	test_grep "built with 2 wavelengths" err &&
+	test "$(nfiles $C)" = 1
+'
+
+test_expect_success 'a hit loads it, same data, in milliseconds' '
+	WFISCENE_CACHE=$C $WFS psf $cheap -v -o b.fits 2>err &&
+	test_grep "cache .*ms)" err &&
+	! grep -q built err &&
+	samedata a.fits b.fits
+'
+
+test_expect_success 'other settings are other keys' '
+	WFISCENE_CACHE=$C $WFS psf $cheap --kind psf -o p.fits 2>err &&
+	test "$(nfiles $C)" = 2
+'
+
+test_expect_success 'a corrupt file (bytes changed) is rebuilt' '
+	f=$(ls $C/*epsf*.fits) &&
+	printf "garbage!" | dd of="$f" bs=1 seek=20000 conv=notrunc 2>/dev/null &&
+	WFISCENE_CACHE=$C $WFS psf $cheap -v -o c.fits 2>err &&
+	test_grep "built" err &&
+	samedata a.fits c.fits &&
+	WFISCENE_CACHE=$C $WFS psf $cheap -v -o d.fits 2>err &&
+	test_grep "cache" err
+'
+
+test_expect_success 'a truncated file is rebuilt' '
+	f=$(ls $C/*epsf*.fits) &&
+	head -c 5000 "$f" > t && mv t "$f" &&
+	WFISCENE_CACHE=$C $WFS psf $cheap -v -o e.fits 2>err &&
+	test_grep "built" err &&
+	samedata a.fits e.fits
+'
+
+test_expect_success 'two runs at once on an empty cache both succeed' '
+	(WFISCENE_CACHE=$C2 $WFS psf $cheap -j1 -o r1.fits 2>e1; echo $? > s1) &
+	(WFISCENE_CACHE=$C2 $WFS psf $cheap -j1 -o r2.fits 2>e2; echo $? > s2) &
+	wait &&
+	test "$(cat s1)" = 0 && test "$(cat s2)" = 0 &&
+	samedata r1.fits r2.fits && samedata a.fits r1.fits &&
+	test "$(nfiles $C2)" = 1 &&
+	WFISCENE_CACHE=$C2 $WFS psf $cheap -v -o r3.fits 2>err &&
+	test_grep "cache" err
+'
+
+test_expect_success '--no-cache and an empty WFISCENE_CACHE store nothing' '
+	C3=$TRASH/cache-none && mkdir $C3 &&
+	WFISCENE_CACHE=$C3 $WFS psf $cheap --no-cache -o n1.fits &&
+	HOME=$C3 XDG_CACHE_HOME= WFISCENE_CACHE= $WFS psf $cheap -o n2.fits &&
+	test "$(nfiles $C3)" = 0 &&
+	samedata a.fits n1.fits
+'
+
+test_expect_success 'XDG_CACHE_HOME is used when WFISCENE_CACHE is unset' '
+	(unset WFISCENE_CACHE; XDG_CACHE_HOME=$TRASH/xdg $WFS psf $cheap -o x.fits) &&
+	test "$(nfiles $TRASH/xdg/wfiscene)" = 1
+'
+
+test_expect_success 'an unwritable cache is not an error' '
+	WFISCENE_CACHE=/proc/no/such/dir $WFS psf $cheap -o u.fits &&
+	samedata a.fits u.fits
+'
+
+test_done

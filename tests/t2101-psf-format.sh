@@ -1,0 +1,108 @@
+#!/bin/sh
+# `wfiscene psf` writes the STPSF/WebbPSF gridded format: 9 planes with
+# DET_YX*, NUM_PSFS, FILTER, DETECTOR, OVERSAMP, PIXELSCL, readable by
+# photutils' GriddedPSFModel, and read back by wfiscene itself.
+. "$(dirname "$0")/lib.sh"
+require_python
+
+test_expect_success 'F129 SCA01 ePSF grid with the STPSF keywords' '
+	$WFS psf --filter F129 --sca 1 -o g.fits &&
+	"$PY" - <<-\EOT
+	from astropy.io import fits
+	import numpy as np
+	h = fits.open("g.fits")[0]
+	d, k = h.data, h.header
+	assert d.shape == (9, 177, 177), d.shape
+	assert k["NUM_PSFS"] == 9 and k["FILTER"] == "F129"
+	assert k["DETECTOR"] == "SCA01" and k["OVERSAMP"] == 4
+	assert abs(k["PIXELSCL"] - 0.0275) < 1e-12 and k["WFSKIND"] == "EPSF"
+	yx = [tuple(map(float, k["DET_YX%d" % i].strip("()").split(",")))
+	      for i in range(9)]
+	assert yx[0] == (0, 0) and yx[1] == (2048, 0) and yx[3] == (0, 2048), yx
+	assert yx[8] == (4095, 4095)
+	# an ePSF: samples one pixel apart hold the pixel fractions, IPC included
+	s = d[4, 88::4, 88::4].sum() + d[4, 88::-4, 88::4].sum() \
+	    + d[4, 88::4, 88::-4].sum() + d[4, 88::-4, 88::-4].sum() \
+	    - d[4, 88, 88::4].sum() - d[4, 88, 88::-4].sum() \
+	    - d[4, 88::4, 88].sum() - d[4, 88::-4, 88].sum() + d[4, 88, 88]
+	assert abs(s - 0.9946) < 1e-3, s
+	assert np.argmax(d[4]) == 88 * 177 + 88
+	EOT
+'
+
+test_expect_success 'photutils GriddedPSFModel reads it' '
+	"$PY" - <<-\EOT
+	from astropy.io import fits
+	from astropy.nddata import NDData
+	import numpy as np
+	from photutils.psf import GriddedPSFModel
+	h = fits.open("g.fits")[0]
+	k = h.header
+	xy = []
+	for i in range(k["NUM_PSFS"]):
+	    y, x = map(float, k["DET_YX%d" % i].strip("()").split(","))
+	    xy.append((x, y))
+	nd = NDData(h.data, meta={"grid_xypos": xy, "oversampling": k["OVERSAMP"]})
+	m = GriddedPSFModel(nd)
+	yy, xx = np.mgrid[1000:1045, 1500:1545]
+	m.x_0, m.y_0, m.flux = 1522.3, 1021.7, 1.0
+	v = m(xx, yy).sum()
+	assert abs(v - 0.9946) < 3e-3, v
+	EOT
+'
+
+test_expect_success '--kind psf: optical planes that sum to 1' '
+	$WFS psf --filter F129 --sca 1 --kind psf -o p.fits &&
+	"$PY" -c "
+from astropy.io import fits; import numpy as np
+d = fits.getdata(\"p.fits\"); h = fits.getheader(\"p.fits\")
+assert h[\"WFSKIND\"] == \"PSF\"
+assert np.allclose(d.sum(axis=(1, 2)), 1, atol=1e-5), d.sum(axis=(1, 2))"
+'
+
+test_expect_success 'several SCAs: one file per SCA named _wfiNN' '
+	$WFS psf --filter F129 --sca 1,2 -o two.fits &&
+	test -f two_wfi01.fits && test -f two_wfi02.fits && ! test -f two.fits
+'
+
+test_expect_success 'a rebuild without the cache gives the same planes' '
+	$WFS psf --filter F129 --sca 1 --kind psf --no-cache -o q.fits &&
+	"$PY" -c "
+from astropy.io import fits; import numpy as np
+a = fits.getdata(\"p.fits\"); b = fits.getdata(\"q.fits\")
+assert np.array_equal(a, b)"
+'
+
+test_expect_success 'bad filter, size or kind: exit 1 naming the value, no file' '
+	test_must_fail --status 1 $WFS psf --filter F999 --sca 1 -o bad.fits 2>err &&
+	test_grep "F999" err &&
+	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 --size 100 -o bad.fits 2>err &&
+	test_grep "177, 353 or 705" err &&
+	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 --kind nope -o bad.fits 2>err &&
+	test_grep "nope" err &&
+	test_must_fail --status 1 $WFS psf --filter F129 --sca 99 -o bad.fits 2>err &&
+	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 2>err &&
+	! test -f bad.fits
+'
+
+test_expect_success 'an unwritable output: exit 2, no temporary left' '
+	mkdir ro && chmod 555 ro &&
+	if [ "$(id -u)" = 0 ]; then out=/proc/nonexistent/x.fits; else out=ro/x.fits; fi &&
+	test_must_fail --status 2 $WFS psf --filter F129 --sca 1 -o $out 2>err &&
+	test_grep "x.fits" err &&
+	test -z "$(ls -A ro)"
+'
+
+if have_shared; then
+test_expect_success 'the STPSF sample of STIPS reads as a 3x3 grid' '
+	"$PY" -c "
+from astropy.io import fits
+h = fits.getheader(\"$SHARED/stips-psf/psf_WFI_2.0.0_F129_wfi01.fits\")
+assert h[\"NUM_PSFS\"] == 9" &&
+	if [ -x $BUILD/tests/psf_grid ]; then $BUILD/tests/psf_grid >out 2>&1 || { cat out; false; }; fi
+'
+else
+test_skip 'the STPSF sample of STIPS reads as a 3x3 grid' '../shared is absent'
+fi
+
+test_done

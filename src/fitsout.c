@@ -126,7 +126,8 @@ void fitsout_abort_all_signal(void)
 
 /* ---- card formatting ---- */
 
-/* Put s at column 0 of an 80-character card filled with spaces. */
+/* Start a blank 80-character card with the keyword and its value
+ * indicator; *pos is the column where the value goes. */
 static void card_start(char *buf, const char *key, int *pos)
 {
 	size_t klen = strlen(key);

@@ -229,7 +229,6 @@ static int preview_parse(int argc, char **argv, struct preview_opts *o,
 	int i, only_files = 0;
 
 	memset(o, 0, sizeof(*o));
-	o->width = 0;
 	o->stretch = PREVIEW_ASINH;
 	o->q = PREVIEW_Q;
 	for (i = 1; i < argc; i++) {

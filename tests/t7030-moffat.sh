@@ -236,6 +236,7 @@ test_expect_success 'make install puts header, pkg-config file and man pages in 
 	test -f "$inst/lib/pkgconfig/wfiscene-model.pc" &&
 	test -x "$inst/bin/wfiscene" &&
 	test -d "$inst/lib/wfiscene" &&
+	test -f "$inst/share/man/man7/wfiscene-model.7" &&
 	PKG_CONFIG_PATH=$inst/lib/pkgconfig pkg-config --cflags wfiscene-model >cflags &&
 	test_grep "$inst/include" cflags &&
 	test_grep "fvisibility=hidden" cflags &&

@@ -26,6 +26,7 @@
 #define TABLE_BUF (8u << 20)
 #endif
 #define NONE ((size_t)-1)
+#define TABLE_MAX_CELLS (8u << 20)
 
 enum cls { C_PLAIN, C_DELIM, C_QUOTE, C_BAD, C_HIGH, C_CR };
 
@@ -1126,7 +1127,13 @@ static long text_read(struct table *t, struct table_chunk *c, struct err *e)
 
 static int alloc_chunk(struct table *t, struct err *e)
 {
-	size_t n = t->chunk_rows, nc = (size_t)(t->ncol ? t->ncol : 1);
+	size_t nc = (size_t)(t->ncol ? t->ncol : 1), n;
+
+	/* A very wide table is read in fewer rows per chunk, so the cell
+	 * pointers stay under TABLE_MAX_CELLS x 8 bytes. */
+	if (t->chunk_rows > TABLE_MAX_CELLS / nc)
+		t->chunk_rows = TABLE_MAX_CELLS / nc > 0 ? TABLE_MAX_CELLS / nc : 1;
+	n = t->chunk_rows;
 
 	t->cells = calloc(nc * n, sizeof(*t->cells));
 	t->text = calloc(nc, sizeof(*t->text));

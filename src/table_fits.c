@@ -285,6 +285,9 @@ static int alloc_buffers(struct table_fits *x, struct err *e)
 		row_bytes += x->col[i].text_width;
 	if (row_bytes && n > FITS_ARENA_MAX / row_bytes)
 		n = FITS_ARENA_MAX / row_bytes;
+	/* And at most 8 Mi cells (their pointers and values) per chunk. */
+	if (n > (8u << 20) / nc)
+		n = (8u << 20) / nc;
 	if (n < 1)
 		n = 1;
 	x->chunk_rows = n;

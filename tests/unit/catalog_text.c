@@ -161,6 +161,42 @@ static void test_chunks(void)
 	catalog_close(c);
 }
 
+/* A very wide table is read in fewer rows per chunk. */
+static void test_wide(void)
+{
+	struct catalog_opts o = opts();
+	struct catalog *c;
+	struct rows r;
+	struct err e = { 0 };
+	FILE *f;
+	long n, total = 0, most = 0;
+
+	snprintf(path, sizeof(path), "%s/wide.csv", dir);
+	f = fopen(path, "w");
+	fprintf(f, "ra,dec,flux");
+	for (int i = 0; i < 20000; i++)
+		fprintf(f, ",c%d", i);
+	fprintf(f, "\n");
+	for (int k = 0; k < 1000; k++) {
+		fprintf(f, "1,2,%d", k + 1);
+		for (int i = 0; i < 20000; i++)
+			fputs(",", f);
+		fprintf(f, "\n");
+	}
+	fclose(f);
+	c = catalog_open(path, &o, &e);
+	while (c && (n = catalog_read(c, &r, &e)) > 0) {
+		if (r.flux[0] != total + 1 || r.ncol != 20003)
+			break;
+		total += n;
+		if (n > most)
+			most = n;
+	}
+	ok(c && total == 1000 && most <= (8 << 20) / 20003,
+	   "20003 columns: %ld rows, chunks of at most %ld", total, most);
+	catalog_close(c);
+}
+
 static void test_compressed(void)
 {
 	struct catalog_opts o = opts();
@@ -498,6 +534,7 @@ int main(void)
 	test_numbers();
 	test_csv();
 	test_chunks();
+	test_wide();
 	test_compressed();
 	test_ipac_ecsv();
 	test_units_and_types();

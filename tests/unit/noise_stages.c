@@ -259,6 +259,18 @@ static void test_dark(void)
 	is_near(s.var, var, 5 * sqrt((d + 3 * d * d + 3 * pow(rt, 4) + 6 * d * rt * rt - var * var) / N),
 		"dark: variance D t + (s_d t)^2 (shot noise plus residual)");
 	free(a);
+	/* With poisson on, the dark current is in the same count. */
+	o.stages = NOISE_POISSON | NOISE_DARK;
+	o.background = 0.3;
+	a = run(&o, 4, 0);
+	s = stats_of(a, N);
+	var += 30;
+	is_near(s.mean, d + 30, 5 * sqrt(var / N), "poisson+dark: mean (B + D) t");
+	is_near(s.var, var, 5 * sqrt((var + 2 * var * var) / N),
+		"poisson+dark: variance (B + D) t + (s_d t)^2");
+	free(a);
+	o.stages = NOISE_DARK;
+	o.background = 0;
 	o.dark_current = 0;
 	a = run(&o, 4, 0);
 	s = stats_of(a, N);

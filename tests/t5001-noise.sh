@@ -1,0 +1,111 @@
+#!/bin/sh
+# Backgrounds and noise through the command line: the statistics of a
+# flat field, identical images for any thread count and tile size and for
+# runs split by SCA, independent noise on every SCA and filter, extreme
+# settings that stay finite, and bad values refused.
+. "$(dirname "$0")/lib.sh"
+
+run() { "$WFS" --filter F129 --ra 0 --dec 0 "$@"; }
+
+# An empty catalog: the image is background and noise alone.
+printf 'ra,dec,flux\n' > none.csv
+printf 'ra,dec,flux\n0,0,5000\n0.01,0.01,300\n' > two.csv
+
+# stats.py FILE HDU: median, robust sigma (1.4826 MAD), min, max, and the
+# count of non-finite pixels.
+cat > stats.py <<\PYEOF
+import sys
+import numpy as np
+from astropy.io import fits
+d = np.asarray(fits.open(sys.argv[1])[sys.argv[2]].data, dtype=np.float64)
+f = d[np.isfinite(d)]
+med = np.median(f)
+print("%.9g %.9g %.9g %.9g %d" % (med, 1.4826 * np.median(np.abs(f - med)),
+      f.min(), f.max(), d.size - f.size))
+PYEOF
+
+# same_hdus.py A B: every image HDU of B is in A (by EXTNAME) with equal data.
+cat > same_hdus.py <<\PYEOF
+import sys
+import numpy as np
+from astropy.io import fits
+a = {h.name: h.data for h in fits.open(sys.argv[1]) if h.is_image and h.data is not None}
+for h in fits.open(sys.argv[2]):
+    if h.is_image and h.data is not None:
+        if h.name not in a or not np.array_equal(a[h.name], h.data):
+            print("HDU %s differs" % h.name)
+            sys.exit(1)
+PYEOF
+
+# corr.py A HDU_A B HDU_B: correlation of two images, as |r| * sqrt(N).
+cat > corr.py <<\PYEOF
+import sys
+import numpy as np
+from astropy.io import fits
+x = np.asarray(fits.open(sys.argv[1])[sys.argv[2]].data, dtype=np.float64).ravel()
+y = np.asarray(fits.open(sys.argv[3])[sys.argv[4]].data, dtype=np.float64).ravel()
+r = np.corrcoef(x, y)[0, 1]
+print("%.3f" % (abs(r) * np.sqrt(x.size)))
+PYEOF
+
+within() { awk -v g="$1" -v w="$2" -v t="$3" 'BEGIN { d = g - w; if (d < 0) d = -d; exit !(d <= t) }'; }
+
+test_expect_success '--noise none --background 0.5 gives exactly 0.5' '
+	run --noise none --background 0.5 -o flat.fits none.csv &&
+	$PY stats.py flat.fits WFI01 > s && read med sig min max bad < s &&
+	test "$min" = 0.5 && test "$max" = 0.5 && test "$bad" = 0
+'
+
+# F129 avg background 0.54 counts/s, dark 0.028 e-/s, 100 s: Poisson mean
+# 56.8 e-; variance 56.8 + 12^2 + (0.0037 * 100)^2 + (56.8 * 0.00068)^2 =
+# 200.9 e-^2, robust sigma 14.17 e- = 0.1417 counts/s (cosmic-ray residuals
+# touch ~1e-3 of the pixels and do not move median or MAD).
+test_expect_success '--noise all --background avg: median and sigma of a flat field' '
+	run --sca 1 --noise all --background avg --exptime 100 --seed 7 -o all.fits none.csv &&
+	$PY stats.py all.fits WFI01 > s && read med sig min max bad < s &&
+	cat s && test "$bad" = 0 &&
+	within "$med" 0.568 0.01 && within "$sig" 0.1417 0.002
+'
+test_expect_success '--bunit counts leaves the image in counts' '
+	run --sca 1 --noise poisson --background avg --exptime 100 --bunit counts -o c.fits none.csv &&
+	$PY stats.py c.fits WFI01 > s && read med sig min max bad < s && cat s &&
+	within "$med" 54 1.01 && within "$sig" 7.35 0.3 && test "$bad" = 0
+'
+test_expect_success 'the same seed gives the same image for any --threads and --tile' '
+	run --sca 3 --noise all --background avg --exptime 100 --seed 11 --threads 1 --tile 256 -o t1.fits two.csv &&
+	run --sca 3 --noise all --background avg --exptime 100 --seed 11 --threads 2 --tile 128 -o t2.fits two.csv &&
+	$PY "$TOP/tests/fitsinfo.py" --same t1.fits t2.fits
+'
+test_expect_success 'runs split by SCA give the HDUs of one run' '
+	run --sca 1,2,17 --noise all --background avg --exptime 100 --seed 5 -o whole.fits two.csv &&
+	run --sca 1,2 --noise all --background avg --exptime 100 --seed 5 -o part1.fits two.csv &&
+	run --sca 17 --noise all --background avg --exptime 100 --seed 5 --threads 1 -o part2.fits two.csv &&
+	$PY same_hdus.py whole.fits part1.fits && $PY same_hdus.py whole.fits part2.fits
+'
+test_expect_success 'different SCAs, filters and seeds never share a noise pattern' '
+	run --sca 1 --noise poisson,readnoise --background avg --exptime 100 --seed 5 --filter F158 -o f158.fits none.csv &&
+	run --sca 1 --noise all --background avg --exptime 100 --seed 6 -o s6.fits none.csv &&
+	$PY corr.py whole.fits WFI01 whole.fits WFI02 > r1 &&
+	$PY corr.py whole.fits WFI01 f158.fits WFI01 > r2 &&
+	$PY corr.py whole.fits WFI17 s6.fits WFI01 > r3 &&
+	cat r1 r2 r3 &&
+	within "$(cat r1)" 0 5 && within "$(cat r2)" 0 5 && within "$(cat r3)" 0 5
+'
+for t in 1e-3 1e6; do
+	for b in 0 1e6; do
+		test_expect_success "--exptime $t --background $b: every pixel finite" "
+			run --sca 18 --noise all --background $b --exptime $t -o x.fits two.csv &&
+			\$PY stats.py x.fits WFI18 > s && cat s && read med sig min max bad < s &&
+			test \"\$bad\" = 0
+		"
+	done
+done
+test_expect_success 'bad noise options are refused, leaving no file' '
+	test_must_fail --status 1 run --noise poisson,bogus -o bad.fits none.csv 2> err &&
+	test_grep "unknown stage .bogus." err && ! test -e bad.fits &&
+	test_must_fail --status 1 run --readnoise -3 -o bad.fits none.csv 2> err &&
+	test_grep "readnoise" err && ! test -e bad.fits &&
+	test_must_fail --status 1 run --cosmic-residual 2 -o bad.fits none.csv 2> err &&
+	test_grep "cosmic-residual" err && ! test -e bad.fits
+'
+test_done

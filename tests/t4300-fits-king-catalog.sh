@@ -20,10 +20,15 @@ test_expect_success '-z writes the same list as zstd' '
 	"$KING" -n 2000 -z > b.csv.zst && zstd -q -d -c b.csv.zst > b.csv &&
 	"$KING" -n 2000 > b2.csv && test_cmp b2.csv b.csv
 '
-test_expect_success '10^5 stars take well under a second' '
-	start=$(date +%s%N) && "$KING" > /dev/null && end=$(date +%s%N) &&
-	test $(((end - start) / 1000000)) -lt 1000
-'
+# CPU time, not wall time: the suite runs tests in parallel on busy machines.
+if [ -x /usr/bin/time ]; then
+	test_expect_success '10^5 stars take well under a second of CPU' '
+		/usr/bin/time -f "%U %S" -o cpu "$KING" > /dev/null &&
+		awk "{ exit !(\$1 + \$2 < 0.8) }" cpu
+	'
+else
+	test_skip '10^5 stars take well under a second of CPU' '/usr/bin/time is absent'
+fi
 test_expect_success '-h prints the usage on stdout' '
 	"$KING" -h > h && test_grep "^usage: king" h && test_grep "\-z" h
 '

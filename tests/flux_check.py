@@ -1,0 +1,158 @@
+"""Flux conservation of point sources, checked against an independent
+implementation of the evaluation wfiscene(1) documents.
+
+    flux_check.py grid OUT.fits         a synthetic 3x3 ePSF grid (WFSKIND EPSF)
+                                        whose shape changes with position
+    flux_check.py stars SCAS SEED       a catalog (x, y, sca, flux) with stars
+                                        at all 64 eighth-pixel phases on each
+                                        SCA, on tile boundaries, corners and
+                                        edges (partly off the detector)
+    flux_check.py check GRID CAT IMAGE TOL
+                                        per SCA, the image sum must equal
+                                        sum(flux * enclosed fraction) to TOL
+"""
+import csv
+import math
+import sys
+
+import numpy as np
+from astropy.io import fits
+
+N, OVER, NPIX = 177, 4, 4088
+C = (N - 1) // 2
+NODES = [0.0, 2048.0, 4095.0]            # STPSF's, in the 4096-pixel frame
+
+
+def make_grid(path):
+    planes, cards = [], []
+    k = 0
+    yy, xx = np.mgrid[0:N, 0:N].astype(float)
+    for ix, nx in enumerate(NODES):
+        for iy, ny in enumerate(NODES):
+            # an off-centre core and wings that change from node to node
+            sx, sy = 4.0 + 0.5 * ix, 4.5 + 0.4 * iy
+            dx, dy = xx - C - 0.3 * ix, yy - C + 0.2 * iy
+            core = np.exp(-0.5 * ((dx / sx) ** 2 + (dy / sy) ** 2))
+            wing = (1 + (dx * dx + dy * dy) / 30.0 ** 2) ** -2.5
+            img = core + 0.02 * wing
+            img *= 16.0 * 0.99 / img.sum()       # pixel-spaced samples sum ~0.99
+            planes.append(img)
+            cards.append(("DET_YX%d" % k, "(%.1f, %.1f)" % (ny, nx)))
+            k += 1
+    h = fits.PrimaryHDU(np.array(planes, dtype=np.float32))
+    for key, val in cards:
+        h.header[key] = val
+    h.header["NUM_PSFS"] = 9
+    h.header["OVERSAMP"] = OVER
+    h.header["PIXELSCL"] = 0.11 / OVER
+    h.header["FILTER"] = "F129"
+    h.header["DETECTOR"] = "SCA01"
+    h.header["WFSKIND"] = "EPSF"
+    h.writeto(path, overwrite=True)
+
+
+def stars(scas, seed):
+    rng = np.random.default_rng(seed)
+    print("id,x,y,sca,flux")
+    k = 0
+    for sca in scas:
+        pts = []
+        for a in range(8):
+            for b in range(8):
+                # 1-based positions at eighth-pixel phases, anywhere
+                pts.append((rng.integers(30, 4060) + a / 8, rng.integers(30, 4060) + b / 8))
+        # on tile boundaries (256), in the corners, partly off every edge
+        pts += [(256.5, 300.25), (512.5, 512.5), (1024.9, 768.1), (1.0, 1.0),
+                (4088.0, 4088.0), (-10.3, 2000.0), (4100.7, 100.0), (2000, -15.2),
+                (3000.0, 4099.9), (-21.0, -21.0)]
+        for x, y in pts:
+            k += 1
+            print("%d,%.6f,%.6f,%d,%.6g" % (k, x, y, sca, 10 ** rng.uniform(0, 4)))
+
+
+def read_grid(path):
+    with fits.open(path) as h:
+        data = h[0].data.astype(np.float64)
+        hdr = h[0].header
+        pos = []
+        for k in range(data.shape[0]):
+            y, x = [float(v) for v in hdr["DET_YX%d" % k].strip("() ").split(",")]
+            pos.append((x - 4, y - 4))          # to the 0-based 4088 frame
+    xs, ys = sorted({p[0] for p in pos}), sorted({p[1] for p in pos})
+    nodes = {}
+    for k, (x, y) in enumerate(pos):
+        nodes[(xs.index(x), ys.index(y))] = data[k]
+    return xs, ys, nodes
+
+
+def bracket(a, v):
+    if v <= a[0]:
+        return 0, 0.0
+    if v >= a[-1]:
+        return len(a) - 2, 1.0
+    i = max(j for j in range(len(a) - 1) if a[j] < v) if v > a[0] else 0
+    return i, (v - a[i]) / (a[i + 1] - a[i])
+
+
+def keys_np(t):
+    return np.stack([-0.5 * t ** 3 + t * t - 0.5 * t, 1.5 * t ** 3 - 2.5 * t * t + 1,
+                     -1.5 * t ** 3 + 2 * t * t + 0.5 * t, 0.5 * t ** 3 - 0.5 * t * t])
+
+
+def enclosed(grid, x, y):
+    """Sum over the pixels a star at 0-based (x, y) lights on the detector."""
+    xs, ys, nodes = grid
+    ix, tx = bracket(xs, x)
+    iy, ty = bracket(ys, y)
+    e = ((1 - tx) * (1 - ty) * nodes[(ix, iy)] + tx * (1 - ty) * nodes[(ix + 1, iy)] +
+         (1 - tx) * ty * nodes[(ix, iy + 1)] + tx * ty * nodes[(ix + 1, iy + 1)])
+    half = C / OVER
+    core2 = 16.0 if 4 * OVER + 2 < C else 0.0
+    i = np.arange(math.floor(x - half) + 1, math.ceil(x + half))
+    j = np.arange(math.floor(y - half) + 1, math.ceil(y + half))
+    i = i[(i >= 0) & (i < NPIX)]
+    j = j[(j >= 0) & (j < NPIX)]
+    if i.size == 0 or j.size == 0:
+        return 0.0
+    I, J = np.meshgrid(i, j)
+    rx, ry = C + OVER * (I - x), C + OVER * (J - y)
+    sx, sy = np.floor(rx).astype(int), np.floor(ry).astype(int)
+    fx, fy = rx - sx, ry - sy
+    v = ((1 - fy) * ((1 - fx) * e[sy, sx] + fx * e[sy, sx + 1]) +
+         fy * ((1 - fx) * e[sy + 1, sx] + fx * e[sy + 1, sx + 1]))
+    core = (I - x) ** 2 + (J - y) ** 2 <= core2
+    if core.any():
+        cx, cy = keys_np(fx[core]), keys_np(fy[core])
+        csx, csy = sx[core], sy[core]
+        v[core] = sum(cy[b] * cx[a] * e[csy - 1 + b, csx - 1 + a]
+                      for a in range(4) for b in range(4))
+    return float(v.sum())
+
+
+def check(gridpath, catpath, imgpath, tol):
+    grid = read_grid(gridpath)
+    want = {}
+    for r in csv.DictReader(open(catpath)):
+        s = int(r["sca"])
+        want[s] = want.get(s, 0.0) + float(r["flux"]) * enclosed(
+            grid, float(r["x"]) - 1, float(r["y"]) - 1)
+    worst = 0.0
+    with fits.open(imgpath) as h:
+        for hdu in h[1:]:
+            s = int(hdu.name[3:])
+            got = hdu.data.astype(np.float64).sum()
+            rel = abs(got / want[s] - 1)
+            worst = max(worst, rel)
+            if rel > tol:
+                print("SCA %d: image %.10g, expected %.10g, relative %.3g" % (s, got, want[s], rel))
+    print("worst relative difference %.3g over %d SCAs" % (worst, len(want)))
+    return 0 if worst <= tol else 1
+
+
+cmd = sys.argv[1]
+if cmd == "grid":
+    make_grid(sys.argv[2])
+elif cmd == "stars":
+    stars([int(s) for s in sys.argv[2].split(",")], int(sys.argv[3]))
+else:
+    sys.exit(check(sys.argv[2], sys.argv[3], sys.argv[4], float(sys.argv[5])))

@@ -114,4 +114,14 @@ struct optics_psf_req {
 };
 int optics_psf(const struct optics_psf_req *r, double *out, struct err *e);
 
+/* The measured default number of wavelengths for a filter (psfbuild.c). */
+int psf_default_nwave(int filter);
+
+/* For `wfiscene psf --jitter` (psfbuild.c): a built-in grid with another
+ * jitter, computed without the cache.  NULL on error. */
+struct psf_build_opts;
+struct psf_grid *psf_build_uncached(int filter, int sca, int cls, int kind,
+				    const struct psf_build_opts *o,
+				    double jitter, struct err *e);
+
 #endif

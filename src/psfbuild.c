@@ -36,14 +36,18 @@
 
 /*
  * Defaults, from the convergence measurements in BENCHMARKS.md ("Built-in
- * PSF"): the number of wavelengths at which the PSF's largest per-sample
- * change against 41 wavelengths falls below 1e-3 of its peak (the wide
- * F146 needs more), and a pupil sampling of 256 samples across the 2.416 m
- * mask array at the longest wavelength (1.6 mm steps at 1.3 micron).
+ * PSF", contrib/psf-convergence.py): per filter, the fewest wavelengths for
+ * which the optical PSF differs from a 41-wavelength sum by less than
+ * 5e-4 of its peak anywhere (the error falls as 1/nwave^2; the 1.07 micron
+ * wide F146 needs the most), and a pupil sampling of 256 samples across
+ * the 2.416 m mask array at the longest wavelength of the band.
  */
-static int default_nwave(int filter)
+int psf_default_nwave(int filter)
 {
-	return filter == F146 ? 18 : 8;
+	/* F062 F087 F106 F129 F158 F184 F213 F146 */
+	static const int nw[WFS_NFILTER] = { 8, 6, 6, 6, 6, 4, 4, 16 };
+
+	return filter >= 0 && filter < WFS_NFILTER ? nw[filter] : 8;
 }
 #define DEFAULT_PUPIL_N 256
 
@@ -172,7 +176,7 @@ static double now(void)
 /* Compute a grid. */
 static struct psf_grid *build(const struct optics *o, int filter, int sca,
 			      int n, int kind, int nwave, int pupil_n, int grid,
-			      int threads, struct err *e)
+			      double jit, int threads, struct err *e)
 {
 	const struct filter_info *fi = filter_get(filter);
 	double lam[64], wt[64];
@@ -214,7 +218,7 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 		.wt = wt,
 		.npos = npos,
 		.zern = zern,
-		.jitter = OPTICS_JITTER,
+		.jitter = jit,
 		.threads = threads,
 	};
 	if (!r.pupil) {
@@ -265,7 +269,7 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		return NULL;
 	}
 	int n = psf_class_n[cls];
-	int nwave = o->nwave > 0 ? o->nwave : default_nwave(filter);
+	int nwave = o->nwave > 0 ? o->nwave : psf_default_nwave(filter);
 	int pupil_n = o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N;
 	int grid = o->grid > 0 ? o->grid : 3;
 	uint64_t key = cache_key(filter, sca, n, kind, nwave, pupil_n, grid);
@@ -289,7 +293,7 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 	}
 	double t0 = now();
 	if (!(g = build(optics_tables, filter, sca, n, kind, nwave, pupil_n,
-			grid, o->threads, e))) {
+			grid, OPTICS_JITTER, o->threads, e))) {
 		err_prefix(e, "PSF %s SCA%02d", fname, sca);
 		return NULL;
 	}
@@ -326,4 +330,27 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		}
 	}
 	return g;
+}
+
+struct psf_grid *psf_build_uncached(int filter, int sca, int cls, int kind,
+				    const struct psf_build_opts *o,
+				    double jitter, struct err *e)
+{
+	if (filter < 0 || filter >= WFS_NFILTER || sca < 1 || sca > WFS_NSCA ||
+	    cls < 0 || cls > 2) {
+		err_set(e, EXIT_INPUT, "no such PSF: filter %d SCA %d class %d",
+			filter, sca, cls);
+		return NULL;
+	}
+	if (instrument_init(e))
+		return NULL;
+	pthread_once(&optics_once, optics_load);
+	if (!optics_tables) {
+		err_set(e, optics_err.code, "%s", optics_err.msg);
+		return NULL;
+	}
+	return build(optics_tables, filter, sca, psf_class_n[cls], kind,
+		     o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
+		     o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
+		     o->grid > 0 ? o->grid : 3, jitter, o->threads, e);
 }

@@ -13,6 +13,7 @@
 #include "commands.h"
 #include "err.h"
 #include "instrument.h"
+#include "optics.h"
 #include "psf.h"
 
 static const char usage[] =
@@ -30,6 +31,8 @@ static const char usage[] =
 "      --grid N          nodes per axis (default 3)\n"
 "      --nwave N         wavelengths (default: measured per filter)\n"
 "      --pupil-n N       pupil samples across (default 256)\n"
+"      --jitter SIGMA    Gaussian jitter per axis, arcsec (default 0.012;\n"
+"                        another value bypasses the cache)\n"
 "  -j, --threads N       threads for building (default: all cores)\n"
 "      --cache-dir DIR   PSF cache (default $WFISCENE_CACHE,\n"
 "                        $XDG_CACHE_HOME/wfiscene, ~/.cache/wfiscene)\n"
@@ -51,7 +54,8 @@ static void sca_name(char *buf, size_t n, const char *file, int sca)
 
 int psf_main(int argc, char **argv)
 {
-	enum { O_SIZE = 256, O_GRID, O_NWAVE, O_PUPIL, O_CACHE, O_NOCACHE };
+	enum { O_SIZE = 256, O_GRID, O_NWAVE, O_PUPIL, O_CACHE, O_NOCACHE,
+	       O_JITTER };
 	static const struct option opts[] = {
 		{ "filter", required_argument, NULL, 'f' },
 		{ "sca", required_argument, NULL, 's' },
@@ -63,6 +67,7 @@ int psf_main(int argc, char **argv)
 		{ "threads", required_argument, NULL, 'j' },
 		{ "cache-dir", required_argument, NULL, O_CACHE },
 		{ "no-cache", no_argument, NULL, O_NOCACHE },
+		{ "jitter", required_argument, NULL, O_JITTER },
 		{ "output", required_argument, NULL, 'o' },
 		{ "verbose", no_argument, NULL, 'v' },
 		{ "help", no_argument, NULL, 'h' },
@@ -72,6 +77,7 @@ int psf_main(int argc, char **argv)
 	struct err e = { 0 };
 	const char *filter_s = NULL, *sca_s = NULL, *out = NULL;
 	int kind = PSF_EPSF, cls = 0, c;
+	double jit = -1;
 	unsigned mask = 0;
 	char *end;
 
@@ -100,6 +106,14 @@ int psf_main(int argc, char **argv)
 		case O_PUPIL: bo.pupil_n = (int)v; break;
 		case O_CACHE: bo.cache_dir = optarg; break;
 		case O_NOCACHE: bo.cache_dir = ""; break;
+		case O_JITTER:
+			jit = strtod(optarg, &end);
+			if (*end || end == optarg || !(jit >= 0 && jit < 1)) {
+				fprintf(stderr, "wfiscene psf: --jitter: want "
+					"arcsec in [0, 1), not '%s'\n", optarg);
+				return EXIT_INPUT;
+			}
+			break;
 		case 'k':
 			if (!strcasecmp(optarg, "epsf"))
 				kind = PSF_EPSF;
@@ -168,12 +182,25 @@ int psf_main(int argc, char **argv)
 			sca_name(path, sizeof(path), out, s);
 		else
 			snprintf(path, sizeof(path), "%s", out);
-		if (!(g = psf_builtin(filter, s, cls, kind, &bo, &e)))
+		if (jit >= 0 && jit != OPTICS_JITTER)
+			g = psf_build_uncached(filter, s, cls, kind, &bo, jit, &e);
+		else
+			g = psf_builtin(filter, s, cls, kind, &bo, &e);
+		if (!g)
 			goto fail;
+		char c1[81], c2[81], c3[81];
+		snprintf(c1, sizeof(c1), "NWAVES  = %d / Number of wavelengths used "
+			 "in calculation", bo.nwave > 0 ? bo.nwave :
+			 psf_default_nwave(filter));
+		snprintf(c2, sizeof(c2), "JITRSIGM= %g / Gaussian sigma for jitter, "
+			 "per axis [arcsec]", jit >= 0 ? jit : OPTICS_JITTER);
+		snprintf(c3, sizeof(c3), "SRCTEMP = %g / [K] Blackbody source for "
+			 "the wavelength weights", OPTICS_BB_TEMP);
 		const char *cards[] = {
+			c1, c2, c3,
 			"COMMENT Built-in Roman WFI PSF of wfiscene: Cycle-9 pupil and",
-			"COMMENT Zernikes, 5700 K blackbody weights, 0.012 arcsec jitter;",
-			"COMMENT planes in STPSF order, positions in DET_YX* (4096 frame).",
+			"COMMENT Zernikes; planes in STPSF order, positions in DET_YX*",
+			"COMMENT (4096-pixel frame); see wfiscene(1), wfiscene psf.",
 			NULL
 		};
 		int rc = psf_grid_write(path, g, cards, &e);

@@ -226,7 +226,7 @@ static int cr_hits(double u, double lambda, double emu)
  */
 /* The hits of both populations centred on cell (cx, cy) whose "any hit"
  * uniforms are u[0] (600 e-) and u[1] (5000 e-), into the tile. */
-static void cr_centre(const struct rng *pop[2], const struct rng_poisson *big,
+static void cr_centre(const struct rng *pop[2], struct rng_poisson *big,
 		      double lambda, double emu, const double u[2], double resid,
 		      const double tw[3][3], uint32_t cell, int cx, int cy,
 		      int x0, int y0, int nx, int ny, double *pix, ptrdiff_t stride)

@@ -295,12 +295,12 @@ static double poisson_logpmf(double k, double mu, double log_mu, double d)
 		return k * log_mu - mu - log_fact[(int)k];
 	v = d / (k + mu);
 	if (fabs(v) < 0.1) {
-		double v2 = v * v, t = v * v2, s = t / 3;
+		/* s = v^3/3 + v^5/5 + ... + v^17/17 by Horner */
+		double v2 = v * v;
+		double s = v * v2 * (1.0 / 3 + v2 * (1.0 / 5 + v2 * (1.0 / 7 +
+			v2 * (1.0 / 9 + v2 * (1.0 / 11 + v2 * (1.0 / 13 +
+			v2 * (1.0 / 15 + v2 * (1.0 / 17))))))));
 
-		for (int j = 2; j <= 8; j++) {
-			t *= v2;
-			s += t / (2 * j + 1);
-		}
 		bd = d * v + 2 * k * s;
 		log_k = log_mu + 2 * (v + s);
 	} else {
@@ -314,6 +314,7 @@ void rng_poisson_setup(struct rng_poisson *p, double mu)
 {
 	p->mu = mu;
 	p->ncdf = 0;
+	p->log_mu = 0;
 	if (!(mu > 0)) {
 		p->method = 0;
 	} else if (mu < 10) {
@@ -358,7 +359,7 @@ void rng_poisson_setup(struct rng_poisson *p, double mu)
  * lattice term) < 1e-8 for mu > 2^52, a difference that needs ~1e16
  * samples to see: far beyond any image.
  */
-double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c)
+double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c)
 {
 	switch (p->method) {
 	case 0:
@@ -387,8 +388,7 @@ double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c)
 		return k;
 	}
 	case 2: {
-		double m_int = floor(p->mu), m_frac = p->mu - m_int;
-		double log_mu = 0, inv_alpha = 0;
+		double m_int = floor(p->mu), m_frac = p->mu - m_int, inv_alpha;
 
 		for (;;) {
 			double u = rng_cell_u01(c) - 0.5;
@@ -401,14 +401,13 @@ double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c)
 				return k;
 			if (!(k >= 0) || (us < 0.013 && v > us))
 				continue;
-			/* log mu and 1/alpha only here: most draws never get
-			 * this far. */
-			if (log_mu == 0) {
-				log_mu = log(p->mu);
-				inv_alpha = 1.1239 + 1.1328 / (p->b - 3.4);
-			}
+			/* log mu only here, once per set-up: most draws never
+			 * get this far. */
+			if (p->log_mu == 0)
+				p->log_mu = log(p->mu);
+			inv_alpha = 1.1239 + 1.1328 / (p->b - 3.4);
 			if (log(v * inv_alpha / (p->a / (us * us) + p->b)) <=
-			    poisson_logpmf(k, p->mu, log_mu, j - m_frac))
+			    poisson_logpmf(k, p->mu, p->log_mu, j - m_frac))
 				return k;
 		}
 	}

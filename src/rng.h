@@ -97,6 +97,7 @@ struct rng_poisson {
 	int method;             /* 0 zero, 1 inversion, 2 PTRS, 3 normal */
 	double emu;             /* exp(-mu) for inversion */
 	double smu, b, a, vr;   /* PTRS constants */
+	double log_mu;          /* log mu, 0 until the first slow test */
 	int ncdf;               /* entries of cdf, 0 until tabulated */
 	double cdf[64];         /* F(0) .. F(63) for inversion */
 };
@@ -110,9 +111,11 @@ void rng_poisson_setup(struct rng_poisson *p, double mu);
 void rng_poisson_tabulate(struct rng_poisson *p);
 
 /* A Poisson count with the set-up mean, using the uniforms of cell c.
+ * Caches log mu in *p the first time it is needed: one rng_poisson per
+ * thread.
  * Exact (to the precision of the double arithmetic) for every mean up to
  * RNG_POISSON_EXACT_MAX; see rng.c for the methods and the argument. */
-double rng_poisson_draw(const struct rng_poisson *p, struct rng_cell *c);
+double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c);
 
 /* Same, for a mean used once. */
 double rng_poisson(double mu, struct rng_cell *c);

@@ -32,6 +32,17 @@ test_expect_success 'through a pipe too' '
 	"$W" write - | cat >piped.fits && test_cmp file.fits piped.fits
 '
 
+# cfitsio's own "-" would hold all 200 MB in memory; ours holds a buffer.
+if [ -x /usr/bin/time ]; then
+	test_expect_success 'stdout streams 3 full SCAs (200 MB) in bounded memory' '
+		/usr/bin/time -f %M -o rss "$W" big - 3 | wc -c > size &&
+		test "$(cat size)" = 200554560 &&
+		test "$(tail -n 1 rss)" -lt 30000
+	'
+else
+	test_skip 'stdout streams in bounded memory' '/usr/bin/time is absent'
+fi
+
 test_expect_success 'compression to stdout is refused with a clear message' '
 	test_must_fail --status 1 "$W" write - rice >out 2>err &&
 	test_grep "<stdout>: tile compression needs a regular file" err &&

@@ -6,6 +6,8 @@
  * With arguments it is a helper for tests/t4*-fits*.sh instead:
  *   fitsout write PATH [none|rice|gzip]   write the sample file, exit 2 on
  *                                         error with the message on stderr
+ *   fitsout big PATH N                    N full-size 4088 x 4088 images,
+ *                                         from one row of memory
  */
 #include <dirent.h>
 #include <errno.h>
@@ -97,6 +99,40 @@ static int write_sample(const char *path, const char *compress, struct err *e)
 			k++;
 		}
 		free(img);
+		if (fitsout_image_end(f, e))
+			goto fail;
+	}
+	return fitsout_commit(f, e);
+fail:
+	fitsout_abort(f);
+	return -1;
+}
+
+/* n full-size SCA images written a row at a time, so that the memory a
+ * run needs is the writer's own (the shell test measures it). */
+static int write_big(const char *path, int n, struct err *e)
+{
+	enum { NPIX = 4088 };
+	static float row[NPIX];
+	struct fitsout *f = fitsout_open(path, NULL, e);
+	char c[81];
+
+	if (!f)
+		return -1;
+	if (fitsout_primary(f, NULL, 0, e))
+		goto fail;
+	for (int h = 1; h <= n; h++) {
+		char name[16];
+		snprintf(name, sizeof(name), "WFI%02d", h);
+		fits_card_str(c, "EXTNAME", name, NULL);
+		if (fitsout_image_begin(f, NPIX, NPIX, c, 1, e))
+			goto fail;
+		for (int y = 0; y < NPIX; y++) {
+			for (int x = 0; x < NPIX; x++)
+				row[x] = (float)(h + x * 1e-3 + y);
+			if (fitsout_image_rows(f, row, 1, e))
+				goto fail;
+		}
 		if (fitsout_image_end(f, e))
 			goto fail;
 	}
@@ -591,6 +627,14 @@ int main(int argc, char **argv)
 {
 	char dir[] = "/tmp/wfs-fitsout.XXXXXX";
 
+	if (argc == 4 && !strcmp(argv[1], "big")) {
+		struct err e = { 0 };
+		if (write_big(argv[2], atoi(argv[3]), &e)) {
+			fprintf(stderr, "fitsout: %s\n", e.msg);
+			return e.code ? e.code : 2;
+		}
+		return 0;
+	}
 	if (argc >= 3 && !strcmp(argv[1], "write")) {
 		struct err e = { 0 };
 		if (write_sample(argv[2], argc > 3 ? argv[3] : NULL, &e)) {

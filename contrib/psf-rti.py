@@ -24,7 +24,7 @@ from scipy.ndimage import zoom
 
 WFS = os.environ.get('WFS', 'build/wfiscene')
 ROMAN = sys.argv[1] if len(sys.argv) > 1 else '../shared/roman'
-SCAS = [int(s) for s in sys.argv[2:]] or list(range(1, 19))
+SCAS = [int(s) for s in sys.argv[2:]]
 TMP = tempfile.mkdtemp(prefix='wfs-rti.')
 FILTERS = ['F062', 'F087', 'F106', 'F129', 'F158', 'F184', 'F213', 'F146']
 
@@ -45,7 +45,7 @@ def pixels(img, phase):
     k1 = np.array([0.5, 1, 1, 1, 0.5])
     from scipy.ndimage import convolve1d
     p = convolve1d(convolve1d(img, k1, axis=0, mode='constant'), k1, axis=1,
-                   mode='constant') / 16
+                   mode='constant')
     c = (img.shape[0] - 1) // 2 + phase
     return p[c % 4::4, c % 4::4]
 
@@ -61,12 +61,13 @@ def fwhm(img):
 
 def main():
     cen, cor = rti('SummaryPSFstats_center.ecsv'), rti('SummaryPSFstats_corner.ecsv')
+    scas = SCAS or sorted({k[0] for k in cen})   # the file has SCAs 1, 18
     print('| filter | SCA | FWHM" ours / RTI | peak, pixel-centred, ours / RTI '
           '| peak, corner-centred, ours / RTI | noise pixels ours / RTI |')
     print('|---|---|---|---|---|---|')
     summ = {f: [] for f in FILTERS}
     for filt in FILTERS:
-        for sca in SCAS:
+        for sca in scas:
             out = os.path.join(TMP, 'p.fits')
             subprocess.run([WFS, 'psf', '--filter', filt, '--sca', str(sca),
                             '--kind', 'psf', '--grid', '1', '--jitter',

@@ -310,6 +310,19 @@ static double poisson_logpmf(double k, double mu, double log_mu, double d)
 	return -bd - 0.5 * (LOG_2PI + log_k) - stirling_err(k);
 }
 
+/* 1/k, correctly rounded, so that the inversion multiplies instead of
+ * dividing (the product differs from mu/k by at most an ulp). */
+static const double recip[64] = {
+	0, 1.0 / 1, 1.0 / 2, 1.0 / 3, 1.0 / 4, 1.0 / 5, 1.0 / 6, 1.0 / 7,
+	1.0 / 8, 1.0 / 9, 1.0 / 10, 1.0 / 11, 1.0 / 12, 1.0 / 13, 1.0 / 14, 1.0 / 15,
+	1.0 / 16, 1.0 / 17, 1.0 / 18, 1.0 / 19, 1.0 / 20, 1.0 / 21, 1.0 / 22, 1.0 / 23,
+	1.0 / 24, 1.0 / 25, 1.0 / 26, 1.0 / 27, 1.0 / 28, 1.0 / 29, 1.0 / 30, 1.0 / 31,
+	1.0 / 32, 1.0 / 33, 1.0 / 34, 1.0 / 35, 1.0 / 36, 1.0 / 37, 1.0 / 38, 1.0 / 39,
+	1.0 / 40, 1.0 / 41, 1.0 / 42, 1.0 / 43, 1.0 / 44, 1.0 / 45, 1.0 / 46, 1.0 / 47,
+	1.0 / 48, 1.0 / 49, 1.0 / 50, 1.0 / 51, 1.0 / 52, 1.0 / 53, 1.0 / 54, 1.0 / 55,
+	1.0 / 56, 1.0 / 57, 1.0 / 58, 1.0 / 59, 1.0 / 60, 1.0 / 61, 1.0 / 62, 1.0 / 63,
+};
+
 void rng_poisson_setup(struct rng_poisson *p, double mu)
 {
 	p->mu = mu;
@@ -382,13 +395,13 @@ double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c)
 
 		while (u >= f && k < 200) {
 			k++;
-			pk *= p->mu / k;
+			pk *= p->mu * (k < 64 ? recip[k] : 1.0 / k);
 			f += pk;
 		}
 		return k;
 	}
 	case 2: {
-		double m_int = floor(p->mu), m_frac = p->mu - m_int, inv_alpha;
+		double m_int = floor(p->mu), m_frac = p->mu - m_int;
 
 		for (;;) {
 			double u = rng_cell_u01(c) - 0.5;
@@ -401,12 +414,14 @@ double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c)
 				return k;
 			if (!(k >= 0) || (us < 0.013 && v > us))
 				continue;
-			/* log mu only here, once per set-up: most draws never
-			 * get this far. */
-			if (p->log_mu == 0)
+			/* log mu and 1/alpha only here, once per set-up: most
+			 * draws never get this far.  The test is Hormann's
+			 * log(v / alpha / (a / us^2 + b)) <= log P(k). */
+			if (p->log_mu == 0) {
 				p->log_mu = log(p->mu);
-			inv_alpha = 1.1239 + 1.1328 / (p->b - 3.4);
-			if (log(v * inv_alpha / (p->a / (us * us) + p->b)) <=
+				p->inv_alpha = 1.1239 + 1.1328 / (p->b - 3.4);
+			}
+			if (log(v * p->inv_alpha * us * us / (p->a + p->b * us * us)) <=
 			    poisson_logpmf(k, p->mu, p->log_mu, j - m_frac))
 				return k;
 		}
@@ -434,7 +449,7 @@ void rng_poisson_tabulate(struct rng_poisson *p)
 	if (p->ncdf > 64)
 		p->ncdf = 64;
 	for (int k = 1; k < p->ncdf; k++) {
-		pk *= p->mu / k;
+		pk *= p->mu * recip[k];
 		f += pk;
 		p->cdf[k] = f;
 	}

@@ -98,6 +98,7 @@ struct rng_poisson {
 	double emu;             /* exp(-mu) for inversion */
 	double smu, b, a, vr;   /* PTRS constants */
 	double log_mu;          /* log mu, 0 until the first slow test */
+	double inv_alpha;       /* set with log_mu */
 	int ncdf;               /* entries of cdf, 0 until tabulated */
 	double cdf[64];         /* F(0) .. F(63) for inversion */
 };

@@ -1,7 +1,7 @@
 /*
  * noise_bench - Mpixel/s of each noise stage on one full SCA (4088^2 in
- * 512^2 tiles, one thread, CPU seconds), against writing the same SCA as
- * float32 FITS with cfitsio.  Skipped unless WFS_BENCH is set (make bench, or by hand:
+ * 512^2 tiles, one thread, CPU seconds, the best of three), against writing
+ * the same SCA as float32 FITS with cfitsio (also the best of three).  Skipped unless WFS_BENCH is set (make bench, or by hand:
  * WFS_BENCH=1 build/tests/noise_bench).
  */
 #include <stdlib.h>
@@ -69,13 +69,17 @@ int main(void)
 	f = malloc((size_t)S * S * sizeof(float));
 	for (size_t i = 0; i < (size_t)S * S; i++)
 		f[i] = (float)i;
-	remove(path);
-	t0 = now();
-	fits_create_file(&fp, path, &status);
-	fits_create_img(fp, FLOAT_IMG, 2, naxes, &status);
-	fits_write_img(fp, TFLOAT, 1, (LONGLONG)S * S, f, &status);
-	fits_close_file(fp, &status);
-	tw = now() - t0;
+	tw = 1e30;
+	for (int rep = 0; rep < 3; rep++) {
+		remove(path);
+		t0 = now();
+		fits_create_file(&fp, path, &status);
+		fits_create_img(fp, FLOAT_IMG, 2, naxes, &status);
+		fits_write_img(fp, TFLOAT, 1, (LONGLONG)S * S, f, &status);
+		fits_close_file(fp, &status);
+		t0 = now() - t0;
+		tw = t0 < tw ? t0 : tw;
+	}
 	remove(path);
 	ok(status == 0, "wrote one SCA as float32 FITS");
 	diag("%-26s %7.1f Mpixel/s  (%.3f s per SCA)", "write float32 FITS", S * (double)S / tw / 1e6, tw);
@@ -90,6 +94,11 @@ int main(void)
 		o.seed = 7;
 		o.filter = F158;
 		t = run(&o, a);
+		for (int rep = 1; rep < 3; rep++) {
+			double t1 = run(&o, a);
+
+			t = t1 < t ? t1 : t;
+		}
 		diag("%-26s %7.1f Mpixel/s  (%.3f s per SCA, %.2f x write)", cases[c].name,
 		     S * (double)S / t / 1e6, t, t / tw);
 		ok(1, "%s", cases[c].name);

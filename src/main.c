@@ -37,6 +37,7 @@ static const char usage_text[] =
 "  --exptime S           exposure time in seconds (default 1)\n"
 "  --bunit UNIT          counts/s (default) or counts\n"
 "  --placed FILE         write the sources placed on each SCA (CSV)\n"
+"  --report FILE         write a JSON report: timings, counts, flux, errors\n"
 "  --compress C          none (default), rice or gzip tile compression\n"
 "Sources:\n"
 "  --flux-unit U         counts (default), abmag or jy: unit of 'flux' columns\n"
@@ -73,7 +74,7 @@ enum {
 	OPT_BUNIT, OPT_PLACED, OPT_COMPRESS, OPT_FLUXUNIT, OPT_ZP, OPT_PSF, OPT_PSFCACHE,
 	OPT_BRIGHT, OPT_XBRIGHT, OPT_SERSIC, OPT_SERSICFLUX, OPT_PLUGINPATH, OPT_BKG,
 	OPT_NOISE, OPT_READNOISE, OPT_DARK, OPT_CRRATE, OPT_CRRES, OPT_SEED, OPT_THREADS,
-	OPT_TILE, OPT_CHUNK, OPT_VERSION,
+	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT,
 };
 
 static const struct option long_options[] = {
@@ -87,6 +88,7 @@ static const struct option long_options[] = {
 	{ "exptime", required_argument, NULL, OPT_EXPTIME },
 	{ "bunit", required_argument, NULL, OPT_BUNIT },
 	{ "placed", required_argument, NULL, OPT_PLACED },
+	{ "report", required_argument, NULL, OPT_REPORT },
 	{ "compress", required_argument, NULL, OPT_COMPRESS },
 	{ "flux-unit", required_argument, NULL, OPT_FLUXUNIT },
 	{ "zeropoints", required_argument, NULL, OPT_ZP },
@@ -300,6 +302,9 @@ int main(int argc, char **argv)
 			break;
 		case OPT_PLACED:
 			o.placed = optarg;
+			break;
+		case OPT_REPORT:
+			o.report = optarg;
 			break;
 		case OPT_COMPRESS:
 			if ((k = choice(c, optarg, compressions, &e)) < 0)

@@ -114,8 +114,37 @@ struct engine {
 	FILE *placed;
 	char placed_tmp[PATH_MAX];
 
-	unsigned long long rows_read, placements, culled;
+	unsigned long long rows_read, placements, culled, offdet;
+	unsigned long long per_model[PLUGIN_MAX];
+	double flux_requested[WFS_NSCA];        /* sum of placed sources' flux */
+	double image_sum[WFS_NSCA];             /* drawn light, before noise */
+	double t_read, t_place, t_wait, t_noise, t_write, t_total;
+	double *t_render;                       /* per worker: busy seconds */
+	struct timespec t_start, t_progress;
+	int progress;                           /* stderr is a terminal */
 };
+
+static double now(void)
+{
+	struct timespec t;
+
+	clock_gettime(CLOCK_MONOTONIC, &t);
+	return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+/* A progress line on a terminal, at most a few times a second. */
+static void progress(struct engine *g, const char *stage, int force)
+{
+	double t = now(), since = t - (g->t_progress.tv_sec + 1e-9 * g->t_progress.tv_nsec);
+	double el = t - (g->t_start.tv_sec + 1e-9 * g->t_start.tv_nsec);
+
+	if (!g->progress || (!force && since < 0.25))
+		return;
+	clock_gettime(CLOCK_MONOTONIC, &g->t_progress);
+	fprintf(stderr, "\rwfiscene: %llu rows, %.0f rows/s, %.1f s, %-10s", g->rows_read,
+		el > 0 ? g->rows_read / el : 0.0, el, stage);
+	fflush(stderr);
+}
 
 /* Name of the --placed temporary file, for the signal handler. */
 static char placed_tmp_signal[PATH_MAX];
@@ -411,8 +440,10 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	if (box.y0 < 0) box.y0 = 0;
 	if (box.x1 > WFS_NPIX) box.x1 = WFS_NPIX;
 	if (box.y1 > WFS_NPIX) box.y1 = WFS_NPIX;
-	if (box.x0 >= box.x1 || box.y0 >= box.y1)
-		return 0;       /* all its light misses this SCA */
+	if (box.x0 >= box.x1 || box.y0 >= box.y1) {
+		g->offdet++;    /* all its light misses this SCA */
+		return 0;
+	}
 	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
 	    grow((void **)&b->param, &b->capparam, b->nparam + md->ncolumns + 1,
 		 sizeof(double)) < 0)
@@ -426,6 +457,8 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	memcpy(b->param + b->nparam, param, md->ncolumns * sizeof(double));
 	b->nparam += md->ncolumns;
 	g->placements++;
+	g->per_model[m]++;
+	g->flux_requested[src.sca - 1] += src.flux;
 	if (g->placed &&
 	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
 		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
@@ -643,6 +676,8 @@ static void render_tile(void *arg, int wid, size_t task)
 	int x0 = tx * T, y0 = ty * T;
 	double *tile = g->slot[t / g->ntile].tile[lt];
 
+	double t0 = now();
+
 	if (atomic_load(&g->failed))
 		return;
 	for (uint32_t k = b->count[t]; k < b->count[t + 1]; k++) {
@@ -673,6 +708,7 @@ static void render_tile(void *arg, int wid, size_t task)
 			return;
 		}
 	}
+	g->t_render[wid] += now() - t0;
 }
 
 /* ---- output ---- */
@@ -806,7 +842,16 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 	for (int ty = 0; ty < g->nty; ty++) {
 		int y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
 		double **row = &g->slot[s].tile[ty * g->ntx];
+		double t0;
 
+		for (int tx = 0; tx < g->ntx; tx++) {
+			int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
+
+			for (int y = 0; row[tx] && y < ny; y++)
+				for (int x = 0; x < nx; x++)
+					g->image_sum[g->slot[s].sca - 1] += row[tx][(size_t)y * T + x];
+		}
+		t0 = now();
 		if (apply_noise) {
 			struct strip_job j = { g, no, s, ty };
 
@@ -817,6 +862,8 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 			if (atomic_load(&g->failed))
 				return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		}
+		g->t_noise += now() - t0;
+		t0 = now();
 		for (int y = 0; y < ny; y++)
 			for (int tx = 0; tx < g->ntx; tx++) {
 				int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
@@ -834,6 +881,8 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 			free(row[tx]);
 			row[tx] = NULL;
 		}
+		g->t_write += now() - t0;
+		progress(g, "writing", 0);
 	}
 	return fitsout_image_end(f, g->e);
 }
@@ -931,6 +980,7 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct err 
 		return err_sys(e, "FFT set-up");
 	g->nworker = o->threads > 0 ? o->threads : pool_cpus();
 	if (!(g->w = calloc(g->nworker, sizeof(*g->w))) ||
+	    !(g->t_render = calloc(g->nworker, sizeof(*g->t_render))) ||
 	    !(g->pool = pool_new(g->nworker)))
 		return err_sys(e, "threads");
 	for (int i = 0; i < g->nworker; i++)
@@ -957,6 +1007,7 @@ static void engine_free(struct engine *g)
 		fftconv_thread_free(g->w[i].fft);
 	}
 	free(g->w);
+	free(g->t_render);
 	plugins_free(&g->plugins);
 	fftconv_free(g->fft);
 	for (int s = 0; s < g->nslot; s++) {
@@ -1019,6 +1070,94 @@ static int close_placed(struct engine *g, int keep)
 	return keep ? err_sys(g->e, "%s", g->o->placed) : 0;
 }
 
+/* The per-run report: what was done, how long each stage took, what the
+ * chosen settings cost in accuracy.  JSON, written atomically. */
+static int write_report(struct engine *g)
+{
+	const struct scene_opts *o = g->o;
+	char tmp[PATH_MAX];
+	const char *slash = strrchr(o->report, '/');
+	double render = 0, worst_loss = 0;
+	FILE *f;
+	int fd, first;
+
+	snprintf(tmp, sizeof(tmp), "%.*s.%s.XXXXXX", slash ? (int)(slash - o->report + 1) : 0,
+		 o->report, slash ? slash + 1 : o->report);
+	if ((fd = mkstemp(tmp)) < 0 || !(f = fdopen(fd, "w"))) {
+		if (fd >= 0) {
+			close(fd);
+			unlink(tmp);
+		}
+		return err_sys(g->e, "%s", o->report);
+	}
+	for (int i = 0; i < g->nworker; i++)
+		render += g->t_render[i];
+	fprintf(f, "{\n  \"wfiscene\": \"%s\",\n", WFS_VERSION);
+	fprintf(f, "  \"settings\": {\"filter\": \"%s\", \"scas\": [", g->filter_name);
+	for (int s = 0; s < g->nslot; s++)
+		fprintf(f, "%s%d", s ? ", " : "", g->slot[s].sca);
+	fprintf(f, "], \"ra\": %.10g, \"dec\": %.10g, \"pa\": %.10g, \"exptime\": %.10g, "
+		"\"psf\": \"%s\", \"threads\": %d, \"tile\": %d, \"chunk\": %zu, "
+		"\"seed\": %llu, \"noise\": %u, \"background\": %.10g},\n",
+		g->sky.ra0, g->sky.dec0, g->sky.pa0, o->exptime, o->psf, g->nworker, g->tile,
+		o->chunk, (unsigned long long)o->seed, o->noise, o->background);
+	fprintf(f, "  \"seconds\": {\"total\": %.6f, \"read_parse\": %.6f, "
+		"\"project_place\": %.6f, \"render_busy\": %.6f, \"render_wait\": %.6f, "
+		"\"noise\": %.6f, \"write\": %.6f},\n", g->t_total, g->t_read, g->t_place,
+		render, g->t_wait, g->t_noise, g->t_write);
+	fprintf(f, "  \"rows\": {\"read\": %llu, \"culled_far\": %llu, "
+		"\"off_detector\": %llu, \"placements\": %llu, \"by_model\": {",
+		g->rows_read, g->culled, g->offdet, g->placements);
+	first = 1;
+	for (int m = 0; m < g->plugins.n; m++)
+		if (g->plugins.p[m].ready) {
+			fprintf(f, "%s\"%s\": %llu", first ? "" : ", ", g->plugins.p[m].name,
+				g->per_model[m]);
+			first = 0;
+		}
+	fprintf(f, "}},\n  \"flux\": [");
+	for (int s = 0; s < g->nslot; s++) {
+		int sca = g->slot[s].sca;
+
+		fprintf(f, "%s\n    {\"sca\": %d, \"requested\": %.10g, \"placed\": %.10g}",
+			s ? "," : "", sca, g->flux_requested[sca - 1], g->image_sum[sca - 1]);
+	}
+	fprintf(f, "\n  ],\n  \"psf_grids\": {\"built\": %d, \"loaded\": %d, \"boxes\": [",
+		g->pbo.built, g->pbo.loaded);
+	/* The light a point source's box leaves out, at the grid's worst node
+	 * and phase: the largest truncation loss of the settings. */
+	first = 1;
+	for (int s = 0; s < WFS_NSCA; s++)
+		for (int c = 0; c < 3; c++) {
+			const struct psf_grid *gr = grid_for(g, s + 1, c);
+			double lo = 1;
+
+			if (!gr || (c > 0 && gr == grid_for(g, s + 1, c - 1)))
+				continue;
+			for (int k = 0; k < gr->nx * gr->ny; k++)
+				for (int p = 0; p < gr->over * gr->over; p++)
+					lo = fmin(lo, psf_enclosed(gr, k, p % gr->over, p / gr->over));
+			worst_loss = fmax(worst_loss, 1 - lo);
+			fprintf(f, "%s\n    {\"sca\": %d, \"class\": %d, \"samples\": %d, "
+				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, gr->n, lo);
+			first = 0;
+		}
+	fprintf(f, "\n  ]},\n  \"error_budget\": {\"largest_truncation_loss\": %.8f, "
+		"\"psf_grid\": \"%dx%d nodes, bilinear in position\", "
+		"\"interpolation\": \"Keys cubic within 4 px, bilinear beyond\"}\n}\n",
+		worst_loss, g->user_grid ? g->user_grid->nx : 3, g->user_grid ? g->user_grid->ny : 3);
+	if (fflush(f) || ferror(f) || fsync(fileno(f))) {
+		fclose(f);
+		unlink(tmp);
+		return err_sys(g->e, "%s", o->report);
+	}
+	if (fclose(f) || rename(tmp, o->report)) {
+		unlink(tmp);
+		return err_sys(g->e, "%s", o->report);
+	}
+	return 0;
+}
+
 void scene_remove_temporaries(void)
 {
 	if (placed_tmp_signal[0])
@@ -1038,6 +1177,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	clock_gettime(CLOCK_MONOTONIC, &t0);
 	if (engine_init(g, o, e) < 0 || (o->placed && open_placed(g) < 0))
 		goto out;
+	g->t_start = g->t_progress = t0;
+	g->progress = o->verbose >= 0 && isatty(2);
 	for (char *const *cat = catalogs; *cat; cat++) {
 		struct catalog *c = catalog_open(*cat, &co, e);
 		struct rows rows;
@@ -1045,18 +1186,27 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 
 		if (!c)
 			goto out;
-		while ((n = catalog_read(c, &rows, e)) > 0) {
+		for (;;) {
 			struct batch *b = &g->b[cur];
+			double ta = now(), tb;
 
+			if ((n = catalog_read(c, &rows, e)) <= 0)
+				break;
+			tb = now();
+			g->t_read += tb - ta;
 			g->rows_read += n;
 			if (build_batch(g, &rows, b) < 0)
 				break;
+			ta = now();
+			g->t_place += ta - tb;
 			if (pending) {
 				pool_wait(g->pool);
 				pending = 0;
+				g->t_wait += now() - ta;
 				if (atomic_load(&g->failed))
 					break;
 			}
+			progress(g, "rendering", 0);
 			if (bin_batch(g, b) < 0)
 				break;
 			g->rendering = b;
@@ -1068,8 +1218,12 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		if (n < 0 || e->code != EXIT_OK)
 			break;
 	}
-	if (pending)
+	if (pending) {
+		double ta = now();
+
 		pool_wait(g->pool);
+		g->t_wait += now() - ta;
+	}
 	if (e->code != EXIT_OK || atomic_load(&g->failed)) {
 		if (e->code == EXIT_OK)
 			err_set(e, EXIT_PLUGIN, "rendering failed");
@@ -1078,6 +1232,11 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	if (write_output(g) < 0 || close_placed(g, 1) < 0)
 		goto out;
 	clock_gettime(CLOCK_MONOTONIC, &t1);
+	g->t_total = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
+	if (g->progress)
+		fputs("\r\033[K", stderr);
+	if (o->report && write_report(g) < 0)
+		goto out;
 	host_log(g, 1, "%llu rows read, %llu culled far from every SCA, %llu placements on "
 		 "%d SCA%s, %.3f s", g->rows_read, g->culled, g->placements, g->nslot,
 		 g->nslot == 1 ? "" : "s",

@@ -34,6 +34,7 @@ struct scene_opts {
 	double readnoise, dark_current, cosmic_rate, cosmic_residual;
 	const char *output;             /* "-", a path, or a path with %d */
 	const char *placed;             /* --placed file or NULL */
+	const char *report;             /* --report JSON file or NULL */
 	const char *compress;           /* NULL, "none", "rice", "gzip" */
 	const char *plugin_path;
 	const char *sersic;             /* default method: "quick"/"precise" */

@@ -1,0 +1,45 @@
+#!/bin/sh
+# --report writes a JSON account of the run; a progress line appears on
+# stderr only when it is a terminal.
+. "$(dirname "$0")/lib.sh"
+require_python
+
+cat > stars.csv <<EOT
+id,x,y,flux
+1,100.3,200.7,1000
+2,2045,2045,50000
+3,-3,500,200
+4,-500,500,5
+EOT
+test_expect_success '--report is valid JSON with counts, timings and flux' '
+	"$WFS" --filter F129 --psf "$PSF" --report r.json -o r.fits stars.csv &&
+	"$PY" -c "
+import json
+r = json.load(open(\"r.json\"))
+assert r[\"rows\"][\"read\"] == 4, r[\"rows\"]
+assert r[\"rows\"][\"placements\"] == 3 and r[\"rows\"][\"off_detector\"] == 1, r[\"rows\"]
+assert r[\"rows\"][\"by_model\"] == {\"point\": 3}, r[\"rows\"]
+f = r[\"flux\"][0]
+assert f[\"sca\"] == 1 and f[\"requested\"] == 51200
+assert 0.95 * 51000 < f[\"placed\"] < f[\"requested\"], f
+assert 0 < r[\"error_budget\"][\"largest_truncation_loss\"] < 0.05
+assert all(v >= 0 for v in r[\"seconds\"].values())
+assert r[\"psf_grids\"][\"built\"] + r[\"psf_grids\"][\"loaded\"] >= 1 or r[\"settings\"][\"psf\"] != \"builtin\"
+"
+'
+test_expect_success 'no progress line when stderr is not a terminal' '
+	"$BUILD/contrib/starfield" -n 30000 -x > many.csv &&
+	"$WFS" --filter F129 --psf "$PSF" --flux-unit abmag --chunk 500 -o m.fits many.csv 2> err &&
+	! test -s err
+'
+if command -v script > /dev/null; then
+	test_expect_success 'a progress line when stderr is a terminal, none with -q' '
+		script -qec "\"$WFS\" --filter F129 --psf \"$PSF\" --flux-unit abmag --chunk 500 -o m2.fits many.csv" /dev/null > tty.out &&
+		test_grep "rows/s" tty.out &&
+		script -qec "\"$WFS\" -q --filter F129 --psf \"$PSF\" --flux-unit abmag --chunk 500 -o m3.fits many.csv" /dev/null > tty2.out &&
+		! test_grep "rows/s" tty2.out 2>/dev/null
+	'
+else
+	test_skip 'progress on a terminal' 'script(1) is absent'
+fi
+test_done

@@ -74,6 +74,10 @@ int table_set_unit(struct table *t, int col, const char *unit, size_t len,
 		   struct err *e);
 void table_set_kind(struct table *t, int col, enum table_kind kind);
 
+/* Write v as snprintf(buf, size, "%.*g", digits, v) does, faster
+ * (table_fits.c).  Needs size >= 26 for its fast path. */
+int table_format_double(char *buf, size_t size, double v, int digits);
+
 /* The FITS reader (table_fits.c).  in is the opened input; a plain file is
  * opened again by path, anything else is spooled to an unlinked temporary
  * file first, because cfitsio needs to seek. */

@@ -13,6 +13,7 @@
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -57,6 +58,142 @@ struct table_fits {
 	const double **nums;
 	long *line;
 };
+
+/* 10^0 .. 10^22 as 128-bit integers: every one is exact. */
+static unsigned __int128 pow10_u128(int k)
+{
+	unsigned __int128 p = 1;
+
+	while (k-- > 0)
+		p *= 10;
+	return p;
+}
+
+static int bits_u128(unsigned __int128 x)
+{
+	int n = 0;
+
+	while (x) {
+		x >>= 1;
+		n++;
+	}
+	return n;
+}
+
+/* round(v * 10^s) for v = m * 2^e > 0, exactly, ties to even, or -1 when
+ * the numbers leave 128 bits. */
+static long long scaled_digits(uint64_t m, int e, int s)
+{
+	unsigned __int128 num = m, den = 1, q, r;
+
+	if (s > 22 || s < -22)
+		return -1;
+	if (s >= 0)
+		num *= pow10_u128(s);   /* < 2^53 * 2^74 */
+	else
+		den = pow10_u128(-s);
+	if (e >= 0) {
+		if (bits_u128(num) + e > 127)
+			return -1;
+		num <<= e;
+	} else {
+		if (bits_u128(den) - e > 127)
+			return -1;
+		den <<= -e;
+	}
+	q = num / den;
+	r = num % den;
+	if (2 * r > den || (2 * r == den && (q & 1)))
+		q++;
+	return q > (unsigned __int128)LLONG_MAX ? -1 : (long long)q;
+}
+
+/*
+ * Write v as printf's "%.*g" with digits (9 or 17) significant digits
+ * would, but exactly and without printf's multi-precision arithmetic,
+ * which costs far more than the read itself.  v = m 2^e with m < 2^53, so
+ * v 10^s is computed exactly in 128-bit integers and rounded to even, as
+ * glibc rounds.  Values out of that range (tiny, huge, non-finite) go to
+ * snprintf.  Returns the length.
+ */
+int table_format_double(char *buf, size_t size, double v, int digits)
+{
+	long long q = -1, lo = 1, hi;
+	int x, s, e, neg = v < 0, n = 0, len;
+	double v0 = v;
+	uint64_t m;
+	char d[24];
+
+	for (int i = 1; i < digits; i++)
+		lo *= 10;
+	hi = lo * 10;
+	if (!isfinite(v) || v == 0 || size < 26)
+		return snprintf(buf, size, "%.*g", digits, v);
+	if (neg)
+		v = -v;
+	m = (uint64_t)ldexp(frexp(v, &e), 53);
+	e -= 53;
+	x = (int)floor(log10(v));
+	for (int tries = 0; tries < 3; tries++) {
+		s = digits - 1 - x;
+		q = scaled_digits(m, e, s);
+		if (q < 0)
+			break;
+		if (q >= hi)
+			x++;
+		else if (q < lo)
+			x--;
+		else
+			break;
+	}
+	if (q < lo || q >= hi)
+		return snprintf(buf, size, "%.*g", digits, v0);
+	for (int i = digits - 1; i >= 0; i--, q /= 10)
+		d[i] = (char)('0' + q % 10);
+	len = digits;
+	while (len > 1 && d[len - 1] == '0')
+		len--;
+	if (neg)
+		buf[n++] = '-';
+	if (x < -4 || x >= digits) {
+		buf[n++] = d[0];
+		if (len > 1) {
+			buf[n++] = '.';
+			memcpy(buf + n, d + 1, (size_t)len - 1);
+			n += len - 1;
+		}
+		buf[n++] = 'e';
+		buf[n++] = x < 0 ? '-' : '+';
+		if (x < 0)
+			x = -x;
+		if (x >= 100)
+			buf[n++] = (char)('0' + x / 100);
+		buf[n++] = (char)('0' + x / 10 % 10);
+		buf[n++] = (char)('0' + x % 10);
+		buf[n] = 0;
+		return n;
+	}
+	if (x < 0) {
+		buf[n++] = '0';
+		buf[n++] = '.';
+		for (int i = -1; i > x; i--)
+			buf[n++] = '0';
+		memcpy(buf + n, d, (size_t)len);
+		n += len;
+	} else {
+		memcpy(buf + n, d, (size_t)(x + 1 < len ? x + 1 : len));
+		n += x + 1 < len ? x + 1 : len;
+		for (int i = len; i < x + 1; i++)
+			buf[n++] = '0';
+		if (len > x + 1) {
+			buf[n++] = '.';
+			memcpy(buf + n, d + x + 1, (size_t)(len - x - 1));
+			n += len - x - 1;
+		}
+	}
+	buf[n] = 0;
+	return n;
+}
 
 static int is_integer_type(int type)
 {
@@ -445,7 +582,7 @@ long table_fits_read(struct table_fits *x, struct table_chunk *c,
 			for (size_t k = 0; k < n; k++) {
 				char *s = x->arena + used + k * fc->text_width;
 
-				snprintf(s, fc->text_width, "%.*g", digits, d[k]);
+				table_format_double(s, fc->text_width, d[k], digits);
 				cell[k] = s;
 			}
 			used += n * fc->text_width;

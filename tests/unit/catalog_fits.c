@@ -15,6 +15,7 @@
 #include "catalog.h"
 #include "err.h"
 #include "instrument.h"
+#include "table.h"
 #include "tap.h"
 
 static char dir[] = "/tmp/wfs-catfits-XXXXXX";
@@ -257,12 +258,52 @@ static void test_errors(void)
 	ok(status == 0, "fixtures written");
 }
 
+/* The fast %.17g / %.9g writer must agree with printf character for
+ * character. */
+static void test_format(void)
+{
+	unsigned long long st = 0x9e3779b97f4a7c15ull;
+	static const double special[] = { 0.0, -0.0, 1, -1, 0.1, 270.0, 1e16, 1e17,
+		9.9999999999999998e16, 99999999999999999.0, 123456789.0, 1e-4, 9.9999e-5,
+		1e-5, 0.5, 2.5, 1e22, 1e23, 5e-324, 1.7976931348623157e308, 4.35,
+		1e100, 1e-100, 123456789012345678.0 };
+	char a[64], b[64];
+	int bad = 0;
+
+	for (int i = 0; i < 600000 && bad < 5; i++) {
+		double v;
+		int digits = i % 2 ? 9 : 17;
+
+		st ^= st << 13, st ^= st >> 7, st ^= st << 17;
+		if (i < (int)(sizeof(special) / sizeof(special[0])))
+			v = special[i];
+		else if (i % 4 == 0)
+			v = ldexp((double)(st >> 11), (int)(st % 160) - 120);
+		else if (i % 4 == 1)
+			v = (float)ldexp((double)(st >> 40), (int)(st % 60) - 40);
+		else if (i % 4 == 2)
+			v = (double)(long long)(st % 100000000000ull) / 1000.0;
+		else
+			memcpy(&v, &st, sizeof(v));
+		if (st & 1)
+			v = -v;
+		snprintf(a, sizeof(a), "%.*g", digits, v);
+		table_format_double(b, sizeof(b), v, digits);
+		if (strcmp(a, b) != 0) {
+			bad++;
+			diag("%.17g with %d digits: printf '%s', ours '%s'", v, digits, a, b);
+		}
+	}
+	ok(bad == 0, "the fast number writer agrees with printf on 6e5 values");
+}
+
 int main(void)
 {
 	char cmd[600];
 
 	if (!mkdtemp(dir))
 		skip_all("no temporary directory");
+	test_format();
 	test_read();
 	test_spool();
 	test_errors();

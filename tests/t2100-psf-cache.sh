@@ -74,6 +74,12 @@ test_expect_success 'XDG_CACHE_HOME is used when WFISCENE_CACHE is unset' '
 	test "$(nfiles $TRASH/xdg/wfiscene)" = 1
 '
 
+test_expect_success 'the planes do not depend on the thread count' '
+	$WFS psf $cheap --no-cache -j1 -o j1.fits &&
+	$WFS psf $cheap --no-cache -j3 -o j3.fits &&
+	samedata a.fits j1.fits && samedata a.fits j3.fits
+'
+
 test_expect_success 'an unwritable cache is not an error' '
 	WFISCENE_CACHE=/proc/no/such/dir $WFS psf $cheap -o u.fits &&
 	samedata a.fits u.fits

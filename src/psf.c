@@ -545,6 +545,8 @@ void psf_grid_at(const struct psf_grid *g, double x, double y,
 	out->weight[3] = tx * ty;
 }
 
+/* Phases count from the centre sample: (0, 0) sums the samples a whole
+ * number of pixels from the centre, as a star centred on a pixel sees. */
 double psf_enclosed(const struct psf_grid *g, int k, int px, int py)
 {
 	int n = g->n, s = g->over, c = (n - 1) / 2;

@@ -157,6 +157,11 @@ int psf_main(int argc, char **argv)
 			"required\n%s", usage);
 		return EXIT_INPUT;
 	}
+	if (!strcmp(out, "-")) {
+		fprintf(stderr, "wfiscene psf: -o: a PSF grid is written to a "
+			"file (atomically), not to standard output\n");
+		return EXIT_INPUT;
+	}
 	if (instrument_init(&e))
 		goto fail;
 	int filter = filter_lookup(filter_s);

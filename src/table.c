@@ -673,8 +673,10 @@ static int ipac_header(struct table *t, char *ls, char *le, struct err *e)
 	for (char *p = ls; p < le; p++)
 		if (*p == '|')
 			t->ipac_pipe[t->ipac_npipe++] = (int)(p - ls);
-	if (np < 2)
-		return err_set(e, EXIT_INPUT, "%s:%ld: IPAC header needs '|name|' columns",
+	while (le > ls && (le[-1] == ' ' || le[-1] == '\t'))
+		le--;
+	if (np < 2 || le[-1] != '|')
+		return err_set(e, EXIT_INPUT, "%s:%ld: IPAC header needs '|name|name|' columns",
 			       t->name, t->line);
 	t->header_line = t->line;
 	for (int i = 0; i + 1 < np; i++)
@@ -695,17 +697,26 @@ static int ipac_header(struct table *t, char *ls, char *le, struct err *e)
 		}
 		if (check_text(t, s, x, t->line, e) < 0)
 			return -1;
-		for (int i = 0; i + 1 < np; i++) {
-			int a = t->ipac_pipe[i] + 1, b = t->ipac_pipe[i + 1];
-			const char *c;
-			size_t n;
+		/* Split by this line's own pipes: they should stand where the
+		 * name line's do, but nothing is gained by insisting. */
+		{
+			int k = 0;
 
-			if (a >= x - s)
-				break;
-			if (b > x - s)
-				b = (int)(x - s);
-			c = s + a;
-			n = (size_t)(b - a);
+			for (char *p = s; p < x; p++)
+				k += *p == '|';
+			while (x > s && (x[-1] == ' ' || x[-1] == '\t'))
+				x--;
+			if (k != np || x[-1] != '|')
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: IPAC header line has %d pipes, the name line has %d",
+					       t->name, t->line, k, np);
+		}
+		s = memchr(s, '|', (size_t)(x - s)) + 1;
+		for (int i = 0; i + 1 < np; i++) {
+			const char *c = s, *b = memchr(s, '|', (size_t)(x - s));
+			size_t n = (size_t)(b - c);
+
+			s = (char *)b + 1;
 			trim(&c, &n);
 			if (which == 2 && n && table_set_unit(t, i, c, n, e) < 0)
 				return -1;

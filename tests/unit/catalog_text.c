@@ -274,6 +274,34 @@ static void test_ipac_ecsv(void)
 	fails(p, o, "catalog type 'internal' is for filter 'F129', the scene's is 'F158'",
 	      EXIT_INPUT, "internal catalog of another filter");
 
+	/* Header lines split by their own pipes; units and null values. */
+	o = opts();
+	p = FIX("b.tbl",
+		"|ra |dec |flux|type|\n"
+		"|double|double|double|char|\n"
+		"| deg | deg|mag(AB)| |\n"
+		"|null|null|-99 |none|\n"
+		" 1   2    20   none\n"
+		" 1   2    -99  point\n");
+	c = catalog_open(p, &o, &e);
+	n = c ? catalog_read(c, &r, &e) : -1;
+	ok(n < 0 && strstr(e.msg, "b.tbl:6: column 'flux': empty value"),
+	   "IPAC null value is an empty cell: %s", e.msg);
+	catalog_close(c);
+	err_clear(&e);
+	o.chunk_rows = 1;
+	c = catalog_open(p, &o, &e);
+	n = c ? catalog_read(c, &r, &e) : -1;
+	ok(n == 1 && r.unit[0] == UNIT_ABMAG && r.flux[0] == 20 &&
+	   strcmp(r.type[0], "point") == 0, "IPAC units line mag(AB), null type is point");
+	catalog_close(c);
+	o = opts();
+	fails(FIX("c.tbl", "|ra|dec|flux|\n|double|double|\n"), o,
+	      "c.tbl:2: IPAC header line has 3 pipes, the name line has 4", EXIT_INPUT,
+	      "IPAC header lines must have the name line's columns");
+	fails(FIX("d.tbl", "|ra|dec|flux\n"), o, "d.tbl:1: IPAC header needs", EXIT_INPUT,
+	      "IPAC name line must end in a pipe");
+
 	o = opts();
 	p = FIX("a.ecsv",
 		"# %ECSV 1.0\n"

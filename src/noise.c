@@ -192,22 +192,6 @@ static void cr_template(double w[3][3])
 			w[i][j] /= sum;
 }
 
-/* Hits of one population at one centre: the smallest k with u < F(k) for
- * Poisson(lambda), lambda < 10 (inversion, see rng.c), continued from the
- * u that already decided "no hit" in the common case. */
-static int cr_hits(double u, double lambda, double emu)
-{
-	double pk = emu, f = pk;
-	int k = 0;
-
-	while (u >= f && k < 200) {
-		k++;
-		pk *= lambda / k;
-		f += pk;
-	}
-	return k;
-}
-
 /*
  * Cosmic rays: each population is a Poisson process of rate `rate`
  * hits/cm^2/s over pixels of 1e-6 cm^2, so a pixel is the centre of
@@ -223,47 +207,83 @@ static int cr_hits(double u, double lambda, double emu)
  * receives the same expected dose.  A hit on an edge pixel loses the part
  * of its template that falls off the science area (STIPS drops such hits
  * whole).  The tile looks at the centres one pixel around itself.
+ *
+ * Hits are rare (lambda = 5e-4 in 100 s), so they are drawn per segment of
+ * CR_SEG centres of a row rather than per pixel: a segment of n centres
+ * holds Poisson(n lambda) hits of a population, each at a uniformly chosen
+ * centre of the segment.  That is the same Poisson process (a Poisson
+ * count with uniform positions; per-pixel counts independent Poisson(lambda)
+ * by the splitting property), with one Philox call per 64 centres instead
+ * of one per centre.  The numbers of a segment are its own (cell = row *
+ * 64 + segment), so every tile that sees a segment sees the same hits.
  */
-/* The hits of both populations centred on cell (cx, cy) whose "any hit"
- * uniforms are u[0] (600 e-) and u[1] (5000 e-), into the tile. */
-static void cr_centre(const struct rng *pop[2], struct rng_poisson *big,
-		      double lambda, double emu, const double u[2], double resid,
-		      const double tw[3][3], uint32_t cell, int cx, int cy,
-		      int x0, int y0, int nx, int ny, double *pix, ptrdiff_t stride)
+#define CR_SEG 64
+#define CR_NSEG ((CR_SPAN + CR_SEG - 1) / CR_SEG)
+
+/* Poisson(lambda) for lambda < 10 by inversion from u (see rng.c),
+ * continued from the u that decided "no hit" in the common case. */
+static int cr_count(double u, double lambda, double emu)
 {
-	static const double energy[2] = { CR_E_LOW, CR_E_HIGH };
-	double e = 0;
+	double pk = emu, f = pk;
+	int k = 0;
 
-	for (int p = 0; p < 2; p++) {
-		struct rng_cell c;
-		double n;
-
-		rng_cell_init(&c, pop[p], cell, 0);
-		/* lambda >= 10 needs t > 2e6 s; then the count comes from
-		 * PTRS on the energy stream. */
-		if (lambda < 10)
-			n = cr_hits(u[p], lambda, emu);
-		else
-			n = rng_poisson_draw(big, &c);
-		/* n hits of Poisson(E) each: Poisson(n E) in all. */
-		if (n > 0)
-			e += rng_poisson(n * energy[p], &c);
+	while (u >= f && k < 200) {
+		k++;
+		pk *= lambda / k;
+		f += pk;
 	}
-	if (e == 0)
-		return;
-	e *= resid;
+	return k;
+}
+
+struct cr_tile {
+	double tw[3][3], resid;
+	int x0, y0, nx, ny;
+	double *pix;
+	ptrdiff_t stride;
+};
+
+static void cr_deposit(const struct cr_tile *t, int cx, int cy, double e)
+{
+	e *= t->resid;
 	for (int dy = -1; dy <= 1; dy++) {
 		int y = cy + dy;
 
-		if (y < y0 || y >= y0 + ny)
+		if (y < t->y0 || y >= t->y0 + t->ny)
 			continue;
 		for (int dx = -1; dx <= 1; dx++) {
 			int x = cx + dx;
 
-			if (x >= x0 && x < x0 + nx)
-				pix[(ptrdiff_t)(y - y0) * stride + (x - x0)] +=
-					e * tw[dy + 1][dx + 1];
+			if (x >= t->x0 && x < t->x0 + t->nx)
+				t->pix[(ptrdiff_t)(y - t->y0) * t->stride + (x - t->x0)] +=
+					e * t->tw[dy + 1][dx + 1];
 		}
+	}
+}
+
+/* The hits of population g (energy E) in segment cell of row cy, whose
+ * first centre is cx0 and which has n centres; u decided the count. */
+static void cr_segment(const struct cr_tile *t, const struct rng *g, double energy,
+		       struct rng_poisson *big, double lambda, double emu, double u,
+		       uint32_t cell, int cx0, int n, int cy)
+{
+	struct rng_cell c;
+	double hits;
+
+	rng_cell_init(&c, g, cell, 0);
+	/* n lambda >= 10 needs t > 3e4 s; then PTRS on the stream. */
+	if (lambda < 10)
+		hits = cr_count(u, lambda, emu);
+	else
+		hits = rng_poisson_draw(big, &c);
+	for (double h = 0; h < hits; h++) {
+		int cx = cx0 + (int)(rng_cell_u01(&c) * n);
+		double e = rng_poisson(energy, &c);
+
+		/* Only hits that reach the tile matter, but every hit
+		 * takes its numbers, so the stream is the same for all. */
+		if (cx >= t->x0 - 1 && cx <= t->x0 + t->nx &&
+		    cy >= t->y0 - 1 && cy <= t->y0 + t->ny)
+			cr_deposit(t, cx, cy, e);
 	}
 }
 
@@ -271,51 +291,57 @@ static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
 			int nx, int ny, double *pix, ptrdiff_t stride)
 {
 	double lambda = o->cosmic_rate * CR_PIXEL_AREA * o->exptime;
-	double resid = o->cosmic_residual;
-	double tw[3][3], emu;
-	struct rng hit, low, high;
-	const struct rng *pop[2] = { &low, &high };
-	struct rng_poisson big;
-	uint32_t w[CHUNK][4];
-	uint64_t thr;
+	struct cr_tile t = { .resid = o->cosmic_residual, .x0 = x0, .y0 = y0,
+			     .nx = nx, .ny = ny, .pix = pix, .stride = stride };
+	struct rng hit, pop[2];
+	static const double energy[2] = { CR_E_LOW, CR_E_HIGH };
+	/* Segments are full but the last of a row (4090 = 63 * 64 + 58). */
+	int nlast = CR_SPAN - (CR_NSEG - 1) * CR_SEG;
+	struct rng_poisson big[2][2];
+	double lam[2], emu[2];
+	uint64_t thr[2];
+	uint32_t w[CR_NSEG][4];
 	int ya = y0 - 1 < -1 ? -1 : y0 - 1, yb = y0 + ny;
-	int xa = x0 - 1 < -1 ? -1 : x0 - 1, xb = x0 + nx;
+	int sa = (x0 - 1 + 1) / CR_SEG, sb = (x0 + nx + 1) / CR_SEG;
 
-	if (!(lambda > 0) || resid == 0)
+	if (!(lambda > 0) || t.resid == 0)
 		return;
 	if (yb > WFS_NPIX)
 		yb = WFS_NPIX;
-	if (xb > WFS_NPIX)
-		xb = WFS_NPIX;
-	cr_template(tw);
+	if (sb > CR_NSEG - 1)
+		sb = CR_NSEG - 1;
+	cr_template(t.tw);
 	rng_init(&hit, o->seed, domain(DOM_CR_HIT, o->filter, sca));
-	rng_init(&low, o->seed, domain(DOM_CR_LOW, o->filter, sca));
-	rng_init(&high, o->seed, domain(DOM_CR_HIGH, o->filter, sca));
-	emu = exp(-lambda);
-	rng_poisson_setup(&big, lambda);
-	/* u = m 2^-53 < exp(-lambda) (no hit) exactly when the 53-bit
-	 * integer m < ceil(exp(-lambda) 2^53): scaling by 2^53 is exact. */
-	thr = (uint64_t)ceil(emu * 0x1p53);
+	rng_init(&pop[0], o->seed, domain(DOM_CR_LOW, o->filter, sca));
+	rng_init(&pop[1], o->seed, domain(DOM_CR_HIGH, o->filter, sca));
+	/* [0]: a full segment, [1]: the last, shorter one. */
+	for (int k = 0; k < 2; k++) {
+		lam[k] = lambda * (k ? nlast : CR_SEG);
+		emu[k] = exp(-lam[k]);
+		/* u = m 2^-53 < exp(-lambda) (no hit) exactly when the
+		 * 53-bit integer m < ceil(exp(-lambda) 2^53): scaling by 2^53
+		 * is exact. */
+		thr[k] = (uint64_t)ceil(emu[k] * 0x1p53);
+		for (int p = 0; p < 2; p++)
+			rng_poisson_setup(&big[k][p], lam[k]);
+	}
 	for (int cy = ya; cy <= yb; cy++) {
-		uint32_t row = (uint32_t)(cy + 1) * CR_SPAN;
+		uint32_t cell0 = (uint32_t)(cy + 1) * CR_NSEG + (uint32_t)sa;
 
-		for (int cx0 = xa; cx0 <= xb; cx0 += CHUNK) {
-			int n = xb + 1 - cx0 < CHUNK ? xb + 1 - cx0 : CHUNK;
-			uint32_t cell0 = row + (uint32_t)(cx0 + 1);
+		rng_bits_n(&hit, cell0, 0, (size_t)(sb - sa + 1), w);
+		for (int sg = sa; sg <= sb; sg++) {
+			const uint32_t *wd = w[sg - sa];
+			int last = sg == CR_NSEG - 1;
+			int n = last ? nlast : CR_SEG;
 
-			rng_bits_n(&hit, cell0, 0, (size_t)n, w);
-			for (int k = 0; k < n; k++) {
-				uint64_t m0 = ((uint64_t)w[k][0] << 32 | w[k][1]) >> 11;
-				uint64_t m1 = ((uint64_t)w[k][2] << 32 | w[k][3]) >> 11;
-				double u[2];
+			for (int p = 0; p < 2; p++) {
+				uint64_t m = ((uint64_t)wd[2 * p] << 32 | wd[2 * p + 1]) >> 11;
 
-				if ((m0 < thr) & (m1 < thr))
+				if (m < thr[last])
 					continue;
-				u[0] = rng_u01(w[k][0], w[k][1]);
-				u[1] = rng_u01(w[k][2], w[k][3]);
-				cr_centre(pop, &big, lambda, emu, u, resid, tw,
-					  cell0 + (uint32_t)k, cx0 + k, cy, x0, y0,
-					  nx, ny, pix, stride);
+				cr_segment(&t, &pop[p], energy[p], &big[last][p], lam[last],
+					   emu[last], rng_u01(wd[2 * p], wd[2 * p + 1]),
+					   cell0 + (uint32_t)(sg - sa), -1 + sg * CR_SEG, n, cy);
 			}
 		}
 	}

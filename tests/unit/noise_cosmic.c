@@ -60,7 +60,8 @@ int main(void)
 	 * pixel and population; STIPS' populations coincide, ours must not. */
 	{
 		double lambda = 5e-4, n_exp = lambda * (S - 2.0) * (S - 2.0);
-		long n_low = 0, n_high = 0, n_both = 0;
+		long n_low = 0, n_high = 0, n_both = 0, col[64] = { 0 }, n_all = 0;
+		double chi = 0;
 
 		a = sca_image(100, 1, 1);
 		for (int y = 1; y < S - 1; y++)
@@ -73,6 +74,8 @@ int main(void)
 				n_low += e > 400 && e < 900;
 				n_high += e > 4000 && e < 5300;
 				n_both += e > 5300 && e < 6500;
+				col[(x + 1) % 64]++;
+				n_all++;
 			}
 		diag("expected %.0f hits per population; low %ld, high %ld, both %ld",
 		     n_exp, n_low, n_high, n_both);
@@ -80,6 +83,11 @@ int main(void)
 		is_near(n_high, n_exp, 5 * sqrt(n_exp), "5000 e- hits at 5 /cm^2/s");
 		/* Independent populations share lambda^2 N = 4 pixels. */
 		ok(n_both < 25, "the two populations are independent (%ld shared, STIPS: all)", n_both);
+		/* Hits are drawn per segment of 64 centres: the position in
+		 * the segment must be uniform.  63 dof: 5 sigma is 63 + 56. */
+		for (int k = 0; k < 64; k++)
+			chi += (col[k] - n_all / 64.0) * (col[k] - n_all / 64.0) / (n_all / 64.0);
+		ok(chi < 63 + 5 * sqrt(126.0), "hit centres uniform within segments (chi^2 %.1f)", chi);
 		free(a);
 	}
 
@@ -157,6 +165,18 @@ int main(void)
 		diag("mean residual dose %.4f e-/pixel in 1000 s", sum1 / NPIX);
 		free(a);
 		free(b);
+	}
+	/* A long exposure, where each segment's count comes from PTRS: the
+	 * mean dose is still lambda * 5600 e- per pixel. */
+	{
+		double lambda = 5e-6 * 1e5, sum = 0;
+		double sd = sqrt(NPIX * lambda * (600.0 * 601 + 5000.0 * 5001));
+
+		a = sca_image(1e5, 1, 4);
+		for (size_t i = 0; i < (size_t)S * S; i++)
+			sum += a[i];
+		is_near(sum, NPIX * lambda * 5600, 5 * sd, "dose in 1e5 s: %.1f e-/pixel", sum / NPIX);
+		free(a);
 	}
 	return done_testing();
 }

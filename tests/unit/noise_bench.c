@@ -4,6 +4,7 @@
  * the same SCA as float32 FITS with cfitsio (also the best of three).  Skipped unless WFS_BENCH is set (make bench, or by hand:
  * WFS_BENCH=1 build/tests/noise_bench).
  */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -26,11 +27,14 @@ static double now(void)
 	return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-static double run(const struct noise_opts *o, double *a)
+/* grad: a signal from 0.2 to 20 counts/s across the SCA (means of 30 to
+ * 3000 in 139.8 s, a different one in every pixel), else none. */
+static double run(const struct noise_opts *o, double *a, int grad)
 {
 	double t0;
 
-	memset(a, 0, (size_t)S * S * sizeof(double));
+	for (size_t i = 0; i < (size_t)S * S; i++)
+		a[i] = grad ? 0.2 * pow(100, (double)i / ((double)S * S)) : 0;
 	t0 = now();
 	for (int y = 0; y < S; y += T)
 		for (int x = 0; x < S; x += T)
@@ -45,16 +49,18 @@ int main(void)
 		const char *name;
 		unsigned stages;
 		double bkg;
+		int grad;
 	} cases[] = {
-		{ "none (background, units)", 0, 0.54 },
-		{ "poisson, mean 75", NOISE_POISSON, 0.54 },
-		{ "poisson, mean 0.5", NOISE_POISSON, 0.5 / 139.8 },
-		{ "poisson, mean 3000", NOISE_POISSON, 3000 / 139.8 },
-		{ "readnoise", NOISE_READ, 0.54 },
-		{ "flat", NOISE_FLAT, 0.54 },
-		{ "dark", NOISE_DARK, 0.54 },
-		{ "cosmic", NOISE_COSMIC, 0.54 },
-		{ "all", NOISE_ALL, 0.54 },
+		{ "none (background, units)", 0, 0.54, 0 },
+		{ "poisson, mean 75", NOISE_POISSON, 0.54, 0 },
+		{ "poisson, mean 0.5", NOISE_POISSON, 0.5 / 139.8, 0 },
+		{ "poisson, mean 3000", NOISE_POISSON, 3000 / 139.8, 0 },
+		{ "poisson, means 30-3000", NOISE_POISSON, 0, 1 },
+		{ "readnoise", NOISE_READ, 0.54, 0 },
+		{ "flat", NOISE_FLAT, 0.54, 0 },
+		{ "dark", NOISE_DARK, 0.54, 0 },
+		{ "cosmic", NOISE_COSMIC, 0.54, 0 },
+		{ "all", NOISE_ALL, 0.54, 0 },
 	};
 	const char *path = "/tmp/wfs-noise-bench.fits";
 	double *a, t0, tw;
@@ -93,9 +99,9 @@ int main(void)
 		o.exptime = 139.8;
 		o.seed = 7;
 		o.filter = F158;
-		t = run(&o, a);
+		t = run(&o, a, cases[c].grad);
 		for (int rep = 1; rep < 3; rep++) {
-			double t1 = run(&o, a);
+			double t1 = run(&o, a, cases[c].grad);
 
 			t = t1 < t ? t1 : t;
 		}

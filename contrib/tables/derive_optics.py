@@ -140,9 +140,18 @@ def describe(mask):
     th, prof = ray_profiles(lit, radii)
     rout = crossing(radii, prof, outward=False)
     rin = crossing(radii, prof, outward=True)
-    for rr in (rout, rin):
+    # A ray that runs along a strut, or down the lit gap of a double
+    # strut, finds its crossing on the strut rather than at the edge it is
+    # after: flag crossings on a strut, and rim radii well inside (or
+    # obscuration radii well outside) the running median of their
+    # neighbours; the rim is smooth, the obscuration's corners are many
+    # degrees apart.
+    from scipy.ndimage import median_filter
+    for rr, sign, width in ((rout, -1, 41), (rin, +1, 13)):
         bad = strut_inside(struts, rr * np.cos(th), rr * np.sin(th),
                            grow=3 * DX)
+        med = median_filter(rr, size=width, mode='wrap')
+        bad |= sign * (rr - med) > 2e-3
         rr[:] = heal(rr, bad)
     return rout, rin, struts
 
@@ -209,8 +218,10 @@ def pupils(dir_):
 # angles theta_k = -pi + 2 pi k / %d, linearly interpolated between them.
 # Each radius is where the mask, bilinearly interpolated along the ray,
 # crosses 1/2 (walking inwards for the rim, outwards for the obscuration);
-# angles where that crossing lies on a strut are interpolated from their
-# neighbours.  Units of 0.1 mm; r0 is the radius at k = 0 and each
+# angles where that crossing lies on a strut, or (a ray along a strut or
+# down the lit gap of a double strut) more than 2 mm inside the running
+# median of the rim over 20 degrees or outside that of the obscuration over
+# 6 degrees, are interpolated from their neighbours.  Units of 0.1 mm; r0 is the radius at k = 0 and each
 # further column the change from the previous angle (delta coded).
 ''' % (NANG, NANG) + head)
         f.write('\t'.join(['mask', 'sca', 'edge', 'r0'] +

@@ -601,7 +601,6 @@ struct mono_pupil {
 	int *idx;               /* row * p + col of each lit sample */
 	double *amp;
 	double *basis;          /* [j * nlit + i] */
-	double norm;            /* sum amp^2 */
 };
 
 struct job {
@@ -863,12 +862,9 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 		j.mp.p = p;
 		par_for(&j, nth, p, pupil_row);
 		j.mp.nlit = 0;
-		j.mp.norm = 0;
 		for (int i = 0; i < p * p; i++)
-			if (j.mp.amp[i] > 0) {
+			if (j.mp.amp[i] > 0)
 				j.mp.idx[j.mp.nlit++] = i;
-				j.mp.norm += j.mp.amp[i] * j.mp.amp[i];
-			}
 		if (r->zern)
 			par_for(&j, nth, (j.mp.nlit + 4095) / 4096, basis_task);
 		/* plans for this pupil size: p rows, then n columns, each a

@@ -1,0 +1,113 @@
+/*
+ * sersic_quick.c - the sersic-quick model: a Sérsic galaxy sampled at
+ * points, with more points per pixel where the profile changes fast, then
+ * convolved with the local ePSF.  The mathematics is in sersic.h.
+ *
+ * Cell integration: the cells within one cell of the centre (where the cusp
+ * of n > 1, or a galaxy smaller than a cell, defeats any sampling) by wedges
+ * from the centre (sersic_rect_polar), to 1e-4 of the cell; every other cell by the midpoint rule on an
+ * N x N grid.  The midpoint rule's error on a cell of side h is about
+ * (h/N)^2 / (24 ell^2) of the cell, ell the profile's length scale at the
+ * cell's nearest point (sersic_scale), so N = ceil(h / (QUICK_STEP ell)),
+ * at most QUICK_NMAX: with QUICK_STEP = 0.5 a cell is within about 1%, and
+ * most of the light sits in cells far better than that.  The measured
+ * total-flux error is below 1% for n <= 4 (BENCHMARKS.md).
+ *
+ * Settings: sersic-trunc (flux fraction beyond the truncation radius,
+ * default 1e-3), sersic-convolve (yes/no), sersic-flux (total/ie).
+ */
+#include "sersic.h"
+
+#define QUICK_TRUNC 1e-3
+#define QUICK_STEP 0.5
+#define QUICK_NMAX 16
+
+struct quick {
+	const struct wfs_host *host;
+	double trunc;
+	int convolve;
+	double psf_core;
+};
+
+static double quick_cell(const struct sersic_gal *g, const void *opt,
+			 double x0, double x1, double y0, double y1, double h)
+{
+	double rmin = sersic_rho_min(g, x0, x1, y0, y1);
+
+	if (rmin >= g->rho_t)
+		return 0.0;
+	if (sersic_rho_min(g, x0 - h, x1 + h, y0 - h, y1 + h) == 0.0) {
+		double est = fmin(1.0, exp(g->lni0 - g->b * pow(rmin, g->inv_n)) * (x1 - x0) * (y1 - y0)
+				  / g->flux);
+		return sersic_rect_polar(g, x0, x1, y0, y1, 1e-4 * est);
+	}
+	double ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
+	int n = (int)fmin(ceil(h / (QUICK_STEP * ell)), QUICK_NMAX);
+	if (n < 1)
+		n = 1;
+	return sersic_midpoint(g, x0, x1, y0, y1, n);
+}
+
+static int quick_init(const struct wfs_host *host, void **state)
+{
+	struct quick *p = calloc(1, sizeof(*p));
+
+	if (!p)
+		return host->error(host->ctx, "out of memory");
+	p->host = host;
+	if (sersic_setting_num(host, "sersic-trunc", 1e-12, 0.5, QUICK_TRUNC, &p->trunc) ||
+	    sersic_setting_num(host, "psf-core", 0, 1e3, 4.0, &p->psf_core) ||
+	    sersic_setting_convolve(host, &p->convolve)) {
+		free(p);
+		return -1;
+	}
+	*state = p;
+	return 0;
+}
+
+static void quick_fini(void *state)
+{
+	free(state);
+}
+
+static int quick_prepare(void *state, struct wfs_source *src)
+{
+	struct quick *p = state;
+
+	return sersic_prepare_common(p->host, src, p->trunc);
+}
+
+static int quick_footprint(void *state, const struct wfs_source *src, struct wfs_box *box)
+{
+	struct quick *p = state;
+
+	return sersic_footprint_common(p->host, src, box, p->convolve);
+}
+
+static int quick_render(void *state, void *tstate, void *thread,
+			const struct wfs_source *src, const struct wfs_window *win)
+{
+	struct quick *p = state;
+	struct sersic_method m = { quick_cell, NULL, p->convolve, p->psf_core };
+
+	return sersic_render_common(p->host, thread, src, win, &m);
+}
+
+static const struct wfs_model quick_model = {
+	.abi = WFS_ABI_VERSION,
+	.size = sizeof(struct wfs_model),
+	.name = "sersic-quick",
+	.summary = "Sérsic galaxy, sampled with a sub-sampled core, convolved with the ePSF",
+	.columns = sersic_columns,
+	.ncolumns = SERSIC_NCOL,
+	.init = quick_init,
+	.fini = quick_fini,
+	.prepare = quick_prepare,
+	.footprint = quick_footprint,
+	.render = quick_render,
+};
+
+WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)
+{
+	return host_abi == WFS_ABI_VERSION ? &quick_model : NULL;
+}

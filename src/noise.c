@@ -17,10 +17,11 @@
  *
  * z1, z2, z3 are independent N(0, 1) deviates.  Every number is Philox
  * keyed by the seed and counted by (cell, draw, domain), where the cell is
- * the absolute pixel y * 4088 + x (cosmic-ray centres: (y + 1) * 4090 +
- * x + 1, since they reach one pixel beyond the detector) and the domain is
- * (stage, filter, SCA).  So each stage, filter and SCA has its own numbers,
- * and the image does not depend on the tiling, threads or split runs.
+ * the absolute pixel y * 4088 + x (for cosmic rays, a segment of 64 hit
+ * centres of a row: (y + 1) * 64 + (x + 1) / 64, since centres reach one
+ * pixel beyond the detector) and the domain is (stage, filter, SCA).  So
+ * each stage, filter and SCA has its own numbers, and the image does not
+ * depend on the tiling, threads or split runs.
  *
  * The fixed fields are the seed's "detector": the flat residual f is keyed
  * by (filter, SCA), since flats depend on wavelength; the dark residual by

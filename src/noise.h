@@ -3,7 +3,10 @@
  * after the last catalog chunk.  Every random number comes from a
  * counter-based generator keyed by (seed, filter, SCA, stage) and counted by
  * absolute pixel, so an image is bit-identical for any thread count, tile
- * size or tile order, and for runs split by SCA.
+ * size or tile order, and for runs split by SCA.  (The dark residual field
+ * is keyed without the filter: it is the detector's, the same in every
+ * filter.)  The model, its defaults and their sources: noise.c and the
+ * NOISE section of wfiscene(1).
  */
 #ifndef WFS_NOISE_H
 #define WFS_NOISE_H
@@ -27,13 +30,15 @@ struct noise_opts {
 	double background;      /* counts/s/pixel added first; 0 for none */
 	double exptime;         /* seconds, > 0 */
 	double readnoise;       /* e- per read, default 12 */
-	double dark_current;    /* e-/s/pixel mean of the dark stage */
+	double dark_current;    /* e-/s/pixel mean of the dark stage, with shot
+	                           noise; default NOISE_DARK_CURRENT */
 	double cosmic_rate;     /* hits/cm^2/s per population, default 5 */
 	double cosmic_residual; /* fraction of each hit kept, default 0.01 */
 	uint64_t seed;
 	int filter;             /* enum wfs_filter: part of the key */
 	int counts;             /* 1: leave the image in counts, else counts/s */
-	/* Appended fields; 0 selects the documented default. */
+	/* Appended fields; 0 selects the default (NOISE_DARK_RESIDUAL,
+	 * NOISE_FLAT_RESIDUAL): leave a stage out to drop its field. */
 	double dark_residual;   /* sigma of the fixed dark residual field, e-/s */
 	double flat_residual;   /* sigma of the fixed flat residual field */
 };

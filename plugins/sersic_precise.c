@@ -30,6 +30,7 @@ struct precise {
 	double tol, trunc;
 	int convolve;
 	double psf_core;
+	int core_k;
 };
 
 struct precise_opt {
@@ -112,6 +113,7 @@ static int precise_init(const struct wfs_host *host, void **state)
 	if (sersic_setting_num(host, "sersic-tol", 1e-12, 1e-1, PRECISE_TOL, &p->tol) ||
 	    sersic_setting_num(host, "sersic-trunc", 1e-12, 0.5, PRECISE_TRUNC, &p->trunc) ||
 	    sersic_setting_num(host, "psf-core", 0, 1e3, 4.0, &p->psf_core) ||
+	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
 		free(p);
 		return -1;
@@ -146,7 +148,7 @@ static int precise_render(void *state, void *tstate, void *thread,
 	/* Cells far out whose light is below 1e-3 of the tolerance of the
 	 * whole flux are not refined further. */
 	struct precise_opt o = { p->tol, 1e-3 * p->tol * 1e-4 };
-	struct sersic_method m = { precise_cell, &o, p->convolve, p->psf_core };
+	struct sersic_method m = { precise_cell, &o, p->convolve, p->psf_core, p->core_k };
 
 	return sersic_render_common(p->host, thread, src, win, &m);
 }

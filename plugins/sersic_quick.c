@@ -27,6 +27,7 @@ struct quick {
 	double trunc;
 	int convolve;
 	double psf_core;
+	int core_k;
 };
 
 static double quick_cell(const struct sersic_gal *g, const void *opt,
@@ -57,6 +58,7 @@ static int quick_init(const struct wfs_host *host, void **state)
 	p->host = host;
 	if (sersic_setting_num(host, "sersic-trunc", 1e-12, 0.5, QUICK_TRUNC, &p->trunc) ||
 	    sersic_setting_num(host, "psf-core", 0, 1e3, 4.0, &p->psf_core) ||
+	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
 		free(p);
 		return -1;
@@ -88,7 +90,7 @@ static int quick_render(void *state, void *tstate, void *thread,
 			const struct wfs_source *src, const struct wfs_window *win)
 {
 	struct quick *p = state;
-	struct sersic_method m = { quick_cell, NULL, p->convolve, p->psf_core };
+	struct sersic_method m = { quick_cell, NULL, p->convolve, p->psf_core, p->core_k };
 
 	return sersic_render_common(p->host, thread, src, win, &m);
 }

@@ -155,25 +155,11 @@ int noise_parse(const char *s, unsigned *stages, struct err *e)
 }
 
 /*
- * A Poisson count for a mean m in counts, its set-up kept in *ps between
- * pixels (a flat sky has one mean for many pixels).  Negative means have
- * no Poisson distribution (they come only from negative catalog fluxes or
- * backgrounds); they get the mirror image -Poisson(-m), which keeps STIPS'
- * variance |m|.  NaN and infinities pass through.
+ * poisson_sign: the Poisson stage draws a count for each mean m in counts.
+ * Negative means have no Poisson distribution (they come only from negative
+ * catalog fluxes or backgrounds); they get the mirror image -Poisson(-m),
+ * which keeps STIPS' variance |m|.  NaN and infinities pass through.
  */
-static double poisson_signed(double m, struct rng_poisson *ps, const struct rng *g,
-			     uint32_t cell, const uint32_t w[4])
-{
-	struct rng_cell c;
-	double a = fabs(m);
-
-	if (m == 0 || !isfinite(m))
-		return m;
-	if (a != ps->mu)
-		rng_poisson_setup(ps, a);
-	rng_cell_preload(&c, g, cell, w);
-	return m < 0 ? -rng_poisson_draw(ps, &c) : rng_poisson_draw(ps, &c);
-}
 
 /*
  * The 3x3 cosmic-ray template of STIPS (GetCrTemplate): a Gaussian of FWHM
@@ -354,7 +340,7 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 	unsigned st = o ? o->stages & NOISE_ALL : 0;
 	double t, bkg, rn, sf, sdt;
 	struct rng g_pois, g_read, g_flat, g_dshot, g_dfield;
-	struct rng_poisson dark, pois = { .mu = -1 };
+	struct rng_poisson dark;
 	double dark_in_poisson;
 	double z[CHUNK];
 	uint32_t w[CHUNK][4];
@@ -413,10 +399,18 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 			for (int i = 0; i < n; i++)
 				c[i] = (c[i] + bkg) * t;
 			if (st & NOISE_POISSON) {
-				rng_bits_n(&g_pois, (uint32_t)cell, 0, n, w);
+				/* |mean| in, the sign and non-finite values
+				 * restored after: see poisson_sign. */
+				for (int i = 0; i < n; i++) {
+					double m = c[i] + dark_in_poisson;
+
+					c[i] = m;
+					z[i] = isfinite(m) ? fabs(m) : 0;
+				}
+				rng_poisson_fill(&g_pois, (uint32_t)cell, (size_t)n, z, z);
 				for (int i = 0; i < n; i++)
-					c[i] = poisson_signed(c[i] + dark_in_poisson, &pois,
-							      &g_pois, (uint32_t)(cell + i), w[i]);
+					if (isfinite(c[i]))
+						c[i] = c[i] < 0 ? -z[i] : z[i];
 			}
 			if ((st & NOISE_READ) && rn > 0) {
 				rng_normal_fill(&g_read, cell, n, z);

@@ -435,6 +435,128 @@ double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c)
 	}
 }
 
+/*
+ * Many Poisson counts at once, the same numbers as rng_poisson_draw gives
+ * cell by cell (tests/unit/rng_poisson.c checks it bit for bit), but in
+ * passes: first every pixel's first PTRS attempt and squeeze, without
+ * branches, then the log test for the third or so that the squeeze left,
+ * then further attempts for the few rejected.  Mixed in one loop, the
+ * unpredictable squeeze branch costs a pipeline flush on a third of the
+ * pixels.  Attempt d of a cell uses its draw d, as the cell stream does.
+ */
+#define FILL_MAX 256
+
+struct ptrs_px {
+	double mu, b, a, vr, m_int, m_frac;
+};
+
+static inline void ptrs_consts(struct ptrs_px *q, double mu)
+{
+	/* The expressions of rng_poisson_setup, so the values are equal. */
+	q->mu = mu;
+	q->b = 0.931 + 2.53 * sqrt(mu);
+	q->a = -0.059 + 0.02483 * q->b;
+	q->vr = 0.9277 - 3.6224 / (q->b - 2);
+	q->m_int = floor(mu);
+	q->m_frac = mu - q->m_int;
+}
+
+/* The log test of rng_poisson_draw for attempt (u, v) with count k. */
+static int ptrs_slow(const struct ptrs_px *q, double u, double v, double k)
+{
+	double us = 0.5 - fabs(u), j = k - q->m_int;
+	double inv_alpha, log_mu;
+
+	if (!(k >= 0) || (us < 0.013 && v > us))
+		return 0;
+	log_mu = log(q->mu);
+	inv_alpha = 1.1239 + 1.1328 / (q->b - 3.4);
+	return log(v * inv_alpha * us * us / (q->a + q->b * us * us)) <=
+	       poisson_logpmf(k, q->mu, log_mu, j - q->m_frac);
+}
+
+void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
+		      const double *mu, double *out)
+{
+	uint32_t w[FILL_MAX][4];
+	struct ptrs_px q[FILL_MAX];
+	double uu[FILL_MAX], vv[FILL_MAX];
+	uint16_t pend[FILL_MAX], next[FILL_MAX];
+	struct rng_poisson other = { .mu = -1 };
+	size_t np = 0;
+
+	if (n > FILL_MAX) {
+		for (size_t i = 0; i < n; i += FILL_MAX)
+			rng_poisson_fill(g, cell0 + (uint32_t)i,
+					 n - i < FILL_MAX ? n - i : FILL_MAX, mu + i, out + i);
+		return;
+	}
+	rng_bits_n(g, cell0, 0, n, w);
+	for (size_t i = 0; i < n; i++) {
+		double m = mu[i];
+
+		if (!(m >= 10) || m > RNG_POISSON_EXACT_MAX) {
+			struct rng_cell c;
+
+			/* The set-up (an exp below 10) is kept while the
+			 * mean repeats, as on a flat sky. */
+			if (!(m > 0)) {
+				out[i] = 0;
+				continue;
+			}
+			if (m != other.mu)
+				rng_poisson_setup(&other, m);
+			rng_cell_preload(&c, g, cell0 + (uint32_t)i, w[i]);
+			out[i] = rng_poisson_draw(&other, &c);
+			continue;
+		}
+		{
+			double u = rng_u01(w[i][0], w[i][1]) - 0.5;
+			double v = rng_u01(w[i][2], w[i][3]);
+			double us = 0.5 - fabs(u);
+			double j;
+			int fast;
+
+			ptrs_consts(&q[i], m);
+			j = floor((2 * q[i].a / us + q[i].b) * u + q[i].m_frac + 0.43);
+			out[i] = q[i].m_int + j;
+			uu[i] = u;
+			vv[i] = v;
+			fast = (us >= 0.07) & (v <= q[i].vr);
+			pend[np] = (uint16_t)i;
+			np += !fast;
+		}
+	}
+	/* The log test for attempt 0, then whole attempts 1, 2, ... */
+	for (uint32_t draw = 1; np; draw++) {
+		size_t nn = 0;
+
+		for (size_t t = 0; t < np; t++) {
+			size_t i = pend[t];
+
+			if (!ptrs_slow(&q[i], uu[i], vv[i], out[i]))
+				next[nn++] = (uint16_t)i;
+		}
+		np = 0;
+		for (size_t t = 0; t < nn; t++) {
+			size_t i = next[t];
+			uint32_t b[4];
+			double u, v, us;
+
+			rng_bits(g, cell0 + (uint32_t)i, draw, b);
+			u = rng_u01(b[0], b[1]) - 0.5;
+			v = rng_u01(b[2], b[3]);
+			us = 0.5 - fabs(u);
+			out[i] = q[i].m_int + floor((2 * q[i].a / us + q[i].b) * u +
+						    q[i].m_frac + 0.43);
+			uu[i] = u;
+			vv[i] = v;
+			if (!(us >= 0.07 && v <= q[i].vr))
+				pend[np++] = (uint16_t)i;
+		}
+	}
+}
+
 void rng_poisson_tabulate(struct rng_poisson *p)
 {
 	double pk, f;

@@ -121,6 +121,13 @@ double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c);
 /* Same, for a mean used once. */
 double rng_poisson(double mu, struct rng_cell *c);
 
+/* Poisson counts for cells cell0 .. cell0 + n - 1 with means mu[0 .. n-1]
+ * into out: the very numbers rng_poisson gives with rng_cell_init(c, g,
+ * cell, 0), faster.  Means must be finite; below 0 they give 0.  out may
+ * be mu. */
+void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
+		      const double *mu, double *out);
+
 /* Above this mean the count is a rounded Gaussian (see rng.c). */
 #define RNG_POISSON_EXACT_MAX 0x1p52
 

@@ -129,6 +129,30 @@ int main(void)
 		   "mean %g: chi-square %.1f over %d dof", mu, chi, dof);
 	}
 
+	/* rng_poisson_fill gives rng_poisson's numbers bit for bit, for
+	 * means in every regime, at any start and length. */
+	{
+		static const double pick[] = { 0, 1e-3, 0.5, 5, 9.999, 10, 10.5, 30, 75,
+					       3000, 1e6, 1e12, 0x1p52, 1e16 };
+		int npick = sizeof(pick) / sizeof(pick[0]), same = 1;
+		enum { M = 300000 };
+		double *mu = malloc(M * sizeof(double)), *a = malloc(M * sizeof(double));
+
+		for (int i = 0; i < M; i++)
+			mu[i] = i % 3 ? pick[(i / 3) % npick] : 10 + 1e4 * (i % 1013) / 1013.0;
+		rng_poisson_fill(&g, 77, 1000, mu, a);
+		rng_poisson_fill(&g, 1077, M - 1000, mu + 1000, a + 1000);
+		for (int i = 0; i < M; i++) {
+			struct rng_cell c;
+
+			rng_cell_init(&c, &g, (uint32_t)(77 + i), 0);
+			same &= rng_poisson(mu[i], &c) == a[i];
+		}
+		ok(same, "rng_poisson_fill = rng_poisson, bit for bit");
+		free(mu);
+		free(a);
+	}
+
 	/* Beyond 2^52: the rounded normal; check its first two moments. */
 	{
 		double mu = 0x1p53 + 12345, s1 = 0, s2 = 0;

@@ -531,34 +531,43 @@ static void sersic_keys(double t, double w[4])
 }
 
 /*
- * The ePSF between samples, as the point model evaluates it: within `core`
- * pixels of the centre (setting psf-core, default 4) Keys' cubic on 4 x 4
- * samples, so the sharp core is not flattened; farther out bilinear, where
- * the ePSF is smooth on the sample scale.  (rx, ry) is the position in
- * samples.  A galaxy much smaller than a cell is therefore drawn exactly
- * as a point source of its flux.
+ * The ePSF at a fixed fractional sample offset (phx, phy) in [0, 1), as the
+ * point model evaluates it between samples: within `core` pixels of the
+ * centre (setting psf-core, default 4) Keys' cubic on 4 x 4 samples, so the
+ * sharp core is not flattened; farther out bilinear, where the ePSF is
+ * smooth on the sample scale.  ep[k] = E(k + ph).  A galaxy much smaller
+ * than a cell is therefore drawn exactly as a point source of its flux.
+ * The four nodes are blended once into eb first (n x n scratch).
  */
-static double epsf_interp(const struct wfs_epsf *e, double rx, double ry, double core)
+static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, double core,
+			      double *eb, double *ep)
 {
-	int ix = (int)floor(rx), iy = (int)floor(ry);
-	double fx = rx - ix, fy = ry - iy;
-	/* the offset in pixels, as the point model measures i - x */
-	double dx = (rx - e->centre) / e->over, dy = (ry - e->centre) / e->over;
+	int n = e->n;
+	double wx[4], wy[4];
 
-	if (dx * dx + dy * dy <= core * core && ix >= 1 && iy >= 1 && ix + 2 < e->n && iy + 2 < e->n) {
-		double wx[4], wy[4], v = 0;
-		sersic_keys(fx, wx);
-		sersic_keys(fy, wy);
-		for (int b = 0; b < 4; b++) {
-			double r = 0;
-			for (int a = 0; a < 4; a++)
-				r += wx[a] * epsf_at(e, ix - 1 + a, iy - 1 + b);
-			v += wy[b] * r;
+	for (size_t k = 0; k < (size_t)n * n; k++)
+		eb[k] = e->weight[0] * e->node[0][k] + e->weight[1] * e->node[1][k]
+			+ e->weight[2] * e->node[2][k] + e->weight[3] * e->node[3][k];
+	sersic_keys(phx, wx);
+	sersic_keys(phy, wy);
+	double b00 = (1 - phx) * (1 - phy), b01 = phx * (1 - phy), b10 = (1 - phx) * phy, b11 = phx * phy;
+	for (int ky = 0; ky < n; ky++) {
+		double dy = (ky + phy - e->centre) / e->over;
+		for (int kx = 0; kx < n; kx++) {
+			double dx = (kx + phx - e->centre) / e->over, v = 0;
+			const double *r0 = eb + (size_t)ky * n + kx;
+			if (dx * dx + dy * dy <= core * core && kx >= 1 && ky >= 1 && kx + 2 < n && ky + 2 < n) {
+				const double *r = r0 - n - 1;
+				for (int bb = 0; bb < 4; bb++, r += n)
+					v += wy[bb] * (wx[0] * r[0] + wx[1] * r[1] + wx[2] * r[2] + wx[3] * r[3]);
+			} else {
+				int xin = kx + 1 < n, yin = ky + 1 < n;
+				v = b00 * r0[0] + (xin ? b01 * r0[1] : 0) + (yin ? b10 * r0[n] : 0)
+				    + (xin && yin ? b11 * r0[n + 1] : 0);
+			}
+			ep[(size_t)ky * n + kx] = v;
 		}
-		return v;
 	}
-	return (1 - fx) * (1 - fy) * epsf_at(e, ix, iy) + fx * (1 - fy) * epsf_at(e, ix + 1, iy)
-	       + (1 - fx) * fy * epsf_at(e, ix, iy + 1) + fx * fy * epsf_at(e, ix + 1, iy + 1);
 }
 
 /*
@@ -683,13 +692,13 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 
 	size_t nstamp = (size_t)snx * sny, nker = (size_t)kn * kn;
 	size_t ncell = core_on ? (size_t)na * nb : 0;
-	size_t nep = core_on ? (size_t)e.n * e.n : 0;
+	size_t nep = core_on ? 2 * (size_t)e.n * e.n : 0;
 	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep) * sizeof(double));
 	if (!buf)
 		return host->error(host->ctx, "out of memory for a %d x %d galaxy stamp", snx, sny);
 	double *img = buf, *gxi = img + nstamp, *gyi = gxi + nstamp, *lpi = gyi + nstamp;
 	double *ker = lpi + nstamp, *kdx = ker + nker, *kdy = kdx + nker, *klp = kdy + nker;
-	double *cells = klp + nker, *ep = cells + ncell;
+	double *cells = klp + nker, *ep = cells + ncell, *eb = ep + nep / 2;
 
 	/* Wings: pixel integrals outside Q, and the profile's gradient at the
 	 * pixel centres (for the first-moment term). */
@@ -795,32 +804,51 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 	double bxf = floor(tx), byf = floor(ty);
 	double phx = tx - bxf, phy = ty - byf;
 	double core = m->psf_core * over + 2 < e.centre ? m->psf_core : 0;
-	for (int ky = 0; ky < e.n; ky++)
-		for (int kx = 0; kx < e.n; kx++)
-			ep[(size_t)ky * e.n + kx] = epsf_interp(&e, kx + phx, ky + phy, core);
+	sersic_phase_epsf(&e, phx, phy, core, eb, ep);
 	/* Output pixels the core reaches, inside the window. */
 	int ox0 = (int)icx - kq - hp - 1, ox1 = (int)icx + kq + hp + 1;
 	int oy0 = (int)icy - kq - hp - 1, oy1 = (int)icy + kq + hp + 1;
 	box_clip(&ox0, &ox1, win->x0, win->x0 + win->nx - 1);
 	box_clip(&oy0, &oy1, win->y0, win->y0 + win->ny - 1);
 	long long bx = (long long)bxf, by = (long long)byf;
+	/* Each cell row reversed in place, so that pixel x's sum over a row,
+	 * sum_a C[a] ep[kx0 - a], runs forward through both arrays. */
+	for (int bj = 0; bj < nb; bj++)
+		for (int i = 0, j = na - 1; i < j; i++, j--) {
+			double t = cells[(size_t)bj * na + i];
+			cells[(size_t)bj * na + i] = cells[(size_t)bj * na + j];
+			cells[(size_t)bj * na + j] = t;
+		}
 	for (int y = oy0; y <= oy1; y++) {
 		double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
+		long long ky0 = by + (long long)over * y - b0;
 		for (int x = ox0; x <= ox1; x++) {
 			double s = 0;
-			long long kx0 = bx + (long long)over * x - a0;
-			long long ky0 = by + (long long)over * y - b0;
+			/* reversed index t = na - 1 - a reads ep[kx0 - na + 1 + t] */
+			long long k0 = bx + (long long)over * x - a0 - na + 1;
+			int t0 = k0 < 0 ? (int)-k0 : 0;
+			int t1 = k0 + na > e.n ? (int)(e.n - k0) : na;
+			if (t0 >= t1)
+				continue;
 			for (int bj = 0; bj < nb; bj++) {
 				long long ky = ky0 - bj;
 				if (ky < 0 || ky >= e.n)
 					continue;
-				const double *erow = ep + (size_t)ky * e.n;
-				const double *crow = cells + (size_t)bj * na;
-				for (int ai = 0; ai < na; ai++) {
-					long long kx = kx0 - ai;
-					if (kx >= 0 && kx < e.n)
-						s += crow[ai] * erow[kx];
+				const double *erow = ep + (size_t)ky * e.n + (k0 + t0);
+				const double *crow = cells + (size_t)bj * na + t0;
+				/* four partial sums: the compiler may not reorder
+				 * a floating-point reduction by itself */
+				double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+				int len = t1 - t0, t = 0;
+				for (; t + 4 <= len; t += 4) {
+					s0 += crow[t] * erow[t];
+					s1 += crow[t + 1] * erow[t + 1];
+					s2 += crow[t + 2] * erow[t + 2];
+					s3 += crow[t + 3] * erow[t + 3];
 				}
+				for (; t < len; t++)
+					s0 += crow[t] * erow[t];
+				s += (s0 + s1) + (s2 + s3);
 			}
 			dst[x] += s;
 		}

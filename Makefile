@@ -119,6 +119,18 @@ demo: deps
 bench: all
 	$(Q)WFS_BUILD=$(B) sh contrib/bench.sh
 
+## fuzz: build the catalog fuzzer (libFuzzer) and run it for FUZZ_SECONDS (60)
+FUZZ_SECONDS ?= 60
+fuzz: $(B)/data_tables.c
+	$(Q)clang -g -O1 -fsanitize=fuzzer,address,undefined -std=c11 -D_POSIX_C_SOURCE=200809L \
+		-D_DEFAULT_SOURCE -Isrc -DTABLE_BUF=512 -DTABLE_MAX_LINE=65536 \
+		tests/fuzz/catalog_fuzz.c src/input.c src/table.c src/table_fits.c src/catalog.c \
+		src/err.c src/instrument.c src/data.c $(B)/data_tables.c \
+		$$($(PKG_CONFIG) --cflags --libs cfitsio libzstd zlib) -lm -o $(B)/catalog_fuzz
+	$(Q)mkdir -p $(B)/fuzz-corpus && cp -n tests/fuzz/corpus/* $(B)/fuzz-corpus/ 2>/dev/null; \
+	$(B)/catalog_fuzz -max_len=16384 -max_total_time=$(FUZZ_SECONDS) \
+		-artifact_prefix=$(B)/ $(B)/fuzz-corpus tests/fuzz/corpus
+
 ## lint-man: check the man pages with mandoc
 lint-man:
 	$(Q)mandoc -Tlint -W warning man/* || true
@@ -132,9 +144,8 @@ install: all
 	install -m 644 include/wfiscene/model.h $(DESTDIR)$(INCLUDEDIR)/wfiscene/model.h
 	sed -e 's|@PREFIX@|$(PREFIX)|; s|@INCLUDEDIR@|$(INCLUDEDIR)|; s|@PLUGINDIR@|$(PLUGINDIR)|; s|@VERSION@|$(VERSION)|' \
 		contrib/wfiscene-model.pc.in > $(DESTDIR)$(PKGCONFIGDIR)/wfiscene-model.pc
-	for m in man/*.1; do install -m 644 $$m $(DESTDIR)$(MANDIR)/man1/; done
-	for m in man/*.5; do install -m 644 $$m $(DESTDIR)$(MANDIR)/man5/; done
-	for m in man/*.7; do [ -f $$m ] && install -m 644 $$m $(DESTDIR)$(MANDIR)/man7/ || true; done
+	for s in 1 5 7; do for m in man/*.$$s; do [ ! -f $$m ] || \
+		install -m 644 $$m $(DESTDIR)$(MANDIR)/man$$s/ || exit 1; done; done
 
 ## clean: remove build outputs
 clean:
@@ -144,4 +155,4 @@ clean:
 help:
 	@sed -n 's/^## //p' $(MAKEFILE_LIST)
 
-.PHONY: all deps check unit demo bench lint-man install clean help
+.PHONY: all deps check unit demo bench fuzz lint-man install clean help

@@ -39,9 +39,11 @@ struct psf_grid {
 struct psf_grid *psf_grid_new(int n, int over, int nx, int ny);
 void psf_grid_free(struct psf_grid *g);
 
-/* Read a gridded PSF file.  Its PSFs are taken to be optical PSFs sampled
- * `over` (OVERSAMP keyword, else DET_SAMP/PIXELSCL) times per pixel unless
- * the file says it holds ePSFs (WFSKIND = 'EPSF').  NULL on error. */
+/* Read a gridded PSF file.  Its PSFs are taken to be optical PSFs unless
+ * the file says it holds ePSFs (WFSKIND = 'EPSF').  The sampling comes from
+ * PIXELSCL (arcsec per sample), else FOV / FOVPIXEL, else OVERSAMP: STPSF's
+ * older files say OVERSAMP = 1 of grids sampled 4 times per pixel.  NULL on
+ * error. */
 struct psf_grid *psf_grid_read(const char *path, struct err *e);
 
 /* Write a grid in the STPSF gridded format: primary HDU cube of nx*ny planes

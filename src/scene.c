@@ -77,6 +77,7 @@ struct engine {
 	const struct scene_opts *o;
 	struct err *e;
 	pthread_mutex_t err_mu;
+	pthread_t main_thread;          /* the one that may load PSF grids */
 	atomic_int failed;
 
 	struct sky sky;
@@ -204,15 +205,27 @@ static const struct psf_grid *grid_for(const struct engine *g, int sca, int cls)
 	return g->grid[sca - 1][cls];
 }
 
+static int need_grid(struct engine *g, int sca, int cls);
+
+/* Grids are loaded (or built) the first time a model asks for one from the
+ * main thread, in prepare() or footprint(): a scene whose models never draw
+ * with the ePSF builds none.  Workers only read grids already loaded. */
 static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 		     struct wfs_epsf *out)
 {
 	struct engine *g = ctx;
 	const struct psf_grid *grid;
 
-	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2 ||
-	    !(grid = grid_for(g, sca, cls)))
-		return host_error(ctx, "ePSF of SCA %d class %d is not loaded", sca, cls);
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2)
+		return host_error(ctx, "no ePSF for SCA %d class %d", sca, cls);
+	if (!(grid = grid_for(g, sca, cls))) {
+		if (!pthread_equal(pthread_self(), g->main_thread))
+			return host_error(ctx, "ePSF of SCA %d class %d asked for in render() "
+					  "but not in prepare() or footprint()", sca, cls);
+		if (need_grid(g, sca, cls) < 0)
+			return -1;
+		grid = grid_for(g, sca, cls);
+	}
 	psf_grid_at(grid, x, y, out);
 	return 0;
 }
@@ -402,8 +415,6 @@ static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g converts to %g counts/s "
 			       "on SCA %d: not a positive finite number", r->file,
 			       r->line[i], r->flux[i], src->flux, sca);
-	if (need_grid(g, sca, src->psf_class) < 0)
-		return -1;
 	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
 		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
 		g->e->code = EXIT_INPUT;
@@ -945,6 +956,7 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct err 
 	memset(g, 0, sizeof(*g));
 	g->o = o;
 	g->e = e;
+	g->main_thread = pthread_self();
 	pthread_mutex_init(&g->err_mu, NULL);
 	snprintf(g->filter_name, sizeof(g->filter_name), "%s", filter_get(o->filter)->name);
 	snprintf(g->exptime_str, sizeof(g->exptime_str), "%.17g", o->exptime);

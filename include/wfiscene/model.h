@@ -136,9 +136,13 @@ struct wfs_host {
 	const char *(*setting)(void *ctx, const char *key);
 
 	/* The ePSF of SCA sca and size class cls at position (x, y).  Returns 0,
-	 * or -1 with an error recorded.  Thread-safe; the arrays stay valid and
-	 * unchanged until fini(). The host guarantees that the class of every
-	 * source passed to footprint() or render() is loaded. */
+	 * or -1 with an error recorded.  The arrays stay valid and unchanged
+	 * until fini().  The host loads (or builds) a grid the first time it is
+	 * asked for from prepare() or footprint(), which run in the main
+	 * thread; render() may then ask for it from any thread.  A model that
+	 * draws with the ePSF MUST therefore ask for its source's SCA and class
+	 * in prepare() or footprint() first; a model that never asks costs no
+	 * PSF at all. */
 	int (*epsf)(void *ctx, int sca, double x, double y, int cls,
 		    struct wfs_epsf *out);
 

@@ -49,6 +49,7 @@ static const char usage_text[] =
 "  --sersic METHOD       quick (default) or precise for type 'sersic'\n"
 "  --sersic-flux MEANING total (default) or ie: what a Sersic row's flux is\n"
 "  --plugin-path DIRS    where to look for source-model plugins first\n"
+"  --set KEY=VALUE       a setting for the source models (repeatable)\n"
 "Noise:\n"
 "  --background B        none (default), avg (STIPS paper Table 1) or counts/s/px\n"
 "  --noise LIST          none (default), all, or poisson,readnoise,dark,flat,cosmic\n"
@@ -74,7 +75,7 @@ enum {
 	OPT_BUNIT, OPT_PLACED, OPT_COMPRESS, OPT_FLUXUNIT, OPT_ZP, OPT_PSF, OPT_PSFCACHE,
 	OPT_BRIGHT, OPT_XBRIGHT, OPT_SERSIC, OPT_SERSICFLUX, OPT_PLUGINPATH, OPT_BKG,
 	OPT_NOISE, OPT_READNOISE, OPT_DARK, OPT_CRRATE, OPT_CRRES, OPT_SEED, OPT_THREADS,
-	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT,
+	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET,
 };
 
 static const struct option long_options[] = {
@@ -89,6 +90,7 @@ static const struct option long_options[] = {
 	{ "bunit", required_argument, NULL, OPT_BUNIT },
 	{ "placed", required_argument, NULL, OPT_PLACED },
 	{ "report", required_argument, NULL, OPT_REPORT },
+	{ "set", required_argument, NULL, OPT_SET },
 	{ "compress", required_argument, NULL, OPT_COMPRESS },
 	{ "flux-unit", required_argument, NULL, OPT_FLUXUNIT },
 	{ "zeropoints", required_argument, NULL, OPT_ZP },
@@ -246,6 +248,9 @@ int main(int argc, char **argv)
 	};
 	struct err e = { 0 };
 	static char *stdin_only[] = { "-", NULL };
+	enum { MAX_SETTINGS = 64 };
+	const char *settings[MAX_SETTINGS + 1] = { NULL };
+	int nset = 0;
 	long long n;
 	int c, k;
 
@@ -306,6 +311,17 @@ int main(int argc, char **argv)
 		case OPT_REPORT:
 			o.report = optarg;
 			break;
+		case OPT_SET: {
+			const char *eq = strchr(optarg, '=');
+
+			if (!eq || eq == optarg || nset == MAX_SETTINGS) {
+				err_set(&e, EXIT_INPUT, "--set: expected KEY=VALUE (at most %d), "
+					"got '%s'", MAX_SETTINGS, optarg);
+				return fail(&e);
+			}
+			settings[nset++] = optarg;
+			break;
+		}
 		case OPT_COMPRESS:
 			if ((k = choice(c, optarg, compressions, &e)) < 0)
 				return fail(&e);
@@ -438,6 +454,7 @@ int main(int argc, char **argv)
 			o.xbright_limit, o.bright_limit);
 		return fail(&e);
 	}
+	o.settings = settings;
 	set_signals();
 	if (scene_run(&o, optind < argc ? argv + optind : stdin_only, &e) < 0)
 		return fail(&e);

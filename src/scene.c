@@ -98,6 +98,7 @@ struct engine {
 	int nworker;
 
 	char filter_name[16], exptime_str[32], seed_str[32];
+	char bkg_str[32], readnoise_str[32], noise_str[64];
 	const char *sersic_flux_now;    /* "total" or "ie" for the catalog being read */
 
 	struct type_cache types[PLUGIN_MAX];
@@ -118,6 +119,7 @@ struct engine {
 	unsigned long long rows_read, placements, culled, offdet;
 	unsigned long long per_model[PLUGIN_MAX];
 	double flux_requested[WFS_NSCA];        /* sum of placed sources' flux */
+	unsigned long long placed_on[WFS_NSCA];
 	double image_sum[WFS_NSCA];             /* drawn light, before noise */
 	double t_read, t_place, t_wait, t_noise, t_write, t_total;
 	double *t_render;                       /* per worker: busy seconds */
@@ -195,7 +197,20 @@ static const char *host_setting(void *ctx, const char *key)
 		return g->sersic_flux_now;
 	if (!strcmp(key, "sersic"))
 		return g->o->sersic;
-	return NULL;
+	if (!strcmp(key, "background"))
+		return g->bkg_str;
+	if (!strcmp(key, "readnoise"))
+		return g->readnoise_str;
+	if (!strcmp(key, "noise"))
+		return g->noise_str;
+	/* --set key=value: the last one given wins */
+	const char *hit = NULL;
+	size_t n = strlen(key);
+
+	for (const char *const *kv = g->o->settings; kv && *kv; kv++)
+		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
+			hit = *kv + n + 1;
+	return hit;
 }
 
 static const struct psf_grid *grid_for(const struct engine *g, int sca, int cls)
@@ -470,6 +485,7 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	g->placements++;
 	g->per_model[m]++;
 	g->flux_requested[src.sca - 1] += src.flux;
+	g->placed_on[src.sca - 1]++;
 	if (g->placed &&
 	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
 		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
@@ -802,7 +818,6 @@ static int primary_cards(struct engine *g, char **cards, int *n)
 	     "AB zeropoints used");
 	CARD(fits_card_dbl, "BRIGHTLM", o->bright_limit, "bright ePSF box limit (AB)");
 	CARD(fits_card_dbl, "XBRITELM", o->xbright_limit, "extra-bright box limit (AB)");
-	CARD(fits_card_int, "NSOURCES", (long long)g->placements, "placements rendered");
 #undef CARD
 	return bad ? -1 : 0;
 }
@@ -828,6 +843,7 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 	CARD(fits_card_dbl, "PA_APER", g->sky.sca[sca - 1].pa, "position angle of +y (deg)");
 	CARD(fits_card_dbl, "RA_APER", g->sky.sca[sca - 1].ra, "detector centre RA");
 	CARD(fits_card_dbl, "DEC_APER", g->sky.sca[sca - 1].dec, "detector centre Dec");
+	CARD(fits_card_int, "NSOURCES", (long long)g->placed_on[sca - 1], "sources drawn on this SCA");
 #undef CARD
 	for (int k = 0; k < nwcs; k++)
 		if (strncmp(wcs + 80 * k, "WCSAXES ", 8) && strncmp(wcs + 80 * k, "COMMENT", 7))
@@ -961,6 +977,13 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct err 
 	snprintf(g->filter_name, sizeof(g->filter_name), "%s", filter_get(o->filter)->name);
 	snprintf(g->exptime_str, sizeof(g->exptime_str), "%.17g", o->exptime);
 	snprintf(g->seed_str, sizeof(g->seed_str), "%llu", (unsigned long long)o->seed);
+	snprintf(g->bkg_str, sizeof(g->bkg_str), "%.17g", o->background);
+	snprintf(g->readnoise_str, sizeof(g->readnoise_str), "%.17g",
+		 o->noise & NOISE_READ ? o->readnoise : 0.0);
+	snprintf(g->noise_str, sizeof(g->noise_str), "%s%s%s%s%s",
+		 o->noise & NOISE_POISSON ? "poisson," : "", o->noise & NOISE_READ ? "readnoise," : "",
+		 o->noise & NOISE_DARK ? "dark," : "", o->noise & NOISE_FLAT ? "flat," : "",
+		 o->noise & NOISE_COSMIC ? "cosmic," : "");
 	g->sersic_flux_now = o->sersic_flux ? o->sersic_flux : "total";
 	if (sky_init(&g->sky, o->ra, o->dec, o->pa, o->boresight, o->sca_mask, e) < 0)
 		return -1;

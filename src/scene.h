@@ -44,7 +44,7 @@ struct scene_opts {
 	size_t chunk;                   /* rows per chunk */
 	int flux_unit;                  /* enum flux_unit default */
 	int zp_stips;                   /* STIPS's fixed zeropoints */
-	const char *cmdline;            /* for the header */
+	const char *const *settings;    /* "key=value" for models (--set), NULL-ended */
 };
 
 /* Simulate the scene from the catalogs (NULL-terminated; "-" is stdin).

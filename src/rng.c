@@ -461,18 +461,23 @@ static inline void ptrs_consts(struct ptrs_px *q, double mu)
 	q->m_frac = mu - q->m_int;
 }
 
-/* The log test of rng_poisson_draw for attempt (u, v) with count k. */
-static int ptrs_slow(const struct ptrs_px *q, double u, double v, double k)
+/* The log test of rng_poisson_draw for attempt (u, v) with count k.
+ * *cache holds log mu and 1/alpha of the last mean that needed them, for
+ * runs of equal means (a flat sky). */
+static int ptrs_slow(const struct ptrs_px *q, double u, double v, double k,
+		     double cache[3])
 {
 	double us = 0.5 - fabs(u), j = k - q->m_int;
-	double inv_alpha, log_mu;
 
 	if (!(k >= 0) || (us < 0.013 && v > us))
 		return 0;
-	log_mu = log(q->mu);
-	inv_alpha = 1.1239 + 1.1328 / (q->b - 3.4);
-	return log(v * inv_alpha * us * us / (q->a + q->b * us * us)) <=
-	       poisson_logpmf(k, q->mu, log_mu, j - q->m_frac);
+	if (q->mu != cache[0]) {
+		cache[0] = q->mu;
+		cache[1] = log(q->mu);
+		cache[2] = 1.1239 + 1.1328 / (q->b - 3.4);
+	}
+	return log(v * cache[2] * us * us / (q->a + q->b * us * us)) <=
+	       poisson_logpmf(k, q->mu, cache[1], j - q->m_frac);
 }
 
 void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
@@ -483,6 +488,7 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 	double uu[FILL_MAX], vv[FILL_MAX];
 	uint16_t pend[FILL_MAX], next[FILL_MAX];
 	struct rng_poisson other = { .mu = -1 };
+	double cache[3] = { -1, 0, 0 };
 	size_t np = 0;
 
 	if (n > FILL_MAX) {
@@ -534,7 +540,7 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 		for (size_t t = 0; t < np; t++) {
 			size_t i = pend[t];
 
-			if (!ptrs_slow(&q[i], uu[i], vv[i], out[i]))
+			if (!ptrs_slow(&q[i], uu[i], vv[i], out[i], cache))
 				next[nn++] = (uint16_t)i;
 		}
 		np = 0;

@@ -665,13 +665,17 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 		return -1;
 	int over = e.over, hp = sersic_psf_half(&e), kn = 2 * hp + 1;
 
-	/* Stamp: the window grown by the PSF, cut to the galaxy. */
+	/* Stamp: the window grown by the PSF, cut to the galaxy grown by the
+	 * PSF.  It holds every pixel whose light reaches the window and every
+	 * window pixel the galaxy's light reaches, including those beyond the
+	 * truncation box that only the PSF wings light (they are zero in the
+	 * stamp before the convolution). */
 	int sx0 = win->x0 - hp, sx1 = win->x0 + win->nx - 1 + hp;
 	int sy0 = win->y0 - hp, sy1 = win->y0 + win->ny - 1 + hp;
-	if (gx0 > sx0) sx0 = (int)gx0;
-	if (gx1 < sx1) sx1 = (int)gx1;
-	if (gy0 > sy0) sy0 = (int)gy0;
-	if (gy1 < sy1) sy1 = (int)gy1;
+	if (gx0 - hp > sx0) sx0 = (int)gx0 - hp;
+	if (gx1 + hp < sx1) sx1 = (int)gx1 + hp;
+	if (gy0 - hp > sy0) sy0 = (int)gy0 - hp;
+	if (gy1 + hp < sy1) sy1 = (int)gy1 + hp;
 	if (sx0 > sx1 || sy0 > sy1)
 		return 0;
 	int snx = sx1 - sx0 + 1, sny = sy1 - sy0 + 1;

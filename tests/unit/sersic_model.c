@@ -21,7 +21,9 @@
  *   sersic_model --field M COUNT one SCA of COUNT deep-field galaxies:
  *                                seconds for all of them
  */
+#include "err.h"
 #include "fftconv.h"
+#include "psf.h"
 #include "tap.h"
 #include "wfiscene/model.h"
 
@@ -149,6 +151,19 @@ static void mock_init(void)
 		for (int x = 0; x < EPSF_N; x++)
 			mock.epsf[y * EPSF_N + x] = (float)(EPSF_ENCL * box_gauss((x - c) / 4.0)
 							    * box_gauss((y - c) / 4.0));
+	/* SERSIC_STPSF=file: node 0 of an STPSF grid made into an ePSF
+	 * instead of the Gaussian (for checks against the real PSF). */
+	const char *stpsf = getenv("SERSIC_STPSF");
+	if (stpsf) {
+		struct err e = { 0 };
+		struct psf_grid *g = psf_grid_read(stpsf, &e);
+		if (g && g->n == EPSF_N && (g->kind == PSF_EPSF || !psf_make_epsf(g, &e)))
+			for (int k = 0; k < EPSF_N * EPSF_N; k++)
+				mock.epsf[k] = g->data[k];
+		else
+			fprintf(stderr, "SERSIC_STPSF %s not used\n", stpsf);
+		psf_grid_free(g);
+	}
 	mock.fft = fftconv_new();
 	mthread.fft = fftconv_thread_new();
 }
@@ -903,6 +918,23 @@ int main(int argc, char **argv)
 	if (argc >= 5 && !strcmp(argv[1], "--core"))
 		return core_cmp(argv[2], atof(argv[3]), atof(argv[4]), argc > 5 ? atof(argv[5]) : 0.6,
 				argc > 6 ? atof(argv[6]) : 20);
+	if (argc >= 5 && !strcmp(argv[1], "--tot")) {
+		/* totals through the ePSF for several core sizes (debugging) */
+		const struct wfs_model *m = load(argv[2]);
+		struct gal g = { 100.3, 100.6, 1000, atof(argv[3]), atof(argv[4]), 10, 0.7 };
+		static const char *ks[] = { "0", "1", "2", "4", "12" };
+		for (int k = 0; k < 5; k++) {
+			struct model md;
+			int ox, oy;
+			mock_set(&mock, "sersic-core", ks[k]);
+			model_init(&md, m);
+			double *img = draw(&md, &g, 60, 256, &ox, &oy);
+			printf("K %s total %.6f\n", ks[k], sum(img, 121 * 121) / g.flux);
+			free(img);
+			model_fini(&md);
+		}
+		return 0;
+	}
 	if (argc >= 4 && !strcmp(argv[1], "--field"))
 		return field(argv[2], atoi(argv[3]));
 

@@ -191,6 +191,20 @@ static void test_read(void)
 
 	is_near(s.mean, 0, 5 * 12 / sqrt(N), "read noise: mean 0");
 	is_near(sqrt(s.var), 12, 5 * 12 / sqrt(2.0 * N), "read noise: sigma 12 e-");
+	/* Pixels 2m and 2m+1 share a Philox call (different bits): no
+	 * correlation between them, nor between rows. */
+	{
+		static double e[N / 2], f[N / 2];
+
+		for (int i = 0; i < N / 2; i++) {
+			e[i] = r[2 * i];
+			f[i] = r[2 * i + 1];
+		}
+		c = corr(e, f, N / 2);
+		is_near(c, 0, 5 / sqrt(N / 2.0), "read noise: neighbours in a pair uncorrelated (r = %.5f)", c);
+		c = corr(r, r + SIDE, N - SIDE);
+		is_near(c, 0, 5 / sqrt((double)N - SIDE), "read noise: rows uncorrelated (r = %.5f)", c);
+	}
 	o.readnoise = 3.5;
 	free(r);
 	r = run(&o, 5, 0);

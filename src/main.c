@@ -38,6 +38,8 @@ static const char usage_text[] =
 "  --bunit UNIT          counts/s (default) or counts\n"
 "  --placed FILE         write the sources placed on each SCA (CSV)\n"
 "  --report FILE         write a JSON report: timings, counts, flux, errors\n"
+"  --pointings FILE      several exposures (ra dec pa [name [seed]] a line);\n"
+"                        -o, --placed and --report then need a %s for the name\n"
 "  --compress C          none (default), rice or gzip tile compression\n"
 "Sources:\n"
 "  --flux-unit U         counts (default), abmag or jy: unit of 'flux' columns\n"
@@ -75,7 +77,7 @@ enum {
 	OPT_BUNIT, OPT_PLACED, OPT_COMPRESS, OPT_FLUXUNIT, OPT_ZP, OPT_PSF, OPT_PSFCACHE,
 	OPT_BRIGHT, OPT_XBRIGHT, OPT_SERSIC, OPT_SERSICFLUX, OPT_PLUGINPATH, OPT_BKG,
 	OPT_NOISE, OPT_READNOISE, OPT_DARK, OPT_CRRATE, OPT_CRRES, OPT_SEED, OPT_THREADS,
-	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET,
+	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET, OPT_POINTINGS,
 };
 
 static const struct option long_options[] = {
@@ -91,6 +93,7 @@ static const struct option long_options[] = {
 	{ "placed", required_argument, NULL, OPT_PLACED },
 	{ "report", required_argument, NULL, OPT_REPORT },
 	{ "set", required_argument, NULL, OPT_SET },
+	{ "pointings", required_argument, NULL, OPT_POINTINGS },
 	{ "compress", required_argument, NULL, OPT_COMPRESS },
 	{ "flux-unit", required_argument, NULL, OPT_FLUXUNIT },
 	{ "zeropoints", required_argument, NULL, OPT_ZP },
@@ -174,10 +177,13 @@ static int choice(int c, const char *s, const char *const *choices, struct err *
 	return err_set(e, EXIT_INPUT, "--%s: '%s' is not one of %s", option_name(c), s, list);
 }
 
-/* An output name may hold one %d (any width flags), for one file per SCA. */
-static int check_output_name(const char *s, struct err *e)
+/* An output name may hold one %d (any width flags), for one file per SCA,
+ * and with --pointings must hold one %s, for the exposure's name.  what
+ * names the option for messages. */
+static int check_name(const char *what, const char *s, int pointings, int per_sca,
+		      struct err *e)
 {
-	int conversions = 0;
+	int nd = 0, ns = 0;
 
 	for (const char *p = s; *p; p++) {
 		if (*p != '%')
@@ -187,14 +193,31 @@ static int check_output_name(const char *s, struct err *e)
 			continue;
 		}
 		p++;
+		if (*p == 's') {
+			ns++;
+			continue;
+		}
 		while (*p == '0' || (*p >= '1' && *p <= '9'))
 			p++;
-		if (*p != 'd' || ++conversions > 1)
-			return err_set(e, EXIT_INPUT, "-o: '%s': only one '%%d' may appear in "
-				       "an output name", s);
+		if (*p != 'd')
+			return err_set(e, EXIT_INPUT, "%s: '%s': only '%%d' (the SCA) and, with "
+				       "--pointings, '%%s' (the exposure) may appear", what, s);
+		nd++;
 	}
-	if (conversions && !strcmp(s, "-"))
-		return err_set(e, EXIT_INPUT, "-o: bad output name '%s'", s);
+	if (nd && !per_sca)
+		return err_set(e, EXIT_INPUT, "%s: '%s': one file covers every SCA; no '%%d'",
+			       what, s);
+	if (nd > 1 || ns > 1)
+		return err_set(e, EXIT_INPUT, "%s: '%s': only one '%%d' and one '%%s' may "
+			       "appear in a name", what, s);
+	if (ns && !pointings)
+		return err_set(e, EXIT_INPUT, "%s: '%s': '%%s' stands for the exposure's name "
+			       "and needs --pointings", what, s);
+	if (!ns && pointings)
+		return err_set(e, EXIT_INPUT, "%s: '%s' needs a '%%s' for the exposure's name "
+			       "with --pointings", what, s);
+	if (!strcmp(s, "-") && pointings)
+		return err_set(e, EXIT_INPUT, "%s: stdout holds one exposure, not several", what);
 	return 0;
 }
 
@@ -265,8 +288,6 @@ int main(int argc, char **argv)
 		switch (c) {
 		case 'o':
 			o.output = optarg;
-			if (check_output_name(optarg, &e) < 0)
-				return fail(&e);
 			break;
 		case OPT_FILTER:
 			if ((o.filter = filter_lookup(optarg)) < 0) {
@@ -310,6 +331,9 @@ int main(int argc, char **argv)
 			break;
 		case OPT_REPORT:
 			o.report = optarg;
+			break;
+		case OPT_POINTINGS:
+			o.pointings = optarg;
 			break;
 		case OPT_SET: {
 			const char *eq = strchr(optarg, '=');
@@ -444,6 +468,10 @@ int main(int argc, char **argv)
 		}
 		o.output = "-";
 	}
+	if (check_name("-o", o.output, o.pointings != NULL, 1, &e) < 0 ||
+	    (o.placed && check_name("--placed", o.placed, o.pointings != NULL, 0, &e) < 0) ||
+	    (o.report && check_name("--report", o.report, o.pointings != NULL, 0, &e) < 0))
+		return fail(&e);
 	if (o.compress && strcmp(o.compress, "none") && !strcmp(o.output, "-")) {
 		err_set(&e, EXIT_INPUT, "--compress %s: stdout cannot be tile-compressed "
 			"(it is written in one pass); write a file instead", o.compress);

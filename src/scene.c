@@ -115,6 +115,7 @@ struct engine {
 
 	FILE *placed;
 	char placed_tmp[PATH_MAX];
+	int index;                      /* exposure number, 0-based */
 
 	unsigned long long rows_read, placements, culled, offdet;
 	unsigned long long per_model[PLUGIN_MAX];
@@ -149,8 +150,10 @@ static void progress(struct engine *g, const char *stage, int force)
 	fflush(stderr);
 }
 
-/* Name of the --placed temporary file, for the signal handler. */
-static char placed_tmp_signal[PATH_MAX];
+/* Names of the --placed temporary files (one per exposure), for the signal
+ * handler: the one piece of global state, because a handler has no context. */
+#define MAX_EXPOSURES 64
+static char placed_tmp_signal[MAX_EXPOSURES][PATH_MAX];
 
 /* ---- host services lent to plugins ---- */
 
@@ -967,7 +970,8 @@ fail:
 
 /* ---- the run ---- */
 
-static int engine_init(struct engine *g, const struct scene_opts *o, struct err *e)
+static int engine_init(struct engine *g, const struct scene_opts *o, struct pool *pool,
+		       struct err *e)
 {
 	memset(g, 0, sizeof(*g));
 	g->o = o;
@@ -1013,10 +1017,10 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct err 
 		return -1;
 	if (!(g->fft = fftconv_new()))
 		return err_sys(e, "FFT set-up");
-	g->nworker = o->threads > 0 ? o->threads : pool_cpus();
+	g->pool = pool;
+	g->nworker = pool_threads(pool);
 	if (!(g->w = calloc(g->nworker, sizeof(*g->w))) ||
-	    !(g->t_render = calloc(g->nworker, sizeof(*g->t_render))) ||
-	    !(g->pool = pool_new(g->nworker)))
+	    !(g->t_render = calloc(g->nworker, sizeof(*g->t_render))))
 		return err_sys(e, "threads");
 	for (int i = 0; i < g->nworker; i++)
 		g->w[i].g = g;
@@ -1029,10 +1033,9 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct err 
 	return 0;
 }
 
+/* The pool is the caller's; the workers must be idle. */
 static void engine_free(struct engine *g)
 {
-	if (g->pool)
-		pool_free(g->pool);
 	for (int i = 0; g->w && i < g->nworker; i++) {
 		for (int m = 0; m < g->plugins.n; m++)
 			if (g->w[i].started[m] && g->plugins.p[m].m->thread_stop)
@@ -1077,7 +1080,7 @@ static int open_placed(struct engine *g)
 		 slash ? (int)(slash - path + 1) : 0, path, slash ? slash + 1 : path);
 	if ((fd = mkstemp(g->placed_tmp)) < 0)
 		return err_sys(g->e, "%s", path);
-	memcpy(placed_tmp_signal, g->placed_tmp, sizeof(placed_tmp_signal));
+	memcpy(placed_tmp_signal[g->index], g->placed_tmp, sizeof(placed_tmp_signal[0]));
 	if (!(g->placed = fdopen(fd, "w"))) {
 		close(fd);
 		unlink(g->placed_tmp);
@@ -1097,11 +1100,11 @@ static int close_placed(struct engine *g, int keep)
 	bad |= fclose(g->placed) != 0;
 	g->placed = NULL;
 	if (keep && !bad && rename(g->placed_tmp, g->o->placed) == 0) {
-		placed_tmp_signal[0] = 0;
+		placed_tmp_signal[g->index][0] = 0;
 		return 0;
 	}
 	unlink(g->placed_tmp);
-	placed_tmp_signal[0] = 0;
+	placed_tmp_signal[g->index][0] = 0;
 	return keep ? err_sys(g->e, "%s", g->o->placed) : 0;
 }
 
@@ -1195,91 +1198,318 @@ static int write_report(struct engine *g)
 
 void scene_remove_temporaries(void)
 {
-	if (placed_tmp_signal[0])
-		unlink(placed_tmp_signal);
+	for (int i = 0; i < MAX_EXPOSURES; i++)
+		if (placed_tmp_signal[i][0])
+			unlink(placed_tmp_signal[i]);
 }
 
-int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
+/* ---- several exposures: --pointings ---- */
+
+struct pointing {
+	double ra, dec, pa;
+	uint64_t seed;
+	char name[64];
+};
+
+static int is_number(const char *s, double *v)
 {
-	struct engine *g = malloc(sizeof(*g));
+	char *end;
+
+	*v = strtod(s, &end);
+	return end != s && !*end && isfinite(*v);
+}
+
+/*
+ * A pointings file: one exposure a line, "ra dec pa [name [seed]]", fields
+ * separated by blanks or commas; '#' starts a comment; a first line whose
+ * first field is not a number is a header.  Exposure k (from 1) is named
+ * k with three digits unless named, and has seed --seed + k - 1 unless given,
+ * so that a single run of that pointing with that seed gives the same image.
+ */
+static int read_pointings(const struct scene_opts *o, struct pointing **out, int *nout,
+			  struct err *e)
+{
+	FILE *f = fopen(o->pointings, "r");
+	char line[4096];
+	struct pointing *p = NULL;
+	int n = 0, lineno = 0, seen_data = 0;
+
+	if (!f)
+		return err_sys(e, "%s", o->pointings);
+	if (!(p = calloc(MAX_EXPOSURES, sizeof(*p)))) {
+		fclose(f);
+		return err_sys(e, "pointings");
+	}
+	while (fgets(line, sizeof(line), f)) {
+		char *field[6], *save = NULL, *tok, *hash = strchr(line, '#');
+		int nf = 0;
+		double v[3];
+
+		lineno++;
+		if (!strchr(line, '\n') && !feof(f)) {
+			err_set(e, EXIT_INPUT, "%s:%d: line too long", o->pointings, lineno);
+			goto fail;
+		}
+		if (hash)
+			*hash = 0;
+		for (tok = strtok_r(line, " \t\r\n,", &save); tok && nf < 6;
+		     tok = strtok_r(NULL, " \t\r\n,", &save))
+			field[nf++] = tok;
+		if (nf == 0)
+			continue;
+		if (!seen_data++ && !is_number(field[0], &v[0]))
+			continue;       /* a header line */
+		if (nf < 3 || nf > 5) {
+			err_set(e, EXIT_INPUT, "%s:%d: expected 'ra dec pa [name [seed]]', got %d "
+				"field%s", o->pointings, lineno, nf, nf == 1 ? "" : "s");
+			goto fail;
+		}
+		for (int k = 0; k < 3; k++)
+			if (!is_number(field[k], &v[k])) {
+				err_set(e, EXIT_INPUT, "%s:%d: %s: not a number: '%s'", o->pointings,
+					lineno, k == 0 ? "ra" : k == 1 ? "dec" : "pa", field[k]);
+				goto fail;
+			}
+		if (v[1] < -90 || v[1] > 90) {
+			err_set(e, EXIT_INPUT, "%s:%d: dec %g is outside [-90, 90]", o->pointings,
+				lineno, v[1]);
+			goto fail;
+		}
+		if (n == MAX_EXPOSURES) {
+			err_set(e, EXIT_INPUT, "%s:%d: more than %d pointings", o->pointings, lineno,
+				MAX_EXPOSURES);
+			goto fail;
+		}
+		p[n].ra = v[0];
+		p[n].dec = v[1];
+		p[n].pa = v[2];
+		p[n].seed = o->seed + n;
+		snprintf(p[n].name, sizeof(p[n].name), "%03d", n + 1);
+		if (nf >= 4) {
+			if (strlen(field[3]) >= sizeof(p[n].name) ||
+			    strspn(field[3], "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+				   "0123456789_.-") != strlen(field[3])) {
+				err_set(e, EXIT_INPUT, "%s:%d: name '%s': use letters, digits, '_', "
+					"'.' and '-' (at most 63)", o->pointings, lineno, field[3]);
+				goto fail;
+			}
+			strcpy(p[n].name, field[3]);
+			for (int k = 0; k < n; k++)
+				if (!strcmp(p[k].name, p[n].name)) {
+					err_set(e, EXIT_INPUT, "%s:%d: name '%s' is used twice",
+						o->pointings, lineno, p[n].name);
+					goto fail;
+				}
+		}
+		if (nf == 5) {
+			char *end;
+
+			errno = 0;
+			p[n].seed = strtoull(field[4], &end, 10);
+			if (*end || errno || field[4][0] == '-') {
+				err_set(e, EXIT_INPUT, "%s:%d: seed: not an integer: '%s'",
+					o->pointings, lineno, field[4]);
+				goto fail;
+			}
+		}
+		n++;
+	}
+	if (ferror(f)) {
+		err_sys(e, "%s", o->pointings);
+		goto fail;
+	}
+	if (n == 0) {
+		err_set(e, EXIT_INPUT, "%s: no pointings", o->pointings);
+		goto fail;
+	}
+	fclose(f);
+	*out = p;
+	*nout = n;
+	return 0;
+fail:
+	fclose(f);
+	free(p);
+	return -1;
+}
+
+/* tmpl with its "%s" replaced by name (a word of safe characters). */
+static char *expand_name(const char *tmpl, const char *name)
+{
+	const char *at = strstr(tmpl, "%s");
+	size_t n;
+	char *out;
+
+	if (!tmpl)
+		return NULL;
+	if (!at)
+		return strdup(tmpl);
+	n = strlen(tmpl) + strlen(name);
+	if (!(out = malloc(n + 1)))
+		return NULL;
+	snprintf(out, n + 1, "%.*s%s%s", (int)(at - tmpl), tmpl, name, at + 2);
+	return out;
+}
+
+/* Read the next chunk into every exposure's engine: each builds its
+ * placements while the workers draw the previous engine's, one loop at a
+ * time on the shared pool. */
+static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
+			const struct scene_opts *o, struct err *e)
+{
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
 				   .chunk_rows = o->chunk };
-	struct timespec t0, t1;
-	int cur = 0, pending = 0, rc = -1;
+	struct engine *pending = NULL;
+	int cur = 0, rc = -1;
 
-	if (!g)
-		return err_sys(e, "memory");
-	clock_gettime(CLOCK_MONOTONIC, &t0);
-	if (engine_init(g, o, e) < 0 || (o->placed && open_placed(g) < 0))
-		goto out;
-	g->t_start = g->t_progress = t0;
-	g->progress = o->verbose >= 0 && isatty(2);
 	for (char *const *cat = catalogs; *cat; cat++) {
 		struct catalog *c = catalog_open(*cat, &co, e);
 		struct rows rows;
-		long n;
+		long n = 0;
 
 		if (!c)
 			goto out;
 		for (;;) {
-			struct batch *b = &g->b[cur];
 			double ta = now(), tb;
 
 			if ((n = catalog_read(c, &rows, e)) <= 0)
 				break;
 			tb = now();
-			g->t_read += tb - ta;
-			g->rows_read += n;
-			if (build_batch(g, &rows, b) < 0)
-				break;
-			ta = now();
-			g->t_place += ta - tb;
-			if (pending) {
-				pool_wait(g->pool);
-				pending = 0;
-				g->t_wait += now() - ta;
-				if (atomic_load(&g->failed))
+			g[0]->t_read += tb - ta;
+			for (int i = 0; i < ng; i++) {
+				struct batch *b = &g[i]->b[cur];
+
+				g[i]->rows_read += n;
+				if (build_batch(g[i], &rows, b) < 0)
 					break;
+				ta = now();
+				g[i]->t_place += ta - tb;
+				if (pending) {
+					pool_wait(g[i]->pool);
+					pending->t_wait += now() - ta;
+					if (atomic_load(&pending->failed)) {
+						err_set(e, EXIT_PLUGIN, "rendering failed");
+						pending = NULL;
+						break;
+					}
+					pending = NULL;
+				}
+				progress(g[i], "rendering", 0);
+				if (bin_batch(g[i], b) < 0)
+					break;
+				g[i]->rendering = b;
+				pool_start(g[i]->pool, render_tile, g[i], b->nactive);
+				pending = g[i];
+				tb = now();
 			}
-			progress(g, "rendering", 0);
-			if (bin_batch(g, b) < 0)
+			if (e->code != EXIT_OK)
 				break;
-			g->rendering = b;
-			pool_start(g->pool, render_tile, g, b->nactive);
-			pending = 1;
 			cur ^= 1;
 		}
 		catalog_close(c);
 		if (n < 0 || e->code != EXIT_OK)
 			break;
 	}
+	rc = 0;
+out:
 	if (pending) {
 		double ta = now();
 
-		pool_wait(g->pool);
-		g->t_wait += now() - ta;
+		pool_wait(pending->pool);
+		pending->t_wait += now() - ta;
 	}
-	if (e->code != EXIT_OK || atomic_load(&g->failed)) {
-		if (e->code == EXIT_OK)
+	for (int i = 0; i < ng; i++)
+		if (atomic_load(&g[i]->failed) && e->code == EXIT_OK)
 			err_set(e, EXIT_PLUGIN, "rendering failed");
-		goto out;
-	}
+	return rc < 0 || e->code != EXIT_OK ? -1 : 0;
+}
+
+/* Write one exposure's image, --placed list and report. */
+static int finish(struct engine *g, struct timespec t0)
+{
+	struct timespec t1;
+
 	if (write_output(g) < 0 || close_placed(g, 1) < 0)
-		goto out;
+		return -1;
 	clock_gettime(CLOCK_MONOTONIC, &t1);
 	g->t_total = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
 	if (g->progress)
 		fputs("\r\033[K", stderr);
-	if (o->report && write_report(g) < 0)
+	if (g->o->report && write_report(g) < 0)
+		return -1;
+	host_log(g, 1, "%s%s%llu rows read, %llu culled far from every SCA, %llu placements "
+		 "on %d SCA%s, %.3f s", g->o->pointings ? g->o->output : "",
+		 g->o->pointings ? ": " : "", g->rows_read, g->culled, g->placements, g->nslot,
+		 g->nslot == 1 ? "" : "s", g->t_total);
+	return 0;
+}
+
+int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
+{
+	struct pointing one = { o->ra, o->dec, o->pa, o->seed, "" }, *pt = &one;
+	struct scene_opts *opts = NULL;
+	struct engine **g = NULL;
+	struct pool *pool = NULL;
+	struct timespec t0;
+	int n = 1, made = 0, rc = -1;
+
+	clock_gettime(CLOCK_MONOTONIC, &t0);
+	if (o->pointings && read_pointings(o, &pt, &n, e) < 0)
+		return -1;
+	if (!(opts = calloc(n, sizeof(*opts))) || !(g = calloc(n, sizeof(*g))) ||
+	    !(pool = pool_new(o->threads > 0 ? o->threads : pool_cpus()))) {
+		err_sys(e, "memory");
 		goto out;
-	host_log(g, 1, "%llu rows read, %llu culled far from every SCA, %llu placements on "
-		 "%d SCA%s, %.3f s", g->rows_read, g->culled, g->placements, g->nslot,
-		 g->nslot == 1 ? "" : "s",
-		 (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec));
+	}
+	for (int i = 0; i < n; i++) {
+		opts[i] = *o;
+		opts[i].ra = pt[i].ra;
+		opts[i].dec = pt[i].dec;
+		opts[i].pa = pt[i].pa;
+		opts[i].seed = pt[i].seed;
+		if (o->pointings &&
+		    (!(opts[i].output = expand_name(o->output, pt[i].name)) ||
+		     (o->placed && !(opts[i].placed = expand_name(o->placed, pt[i].name))) ||
+		     (o->report && !(opts[i].report = expand_name(o->report, pt[i].name))))) {
+			err_sys(e, "memory");
+			goto out;
+		}
+	}
+	for (int i = 0; i < n; i++) {
+		if (!(g[i] = malloc(sizeof(*g[i])))) {
+			err_sys(e, "memory");
+			goto out;
+		}
+		made++;
+		if (engine_init(g[i], &opts[i], pool, e) < 0)
+			goto out;
+		g[i]->index = i;
+		if (opts[i].placed && open_placed(g[i]) < 0)
+			goto out;
+		g[i]->t_start = g[i]->t_progress = t0;
+		g[i]->progress = i == 0 && o->verbose >= 0 && isatty(2);
+	}
+	if (run_catalogs(g, n, catalogs, o, e) < 0)
+		goto out;
+	for (int i = 0; i < n; i++)
+		if (finish(g[i], t0) < 0)
+			goto out;
 	rc = 0;
 out:
-	close_placed(g, 0);
-	engine_free(g);
+	for (int i = 0; i < made; i++) {
+		close_placed(g[i], 0);
+		engine_free(g[i]);
+		free(g[i]);
+	}
+	pool_free(pool);
+	if (o->pointings) {
+		for (int i = 0; opts && i < n; i++) {
+			free((char *)opts[i].output);
+			free((char *)opts[i].placed);
+			free((char *)opts[i].report);
+		}
+		free(pt);
+	}
+	free(opts);
 	free(g);
 	return rc;
 }

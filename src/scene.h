@@ -35,6 +35,7 @@ struct scene_opts {
 	const char *output;             /* "-", a path, or a path with %d */
 	const char *placed;             /* --placed file or NULL */
 	const char *report;             /* --report JSON file or NULL */
+	const char *pointings;          /* --pointings file: one exposure a line */
 	const char *compress;           /* NULL, "none", "rice", "gzip" */
 	const char *plugin_path;
 	const char *sersic;             /* default method: "quick"/"precise" */

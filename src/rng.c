@@ -7,7 +7,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-#if defined(__x86_64__) && defined(__GNUC__)
+/* RNG_NO_AVX2 builds the portable paths only (the tests use it to check
+ * that they give the same numbers). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(RNG_NO_AVX2)
 #include <immintrin.h>
 #define RNG_AVX2 1
 #endif
@@ -446,50 +448,112 @@ double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c)
  */
 #define FILL_MAX 256
 
-struct ptrs_px {
-	double mu, b, a, vr, m_int, m_frac;
+/* The PTRS constants of FILL_MAX pixels, by column. */
+struct ptrs_cols {
+	double mu[FILL_MAX], b[FILL_MAX], a[FILL_MAX], vr[FILL_MAX];
+	double m_int[FILL_MAX], m_frac[FILL_MAX], u[FILL_MAX], v[FILL_MAX];
+	double k[FILL_MAX];
+	int64_t fast[FILL_MAX];
 };
 
-static inline void ptrs_consts(struct ptrs_px *q, double mu)
+/*
+ * The first attempt for pixels 0 .. n-1 of q (mu, u, v set): the set-up
+ * expressions of rng_poisson_setup and the first attempt of
+ * rng_poisson_draw, the same operations in the same order, so the values
+ * are equal bit for bit (IEEE arithmetic, no contraction under -std=c11).
+ * Pixels outside 10 .. 2^52 get meaningless values that the caller
+ * ignores.
+ */
+static inline void ptrs_first_one(struct ptrs_cols *q, size_t i)
 {
-	/* The expressions of rng_poisson_setup, so the values are equal. */
-	q->mu = mu;
-	q->b = 0.931 + 2.53 * sqrt(mu);
-	q->a = -0.059 + 0.02483 * q->b;
-	q->vr = 0.9277 - 3.6224 / (q->b - 2);
-	q->m_int = floor(mu);
-	q->m_frac = mu - q->m_int;
+	double b = 0.931 + 2.53 * sqrt(q->mu[i]);
+	double a = -0.059 + 0.02483 * b;
+	double vr = 0.9277 - 3.6224 / (b - 2);
+	double m_int = floor(q->mu[i]), m_frac = q->mu[i] - m_int;
+	double u = q->u[i], us = 0.5 - fabs(u);
+
+	q->b[i] = b;
+	q->a[i] = a;
+	q->vr[i] = vr;
+	q->m_int[i] = m_int;
+	q->m_frac[i] = m_frac;
+	q->k[i] = m_int + floor((2 * a / us + b) * u + m_frac + 0.43);
+	q->fast[i] = (us >= 0.07) & (q->v[i] <= vr);
 }
 
-/* The log test of rng_poisson_draw for attempt (u, v) with count k.
- * *cache holds log mu and 1/alpha of the last mean that needed them, for
- * runs of equal means (a flat sky). */
-static int ptrs_slow(const struct ptrs_px *q, double u, double v, double k,
-		     double cache[3])
+static void ptrs_first(struct ptrs_cols *q, size_t n)
 {
-	double us = 0.5 - fabs(u), j = k - q->m_int;
+	for (size_t i = 0; i < n; i++)
+		ptrs_first_one(q, i);
+}
+
+#ifdef RNG_AVX2
+/* The same, four pixels at a time; sqrt, division and floor are exactly
+ * rounded in both. */
+__attribute__((target("avx2"))) static void ptrs_first_avx2(struct ptrs_cols *q, size_t n)
+{
+	const __m256d sign = _mm256_set1_pd(-0.0);
+	size_t i = 0;
+
+	for (; i + 4 <= n; i += 4) {
+		__m256d mu = _mm256_loadu_pd(q->mu + i);
+		__m256d b = _mm256_add_pd(_mm256_set1_pd(0.931),
+					  _mm256_mul_pd(_mm256_set1_pd(2.53), _mm256_sqrt_pd(mu)));
+		__m256d a = _mm256_add_pd(_mm256_set1_pd(-0.059),
+					  _mm256_mul_pd(_mm256_set1_pd(0.02483), b));
+		__m256d vr = _mm256_sub_pd(_mm256_set1_pd(0.9277),
+					   _mm256_div_pd(_mm256_set1_pd(3.6224),
+							 _mm256_sub_pd(b, _mm256_set1_pd(2))));
+		__m256d m_int = _mm256_floor_pd(mu), m_frac = _mm256_sub_pd(mu, m_int);
+		__m256d u = _mm256_loadu_pd(q->u + i), v = _mm256_loadu_pd(q->v + i);
+		__m256d us = _mm256_sub_pd(_mm256_set1_pd(0.5), _mm256_andnot_pd(sign, u));
+		__m256d t = _mm256_add_pd(_mm256_div_pd(_mm256_mul_pd(_mm256_set1_pd(2), a), us), b);
+		__m256d j = _mm256_floor_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(t, u), m_frac),
+							  _mm256_set1_pd(0.43)));
+		__m256d fast = _mm256_and_pd(_mm256_cmp_pd(us, _mm256_set1_pd(0.07), _CMP_GE_OQ),
+					     _mm256_cmp_pd(v, vr, _CMP_LE_OQ));
+
+		_mm256_storeu_pd(q->b + i, b);
+		_mm256_storeu_pd(q->a + i, a);
+		_mm256_storeu_pd(q->vr + i, vr);
+		_mm256_storeu_pd(q->m_int + i, m_int);
+		_mm256_storeu_pd(q->m_frac + i, m_frac);
+		_mm256_storeu_pd(q->k + i, _mm256_add_pd(m_int, j));
+		_mm256_storeu_si256((__m256i *)(q->fast + i), _mm256_castpd_si256(fast));
+	}
+	for (; i < n; i++)
+		ptrs_first_one(q, i);
+}
+#endif
+
+/* The log test of rng_poisson_draw for attempt (u, v) with count k of
+ * pixel i.  cache holds log mu and 1/alpha of the last mean that needed
+ * them, for runs of equal means (a flat sky). */
+static int ptrs_slow(const struct ptrs_cols *q, size_t i, double u, double v,
+		     double k, double cache[3])
+{
+	double us = 0.5 - fabs(u), j = k - q->m_int[i];
 
 	if (!(k >= 0) || (us < 0.013 && v > us))
 		return 0;
-	if (q->mu != cache[0]) {
-		cache[0] = q->mu;
-		cache[1] = log(q->mu);
-		cache[2] = 1.1239 + 1.1328 / (q->b - 3.4);
+	if (q->mu[i] != cache[0]) {
+		cache[0] = q->mu[i];
+		cache[1] = log(q->mu[i]);
+		cache[2] = 1.1239 + 1.1328 / (q->b[i] - 3.4);
 	}
-	return log(v * cache[2] * us * us / (q->a + q->b * us * us)) <=
-	       poisson_logpmf(k, q->mu, cache[1], j - q->m_frac);
+	return log(v * cache[2] * us * us / (q->a[i] + q->b[i] * us * us)) <=
+	       poisson_logpmf(k, q->mu[i], cache[1], j - q->m_frac[i]);
 }
 
 void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 		      const double *mu, double *out)
 {
 	uint32_t w[FILL_MAX][4];
-	struct ptrs_px q[FILL_MAX];
-	double uu[FILL_MAX], vv[FILL_MAX];
+	struct ptrs_cols q;
 	uint16_t pend[FILL_MAX], next[FILL_MAX];
 	struct rng_poisson other = { .mu = -1 };
 	double cache[3] = { -1, 0, 0 };
-	size_t np = 0;
+	size_t np = 0, nptrs = 0;
 
 	if (n > FILL_MAX) {
 		for (size_t i = 0; i < n; i += FILL_MAX)
@@ -499,7 +563,21 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 	}
 	rng_bits_n(g, cell0, 0, n, w);
 	for (size_t i = 0; i < n; i++) {
-		double m = mu[i];
+		q.mu[i] = mu[i];
+		q.u[i] = rng_u01(w[i][0], w[i][1]) - 0.5;
+		q.v[i] = rng_u01(w[i][2], w[i][3]);
+		nptrs += (mu[i] >= 10) & (mu[i] <= RNG_POISSON_EXACT_MAX);
+	}
+	if (nptrs) {
+#ifdef RNG_AVX2
+		if (__builtin_cpu_supports("avx2"))
+			ptrs_first_avx2(&q, n);
+		else
+#endif
+			ptrs_first(&q, n);
+	}
+	for (size_t i = 0; i < n; i++) {
+		double m = q.mu[i];
 
 		if (!(m >= 10) || m > RNG_POISSON_EXACT_MAX) {
 			struct rng_cell c;
@@ -516,22 +594,9 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 			out[i] = rng_poisson_draw(&other, &c);
 			continue;
 		}
-		{
-			double u = rng_u01(w[i][0], w[i][1]) - 0.5;
-			double v = rng_u01(w[i][2], w[i][3]);
-			double us = 0.5 - fabs(u);
-			double j;
-			int fast;
-
-			ptrs_consts(&q[i], m);
-			j = floor((2 * q[i].a / us + q[i].b) * u + q[i].m_frac + 0.43);
-			out[i] = q[i].m_int + j;
-			uu[i] = u;
-			vv[i] = v;
-			fast = (us >= 0.07) & (v <= q[i].vr);
-			pend[np] = (uint16_t)i;
-			np += !fast;
-		}
+		out[i] = q.k[i];
+		pend[np] = (uint16_t)i;
+		np += !q.fast[i];
 	}
 	/* The log test for attempt 0, then whole attempts 1, 2, ... */
 	for (uint32_t draw = 1; np; draw++) {
@@ -540,7 +605,7 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 		for (size_t t = 0; t < np; t++) {
 			size_t i = pend[t];
 
-			if (!ptrs_slow(&q[i], uu[i], vv[i], out[i], cache))
+			if (!ptrs_slow(&q, i, q.u[i], q.v[i], out[i], cache))
 				next[nn++] = (uint16_t)i;
 		}
 		np = 0;
@@ -553,11 +618,11 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 			u = rng_u01(b[0], b[1]) - 0.5;
 			v = rng_u01(b[2], b[3]);
 			us = 0.5 - fabs(u);
-			out[i] = q[i].m_int + floor((2 * q[i].a / us + q[i].b) * u +
-						    q[i].m_frac + 0.43);
-			uu[i] = u;
-			vv[i] = v;
-			if (!(us >= 0.07 && v <= q[i].vr))
+			out[i] = q.m_int[i] + floor((2 * q.a[i] / us + q.b[i]) * u +
+						    q.m_frac[i] + 0.43);
+			q.u[i] = u;
+			q.v[i] = v;
+			if (!(us >= 0.07 && v <= q.vr[i]))
 				pend[np++] = (uint16_t)i;
 		}
 	}

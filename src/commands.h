@@ -8,5 +8,6 @@
 
 int psf_main(int argc, char **argv);       /* wfiscene psf: write PSF grids */
 int preview_main(int argc, char **argv);   /* wfiscene preview: PNG images */
+int merge_main(int argc, char **argv);     /* wfiscene merge: join split runs */
 
 #endif

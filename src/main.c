@@ -281,6 +281,8 @@ int main(int argc, char **argv)
 		return psf_main(argc - 1, argv + 1);
 	if (argc > 1 && !strcmp(argv[1], "preview"))
 		return preview_main(argc - 1, argv + 1);
+	if (argc > 1 && !strcmp(argv[1], "merge"))
+		return merge_main(argc - 1, argv + 1);
 	if (instrument_init(&e) < 0)
 		return fail(&e);
 

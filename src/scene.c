@@ -108,6 +108,7 @@ struct engine {
 
 	double *fx, *fy, *px, *py, *reach;
 	uint32_t *cand;
+	unsigned char *near;            /* the row reaches some SCA */
 	size_t cap_rows;
 
 	struct batch b[2];
@@ -532,8 +533,10 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    !(g->px = realloc(g->px, g->cap_rows * sizeof(double))) ||
 	    !(g->py = realloc(g->py, g->cap_rows * sizeof(double))) ||
 	    !(g->reach = realloc(g->reach, g->cap_rows * sizeof(double))) ||
-	    !(g->cand = realloc(g->cand, g->cap_rows * sizeof(uint32_t))))
+	    !(g->cand = realloc(g->cand, g->cap_rows * sizeof(uint32_t))) ||
+	    !(g->near = realloc(g->near, g->cap_rows)))
 		return err_sys(g->e, "rows");
+	memset(g->near, 0, r->n);
 	sky_to_focal(&g->sky, r->n, r->ra, r->dec, g->fx, g->fy);
 	g->sersic_flux_now = g->o->sersic_flux ? g->o->sersic_flux
 			   : r->sersic_ie ? "ie" : "total";
@@ -586,10 +589,10 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 			if (isnan(r->ra[i]))
 				continue;
 			lim = SKY_SCA_HALF + g->reach[i] + 2.0;
-			if (fabs(g->fx[i] - ss->fx) < lim && fabs(g->fy[i] - ss->fy) < lim)
+			if (fabs(g->fx[i] - ss->fx) < lim && fabs(g->fy[i] - ss->fy) < lim) {
 				g->cand[nc++] = i;
-			else if (s == 0)
-				g->culled++;
+				g->near[i] = 1;         /* near some SCA: not culled */
+			}
 		}
 		for (size_t k = 0; k < nc; k++) {
 			g->px[k] = r->ra[g->cand[k]];
@@ -624,6 +627,8 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 				goto out;
 		}
 	}
+	for (size_t i = 0; i < r->n; i++)
+		g->culled += !isnan(r->ra[i]) && !g->near[i];
 	for (size_t i = 0; i < b->n; i++)
 		b->p[i].src.param = b->param + b->p[i].param_off;
 	rc = 0;
@@ -1065,7 +1070,7 @@ static void engine_free(struct engine *g)
 		free(g->b[i].items);
 		free(g->b[i].active);
 	}
-	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand);
+	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->near);
 	sky_free(&g->sky);
 	pthread_mutex_destroy(&g->err_mu);
 }

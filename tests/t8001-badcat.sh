@@ -1,0 +1,205 @@
+#!/bin/sh
+# The bad-catalog corpus, one test per case through the command line.
+#
+# tests/corpus/bad/* are stored catalogs that must be refused with the
+# message and exit status of wfiscene-catalog(5) DIAGNOSTICS and
+# wfiscene(1) EXIT STATUS; tests/corpus/good/* are odd but valid catalogs
+# that must render.  Cases that are large, binary or made by a tool (long
+# lines, truncated and corrupt zstd and gzip streams, FITS tables with
+# the wrong column types) are made here.  Every refused run must leave
+# neither the output file nor a temporary .out.fits.* behind, and must
+# end by exit(), never by a signal.
+. "$(dirname "$0")/lib.sh"
+
+CORPUS=$TOP/tests/corpus
+
+# refused FILE STATUS MESSAGE: run FILE (a path) in a fresh directory;
+# exit status STATUS, "wfiscene: NAME" and MESSAGE (fixed text) on stderr,
+# nothing left in the directory but the catalog.
+refused() {
+	file=$1 status=$2 msg=$3
+	name=$(basename "$file")
+	test_expect_success "refused ($status): $name: $msg" '
+		d=$(mktemp -d "$TRASH/run.XXXXXX") && cp "$file" "$d/$name" && cd "$d" &&
+		test_must_fail --status $status "$WFS" --filter F129 --ra 270 --dec -30 \
+			-o out.fits "$name" 2>err &&
+		test_grep "^wfiscene: $name" err &&
+		grep -F -e "$msg" err >/dev/null || { cat err; false; } &&
+		test "$(ls -A | grep -v -x -e "$name" -e err)" = ""
+	'
+}
+
+# accepted FILE: renders, and leaves out.fits and nothing else.
+accepted() {
+	file=$1
+	name=$(basename "$file")
+	test_expect_success "accepted: $name" '
+		d=$(mktemp -d "$TRASH/run.XXXXXX") && cp "$file" "$d/$name" && cd "$d" &&
+		"$WFS" --filter F129 --ra 270 --dec -30 -o out.fits "$name" &&
+		test -s out.fits &&
+		test "$(ls -A | grep -v -x -e "$name" -e out.fits)" = ""
+	'
+}
+
+B=$CORPUS/bad
+refused $B/no-flux.csv 1 ":1: no flux column: need 'flux' or 'mag'"
+refused $B/header-no-flux.csv 1 ":1: no flux column"
+refused $B/no-position.csv 1 ":1: no position columns: need 'ra' and 'dec', or 'x' and 'y'"
+refused $B/ra-without-dec.csv 1 ":1: column 'ra' without 'dec'"
+refused $B/x-without-y.csv 1 ":1: column 'x' without 'y'"
+refused $B/duplicate-column.csv 1 ":1: duplicate column 'flux' (columns 3 and 4)"
+refused $B/empty-column-name.csv 1 ":1: empty column name (column 2)"
+refused $B/not-a-number.csv 1 ":3: column 'flux': not a number: 'abc'"
+refused $B/trailing-junk.csv 1 ":2: column 'flux': not a number: '100abc'"
+refused $B/hex-float.csv 1 ":2: column 'flux': not a number: '0x1p4'"
+refused $B/nan.csv 1 ":2: column 'flux': not a finite number: 'NaN'"
+refused $B/inf.csv 1 ":2: column 'flux': not a finite number: 'inf'"
+refused $B/minus-inf-dec.csv 1 ":2: column 'dec': not a finite number: '-Infinity'"
+refused $B/overflow.csv 1 ":2: column 'flux': not a finite number: '1e999'"
+refused $B/empty-value.csv 1 ":2: column 'flux': empty value"
+refused $B/negative-flux.csv 1 ":2: column 'flux': flux must be positive: '-5'"
+refused $B/tiny-negative-flux.csv 1 ":2: column 'flux': flux must be positive: '-1e-300'"
+refused $B/zero-flux.csv 1 ":2: column 'flux': flux must be positive: '0'"
+refused $B/mag-99.csv 1 ":2: column 'mag': magnitude out of range [-20, 50]: '99'"
+refused $B/mag-bright.csv 1 ":2: column 'mag': magnitude out of range [-20, 50]: '-25'"
+refused $B/abmag-flux.csv 1 ":3: column 'flux': magnitude out of range [-20, 50]: '75'"
+refused $B/dec-range.csv 1 ":2: column 'dec': out of range [-90, 90]: '-91'"
+refused $B/sca-range.csv 1 ":2: column 'sca': not an SCA (1 to 18): '19'"
+refused $B/sca-zero.csv 1 ":2: column 'sca': not an SCA (1 to 18): '0'"
+refused $B/id-not-integer.csv 1 ":2: column 'id': not an integer: '1.5'"
+refused $B/unknown-unit.csv 1 ":2: column 'units': unknown unit 'furlong' (want c, j, p, e or m)"
+refused $B/unknown-fluxunit.csv 1 ": metadata 'fluxunit': unknown unit 'furlongs' (want counts, abmag or jy)"
+refused $B/unknown-type.csv 1 ": unknown catalog type 'bogus' (want internal, mixed, multifilter or generic)"
+refused $B/phoenix-type.tbl 1 ": catalog type 'phoenix' needs stellar or galaxy spectra"
+refused $B/internal-no-filter.tbl 1 ": catalog type 'internal' needs metadata 'filter'"
+refused $B/mixed-missing-units.tbl 1 "catalog type 'mixed' needs a 'units' column"
+refused $B/multifilter-no-column.tbl 1 "catalog type 'multifilter' has no column 'F129' for the scene's filter"
+refused $B/unknown-model.csv 1 ":2: unknown source type 'comet'"
+refused $B/too-many-fields.csv 1 ":2: row has 4 fields, the header has 3"
+refused $B/too-few-fields.csv 1 ":2: row has 2 fields, the header has 3"
+refused $B/unterminated-quote.csv 1 ":2: unterminated quoted field"
+refused $B/lone-cr.csv 1 ":1: stray carriage return (lines must end in LF or CRLF)"
+refused $B/cr-in-middle.csv 1 ":3: stray carriage return"
+refused $B/nul-byte.csv 1 ":2: binary data: byte 0x00 at byte 10 of the line"
+refused $B/control-byte.csv 1 ":2: binary data: byte 0x1b at byte 12 of the line"
+refused $B/invalid-utf8.csv 1 ":2: invalid UTF-8 at byte 16 of the line"
+refused $B/overlong-utf8.csv 1 ":2: invalid UTF-8 at byte 13 of the line"
+refused $B/png-garbage.csv 1 ":1: invalid UTF-8 at byte 1 of the line"
+refused $B/ipac-after-pipe.tbl 1 ":2: data beyond the last column"
+
+# Every stored case has its test above.
+test_expect_success 'every file of tests/corpus/bad has a test in this script' '
+	for f in "$B"/*; do
+		grep -q "^refused \$B/$(basename "$f") " "$TOP/tests/t8001-badcat.sh" ||
+			{ echo "no test for $f"; exit 1; }
+	done
+'
+
+for f in "$CORPUS"/good/*; do accepted "$f"; done
+
+# Made here: too large, binary, or made by a tool.
+G=$TRASH/gen
+mkdir "$G"
+{ printf 'ra,dec,flux,notes\n270,-30,100,'; head -c 17000000 /dev/zero | tr '\0' a; echo; } > "$G/line-17MiB.csv"
+refused "$G/line-17MiB.csv" 1 ":2: line longer than 16 MiB"
+# Longer than the 8 MiB read buffer, shorter than the 16 MiB limit: fine.
+{ printf 'ra,dec,flux,notes\n270,-30,100,'; head -c 9000000 /dev/zero | tr '\0' b; echo; } > "$G/line-9MiB.csv"
+accepted "$G/line-9MiB.csv"
+# A header line longer than any buffer.
+{ head -c 17000000 /dev/zero | tr '\0' c; echo; } > "$G/header-17MiB.csv"
+refused "$G/header-17MiB.csv" 1 ":1: line longer than 16 MiB"
+head -c 300 "$WFS" > "$G/executable.csv"
+refused "$G/executable.csv" 1 ":1: binary data: byte 0x7f at byte 1 of the line"
+
+seq 1 20000 | sed 's/.*/270,-30,&/' | sed '1i ra,dec,flux' > "$G/many.csv"
+zstd -q -c "$G/many.csv" > "$G/many.csv.zst"
+gzip -n -c "$G/many.csv" > "$G/many.csv.gz"
+head -c 3000 "$G/many.csv.zst" > "$G/cut.zst"
+head -c 3000 "$G/many.csv.gz" > "$G/cut.gz"
+refused "$G/cut.zst" 1 ": truncated zstd stream (input ends inside a frame)"
+refused "$G/cut.gz" 1 ": truncated gzip stream (input ends inside a member)"
+printf '\050\265\057\375' > "$G/magic-only.zst"
+printf '\037\213' > "$G/magic-only.gz"
+refused "$G/magic-only.zst" 1 ": truncated zstd stream"
+refused "$G/magic-only.gz" 1 ": truncated gzip stream"
+# A good frame followed by a cut one: concatenated streams are one stream.
+{ cat "$G/many.csv.zst"; head -c 100 "$G/many.csv.zst"; } > "$G/second-cut.zst"
+refused "$G/second-cut.zst" 1 ": truncated zstd stream"
+{ cat "$G/many.csv.gz"; head -c 100 "$G/many.csv.gz"; } > "$G/second-cut.gz"
+refused "$G/second-cut.gz" 1 ": truncated gzip stream"
+# Corrupt: bytes flipped inside the compressed data and the gzip CRC.
+flip() { # flip FILE OFFSET: invert one byte in place
+	b=$(od -An -tu1 -j "$2" -N1 "$1" | tr -d ' ')
+	printf "\\$(printf %03o $((255 - b)))" | dd of="$1" bs=1 seek="$2" conv=notrunc 2>/dev/null
+}
+cp "$G/many.csv.zst" "$G/flipped.zst" && flip "$G/flipped.zst" 1000
+cp "$G/many.csv.gz" "$G/flipped.gz" && flip "$G/flipped.gz" 1000
+refused "$G/flipped.zst" 1 ": corrupt zstd stream"
+refused "$G/flipped.gz" 1 ": corrupt gzip stream"
+printf 'ra,dec,flux\n270,-30,100\n' | gzip -n -c > "$G/crc.gz"
+n=$(wc -c < "$G/crc.gz") && flip "$G/crc.gz" $((n - 8))
+refused "$G/crc.gz" 1 ": corrupt gzip stream: incorrect data check"
+# Compressed garbage: the decoder is fine, the text is not.
+head -c 300 "$WFS" | zstd -q -c > "$G/elf.zst"
+refused "$G/elf.zst" 1 ":1: binary data: byte 0x7f at byte 1 of the line"
+test_expect_success 'a truncated stream on stdin: status 1, <stdin> named, no output' '
+	d=$(mktemp -d "$TRASH/run.XXXXXX") && cd "$d" &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o out.fits - < "$G/cut.zst" 2>err &&
+	test_grep "<stdin>: truncated zstd stream" err && test "$(ls -A)" = err
+'
+test_expect_success 'a missing catalog: status 2, cannot open' '
+	d=$(mktemp -d "$TRASH/run.XXXXXX") && cd "$d" &&
+	test_must_fail --status 2 "$WFS" --filter F129 -o out.fits nosuch.csv 2>err &&
+	test_grep "nosuch.csv: cannot open" err && test "$(ls -A)" = err
+'
+test_expect_success 'a directory as catalog: status 2, read error' '
+	d=$(mktemp -d "$TRASH/run.XXXXXX") && cd "$d" && mkdir cat.csv &&
+	test_must_fail --status 2 "$WFS" --filter F129 -o out.fits cat.csv 2>err &&
+	test_grep "cat.csv: read error: Is a directory" err &&
+	test "$(ls -A | sort | tr "\n" " ")" = "cat.csv err "
+'
+test_expect_success 'a good catalog then a bad one: no output at all' '
+	d=$(mktemp -d "$TRASH/run.XXXXXX") && cd "$d" &&
+	cp "$CORPUS/good/crlf.csv" "$B/nan.csv" . &&
+	test_must_fail --status 1 "$WFS" --filter F129 --ra 270 --dec -30 -o out.fits \
+		--placed placed.csv crlf.csv nan.csv 2>err &&
+	test_grep "nan.csv:2: column .flux.: not a finite number" err &&
+	test "$(ls -A | sort | tr "\n" " ")" = "crlf.csv err nan.csv "
+'
+
+# FITS tables with the wrong column types (astropy writes them).
+if have_python; then
+	"$PY" - "$G" <<-\EOF
+	import sys, numpy as np
+	from astropy.table import Table
+	from astropy.io import fits
+	d = sys.argv[1]
+	Table({"ra": ["270.0"], "dec": [-30.0], "flux": [100.0]}).write(d + "/str-ra.fits")
+	Table({"ra": [270.0], "dec": [-30.0], "flux": ["100"]}).write(d + "/str-flux.fits")
+	Table({"ra": [270.0], "dec": [-30.0], "flux": [[100.0, 2.0]]}).write(d + "/vector-flux.fits")
+	fits.PrimaryHDU(np.zeros((4, 4), dtype=np.float32)).writeto(d + "/image.fits")
+	c = fits.Column(name="flux", format="C", array=np.array([1 + 2j]))
+	fits.BinTableHDU.from_columns([fits.Column(name="ra", format="D", array=[270.0]),
+		fits.Column(name="dec", format="D", array=[-30.0]), c]).writeto(d + "/complex-flux.fits")
+	Table({"ra": [270.0], "dec": [np.nan], "flux": [100.0]}).write(d + "/nan-dec.fits")
+	Table({"ra": [270.0], "dec": [-30.0], "flux": [-1.0]}).write(d + "/neg-flux.fits")
+	EOF
+	refused "$G/str-ra.fits" 1 ": column 'ra' is a string column, not a number"
+	refused "$G/str-flux.fits" 1 ": column 'flux' is a string column, not a number"
+	refused "$G/vector-flux.fits" 1 "column 'flux': vector column (2 values per row) is not supported"
+	refused "$G/image.fits" 1 ": no table in this FITS file"
+	refused "$G/complex-flux.fits" 1 "column 'flux'"
+	refused "$G/nan-dec.fits" 1 "[1]:1: column 'dec': not a finite number"
+	refused "$G/neg-flux.fits" 1 "[1]:1: column 'flux': flux must be positive"
+	head -c 4000 "$G/str-ra.fits" > "$G/cut.fits"
+	test_expect_success 'refused: a truncated FITS table, status 1 or 2, named, no output' '
+		d=$(mktemp -d "$TRASH/run.XXXXXX") && cd "$d" &&
+		"$WFS" --filter F129 -o out.fits "$G/cut.fits" 2>err; rc=$? &&
+		{ test $rc -eq 1 || test $rc -eq 2; } &&
+		test_grep "cut.fits" err && test "$(ls -A)" = err
+	'
+else
+	test_skip 'FITS tables with wrong column types' 'no python3 with astropy'
+fi
+
+test_done

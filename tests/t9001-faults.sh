@@ -1,0 +1,195 @@
+#!/bin/sh
+# Faults: signals while reading a slow stdin and while writing, outputs that
+# cannot be written, a broken pipe, an unusable PSF cache or PSF file.  Each
+# run reports what happened, exits non-zero with the documented status, and
+# leaves no partial output (nor a temporary .NAME.*) under the requested
+# names.  Disk full is in t4100/t4200, plugin failures in t7020, bad
+# catalogs in t8001.
+. "$(dirname "$0")/lib.sh"
+
+# nothing_left [NAME...]: the current directory holds none of NAME (default
+# out.fits, placed.csv, report.json) nor a temporary of them.
+nothing_left() {
+	[ $# -gt 0 ] || set -- out.fits placed.csv report.json
+	for n in "$@"; do
+		if ls -A | grep -q -e "^$n\$" -e "^\.$n\."; then
+			echo "left behind: $(ls -A | grep -e "$n")" >&2; return 1
+		fi
+	done
+}
+
+printf 'x,y,flux\n1000,1000,500\n1100,1200,50\n' > two.csv
+
+# samedata A B: the same PSF planes (the headers differ in their dates).
+samedata() {
+	if have_python; then "$PY" -c '
+import sys; from astropy.io import fits; import numpy as np
+a, b = (fits.getdata(f) for f in sys.argv[1:3])
+sys.exit(0 if a.shape == b.shape and np.array_equal(a, b) else 1)' "$1" "$2"
+	else test -s "$1" && test -s "$2"; fi
+}
+
+# signal_reading SIG: wfiscene reads a FIFO that has sent the header and
+# a few rows and then stays open; SIG arrives while it waits for more.
+signal_reading() {
+	sig=$1
+	d=$TRASH/read-$sig && mkdir "$d" && cd "$d" || return 1
+	mkfifo in
+	"$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits --placed placed.csv \
+		--report report.json < in 2> err &
+	pid=$!
+	exec 3> in
+	printf 'x,y,flux\n1000,1000,500\n' >&3
+	sleep 1
+	kill -s "$sig" $pid
+	wait $pid
+	rc=$?
+	exec 3>&-
+	test $rc -eq 4 || { echo "exit $rc, want 4" >&2; cat err >&2; return 1; }
+	test_grep "interrupted" err && nothing_left
+}
+for sig in INT TERM HUP; do
+	test_expect_success "SIG$sig while reading a slow stdin: exit 4, nothing left" \
+		"signal_reading $sig"
+done
+
+test_expect_success 'SIGINT while reading keeps an existing output file' '
+	d=$TRASH/keep && mkdir "$d" && cd "$d" &&
+	"$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits ../two.csv &&
+	cp out.fits before.fits && mkfifo in &&
+	{ "$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits < in 2> err & } &&
+	pid=$! && exec 3> in && printf "x,y,flux\n" >&3 && sleep 1 &&
+	kill -INT $pid; wait $pid; rc=$?; exec 3>&-
+	test $rc -eq 4 && cmp before.fits out.fits && test -z "$(ls -A | grep "^\.out")"
+'
+
+# signal_writing SIG: 6 SCAs with noise take long enough to write that the
+# signal arrives once the temporary file exists.
+signal_writing() {
+	sig=$1
+	d=$TRASH/write-$sig && mkdir "$d" && cd "$d" || return 1
+	"$WFS" --filter F129 --sca 1-6 --psf "$PSF" --noise all --threads 1 \
+		-o out.fits --placed placed.csv ../two.csv 2> err &
+	pid=$!
+	seen=
+	i=0
+	while [ $i -lt 3000 ] && kill -0 $pid 2>/dev/null; do
+		if ls -A | grep -q '^\.out\.fits\.'; then kill -s "$sig" $pid && seen=1; break; fi
+		sleep 0.01
+		i=$((i + 1))
+	done
+	wait $pid
+	rc=$?
+	if [ -z "$seen" ]; then echo "# finished before the signal" >&2; return 0; fi
+	test $rc -eq 4 || { echo "exit $rc, want 4" >&2; cat err >&2; return 1; }
+	test_grep "interrupted" err && nothing_left
+}
+for sig in INT TERM; do
+	test_expect_success "SIG$sig while writing: exit 4, nothing left" "signal_writing $sig"
+done
+
+test_expect_success 'output in a directory that does not exist: exit 2, named' '
+	test_must_fail --status 2 "$WFS" --filter F129 --psf "$PSF" -o no/such/out.fits two.csv 2> err &&
+	test_grep "no/such/out.fits" err && ! test -e no
+'
+test_expect_success 'output name is a directory: refused up front (1), untouched' '
+	d=$TRASH/isdir && mkdir "$d" && cd "$d" && mkdir out.fits &&
+	test_must_fail --status 1 "$WFS" --filter F129 --psf "$PSF" -o out.fits ../two.csv 2> err &&
+	test_grep "out.fits: is a directory" err && test -d out.fits && test -z "$(ls -A out.fits)" &&
+	test "$(ls -A | sort | tr "\n" " ")" = "err out.fits "
+'
+test_expect_success '--placed in an unwritable place: exit 2, no image either' '
+	d=$TRASH/placed && mkdir "$d" && cd "$d" &&
+	test_must_fail --status 2 "$WFS" --filter F129 --psf "$PSF" -o out.fits \
+		--placed no/such/placed.csv ../two.csv 2> err &&
+	test_grep "placed.csv" err && nothing_left out.fits
+'
+test_expect_success 'a broken pipe on stdout: exit 2 and a message' '
+	{ "$WFS" --filter F129 --psf "$PSF" --sca 1-3 -o - two.csv 2> err; echo $? > rc; } |
+		head -c 100 > /dev/null &&
+	test "$(cat rc)" = 2 && test_grep "<stdout>: write error: Broken pipe" err
+'
+
+# Permissions do not stop root; run those cases as nobody when we are root.
+as_user=
+if [ "$(id -u)" = 0 ]; then
+	if command -v setpriv > /dev/null &&
+		setpriv --reuid=nobody --regid=nogroup --clear-groups "$WFS" --version > /dev/null 2>&1; then
+		as_user="setpriv --reuid=nobody --regid=nogroup --clear-groups"
+		chmod 755 "$TRASH"
+	fi
+fi
+if [ "$(id -u)" != 0 ] || [ -n "$as_user" ]; then
+	test_expect_success 'unwritable output directory: exit 2, the cause, nothing left' '
+		d=$TRASH/ro && mkdir "$d" && cp two.csv "$d" && chmod 555 "$d" && cd "$d" &&
+		test_must_fail --status 2 $as_user "$WFS" --filter F129 --psf "$PSF" \
+			-o out.fits two.csv 2> "$TRASH/err" &&
+		test_grep "out.fits: cannot create temporary file .*Permission denied" "$TRASH/err" &&
+		test "$(ls -A)" = two.csv
+	'
+	# The cache tests run `wfiscene psf` with cheap settings (t2100's):
+	# same cache code, seconds instead of minutes.
+	cheap='--filter F158 --sca 3 --nwave 2 --pupil-n 128'
+	test_expect_success 'PSF cache directory unreadable and unwritable: still works' '
+		c=$TRASH/cache-000 && mkdir -p "$c" && chmod 755 "$TRASH" &&
+		WFISCENE_CACHE=$c "$WFS" psf $cheap -o "$TRASH/ref.fits" && chmod 000 "$c" &&
+		chmod 777 "$TRASH" &&
+		WFISCENE_CACHE=$c $as_user "$WFS" psf $cheap -o "$TRASH/u1.fits" 2> err &&
+		samedata "$TRASH/ref.fits" "$TRASH/u1.fits"
+	'
+	test_expect_success 'a PSF cache file that cannot be read: rebuilt, same grid' '
+		c=$TRASH/cache-file && mkdir -p "$c" && chmod 777 "$c" &&
+		WFISCENE_CACHE=$c "$WFS" psf $cheap -o "$TRASH/r2.fits" &&
+		chmod 000 "$c"/*.fits && chmod 777 "$TRASH" &&
+		WFISCENE_CACHE=$c $as_user "$WFS" psf $cheap -v -o "$TRASH/u2.fits" 2> err &&
+		test_grep "built" err && samedata "$TRASH/r2.fits" "$TRASH/u2.fits"
+	'
+else
+	test_skip 'unwritable output directory and unreadable cache' 'root without setpriv'
+fi
+
+test_expect_success 'PSF cache path is a regular file: still works, same grid' '
+	cheap="--filter F158 --sca 3 --nwave 2 --pupil-n 128" &&
+	: > notadir && WFISCENE_CACHE=$TRASH/notadir "$WFS" psf $cheap -o a.fits &&
+	WFISCENE_CACHE=$TRASH/notadir/sub "$WFS" psf $cheap -o b.fits &&
+	"$WFS" psf $cheap --no-cache -o c.fits && samedata a.fits c.fits && samedata b.fits c.fits &&
+	test ! -s notadir
+'
+test_expect_success 'a PSF cache file replaced by a directory: rebuilt, same grid' '
+	cheap="--filter F158 --sca 3 --nwave 2 --pupil-n 128" && c=$TRASH/cache-dir &&
+	WFISCENE_CACHE=$c "$WFS" psf $cheap -o a.fits &&
+	f=$(ls "$c"/*.fits) && rm "$f" && mkdir "$f" &&
+	WFISCENE_CACHE=$c "$WFS" psf $cheap -v -o b.fits 2> err &&
+	test_grep "built" err && samedata a.fits b.fits
+'
+test_expect_success 'a scene with an unusable PSF cache still renders' '
+	d=$TRASH/scene-cache && mkdir "$d" && cd "$d" && : > cachefile &&
+	"$WFS" --filter F129 --sca 1 --psf-cache "$d/cachefile/x" -o out.fits ../two.csv &&
+	test -s out.fits && test ! -s cachefile
+'
+
+test_expect_success '--psf naming a missing file: an error, no output' '
+	d=$TRASH/psf-missing && mkdir "$d" && cd "$d" &&
+	test_must_fail "$WFS" --filter F129 --psf nosuch.fits -o out.fits ../two.csv 2> err &&
+	test_grep "nosuch.fits" err && nothing_left
+'
+test_expect_success '--psf naming a file that is not a PSF grid: an error, no output' '
+	d=$TRASH/psf-bad && mkdir "$d" && cd "$d" &&
+	printf "SIMPLE  = garbage\n" > bad.fits && cp ../two.csv notfits.fits &&
+	test_must_fail "$WFS" --filter F129 --psf bad.fits -o out.fits ../two.csv 2> err &&
+	test_grep "bad.fits" err && nothing_left &&
+	test_must_fail "$WFS" --filter F129 --psf notfits.fits -o out.fits ../two.csv 2> err &&
+	test_grep "notfits.fits" err && nothing_left
+'
+if have_python; then
+	test_expect_success '--psf naming an image without DET_YX keywords: an error, no output' '
+		d=$TRASH/psf-nokeys && mkdir "$d" && cd "$d" &&
+		"$PY" -c "
+import numpy as np; from astropy.io import fits
+fits.PrimaryHDU(np.ones((9, 17, 17), dtype=np.float32)).writeto(\"plain.fits\")" &&
+		test_must_fail "$WFS" --filter F129 --psf plain.fits -o out.fits ../two.csv 2> err &&
+		test_grep "plain.fits" err && nothing_left
+	'
+fi
+
+test_done

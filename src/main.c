@@ -419,11 +419,18 @@ int main(int argc, char **argv)
 			if (number(c, optarg, 0, 1, &o.cosmic_residual, &e) < 0)
 				return fail(&e);
 			break;
-		case OPT_SEED:
-			if (integer(c, optarg, 0, LLONG_MAX, &n, &e) < 0)
+		case OPT_SEED: {
+			char *end;
+
+			errno = 0;
+			o.seed = strtoull(optarg, &end, 10);
+			if (end == optarg || *end || errno || optarg[0] == '-') {
+				err_set(&e, EXIT_INPUT, "--seed: not an integer from 0 to "
+					"18446744073709551615: '%s'", optarg);
 				return fail(&e);
-			o.seed = (uint64_t)n;
+			}
 			break;
+		}
 		case OPT_THREADS:
 			if (integer(c, optarg, 0, 1024, &n, &e) < 0)
 				return fail(&e);

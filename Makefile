@@ -155,4 +155,13 @@ clean:
 help:
 	@sed -n 's/^## //p' $(MAKEFILE_LIST)
 
-.PHONY: all deps check unit demo bench fuzz lint-man install clean help
+.PHONY: all deps check unit demo bench fuzz lint-man install clean help validate
+
+## validate: the paper's 1000-star photometry test and the load tests (slow)
+validate: all
+	$(Q)WFISCENE_CACHE=$${WFISCENE_CACHE:-$(B)/test-cache} /usr/bin/python3 \
+		tests/validate/photometry.py --n 1000 --seed 1 --wfs $(B)/wfiscene \
+		--dir $(B)/validate --table $(B)/validate/table.md \
+		--plot tests/validate/photometry.png --json $(B)/validate/summary.json
+	$(Q)cat $(B)/validate/table.md
+	$(Q)WFS_BUILD=$(B) sh tests/validate/load.sh

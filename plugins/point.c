@@ -43,119 +43,355 @@
 #include "wfiscene/model.h"
 
 /* Polyphase copies of the ePSF nodes, found by the node's address (the
- * host's arrays stay put until fini).  Open addressing, never removed. */
-#define POLY_SLOTS 2048
+ * host's arrays stay put until fini), and of blended cells, found by an odd
+ * key (node addresses are even).  Open addressing, never removed. */
+#define POLY_SLOTS 8192
 #define MAX_ROW 1024            /* widest window row handled in one pass */
+/* Planes carry PAD zero samples on each side, so that the Keys taps (one
+ * sample before, two after) of any pixel inside the box stay inside the
+ * plane and read zeros beyond the ePSF, and no pixel needs a range test. */
+#define PAD 2
+
+/* Eight floats, loaded and stored unaligned: the row sums below are written
+ * with GCC's vector extension so that a 44-pixel row is 6 steps with no
+ * alignment prologue or scalar tail (rows are summed to a multiple of 8
+ * into acc[]; the planes carry VSLACK floats so the last step can read on). */
+typedef float v8f __attribute__((vector_size(32), aligned(4), may_alias));
+#define VSLACK 8
+
+#define SPLAT(f) ((v8f){ (f), (f), (f), (f), (f), (f), (f), (f) })
 
 struct poly {
-	const float *node;      /* key */
-	int n, over, m;         /* m = samples per phase plane side */
+	uint64_t key;
+	int n, over, centre, m; /* m = samples per phase plane side, padded */
 	float *plane;           /* over * over planes of m x m */
+	int nee;                /* centre / over */
+	double *ee;             /* ee[h], h = 1..nee: see ee_table() */
 };
+
+enum { INTERP_BILINEAR, INTERP_CORE, INTERP_BICUBIC };
+enum { BLEND_SOURCE, BLEND_CELL };
 
 struct point {
 	const struct wfs_host *host;
+	int interp;             /* psf-interp */
 	double core;            /* radius of the bicubic core, pixels */
+	int adaptive;           /* psf-box=adaptive */
+	double box_noise;       /* psf-box-noise: fraction of the box's noise */
+	double sigma;           /* noise per pixel, counts/s (psf-box-sigma) */
+	int blend;              /* psf-blend */
+	int cell;               /* psf-cell: side of a blended cell, pixels */
 	struct poly slot[POLY_SLOTS];
 };
 
-static size_t poly_hash(const float *node)
+static size_t poly_hash(uint64_t key)
 {
-	uintptr_t h = (uintptr_t)node;
+	uint64_t h = key;
 
 	h ^= h >> 17;
 	h *= 0x9e3779b97f4a7c15ULL;
-	return (h >> 20) & (POLY_SLOTS - 1);
+	return (size_t)(h >> 20) & (POLY_SLOTS - 1);
 }
 
-static const struct poly *poly_find(const struct point *p, const float *node)
+static const struct poly *poly_find(const struct point *p, uint64_t key)
 {
-	for (size_t i = poly_hash(node), k = 0; k < POLY_SLOTS; k++, i = (i + 1) & (POLY_SLOTS - 1)) {
-		if (p->slot[i].node == node)
+	for (size_t i = poly_hash(key), k = 0; k < POLY_SLOTS; k++, i = (i + 1) & (POLY_SLOTS - 1)) {
+		if (p->slot[i].key == key)
 			return &p->slot[i];
-		if (!p->slot[i].node)
+		if (!p->slot[i].key)
 			return NULL;
 	}
 	return NULL;
 }
 
-/* Make the polyphase copy of a node.  Main thread only (footprint). */
-static int poly_add(struct point *p, const float *node, int n, int over)
+/* ee[h]: the fraction of the flux in the (2h - 1)^2 pixels about a source
+ * on a pixel centre.  Any box of pixels with |i - x| < h and |j - y| < h
+ * covers at least the area [-(h - 1/2), h - 1/2]^2 about the source, which
+ * is what these pixels cover, so flux * (ee[nee] - ee[h]) bounds the light
+ * a box of half-width h leaves out compared with the full box. */
+static void ee_table(struct poly *q, const float *node)
 {
-	int m = (n + over - 1) / over + 1;
-	size_t i = poly_hash(node), k;
-	float *plane;
+	int n = q->n, o = q->over, c = q->centre;
 
-	if (poly_find(p, node))
+	q->ee[0] = 0;
+	for (int h = 1; h <= q->nee; h++) {
+		double s = 0;
+		int r = h - 1;
+
+		for (int d = -r; d <= r; d++) {
+			s += node[(size_t)(c - o * r) * n + c + o * d];
+			if (r > 0)
+				s += node[(size_t)(c + o * r) * n + c + o * d];
+		}
+		for (int d = -r + 1; d <= r - 1; d++)
+			s += node[(size_t)(c + o * d) * n + c - o * r] +
+			     node[(size_t)(c + o * d) * n + c + o * r];
+		q->ee[h] = q->ee[h - 1] + s;
+	}
+}
+
+/* Make the polyphase copy of an n x n ePSF array under key.  Main thread
+ * only (footprint). */
+static int poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
+{
+	int m = (n + over - 1) / over + 2 * PAD + 1;
+	size_t i = poly_hash(key), k;
+	struct poly q = { key, n, over, (n - 1) / 2, m, NULL, 0, NULL };
+
+	if (poly_find(p, key))
 		return 0;
-	for (k = 0; k < POLY_SLOTS && p->slot[i].node; k++)
+	for (k = 0; k < POLY_SLOTS && p->slot[i].key; k++)
 		i = (i + 1) & (POLY_SLOTS - 1);
 	if (k == POLY_SLOTS)
-		return p->host->error(p->host->ctx, "too many ePSF nodes (%d)", POLY_SLOTS);
-	if (!(plane = calloc((size_t)over * over * m * m, sizeof(float))))
+		return p->host->error(p->host->ctx, "too many ePSF nodes and cells (%d)", POLY_SLOTS);
+	q.nee = q.centre / over;
+	q.plane = calloc((size_t)over * over * m * m + VSLACK, sizeof(float));
+	q.ee = calloc((size_t)q.nee + 1, sizeof(double));
+	if (!q.plane || !q.ee) {
+		free(q.plane);
+		free(q.ee);
 		return p->host->error(p->host->ctx, "out of memory");
-	for (int q = 0; q < over; q++)
-		for (int r = 0; r < over; r++) {
-			float *pl = plane + (size_t)(q * over + r) * m * m;
+	}
+	for (int r = 0; r < over; r++)
+		for (int s = 0; s < over; s++) {
+			float *pl = q.plane + (size_t)(r * over + s) * m * m;
 
-			for (int y = q, a = 0; y < n; y += over, a++)
-				for (int x = r, b = 0; x < n; x += over, b++)
+			for (int y = r, a = PAD; y < n; y += over, a++)
+				for (int x = s, b = PAD; x < n; x += over, b++)
 					pl[a * m + b] = node[(size_t)y * n + x];
 		}
-	p->slot[i] = (struct poly){ node, n, over, m, plane };
+	ee_table(&q, node);
+	p->slot[i] = q;
 	return 0;
+}
+
+/* The key of the blended cell holding (x, y): odd, so never a node's. */
+static uint64_t cell_key(const struct point *p, const struct wfs_source *src)
+{
+	uint64_t cx = (uint64_t)(int64_t)floor(src->x / p->cell) & 0xffff;
+	uint64_t cy = (uint64_t)(int64_t)floor(src->y / p->cell) & 0xffff;
+
+	return 1 | (uint64_t)src->sca << 1 | (uint64_t)src->psf_class << 8 | cx << 16 | cy << 32;
+}
+
+/* psf-blend=cell: the ePSF blended once at the centre of the source's cell
+ * (bilinear in position, as the host's weights say), so a source reads one
+ * array instead of four. */
+static int cell_add(struct point *p, const struct wfs_source *src, uint64_t key)
+{
+	struct wfs_epsf e;
+	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
+	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
+	float *mix;
+	size_t nn;
+	int r;
+
+	if (poly_find(p, key))
+		return 0;
+	if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
+		return -1;
+	nn = (size_t)e.n * e.n;
+	if (!(mix = malloc(nn * sizeof(float))))
+		return p->host->error(p->host->ctx, "out of memory");
+	for (size_t i = 0; i < nn; i++) {
+		double v = 0;
+
+		for (int k = 0; k < 4; k++)
+			if (e.weight[k] != 0)
+				v += e.weight[k] * e.node[k][i];
+		mix[i] = (float)v;
+	}
+	r = poly_add(p, key, mix, e.n, e.over);
+	free(mix);
+	return r;
+}
+
+/* A setting that is one of a list of names: 0 and *out set, or an error
+ * naming the key. */
+static int setting_choice(const struct wfs_host *host, const char *key,
+			  const char *const names[], int nnames, int *out)
+{
+	const char *s = host->setting(host->ctx, key);
+
+	if (!s || !*s)
+		return 0;
+	for (int i = 0; i < nnames; i++)
+		if (!strcmp(s, names[i])) {
+			*out = i;
+			return 0;
+		}
+	return host->error(host->ctx, "%s: expected %s%s%s%s%s, not '%s'", key, names[0],
+			   nnames > 2 ? ", " : " or ", names[1],
+			   nnames > 2 ? " or " : "", nnames > 2 ? names[2] : "", s);
+}
+
+/* A numeric setting >= lo (> lo when strict): 0 and *out set, or an error
+ * naming the key. */
+static int setting_number(const struct wfs_host *host, const char *key, double lo,
+			  int strict, double *out)
+{
+	const char *s = host->setting(host->ctx, key);
+	char *end;
+	double v;
+
+	if (!s || !*s)
+		return 0;
+	v = strtod(s, &end);
+	if (*end || !isfinite(v) || v < lo || (strict && v == lo))
+		return host->error(host->ctx, "%s: expected a number %s %g, not '%s'", key,
+				   strict ? ">" : ">=", lo, s);
+	*out = v;
+	return 0;
+}
+
+/* The noise of one pixel in counts/s, as the noise stage will draw it:
+ * Poisson noise of the background and read noise, over the exposure time.
+ * The source's own shot noise is left out (faint stars are what the
+ * adaptive box is for, and they are background-limited). */
+static double scene_sigma(const struct wfs_host *host)
+{
+	const char *t = host->setting(host->ctx, "exptime");
+	const char *b = host->setting(host->ctx, "background");
+	const char *r = host->setting(host->ctx, "readnoise");
+	const char *n = host->setting(host->ctx, "noise");
+	double te = t ? strtod(t, NULL) : 0, bk = b ? strtod(b, NULL) : 0;
+	double rn = r ? strtod(r, NULL) : 0, var = rn * rn;
+
+	if (n && strstr(n, "poisson") && bk > 0)
+		var += bk * te;
+	return te > 0 && var > 0 ? sqrt(var) / te : 0;
 }
 
 static int point_init(const struct wfs_host *host, void **state)
 {
+	static const char *const interp[] = { "bilinear", "core", "bicubic" };
+	static const char *const box[] = { "fixed", "adaptive" };
+	static const char *const blend[] = { "source", "cell" };
 	struct point *p = calloc(1, sizeof(*p));
-	const char *s;
+	double cell = 512;
 
 	if (!p)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
+	p->interp = INTERP_CORE;
 	p->core = 4.0;
-	if ((s = host->setting(host->ctx, "psf-core")) && *s) {
-		char *end;
-
-		p->core = strtod(s, &end);
-		if (*end || !(p->core >= 0)) {
-			free(p);
-			return host->error(host->ctx, "psf-core: bad radius '%s'", s);
-		}
+	p->box_noise = 0.1;
+	p->sigma = scene_sigma(host);
+	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
+	    setting_number(host, "psf-core", 0, 0, &p->core) < 0 ||
+	    setting_choice(host, "psf-box", box, 2, &p->adaptive) < 0 ||
+	    setting_number(host, "psf-box-noise", 0, 1, &p->box_noise) < 0 ||
+	    setting_number(host, "psf-box-sigma", 0, 1, &p->sigma) < 0 ||
+	    setting_choice(host, "psf-blend", blend, 2, &p->blend) < 0 ||
+	    setting_number(host, "psf-cell", 1, 0, &cell) < 0)
+		goto fail;
+	if (cell != floor(cell) || cell > 4096) {
+		host->error(host->ctx, "psf-cell: expected a whole number of pixels up to 4096, not '%s'",
+			    host->setting(host->ctx, "psf-cell"));
+		goto fail;
+	}
+	p->cell = (int)cell;
+	if (p->adaptive && !(p->sigma > 0)) {
+		host->error(host->ctx, "psf-box: adaptive needs the noise per pixel: --noise "
+			    "with --background or read noise, or --set psf-box-sigma=S");
+		goto fail;
 	}
 	*state = p;
 	return 0;
+fail:
+	free(p);
+	return -1;
 }
 
 static void point_fini(void *state)
 {
 	struct point *p = state;
 
-	for (int i = 0; p && i < POLY_SLOTS; i++)
+	for (int i = 0; p && i < POLY_SLOTS; i++) {
 		free(p->slot[i].plane);
+		free(p->slot[i].ee);
+	}
 	free(p);
+}
+
+/* The arrays a source reads and their weights times its flux: the four
+ * nodes of its position, or its cell's blend.  Returns how many, or -1. */
+static int source_polys(const struct point *p, const struct wfs_source *src,
+			const struct poly *pl[4], double wn[4])
+{
+	struct wfs_epsf e;
+	int nn = 0;
+
+	if (p->blend == BLEND_CELL) {
+		if (!(pl[0] = poly_find(p, cell_key(p, src))))
+			return p->host->error(p->host->ctx, "ePSF cell not prepared");
+		wn[0] = src->flux;
+		return 1;
+	}
+	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+		return -1;
+	for (int k = 0; k < 4; k++)
+		if (e.weight[k] != 0) {
+			if (!(pl[nn] = poly_find(p, (uint64_t)(uintptr_t)e.node[k])))
+				return p->host->error(p->host->ctx, "ePSF node not prepared");
+			wn[nn++] = e.weight[k] * src->flux;
+		}
+	return nn;
 }
 
 static int point_footprint(void *state, const struct wfs_source *src,
 			   struct wfs_box *box)
 {
 	struct point *p = state;
-	struct wfs_epsf e;
-	double half;
+	const struct poly *pl[4];
+	double wn[4], half;
+	int nn;
 
-	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
-		return -1;
-	for (int k = 0; k < 4; k++)
-		if (e.weight[k] != 0 && poly_add(p, e.node[k], e.n, e.over) < 0)
+	if (p->blend == BLEND_CELL) {
+		if (cell_add(p, src, cell_key(p, src)) < 0)
 			return -1;
-	half = (double)e.centre / e.over;
+	} else {
+		struct wfs_epsf e;
+
+		if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+			return -1;
+		for (int k = 0; k < 4; k++)
+			if (e.weight[k] != 0 &&
+			    poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over) < 0)
+				return -1;
+	}
+	if ((nn = source_polys(p, src, pl, wn)) < 0)
+		return -1;
+	half = (double)pl[0]->centre / pl[0]->over;
+	if (p->adaptive) {
+		/* the smallest half-width whose left-out light is below
+		 * box_noise times the noise summed over the box */
+		int h, H = pl[0]->nee;
+
+		for (h = 1; h < H; h++) {
+			double out = 0;
+
+			for (int k = 0; k < nn; k++)
+				out += wn[k] * (pl[k]->ee[H] - pl[k]->ee[h]);
+			if (fabs(out) <= p->box_noise * p->sigma * 2 * h)
+				break;
+		}
+		if (h < half)
+			half = h;
+	}
 	/* pixels i with x - half < i < x + half */
 	box->x0 = (int)floor(src->x - half) + 1;
 	box->x1 = (int)ceil(src->x + half);
 	box->y0 = (int)floor(src->y - half) + 1;
 	box->y1 = (int)ceil(src->y + half);
 	return 0;
+}
+
+/* row[i] += acc[i] for i < len */
+static inline __attribute__((always_inline)) void add_row(double *row, const float *acc, int len)
+{
+	for (int i = 0; i < len; i++)
+		row[i] += acc[i];
 }
 
 /* Keys' cubic convolution weights for taps -1, 0, 1, 2 at phase t in [0, 1). */
@@ -176,7 +412,14 @@ static long floordiv(long a, long b)
 }
 
 /* Built twice, for AVX2 and for any x86-64, and chosen at load time: the
- * row sums run 8 floats wide where the processor allows. */
+ * row sums run 8 floats wide where the processor allows.
+ *
+ * Per row, the bilinear part is a weighted sum of 4 streams per array (2 x
+ * 2 taps), taken 4 streams at a time, each pixel summing its streams in
+ * one fixed order.  One array (psf-blend=cell) and no core on the row: the
+ * sum goes straight into the tile.  The core's pixels on a row are a run;
+ * the Keys sums there run over the run in double, in the same order for
+ * every pixel as a pixel-by-pixel loop would take. */
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 __attribute__((target_clones("avx2,fma", "default")))
 #endif
@@ -184,29 +427,19 @@ static int point_render(void *state, void *tstate, void *thread,
 			const struct wfs_source *src, const struct wfs_window *win)
 {
 	struct point *p = state;
-	struct wfs_epsf e;
 	const struct poly *pl[4];
-	const float *node[4];
 	double wn[4], bx[2], by[2], cx[4], cy[4];
 	float wt[16];
-	long rx[2], mx[2], ry[2], my[2];
-	int nn = 0, n, o, m, basex, basey;
+	const float *tap0[64];  /* [node][y tap][x tap] at the window's first row */
+	long rx[4], mx[4], ry[4], my[4];
+	int nn, o, m, basex, basey;
 	double tx, ty, fx, fy, core2;
-	float acc[MAX_ROW];
-	/* zero[] stands in for a missing stream; it is only ever read */
-	static const float zero[MAX_ROW + 2048];
+	float acc[MAX_ROW + 8];
+	double dv[MAX_ROW], tv[MAX_ROW];
 
-	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+	if ((nn = source_polys(p, src, pl, wn)) < 0)
 		return -1;
-	for (int k = 0; k < 4; k++)
-		if (e.weight[k] != 0) {
-			node[nn] = e.node[k];
-			if (!(pl[nn] = poly_find(p, e.node[k])))
-				return p->host->error(p->host->ctx, "ePSF node not prepared");
-			wn[nn++] = e.weight[k] * src->flux;
-		}
-	n = e.n;
-	o = e.over;
+	o = pl[0]->over;
 	m = pl[0]->m;
 	/* sample index of pixel i: centre + o i + base, plus the phase f */
 	tx = -o * src->x;
@@ -219,93 +452,128 @@ static int point_render(void *state, void *tstate, void *thread,
 	by[0] = 1 - fy; by[1] = fy;
 	keys_weights(fx, cx);
 	keys_weights(fy, cy);
-	/* tap a of pixel i is sample o (i + mx[a]) + rx[a]: plane rx[a], column
-	 * i + mx[a] */
-	for (int a = 0; a < 2; a++) {
-		long sx = e.centre + basex + a, sy = e.centre + basey + a;
+	/* tap a (sample offsets -1, 0, 1, 2) of pixel i is sample
+	 * o (i + mx[a]) + rx[a]: plane rx[a], column i + mx[a] + PAD */
+	for (int a = 0; a < 4; a++) {
+		long sx = pl[0]->centre + basex + a - 1, sy = pl[0]->centre + basey + a - 1;
 
 		mx[a] = floordiv(sx, o);
 		rx[a] = sx - o * mx[a];
 		my[a] = floordiv(sy, o);
 		ry[a] = sy - o * my[a];
 	}
-	for (int k = 0; k < 4; k++)
+	if (win->x0 + mx[0] + PAD < 0 || win->x0 + win->nx + mx[3] + PAD > m ||
+	    win->y0 + my[0] + PAD < 0 || win->y0 + win->ny + my[3] + PAD > m)
+		return p->host->error(p->host->ctx, "window outside the source's box");
+	for (int k = 0; k < nn; k++)
 		for (int b = 0; b < 2; b++)
 			for (int a = 0; a < 2; a++)
-				wt[(k * 2 + b) * 2 + a] = k < nn ? (float)(wn[k] * by[b] * bx[a]) : 0;
-	/* the cubic's taps must stay inside the array */
-	core2 = p->core * o + 2 < e.centre ? p->core * p->core : 0;
+				wt[(k * 2 + b) * 2 + a] = (float)(wn[k] * by[b] * bx[a]);
+	/* the cubic's taps must stay inside the array (bicubic everywhere
+	 * reads the planes' zero padding at the box's edge instead) */
+	if (p->interp == INTERP_BILINEAR)
+		core2 = -1;
+	else if (p->interp == INTERP_BICUBIC)
+		core2 = INFINITY;
+	else
+		core2 = p->core * o + 2 < pl[0]->centre ? p->core * p->core : 0;
 
+	/* the streams at the window's first row; each row is m samples on */
+	for (int k = 0; k < nn; k++)
+		for (int b = 0; b < 4; b++)
+			for (int a = 0; a < 4; a++)
+				tap0[(k * 4 + b) * 4 + a] = pl[k]->plane +
+					((size_t)(ry[b] * o + rx[a]) * m + (win->y0 + my[b] + PAD)) * m +
+					(win->x0 + mx[a] + PAD);
 	for (int j = win->y0; j < win->y0 + win->ny; j++) {
 		double *row = win->pix + (ptrdiff_t)(j - win->y0) * win->stride;
 		double dy = j - src->y;
+		ptrdiff_t step = (ptrdiff_t)(j - win->y0) * m;
+		int ca = 0, cb = 0;     /* the core's run on this row, [ca, cb) of the window */
 
-		for (int i0 = win->x0; i0 < win->x0 + win->nx; i0 += MAX_ROW) {
-			int len = win->x0 + win->nx - i0 < MAX_ROW ? win->x0 + win->nx - i0 : MAX_ROW;
+		if (dy * dy <= core2) {
+			double r = sqrt(core2 - dy * dy), lo = src->x - r - 1, hi = src->x + r + 1;
 
-			/* 16 streams, 4 nodes x 2 y taps x 2 x taps; a missing node
-			 * or a row beyond the planes reads a row of zeros */
-			const float *sp[16];
-			int ia = 0, ib = len;
+			ca = lo < win->x0 ? 0 : lo > win->x0 + win->nx ? win->nx : (int)lo - win->x0;
+			cb = hi < win->x0 ? 0 : hi > win->x0 + win->nx ? win->nx : (int)hi - win->x0 + 1;
+			if (cb > win->nx)
+				cb = win->nx;
+			/* the exact test decides, as pixel by pixel */
+			while (ca < cb && (win->x0 + ca - src->x) * (win->x0 + ca - src->x) + dy * dy > core2)
+				ca++;
+			while (cb > ca && (win->x0 + cb - 1 - src->x) * (win->x0 + cb - 1 - src->x) + dy * dy > core2)
+				cb--;
+		}
+		for (int i0 = 0; i0 < win->nx; i0 += MAX_ROW) {
+			int len = win->nx - i0 < MAX_ROW ? win->nx - i0 : MAX_ROW;
+			int ia = ca - i0, ib = cb - i0;
 
-			for (int a = 0; a < 2; a++) {
-				long lo = -(i0 + mx[a]), hi = m - (i0 + mx[a]);
+			if (ia < 0)
+				ia = 0;
+			if (ib > len)
+				ib = len;
+			if (nn == 1 && ia >= ib) {
+				/* bilinear taps 0 and 1 are taps 1 and 2 of the 4 */
+				const float *s0 = tap0[5] + step + i0, *s1 = tap0[6] + step + i0;
+				const float *s2 = tap0[9] + step + i0, *s3 = tap0[10] + step + i0;
+				v8f w0 = SPLAT(wt[0]), w1 = SPLAT(wt[1]), w2 = SPLAT(wt[2]), w3 = SPLAT(wt[3]);
+				for (int i = 0; i < len; i += 8) {
+					v8f v = { 0 };
 
-				if (lo > ia)
-					ia = (int)lo;
-				if (hi < ib)
-					ib = (int)hi;
-			}
-			for (int k = 0; k < 4; k++)
-				for (int b = 0; b < 2; b++) {
-					long mrow = j + my[b];
-
-					for (int a = 0; a < 2; a++) {
-						int t = (k * 2 + b) * 2 + a;
-
-						if (k >= nn || mrow < 0 || mrow >= m)
-							sp[t] = zero;
-						else
-							sp[t] = pl[k]->plane +
-								((size_t)(ry[b] * o + rx[a]) * m + mrow) * m +
-								(i0 + mx[a]);
-					}
+					v += w0 * *(const v8f *)(s0 + i);
+					v += w1 * *(const v8f *)(s1 + i);
+					v += w2 * *(const v8f *)(s2 + i);
+					v += w3 * *(const v8f *)(s3 + i);
+					*(v8f *)(acc + i) = v;
 				}
-			for (int i = 0; i < ia && i < len; i++)
-				acc[i] = 0;
-			for (int i = ib > ia ? ib : ia; i < len; i++)
-				acc[i] = 0;
-			for (int i = ia; i < ib; i++) {
-				float v = 0;
-
-				for (int t = 0; t < 16; t++)
-					v += wt[t] * sp[t][i];
-				acc[i] = v;
+				add_row(row + i0, acc, len);
+				continue;
 			}
-			/* the sharp core: Keys cubic from the original samples */
-			if (dy * dy <= core2) {
-				long iy = e.centre + (long)o * j + basey;
+			for (int k = 0; k < nn; k++) {
+				const float *const *t = tap0 + 16 * k;
+				const float *s0 = t[5] + step + i0, *s1 = t[6] + step + i0;
+				const float *s2 = t[9] + step + i0, *s3 = t[10] + step + i0;
+				v8f w0 = SPLAT(wt[4 * k]), w1 = SPLAT(wt[4 * k + 1]);
+				v8f w2 = SPLAT(wt[4 * k + 2]), w3 = SPLAT(wt[4 * k + 3]);
+				for (int i = 0; i < len; i += 8) {
+					v8f v = { 0 };
 
-				for (int i = 0; i < len; i++) {
-					double dx = i0 + i - src->x, v = 0;
-					long ix = e.centre + (long)o * (i0 + i) + basex;
-
-					if (dx * dx + dy * dy > core2)
-						continue;
-					for (int k = 0; k < nn; k++) {
-						const float *s = node[k] + (iy - 1) * n + (ix - 1);
-						double t = 0;
-
-						for (int b = 0; b < 4; b++, s += n)
-							t += cy[b] * (cx[0] * s[0] + cx[1] * s[1] +
-								      cx[2] * s[2] + cx[3] * s[3]);
-						v += wn[k] * t;
-					}
-					acc[i] = (float)v;
+					if (k > 0)
+						v = *(const v8f *)(acc + i);
+					v += w0 * *(const v8f *)(s0 + i);
+					v += w1 * *(const v8f *)(s1 + i);
+					v += w2 * *(const v8f *)(s2 + i);
+					v += w3 * *(const v8f *)(s3 + i);
+					*(v8f *)(acc + i) = v;
 				}
 			}
-			for (int i = 0; i < len; i++)
-				row[i0 - win->x0 + i] += acc[i];
+			/* the sharp core: Keys cubic from the same samples */
+			if (ia < ib) {
+				int cn = ib - ia;
+
+				for (int i = 0; i < cn; i++)
+					dv[i] = 0;
+				for (int k = 0; k < nn; k++) {
+					for (int i = 0; i < cn; i++)
+						tv[i] = 0;
+					for (int b = 0; b < 4; b++) {
+						const float *const *t = tap0 + (k * 4 + b) * 4;
+						const float *restrict t0 = t[0] + step + i0 + ia;
+						const float *restrict t1 = t[1] + step + i0 + ia;
+						const float *restrict t2 = t[2] + step + i0 + ia;
+						const float *restrict t3 = t[3] + step + i0 + ia;
+						double c0 = cx[0], c1 = cx[1], c2 = cx[2], c3 = cx[3], cb4 = cy[b];
+
+						for (int i = 0; i < cn; i++)
+							tv[i] += cb4 * (c0 * t0[i] + c1 * t1[i] + c2 * t2[i] + c3 * t3[i]);
+					}
+					for (int i = 0; i < cn; i++)
+						dv[i] += wn[k] * tv[i];
+				}
+				for (int i = 0; i < cn; i++)
+					acc[ia + i] = (float)dv[i];
+			}
+			add_row(row + i0, acc, len);
 		}
 	}
 	return 0;

@@ -824,7 +824,9 @@ int merge_main(int argc, char **argv)
 	sigset_t block;
 	int c, status;
 
-	while ((c = getopt_long(argc, argv, "o:qvh", opts, NULL)) != -1) {
+	/* getopt's own messages would say "merge:"; ours name the command. */
+	opterr = 0;
+	while ((c = getopt_long(argc, argv, ":o:qvh", opts, NULL)) != -1) {
 		switch (c) {
 		case 'o':
 			output = optarg;
@@ -838,7 +840,17 @@ int merge_main(int argc, char **argv)
 		case 'h':
 			fputs(merge_usage, stdout);
 			return EXIT_OK;
+		case ':':
+			fprintf(stderr, "wfiscene merge: %s needs a value\n",
+				argv[optind - 1]);
+			return EXIT_INPUT;
 		default:
+			if (optopt)
+				fprintf(stderr, "wfiscene merge: unknown option "
+					"'-%c'\n", optopt);
+			else
+				fprintf(stderr, "wfiscene merge: unknown option "
+					"'%s'\n", argv[optind - 1]);
 			fputs(merge_usage, stderr);
 			return EXIT_INPUT;
 		}

@@ -173,9 +173,11 @@ test_expect_success 'merge refuses a truncated part' '
 	test_must_fail --status 1 "$WFS" merge -o x.fits short.fits 2>err &&
 	test_grep "short.fits: not a FITS file" err
 '
-test_expect_success 'merge with no inputs, a missing input, a directory as output' '
+test_expect_success 'merge with no inputs, a bad option, a missing input, a directory as output' '
 	test_must_fail --status 1 "$WFS" merge -o x.fits 2>err &&
 	test_grep "no input files" err &&
+	test_must_fail --status 1 "$WFS" merge --bogus -o x.fits p12.fits 2>err &&
+	test_grep "^wfiscene merge: unknown option .--bogus." err &&
 	test_must_fail --status 2 "$WFS" merge -o x.fits nosuch.fits 2>err &&
 	test_grep "nosuch.fits: cannot open: No such file" err &&
 	mkdir -p adir && test_must_fail --status 1 "$WFS" merge -o adir p12.fits 2>err &&
@@ -250,7 +252,6 @@ fi
 
 if [ "${WFS_TEST_FULL:-0}" = 1 ]; then
 	test_expect_success 'full exposure: --sca 1-9 and 10-18 merge into --sca 1-18' '
-		printf "0,0,1000\n" >> cat.csv &&
 		"$WFS" $OPTS --sca 1-18 -o all.fits cat.csv 2>/dev/null &&
 		"$WFS" $OPTS --sca 10-18 -o b.fits cat.csv 2>/dev/null &&
 		"$WFS" $OPTS --sca 1-9 -o a.fits cat.csv 2>/dev/null &&

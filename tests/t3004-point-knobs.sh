@@ -1,0 +1,92 @@
+#!/bin/sh
+# The point model's settings: psf-interp, psf-core, psf-box (adaptive, with
+# psf-box-noise and psf-box-sigma), psf-blend and psf-cell.  Each one's
+# effect on the image, and bad values refused with a message naming the key
+# and no output left behind.
+. "$(dirname "$0")/lib.sh"
+require_python
+
+# one bright star and one faint one, far apart, off pixel centres
+cat > stars.csv <<EOT
+id,x,y,flux
+1,1000.3,1000.6,100000
+2,3000.7,3000.2,2
+EOT
+# pixel statistics of an image: the images differ where and as expected
+cat > px.py <<'EOT'
+import sys
+import numpy as np
+from astropy.io import fits
+a = fits.getdata(sys.argv[1], 1).astype(float)
+b = fits.getdata(sys.argv[2], 1).astype(float)
+what = sys.argv[3]
+d = np.abs(a - b)
+def r2(x, y):    # squared distance to the nearer star (0-based pixels)
+    return np.minimum((x - 999.3) ** 2 + (y - 999.6) ** 2, (x - 2999.7) ** 2 + (y - 2999.2) ** 2)
+if what == "core-only":      # differ only within R px of a star
+    r = float(sys.argv[4])
+    y, x = np.nonzero(d)
+    assert len(x) > 0, "no difference"
+    assert np.all(r2(x, y) <= r * r + 1e-9), (x, y)
+elif what == "outside-core":  # differ, and not within 4 px of a star
+    y, x = np.nonzero(d)
+    assert len(x) > 0, "no difference"
+    assert np.all(r2(x, y) > 16), (x, y)
+elif what == "close":         # differ, by less than a fraction of the peak
+    f = float(sys.argv[4])
+    assert d.max() > 0, "no difference"
+    assert d.max() < f * b.max(), (d.max(), b.max())
+    assert abs(a.sum() - b.sum()) < f * b.sum(), (a.sum(), b.sum())
+elif what == "faint-box":     # the faint star's box shrinks, the bright one's not
+    h = int(sys.argv[4])
+    fa = np.count_nonzero(a[2950:3050, 2950:3050])
+    fb = np.count_nonzero(b[2950:3050, 2950:3050])
+    assert fa <= (2 * h) ** 2 and fb == 44 * 44, (fa, fb)
+    assert np.array_equal(a[900:1100, 900:1100], b[900:1100, 900:1100])
+EOT
+run() { out=$1; shift; "$WFS" --filter F129 --psf epsf.fits -o "$out" "$@" stars.csv; }
+
+test_expect_success 'a synthetic ePSF grid; the defaults spelled out change nothing' '
+	"$PY" "$TOP/tests/flux_check.py" grid epsf.fits &&
+	run def.fits &&
+	run expl.fits --set psf-interp=core --set psf-core=4 --set psf-box=fixed \
+		--set psf-blend=source --set psf-cell=512 &&
+	test_cmp def.fits expl.fits
+'
+test_expect_success 'psf-interp=bilinear changes only the core (radius psf-core)' '
+	run bil.fits --set psf-interp=bilinear &&
+	"$PY" px.py bil.fits def.fits core-only 4 &&
+	run c2.fits --set psf-core=2 &&
+	"$PY" px.py c2.fits def.fits core-only 4
+'
+test_expect_success 'psf-interp=bicubic changes only pixels beyond the core' '
+	run bic.fits --set psf-interp=bicubic &&
+	"$PY" px.py bic.fits def.fits outside-core
+'
+test_expect_success 'psf-blend=cell: one blended ePSF per cell, close to the default' '
+	run cell.fits --set psf-blend=cell &&
+	"$PY" px.py cell.fits def.fits close 0.05 &&
+	run cell64.fits --set psf-blend=cell --set psf-cell=64 &&
+	"$PY" px.py cell64.fits def.fits close 0.01
+'
+test_expect_success 'psf-box=adaptive shrinks a faint star to the noise, not a bright one' '
+	run ad.fits --set psf-box=adaptive --set psf-box-sigma=0.1 &&
+	"$PY" px.py ad.fits def.fits faint-box 8 &&
+	run ad2.fits --noise readnoise --readnoise 14 --exptime 139.8 --seed 1 --set psf-box=adaptive &&
+	test -s ad2.fits
+'
+test_expect_success 'psf-box=adaptive without a noise scale is refused' '
+	test_must_fail --status 3 run no.fits --set psf-box=adaptive 2> err &&
+	test_grep "psf-box: adaptive needs the noise" err &&
+	! test -e no.fits
+'
+for kv in psf-interp=cubic psf-core=-1 psf-box=small psf-box-noise=0 psf-box-sigma=x \
+	psf-blend=tile psf-cell=0 psf-cell=10.5; do
+	key=${kv%%=*}
+	test_expect_success "--set $kv is refused, naming $key" "
+		test_must_fail --status 3 run bad.fits --set $kv 2> err &&
+		test_grep \"$key: expected\" err &&
+		! test -e bad.fits
+	"
+done
+test_done

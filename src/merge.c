@@ -246,6 +246,11 @@ static int merge_read_header(struct merge *m, int i, int number, off_t at,
 				err_set(m->e, EXIT_INPUT, "%s: not a FITS file "
 					"(shorter than one 2880-byte block)",
 					in->path);
+			else if (nblocks == 0)
+				err_set(m->e, EXIT_INPUT, "%s: %lld bytes after "
+					"HDU %d are not a FITS extension",
+					in->path, (long long)(in->size - at),
+					number - 1);
 			else
 				err_set(m->e, EXIT_INPUT, "%s: HDU %d: truncated "
 					"header (the file ends before its END "
@@ -264,7 +269,7 @@ static int merge_read_header(struct merge *m, int i, int number, off_t at,
 			}
 			if (!primary && memcmp(block, "XTENSION= ", 10)) {
 				err_set(m->e, EXIT_INPUT, "%s: %lld bytes after "
-					"HDU %d are not a FITS extension header",
+					"HDU %d are not a FITS extension",
 					in->path, (long long)(in->size - at),
 					number - 1);
 				goto fail;

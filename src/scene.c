@@ -1113,6 +1113,35 @@ static int close_placed(struct engine *g, int keep)
 	return keep ? err_sys(g->e, "%s", g->o->placed) : 0;
 }
 
+/* A JSON string: quotes, backslashes and control bytes escaped (--set
+ * values reach the report as the user typed them). */
+static void report_string(FILE *f, const char *s)
+{
+	fputc('"', f);
+	for (; *s; s++) {
+		unsigned char c = (unsigned char)*s;
+
+		if (c == '"' || c == '\\')
+			fprintf(f, "\\%c", c);
+		else if (c < 0x20)
+			fprintf(f, "\\u%04x", c);
+		else
+			fputc(c, f);
+	}
+	fputc('"', f);
+}
+
+/* "name": "value of --set key, or fallback", */
+static void report_setting(FILE *f, struct engine *g, const char *name, const char *key,
+			   const char *fallback)
+{
+	const char *v = host_setting(g, key);
+
+	fprintf(f, "\"%s\": ", name);
+	report_string(f, v && *v ? v : fallback);
+	fputs(", ", f);
+}
+
 /* The per-run report: what was done, how long each stage took, what the
  * chosen settings cost in accuracy.  JSON, written atomically. */
 static int write_report(struct engine *g)
@@ -1186,9 +1215,18 @@ static int write_report(struct engine *g)
 			first = 0;
 		}
 	fprintf(f, "\n  ]},\n  \"error_budget\": {\"largest_truncation_loss\": %.8f, "
-		"\"psf_grid\": \"%dx%d nodes, bilinear in position\", "
-		"\"interpolation\": \"Keys cubic within 4 px, bilinear beyond\"}\n}\n",
+		"\"psf_grid\": \"%dx%d nodes, bilinear in position\", ",
 		worst_loss, g->user_grid ? g->user_grid->nx : 3, g->user_grid ? g->user_grid->ny : 3);
+	/* The point model's approximations as --set chose them (its defaults
+	 * otherwise), so that a report says which evaluation made the image. */
+	report_setting(f, g, "interpolation", "psf-interp", "core");
+	report_setting(f, g, "core_radius_px", "psf-core", "4");
+	report_setting(f, g, "box", "psf-box", "fixed");
+	report_setting(f, g, "box_noise_fraction", "psf-box-noise", "0.1");
+	report_setting(f, g, "blend", "psf-blend", "source");
+	fprintf(f, "\"blend_cell_px\": ");
+	report_string(f, host_setting(g, "psf-cell") ? host_setting(g, "psf-cell") : "512");
+	fprintf(f, "}\n}\n");
 	if (fflush(f) || ferror(f) || fsync(fileno(f))) {
 		fclose(f);
 		unlink(tmp);

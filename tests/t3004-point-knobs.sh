@@ -80,6 +80,17 @@ test_expect_success 'psf-box=adaptive without a noise scale is refused' '
 	test_grep "psf-box: adaptive needs the noise" err &&
 	! test -e no.fits
 '
+test_expect_success '--report names the point settings a run used' '
+	run rep.fits --set psf-box=adaptive --set psf-box-sigma=0.1 --set psf-blend=cell \
+		--report r.json &&
+	"$PY" -c "
+import json
+b = json.load(open(\"r.json\"))[\"error_budget\"]
+assert b[\"interpolation\"] == \"core\" and b[\"core_radius_px\"] == \"4\", b
+assert b[\"box\"] == \"adaptive\" and b[\"blend\"] == \"cell\", b
+assert b[\"blend_cell_px\"] == \"512\", b
+"
+'
 for kv in psf-interp=cubic psf-core=-1 psf-box=small psf-box-noise=0 psf-box-sigma=x \
 	psf-blend=tile psf-cell=0 psf-cell=10.5; do
 	key=${kv%%=*}

@@ -79,4 +79,81 @@ for n in 100000 $big $huge; do
 	set -- $(measure "'$GEN' -n $n -x -s 4 | '$WFS' --filter F129 --flux-unit abmag -o '$W/o.fits' -")
 	awk -v n=$n -v t=$1 -v m=$2 'BEGIN { printf "| %d | %.1f | %.0f |\n", n, t, m / 1024 }'
 done
+
+echo
+echo "## Render stage against the floor, and error against time"
+echo
+echo "\`cc -O3 -march=native contrib/bench/floor.c -o floor && floor build/plugins/point.so N SETTINGS...\`:"
+echo "point.so's render() through a mock host with a synthetic ePSF grid whose exact"
+echo "value is known (contrib/bench/floor.c), and in the same run the floor loops of"
+echo "issue 8; thread CPU ns per star (faint stars, AB 20-27, one SCA, 512-pixel"
+echo "tiles), errors over 2000 stars against the exact ePSF (worst star):"
+echo
+cc -O3 -march=native -std=c11 -Iinclude -o "$W/floor" contrib/bench/floor.c -lm -ldl
+fn=200000
+[ "$quick" = 1 ] && fn=50000
+"$W/floor" "$B/plugins/point.so" $fn - psf-interp=bilinear psf-interp=bicubic \
+	psf-core=2 psf-core=8 grid=5 psf-blend=cell,psf-cell=256 psf-blend=cell \
+	psf-blend=cell,psf-interp=bilinear \
+	psf-box=adaptive,psf-box-sigma=0.1 psf-box=adaptive,psf-box-sigma=0.1,psf-box-noise=0.01 \
+	psf-blend=cell,psf-box=adaptive,psf-box-sigma=0.1 > "$W/floor.txt"
+echo "| loop or settings | ns/star | × stamp floor | pixels/star | max pixel error / peak | flux error | max pixel error / σ |"
+echo "|---|---|---|---|---|---|---|"
+awk '/^#/ { next } NF == 3 { printf "| floor: %s | %.0f | %.2f | 1936 | | | |\n", $1, $2, $3 }
+	NF == 7 { sub(/^point:/, "", $1); gsub(/,/, ", ", $1);
+		printf "| %s | %.0f | %.2f | %d | %s | %s | %s |\n", $1, $2, $3, $4, $5, $6, $7 }' "$W/floor.txt"
+awk '$1 ~ /^point:/ { sub(/^point:/, "", $1); gsub(/psf-/, "", $1); sub(/,box-sigma=0.1/, "", $1)
+	print $2, $5, $1 }' "$W/floor.txt" > "$W/errtime.dat"
+stamp=$(awk '$1 == "stamp" { print $2 }' "$W/floor.txt")
+poly=$(awk '$1 == "polyphase" { print $2 }' "$W/floor.txt")
+if command -v gnuplot > /dev/null; then
+	gnuplot <<EOF
+set terminal pngcairo size 900,600
+set output "contrib/bench/error-time.png"
+set logscale xy
+set xlabel "render CPU time per faint star (ns)"
+set ylabel "largest pixel error / peak (worst of 2000 stars)"
+set title "point sources: error against time (synthetic ePSF, contrib/bench/floor.c)"
+set key off
+set grid
+set yrange [0.001:0.2]
+set xrange [300:100000]
+set arrow from $stamp, graph 0 to $stamp, graph 1 nohead dt 2 lc rgb "gray40"
+set label "stamp-add floor" at $stamp, graph 0.05 rotate by 90 offset char -0.8,0 font ",8"
+set arrow from $poly, graph 0 to $poly, graph 1 nohead dt 3 lc rgb "gray40"
+set label "polyphase floor" at $poly, graph 0.05 rotate by 90 offset char -0.8,0 font ",8"
+set arrow from 2 * $stamp, graph 0 to 2 * $stamp, graph 1 nohead lc rgb "red"
+set label "2x floor" at 2 * $stamp, graph 0.05 rotate by 90 offset char -0.8,0 font ",8" tc rgb "red"
+plot "$W/errtime.dat" using 1:2 with points pt 7 ps 1.2, \
+     "$W/errtime.dat" using 1:2:3 with labels rotate by 35 offset char 0.8,0.5 left font ",7"
+EOF
+	echo
+	echo "Plot: contrib/bench/error-time.png"
+fi
+
+echo
+echo "## Thread scaling and stage split"
+echo
+echo "\`zstd -dc one.csv.zst | wfiscene --filter F129 --flux-unit abmag --threads T --report r.json -o out.fits -\`"
+echo "($big faint stars on SCA 1; seconds from --report; render is the workers' busy time summed)"
+echo
+echo "fast: \`--set psf-box=adaptive --set psf-box-sigma=0.1 --set psf-blend=cell\`"
+echo
+echo "| settings | threads | wall s | CPU s | stars/s | read+parse s | project+place s | render busy s | render wait s | write s |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
+"$GEN" -n $big -x -s 1 | zstd -q -c > "$W/one.csv.zst"
+for set in defaults fast; do
+	opt=""
+	[ $set = fast ] && opt="--set psf-box=adaptive --set psf-box-sigma=0.1 --set psf-blend=cell"
+	for t in 1 2; do
+		/usr/bin/time -f '%e %U %S' -o "$W/time" sh -c "zstd -dc '$W/one.csv.zst' | '$WFS' --filter F129 --flux-unit abmag --threads $t $opt --report '$W/r$t.json' -o '$W/o.fits' -" ||
+			exit 1
+		set -- $(cat "$W/time")
+		/usr/bin/python3 -c "
+import json
+r = json.load(open('$W/r$t.json'))['seconds']
+print('| $set | $t | %.2f | %.2f | %.0f | %.2f | %.2f | %.2f | %.2f | %.2f |' % ($1, $2 + $3, $big / $1,
+      r['read_parse'], r['project_place'], r['render_busy'], r['render_wait'], r['write']))"
+	done
+done
 rm -f "$W"/*.fits

@@ -31,9 +31,27 @@
  * each node is copied once into a polyphase layout: over x over planes of
  * pixel-spaced samples (plane (q, r) holds samples (over m + q, over l + r)).
  * Then a row of a source is a weighted sum of 16 contiguous rows (4 nodes x
- * 2 x 2 taps), a loop the compiler vectorises.  The copies are made in
- * footprint(), which the host calls in its main thread before render() sees
- * the source, so render() neither allocates nor locks.
+ * 2 x 2 taps), summed 8 pixels at a time; the Keys core reads 4 x 4 taps of
+ * the same planes.  The copies are made in footprint(), which the host
+ * calls in its main thread before render() sees the source, so render()
+ * neither allocates nor locks.  Measured against the floor of adding a
+ * precomputed stamp (contrib/bench/floor.c, BENCHMARKS.md): the default is
+ * about 10x the floor, the 16 streams and the core costing about equally.
+ *
+ * Approximations, each a setting (wfiscene(1) POINT SOURCES has their
+ * measured error and cost):
+ *
+ *   psf-interp=bilinear|core|bicubic  Keys' cubic nowhere, within psf-core
+ *                                     pixels (default 4), or everywhere
+ *   psf-box=fixed|adaptive            the box above, or per source the
+ *                                     smallest whose left-out light is below
+ *                                     psf-box-noise (0.1) of the noise in it;
+ *                                     the noise from the scene's background,
+ *                                     read noise and exposure time, or
+ *                                     psf-box-sigma (counts/s per pixel)
+ *   psf-blend=source|cell             blend the four nodes per source, or
+ *                                     once per psf-cell (512) pixel cell at
+ *                                     its centre: 4 streams instead of 16
  */
 #include <math.h>
 #include <stdint.h>

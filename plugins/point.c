@@ -77,6 +77,10 @@
 typedef float v8f __attribute__((vector_size(32), aligned(4), may_alias));
 #define VSLACK 8
 
+typedef float v4f __attribute__((vector_size(16), aligned(4), may_alias));
+typedef double v4d __attribute__((vector_size(32), aligned(8), may_alias));
+#define SPLAT4(f) ((v4d){ (f), (f), (f), (f) })
+#define TO_V4D(p) __builtin_convertvector(*(const v4f *)(p), v4d)
 #define SPLAT(f) ((v8f){ (f), (f), (f), (f), (f), (f), (f), (f) })
 
 struct poly {
@@ -453,7 +457,7 @@ static int point_render(void *state, void *tstate, void *thread,
 	int nn, o, m, basex, basey;
 	double tx, ty, fx, fy, core2;
 	float acc[MAX_ROW + 8];
-	double dv[MAX_ROW], tv[MAX_ROW];
+	double dv[MAX_ROW + 4], tv[MAX_ROW + 4];
 
 	if ((nn = source_polys(p, src, pl, wn)) < 0)
 		return -1;
@@ -567,26 +571,28 @@ static int point_render(void *state, void *tstate, void *thread,
 			}
 			/* the sharp core: Keys cubic from the same samples */
 			if (ia < ib) {
+				/* 4 pixels at a time, past the run's end into the
+				 * planes' slack; only the run is kept */
 				int cn = ib - ia;
 
-				for (int i = 0; i < cn; i++)
-					dv[i] = 0;
+				for (int i = 0; i < cn; i += 4)
+					*(v4d *)(dv + i) = (v4d){ 0 };
 				for (int k = 0; k < nn; k++) {
-					for (int i = 0; i < cn; i++)
-						tv[i] = 0;
+					for (int i = 0; i < cn; i += 4)
+						*(v4d *)(tv + i) = (v4d){ 0 };
 					for (int b = 0; b < 4; b++) {
 						const float *const *t = tap0 + (k * 4 + b) * 4;
-						const float *restrict t0 = t[0] + step + i0 + ia;
-						const float *restrict t1 = t[1] + step + i0 + ia;
-						const float *restrict t2 = t[2] + step + i0 + ia;
-						const float *restrict t3 = t[3] + step + i0 + ia;
-						double c0 = cx[0], c1 = cx[1], c2 = cx[2], c3 = cx[3], cb4 = cy[b];
+						const float *t0 = t[0] + step + i0 + ia, *t1 = t[1] + step + i0 + ia;
+						const float *t2 = t[2] + step + i0 + ia, *t3 = t[3] + step + i0 + ia;
+						v4d c0 = SPLAT4(cx[0]), c1 = SPLAT4(cx[1]), c2 = SPLAT4(cx[2]);
+						v4d c3 = SPLAT4(cx[3]), cb4 = SPLAT4(cy[b]);
 
-						for (int i = 0; i < cn; i++)
-							tv[i] += cb4 * (c0 * t0[i] + c1 * t1[i] + c2 * t2[i] + c3 * t3[i]);
+						for (int i = 0; i < cn; i += 4)
+							*(v4d *)(tv + i) += cb4 * (c0 * TO_V4D(t0 + i) + c1 * TO_V4D(t1 + i) +
+										   c2 * TO_V4D(t2 + i) + c3 * TO_V4D(t3 + i));
 					}
-					for (int i = 0; i < cn; i++)
-						dv[i] += wn[k] * tv[i];
+					for (int i = 0; i < cn; i += 4)
+						*(v4d *)(dv + i) += SPLAT4(wn[k]) * *(v4d *)(tv + i);
 				}
 				for (int i = 0; i < cn; i++)
 					acc[ia + i] = (float)dv[i];

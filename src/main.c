@@ -23,6 +23,7 @@ static const char usage_text[] =
 "usage: wfiscene [options] [catalog ...]      simulate a Roman WFI exposure\n"
 "       wfiscene psf --filter F --sca LIST -o FILE   write a PSF grid\n"
 "       wfiscene preview IN.fits -o OUT.png          make a PNG preview\n"
+"       wfiscene merge -o OUT.fits IN.fits ...        join runs split by SCA\n"
 "\n"
 "Reads source catalogs (CSV, whitespace, IPAC, ECSV or FITS tables, plain,\n"
 "gzip or zstd; '-' or none for stdin) and writes one FITS image per SCA.\n"
@@ -50,6 +51,10 @@ static const char usage_text[] =
 "  --xbright-limit M     AB mag at or below which the 176-pixel box is used (3)\n"
 "  --sersic METHOD       quick (default) or precise for type 'sersic'\n"
 "  --sersic-flux MEANING total (default) or ie: what a Sersic row's flux is\n"
+"  --sersic-trunc F      light allowed beyond a galaxy's cut (1e-3 quick, 1e-4 precise)\n"
+"  --sersic-tol T        precise: relative tolerance per pixel (default 1e-5)\n"
+"  --sersic-core K       half-width of the finely drawn galaxy core (default 1)\n"
+"  --sersic-convolve Y   yes (default) or no: convolve galaxies with the PSF\n"
 "  --plugin-path DIRS    where to look for source-model plugins first\n"
 "  --set KEY=VALUE       a setting for the source models (repeatable)\n"
 "Noise:\n"
@@ -78,6 +83,7 @@ enum {
 	OPT_BRIGHT, OPT_XBRIGHT, OPT_SERSIC, OPT_SERSICFLUX, OPT_PLUGINPATH, OPT_BKG,
 	OPT_NOISE, OPT_READNOISE, OPT_DARK, OPT_CRRATE, OPT_CRRES, OPT_SEED, OPT_THREADS,
 	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET, OPT_POINTINGS,
+	OPT_SERSICTRUNC, OPT_SERSICTOL, OPT_SERSICCORE, OPT_SERSICCONV,
 };
 
 static const struct option long_options[] = {
@@ -103,6 +109,10 @@ static const struct option long_options[] = {
 	{ "xbright-limit", required_argument, NULL, OPT_XBRIGHT },
 	{ "sersic", required_argument, NULL, OPT_SERSIC },
 	{ "sersic-flux", required_argument, NULL, OPT_SERSICFLUX },
+	{ "sersic-trunc", required_argument, NULL, OPT_SERSICTRUNC },
+	{ "sersic-tol", required_argument, NULL, OPT_SERSICTOL },
+	{ "sersic-core", required_argument, NULL, OPT_SERSICCORE },
+	{ "sersic-convolve", required_argument, NULL, OPT_SERSICCONV },
 	{ "plugin-path", required_argument, NULL, OPT_PLUGINPATH },
 	{ "background", required_argument, NULL, OPT_BKG },
 	{ "noise", required_argument, NULL, OPT_NOISE },
@@ -247,6 +257,23 @@ static void set_signals(void)
 	sigaction(SIGPIPE, &sa, NULL);
 }
 
+/* Options that are shortcuts for --set: store "key=value" in settings,
+ * after the caller has checked the value. */
+static int add_setting(const char **settings, int *nset, int max, const char *key,
+		       const char *value, struct err *e)
+{
+	size_t len = strlen(key) + strlen(value) + 2;
+	char *kv;
+
+	if (*nset == max)
+		return err_set(e, EXIT_INPUT, "--%s: too many settings (at most %d)", key, max);
+	if (!(kv = malloc(len)))
+		return err_sys(e, "--%s", key);
+	snprintf(kv, len, "%s=%s", key, value);
+	settings[(*nset)++] = kv;
+	return 0;
+}
+
 static int fail(const struct err *e)
 {
 	fprintf(stderr, "wfiscene: %s\n", e->msg);
@@ -261,6 +288,7 @@ int main(int argc, char **argv)
 	static const char *const zps[] = { "rti", "stips", NULL };
 	static const char *const methods[] = { "quick", "precise", NULL };
 	static const char *const meanings[] = { "total", "ie", NULL };
+	static const char *const yesno[] = { "yes", "no", NULL };
 	static const char *const compressions[] = { "none", "rice", "gzip", NULL };
 	struct scene_opts o = {
 		.filter = -1, .sca_mask = 1, .exptime = 1, .psf = "builtin", .seed = 1234,
@@ -387,6 +415,22 @@ int main(int argc, char **argv)
 				return fail(&e);
 			o.sersic_flux = meanings[k];
 			break;
+		case OPT_SERSICTRUNC:
+		case OPT_SERSICTOL:
+		case OPT_SERSICCORE:
+		case OPT_SERSICCONV: {
+			double v;
+			long long n;
+
+			if ((c == OPT_SERSICTRUNC && number(c, optarg, 1e-12, 0.5, &v, &e) < 0) ||
+			    (c == OPT_SERSICTOL && number(c, optarg, 1e-12, 0.1, &v, &e) < 0) ||
+			    (c == OPT_SERSICCORE && integer(c, optarg, 0, 16, &n, &e) < 0) ||
+			    (c == OPT_SERSICCONV && (k = choice(c, optarg, yesno, &e)) < 0) ||
+			    add_setting(settings, &nset, MAX_SETTINGS, option_name(c),
+					c == OPT_SERSICCONV ? yesno[k] : optarg, &e) < 0)
+				return fail(&e);
+			break;
+		}
 		case OPT_PLUGINPATH:
 			o.plugin_path = optarg;
 			break;

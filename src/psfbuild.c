@@ -284,7 +284,7 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		if ((g = cache_load(path, key, n, kind, grid))) {
 			o->loaded++;
 			snprintf(g->origin, sizeof(g->origin), "builtin");
-			if (o->verbose)
+			if (o->verbose > 0)
 				fprintf(stderr, "wfiscene: PSF %s SCA%02d %d: "
 					"cache %s (%.1f ms)\n", fname, sca, n,
 					path, 1e3 * (now() - t0));
@@ -298,7 +298,7 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		return NULL;
 	}
 	o->built++;
-	if (o->verbose)
+	if (o->verbose > 0)
 		fprintf(stderr, "wfiscene: PSF %s SCA%02d %d: built with %d "
 			"wavelengths in %.2f s\n", fname, sca, n, nwave, now() - t0);
 	if (dir[0]) {
@@ -324,8 +324,9 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		if (make_dirs(dir) || psf_grid_write(path, g, list, &we)) {
 			/* a cache that cannot be written costs time, not
 			 * correctness */
-			if (o->verbose)
-				fprintf(stderr, "wfiscene: PSF cache %s: %s\n",
+			if (o->verbose >= 0)
+				fprintf(stderr, "wfiscene: PSF cache %s: %s (the grid "
+					"is used but not kept)\n",
 					dir, we.code ? we.msg : strerror(errno));
 		}
 	}

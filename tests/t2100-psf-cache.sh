@@ -27,6 +27,14 @@ test_expect_success 'a hit loads it, same data, in milliseconds' '
 	samedata a.fits b.fits
 '
 
+test_expect_success 'a scene run with -q says nothing about the cache; -v does' '
+	printf "x,y,flux\n100,100,10\n" > one.csv &&
+	"$WFS" -q --filter F129 -o q1.fits one.csv 2>err &&
+	! test -s err &&
+	"$WFS" -v --filter F129 -o q2.fits one.csv 2>err &&
+	test_grep "PSF F129 SCA01 177: cache" err
+'
+
 test_expect_success 'other settings are other keys' '
 	WFISCENE_CACHE=$C $WFS psf $cheap --kind psf -o p.fits 2>err &&
 	test "$(nfiles $C)" = 2

@@ -85,4 +85,29 @@ s = d[:, :20].sum()
 sys.exit(not (100 < s < 5000))
 "
 '
+test_expect_success '--sersic-convolve no is --set sersic-convolve=no, and unconvolved' '
+	printf "x,y,flux,type,n,re,phi,ratio\n200.3,300.7,1000,sersic,1.5,3,20,0.6\n" > g.csv &&
+	"$WFS" -q --filter F129 --sersic-convolve no -o nc1.fits g.csv &&
+	"$WFS" -q --filter F129 --set sersic-convolve=no -o nc2.fits g.csv &&
+	"$WFS" -q --filter F129 -o cv.fits g.csv &&
+	cmp nc1.fits nc2.fits && ! cmp -s nc1.fits cv.fits
+'
+test_expect_success '--sersic-trunc, --sersic-tol and --sersic-core reach the models' '
+	"$WFS" -q --filter F129 --sersic precise --sersic-tol 1e-3 -o tol.fits g.csv &&
+	"$WFS" -q --filter F129 --sersic precise -o def.fits g.csv &&
+	! cmp -s tol.fits def.fits &&
+	"$WFS" -q --filter F129 --sersic-trunc 0.1 -o tr.fits g.csv &&
+	! cmp -s tr.fits cv.fits &&
+	"$WFS" -q --filter F129 --sersic-core 3 -o core.fits g.csv &&
+	! cmp -s core.fits cv.fits
+'
+for bad in "--sersic-core 2.5:not an integer" "--sersic-core 17:out of range" \
+	   "--sersic-trunc 0.7:out of range" "--sersic-tol abc:not a number" \
+	   "--sersic-convolve maybe:not one of yes, no"; do
+	opt=${bad%%:*} want=${bad#*:}
+	test_expect_success "$opt is refused before anything is drawn" "
+		test_must_fail --status 1 \"\$WFS\" --filter F129 $opt -o o.fits g.csv 2> err &&
+		test_grep \"$want\" err && ! test -e o.fits
+	"
+done
 test_done

@@ -1411,6 +1411,10 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 
 		if (!c)
 			goto out;
+		/* Column indices belong to a catalog: the next one may order
+		 * its columns differently (rows lives at the same address). */
+		for (int i = 0; i < ng; i++)
+			memset(g[i]->colidx_rows, 0, sizeof(g[i]->colidx_rows));
 		for (;;) {
 			double ta = now(), tb;
 

@@ -1341,9 +1341,18 @@ long table_read(struct table *t, struct table_chunk *c, struct err *e)
 {
 	memset(c, 0, sizeof(*c));
 	c->file = t->name;
-	if (t->fits)
+	if (t->fits) {
+		c->fits = t->fits;
 		return table_fits_read(t->fits, c, e);
+	}
 	return text_read(t, c, e);
+}
+
+const char *table_text(const struct table_chunk *c, int col, size_t row)
+{
+	const char *s = c->text[col][row];
+
+	return s ? s : table_fits_text(c->fits, col, row);
 }
 
 void table_close(struct table *t)

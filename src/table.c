@@ -29,6 +29,10 @@
 #define TABLE_BUF (8u << 20)
 #endif
 #define NONE ((size_t)-1)
+/* Bytes after the text buffer and the IPAC arena, kept zero (defined), so
+ * that a cell may be read 8 bytes at a time past its NUL (table.h,
+ * TABLE_PAD). */
+#define PAD TABLE_PAD
 #define TABLE_MAX_CELLS (8u << 20)
 
 enum cls { C_PLAIN, C_DELIM, C_QUOTE, C_BAD, C_HIGH, C_CR };
@@ -366,9 +370,10 @@ static int text_line(struct table *t, char **ls, char **le, int quotes,
 						       TABLE_MAX_LINE >> 20);
 				if (cap > TABLE_MAX_LINE + 2)
 					cap = TABLE_MAX_LINE + 2;
-				b = realloc(t->buf, cap);
+				b = realloc(t->buf, cap + PAD);
 				if (!b)
 					return oom(e);
+				memset(b + t->cap, 0, cap + PAD - t->cap);
 				t->buf = b;
 				t->cap = cap;
 			}
@@ -1141,9 +1146,10 @@ static int ipac_row(struct table *t, size_t row, char *s, char *x, struct err *e
 
 		if (row > 0)
 			return 2;
-		p = realloc(t->arena, need);
+		p = realloc(t->arena, need + PAD);
 		if (!p)
 			return oom(e);
+		memset(p + t->arena_cap, 0, need + PAD - t->arena_cap);
 		t->arena = p;
 		t->arena_cap = need;
 	}
@@ -1242,6 +1248,7 @@ static long text_read(struct table *t, struct table_chunk *c, struct err *e)
 		rows++;
 	}
 	c->n = rows;
+	c->padded = 1;
 	c->file = t->name;
 	c->line = t->line_of;
 	c->text = t->text;
@@ -1271,7 +1278,7 @@ static int alloc_chunk(struct table *t, struct err *e)
 		/* IPAC cells are copied (a value may touch the next column's
 		 * slice): room for the whole text buffer is enough. */
 		t->arena_cap = t->cap + (size_t)t->ncol * 64;
-		t->arena = malloc(t->arena_cap);
+		t->arena = calloc(t->arena_cap + PAD, 1);
 		if (!t->arena)
 			return oom(e);
 	}
@@ -1311,7 +1318,7 @@ struct table *table_open(const char *path, size_t chunk_rows, struct err *e)
 		return t;
 	}
 	t->cap = TABLE_BUF;
-	t->buf = malloc(t->cap);
+	t->buf = calloc(t->cap + PAD, 1);
 	if (!t->buf) {
 		oom(e);
 		goto fail;

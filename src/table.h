@@ -42,7 +42,12 @@ struct table_chunk {
 	const double **num;     /* num[col][row] for TABLE_NUMBER columns, else
 	                           num[col] == NULL */
 	struct table_fits *fits;        /* the FITS reader, for table_text() */
+	int padded;             /* text tables: TABLE_PAD defined bytes follow
+	                           every cell's NUL, so a cell may be read a
+	                           word at a time past its end */
 };
+
+#define TABLE_PAD 16
 
 /* The text of cell (col, row) of chunk c: text[col][row], or a FITS
  * double (D) cell written now as "%.17g", which reads back to its value.

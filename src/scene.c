@@ -549,15 +549,18 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
  * whose window, widened by the largest reach in the chunk, covers a band of
  * the focal plane; only those slots get the exact test.  The table is a
  * superset by construction (a monotone bin index of a position inside a
- * window lies within the window's bins), so the masks are exactly what
- * testing every slot gives.
+ * window lies within the window's bins, and the windows are widened by a
+ * margin for rounding), so the masks are exactly what testing every slot
+ * gives.
  */
 #define SLOT_BINS 64
 
 static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 {
 	uint32_t xm[SLOT_BINS], ym[SLOT_BINS];
-	double lim = SKY_SCA_HALF + maxreach + 2.0;
+	/* widened a little, so that a row passing the exact test within an
+	 * ulp of a window's edge is still inside the window's bins */
+	double lim = (SKY_SCA_HALF + maxreach + 2.0) * (1 + 1e-9) + 1e-6;
 	double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY, wx, wy;
 
 	for (int s = 0; s < g->nslot; s++) {

@@ -94,6 +94,13 @@ $(B)/contrib/%: contrib/%.c | $(B)/contrib
 	@echo "  CC      $@"
 	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra $(CFLAGS) $(LDFLAGS) -o $@ $< -lzstd -lm
 
+# csv2fits writes FITS tables for the bench and so needs cfitsio.
+$(B)/contrib/csv2fits: contrib/csv2fits.c | $(B)/contrib
+	@echo "  CC      $@"
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra $(CFLAGS) \
+		$$($(PKG_CONFIG) --cflags cfitsio) $(LDFLAGS) -o $@ $< \
+		$$($(PKG_CONFIG) --libs cfitsio) -lm
+
 $(B)/obj $(B)/plugins $(B)/tests $(B)/contrib:
 	$(Q)mkdir -p $@
 

@@ -23,6 +23,23 @@ measure() {
 	cat "$W/time"
 }
 
+# seconds, CPU seconds (user + system, the whole pipeline) and peak KiB
+measure3() {
+	/usr/bin/time -f '%e %U %S %M' -o "$W/time" sh -c "$1" > /dev/null 2> "$W/err" ||
+		{ cat "$W/err" >&2; exit 1; }
+	awk '{ print $1, $2 + $3, $4 }' "$W/time"
+}
+
+# one number from a --report file: json KEY... (python only reads the report)
+json() {
+	/usr/bin/python3 -c "
+import json, sys
+r = json.load(open(sys.argv[1]))
+for k in sys.argv[2:]:
+    r = r[k]
+print(r)" "$@"
+}
+
 echo "# wfiscene benchmarks, $(date -u +%Y-%m-%d), $(nproc) cores, $(uname -m)"
 echo
 echo "Commands are shown with each table; catalogs come from build/contrib/starfield."
@@ -54,19 +71,27 @@ for n in 100000 $big; do
 done
 
 echo
-echo "## Catalog parse rate, zstd CSV on stdin"
+echo "## Catalog parse rate, zstd CSV on stdin and a FITS table"
 echo
 echo "Rows far from the pointing are read, parsed, projected and culled, so this"
-echo "is the reading side alone: \`zstd -dc far.csv.zst | wfiscene --filter F129 --ra 180 -o out.fits -\`"
+echo "is the reading side alone: \`zstd -dc far.csv.zst | wfiscene --filter F129 --ra 180 --dec -20 -o out.fits -\`;"
+echo "the same rows as a FITS binary table (\`build/contrib/csv2fits\`: id as K, the"
+echo "rest as D columns), read from the file: \`wfiscene ... far.fits\`.  MB are"
+echo "the bytes wfiscene reads (CSV after decompression; the FITS file)."
 echo
-echo "| rows | MB (CSV) | wall s | rows/s | MB/s | peak MiB |"
-echo "|---|---|---|---|---|---|"
+echo "| catalog | rows | MB | wall s | CPU s | rows/s | MB/s | peak MiB |"
+echo "|---|---|---|---|---|---|---|---|"
 "$GEN" -n $big -r 10 -d 20 -s 3 | zstd -q -c > "$W/far.csv.zst"
+zstd -dc "$W/far.csv.zst" | "$B/contrib/csv2fits" "$W/far.fits"
 mb=$(zstd -dc "$W/far.csv.zst" | wc -c)
-set -- $(measure "zstd -dc '$W/far.csv.zst' | '$WFS' --filter F129 --ra 180 --dec -20 --flux-unit abmag -o '$W/o.fits' -")
-awk -v n=$big -v b=$mb -v t=$1 -v m=$2 'BEGIN {
-	printf "| %d | %.1f | %.2f | %.0f | %.1f | %.0f |\n", n, b / 1e6, t, n / t, b / 1e6 / t, m / 1024 }'
-
+set -- $(measure3 "zstd -dc '$W/far.csv.zst' | '$WFS' --filter F129 --ra 180 --dec -20 --flux-unit abmag -o '$W/o.fits' -")
+awk -v n=$big -v b=$mb -v t=$1 -v c=$2 -v m=$3 'BEGIN {
+	printf "| zstd CSV, stdin | %d | %.1f | %.2f | %.2f | %.0f | %.1f | %.0f |\n", n, b / 1e6, t, c, n / t, b / 1e6 / t, m / 1024 }'
+mb=$(wc -c < "$W/far.fits")
+set -- $(measure3 "'$WFS' --filter F129 --ra 180 --dec -20 --flux-unit abmag -o '$W/o.fits' '$W/far.fits'")
+awk -v n=$big -v b=$mb -v t=$1 -v c=$2 -v m=$3 'BEGIN {
+	printf "| FITS binary table, file | %d | %.1f | %.2f | %.2f | %.0f | %.1f | %.0f |\n", n, b / 1e6, t, c, n / t, b / 1e6 / t, m / 1024 }'
+rm -f "$W/far.fits"
 echo
 echo "## Peak memory against catalog length"
 echo
@@ -156,4 +181,70 @@ print('| $set | $t | %.2f | %.2f | %.0f | %.2f | %.2f | %.2f | %.2f | %.2f |' % 
       r['read_parse'], r['project_place'], r['render_busy'], r['render_wait'], r['write']))"
 	done
 done
+echo
+echo "## Bright stars: the 88- and 176-pixel boxes"
+echo
+echo "Stars on SCA 1 in three magnitude ranges, one run each, one worker thread"
+echo "(\`--threads 1\`); render is the worker's busy time from --report, per star."
+echo "Defaults: \`--bright-limit 14\` (88 px) and \`--xbright-limit 3\` (176 px)."
+echo "\`starfield -n N -x -m MIN -M MAX | wfiscene --filter F129 --flux-unit abmag --threads 1 --report r.json -o out.fits\`"
+echo
+echo "| stars | AB mag | box px | pixels/star | wall s | render s | µs/star (render) | × faint |"
+echo "|---|---|---|---|---|---|---|---|"
+nf=200000; nb=50000; nx=10000
+[ "$quick" = 1 ] && nf=50000 && nb=12000 && nx=2500
+# build (or load) the three PSF grids first: one star of each class
+printf 'x,y,mag\n100,100,25\n200,200,12\n300,300,2\n' > "$W/warm.csv"
+"$WFS" --filter F129 --flux-unit abmag -o "$W/warm.fits" "$W/warm.csv"
+faint=
+for cls in "$nf 20 27 44" "$nb 10 14 88" "$nx 0 3 176"; do
+	set -- $cls
+	n=$1 lo=$2 hi=$3 box=$4
+	"$GEN" -n $n -x -s 11 -m $lo -M $hi > "$W/bright.csv"
+	set -- $(measure "'$WFS' --filter F129 --flux-unit abmag --threads 1 --report '$W/rb.json' -o '$W/o.fits' '$W/bright.csv'")
+	r=$(json "$W/rb.json" seconds render_busy)
+	us=$(awk -v r=$r -v n=$n 'BEGIN { printf "%.2f", 1e6 * r / n }')
+	[ -z "$faint" ] && faint=$us
+	awk -v n=$n -v lo=$lo -v hi=$hi -v b=$box -v t=$1 -v r=$r -v us=$us -v f=$faint 'BEGIN {
+		printf "| %d | %s-%s | %d | %d | %.2f | %.2f | %.1f | %.1f |\n", n, lo, hi, b, b * b, t, r, us, us / f }'
+done
+rm -f "$W/bright.csv"
+
+echo
+echo "## 10^7 faint stars on 18 SCAs, end to end"
+echo
+echo "Generated on the fly and piped in (nothing stored); 2 threads, defaults:"
+echo "\`starfield -n N -r 10 -d 20 -w 0.8 | wfiscene --filter F129 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --report r.json -o out.fits\`"
+echo "(CPU s includes starfield's; stage seconds from --report)"
+echo
+echo "| stars | wall s | CPU s | stars/s | peak MiB | read+parse s | project+place s | render busy s | render wait s | write s |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
+set -- $(measure3 "'$GEN' -n $huge -r 10 -d 20 -w 0.8 -s 12 | '$WFS' --filter F129 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --report '$W/r18.json' -o '$W/o.fits' -")
+/usr/bin/python3 -c "
+import json
+r = json.load(open('$W/r18.json'))['seconds']
+print('| %d | %.1f | %.1f | %.0f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f |' % ($huge, $1, $2, $huge / $1, $3 / 1024,
+      r['read_parse'], r['project_place'], r['render_busy'], r['render_wait'], r['write']))"
+rm -f "$W/o.fits"
+
+echo
+echo "## Sersic galaxies, end to end"
+echo
+echo "A deep-field mix on SCA 1 (\`starfield -g\`: n 0.8-1.4 for 60%, 1.5-4 for the"
+echo "rest; r_e log-normal about 3 px, 0.3-60; axis ratio 0.2-1; AB 20-28 from a"
+echo "power-law count), 2 threads:"
+echo "\`starfield -n N -x -g -m 20 -M 28 | wfiscene --filter F129 --flux-unit abmag --sersic METHOD -o out.fits\`"
+echo
+echo "| model | galaxies | wall s | CPU s | galaxies/s | CPU ms/galaxy | peak MiB |"
+echo "|---|---|---|---|---|---|---|"
+for m in "quick 1000" "precise 300"; do
+	set -- $m
+	meth=$1 n=$2
+	[ "$quick" = 1 ] && n=$((n / 5))
+	"$GEN" -n $n -x -g -m 20 -M 28 -s 13 > "$W/gal.csv"
+	set -- $(measure3 "'$WFS' --filter F129 --flux-unit abmag --sersic $meth -o '$W/o.fits' '$W/gal.csv'")
+	awk -v m=$meth -v n=$n -v t=$1 -v c=$2 -v k=$3 'BEGIN {
+		printf "| sersic-%s | %d | %.1f | %.1f | %.1f | %.1f | %.0f |\n", m, n, t, c, n / t, 1e3 * c / n, k / 1024 }'
+done
+rm -f "$W/gal.csv"
 rm -f "$W"/*.fits

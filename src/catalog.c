@@ -39,6 +39,7 @@ struct catalog {
 	size_t cap;
 	char **colname;
 
+	struct table_chunk ch;  /* the last chunk read, for rows_text() */
 	double *ra, *dec, *x, *y, *flux;
 	int *sca;
 	unsigned char *unit;
@@ -131,6 +132,82 @@ slow:
 	return 0;
 }
 
+/* Pow10 as integers, for joining blocks of digits. */
+static const uint64_t pow10_int[9] = {
+	1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000,
+};
+
+/* How many of the 8 bytes in x (little-endian: the first byte lowest) are
+ * ASCII digits before the first that is not.  A byte below '0' borrows
+ * from the bytes above it, and one above 0xb9 carries into them, but only
+ * bytes after the first non-digit are disturbed. */
+static inline int digit_run(uint64_t x)
+{
+	uint64_t nd = ((x - 0x3030303030303030ull) | (x + 0x4646464646464646ull)) &
+		      0x8080808080808080ull;
+
+	return nd ? __builtin_ctzll(nd) >> 3 : 8;
+}
+
+/* The value of the first k (1..8) digits of x (Lemire's SWAR: pairs, then
+ * fours, then the eight, each step one multiply). */
+static inline uint64_t digit_value(uint64_t x, int k)
+{
+	x = (x & 0x0f0f0f0f0f0f0f0full) << (8 * (8 - k));
+	x = x * 10 + (x >> 8);
+	return (((x & 0x000000ff000000ffull) * (100 + (1000000ull << 32))) +
+		(((x >> 16) & 0x000000ff000000ffull) * (1 + (10000ull << 32)))) >> 32;
+}
+
+/*
+ * The common cell of a text catalog, "-123.4567890" (up to 7 integer and
+ * 16 fraction digits, 19 in all, no exponent, no blanks), read 8 bytes at
+ * a time; p must be followed by 8 readable bytes past its NUL (a padded
+ * chunk).  The digits form m < 2^53 and the value is m / 10^f with f <= 16,
+ * one correctly rounded division of exact doubles as in
+ * catalog_parse_double, so both give the same double.  Returns 0, or -1
+ * for anything else (then catalog_parse_double decides).
+ */
+static inline int parse_plain(const char *p, double *out)
+{
+	uint64_t x, m;
+	int neg = 0, k, f = 0, g;
+	double v;
+
+	if (*p == '-')
+		neg = 1, p++;
+	memcpy(&x, p, 8);
+	k = digit_run(x);
+	if (k == 8)
+		return -1;
+	m = k ? digit_value(x, k) : 0;
+	p += k;
+	if (*p == '.') {
+		memcpy(&x, ++p, 8);
+		f = digit_run(x);
+		if (f) {
+			m = m * pow10_int[f] + digit_value(x, f);
+			p += f;
+		}
+		if (f == 8) {
+			memcpy(&x, p, 8);
+			g = digit_run(x);
+			if (g == 8 || k + f + g > 19)
+				return -1;
+			if (g) {
+				m = m * pow10_int[g] + digit_value(x, g);
+				p += g;
+				f += g;
+			}
+		}
+	}
+	if (*p || k + f == 0 || m >= (1ull << 53))
+		return -1;
+	v = f ? (double)m / pow10_exact[f] : (double)m;
+	*out = neg ? -v : v;
+	return 0;
+}
+
 static int is_empty(const char *s)
 {
 	while (*s == ' ' || *s == '\t')
@@ -157,12 +234,26 @@ int rows_column(const struct rows *r, const char *name)
 	return -1;
 }
 
+const char *rows_text(const struct rows *r, int col, size_t i)
+{
+	return table_text(r->chunk, col, i);
+}
+
 int rows_number(const struct rows *r, int col, size_t i, double fallback,
 		double *out, struct err *e)
 {
 	const char *s = r->text[col][i];
 	int rc;
 
+	/* A FITS double: its text would read back to this value; it is
+	 * written only for the message about a bad one. */
+	if (!s) {
+		if (isfinite(r->num[col][i])) {
+			*out = r->num[col][i];
+			return 0;
+		}
+		s = rows_text(r, col, i);
+	}
 	if (is_empty(s)) {
 		*out = fallback;
 		return 0;
@@ -424,13 +515,17 @@ static inline int cell_number(const struct table_chunk *ch, int col, size_t i,
 	int rc;
 
 	if (ch->num[col]) {
+		const char *s;
+
 		*v = ch->num[col][i];
 		if (isfinite(*v))
 			return 0;
-		rc = isnan(*v) && !*ch->text[col][i] ? 1 : 2;
-		return bad_number(e, ch->file, ch->line[i], colname,
-				  ch->text[col][i], rc);
+		s = table_text(ch, col, i);
+		rc = isnan(*v) && !*s ? 1 : 2;
+		return bad_number(e, ch->file, ch->line[i], colname, s, rc);
 	}
+	if (ch->padded && parse_plain(ch->text[col][i], v) == 0)
+		return 0;
 	rc = catalog_parse_double(ch->text[col][i], v);
 	if (rc)
 		return bad_number(e, ch->file, ch->line[i], colname,
@@ -441,7 +536,7 @@ static inline int cell_number(const struct table_chunk *ch, int col, size_t i,
 static int row_unit(const struct table_chunk *ch, int col, size_t i,
 		    int dflt, struct err *e)
 {
-	const char *s = ch->text[col][i];
+	const char *s = table_text(ch, col, i);
 	int u;
 
 	while (*s == ' ')
@@ -465,6 +560,16 @@ static int integer_value(const struct table_chunk *ch, int col, size_t i,
 	int neg = 0, nd = 0;
 	double d;
 
+	if (!s) {
+		/* A FITS double: what its text would give. */
+		if (cell_number(ch, col, i, colname, &d, e) < 0)
+			return -1;
+		if (d != floor(d) || fabs(d) > 9.2e18)
+			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': not an integer: '%.200s'",
+				       ch->file, ch->line[i], colname, table_text(ch, col, i));
+		*out = (long long)d;
+		return 0;
+	}
 	while (*p == ' ')
 		p++;
 	if (*p == '-' || *p == '+')
@@ -529,7 +634,7 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 			if (v < -90 || v > 90)
 				return err_set(e, EXIT_INPUT,
 					       "%s:%ld: column 'dec': out of range [-90, 90]: '%.40s'",
-					       fn, ch.line[i], ch.text[c->c_dec][i]);
+					       fn, ch.line[i], table_text(&ch, c->c_dec, i));
 			c->dec[i] = v;
 			c->x[i] = c->y[i] = NAN;
 			c->sca[i] = 0;
@@ -550,7 +655,7 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 				if (s < 1 || s > WFS_NSCA)
 					return err_set(e, EXIT_INPUT,
 						       "%s:%ld: column 'sca': not an SCA (1 to %d): '%.40s'",
-						       fn, ch.line[i], WFS_NSCA, ch.text[c->c_sca][i]);
+						       fn, ch.line[i], WFS_NSCA, table_text(&ch, c->c_sca, i));
 				c->sca[i] = (int)s;
 			}
 		}
@@ -571,11 +676,11 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 					return err_set(e, EXIT_INPUT,
 						       "%s:%ld: column '%s': magnitude out of range [%g, %g]: '%.40s'",
 						       fn, ch.line[i], cn, CATALOG_MAG_MIN,
-						       CATALOG_MAG_MAX, ch.text[c->c_flux][i]);
+						       CATALOG_MAG_MAX, table_text(&ch, c->c_flux, i));
 			} else if (!(f > 0)) {
 				return err_set(e, EXIT_INPUT,
 					       "%s:%ld: column '%s': flux must be positive: '%.40s'",
-					       fn, ch.line[i], cn, ch.text[c->c_flux][i]);
+					       fn, ch.line[i], cn, table_text(&ch, c->c_flux, i));
 			}
 		} else {
 			if (cell_number(&ch, c->c_mag, i, "mag", &f, e) < 0)
@@ -584,7 +689,7 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 				return err_set(e, EXIT_INPUT,
 					       "%s:%ld: column 'mag': magnitude out of range [%g, %g]: '%.40s'",
 					       fn, ch.line[i], CATALOG_MAG_MIN, CATALOG_MAG_MAX,
-					       ch.text[c->c_mag][i]);
+					       table_text(&ch, c->c_mag, i));
 			u = UNIT_ABMAG;
 		}
 		c->flux[i] = f;
@@ -593,7 +698,7 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 		if (c->c_type >= 0 && c->stips != STIPS_GENERIC) {
 			/* Cells live in the table's own buffers, which
 			 * are writable: lower-case them in place. */
-			char *s = (char *)ch.text[c->c_type][i];
+			char *s = (char *)table_text(&ch, c->c_type, i);
 
 			lower_trim(&s);
 			c->type[i] = *s ? s : "point";
@@ -601,7 +706,7 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 			c->type[i] = "point";
 		}
 
-		if (c->c_id >= 0 && !is_empty(ch.text[c->c_id][i])) {
+		if (c->c_id >= 0 && (!ch.text[c->c_id][i] || !is_empty(ch.text[c->c_id][i]))) {
 			if (integer_value(&ch, c->c_id, i, "id", &c->id[i], e) < 0)
 				return -1;
 		} else {
@@ -627,6 +732,9 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 	r->ncol = table_ncol(c->t);
 	r->colname = c->colname;
 	r->text = ch.text;
+	r->num = ch.num;
+	c->ch = ch;
+	r->chunk = &c->ch;
 	return n;
 }
 

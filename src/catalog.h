@@ -19,6 +19,7 @@
 #include <stddef.h>
 
 struct err;
+struct table_chunk;
 
 /* Units a flux value can carry (per file or per row). */
 enum flux_unit {
@@ -58,8 +59,16 @@ struct rows {
 	/* Every column, as text, for models that read columns by name. */
 	int ncol;
 	char **colname;         /* lower-case names */
-	const char ***text;     /* text[col][row]; "" for an empty cell */
+	const char ***text;     /* text[col][row]; "" for an empty cell; NULL
+	                           for a FITS double not needed as text yet:
+	                           rows_text() gives every cell */
+	const double **num;     /* num[col][row] of FITS numeric columns, else
+	                           NULL or num[col] == NULL */
+	const struct table_chunk *chunk;
 };
+
+/* The text of cell (col, i); see text above. */
+const char *rows_text(const struct rows *r, int col, size_t i);
 
 struct catalog;
 

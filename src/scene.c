@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/mman.h>
 #include <unistd.h>
 
 #include "catalog.h"
@@ -108,7 +109,7 @@ struct engine {
 
 	double *fx, *fy, *px, *py, *reach;
 	uint32_t *cand;
-	unsigned char *near;            /* the row reaches some SCA */
+	uint32_t *mask;                 /* slots the row may reach */
 	size_t cap_rows;
 
 	struct batch b[2];
@@ -318,6 +319,27 @@ static int need_grid(struct engine *g, int sca, int cls)
 
 /* ---- reading rows into placements ---- */
 
+/*
+ * A zeroed tile.  Tiles are mapped from the kernel directly: its pages come
+ * zeroed and are only touched by the worker that first draws on them,
+ * whereas calloc() would zero them with memset in the main thread once
+ * glibc's mmap threshold has risen above a tile's size (it does after the
+ * first large free).  18 SCAs of 512-pixel tiles are 2.4 GB of doubles.
+ */
+static double *tile_alloc(int T)
+{
+	void *p = mmap(NULL, (size_t)T * T * sizeof(double), PROT_READ | PROT_WRITE,
+		       MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+
+	return p == MAP_FAILED ? NULL : p;
+}
+
+static void tile_free(double *p, int T)
+{
+	if (p)
+		munmap(p, (size_t)T * T * sizeof(double));
+}
+
 static int grow(void **p, size_t *cap, size_t need, size_t size)
 {
 	size_t n = *cap ? *cap : 256;
@@ -518,12 +540,83 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 	return 0;
 }
 
+/*
+ * Which requested SCAs each sky row may reach, as a bit mask per row (bit s
+ * for slot s), and the rows near none of them counted as culled.  A row is
+ * a candidate for slot s when its focal-plane position is within
+ * SKY_SCA_HALF + its reach + 2" of the SCA centre along both axes.  Rather
+ * than test every slot for every row, a per-axis table gives the slots
+ * whose window, widened by the largest reach in the chunk, covers a band of
+ * the focal plane; only those slots get the exact test.  The table is a
+ * superset by construction (a monotone bin index of a position inside a
+ * window lies within the window's bins, and the windows are widened by a
+ * margin for rounding), so the masks are exactly what testing every slot
+ * gives.
+ */
+#define SLOT_BINS 64
+
+static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
+{
+	uint32_t xm[SLOT_BINS], ym[SLOT_BINS];
+	/* widened a little, so that a row passing the exact test within an
+	 * ulp of a window's edge is still inside the window's bins */
+	double lim = (SKY_SCA_HALF + maxreach + 2.0) * (1 + 1e-9) + 1e-6;
+	double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY, wx, wy;
+
+	for (int s = 0; s < g->nslot; s++) {
+		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+
+		x0 = fmin(x0, ss->fx - lim);
+		x1 = fmax(x1, ss->fx + lim);
+		y0 = fmin(y0, ss->fy - lim);
+		y1 = fmax(y1, ss->fy + lim);
+	}
+	wx = (x1 - x0) / SLOT_BINS;
+	wy = (y1 - y0) / SLOT_BINS;
+	memset(xm, 0, sizeof(xm));
+	memset(ym, 0, sizeof(ym));
+	for (int s = 0; s < g->nslot; s++) {
+		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+		int a = (int)((ss->fx - lim - x0) / wx), b = (int)((ss->fx + lim - x0) / wx);
+		int c = (int)((ss->fy - lim - y0) / wy), d = (int)((ss->fy + lim - y0) / wy);
+
+		for (int k = a < 0 ? 0 : a; k <= b && k < SLOT_BINS; k++)
+			xm[k] |= 1u << s;
+		for (int k = c < 0 ? 0 : c; k <= d && k < SLOT_BINS; k++)
+			ym[k] |= 1u << s;
+	}
+	for (size_t i = 0; i < r->n; i++) {
+		double fx = g->fx[i], fy = g->fy[i], l;
+		uint32_t m = 0, c;
+
+		/* also false for NaN: x/y rows and rows far from the pointing */
+		if (fx >= x0 && fx < x1 && fy >= y0 && fy < y1) {
+			int bx = (int)((fx - x0) / wx), by = (int)((fy - y0) / wy);
+
+			c = xm[bx < SLOT_BINS ? bx : SLOT_BINS - 1] &
+			    ym[by < SLOT_BINS ? by : SLOT_BINS - 1];
+			l = SKY_SCA_HALF + g->reach[i] + 2.0;
+			while (c) {
+				int s = __builtin_ctz(c);
+				const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+
+				c &= c - 1;
+				if (fabs(fx - ss->fx) < l && fabs(fy - ss->fy) < l)
+					m |= 1u << s;
+			}
+		}
+		g->mask[i] = m;
+		g->culled += !isnan(r->ra[i]) && !m;
+	}
+}
+
 /* Turn one chunk of rows into the placements of batch b. */
 static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 {
-	double *param = NULL;
-	size_t nparam_row = 0;
-	int rc = -1;
+	double *param = NULL, maxreach = 0, band = 0;
+	size_t nparam_row = 0, nxy = 0;
+	int rc = -1, last_m = -1;
+	const char *last_type = NULL;
 
 	b->n = b->nparam = 0;
 	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)
@@ -534,10 +627,8 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    !(g->py = realloc(g->py, g->cap_rows * sizeof(double))) ||
 	    !(g->reach = realloc(g->reach, g->cap_rows * sizeof(double))) ||
 	    !(g->cand = realloc(g->cand, g->cap_rows * sizeof(uint32_t))) ||
-	    !(g->near = realloc(g->near, g->cap_rows)))
+	    !(g->mask = realloc(g->mask, g->cap_rows * sizeof(uint32_t))))
 		return err_sys(g->e, "rows");
-	memset(g->near, 0, r->n);
-	sky_to_focal(&g->sky, r->n, r->ra, r->dec, g->fx, g->fy);
 	g->sersic_flux_now = g->o->sersic_flux ? g->o->sersic_flux
 			   : r->sersic_ie ? "ie" : "total";
 
@@ -552,13 +643,19 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 		return err_sys(g->e, "rows");
 	}
 	for (size_t i = 0; i < r->n; i++) {
-		int m = resolve_type(g, r->type[i]);
+		int m;
 		const struct wfs_model *md;
 
-		if (m < 0) {
+		/* Rows of one catalog mostly share one type string ("point"
+		 * when there is no type column). */
+		if (r->type[i] == last_type) {
+			m = last_m;
+		} else if ((m = resolve_type(g, r->type[i])) < 0) {
 			err_prefix(g->e, "%s:%ld", r->file, r->line[i]);
 			goto out;
 		}
+		last_type = r->type[i];
+		last_m = m;
 		md = g->plugins.p[m].m;
 		model[i] = m;
 		if (model_columns(g, r, m) < 0)
@@ -573,36 +670,56 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 				goto out;
 		}
 		g->reach[i] = 0;
-		if (!isnan(r->ra[i]) &&
-		    row_reach(g, r, i, m, &param[i * nparam_row], &g->reach[i]) < 0)
+		if (isnan(r->ra[i]))
+			nxy++;
+		else if (row_reach(g, r, i, m, &param[i * nparam_row], &g->reach[i]) < 0)
 			goto out;
+		else if (g->reach[i] > maxreach)
+			maxreach = g->reach[i];
 	}
 
+	/* Rows farther in declination from the pointing than any SCA's
+	 * window reaches are on no SCA: a row near slot s lies within
+	 * rho = |(fx, fy)| of the reference in the focal plane, i.e. at an
+	 * angle atan(rho) <= rho, which is at least its declination offset.
+	 * Those rows skip the trigonometry of the projection. */
 	for (int s = 0; s < g->nslot; s++) {
 		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
-		size_t nc = 0;
+		double lim = SKY_SCA_HALF + maxreach + 2.0;
+
+		band = fmax(band, hypot(fabs(ss->fx) + lim, fabs(ss->fy) + lim));
+	}
+	band = band / 3600 * (1 + 1e-9) + 1e-9;
+	sky_to_focal(&g->sky, r->n, r->ra, r->dec, band, g->fx, g->fy);
+	slot_masks(g, r, maxreach);
+
+	for (int s = 0; s < g->nslot; s++) {
+		size_t nc = 0, k = 0;
 
 		/* Sky rows whose reach touches this SCA, then their exact pixels. */
-		for (size_t i = 0; i < r->n; i++) {
-			double lim;
-
-			if (isnan(r->ra[i]))
-				continue;
-			lim = SKY_SCA_HALF + g->reach[i] + 2.0;
-			if (fabs(g->fx[i] - ss->fx) < lim && fabs(g->fy[i] - ss->fy) < lim) {
+		for (size_t i = 0; i < r->n; i++)
+			if (g->mask[i] >> s & 1)
 				g->cand[nc++] = i;
-				g->near[i] = 1;         /* near some SCA: not culled */
-			}
-		}
-		for (size_t k = 0; k < nc; k++) {
+		for (k = 0; k < nc; k++) {
 			g->px[k] = r->ra[g->cand[k]];
 			g->py[k] = r->dec[g->cand[k]];
 		}
 		if (sky_to_pixel(&g->sky, g->slot[s].sca, nc, g->px, g->py, g->px, g->py,
 				 g->e) < 0)
 			goto out;
+		if (!nxy) {
+			for (k = 0; k < nc; k++) {
+				size_t i = g->cand[k];
+
+				if (!isnan(g->px[k]) &&
+				    add_placement(g, b, r, i, model[i], &param[i * nparam_row], s,
+						  g->px[k], g->py[k]) < 0)
+					goto out;
+			}
+			continue;
+		}
 		/* Pixel rows for this SCA are merged in catalog order. */
-		size_t k = 0;
+		k = 0;
 		for (size_t i = 0; i < r->n; i++) {
 			double x, y;
 
@@ -627,8 +744,6 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 				goto out;
 		}
 	}
-	for (size_t i = 0; i < r->n; i++)
-		g->culled += !isnan(r->ra[i]) && !g->near[i];
 	for (size_t i = 0; i < b->n; i++)
 		b->p[i].src.param = b->param + b->p[i].param_off;
 	rc = 0;
@@ -676,8 +791,7 @@ static int bin_batch(struct engine *g, struct batch *b)
 			size_t lt = t % g->ntile;
 
 			b->active[b->nactive++] = t;
-			if (!sl->tile[lt] &&
-			    !(sl->tile[lt] = calloc((size_t)T * T, sizeof(double))))
+			if (!sl->tile[lt] && !(sl->tile[lt] = tile_alloc(T)))
 				return err_sys(g->e, "tile memory");
 		}
 		run += c;
@@ -891,7 +1005,7 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 			struct strip_job j = { g, no, s, ty };
 
 			for (int tx = 0; tx < g->ntx; tx++)
-				if (!row[tx] && !(row[tx] = calloc((size_t)T * T, sizeof(double))))
+				if (!row[tx] && !(row[tx] = tile_alloc(T)))
 					return err_sys(g->e, "tile memory");
 			pool_run(g->pool, noise_strip_tile, &j, g->ntx);
 			if (atomic_load(&g->failed))
@@ -913,7 +1027,7 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 		if (fitsout_image_rows(f, strip, ny, g->e) < 0)
 			return -1;
 		for (int tx = 0; tx < g->ntx; tx++) {
-			free(row[tx]);
+			tile_free(row[tx], T);
 			row[tx] = NULL;
 		}
 		g->t_write += now() - t0;
@@ -1055,7 +1169,7 @@ static void engine_free(struct engine *g)
 	fftconv_free(g->fft);
 	for (int s = 0; s < g->nslot; s++) {
 		for (int t = 0; t < g->ntile; t++)
-			free(g->slot[s].tile[t]);
+			tile_free(g->slot[s].tile[t], g->tile);
 		free(g->slot[s].tile);
 	}
 	for (int s = 0; s < WFS_NSCA; s++)
@@ -1070,7 +1184,7 @@ static void engine_free(struct engine *g)
 		free(g->b[i].items);
 		free(g->b[i].active);
 	}
-	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->near);
+	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
 	sky_free(&g->sky);
 	pthread_mutex_destroy(&g->err_mu);
 }
@@ -1411,6 +1525,10 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 
 		if (!c)
 			goto out;
+		/* Column indices belong to a catalog: the next one may order
+		 * its columns differently (rows lives at the same address). */
+		for (int i = 0; i < ng; i++)
+			memset(g[i]->colidx_rows, 0, sizeof(g[i]->colidx_rows));
 		for (;;) {
 			double ta = now(), tb;
 

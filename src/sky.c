@@ -61,7 +61,7 @@ void sky_from_focal(const struct sky *sky, double fx, double fy, double *ra,
 }
 
 void sky_to_focal(const struct sky *sky, size_t n, const double *ra,
-		  const double *dec, double *fx, double *fy)
+		  const double *dec, double band, double *fx, double *fy)
 {
 	const double (*r)[3] = sky->rot;
 	double c = cos(sky->pa0 * D2R), s = sin(sky->pa0 * D2R);
@@ -69,12 +69,21 @@ void sky_to_focal(const struct sky *sky, size_t n, const double *ra,
 	const double dmin = 0.17364817766693;
 
 	for (size_t i = 0; i < n; i++) {
-		double a = ra[i] * D2R, d = dec[i] * D2R;
-		double v0 = cos(d) * cos(a), v1 = cos(d) * sin(a), v2 = sin(d);
-		double x = r[0][0] * v0 + r[0][1] * v1 + r[0][2] * v2;
-		double y = r[1][0] * v0 + r[1][1] * v1 + r[1][2] * v2;
-		double z = r[2][0] * v0 + r[2][1] * v1 + r[2][2] * v2;
-		double xi, eta;
+		double a, d, v0, v1, v2, x, y, z, xi, eta;
+
+		/* also true for NaN: x/y rows */
+		if (!(fabs(dec[i] - sky->dec0) <= band)) {
+			fx[i] = fy[i] = NAN;
+			continue;
+		}
+		a = ra[i] * D2R;
+		d = dec[i] * D2R;
+		v0 = cos(d) * cos(a);
+		v1 = cos(d) * sin(a);
+		v2 = sin(d);
+		x = r[0][0] * v0 + r[0][1] * v1 + r[0][2] * v2;
+		y = r[1][0] * v0 + r[1][1] * v1 + r[1][2] * v2;
+		z = r[2][0] * v0 + r[2][1] * v1 + r[2][2] * v2;
 
 		if (!(x > dmin)) {
 			fx[i] = fy[i] = NAN;

@@ -46,9 +46,10 @@ void sky_free(struct sky *sky);
 
 /* Focal-plane coordinates (arcsec, ideal frame of the reference: +x along
  * the detectors' +x, +y along +y) of n sky positions.  Rows more than 80
- * degrees from the reference get NaN. */
+ * degrees from the reference, more than band degrees from it in
+ * declination (INFINITY for no limit), or with NaN positions get NaN. */
 void sky_to_focal(const struct sky *sky, size_t n, const double *ra,
-		  const double *dec, double *fx, double *fy);
+		  const double *dec, double band, double *fx, double *fy);
 
 /* The focal-plane point (fx, fy) on the sky. */
 void sky_from_focal(const struct sky *sky, double fx, double fy, double *ra,

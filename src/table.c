@@ -13,6 +13,9 @@
  */
 #include <ctype.h>
 #include <stdint.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include <stdlib.h>
 #include <string.h>
 
@@ -26,6 +29,10 @@
 #define TABLE_BUF (8u << 20)
 #endif
 #define NONE ((size_t)-1)
+/* Bytes after the text buffer and the IPAC arena, kept zero (defined), so
+ * that a cell may be read 8 bytes at a time past its NUL (table.h,
+ * TABLE_PAD). */
+#define PAD TABLE_PAD
 #define TABLE_MAX_CELLS (8u << 20)
 
 enum cls { C_PLAIN, C_DELIM, C_QUOTE, C_BAD, C_HIGH, C_CR };
@@ -57,6 +64,10 @@ struct table {
 	 * when known, else NONE. */
 	char *buf;
 	size_t cap, len, pos, nl;
+	/* The first '"' at or after qfrom, found by searching buf[qfrom,
+	 * qscan), or NONE when there is none there: one search serves many
+	 * quote-free lines.  qscan = 0 when unknown. */
+	size_t qt, qfrom, qscan;
 	int eof;
 	long line;              /* lines consumed before pos */
 	int consumed;           /* lines the last text_line() consumed */
@@ -236,6 +247,25 @@ unsigned long long table_raw_bytes(const struct table *t)
 	return t->in ? input_raw_bytes(t->in) : 0;
 }
 
+/* Whether buf[a, b) holds a '"' (b <= len). */
+static int quote_in(struct table *t, size_t a, size_t b)
+{
+	if (t->qscan && t->qfrom <= a) {
+		if (t->qt != NONE && t->qt >= a)
+			return t->qt < b;
+		if (t->qt == NONE && b <= t->qscan)
+			return 0;
+	}
+	{
+		char *p = memchr(t->buf + a, '"', t->len - a);
+
+		t->qt = p ? (size_t)(p - t->buf) : NONE;
+		t->qfrom = a;
+		t->qscan = t->len;
+	}
+	return t->qt != NONE && t->qt < b;
+}
+
 /*
  * Make the next complete line available: [*ls, *le) without its line end.
  * A CSV row may span lines inside quotes; quotes says whether to look for
@@ -260,8 +290,7 @@ static int text_line(struct table *t, char **ls, char **le, int quotes,
 			end = t->nl;
 		else if (t->eof)
 			end = t->len;
-		if (end != NONE && quotes &&
-		    memchr(t->buf + t->pos, '"', end - t->pos)) {
+		if (end != NONE && quotes && quote_in(t, t->pos, end)) {
 			/* A quoted cell may hold line ends: find the row's
 			 * end outside quotes.  A quote opens a cell only at
 			 * its start, as split_line() reads it. */
@@ -329,6 +358,7 @@ static int text_line(struct table *t, char **ls, char **le, int quotes,
 				t->len -= t->pos;
 				t->pos = 0;
 				t->nl = NONE;
+				t->qscan = 0;
 			} else {
 				size_t cap = t->cap * 2;
 				char *b;
@@ -340,9 +370,10 @@ static int text_line(struct table *t, char **ls, char **le, int quotes,
 						       TABLE_MAX_LINE >> 20);
 				if (cap > TABLE_MAX_LINE + 2)
 					cap = TABLE_MAX_LINE + 2;
-				b = realloc(t->buf, cap);
+				b = realloc(t->buf, cap + PAD);
 				if (!b)
 					return oom(e);
+				memset(b + t->cap, 0, cap + PAD - t->cap);
 				t->buf = b;
 				t->cap = cap;
 			}
@@ -472,6 +503,54 @@ static int split_line(struct table *t, char *s, char *end, long line,
 	while (q < end && (*q == ' ' || (ws && *q == '\t')))
 		q++;
 	fs = q;
+#ifdef __SSE2__
+	/*
+	 * CSV rows of numbers, 16 bytes at a time: while a block holds only
+	 * printable ASCII and delimiters, each delimiter ends a field right
+	 * where it stands, with no byte looked at twice.  A block with
+	 * anything else in it (quote, tab, control, DEL, non-ASCII) goes to
+	 * the byte loop below from the block's start; fs and nf are then
+	 * what the byte loop would have at that point.  Blocks may read past
+	 * the line end into the next line's text (bits beyond end are
+	 * masked), never past the data in the buffer.
+	 */
+	if (!ws) {
+		const char *lim = t->buf + t->len;
+		const __m128i dl = _mm_set1_epi8(t->delim), qt = _mm_set1_epi8('"');
+		const __m128i del = _mm_set1_epi8(0x7f), sp = _mm_set1_epi8(0x20);
+
+		while (q < end && lim - q >= 16) {
+			__m128i x = _mm_loadu_si128((const __m128i *)q);
+			unsigned d = (unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(x, dl));
+			unsigned o = (unsigned)_mm_movemask_epi8(_mm_or_si128(
+				_mm_or_si128(_mm_cmpeq_epi8(x, qt), _mm_cmpeq_epi8(x, del)),
+				_mm_cmplt_epi8(x, sp)));
+			ptrdiff_t left = end - q;
+
+			if (left < 16) {
+				d &= (1u << left) - 1;
+				o &= (1u << left) - 1;
+			}
+			if (o)
+				break;
+			while (d) {
+				char *fe = q + __builtin_ctz(d);
+				char *next = fe + 1;
+
+				d &= d - 1;
+				while (fe > fs && fe[-1] == ' ')
+					fe--;
+				*fe = 0;
+				if (push_field(t, &nf, fs, e) < 0)
+					return -1;
+				while (next < end && *next == ' ')
+					next++;
+				fs = next;
+			}
+			q = left < 16 ? end : q + 16;
+		}
+	}
+#endif
 	while (q < end) {
 		unsigned c = cls[(unsigned char)*q];
 
@@ -1067,9 +1146,10 @@ static int ipac_row(struct table *t, size_t row, char *s, char *x, struct err *e
 
 		if (row > 0)
 			return 2;
-		p = realloc(t->arena, need);
+		p = realloc(t->arena, need + PAD);
 		if (!p)
 			return oom(e);
+		memset(p + t->arena_cap, 0, need + PAD - t->arena_cap);
 		t->arena = p;
 		t->arena_cap = need;
 	}
@@ -1119,6 +1199,7 @@ static long text_read(struct table *t, struct table_chunk *c, struct err *e)
 		t->len -= t->pos;
 		t->pos = 0;
 		t->nl = NONE;
+		t->qscan = 0;
 	}
 	t->arena_len = 0;
 	while (rows < t->chunk_rows) {
@@ -1167,6 +1248,7 @@ static long text_read(struct table *t, struct table_chunk *c, struct err *e)
 		rows++;
 	}
 	c->n = rows;
+	c->padded = 1;
 	c->file = t->name;
 	c->line = t->line_of;
 	c->text = t->text;
@@ -1196,7 +1278,7 @@ static int alloc_chunk(struct table *t, struct err *e)
 		/* IPAC cells are copied (a value may touch the next column's
 		 * slice): room for the whole text buffer is enough. */
 		t->arena_cap = t->cap + (size_t)t->ncol * 64;
-		t->arena = malloc(t->arena_cap);
+		t->arena = calloc(t->arena_cap + PAD, 1);
 		if (!t->arena)
 			return oom(e);
 	}
@@ -1236,7 +1318,7 @@ struct table *table_open(const char *path, size_t chunk_rows, struct err *e)
 		return t;
 	}
 	t->cap = TABLE_BUF;
-	t->buf = malloc(t->cap);
+	t->buf = calloc(t->cap + PAD, 1);
 	if (!t->buf) {
 		oom(e);
 		goto fail;
@@ -1266,9 +1348,18 @@ long table_read(struct table *t, struct table_chunk *c, struct err *e)
 {
 	memset(c, 0, sizeof(*c));
 	c->file = t->name;
-	if (t->fits)
+	if (t->fits) {
+		c->fits = t->fits;
 		return table_fits_read(t->fits, c, e);
+	}
 	return text_read(t, c, e);
+}
+
+const char *table_text(const struct table_chunk *c, int col, size_t row)
+{
+	const char *s = c->text[col][row];
+
+	return s ? s : table_fits_text(c->fits, col, row);
 }
 
 void table_close(struct table *t)

@@ -36,10 +36,25 @@ struct table_chunk {
 	size_t n;
 	const char *file;       /* name for messages, e.g. "cat.fits[2]" */
 	long *line;             /* per row: file line (text) or table row (FITS) */
-	const char ***text;     /* text[col][row], NUL-terminated, trimmed */
+	const char ***text;     /* text[col][row], NUL-terminated, trimmed;
+	                           NULL for a FITS double not written as text
+	                           yet: table_text() writes it */
 	const double **num;     /* num[col][row] for TABLE_NUMBER columns, else
 	                           num[col] == NULL */
+	struct table_fits *fits;        /* the FITS reader, for table_text() */
+	int padded;             /* text tables: TABLE_PAD defined bytes follow
+	                           every cell's NUL, so a cell may be read a
+	                           word at a time past its end */
 };
+
+#define TABLE_PAD 16
+
+/* The text of cell (col, row) of chunk c: text[col][row], or a FITS
+ * double (D) cell written now as "%.17g", which reads back to its value.
+ * Reading a FITS table, most numbers are only ever used as numbers, so
+ * their text is written only for messages and for columns read as text.
+ * Valid as long as the chunk. */
+const char *table_text(const struct table_chunk *c, int col, size_t row);
 
 struct table;
 
@@ -86,6 +101,7 @@ struct table_fits *table_fits_open(struct table *t, struct input *in,
 				   size_t chunk_rows, struct err *e);
 long table_fits_read(struct table_fits *f, struct table_chunk *c,
 		     struct err *e);
+const char *table_fits_text(struct table_fits *f, int col, size_t row);
 void table_fits_close(struct table_fits *f);
 
 #endif

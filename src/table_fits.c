@@ -34,6 +34,8 @@ struct fits_col {
 	int type;               /* cfitsio type code */
 	long width;             /* characters of a string column */
 	size_t text_width;      /* bytes of text per cell, NUL included */
+	size_t text_off;        /* this chunk's text of the column in arena */
+	int digits;             /* of its text: 9 (E) or 17 (D) */
 };
 
 struct table_fits {
@@ -500,6 +502,33 @@ fail:
 	return NULL;
 }
 
+/* v as "%lld" writes it; s has room for 21 bytes. */
+static void format_integer(char *s, long long v)
+{
+	char d[24];
+	int n = 0;
+	unsigned long long u = v < 0 ? 0 - (unsigned long long)v : (unsigned long long)v;
+
+	do
+		d[n++] = (char)('0' + u % 10);
+	while (u /= 10);
+	if (v < 0)
+		*s++ = '-';
+	while (n)
+		*s++ = d[--n];
+	*s = 0;
+}
+
+const char *table_fits_text(struct table_fits *x, int col, size_t row)
+{
+	struct fits_col *fc = &x->col[col];
+	char *s = x->arena + fc->text_off + row * fc->text_width;
+
+	table_format_double(s, fc->text_width, x->nums[col][row], fc->digits);
+	x->text[col][row] = s;
+	return s;
+}
+
 long table_fits_read(struct table_fits *x, struct table_chunk *c,
 		     struct err *e)
 {
@@ -564,7 +593,7 @@ long table_fits_read(struct table_fits *x, struct table_chunk *c,
 					s[0] = 0;
 					d[k] = NAN;
 				} else {
-					snprintf(s, fc->text_width, "%lld", x->ibuf[k]);
+					format_integer(s, x->ibuf[k]);
 					d[k] = (double)x->ibuf[k];
 				}
 				cell[k] = s;
@@ -579,11 +608,18 @@ long table_fits_read(struct table_fits *x, struct table_chunk *c,
 
 			fits_read_col(x->f, TDOUBLE, fc->num, first, 1, (LONGLONG)n,
 				      &nul, d, &anynul, &status);
-			for (size_t k = 0; k < n; k++) {
-				char *s = x->arena + used + k * fc->text_width;
-
-				table_format_double(s, fc->text_width, d[k], digits);
-				cell[k] = s;
+			fc->text_off = used;
+			fc->digits = digits;
+			if (digits == 17) {
+				/* A double's 17-digit text reads back to the
+				 * same value, so it is written only when asked
+				 * for (table_fits_text).  A float's 9-digit text
+				 * does not (2.3f is 2.29999995): columns read as
+				 * text must keep seeing that text. */
+				memset(cell, 0, n * sizeof(*cell));
+			} else {
+				for (size_t k = 0; k < n; k++)
+					cell[k] = table_fits_text(x, i, k);
 			}
 			used += n * fc->text_width;
 		}

@@ -110,4 +110,13 @@ for bad in "--sersic-core 2.5:not an integer" "--sersic-core 17:out of range" \
 		test_grep \"$want\" err && ! test -e o.fits
 	"
 done
+test_expect_success 'two catalogs whose galaxy columns stand in different places' '
+	printf "x,y,flux,type,n,re,phi,ratio\n100.3,100.6,1000,sersic,1,2,0,1\n" > a.csv &&
+	printf "ratio,phi,re,n,type,flux,y,x\n1,0,2,1,sersic,1000,100.6,100.3\n" > b.csv &&
+	"$WFS" --filter F129 -o ab.fits a.csv b.csv &&
+	"$WFS" --filter F129 -o aa.fits a.csv a.csv &&
+	"$PY" boxsum.py ab.fits 25 100.3,100.6 > ab.sum &&
+	"$PY" boxsum.py aa.fits 25 100.3,100.6 > aa.sum &&
+	cmp ab.sum aa.sum
+'
 test_done

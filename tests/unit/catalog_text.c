@@ -553,6 +553,85 @@ static void test_numbers(void)
 	}
 }
 
+/* Cells read from a text table take a word-at-a-time path for plain
+ * decimals: it must give strtod's double for every length of integer and
+ * fraction part, signs, and what it hands on (exponents, long digit runs),
+ * wherever the cell ends relative to the buffer. */
+static void test_plain_cells(void)
+{
+	enum { N = 60000 };
+	unsigned long long s = 0x9e3779b97f4a7c15ull;
+	size_t cap = (size_t)N * 3 * 40 + 64, len = 0;
+	char *text = malloc(cap), (*cell)[3][40] = malloc(sizeof(*cell) * N);
+	struct catalog_opts o = opts();
+	struct catalog *c;
+	struct rows r;
+	struct err e;
+	long n, row = 0;
+	int all = 1;
+
+	if (!text || !cell)
+		exit(2);
+	len += (size_t)snprintf(text, cap, "x,y,flux\n");
+	for (int i = 0; i < N; i++) {
+		for (int k = 0; k < 3; k++) {
+			char *b = cell[i][k];
+			int id, fd, p = 0;
+
+			s ^= s << 13, s ^= s >> 7, s ^= s << 17;
+			id = (int)(s % 9);              /* 0..8 integer digits */
+			fd = (int)(s >> 8) % 20 - 1;    /* no point, or 0..18 digits */
+			if (k < 2 && s >> 40 & 1)
+				b[p++] = '-';
+			for (int d = 0; d < id; d++)
+				b[p++] = (char)('0' + (s >> (d * 3 + 12)) % 10);
+			if (fd >= 0) {
+				unsigned long long t = s * 0x2545f4914f6cdd1dull;
+
+				b[p++] = '.';
+				for (int d = 0; d < fd; d++, t = t * 6364136223846793005ull + 1)
+					b[p++] = (char)('0' + (t >> 33) % 10);
+			}
+			if (id == 0 && fd <= 0)
+				b[p++] = '7';
+			if (k == 2 && (s >> 50 & 7) == 0)
+				p += sprintf(b + p, "e-%d", (int)(s >> 53) % 30);
+			b[p] = 0;
+			if (k == 2 && strtod(b, NULL) <= 0)
+				strcpy(b, "3");         /* flux must be positive */
+			len += (size_t)snprintf(text + len, cap - len, "%s%c", b, k < 2 ? ',' : '\n');
+		}
+	}
+	fixture("plain.csv", text, len);
+	err_clear(&e);
+	o.chunk_rows = 4099;
+	c = catalog_open(path, &o, &e);
+	while (c && (n = catalog_read(c, &r, &e)) > 0)
+		for (long i = 0; i < n && all; i++, row++) {
+			double want[3], got[3] = { r.x[i] + 1, r.y[i] + 1, r.flux[i] };
+
+			for (int k = 0; k < 3; k++) {
+				want[k] = strtod(cell[row][k], NULL);
+				if (k < 2) {
+					/* x, y are stored 0-based */
+					got[k] = k ? r.y[i] : r.x[i];
+					want[k] -= 1;
+				}
+				if (got[k] != want[k] || signbit(got[k]) != signbit(want[k])) {
+					all = 0;
+					diag("row %ld column %d '%s': got %.17g want %.17g", row + 1, k,
+					     cell[row][k], got[k], want[k]);
+				}
+			}
+		}
+	if (!c || row != N)
+		diag("%ld rows: %s", row, e.msg);
+	ok(c && row == N && all, "60000 rows of plain decimals read as strtod reads them");
+	catalog_close(c);
+	free(text);
+	free(cell);
+}
+
 int main(void)
 {
 	char cmd[600];
@@ -560,6 +639,7 @@ int main(void)
 	if (!mkdtemp(dir))
 		skip_all("no temporary directory");
 	test_numbers();
+	test_plain_cells();
 	test_csv();
 	test_chunks();
 	test_wide();

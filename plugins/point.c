@@ -89,10 +89,13 @@ struct poly {
 	float *plane;           /* over * over planes of m x m */
 	int nee;                /* centre / over */
 	double *ee;             /* ee[h], h = 1..nee: see ee_table() */
+	/* a blended cell: the nodes and weights it was blended from */
+	const float *cnode[4];
+	double cweight[4];
 };
 
 enum { INTERP_BILINEAR, INTERP_CORE, INTERP_BICUBIC };
-enum { BLEND_SOURCE, BLEND_CELL };
+enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
 
 struct point {
 	const struct wfs_host *host;
@@ -158,7 +161,7 @@ static int poly_add(struct point *p, uint64_t key, const float *node, int n, int
 {
 	int m = (n + over - 1) / over + 2 * PAD + 1;
 	size_t i = poly_hash(key), k;
-	struct poly q = { key, n, over, (n - 1) / 2, m, NULL, 0, NULL };
+	struct poly q = { .key = key, .n = n, .over = over, .centre = (n - 1) / 2, .m = m };
 
 	if (poly_find(p, key))
 		return 0;
@@ -225,7 +228,20 @@ static int cell_add(struct point *p, const struct wfs_source *src, uint64_t key)
 	}
 	r = poly_add(p, key, mix, e.n, e.over);
 	free(mix);
-	return r;
+	if (r < 0)
+		return -1;
+	/* what the cell was blended from, for the core's correction
+	 * (psf-blend=core): the nodes' own polyphase copies too */
+	struct poly *c = (struct poly *)poly_find(p, key);
+
+	for (int k = 0; k < 4; k++) {
+		c->cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
+		c->cweight[k] = e.weight[k] != 0 ? e.weight[k] : 0;
+		if (p->blend == BLEND_CORE && c->cnode[k] &&
+		    poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over) < 0)
+			return -1;
+	}
+	return 0;
 }
 
 /* A setting that is one of a list of names: 0 and *out set, or an error
@@ -288,7 +304,7 @@ static int point_init(const struct wfs_host *host, void **state)
 {
 	static const char *const interp[] = { "bilinear", "core", "bicubic" };
 	static const char *const box[] = { "fixed", "adaptive" };
-	static const char *const blend[] = { "source", "cell" };
+	static const char *const blend[] = { "source", "cell", "core" };
 	struct point *p = calloc(1, sizeof(*p));
 	double cell = 512;
 
@@ -304,7 +320,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	    setting_choice(host, "psf-box", box, 2, &p->adaptive) < 0 ||
 	    setting_number(host, "psf-box-noise", 0, 1, &p->box_noise) < 0 ||
 	    setting_number(host, "psf-box-sigma", 0, 1, &p->sigma) < 0 ||
-	    setting_choice(host, "psf-blend", blend, 2, &p->blend) < 0 ||
+	    setting_choice(host, "psf-blend", blend, 3, &p->blend) < 0 ||
 	    setting_number(host, "psf-cell", 1, 0, &cell) < 0)
 		goto fail;
 	if (cell != floor(cell) || cell > 4096) {
@@ -337,14 +353,15 @@ static void point_fini(void *state)
 }
 
 /* The arrays a source reads and their weights times its flux: the four
- * nodes of its position, or its cell's blend.  Returns how many, or -1. */
-static int source_polys(const struct point *p, const struct wfs_source *src,
+ * nodes of its position (blend = BLEND_SOURCE), or its cell's blend.
+ * Returns how many, or -1. */
+static int source_polys(const struct point *p, const struct wfs_source *src, int blend,
 			const struct poly *pl[4], double wn[4])
 {
 	struct wfs_epsf e;
 	int nn = 0;
 
-	if (p->blend == BLEND_CELL) {
+	if (blend != BLEND_SOURCE) {
 		if (!(pl[0] = poly_find(p, cell_key(p, src))))
 			return p->host->error(p->host->ctx, "ePSF cell not prepared");
 		wn[0] = src->flux;
@@ -361,6 +378,36 @@ static int source_polys(const struct point *p, const struct wfs_source *src,
 	return nn;
 }
 
+/* psf-blend=core: the arrays and weights (times the flux) whose sum is the
+ * source's own blend less its cell's, so that cell + this is the blend at
+ * the source: the source's nodes with their weights and the cell's with
+ * minus theirs, a node in both once (the usual case: the same four).
+ * Returns how many (up to 8), or -1. */
+static int core_correction(const struct point *p, const struct wfs_source *src,
+			   const struct poly *cell, const struct poly *cp[8], double cw[8])
+{
+	int n = source_polys(p, src, BLEND_SOURCE, cp, cw);
+
+	if (n < 0)
+		return -1;
+	for (int j = 0; j < 4; j++) {
+		uint64_t key = (uint64_t)(uintptr_t)cell->cnode[j];
+		int k;
+
+		if (!cell->cnode[j])
+			continue;
+		for (k = 0; k < n && cp[k]->key != key; k++)
+			;
+		if (k == n) {
+			if (!(cp[n] = poly_find(p, key)))
+				return p->host->error(p->host->ctx, "ePSF node not prepared");
+			cw[n++] = 0;
+		}
+		cw[k] -= cell->cweight[j] * src->flux;
+	}
+	return n;
+}
+
 static int point_footprint(void *state, const struct wfs_source *src,
 			   struct wfs_box *box)
 {
@@ -369,10 +416,9 @@ static int point_footprint(void *state, const struct wfs_source *src,
 	double wn[4], half;
 	int nn;
 
-	if (p->blend == BLEND_CELL) {
-		if (cell_add(p, src, cell_key(p, src)) < 0)
-			return -1;
-	} else {
+	if (p->blend != BLEND_SOURCE && cell_add(p, src, cell_key(p, src)) < 0)
+		return -1;
+	if (p->blend != BLEND_CELL) {
 		struct wfs_epsf e;
 
 		if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
@@ -382,7 +428,9 @@ static int point_footprint(void *state, const struct wfs_source *src,
 			    poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over) < 0)
 				return -1;
 	}
-	if ((nn = source_polys(p, src, pl, wn)) < 0)
+	/* the box from the blend at the source, but for psf-blend=cell */
+	if ((nn = source_polys(p, src, p->blend == BLEND_CELL ? BLEND_CELL : BLEND_SOURCE,
+			       pl, wn)) < 0)
 		return -1;
 	half = (double)pl[0]->centre / pl[0]->over;
 	if (p->adaptive) {
@@ -453,13 +501,18 @@ static int point_render(void *state, void *tstate, void *thread,
 	double wn[4], bx[2], by[2], cx[4], cy[4];
 	float wt[16];
 	const float *tap0[64];  /* [node][y tap][x tap] at the window's first row */
+	const struct poly *cp[8];
+	double cw[8], ccw[32];
+	const float *ctap0[32]; /* psf-blend=core: [node][y tap][x tap], bilinear */
 	long rx[4], mx[4], ry[4], my[4];
-	int nn, o, m, basex, basey;
+	int nn, ncor = 0, o, m, basex, basey, keys;
 	double tx, ty, fx, fy, core2;
 	float acc[MAX_ROW + 8];
 	double dv[MAX_ROW + 4], tv[MAX_ROW + 4];
 
-	if ((nn = source_polys(p, src, pl, wn)) < 0)
+	if ((nn = source_polys(p, src, p->blend, pl, wn)) < 0)
+		return -1;
+	if (p->blend == BLEND_CORE && (ncor = core_correction(p, src, pl[0], cp, cw)) < 0)
 		return -1;
 	o = pl[0]->over;
 	m = pl[0]->m;
@@ -493,12 +546,21 @@ static int point_render(void *state, void *tstate, void *thread,
 				wt[(k * 2 + b) * 2 + a] = (float)(wn[k] * by[b] * bx[a]);
 	/* the cubic's taps must stay inside the array (bicubic everywhere
 	 * reads the planes' zero padding at the box's edge instead) */
-	if (p->interp == INTERP_BILINEAR)
-		core2 = -1;
-	else if (p->interp == INTERP_BICUBIC)
+	keys = p->interp != INTERP_BILINEAR;
+	if (p->interp == INTERP_BICUBIC)
 		core2 = INFINITY;
+	else if (p->interp == INTERP_BILINEAR && p->blend != BLEND_CORE)
+		core2 = -1;
 	else
 		core2 = p->core * o + 2 < pl[0]->centre ? p->core * p->core : 0;
+	for (int c = 0; c < ncor; c++)
+		for (int b = 0; b < 2; b++)
+			for (int a = 0; a < 2; a++) {
+				ccw[(c * 2 + b) * 2 + a] = cw[c] * by[b] * bx[a];
+				ctap0[(c * 2 + b) * 2 + a] = cp[c]->plane +
+					((size_t)(ry[b + 1] * o + rx[a + 1]) * m + (win->y0 + my[b + 1] + PAD)) * m +
+					(win->x0 + mx[a + 1] + PAD);
+			}
 
 	/* the streams at the window's first row; each row is m samples on */
 	for (int k = 0; k < nn; k++)
@@ -539,16 +601,34 @@ static int point_render(void *state, void *tstate, void *thread,
 				const float *s0 = tap0[5] + step + i0, *s1 = tap0[6] + step + i0;
 				const float *s2 = tap0[9] + step + i0, *s3 = tap0[10] + step + i0;
 				v8f w0 = SPLAT(wt[0]), w1 = SPLAT(wt[1]), w2 = SPLAT(wt[2]), w3 = SPLAT(wt[3]);
-				for (int i = 0; i < len; i += 8) {
+				double *out = row + i0;
+				int i;
+
+				/* straight into the tile, 8 pixels at a time (through
+				 * acc[] the loads of a just-stored row cost as much
+				 * as the sums) */
+				for (i = 0; i + 8 <= len; i += 8) {
 					v8f v = { 0 };
 
 					v += w0 * *(const v8f *)(s0 + i);
 					v += w1 * *(const v8f *)(s1 + i);
 					v += w2 * *(const v8f *)(s2 + i);
 					v += w3 * *(const v8f *)(s3 + i);
-					*(v8f *)(acc + i) = v;
+					*(v4d *)(out + i) += __builtin_convertvector(
+						__builtin_shufflevector(v, v, 0, 1, 2, 3), v4d);
+					*(v4d *)(out + i + 4) += __builtin_convertvector(
+						__builtin_shufflevector(v, v, 4, 5, 6, 7), v4d);
 				}
-				add_row(row + i0, acc, len);
+				if (i < len) {
+					v8f v = { 0 };
+
+					v += w0 * *(const v8f *)(s0 + i);
+					v += w1 * *(const v8f *)(s1 + i);
+					v += w2 * *(const v8f *)(s2 + i);
+					v += w3 * *(const v8f *)(s3 + i);
+					*(v8f *)acc = v;
+					add_row(out + i, acc, len - i);
+				}
 				continue;
 			}
 			for (int k = 0; k < nn; k++) {
@@ -577,7 +657,10 @@ static int point_render(void *state, void *tstate, void *thread,
 
 				for (int i = 0; i < cn; i += 4)
 					*(v4d *)(dv + i) = (v4d){ 0 };
-				for (int k = 0; k < nn; k++) {
+				if (!keys)
+					for (int i = 0; i < cn; i++)
+						dv[i] = acc[ia + i];
+				for (int k = 0; keys && k < nn; k++) {
 					for (int i = 0; i < cn; i += 4)
 						*(v4d *)(tv + i) = (v4d){ 0 };
 					for (int b = 0; b < 4; b++) {
@@ -594,6 +677,18 @@ static int point_render(void *state, void *tstate, void *thread,
 					for (int i = 0; i < cn; i += 4)
 						*(v4d *)(dv + i) += SPLAT4(wn[k]) * *(v4d *)(tv + i);
 				}
+				/* psf-blend=core: the cell's blend moved to the
+				 * source's position, bilinear (it is a small
+				 * difference: its interpolation error is small) */
+				for (int c = 0; c < ncor; c++)
+					for (int b = 0; b < 2; b++) {
+						const float *u0 = ctap0[(c * 2 + b) * 2] + step + i0 + ia;
+						const float *u1 = ctap0[(c * 2 + b) * 2 + 1] + step + i0 + ia;
+						v4d w0 = SPLAT4(ccw[(c * 2 + b) * 2]), w1 = SPLAT4(ccw[(c * 2 + b) * 2 + 1]);
+
+						for (int i = 0; i < cn; i += 4)
+							*(v4d *)(dv + i) += w0 * TO_V4D(u0 + i) + w1 * TO_V4D(u1 + i);
+					}
 				for (int i = 0; i < cn; i++)
 					acc[ia + i] = (float)dv[i];
 			}

@@ -82,6 +82,8 @@ typedef double v4d __attribute__((vector_size(32), aligned(8), may_alias));
 #define SPLAT4(f) ((v4d){ (f), (f), (f), (f) })
 #define TO_V4D(p) __builtin_convertvector(*(const v4f *)(p), v4d)
 #define SPLAT(f) ((v8f){ (f), (f), (f), (f), (f), (f), (f), (f) })
+typedef int32_t v8i __attribute__((vector_size(32)));
+#define LANES ((v8i){ 0, 1, 2, 3, 4, 5, 6, 7 })
 
 struct poly {
 	uint64_t key;
@@ -93,6 +95,112 @@ struct poly {
 	const float *cnode[4];
 	double cweight[4];
 };
+
+/* One array (psf-blend=cell or core), the whole window, straight into the
+ * tile: for each row j and pixel i < nx,
+ *
+ *   pix[j stride + i] += ((w0 s0[j m + i] + w1 s1[..]) + w2 s2[..]) + w3 s3[..]
+ *
+ * summed in float; on the core rows jc <= j < jc + nc, over the row's run
+ * ia <= i < ib, kv[] replaces the sum (keys) or is added to it.  Two
+ * builds with the same operations per pixel in the same order, so the same
+ * bits: 8 pixels at a time with AVX2 (reading on into the planes' slack and
+ * into kv's margins, the lanes outside the row or the run masked), and one
+ * by one.  The float sums are converted and added in registers (through a
+ * row buffer the loads of a just-stored row cost as much as the sums, and
+ * GCC's vector extension converted one lane at a time). */
+#define KV_ROWS 24              /* core rows and columns the fast path takes */
+#define KV_COLS 32
+#define KV_PITCH (KV_COLS + 16) /* a core row of kv: 8 floats margin, then column ka */
+
+struct rows_args {
+	const float *s[4];      /* the bilinear streams at the window's first row */
+	ptrdiff_t m;            /* floats from one plane row to the next */
+	float w[4];
+	int jc, nc;             /* the core's rows, [jc, jc + nc) of the window */
+	const int *ia, *ib;     /* their runs, [ia[r], ib[r]) */
+	const float *kv;        /* pixel i of core row r: kv[r * KV_PITCH + 8 + i - ka] */
+	int ka, keys;
+};
+
+static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
+			   const struct rows_args *r)
+{
+	for (int j = 0; j < ny; j++) {
+		const float *s0 = r->s[0] + j * r->m, *s1 = r->s[1] + j * r->m;
+		const float *s2 = r->s[2] + j * r->m, *s3 = r->s[3] + j * r->m;
+		double *out = pix + j * stride;
+		int c = j - r->jc, core = c >= 0 && c < r->nc;
+		const float *kv = core ? r->kv + c * KV_PITCH + 8 - r->ka : NULL;
+
+		for (int i = 0; i < nx; i++) {
+			float v = r->w[0] * s0[i] + r->w[1] * s1[i] + r->w[2] * s2[i] + r->w[3] * s3[i];
+
+			if (core && i >= r->ia[c] && i < r->ib[c])
+				v = r->keys ? kv[i] : v + kv[i];
+			out[i] += v;
+		}
+	}
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define HAVE_ROWS_AVX2 1
+
+__attribute__((target("avx2"))) static void sum_rows_avx2(double *pix, ptrdiff_t stride, int nx,
+							  int ny, const struct rows_args *r)
+{
+	__m256 w0 = _mm256_set1_ps(r->w[0]), w1 = _mm256_set1_ps(r->w[1]);
+	__m256 w2 = _mm256_set1_ps(r->w[2]), w3 = _mm256_set1_ps(r->w[3]);
+	__m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+
+	for (int j = 0; j < ny; j++) {
+		const float *s0 = r->s[0] + j * r->m, *s1 = r->s[1] + j * r->m;
+		const float *s2 = r->s[2] + j * r->m, *s3 = r->s[3] + j * r->m;
+		double *out = pix + j * stride;
+		int c = j - r->jc, core = c >= 0 && c < r->nc;
+		int ia = core ? r->ia[c] : 0, ib = core ? r->ib[c] : 0;
+		const float *kv = core ? r->kv + c * KV_PITCH + 8 - r->ka : NULL;
+		__m256i va = _mm256_set1_epi32(ia - 1), vb = _mm256_set1_epi32(ib);
+		int i;
+
+		for (i = 0; i < nx; i += 8) {
+			__m256 v = _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(
+				_mm256_mul_ps(w0, _mm256_loadu_ps(s0 + i)), _mm256_mul_ps(w1, _mm256_loadu_ps(s1 + i))),
+				_mm256_mul_ps(w2, _mm256_loadu_ps(s2 + i))), _mm256_mul_ps(w3, _mm256_loadu_ps(s3 + i)));
+			__m256d lo, hi;
+
+			if (i < ib && i + 8 > ia) {
+				__m256i lane = _mm256_add_epi32(lanes, _mm256_set1_epi32(i));
+				__m256 in = _mm256_castsi256_ps(_mm256_and_si256(_mm256_cmpgt_epi32(lane, va),
+										 _mm256_cmpgt_epi32(vb, lane)));
+				__m256 k = _mm256_loadu_ps(kv + i);
+
+				v = r->keys ? _mm256_blendv_ps(v, k, in) : _mm256_add_ps(v, _mm256_and_ps(k, in));
+			}
+			lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
+			hi = _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1));
+			if (i + 8 <= nx) {
+				_mm256_storeu_pd(out + i, _mm256_add_pd(_mm256_loadu_pd(out + i), lo));
+				_mm256_storeu_pd(out + i + 4, _mm256_add_pd(_mm256_loadu_pd(out + i + 4), hi));
+				continue;
+			}
+			if (i + 4 <= nx) {
+				_mm256_storeu_pd(out + i, _mm256_add_pd(_mm256_loadu_pd(out + i), lo));
+				lo = hi;
+				i += 4;
+			}
+			{
+				double t[4];
+
+				_mm256_storeu_pd(t, lo);
+				for (int l = 0; i + l < nx; l++)
+					out[i + l] += t[l];
+			}
+		}
+	}
+}
+#endif
 
 enum { INTERP_BILINEAR, INTERP_CORE, INTERP_BICUBIC };
 enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
@@ -106,6 +214,7 @@ struct point {
 	double sigma;           /* noise per pixel, counts/s (psf-box-sigma) */
 	int blend;              /* psf-blend */
 	int cell;               /* psf-cell: side of a blended cell, pixels */
+	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
 	struct poly slot[POLY_SLOTS];
 };
 
@@ -311,6 +420,11 @@ static int point_init(const struct wfs_host *host, void **state)
 	if (!p)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
+	p->sum_rows = sum_rows_plain;
+#ifdef HAVE_ROWS_AVX2
+	if (__builtin_cpu_supports("avx2"))
+		p->sum_rows = sum_rows_avx2;
+#endif
 	p->interp = INTERP_CORE;
 	p->core = 4.0;
 	p->box_noise = 0.1;
@@ -569,6 +683,71 @@ static int point_render(void *state, void *tstate, void *thread,
 				tap0[(k * 4 + b) * 4 + a] = pl[k]->plane +
 					((size_t)(ry[b] * o + rx[a]) * m + (win->y0 + my[b] + PAD)) * m +
 					(win->x0 + mx[a] + PAD);
+	if (nn == 1 && !isinf(core2) && win->nx <= MAX_ROW) {
+		/* one array: the core's Keys sums (and the source's blend,
+		 * psf-blend=core) first, in float, 8 columns at a time over
+		 * the columns of its widest row, then the whole window in one
+		 * call */
+		double r = core2 >= 0 ? sqrt(core2) : -1;
+		int ka = 0, kb = 0, jc = 0, nc = 0;
+		int cia[KV_ROWS], cib[KV_ROWS];
+		float kvb[KV_ROWS * KV_PITCH + 8];
+		v8f kxf[4], kyf[4], ccwf[32];
+		struct rows_args ra = { { tap0[5], tap0[6], tap0[9], tap0[10] }, m,
+					{ wt[0], wt[1], wt[2], wt[3] }, 0, 0, cia, cib, kvb, 0, keys };
+
+		if (r >= 0) {
+			ka = (int)fmax(ceil(src->x - r) - win->x0, 0);
+			kb = (int)fmin(floor(src->x + r) - win->x0 + 1, win->nx);
+			jc = (int)fmax(ceil(src->y - r) - win->y0, 0);
+			nc = (int)fmin(floor(src->y + r) - win->y0 + 1, win->ny) - jc;
+			if (ka >= kb || nc < 0)
+				nc = 0;
+		}
+		if (nc <= KV_ROWS && kb - ka <= KV_COLS) {
+			for (int a = 0; a < 4; a++) {
+				kxf[a] = SPLAT((float)cx[a]);
+				kyf[a] = SPLAT((float)(cy[a] * wn[0]));
+			}
+			for (int c = 0; c < 4 * ncor; c++)
+				ccwf[c] = SPLAT((float)ccw[c]);
+			for (int c = 0; c < nc; c++) {
+				int j = win->y0 + jc + c, ca = ka, cb = kb;
+				double dy = j - src->y;
+				ptrdiff_t step = (ptrdiff_t)(jc + c) * m;
+				float *kv = kvb + c * KV_PITCH + 8;
+
+				/* the run: the exact test decides, as pixel by pixel */
+				while (ca < cb && (win->x0 + ca - src->x) * (win->x0 + ca - src->x) + dy * dy > core2)
+					ca++;
+				while (cb > ca && (win->x0 + cb - 1 - src->x) * (win->x0 + cb - 1 - src->x) + dy * dy > core2)
+					cb--;
+				cia[c] = ca;
+				cib[c] = cb;
+				for (int i = ka; i < kb; i += 8) {
+					v8f v = { 0 };
+
+					for (int b = 0; keys && b < 4; b++) {
+						const float *const *t = tap0 + b * 4;
+
+						v += kyf[b] * (kxf[0] * *(const v8f *)(t[0] + step + i) +
+							       kxf[1] * *(const v8f *)(t[1] + step + i) +
+							       kxf[2] * *(const v8f *)(t[2] + step + i) +
+							       kxf[3] * *(const v8f *)(t[3] + step + i));
+					}
+					for (int q = 0; q < 4 * ncor; q += 2)
+						v += ccwf[q] * *(const v8f *)(ctap0[q] + step + i) +
+						     ccwf[q + 1] * *(const v8f *)(ctap0[q + 1] + step + i);
+					*(v8f *)(kv + i - ka) = v;
+				}
+			}
+			ra.jc = jc;
+			ra.nc = nc;
+			ra.ka = ka;
+			p->sum_rows(win->pix, win->stride, win->nx, win->ny, &ra);
+			return 0;
+		}
+	}
 	for (int j = win->y0; j < win->y0 + win->ny; j++) {
 		double *row = win->pix + (ptrdiff_t)(j - win->y0) * win->stride;
 		double dy = j - src->y;
@@ -596,41 +775,6 @@ static int point_render(void *state, void *tstate, void *thread,
 				ia = 0;
 			if (ib > len)
 				ib = len;
-			if (nn == 1 && ia >= ib) {
-				/* bilinear taps 0 and 1 are taps 1 and 2 of the 4 */
-				const float *s0 = tap0[5] + step + i0, *s1 = tap0[6] + step + i0;
-				const float *s2 = tap0[9] + step + i0, *s3 = tap0[10] + step + i0;
-				v8f w0 = SPLAT(wt[0]), w1 = SPLAT(wt[1]), w2 = SPLAT(wt[2]), w3 = SPLAT(wt[3]);
-				double *out = row + i0;
-				int i;
-
-				/* straight into the tile, 8 pixels at a time (through
-				 * acc[] the loads of a just-stored row cost as much
-				 * as the sums) */
-				for (i = 0; i + 8 <= len; i += 8) {
-					v8f v = { 0 };
-
-					v += w0 * *(const v8f *)(s0 + i);
-					v += w1 * *(const v8f *)(s1 + i);
-					v += w2 * *(const v8f *)(s2 + i);
-					v += w3 * *(const v8f *)(s3 + i);
-					*(v4d *)(out + i) += __builtin_convertvector(
-						__builtin_shufflevector(v, v, 0, 1, 2, 3), v4d);
-					*(v4d *)(out + i + 4) += __builtin_convertvector(
-						__builtin_shufflevector(v, v, 4, 5, 6, 7), v4d);
-				}
-				if (i < len) {
-					v8f v = { 0 };
-
-					v += w0 * *(const v8f *)(s0 + i);
-					v += w1 * *(const v8f *)(s1 + i);
-					v += w2 * *(const v8f *)(s2 + i);
-					v += w3 * *(const v8f *)(s3 + i);
-					*(v8f *)acc = v;
-					add_row(out + i, acc, len - i);
-				}
-				continue;
-			}
 			for (int k = 0; k < nn; k++) {
 				const float *const *t = tap0 + 16 * k;
 				const float *s0 = t[5] + step + i0, *s1 = t[6] + step + i0;

@@ -91,10 +91,86 @@ struct poly {
 	float *plane;           /* over * over planes of m x m */
 	int nee;                /* centre / over */
 	double *ee;             /* ee[h], h = 1..nee: see ee_table() */
+	double *psum;           /* psum[plane]: the sum of each phase plane */
 	/* a blended cell: the nodes and weights it was blended from */
 	const float *cnode[4];
 	double cweight[4];
 };
+
+/* psf-blend=core: the factor on the cell's blend outside the core that
+ * places the flux of the source's own blend.  The core (Keys' cubic of the
+ * cell plus the bilinear difference d = source's blend - cell's) holds
+ * what the source's blend puts there; outside it the cell's blend alone
+ * would miss d's part, which is not small where the PSF's core and wings
+ * trade light with position (a core that narrows feeds the wings: 2.5e-3
+ * of the flux on t3004's grid).  With B the bilinear sums over the box and
+ * C over the core's pixels,
+ *
+ *   f = 1 + (B(d) - C(d)) / (B(cell) - C(cell))
+ *
+ * makes the total that of the source's blend, up to the difference of
+ * Keys' and the bilinear kernel on d in the core (second order).  B comes
+ * from the planes' sums (the fixed box reads each bilinear phase whole but
+ * for the ePSF's outermost sample row or column: a part of d far below
+ * 1e-6 of the flux; an adaptive box is taken as whole too), C from the
+ * pixels of the whole core, whichever window is drawn, so that every
+ * window of a source gets the same f. */
+static void core_box_sums(const struct poly *cell, const struct poly *const cp[],
+			  const double cw[], int ncor, double flux, const long rx[4],
+			  const long ry[4], const double bx[2], const double by[2],
+			  double *bc, double *bd)
+{
+	int o = cell->over;
+
+	*bc = *bd = 0;
+	for (int t = 0; t < 4; t++) {
+		int b = t >> 1, a = t & 1, pl = (int)(ry[b + 1] * o + rx[a + 1]);
+
+		*bc += flux * by[b] * bx[a] * cell->psum[pl];
+		for (int c = 0; c < ncor; c++)
+			*bd += cw[c] * by[b] * bx[a] * cp[c]->psum[pl];
+	}
+}
+
+/* C(cell) and C(d) one pixel at a time, for the windows render() does not
+ * draw in one call (a psf-core wider than KV_COLS / 2). */
+static void core_disk_sums(const struct poly *cell, const struct poly *const cp[],
+			   const double cw[], int ncor, double flux, double x, double y,
+			   double core2, const long rx[4], const long mx[4], const long ry[4],
+			   const long my[4], const double bx[2], const double by[2],
+			   double *cc, double *cd)
+{
+	int o = cell->over, m = cell->m;
+	double r = core2 >= 0 ? sqrt(core2) : -1;
+
+	*cc = *cd = 0;
+	for (long j = (long)ceil(y - r); r >= 0 && j <= (long)floor(y + r); j++) {
+		double dy = j - y;
+		long ca = (long)floor(x - r), cb = (long)ceil(x + r) + 1;
+
+		/* the run [ca, cb) by the exact test, as render() takes it */
+		while (ca < cb && (ca - x) * (ca - x) + dy * dy > core2)
+			ca++;
+		while (cb > ca && (cb - 1 - x) * (cb - 1 - x) + dy * dy > core2)
+			cb--;
+		for (int t = 0; t < 4 && ca < cb; t++) {
+			int b = t >> 1, a = t & 1;
+			size_t off = (size_t)(ry[b + 1] * o + rx[a + 1]) * m * m +
+				     (size_t)(j + my[b + 1] + PAD) * m + (size_t)(mx[a + 1] + PAD);
+			double s = 0;
+
+			for (long i = ca; i < cb; i++)
+				s += cell->plane[off + i];
+			*cc += flux * by[b] * bx[a] * s;
+			for (int c = 0; c < ncor; c++) {
+				s = 0;
+				for (long i = ca; i < cb; i++)
+					s += cp[c]->plane[off + i];
+				*cd += cw[c] * by[b] * bx[a] * s;
+			}
+		}
+	}
+}
 
 /* One array (psf-blend=cell or core), the whole window, straight into the
  * tile: for each row j and pixel i < nx,
@@ -109,8 +185,8 @@ struct poly {
  * by one.  The float sums are converted and added in registers (through a
  * row buffer the loads of a just-stored row cost as much as the sums, and
  * GCC's vector extension converted one lane at a time). */
-#define KV_ROWS 24              /* core rows and columns the fast path takes */
-#define KV_COLS 32
+#define KV_ROWS 48              /* core rows and columns the fast path takes: */
+#define KV_COLS 48              /* the 44-pixel box, so psf-interp=bicubic too */
 #define KV_PITCH (KV_COLS + 16) /* a core row of kv: 8 floats margin, then column ka */
 
 struct rows_args {
@@ -281,9 +357,11 @@ static int poly_add(struct point *p, uint64_t key, const float *node, int n, int
 	q.nee = q.centre / over;
 	q.plane = calloc((size_t)over * over * m * m + VSLACK, sizeof(float));
 	q.ee = calloc((size_t)q.nee + 1, sizeof(double));
-	if (!q.plane || !q.ee) {
+	q.psum = calloc((size_t)over * over, sizeof(double));
+	if (!q.plane || !q.ee || !q.psum) {
 		free(q.plane);
 		free(q.ee);
+		free(q.psum);
 		return p->host->error(p->host->ctx, "out of memory");
 	}
 	for (int r = 0; r < over; r++)
@@ -295,6 +373,14 @@ static int poly_add(struct point *p, uint64_t key, const float *node, int n, int
 					pl[a * m + b] = node[(size_t)y * n + x];
 		}
 	ee_table(&q, node);
+	for (int k = 0; k < over * over; k++) {
+		const float *pl = q.plane + (size_t)k * m * m;
+		double t = 0;
+
+		for (int a = 0; a < m * m; a++)
+			t += pl[a];
+		q.psum[k] = t;
+	}
 	p->slot[i] = q;
 	return 0;
 }
@@ -427,6 +513,7 @@ static int point_init(const struct wfs_host *host, void **state)
 #endif
 	p->interp = INTERP_CORE;
 	p->core = 4.0;
+	p->blend = BLEND_CORE;
 	p->box_noise = 0.1;
 	p->sigma = scene_sigma(host);
 	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
@@ -462,6 +549,7 @@ static void point_fini(void *state)
 	for (int i = 0; p && i < POLY_SLOTS; i++) {
 		free(p->slot[i].plane);
 		free(p->slot[i].ee);
+		free(p->slot[i].psum);
 	}
 	free(p);
 }
@@ -618,6 +706,7 @@ static int point_render(void *state, void *tstate, void *thread,
 	const struct poly *cp[8];
 	double cw[8], ccw[32];
 	const float *ctap0[32]; /* psf-blend=core: [node][y tap][x tap], bilinear */
+	double bc = 0, bd = 0;  /* psf-blend=core: box sums of the cell and the difference */
 	long rx[4], mx[4], ry[4], my[4];
 	int nn, ncor = 0, o, m, basex, basey, keys;
 	double tx, ty, fx, fy, core2;
@@ -658,6 +747,9 @@ static int point_render(void *state, void *tstate, void *thread,
 		for (int b = 0; b < 2; b++)
 			for (int a = 0; a < 2; a++)
 				wt[(k * 2 + b) * 2 + a] = (float)(wn[k] * by[b] * bx[a]);
+	/* psf-blend=core: the box's sums for the flux factor f */
+	if (ncor)
+		core_box_sums(pl[0], cp, cw, ncor, wn[0], rx, ry, bx, by, &bc, &bd);
 	/* the cubic's taps must stay inside the array (bicubic everywhere
 	 * reads the planes' zero padding at the box's edge instead) */
 	keys = p->interp != INTERP_BILINEAR;
@@ -683,28 +775,36 @@ static int point_render(void *state, void *tstate, void *thread,
 				tap0[(k * 4 + b) * 4 + a] = pl[k]->plane +
 					((size_t)(ry[b] * o + rx[a]) * m + (win->y0 + my[b] + PAD)) * m +
 					(win->x0 + mx[a] + PAD);
-	if (nn == 1 && !isinf(core2) && win->nx <= MAX_ROW) {
+	if (nn == 1 && win->nx <= MAX_ROW) {
 		/* one array: the core's Keys sums (and the source's blend,
 		 * psf-blend=core) first, in float, 8 columns at a time over
 		 * the columns of its widest row, then the whole window in one
 		 * call */
 		double r = core2 >= 0 ? sqrt(core2) : -1;
-		int ka = 0, kb = 0, jc = 0, nc = 0;
+		int ka = 0, kb = 0, jc = 0, nc = 0, flux = ncor && !isinf(r);
 		int cia[KV_ROWS], cib[KV_ROWS];
 		float kvb[KV_ROWS * KV_PITCH + 8];
-		v8f kxf[4], kyf[4], ccwf[32];
+		v8f kxf[4], kyf[4], ccwf[32], sc = { 0 }, sd = { 0 };
 		struct rows_args ra = { { tap0[5], tap0[6], tap0[9], tap0[10] }, m,
 					{ wt[0], wt[1], wt[2], wt[3] }, 0, 0, cia, cib, kvb, 0, keys };
 
-		if (r >= 0) {
-			ka = (int)fmax(ceil(src->x - r) - win->x0, 0);
-			kb = (int)fmin(floor(src->x + r) - win->x0 + 1, win->nx);
-			jc = (int)fmax(ceil(src->y - r) - win->y0, 0);
-			nc = (int)fmin(floor(src->y + r) - win->y0 + 1, win->ny) - jc;
+		/* the core's rows [jc, jc + nc) and the columns of its widest
+		 * row [ka, kb), whole (past the window, for f: the planes
+		 * cover the box), but for bicubic: the window */
+		if (isinf(r)) {
+			kb = win->nx;
+			nc = win->ny;
+		} else if (r >= 0) {
+			ka = (int)ceil(src->x - r) - win->x0;
+			kb = (int)floor(src->x + r) - win->x0 + 1;
+			jc = (int)ceil(src->y - r) - win->y0;
+			nc = (int)floor(src->y + r) - win->y0 + 1 - jc;
 			if (ka >= kb || nc < 0)
-				nc = 0;
+				ka = kb = nc = 0;
 		}
 		if (nc <= KV_ROWS && kb - ka <= KV_COLS) {
+			v8f b0 = SPLAT(wt[0]), b1 = SPLAT(wt[1]), b2 = SPLAT(wt[2]), b3 = SPLAT(wt[3]);
+
 			for (int a = 0; a < 4; a++) {
 				kxf[a] = SPLAT((float)cx[a]);
 				kyf[a] = SPLAT((float)(cy[a] * wn[0]));
@@ -722,10 +822,11 @@ static int point_render(void *state, void *tstate, void *thread,
 					ca++;
 				while (cb > ca && (win->x0 + cb - 1 - src->x) * (win->x0 + cb - 1 - src->x) + dy * dy > core2)
 					cb--;
-				cia[c] = ca;
-				cib[c] = cb;
+				/* in the window: rows past it are never drawn */
+				cia[c] = ca < 0 ? 0 : ca;
+				cib[c] = cb > win->nx ? win->nx : cb;
 				for (int i = ka; i < kb; i += 8) {
-					v8f v = { 0 };
+					v8f v = { 0 }, d = { 0 };
 
 					for (int b = 0; keys && b < 4; b++) {
 						const float *const *t = tap0 + b * 4;
@@ -736,10 +837,33 @@ static int point_render(void *state, void *tstate, void *thread,
 							       kxf[3] * *(const v8f *)(t[3] + step + i));
 					}
 					for (int q = 0; q < 4 * ncor; q += 2)
-						v += ccwf[q] * *(const v8f *)(ctap0[q] + step + i) +
+						d += ccwf[q] * *(const v8f *)(ctap0[q] + step + i) +
 						     ccwf[q + 1] * *(const v8f *)(ctap0[q + 1] + step + i);
-					*(v8f *)(kv + i - ka) = v;
+					*(v8f *)(kv + i - ka) = v + d;
+					if (flux) {
+						/* C(cell), C(d) over the run */
+						v8i lane = LANES + i;
+						v8i in = (lane >= ca) & (lane < cb);
+						v8f bl = b0 * *(const v8f *)(tap0[5] + step + i) +
+							 b1 * *(const v8f *)(tap0[6] + step + i) +
+							 b2 * *(const v8f *)(tap0[9] + step + i) +
+							 b3 * *(const v8f *)(tap0[10] + step + i);
+
+						sc += (v8f)((v8i)bl & in);
+						sd += (v8f)((v8i)d & in);
+					}
 				}
+			}
+			if (flux) {
+				double cc = 0, cd = 0, f;
+
+				for (int l = 0; l < 8; l++) {
+					cc += sc[l];
+					cd += sd[l];
+				}
+				f = bc - cc > 0 ? 1 + (bd - cd) / (bc - cc) : 1;
+				for (int t = 0; t < 4; t++)
+					ra.w[t] = (float)(f * wn[0] * by[t >> 1] * bx[t & 1]);
 			}
 			ra.jc = jc;
 			ra.nc = nc;
@@ -747,6 +871,15 @@ static int point_render(void *state, void *tstate, void *thread,
 			p->sum_rows(win->pix, win->stride, win->nx, win->ny, &ra);
 			return 0;
 		}
+	}
+	if (ncor && !isinf(core2)) {
+		double cc, cd, f;
+
+		core_disk_sums(pl[0], cp, cw, ncor, wn[0], src->x, src->y, core2, rx, mx, ry, my,
+			       bx, by, &cc, &cd);
+		f = bc - cc > 0 ? 1 + (bd - cd) / (bc - cc) : 1;
+		for (int t = 0; t < 4; t++)
+			wt[t] = (float)(f * wn[0] * by[t >> 1] * bx[t & 1]);
 	}
 	for (int j = win->y0; j < win->y0 + win->ny; j++) {
 		double *row = win->pix + (ptrdiff_t)(j - win->y0) * win->stride;

@@ -77,7 +77,8 @@ test_expect_success 'psf-blend=core (the default): the cell scaled outside the c
 	run cl.fits --set psf-blend=cell &&
 	"$PY" px.py def.fits cl.fits scaled-outside 4 &&
 	run def2.fits --set psf-core=2 &&
-	"$PY" px.py def2.fits cl.fits scaled-outside 2 &&
+	run cl2.fits --set psf-blend=cell --set psf-core=2 &&
+	"$PY" px.py def2.fits cl2.fits scaled-outside 2 &&
 	"$PY" px.py def.fits src.fits close 2e-3 &&
 	run bil.fits --set psf-blend=source --set psf-interp=bilinear &&
 	run bilc.fits --set psf-interp=bilinear &&

@@ -178,7 +178,7 @@ static void core_disk_sums(const struct poly *cell, const struct poly *const cp[
  *   pix[j stride + i] += ((w0 s0[j m + i] + w1 s1[..]) + w2 s2[..]) + w3 s3[..]
  *
  * summed in float; on the core rows jc <= j < jc + nc, over the row's run
- * ia <= i < ib, kv[] replaces the sum (keys) or is added to it.  Two
+ * ia <= i < ib, kv[] replaces the sum.  Two
  * builds with the same operations per pixel in the same order, so the same
  * bits: 8 pixels at a time with AVX2 (reading on into the planes' slack and
  * into kv's margins, the lanes outside the row or the run masked), and one
@@ -196,7 +196,7 @@ struct rows_args {
 	int jc, nc;             /* the core's rows, [jc, jc + nc) of the window */
 	const int *ia, *ib;     /* their runs, [ia[r], ib[r]) */
 	const float *kv;        /* pixel i of core row r: kv[r * KV_PITCH + 8 + i - ka] */
-	int ka, keys;
+	int ka;
 };
 
 static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
@@ -213,7 +213,7 @@ static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
 			float v = r->w[0] * s0[i] + r->w[1] * s1[i] + r->w[2] * s2[i] + r->w[3] * s3[i];
 
 			if (core && i >= r->ia[c] && i < r->ib[c])
-				v = r->keys ? kv[i] : v + kv[i];
+				v = kv[i];
 			out[i] += v;
 		}
 	}
@@ -252,7 +252,7 @@ __attribute__((target("avx2"))) static void sum_rows_avx2(double *pix, ptrdiff_t
 										 _mm256_cmpgt_epi32(vb, lane)));
 				__m256 k = _mm256_loadu_ps(kv + i);
 
-				v = r->keys ? _mm256_blendv_ps(v, k, in) : _mm256_add_ps(v, _mm256_and_ps(k, in));
+				v = _mm256_blendv_ps(v, k, in);
 			}
 			lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
 			hi = _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1));
@@ -786,7 +786,7 @@ static int point_render(void *state, void *tstate, void *thread,
 		float kvb[KV_ROWS * KV_PITCH + 8];
 		v8f kxf[4], kyf[4], ccwf[32], sc = { 0 }, sd = { 0 };
 		struct rows_args ra = { { tap0[5], tap0[6], tap0[9], tap0[10] }, m,
-					{ wt[0], wt[1], wt[2], wt[3] }, 0, 0, cia, cib, kvb, 0, keys };
+					{ wt[0], wt[1], wt[2], wt[3] }, 0, 0, cia, cib, kvb, 0 };
 
 		/* the core's rows [jc, jc + nc) and the columns of its widest
 		 * row [ka, kb), whole (past the window, for f: the planes
@@ -839,9 +839,11 @@ static int point_render(void *state, void *tstate, void *thread,
 					for (int q = 0; q < 4 * ncor; q += 2)
 						d += ccwf[q] * *(const v8f *)(ctap0[q] + step + i) +
 						     ccwf[q + 1] * *(const v8f *)(ctap0[q + 1] + step + i);
-					*(v8f *)(kv + i - ka) = v + d;
-					if (flux) {
-						/* C(cell), C(d) over the run */
+					if (flux || !keys) {
+						/* the cell's bilinear sum, as sum_rows()
+						 * takes it before f: with psf-interp=
+						 * bilinear the core's base; C(cell),
+						 * C(d) over the run */
 						v8i lane = LANES + i;
 						v8i in = (lane >= ca) & (lane < cb);
 						v8f bl = b0 * *(const v8f *)(tap0[5] + step + i) +
@@ -849,9 +851,12 @@ static int point_render(void *state, void *tstate, void *thread,
 							 b2 * *(const v8f *)(tap0[9] + step + i) +
 							 b3 * *(const v8f *)(tap0[10] + step + i);
 
+						if (!keys)
+							v = bl;
 						sc += (v8f)((v8i)bl & in);
 						sd += (v8f)((v8i)d & in);
 					}
+					*(v8f *)(kv + i - ka) = v + d;
 				}
 			}
 			if (flux) {
@@ -934,9 +939,17 @@ static int point_render(void *state, void *tstate, void *thread,
 
 				for (int i = 0; i < cn; i += 4)
 					*(v4d *)(dv + i) = (v4d){ 0 };
+				/* bilinear with psf-blend=core: the cell's sum
+				 * before f (one array, so taps 5, 6, 9, 10) */
 				if (!keys)
-					for (int i = 0; i < cn; i++)
-						dv[i] = acc[ia + i];
+					for (int i = 0; i < cn; i++) {
+						ptrdiff_t at = step + i0 + ia + i;
+
+						dv[i] = (float)((float)(wn[0] * by[0] * bx[0]) * tap0[5][at] +
+								(float)(wn[0] * by[0] * bx[1]) * tap0[6][at] +
+								(float)(wn[0] * by[1] * bx[0]) * tap0[9][at] +
+								(float)(wn[0] * by[1] * bx[1]) * tap0[10][at]);
+					}
 				for (int k = 0; keys && k < nn; k++) {
 					for (int i = 0; i < cn; i += 4)
 						*(v4d *)(tv + i) = (v4d){ 0 };

@@ -30,13 +30,25 @@
  * samples at two x phases and two y phases, every `over` samples apart.  So
  * each node is copied once into a polyphase layout: over x over planes of
  * pixel-spaced samples (plane (q, r) holds samples (over m + q, over l + r)).
- * Then a row of a source is a weighted sum of 16 contiguous rows (4 nodes x
- * 2 x 2 taps), summed 8 pixels at a time; the Keys core reads 4 x 4 taps of
- * the same planes.  The copies are made in footprint(), which the host
- * calls in its main thread before render() sees the source, so render()
- * neither allocates nor locks.  Measured against the floor of adding a
- * precomputed stamp (contrib/bench/floor.c, BENCHMARKS.md): the default is
- * about 10x the floor, the 16 streams and the core costing about equally.
+ * Blended per source, a row is a weighted sum of 16 contiguous rows (4
+ * nodes x 2 x 2 taps) and the Keys core reads 4 x 4 taps of 4 nodes: about
+ * 78 000 instructions per faint star, 7.7x the floor of adding a
+ * precomputed stamp (contrib/bench/floor.c, BENCHMARKS.md).  So by default
+ * (psf-blend=core) the four nodes are blended once per 512-pixel cell, at
+ * its centre, into one polyphase array, and a source reads that: 4 streams
+ * outside its core.  Blending at the cell's centre instead of the source
+ * misplaces the PSF's change with position by up to 362 pixels, first
+ * order: 2e-2 of the peak on the bench's grid (psf-blend=cell alone).
+ * That change lives in the core, so there the source's own blend is
+ * restored: the core's pixels are Keys' cubic of the cell plus the
+ * bilinear difference (source's blend - cell's) from the nodes, a small
+ * field whose interpolation error is small.  Outside the core the cell's
+ * blend is scaled by one factor per source so that the total is the
+ * source's (core_box_sums' comment).  The core is drawn first into a
+ * small float buffer, then every row of the window in one call, straight
+ * into the tile (sum_rows_avx2).  The copies and blends are made in
+ * footprint(), which the host calls in its main thread before render()
+ * sees the source, so render() neither allocates nor locks.
  *
  * Approximations, each a setting (wfiscene(1) POINT SOURCES has their
  * measured error and cost):
@@ -49,9 +61,12 @@
  *                                     the noise from the scene's background,
  *                                     read noise and exposure time, or
  *                                     psf-box-sigma (counts/s per pixel)
- *   psf-blend=source|cell             blend the four nodes per source, or
- *                                     once per psf-cell (512) pixel cell at
- *                                     its centre: 4 streams instead of 16
+ *   psf-blend=core|source|cell        blend the four nodes once per psf-cell
+ *                                     (512) pixel cell, at the source within
+ *                                     psf-core (the default; with
+ *                                     psf-interp=bicubic the whole box); per
+ *                                     source everywhere (16 streams); or per
+ *                                     cell everywhere (4 streams)
  */
 #include <math.h>
 #include <stdint.h>
@@ -610,17 +625,26 @@ static int core_correction(const struct point *p, const struct wfs_source *src,
 	return n;
 }
 
+/* The blend a source gets: psf-blend=core draws the 44-pixel class only;
+ * the bright classes' boxes (88 and 176 pixels) are blended per source, as
+ * their cells would be 4 and 16 times larger (0.6 and 2.3 MB each) for a few
+ * sources. */
+static int source_blend(const struct point *p, const struct wfs_source *src)
+{
+	return p->blend == BLEND_CORE && src->psf_class != WFS_PSF_NORMAL ? BLEND_SOURCE : p->blend;
+}
+
 static int point_footprint(void *state, const struct wfs_source *src,
 			   struct wfs_box *box)
 {
 	struct point *p = state;
 	const struct poly *pl[4];
 	double wn[4], half;
-	int nn;
+	int nn, blend = source_blend(p, src);
 
-	if (p->blend != BLEND_SOURCE && cell_add(p, src, cell_key(p, src)) < 0)
+	if (blend != BLEND_SOURCE && cell_add(p, src, cell_key(p, src)) < 0)
 		return -1;
-	if (p->blend != BLEND_CELL) {
+	if (blend != BLEND_CELL) {
 		struct wfs_epsf e;
 
 		if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
@@ -631,7 +655,7 @@ static int point_footprint(void *state, const struct wfs_source *src,
 				return -1;
 	}
 	/* the box from the blend at the source, but for psf-blend=cell */
-	if ((nn = source_polys(p, src, p->blend == BLEND_CELL ? BLEND_CELL : BLEND_SOURCE,
+	if ((nn = source_polys(p, src, blend == BLEND_CELL ? BLEND_CELL : BLEND_SOURCE,
 			       pl, wn)) < 0)
 		return -1;
 	half = (double)pl[0]->centre / pl[0]->over;
@@ -703,6 +727,7 @@ static int point_render(void *state, void *tstate, void *thread,
 	double wn[4], bx[2], by[2], cx[4], cy[4];
 	float wt[16];
 	const float *tap0[64];  /* [node][y tap][x tap] at the window's first row */
+	int blend = source_blend(p, src);
 	const struct poly *cp[8];
 	double cw[8], ccw[32];
 	const float *ctap0[32]; /* psf-blend=core: [node][y tap][x tap], bilinear */
@@ -713,9 +738,9 @@ static int point_render(void *state, void *tstate, void *thread,
 	float acc[MAX_ROW + 8];
 	double dv[MAX_ROW + 4], tv[MAX_ROW + 4];
 
-	if ((nn = source_polys(p, src, p->blend, pl, wn)) < 0)
+	if ((nn = source_polys(p, src, blend, pl, wn)) < 0)
 		return -1;
-	if (p->blend == BLEND_CORE && (ncor = core_correction(p, src, pl[0], cp, cw)) < 0)
+	if (blend == BLEND_CORE && (ncor = core_correction(p, src, pl[0], cp, cw)) < 0)
 		return -1;
 	o = pl[0]->over;
 	m = pl[0]->m;
@@ -755,7 +780,7 @@ static int point_render(void *state, void *tstate, void *thread,
 	keys = p->interp != INTERP_BILINEAR;
 	if (p->interp == INTERP_BICUBIC)
 		core2 = INFINITY;
-	else if (p->interp == INTERP_BILINEAR && p->blend != BLEND_CORE)
+	else if (p->interp == INTERP_BILINEAR && blend != BLEND_CORE)
 		core2 = -1;
 	else
 		core2 = p->core * o + 2 < pl[0]->centre ? p->core * p->core : 0;

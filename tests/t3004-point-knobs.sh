@@ -37,15 +37,18 @@ elif what == "close":         # differ, by less than a fraction of the peak
     assert d.max() > 0, "no difference"
     assert d.max() < f * b.max(), (d.max(), b.max())
     assert abs(a.sum() - b.sum()) < f * b.sum(), (a.sum(), b.sum())
-elif what == "scaled-outside":  # beyond R px of a star: one factor per star, within 5 % of 1
+elif what == "scaled-outside":  # beyond R px of the faint star: one factor, within 5 % of 1
     r = float(sys.argv[4])
     y, x = np.nonzero(b)
-    for cx, cy in ((999.3, 999.6), (2999.7, 2999.2)):
+    for cx, cy in ((2999.7, 2999.2),):
         near = (np.abs(x - cx) < 30) & (np.abs(y - cy) < 30)
         far = near & ((x - cx) ** 2 + (y - cy) ** 2 > r * r)
         q = a[y[far], x[far]] / b[y[far], x[far]]
         assert len(q) > 1000 and q.max() - q.min() < 1e-5 and abs(q[0] - 1) < 5e-2, \
             (cx, q.min(), q.max())
+elif what == "bright-same":    # the bright star identical, the faint one not
+    assert np.array_equal(a[900:1100, 900:1100], b[900:1100, 900:1100])
+    assert not np.array_equal(a[2950:3050, 2950:3050], b[2950:3050, 2950:3050])
 elif what == "faint-box":     # the faint star's box shrinks, the bright one's not
     h = int(sys.argv[4])
     fa = np.count_nonzero(a[2950:3050, 2950:3050])
@@ -73,13 +76,14 @@ test_expect_success 'psf-interp=bicubic changes only pixels beyond the core' '
 	run bic.fits --set psf-interp=bicubic &&
 	"$PY" px.py bic.fits def.fits outside-core
 '
-test_expect_success 'psf-blend=core (the default): the cell scaled outside the core, close to source' '
+test_expect_success 'psf-blend=core (the default): a faint star is the cell scaled outside the core, close to source; a bright one is blended per source' '
 	run cl.fits --set psf-blend=cell &&
 	"$PY" px.py def.fits cl.fits scaled-outside 4 &&
 	run def2.fits --set psf-core=2 &&
 	run cl2.fits --set psf-blend=cell --set psf-core=2 &&
 	"$PY" px.py def2.fits cl2.fits scaled-outside 2 &&
 	"$PY" px.py def.fits src.fits close 2e-3 &&
+	"$PY" px.py def.fits src.fits bright-same &&
 	run bil.fits --set psf-blend=source --set psf-interp=bilinear &&
 	run bilc.fits --set psf-interp=bilinear &&
 	"$PY" px.py bilc.fits bil.fits close 2e-3

@@ -222,13 +222,13 @@ static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
 		const float *s2 = r->s[2] + j * r->m, *s3 = r->s[3] + j * r->m;
 		double *out = pix + j * stride;
 		int c = j - r->jc, core = c >= 0 && c < r->nc;
-		const float *kv = core ? r->kv + c * KV_PITCH + 8 - r->ka : NULL;
+		const float *kv = core ? r->kv + c * KV_PITCH : NULL;
 
 		for (int i = 0; i < nx; i++) {
 			float v = r->w[0] * s0[i] + r->w[1] * s1[i] + r->w[2] * s2[i] + r->w[3] * s3[i];
 
 			if (core && i >= r->ia[c] && i < r->ib[c])
-				v = kv[i];
+				v = kv[8 + i - r->ka];
 			out[i] += v;
 		}
 	}
@@ -251,7 +251,7 @@ __attribute__((target("avx2"))) static void sum_rows_avx2(double *pix, ptrdiff_t
 		double *out = pix + j * stride;
 		int c = j - r->jc, core = c >= 0 && c < r->nc;
 		int ia = core ? r->ia[c] : 0, ib = core ? r->ib[c] : 0;
-		const float *kv = core ? r->kv + c * KV_PITCH + 8 - r->ka : NULL;
+		const float *kv = core ? r->kv + c * KV_PITCH : NULL;
 		__m256i va = _mm256_set1_epi32(ia - 1), vb = _mm256_set1_epi32(ib);
 		int i;
 
@@ -265,7 +265,7 @@ __attribute__((target("avx2"))) static void sum_rows_avx2(double *pix, ptrdiff_t
 				__m256i lane = _mm256_add_epi32(lanes, _mm256_set1_epi32(i));
 				__m256 in = _mm256_castsi256_ps(_mm256_and_si256(_mm256_cmpgt_epi32(lane, va),
 										 _mm256_cmpgt_epi32(vb, lane)));
-				__m256 k = _mm256_loadu_ps(kv + i);
+				__m256 k = _mm256_loadu_ps(kv + (8 + i - r->ka));
 
 				v = _mm256_blendv_ps(v, k, in);
 			}

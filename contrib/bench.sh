@@ -117,9 +117,9 @@ echo
 cc -O3 -march=native -std=c11 -Iinclude -o "$W/floor" contrib/bench/floor.c -lm -ldl
 fn=200000
 [ "$quick" = 1 ] && fn=50000
-"$W/floor" "$B/plugins/point.so" $fn - psf-interp=bilinear psf-interp=bicubic \
-	psf-core=2 psf-core=8 grid=5 psf-blend=cell,psf-cell=256 psf-blend=cell \
-	psf-blend=cell,psf-interp=bilinear \
+"$W/floor" "$B/plugins/point.so" $fn - psf-blend=source psf-interp=bilinear psf-interp=bicubic \
+	psf-core=2 psf-core=8 grid=5 psf-cell=256 psf-cell=1024 \
+	psf-blend=cell,psf-cell=256 psf-blend=cell psf-blend=cell,psf-interp=bilinear \
 	psf-box=adaptive,psf-box-sigma=0.1 psf-box=adaptive,psf-box-sigma=0.1,psf-box-noise=0.01 \
 	psf-blend=cell,psf-box=adaptive,psf-box-sigma=0.1 > "$W/floor.txt"
 echo "| loop or settings | ns/star | × stamp floor | pixels/star | max pixel error / peak | flux error | max pixel error / σ |"

@@ -1337,7 +1337,7 @@ static int write_report(struct engine *g)
 	report_setting(f, g, "core_radius_px", "psf-core", "4");
 	report_setting(f, g, "box", "psf-box", "fixed");
 	report_setting(f, g, "box_noise_fraction", "psf-box-noise", "0.1");
-	report_setting(f, g, "blend", "psf-blend", "source");
+	report_setting(f, g, "blend", "psf-blend", "core");
 	fprintf(f, "\"blend_cell_px\": ");
 	report_string(f, host_setting(g, "psf-cell") ? host_setting(g, "psf-cell") : "512");
 	fprintf(f, "}\n}\n");

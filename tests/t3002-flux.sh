@@ -1,8 +1,13 @@
 #!/bin/sh
 # Flux conservation: noise-free stars at every eighth-pixel phase, on tile
-# boundaries and edges, on all 18 SCAs: each image's sum equals the catalog
-# flux times the ePSF's enclosed fraction, computed by an independent
-# implementation of the documented evaluation, to 1e-6.
+# boundaries and edges, on all 18 SCAs: with the ePSF blended at each
+# source (psf-blend=source), each image's sum equals the catalog flux times
+# the ePSF's enclosed fraction, computed by an independent implementation
+# of the documented evaluation, to 1e-6.  The default (psf-blend=core)
+# blends per 512-pixel cell outside the core, scaled to keep the source's
+# flux: on this grid, whose wings change strongly with position, within
+# 1e-5 of that flux and 1e-3 of the peak of the per-source image
+# (measured: 2.3e-6 and 6.4e-4).
 . "$(dirname "$0")/lib.sh"
 require_python
 
@@ -12,12 +17,26 @@ test_expect_success 'a synthetic ePSF grid and stars at all phases on 18 SCAs' '
 '
 test_expect_success 'flux placed = flux x enclosed fraction, to 1e-6, every SCA' '
 	"$WFS" --filter F129 --sca 1-18 --psf epsf.fits --compress gzip --tile 128 \
-		-o img.fits stars.csv &&
+		--set psf-blend=source -o img.fits stars.csv &&
 	"$PY" "$TOP/tests/flux_check.py" check epsf.fits stars.csv img.fits 1e-6
 '
 test_expect_success 'and the same with one thread and another tile size (SCAs 1, 9, 18)' '
 	"$WFS" --filter F129 --sca 1,9,18 --psf epsf.fits --compress gzip --tile 300 \
-		--threads 1 -o img2.fits stars.csv &&
+		--threads 1 --set psf-blend=source -o img2.fits stars.csv &&
 	"$PY" "$TOP/tests/flux_check.py" check epsf.fits stars.csv img2.fits 1e-6
+'
+test_expect_success 'the default blend: within 1e-5 of that flux and 1e-3 of the peak' '
+	"$WFS" --filter F129 --sca 1-18 --psf epsf.fits --compress gzip --tile 128 \
+		-o def.fits stars.csv &&
+	"$PY" "$TOP/tests/flux_check.py" check epsf.fits stars.csv def.fits 1e-5 &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+with fits.open(\"img.fits\") as a, fits.open(\"def.fits\") as b:
+    for x, y in zip(a[1:], b[1:]):
+        x, y = x.data.astype(float), y.data.astype(float)
+        d = np.abs(x - y).max() / x.max()
+        assert 0 < d < 1e-3, (x.name, d)
+"
 '
 test_done

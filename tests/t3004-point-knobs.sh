@@ -1,6 +1,6 @@
 #!/bin/sh
 # The point model's settings: psf-interp, psf-core, psf-box (adaptive, with
-# psf-box-noise and psf-box-sigma), psf-blend and psf-cell.  Each one's
+# psf-box-noise and psf-box-sigma), psf-blend (source, cell, core) and psf-cell.  Each one's
 # effect on the image, and bad values refused with a message naming the key
 # and no output left behind.
 . "$(dirname "$0")/lib.sh"
@@ -37,6 +37,18 @@ elif what == "close":         # differ, by less than a fraction of the peak
     assert d.max() > 0, "no difference"
     assert d.max() < f * b.max(), (d.max(), b.max())
     assert abs(a.sum() - b.sum()) < f * b.sum(), (a.sum(), b.sum())
+elif what == "scaled-outside":  # beyond R px of the faint star: one factor, within 5 % of 1
+    r = float(sys.argv[4])
+    y, x = np.nonzero(b)
+    for cx, cy in ((2999.7, 2999.2),):
+        near = (np.abs(x - cx) < 30) & (np.abs(y - cy) < 30)
+        far = near & ((x - cx) ** 2 + (y - cy) ** 2 > r * r)
+        q = a[y[far], x[far]] / b[y[far], x[far]]
+        assert len(q) > 1000 and q.max() - q.min() < 1e-5 and abs(q[0] - 1) < 5e-2, \
+            (cx, q.min(), q.max())
+elif what == "bright-same":    # the bright star identical, the faint one not
+    assert np.array_equal(a[900:1100, 900:1100], b[900:1100, 900:1100])
+    assert not np.array_equal(a[2950:3050, 2950:3050], b[2950:3050, 2950:3050])
 elif what == "faint-box":     # the faint star's box shrinks, the bright one's not
     h = int(sys.argv[4])
     fa = np.count_nonzero(a[2950:3050, 2950:3050])
@@ -50,18 +62,31 @@ test_expect_success 'a synthetic ePSF grid; the defaults spelled out change noth
 	"$PY" "$TOP/tests/flux_check.py" grid epsf.fits &&
 	run def.fits &&
 	run expl.fits --set psf-interp=core --set psf-core=4 --set psf-box=fixed \
-		--set psf-blend=source --set psf-cell=512 &&
+		--set psf-blend=core --set psf-cell=512 &&
 	test_cmp def.fits expl.fits
 '
 test_expect_success 'psf-interp=bilinear changes only the core (radius psf-core)' '
 	run bil.fits --set psf-interp=bilinear &&
 	"$PY" px.py bil.fits def.fits core-only 4 &&
-	run c2.fits --set psf-core=2 &&
-	"$PY" px.py c2.fits def.fits core-only 4
+	run src.fits --set psf-blend=source &&
+	run c2.fits --set psf-blend=source --set psf-core=2 &&
+	"$PY" px.py c2.fits src.fits core-only 4
 '
 test_expect_success 'psf-interp=bicubic changes only pixels beyond the core' '
 	run bic.fits --set psf-interp=bicubic &&
 	"$PY" px.py bic.fits def.fits outside-core
+'
+test_expect_success 'psf-blend=core (the default): a faint star is the cell scaled outside the core, close to source; a bright one is blended per source' '
+	run cl.fits --set psf-blend=cell &&
+	"$PY" px.py def.fits cl.fits scaled-outside 4 &&
+	run def2.fits --set psf-core=2 &&
+	run cl2.fits --set psf-blend=cell --set psf-core=2 &&
+	"$PY" px.py def2.fits cl2.fits scaled-outside 2 &&
+	"$PY" px.py def.fits src.fits close 2e-3 &&
+	"$PY" px.py def.fits src.fits bright-same &&
+	run bil.fits --set psf-blend=source --set psf-interp=bilinear &&
+	run bilc.fits --set psf-interp=bilinear &&
+	"$PY" px.py bilc.fits bil.fits close 2e-3
 '
 test_expect_success 'psf-blend=cell: one blended ePSF per cell, close to the default' '
 	run cell.fits --set psf-blend=cell &&

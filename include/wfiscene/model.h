@@ -19,8 +19,10 @@
  *   entry(WFS_ABI_VERSION)  once, returns the static descriptor
  *   init(host, &state)      once, single-threaded: tables, plans, settings
  *   thread_start(state, &t) once per worker thread that renders this model
- *   prepare(state, src)     once per catalog row, main thread: validate the
- *                           row's parameters and precompute into src->aux
+ *   prepare(state, src)     once per row and SCA it lands on, main thread,
+ *                           with x, y, sca, flux and mag set for that SCA:
+ *                           validate the row's parameters and precompute
+ *                           into src->aux
  *   footprint(state, src)   once per row and SCA, main thread: the pixels the
  *                           source may touch, so the host can bin it by tile
  *   render(state, t, ...)   once per (source, tile) pair, in worker threads

@@ -1334,7 +1334,8 @@ static int write_report(struct engine *g)
 	/* The point model's approximations as --set chose them (its defaults
 	 * otherwise), so that a report says which evaluation made the image. */
 	report_setting(f, g, "interpolation", "psf-interp", "core");
-	report_setting(f, g, "core_radius_px", "psf-core", "4");
+	report_setting(f, g, "core_halfwidth_px", "psf-core", "4");
+	report_setting(f, g, "wing_halfwidth_px", "psf-wing", "8");
 	report_setting(f, g, "box", "psf-box", "fixed");
 	report_setting(f, g, "box_noise_fraction", "psf-box-noise", "0.1");
 	report_setting(f, g, "blend", "psf-blend", "core");

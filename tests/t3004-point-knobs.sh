@@ -135,7 +135,8 @@ test_expect_success '--report names the point settings a run used' '
 	"$PY" -c "
 import json
 b = json.load(open(\"r.json\"))[\"error_budget\"]
-assert b[\"interpolation\"] == \"core\" and b[\"core_radius_px\"] == \"4\", b
+assert b[\"interpolation\"] == \"core\" and b[\"core_halfwidth_px\"] == \"4\", b
+assert b[\"wing_halfwidth_px\"] == \"8\", b
 assert b[\"box\"] == \"adaptive\" and b[\"blend\"] == \"cell\", b
 assert b[\"blend_cell_px\"] == \"512\", b
 "

@@ -416,10 +416,13 @@ static double counts_on(const struct engine *g, const struct rows *r, size_t i, 
 	case UNIT_ABMAG:
 		return pow(10.0, -0.4 * (v - zeropoint(g, sca)));
 	default:
-		if (g->o->zp_stips)     /* STIPS converts with its fixed zeropoint */
-			return v * pow(10.0, 0.4 * (8.9 - filter_stips_zp(g->o->filter))) *
-			       unit_to_counts(g->o->filter, sca, r->unit[i]) /
-			       pow(10.0, 0.4 * (8.9 - zeropoint(g, sca)));
+		/* unit_to_counts() goes through the SCA's RTI zeropoint, as
+		 * 1 / PHOTFNU; STIPS's fixed zeropoint zs gives PHOTFNU's
+		 * ratio 10^(0.4 (zs - z_rti)) on top of it. */
+		if (g->o->zp_stips)
+			return v * unit_to_counts(g->o->filter, sca, r->unit[i]) *
+			       pow(10.0, 0.4 * (filter_stips_zp(g->o->filter) -
+						filter_get(g->o->filter)->zp_ab[sca - 1]));
 		return v * unit_to_counts(g->o->filter, sca, r->unit[i]);
 	}
 }

@@ -11,6 +11,9 @@
 #include <string.h>
 #include <time.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
+#include <fcntl.h>
+#include <stdint.h>
 #include <unistd.h>
 
 #include "catalog.h"
@@ -1192,20 +1195,118 @@ static void engine_free(struct engine *g)
 	pthread_mutex_destroy(&g->err_mu);
 }
 
+/*
+ * Open a side file (--placed, --report) for writing.  A new name or an
+ * existing regular file is written under a temporary name ".NAME.XXXXXX"
+ * beside it (returned in tmp), renamed over NAME when complete; it gets
+ * the mode any new file gets, 0666 less the umask (mkstemp would make it
+ * 0600).  An existing device, FIFO or socket (/dev/stdout, /dev/null, a
+ * named pipe, also through a symbolic link) is written in place, as -o
+ * writes it: renaming over it would replace the device node; tmp is then
+ * "".  A directory is a usage error.  Returns the descriptor or -1.
+ */
+static int side_open(const char *path, char *tmp, size_t cap, struct err *e)
+{
+	const char *slash = strrchr(path, '/');
+	const char *base = slash ? slash + 1 : path;
+	struct stat st;
+	struct timespec ts;
+	uint64_t x;
+	int fd;
+
+	tmp[0] = 0;
+	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
+		if (S_ISDIR(st.st_mode))
+			return err_set(e, EXIT_INPUT, "%s: is a directory", path);
+		if ((fd = open(path, O_WRONLY | O_CLOEXEC | O_NOCTTY)) < 0)
+			return err_sys(e, "%s", path);
+		return fd;
+	}
+	if (!*base)
+		return err_set(e, EXIT_INPUT, "%s: not a file name", path);
+	clock_gettime(CLOCK_REALTIME, &ts);
+	x = (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^
+	    ((uint64_t)getpid() << 16) ^ (uint64_t)(uintptr_t)tmp;
+	for (int attempt = 0; attempt < 100; attempt++) {
+		static const char alnum[] =
+			"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
+		uint64_t z = (x += 0x9E3779B97F4A7C15u);       /* splitmix64 */
+		char suffix[7];
+
+		z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
+		z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
+		z ^= z >> 31;
+		for (int i = 0; i < 6; i++, z /= 62)
+			suffix[i] = alnum[z % 62];
+		suffix[6] = 0;
+		if (snprintf(tmp, cap, "%.*s.%s.%s", (int)(base - path), path, base,
+			     suffix) >= (int)cap) {
+			tmp[0] = 0;
+			errno = ENAMETOOLONG;
+			return err_sys(e, "%s", path);
+		}
+		fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+		if (fd >= 0)
+			return fd;
+		if (errno != EEXIST)
+			break;
+	}
+	tmp[0] = 0;
+	return err_sys(e, "%s: cannot create a temporary file beside it", path);
+}
+
+/* Before a run: a side file that could not be written at its end (a
+ * directory, a directory that is not writable) is refused up front, so
+ * that no image is written for a run whose --report must fail. */
+static int side_check(const char *path, struct err *e)
+{
+	const char *slash = strrchr(path, '/');
+	char dir[PATH_MAX];
+	struct stat st;
+
+	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode))
+		return S_ISDIR(st.st_mode) ?
+		       err_set(e, EXIT_INPUT, "%s: is a directory", path) : 0;
+	snprintf(dir, sizeof(dir), "%.*s", slash ? (int)(slash - path + 1) : 1,
+		 slash ? path : ".");
+	if (access(dir, W_OK | X_OK))
+		return err_sys(e, "%s: cannot write in '%s'", path, dir);
+	return 0;
+}
+
+/* Finish a side file opened by side_open: flush, fsync and rename a
+ * temporary file (keep) or remove it; a file written in place is only
+ * flushed.  Closes f.  Returns 0 or -1 (errno set). */
+static int side_close(FILE *f, const char *path, const char *tmp, int keep)
+{
+	int bad = fflush(f) != 0 || ferror(f);
+
+	if (!bad && tmp[0] && keep)
+		bad = fsync(fileno(f)) != 0;
+	bad |= fclose(f) != 0;
+	if (!tmp[0])
+		return bad ? -1 : 0;
+	if (keep && !bad && rename(tmp, path) == 0)
+		return 0;
+	int saved = errno;
+	unlink(tmp);
+	errno = saved;
+	return keep ? -1 : 0;
+}
+
 static int open_placed(struct engine *g)
 {
 	const char *path = g->o->placed;
-	const char *slash = strrchr(path, '/');
 	int fd;
 
-	snprintf(g->placed_tmp, sizeof(g->placed_tmp), "%.*s.%s.XXXXXX",
-		 slash ? (int)(slash - path + 1) : 0, path, slash ? slash + 1 : path);
-	if ((fd = mkstemp(g->placed_tmp)) < 0)
-		return err_sys(g->e, "%s", path);
+	if ((fd = side_open(path, g->placed_tmp, sizeof(g->placed_tmp), g->e)) < 0)
+		return -1;
 	memcpy(placed_tmp_signal[g->index], g->placed_tmp, sizeof(placed_tmp_signal[0]));
 	if (!(g->placed = fdopen(fd, "w"))) {
 		close(fd);
-		unlink(g->placed_tmp);
+		if (g->placed_tmp[0])
+			unlink(g->placed_tmp);
+		placed_tmp_signal[g->index][0] = 0;
 		return err_sys(g->e, "%s", path);
 	}
 	fputs("id,sca,x,y,flux,mag,model\n", g->placed);
@@ -1214,20 +1315,14 @@ static int open_placed(struct engine *g)
 
 static int close_placed(struct engine *g, int keep)
 {
-	int bad = 0;
+	int r;
 
 	if (!g->placed)
 		return 0;
-	bad |= fflush(g->placed) != 0 || fsync(fileno(g->placed)) != 0;
-	bad |= fclose(g->placed) != 0;
+	r = side_close(g->placed, g->o->placed, g->placed_tmp, keep);
 	g->placed = NULL;
-	if (keep && !bad && rename(g->placed_tmp, g->o->placed) == 0) {
-		placed_tmp_signal[g->index][0] = 0;
-		return 0;
-	}
-	unlink(g->placed_tmp);
 	placed_tmp_signal[g->index][0] = 0;
-	return keep ? err_sys(g->e, "%s", g->o->placed) : 0;
+	return keep && r < 0 ? err_sys(g->e, "%s", g->o->placed) : 0;
 }
 
 /* A JSON string: quotes, backslashes and control bytes escaped (--set
@@ -1265,18 +1360,16 @@ static int write_report(struct engine *g)
 {
 	const struct scene_opts *o = g->o;
 	char tmp[PATH_MAX];
-	const char *slash = strrchr(o->report, '/');
 	double render = 0, worst_loss = 0;
 	FILE *f;
 	int fd, first;
 
-	snprintf(tmp, sizeof(tmp), "%.*s.%s.XXXXXX", slash ? (int)(slash - o->report + 1) : 0,
-		 o->report, slash ? slash + 1 : o->report);
-	if ((fd = mkstemp(tmp)) < 0 || !(f = fdopen(fd, "w"))) {
-		if (fd >= 0) {
-			close(fd);
+	if ((fd = side_open(o->report, tmp, sizeof(tmp), g->e)) < 0)
+		return -1;
+	if (!(f = fdopen(fd, "w"))) {
+		close(fd);
+		if (tmp[0])
 			unlink(tmp);
-		}
 		return err_sys(g->e, "%s", o->report);
 	}
 	for (int i = 0; i < g->nworker; i++)
@@ -1344,15 +1437,8 @@ static int write_report(struct engine *g)
 	fprintf(f, "\"blend_cell_px\": ");
 	report_string(f, host_setting(g, "psf-cell") ? host_setting(g, "psf-cell") : "512");
 	fprintf(f, "}\n}\n");
-	if (fflush(f) || ferror(f) || fsync(fileno(f))) {
-		fclose(f);
-		unlink(tmp);
+	if (side_close(f, o->report, tmp, 1) < 0)
 		return err_sys(g->e, "%s", o->report);
-	}
-	if (fclose(f) || rename(tmp, o->report)) {
-		unlink(tmp);
-		return err_sys(g->e, "%s", o->report);
-	}
 	return 0;
 }
 
@@ -1647,7 +1733,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		if (engine_init(g[i], &opts[i], pool, e) < 0)
 			goto out;
 		g[i]->index = i;
-		if (opts[i].placed && open_placed(g[i]) < 0)
+		if ((opts[i].placed && open_placed(g[i]) < 0) ||
+		    (opts[i].report && side_check(opts[i].report, e) < 0))
 			goto out;
 		g[i]->t_start = g[i]->t_progress = t0;
 		g[i]->progress = i == 0 && o->verbose >= 0 && isatty(2);

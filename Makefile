@@ -69,6 +69,15 @@ $(B)/obj/%.o: src/%.c $(wildcard src/*.h) include/wfiscene/model.h | $(B)/obj
 	@echo "  CC      $<"
 	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
 
+# The plugin directory is compiled into plugin.o: a stamp holding its value
+# rebuilds it when PREFIX or PLUGINDIR changes (`make`, then `make install
+# PREFIX=/opt/wfs`, must not install a program that looks in /usr/local).
+$(B)/plugindir.stamp: FORCE | $(B)/obj
+	$(Q)printf '%s\n' '$(PLUGINDIR)' | cmp -s - $@ 2>/dev/null || \
+		printf '%s\n' '$(PLUGINDIR)' > $@
+$(B)/obj/plugin.o: $(B)/plugindir.stamp
+FORCE:
+
 $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 	@echo "  EMBED   data/*.tsv"
 	$(Q)sh src/embed.sh $(DATA) > $@.tmp && mv $@.tmp $@
@@ -162,7 +171,7 @@ clean:
 help:
 	@sed -n 's/^## //p' $(MAKEFILE_LIST)
 
-.PHONY: all deps check unit demo bench fuzz lint-man install clean help validate
+.PHONY: all deps check unit demo bench fuzz lint-man install clean help validate FORCE
 
 ## validate: the paper's 1000-star photometry test and the load tests (slow)
 validate: all

@@ -285,6 +285,19 @@ static int host_convolve(void *ctx, void *thread, double *img, int nx, int ny,
 /* ---- PSF grids ---- */
 
 /* Make sure the ePSF grid of (sca, cls) is loaded.  Main thread only. */
+/* A --psf file made for another filter or (with %d) another SCA than it
+ * serves is most likely a mistake, but not certainly one: say so. */
+static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
+			  const char *path, int sca)
+{
+	if (grid->filter >= 0 && grid->filter != g->o->filter)
+		host_log(g, 0, "warning: %s: PSF for filter %s, the scene's is %s",
+			 path, filter_get(grid->filter)->name, g->filter_name);
+	if (sca && grid->sca && grid->sca != sca)
+		host_log(g, 0, "warning: %s: PSF for SCA %d serves SCA %d", path,
+			 grid->sca, sca);
+}
+
 static int need_grid(struct engine *g, int sca, int cls)
 {
 	const struct scene_opts *o = g->o;
@@ -304,6 +317,7 @@ static int need_grid(struct engine *g, int sca, int cls)
 		snprintf(path, sizeof(path), o->psf, sca);
 		if (!(grid = psf_grid_read(path, g->e)))
 			return -1;
+		psf_file_warn(g, grid, path, sca);
 		if (grid->kind == PSF_OPTICAL && psf_make_epsf(grid, g->e) < 0) {
 			psf_grid_free(grid);
 			return -1;
@@ -1152,6 +1166,7 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct pool
 	if (o->psf && strcmp(o->psf, "builtin") && !strstr(o->psf, "%")) {
 		if (!(g->user_grid = psf_grid_read(o->psf, e)))
 			return -1;
+		psf_file_warn(g, g->user_grid, o->psf, 0);
 		if (g->user_grid->kind == PSF_OPTICAL && psf_make_epsf(g->user_grid, e) < 0)
 			return -1;
 	}

@@ -115,6 +115,7 @@ bad fields.csv 'ra,dec,flux\n1,2,3,4\n' ":2: row has 4 fields, the header has 3"
 bad nul.csv 'ra,dec,flux\n1,2,\0003\n' ":2: binary data: byte 0x00"
 bad utf.csv 'ra,dec,flux\n1,2,\377\n' ":2: invalid UTF-8"
 bad quote.csv 'ra,dec,flux\n1,2,"3\n' ":2: unterminated quoted field"
+bad faroff.csv 'ra,dec,flux,type\n0,0,5,point\n120,40,5,comet\n' ":3: unknown source type 'comet'"
 bad phoenix.tbl '\\type=phoenix\nra dec flux\n1 2 3\n' "catalog type 'phoenix' needs stellar or galaxy spectra"
 bad other.tbl '\\type=internal\n\\filter=F158\nra dec flux\n1 2 3\n' "is for filter 'F158', the scene's is 'F129'"
 

@@ -78,6 +78,15 @@ $(B)/plugindir.stamp: FORCE | $(B)/obj
 $(B)/obj/plugin.o: $(B)/plugindir.stamp
 FORCE:
 
+# The built-in PSF cache's key covers the code that computes a grid: a
+# checksum of its sources, so that changed code never reads a grid that the
+# old code cached.
+PSF_SRC := src/optics.c src/optics.h src/psf.c src/psf.h src/psfbuild.c
+$(B)/psf_src.h: $(PSF_SRC) | $(B)/obj
+	$(Q)printf '#define PSF_SRC_SUM "%s"\n' "$$(cat $(PSF_SRC) | cksum | tr ' ' -)" > $@.tmp && \
+		mv $@.tmp $@
+$(B)/obj/psfbuild.o: $(B)/psf_src.h
+
 $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 	@echo "  EMBED   data/*.tsv"
 	$(Q)sh src/embed.sh $(DATA) > $@.tmp && mv $@.tmp $@

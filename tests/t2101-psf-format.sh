@@ -85,6 +85,17 @@ assert a.sum() > 3000 and np.array_equal(a, b)
 assert np.abs(a - c).max() > 1e-3 * a.max(), np.abs(a - c).max()"
 '
 
+test_expect_success 'the grids wfiscene psf writes draw what the built-in PSF draws' '
+	printf "x,y,mag\n10,10,20\n2044.3,2044.8,19\n4080,3000,21\n1000,4000,22\n" > fm.csv &&
+	"$WFS" --filter F129 -o bi.fits fm.csv &&
+	"$WFS" --filter F129 --psf g.fits -o ge.fits fm.csv &&
+	"$WFS" --filter F129 --psf p.fits -o gp.fits fm.csv &&
+	"$PY" -c "
+from astropy.io import fits; import numpy as np
+a, b, c = (fits.getdata(f, 1) for f in (\"bi.fits\", \"ge.fits\", \"gp.fits\"))
+assert a.max() > 100 and np.array_equal(a, b) and np.array_equal(a, c)"
+'
+
 test_expect_success '--psf FILE of another filter or SCA: a warning (not with -q)' '
 	"$WFS" --filter F158 --psf p.fits -o w1.fits four.csv 2> err &&
 	test_grep "warning: p.fits: PSF for filter F129, the scene.s is F158" err &&

@@ -476,6 +476,14 @@ static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g converts to %g counts/s "
 			       "on SCA %d: not a positive finite number", r->file,
 			       r->line[i], r->flux[i], src->flux, sca);
+	/* The image is float32 (at most 3.4e38): one source may bring up to
+	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
+	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
+		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g gives %g %s on SCA %d, "
+			       "more than the 1e32 that one source may put in a "
+			       "float32 image", r->file, r->line[i], r->flux[i],
+			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
+			       g->o->bunit_counts ? "counts" : "counts/s", sca);
 	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
 		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
 		g->e->code = EXIT_INPUT;

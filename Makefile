@@ -69,6 +69,24 @@ $(B)/obj/%.o: src/%.c $(wildcard src/*.h) include/wfiscene/model.h | $(B)/obj
 	@echo "  CC      $<"
 	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
 
+# The plugin directory is compiled into plugin.o: a stamp holding its value
+# rebuilds it when PREFIX or PLUGINDIR changes (`make`, then `make install
+# PREFIX=/opt/wfs`, must not install a program that looks in /usr/local).
+$(B)/plugindir.stamp: FORCE | $(B)/obj
+	$(Q)printf '%s\n' '$(PLUGINDIR)' | cmp -s - $@ 2>/dev/null || \
+		printf '%s\n' '$(PLUGINDIR)' > $@
+$(B)/obj/plugin.o: $(B)/plugindir.stamp
+FORCE:
+
+# The built-in PSF cache's key covers the code that computes a grid: a
+# checksum of its sources, so that changed code never reads a grid that the
+# old code cached.
+PSF_SRC := src/optics.c src/optics.h src/psf.c src/psf.h src/psfbuild.c
+$(B)/psf_src.h: $(PSF_SRC) | $(B)/obj
+	$(Q)printf '#define PSF_SRC_SUM "%s"\n' "$$(cat $(PSF_SRC) | cksum | tr ' ' -)" > $@.tmp && \
+		mv $@.tmp $@
+$(B)/obj/psfbuild.o: $(B)/psf_src.h
+
 $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 	@echo "  EMBED   data/*.tsv"
 	$(Q)sh src/embed.sh $(DATA) > $@.tmp && mv $@.tmp $@
@@ -164,7 +182,7 @@ clean:
 help:
 	@sed -n 's/^## //p' $(MAKEFILE_LIST)
 
-.PHONY: all deps check unit demo bench fuzz lint-man install clean help validate
+.PHONY: all deps check unit demo bench fuzz lint-man install clean help validate FORCE
 
 ## validate: the paper's 1000-star photometry test and the load tests (slow)
 validate: all

@@ -3,12 +3,12 @@
 # when some are missing.  As root it runs apt-get; otherwise it prints the
 # command to run.  Called by `make deps`, `make check` and `make demo`;
 # `make bench` calls it with "bench" for what the benchmarks use besides
-# (gnuplot for the error-against-time plot, GNU time for peak memory).
+# (gnuplot for the error-against-time plot).
 set -e
 build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev zstd"
-tests="perl gzip python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc"
+tests="perl gzip time python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc"
 bench=
-[ "${1:-}" = bench ] && bench="time gnuplot-nox"
+[ "${1:-}" = bench ] && bench="gnuplot-nox"
 missing=
 for p in $build $tests $bench; do
 	dpkg-query -W -f='${Status}\n' "$p" 2>/dev/null | grep -q '^install ok installed' ||

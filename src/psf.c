@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <fitsio.h>
@@ -329,6 +330,14 @@ int psf_grid_write(const char *path, const struct psf_grid *g,
 	size_t np = (size_t)g->n * g->n;
 	long nax[3] = { g->n, g->n, nplane };
 
+	struct stat sb;
+
+	/* Renaming over a device, FIFO or socket (/dev/null, /dev/stdout)
+	 * would replace the node itself; a directory is a mistake. */
+	if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode))
+		return err_set(e, EXIT_INPUT, "%s: not a regular file; the grid "
+			       "is written under a temporary name and renamed "
+			       "over it", path);
 	if (slash)
 		snprintf(tmp, sizeof(tmp), "%.*s/.%s.XXXXXX",
 			 (int)(slash - path), path, slash + 1);

@@ -5,8 +5,9 @@
  *
  * Cache files are named after what they hold and a 64-bit key over every
  * input that changes the result (the optics tables' checksums, filter,
- * SCA, size, sampling, wavelengths, pupil sampling, grid, kind and the
- * code's own version), so a stale file is simply never looked up.  A file
+ * SCA, size, sampling, wavelengths, pupil sampling, grid, kind, and the
+ * code: a version and a checksum of its sources), so a stale file is
+ * simply never looked up.  A file
  * is written under a temporary name and renamed, so concurrent runs see
  * either no file or a whole one; two runs that both miss both build and
  * the second rename wins with identical content.  A file that fails its
@@ -31,8 +32,12 @@
 #include "optics.h"
 #include "psf.h"
 
-/* Bump when the computation changes in a way the key cannot see. */
-#define PSF_CODE_VERSION "psfbuild-1"
+/* The code's part of the key: a version to bump by hand, and a checksum
+ * of the sources that compute a grid (optics.c, psf.c, psfbuild.c and
+ * their headers), made by the Makefile, so that no edit of them can read
+ * a grid the old code cached. */
+#include "psf_src.h"
+#define PSF_CODE_VERSION "psfbuild-1 " PSF_SRC_SUM
 
 /*
  * Defaults, from the convergence measurements in BENCHMARKS.md ("Built-in

@@ -11,6 +11,9 @@
 #include <string.h>
 #include <time.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
+#include <fcntl.h>
+#include <stdint.h>
 #include <unistd.h>
 
 #include "catalog.h"
@@ -282,6 +285,19 @@ static int host_convolve(void *ctx, void *thread, double *img, int nx, int ny,
 /* ---- PSF grids ---- */
 
 /* Make sure the ePSF grid of (sca, cls) is loaded.  Main thread only. */
+/* A --psf file made for another filter or (with %d) another SCA than it
+ * serves is most likely a mistake, but not certainly one: say so. */
+static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
+			  const char *path, int sca)
+{
+	if (grid->filter >= 0 && grid->filter != g->o->filter)
+		host_log(g, 0, "warning: %s: PSF for filter %s, the scene's is %s",
+			 path, filter_get(grid->filter)->name, g->filter_name);
+	if (sca && grid->sca && grid->sca != sca)
+		host_log(g, 0, "warning: %s: PSF for SCA %d serves SCA %d", path,
+			 grid->sca, sca);
+}
+
 static int need_grid(struct engine *g, int sca, int cls)
 {
 	const struct scene_opts *o = g->o;
@@ -301,6 +317,7 @@ static int need_grid(struct engine *g, int sca, int cls)
 		snprintf(path, sizeof(path), o->psf, sca);
 		if (!(grid = psf_grid_read(path, g->e)))
 			return -1;
+		psf_file_warn(g, grid, path, sca);
 		if (grid->kind == PSF_OPTICAL && psf_make_epsf(grid, g->e) < 0) {
 			psf_grid_free(grid);
 			return -1;
@@ -416,10 +433,13 @@ static double counts_on(const struct engine *g, const struct rows *r, size_t i, 
 	case UNIT_ABMAG:
 		return pow(10.0, -0.4 * (v - zeropoint(g, sca)));
 	default:
-		if (g->o->zp_stips)     /* STIPS converts with its fixed zeropoint */
-			return v * pow(10.0, 0.4 * (8.9 - filter_stips_zp(g->o->filter))) *
-			       unit_to_counts(g->o->filter, sca, r->unit[i]) /
-			       pow(10.0, 0.4 * (8.9 - zeropoint(g, sca)));
+		/* unit_to_counts() goes through the SCA's RTI zeropoint, as
+		 * 1 / PHOTFNU; STIPS's fixed zeropoint zs gives PHOTFNU's
+		 * ratio 10^(0.4 (zs - z_rti)) on top of it. */
+		if (g->o->zp_stips)
+			return v * unit_to_counts(g->o->filter, sca, r->unit[i]) *
+			       pow(10.0, 0.4 * (filter_stips_zp(g->o->filter) -
+						filter_get(g->o->filter)->zp_ab[sca - 1]));
 		return v * unit_to_counts(g->o->filter, sca, r->unit[i]);
 	}
 }
@@ -456,6 +476,14 @@ static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g converts to %g counts/s "
 			       "on SCA %d: not a positive finite number", r->file,
 			       r->line[i], r->flux[i], src->flux, sca);
+	/* The image is float32 (at most 3.4e38): one source may bring up to
+	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
+	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
+		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g gives %g %s on SCA %d, "
+			       "more than the 1e32 that one source may put in a "
+			       "float32 image", r->file, r->line[i], r->flux[i],
+			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
+			       g->o->bunit_counts ? "counts" : "counts/s", sca);
 	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
 		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
 		g->e->code = EXIT_INPUT;
@@ -1146,6 +1174,7 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct pool
 	if (o->psf && strcmp(o->psf, "builtin") && !strstr(o->psf, "%")) {
 		if (!(g->user_grid = psf_grid_read(o->psf, e)))
 			return -1;
+		psf_file_warn(g, g->user_grid, o->psf, 0);
 		if (g->user_grid->kind == PSF_OPTICAL && psf_make_epsf(g->user_grid, e) < 0)
 			return -1;
 	}
@@ -1189,20 +1218,118 @@ static void engine_free(struct engine *g)
 	pthread_mutex_destroy(&g->err_mu);
 }
 
+/*
+ * Open a side file (--placed, --report) for writing.  A new name or an
+ * existing regular file is written under a temporary name ".NAME.XXXXXX"
+ * beside it (returned in tmp), renamed over NAME when complete; it gets
+ * the mode any new file gets, 0666 less the umask (mkstemp would make it
+ * 0600).  An existing device, FIFO or socket (/dev/stdout, /dev/null, a
+ * named pipe, also through a symbolic link) is written in place, as -o
+ * writes it: renaming over it would replace the device node; tmp is then
+ * "".  A directory is a usage error.  Returns the descriptor or -1.
+ */
+static int side_open(const char *path, char *tmp, size_t cap, struct err *e)
+{
+	const char *slash = strrchr(path, '/');
+	const char *base = slash ? slash + 1 : path;
+	struct stat st;
+	struct timespec ts;
+	uint64_t x;
+	int fd;
+
+	tmp[0] = 0;
+	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
+		if (S_ISDIR(st.st_mode))
+			return err_set(e, EXIT_INPUT, "%s: is a directory", path);
+		if ((fd = open(path, O_WRONLY | O_CLOEXEC | O_NOCTTY)) < 0)
+			return err_sys(e, "%s", path);
+		return fd;
+	}
+	if (!*base)
+		return err_set(e, EXIT_INPUT, "%s: not a file name", path);
+	clock_gettime(CLOCK_REALTIME, &ts);
+	x = (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^
+	    ((uint64_t)getpid() << 16) ^ (uint64_t)(uintptr_t)tmp;
+	for (int attempt = 0; attempt < 100; attempt++) {
+		static const char alnum[] =
+			"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
+		uint64_t z = (x += 0x9E3779B97F4A7C15u);       /* splitmix64 */
+		char suffix[7];
+
+		z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
+		z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
+		z ^= z >> 31;
+		for (int i = 0; i < 6; i++, z /= 62)
+			suffix[i] = alnum[z % 62];
+		suffix[6] = 0;
+		if (snprintf(tmp, cap, "%.*s.%s.%s", (int)(base - path), path, base,
+			     suffix) >= (int)cap) {
+			tmp[0] = 0;
+			errno = ENAMETOOLONG;
+			return err_sys(e, "%s", path);
+		}
+		fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+		if (fd >= 0)
+			return fd;
+		if (errno != EEXIST)
+			break;
+	}
+	tmp[0] = 0;
+	return err_sys(e, "%s: cannot create a temporary file beside it", path);
+}
+
+/* Before a run: a side file that could not be written at its end (a
+ * directory, a directory that is not writable) is refused up front, so
+ * that no image is written for a run whose --report must fail. */
+static int side_check(const char *path, struct err *e)
+{
+	const char *slash = strrchr(path, '/');
+	char dir[PATH_MAX];
+	struct stat st;
+
+	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode))
+		return S_ISDIR(st.st_mode) ?
+		       err_set(e, EXIT_INPUT, "%s: is a directory", path) : 0;
+	snprintf(dir, sizeof(dir), "%.*s", slash ? (int)(slash - path + 1) : 1,
+		 slash ? path : ".");
+	if (access(dir, W_OK | X_OK))
+		return err_sys(e, "%s: cannot write in '%s'", path, dir);
+	return 0;
+}
+
+/* Finish a side file opened by side_open: flush, fsync and rename a
+ * temporary file (keep) or remove it; a file written in place is only
+ * flushed.  Closes f.  Returns 0 or -1 (errno set). */
+static int side_close(FILE *f, const char *path, const char *tmp, int keep)
+{
+	int bad = fflush(f) != 0 || ferror(f);
+
+	if (!bad && tmp[0] && keep)
+		bad = fsync(fileno(f)) != 0;
+	bad |= fclose(f) != 0;
+	if (!tmp[0])
+		return bad ? -1 : 0;
+	if (keep && !bad && rename(tmp, path) == 0)
+		return 0;
+	int saved = errno;
+	unlink(tmp);
+	errno = saved;
+	return keep ? -1 : 0;
+}
+
 static int open_placed(struct engine *g)
 {
 	const char *path = g->o->placed;
-	const char *slash = strrchr(path, '/');
 	int fd;
 
-	snprintf(g->placed_tmp, sizeof(g->placed_tmp), "%.*s.%s.XXXXXX",
-		 slash ? (int)(slash - path + 1) : 0, path, slash ? slash + 1 : path);
-	if ((fd = mkstemp(g->placed_tmp)) < 0)
-		return err_sys(g->e, "%s", path);
+	if ((fd = side_open(path, g->placed_tmp, sizeof(g->placed_tmp), g->e)) < 0)
+		return -1;
 	memcpy(placed_tmp_signal[g->index], g->placed_tmp, sizeof(placed_tmp_signal[0]));
 	if (!(g->placed = fdopen(fd, "w"))) {
 		close(fd);
-		unlink(g->placed_tmp);
+		if (g->placed_tmp[0])
+			unlink(g->placed_tmp);
+		placed_tmp_signal[g->index][0] = 0;
 		return err_sys(g->e, "%s", path);
 	}
 	fputs("id,sca,x,y,flux,mag,model\n", g->placed);
@@ -1211,20 +1338,14 @@ static int open_placed(struct engine *g)
 
 static int close_placed(struct engine *g, int keep)
 {
-	int bad = 0;
+	int r;
 
 	if (!g->placed)
 		return 0;
-	bad |= fflush(g->placed) != 0 || fsync(fileno(g->placed)) != 0;
-	bad |= fclose(g->placed) != 0;
+	r = side_close(g->placed, g->o->placed, g->placed_tmp, keep);
 	g->placed = NULL;
-	if (keep && !bad && rename(g->placed_tmp, g->o->placed) == 0) {
-		placed_tmp_signal[g->index][0] = 0;
-		return 0;
-	}
-	unlink(g->placed_tmp);
 	placed_tmp_signal[g->index][0] = 0;
-	return keep ? err_sys(g->e, "%s", g->o->placed) : 0;
+	return keep && r < 0 ? err_sys(g->e, "%s", g->o->placed) : 0;
 }
 
 /* A JSON string: quotes, backslashes and control bytes escaped (--set
@@ -1262,18 +1383,16 @@ static int write_report(struct engine *g)
 {
 	const struct scene_opts *o = g->o;
 	char tmp[PATH_MAX];
-	const char *slash = strrchr(o->report, '/');
 	double render = 0, worst_loss = 0;
 	FILE *f;
 	int fd, first;
 
-	snprintf(tmp, sizeof(tmp), "%.*s.%s.XXXXXX", slash ? (int)(slash - o->report + 1) : 0,
-		 o->report, slash ? slash + 1 : o->report);
-	if ((fd = mkstemp(tmp)) < 0 || !(f = fdopen(fd, "w"))) {
-		if (fd >= 0) {
-			close(fd);
+	if ((fd = side_open(o->report, tmp, sizeof(tmp), g->e)) < 0)
+		return -1;
+	if (!(f = fdopen(fd, "w"))) {
+		close(fd);
+		if (tmp[0])
 			unlink(tmp);
-		}
 		return err_sys(g->e, "%s", o->report);
 	}
 	for (int i = 0; i < g->nworker; i++)
@@ -1342,15 +1461,8 @@ static int write_report(struct engine *g)
 	fprintf(f, "\"blend_cell_px\": ");
 	report_string(f, host_setting(g, "psf-cell") ? host_setting(g, "psf-cell") : "512");
 	fprintf(f, "}\n}\n");
-	if (fflush(f) || ferror(f) || fsync(fileno(f))) {
-		fclose(f);
-		unlink(tmp);
+	if (side_close(f, o->report, tmp, 1) < 0)
 		return err_sys(g->e, "%s", o->report);
-	}
-	if (fclose(f) || rename(tmp, o->report)) {
-		unlink(tmp);
-		return err_sys(g->e, "%s", o->report);
-	}
 	return 0;
 }
 
@@ -1645,7 +1757,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		if (engine_init(g[i], &opts[i], pool, e) < 0)
 			goto out;
 		g[i]->index = i;
-		if (opts[i].placed && open_placed(g[i]) < 0)
+		if ((opts[i].placed && open_placed(g[i]) < 0) ||
+		    (opts[i].report && side_check(opts[i].report, e) < 0))
 			goto out;
 		g[i]->t_start = g[i]->t_progress = t0;
 		g[i]->progress = i == 0 && o->verbose >= 0 && isatty(2);

@@ -17,6 +17,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <fitsio.h>
@@ -41,6 +43,8 @@ struct fits_col {
 struct table_fits {
 	struct table *t;
 	fitsfile *f;
+	long long fsize;        /* bytes in the file, -1 if unknown */
+	int fd;                 /* the file, for its size and tail; -1 */
 	int nhdu, hdu;          /* cfitsio HDU numbers, 1-based */
 	long long nrows, row;   /* rows of the current HDU; next row, 0-based */
 	int ncol;
@@ -204,6 +208,18 @@ static int is_integer_type(int type)
 		type == TLONG || type == TULONG || type == TLONGLONG;
 }
 
+/* cfitsio could not open the file: one that ends inside its primary
+ * header is cut short, bad input; anything else is cfitsio's to say. */
+static int open_failed(struct table_fits *x, int status, const char *name,
+		       struct err *e)
+{
+	if ((status == END_OF_FILE || status == READ_ERROR) && x->fsize >= 0)
+		return err_set(e, EXIT_INPUT, "%s: truncated FITS file: it ends "
+			       "inside its primary header (%lld bytes)", name,
+			       x->fsize);
+	return err_fits(e, status, "%s", name);
+}
+
 /* Copy the decompressed input to an unlinked temporary file, open it. */
 static int spool(struct table_fits *x, struct input *in, struct err *e)
 {
@@ -250,13 +266,15 @@ static int spool(struct table_fits *x, struct input *in, struct err *e)
 		unlink(name);
 		return -1;
 	}
+	struct stat st;
+	x->fsize = fstat(fd, &st) == 0 ? (long long)st.st_size : -1;
 	fits_open_diskfile(&x->f, name, READONLY, &status);
 	/* cfitsio holds its own descriptor: the name can go now, so the
 	 * file disappears however the run ends. */
 	unlink(name);
-	close(fd);
+	x->fd = fd;
 	if (status)
-		return err_fits(e, status, "%s", input_name(in));
+		return open_failed(x, status, input_name(in), e);
 	return 0;
 }
 
@@ -297,6 +315,58 @@ static int read_keywords(struct table_fits *x, struct err *e)
 	return 0;
 }
 
+/*
+ * A file cut short (a copy or a download that stopped) is bad input, said
+ * so, rather than a read error deep in a column.  The current HDU's data
+ * (NAXIS1 x NAXIS2 bytes and the heap, PCOUNT) must end within the file.
+ */
+static int check_whole(struct table_fits *x, struct err *e)
+{
+	LONGLONG head, data, end;
+	long long w = 0, h = 0, pc = 0;
+	int status = 0;
+
+	if (x->fsize < 0)
+		return 0;
+	fits_get_hduaddrll(x->f, &head, &data, &end, &status);
+	fits_read_key(x->f, TLONGLONG, "NAXIS1", &w, NULL, &status);
+	fits_read_key(x->f, TLONGLONG, "NAXIS2", &h, NULL, &status);
+	if (status)
+		return err_fits(e, status, "%s: HDU %d", table_name(x->t), x->hdu);
+	fits_read_key(x->f, TLONGLONG, "PCOUNT", &pc, NULL, &status);
+	if (status)
+		pc = 0;
+	if (w < 0 || h < 0 || pc < 0 || (w && h > (LLONG_MAX - data - pc) / w) ||
+	    data + w * h + pc > x->fsize)
+		return err_set(e, EXIT_INPUT, "%s: truncated FITS file: extension %d "
+			       "(%lld rows of %lld bytes) needs %lld bytes, the file "
+			       "has %lld", table_name(x->t), x->hdu - 1, h, w,
+			       (long long)(data + w * h + pc), x->fsize);
+	return 0;
+}
+
+/* A header cut short after the last complete HDU: cfitsio does not count
+ * it as an HDU, so it would look like a file without that table. */
+static int check_tail(struct table_fits *x, struct err *e)
+{
+	LONGLONG head, data, end;
+	char buf[8];
+	int status = 0, type;
+
+	if (x->fsize < 0)
+		return 0;
+	fits_movabs_hdu(x->f, x->nhdu, &type, &status);
+	fits_get_hduaddrll(x->f, &head, &data, &end, &status);
+	if (status || end >= x->fsize || x->fsize - end < 8)
+		return 0;
+	if (x->fd >= 0 && pread(x->fd, buf, 8, (off_t)end) == 8 &&
+	    !memcmp(buf, "XTENSION", 8))
+		return err_set(e, EXIT_INPUT, "%s: truncated FITS file: the header "
+			       "of extension %d ends at byte %lld, incomplete",
+			       table_name(x->t), x->nhdu, x->fsize);
+	return 0;
+}
+
 /* Move to the next table HDU after x->hdu; 0 when there is none. */
 static int next_table(struct table_fits *x, struct err *e)
 {
@@ -310,6 +380,8 @@ static int next_table(struct table_fits *x, struct err *e)
 			fits_get_num_rowsll(x->f, &x->nrows, &status);
 			if (status)
 				return err_fits(e, status, "%s: HDU %d", table_name(x->t), x->hdu);
+			if (check_whole(x, e) < 0)
+				return -1;
 			x->row = 0;
 			if (set_fname(x) < 0)
 				return err_set(e, EXIT_SYSTEM, "out of memory");
@@ -463,12 +535,19 @@ struct table_fits *table_fits_open(struct table *t, struct input *in,
 	}
 	x->t = t;
 	x->chunk_rows = chunk_rows;
+	x->fd = -1;
+	x->fsize = -1;
 	if (input_codec(in) == INPUT_PLAIN && input_path(in)) {
+		struct stat st;
+
+		x->fd = open(input_path(in), O_RDONLY | O_CLOEXEC);
+		if (x->fd >= 0 && fstat(x->fd, &st) == 0 && S_ISREG(st.st_mode))
+			x->fsize = (long long)st.st_size;
 		/* fits_open_diskfile: the name is a plain path, never
 		 * cfitsio's extended syntax ("cat.fits[2]"). */
 		fits_open_diskfile(&x->f, input_path(in), READONLY, &status);
 		if (status) {
-			err_fits(e, status, "%s", input_name(in));
+			open_failed(x, status, input_name(in), e);
 			goto fail;
 		}
 	} else if (spool(x, in, e) < 0) {
@@ -480,6 +559,14 @@ struct table_fits *table_fits_open(struct table *t, struct input *in,
 		goto fail;
 	}
 	fits_get_num_hdus(x->f, &x->nhdu, &status);
+	if (status) {
+		err_fits(e, status, "%s", input_name(in));
+		goto fail;
+	}
+	if (check_tail(x, e) < 0)
+		goto fail;
+	status = 0;
+	fits_movabs_hdu(x->f, 1, NULL, &status);
 	if (status) {
 		err_fits(e, status, "%s", input_name(in));
 		goto fail;
@@ -647,6 +734,8 @@ void table_fits_close(struct table_fits *x)
 		return;
 	if (x->f)
 		fits_close_file(x->f, &status);
+	if (x->fd >= 0)
+		close(x->fd);
 	free(x->col);
 	free(x->fname);
 	free(x->num);

@@ -59,6 +59,39 @@ else
 	test_skip 'astropy FITS, ECSV and IPAC tables' 'no python3 with astropy'
 fi
 
+# Per-row units of a STIPS mixed catalog, converted as STIPS converts them
+# (stips-behaviour.md 5.2: Jy / PHOTFNU, 'p' 1e23 h / (PHOTFNU AREA), 'e'
+# 1e23 / (PHOTFNU AREA nu)) with either zeropoint table.  The expected
+# counts/s are computed here from the zeropoint the image records
+# (PHOTZPAB), STIPS's collecting area and F129's pivot wavelength.
+cat > mixed.txt <<\EOT
+\type = 'mixed'
+\filter = 'F129'
+x y sca flux type n re phi ratio id units
+100 100 7 100 point 0 0 0 1 1 c
+200 100 7 2e-6 point 0 0 0 1 2 j
+300 100 7 100 point 0 0 0 1 3 p
+400 100 7 1e-20 point 0 0 0 1 4 e
+500 100 7 21.5 point 0 0 0 1 5 m
+600 100 7 3e-6 point 0 0 0 1 6 J
+EOT
+for zp in rti stips; do
+	test_expect_success "mixed units c, j, p, e, m with --zeropoints $zp" "
+		\"\$WFS\" --filter F129 --sca 7 --zeropoints $zp --placed p-$zp.csv -o u-$zp.fits mixed.txt &&
+		z=\$(grep -a -o 'PHOTZPAB= *[0-9.]*' u-$zp.fits | head -n 1 | sed 's/.*= *//') &&
+		if [ $zp = stips ]; then test \"\$z\" = 26.47; fi &&
+		awk -F, -v zp=\"\$z\" '
+			BEGIN { fnu = 10 ^ (0.4 * (8.9 - zp)); A = 36076.7; h = 6.6260755e-27
+				nu = 2.99792458e14 / 1.2901
+				want[1] = 100; want[2] = 2e-6 / fnu; want[3] = 100 * 1e23 * h / (fnu * A)
+				want[4] = 1e-20 * 1e23 / (fnu * A * nu); want[5] = 10 ^ (-0.4 * (21.5 - zp))
+				want[6] = 3e-6 / fnu }
+			NR > 1 { n++; d = \$5 / want[\$1] - 1; if (d < 0) d = -d
+				if (d > 1e-5) { print \"id \" \$1 \": \" \$5 \" want \" want[\$1]; bad = 1 } }
+			END { exit bad || n != 6 }' p-$zp.csv
+	"
+done
+
 # bad NAME 'CONTENT' 'MESSAGE': the catalog is refused with status 1 and a
 # message starting "wfiscene: NAME" and holding MESSAGE; no output is left.
 bad() {
@@ -82,6 +115,7 @@ bad fields.csv 'ra,dec,flux\n1,2,3,4\n' ":2: row has 4 fields, the header has 3"
 bad nul.csv 'ra,dec,flux\n1,2,\0003\n' ":2: binary data: byte 0x00"
 bad utf.csv 'ra,dec,flux\n1,2,\377\n' ":2: invalid UTF-8"
 bad quote.csv 'ra,dec,flux\n1,2,"3\n' ":2: unterminated quoted field"
+bad faroff.csv 'ra,dec,flux,type\n0,0,5,point\n120,40,5,comet\n' ":3: unknown source type 'comet'"
 bad phoenix.tbl '\\type=phoenix\nra dec flux\n1 2 3\n' "catalog type 'phoenix' needs stellar or galaxy spectra"
 bad other.tbl '\\type=internal\n\\filter=F158\nra dec flux\n1 2 3\n' "is for filter 'F158', the scene's is 'F129'"
 

@@ -50,6 +50,23 @@ test_expect_success 'a corrupt file (bytes changed) is rebuilt' '
 	test_grep "cache" err
 '
 
+if have_python; then
+	test_expect_success 'a whole file under the name whose key does not match (stale): rebuilt' '
+		f=$(ls $C/*epsf*.fits) &&
+		"$PY" -c "
+import sys; from astropy.io import fits
+with fits.open(sys.argv[1], mode=\"update\") as h:
+    h[0].header[\"WFSKEY\"] = \"0123456789abcdef\"
+    h[0].add_checksum()" "$f" &&
+		WFISCENE_CACHE=$C $WFS psf $cheap -v -o s.fits 2>err &&
+		test_grep "built" err && samedata a.fits s.fits &&
+		WFISCENE_CACHE=$C $WFS psf $cheap -v -o s2.fits 2>err &&
+		test_grep "cache" err
+	'
+else
+	test_skip 'a stale file is rebuilt' 'no python3 with astropy'
+fi
+
 test_expect_success 'a truncated file is rebuilt' '
 	f=$(ls $C/*epsf*.fits) &&
 	head -c 5000 "$f" > t && mv t "$f" &&

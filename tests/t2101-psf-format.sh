@@ -60,6 +60,53 @@ assert h[\"WFSKIND\"] == \"PSF\"
 assert np.allclose(d.sum(axis=(1, 2)), 1, atol=1e-5), d.sum(axis=(1, 2))"
 '
 
+test_expect_success '--psf FILE places planes by DET_YX, not by their order' '
+	"$PY" - <<-\EOT &&
+	from astropy.io import fits
+	h = fits.open("p.fits")[0]
+	d, k = h.data, h.header
+	perm = [8, 3, 5, 0, 7, 1, 6, 2, 4]
+	moved = k.copy()
+	for i, p in enumerate(perm):
+	    moved["DET_YX%d" % i] = k["DET_YX%d" % p]
+	# the planes shuffled with their positions, and (a control that must
+	# change the image) shuffled with the positions left in place
+	fits.PrimaryHDU(d[perm], moved).writeto("shuffled.fits")
+	fits.PrimaryHDU(d[perm], k).writeto("wrong.fits")
+	EOT
+	printf "x,y,flux\n10,10,1000\n2044,2044,1000\n4080,3000,1000\n1000,4000,1000\n" > four.csv &&
+	"$WFS" --filter F129 --psf p.fits -o a.fits four.csv &&
+	"$WFS" --filter F129 --psf shuffled.fits -o b.fits four.csv &&
+	"$WFS" --filter F129 --psf wrong.fits -o c.fits four.csv &&
+	"$PY" -c "
+from astropy.io import fits; import numpy as np
+a, b, c = (fits.getdata(f, 1) for f in (\"a.fits\", \"b.fits\", \"c.fits\"))
+assert a.sum() > 3000 and np.array_equal(a, b)
+assert np.abs(a - c).max() > 1e-3 * a.max(), np.abs(a - c).max()"
+'
+
+test_expect_success 'the grids wfiscene psf writes draw what the built-in PSF draws' '
+	printf "x,y,mag\n10,10,20\n2044.3,2044.8,19\n4080,3000,21\n1000,4000,22\n" > fm.csv &&
+	"$WFS" --filter F129 -o bi.fits fm.csv &&
+	"$WFS" --filter F129 --psf g.fits -o ge.fits fm.csv &&
+	"$WFS" --filter F129 --psf p.fits -o gp.fits fm.csv &&
+	"$PY" -c "
+from astropy.io import fits; import numpy as np
+a, b, c = (fits.getdata(f, 1) for f in (\"bi.fits\", \"ge.fits\", \"gp.fits\"))
+assert a.max() > 100 and np.array_equal(a, b) and np.array_equal(a, c)"
+'
+
+test_expect_success '--psf FILE of another filter or SCA: a warning (not with -q)' '
+	"$WFS" --filter F158 --psf p.fits -o w1.fits four.csv 2> err &&
+	test_grep "warning: p.fits: PSF for filter F129, the scene.s is F158" err &&
+	cp p.fits p01.fits && cp p.fits p02.fits &&
+	printf "x,y,sca,flux\n100,100,1,1000\n100,100,2,1000\n" > two.csv &&
+	"$WFS" --filter F129 --sca 1,2 --psf "p%02d.fits" -o w2.fits two.csv 2> err &&
+	test_grep "warning: p02.fits: PSF for SCA 1 serves SCA 2" err &&
+	! test_grep "p01.fits" err 2> /dev/null &&
+	"$WFS" -q --filter F158 --psf p.fits -o w3.fits four.csv 2> err && ! test -s err
+'
+
 test_expect_success 'several SCAs: one file per SCA named _wfiNN' '
 	$WFS psf --filter F129 --sca 1,2 -o two.fits &&
 	test -f two_wfi01.fits && test -f two_wfi02.fits && ! test -f two.fits

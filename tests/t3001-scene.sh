@@ -39,6 +39,17 @@ test_expect_success 'the image does not depend on threads, tile size or chunk si
 test_expect_success '-o - streams the same bytes as a file' '
 	run -o - stars.csv > s.fits && cmp a.fits s.fits
 '
+# cfitsio's own "-" would hold the whole file (here 3 SCAs, 200 MB) in
+# memory; wfiscene streams it.
+if [ -x /usr/bin/time ]; then
+	test_expect_success '-o - of 3 SCAs (200 MB) runs in bounded memory' '
+		/usr/bin/time -f %M -o rss "$WFS" --filter F129 --psf "$PSF" --sca 1-3 \
+			-o - stars.csv | wc -c > size &&
+		test "$(cat size)" -gt 200000000 && test "$(tail -n 1 rss)" -lt 80000
+	'
+else
+	test_skip '-o - of 3 SCAs runs in bounded memory' '/usr/bin/time is absent'
+fi
 test_expect_success 'one file per SCA with %d' '
 	run --sca 1,2 -o "sca%02d.fits" stars.csv && fitsinfo sca01.fits > i1 &&
 	fitsinfo sca02.fits > i2 && test_grep "^WFI01 " i1 && test_grep "^WFI02 " i2 &&

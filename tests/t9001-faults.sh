@@ -104,6 +104,46 @@ test_expect_success '--placed in an unwritable place: exit 2, no image either' '
 		--placed no/such/placed.csv ../two.csv 2> err &&
 	test_grep "placed.csv" err && nothing_left out.fits
 '
+test_expect_success '--placed and --report name new files with the usual mode' '
+	d=$TRASH/mode && mkdir "$d" && cd "$d" && umask 022 &&
+	"$WFS" --filter F129 --psf "$PSF" -o out.fits --placed placed.csv \
+		--report report.json ../two.csv &&
+	test "$(stat -c %a placed.csv)" = 644 && test "$(stat -c %a report.json)" = 644
+'
+# A FIFO reached through a symbolic link stands for /dev/stdout (a link to
+# /proc/self/fd/1) and /dev/null, which a rename would replace (as root).
+test_expect_success '--placed and --report to a FIFO through a link: written in place' '
+	d=$TRASH/fifo && mkdir "$d" && cd "$d" && mkfifo p1 p2 &&
+	ln -s p1 placed-link && ln -s p2 report-link &&
+	{ timeout 60 cat placed-link > got.csv & } && { timeout 60 cat report-link > got.json & } &&
+	"$WFS" --filter F129 --psf "$PSF" -o out.fits --placed placed-link \
+		--report report-link ../two.csv && wait &&
+	test -p p1 && test -p p2 && test -L placed-link && test -L report-link &&
+	test "$(grep -c ",point$" got.csv)" = 2 && test_grep "\"flux\"" got.json &&
+	test -z "$(ls -A | grep "^\.")"
+'
+test_expect_success '--placed or --report naming a directory: refused (1), nothing left' '
+	d=$TRASH/sidedir && mkdir "$d" && cd "$d" && mkdir pl &&
+	test_must_fail --status 1 "$WFS" --filter F129 --psf "$PSF" -o out.fits \
+		--placed pl ../two.csv 2> err &&
+	test_grep "pl: is a directory" err && nothing_left out.fits &&
+	test_must_fail --status 1 "$WFS" --filter F129 --psf "$PSF" -o out.fits \
+		--report pl ../two.csv 2> err &&
+	test_grep "pl: is a directory" err && nothing_left out.fits && test -z "$(ls -A pl)"
+'
+test_expect_success 'wfiscene psf -o naming a FIFO or a directory: refused (1), untouched' '
+	d=$TRASH/psffifo && mkdir "$d" && cd "$d" && mkfifo f && mkdir dir &&
+	test_must_fail --status 1 "$WFS" psf --filter F129 --sca 1 -o f 2> err &&
+	test_grep "f: not a regular file" err && test -p f &&
+	test_must_fail --status 1 "$WFS" psf --filter F129 --sca 1 -o dir 2> err &&
+	test -d dir && test -z "$(ls -A dir)" && test -z "$(ls -A | grep "^\.")"
+'
+test_expect_success '--report in a directory that does not exist: exit 2 up front, no image' '
+	d=$TRASH/report && mkdir "$d" && cd "$d" &&
+	test_must_fail --status 2 "$WFS" --filter F129 --psf "$PSF" -o out.fits \
+		--report no/such/report.json ../two.csv 2> err &&
+	test_grep "report.json: cannot write in .no/such/." err && nothing_left out.fits
+'
 test_expect_success 'a broken pipe on stdout: exit 2 and a message' '
 	{ "$WFS" --filter F129 --psf "$PSF" --sca 1-3 -o - two.csv 2> err; echo $? > rc; } |
 		head -c 100 > /dev/null &&

@@ -4,10 +4,11 @@ Roman WFI files in ../shared/roman/ (see ../shared/reference/roman-data.md).
 
     contrib/tables/derive_optics.py [SHARED_ROMAN_DIR] [DATA_DIR]
 
-writes DATA_DIR/pupil.tsv, zernike.tsv and throughput.tsv.  The public files
-themselves are not copied: each pupil mask becomes a handful of numbers (an
-outer and an inner edge as Fourier series in angle, and six straight,
-slightly tapered struts) that src/optics.c rasterises at any sampling; the
+writes DATA_DIR/pupil_edge.tsv, pupil_strut.tsv, zernike.tsv and
+throughput.tsv.  The public files themselves are not copied: each pupil mask
+becomes a handful of numbers (its rim and central obscuration as radii at
+720 angles, delta coded, and six or seven straight, slightly tapered
+struts) that src/optics.c rasterises at any sampling; the
 Zernike table keeps what the PSF needs at reduced precision; the effective
 areas are resampled to 5 nm inside each band.  Run it again when the
 public files change; the tables carry the checksums of their inputs.
@@ -256,12 +257,12 @@ def zernikes(out):
 # stpsf-data/WFI/wim_zernikes_cycle9.csv; sha256 %s), see
 # roman-data.md 1.2.  Kept: sca, field point (1 centre, 2-5 corners), the
 # field point's local_x/local_y in mm on the SCA (STPSF places it at pixel
-# x = 2048 - 100 local_x, y = 2048 + 100 local_y of the 4096 frame), the
-# wavelength in micron, and Z4..Z22 converted from waves at that wavelength
-# to nm of wavefront (x 1000 x wave), rounded to 0.001 nm (the source has 6
-# significant digits).  Z1-Z3 (piston, tip, tilt) are dropped: STPSF zeroes
-# them.  Unit-RMS circular Zernikes over a 1.2 m radius (STPSF's
-# PUPIL_RADIUS), applied after STPSF's y-flip of the pupil.
+# x = round(2048 - 100 local_x), y = round(2048 + 100 local_y) of the 4096
+# frame), the wavelength in micron, and Z4..Z22 converted from waves at
+# that wavelength to nm of wavefront (x 1000 x wave), rounded to 0.001 nm
+# (the source has 6 significant digits).  Z1-Z3 (piston, tip, tilt) are
+# dropped: STPSF zeroes them.  Unit-RMS circular Zernikes over a 1.2 m
+# radius (STPSF's PUPIL_RADIUS), applied after STPSF's y-flip of the pupil.
 ''' % sha(fn))
         cols = ['sca', 'fp', 'local_x', 'local_y', 'wave'] + \
             ['Z%d' % k for k in range(4, 23)]

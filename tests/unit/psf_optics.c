@@ -2,7 +2,9 @@
  * psf_optics.c - the optics against cases with known answers: aberration-
  * free circular and annular pupils must give the Airy and obscured-Airy
  * patterns (peak, first dark ring, encircled energy) to 1e-3; the Noll
- * Zernikes are the textbook polynomials; field and wavelength weights.
+ * Zernikes are the textbook polynomials; the Zernikes interpolated in
+ * field and wavelength as data/zernike.tsv and STPSF say; the wavelength
+ * weights.
  */
 #include <math.h>
 #include <stdio.h>
@@ -113,6 +115,149 @@ static void airy_case(double eps)
 	free(ref);
 }
 
+/*
+ * The Zernike interpolation against data/zernike.tsv itself (read here
+ * with plain stdio, run from the top of the tree as make check runs it):
+ * at a field point and a table wavelength optics_zernike() is the table
+ * row; halfway between two table wavelengths the mean of the two rows;
+ * halfway from the centre field point to a corner the mean of the two;
+ * at the centroid of the centre and two neighbouring corners the mean of
+ * the three; beyond the table's wavelengths its last row.
+ */
+#define ZMAXW 64
+struct ztab {
+	double lx[6], ly[6];            /* per field point 1..5, mm */
+	double wave[ZMAXW];
+	int nwave;
+	double z[6][ZMAXW][OPTICS_NZ];
+};
+
+static int read_ztab(int sca, struct ztab *t)
+{
+	FILE *f = fopen("data/zernike.tsv", "r");
+	char line[4096];
+
+	memset(t, 0, sizeof(*t));
+	if (!f)
+		return -1;
+	while (fgets(line, sizeof(line), f)) {
+		int s, fp, n = 0;
+		double lx, ly, w, v[OPTICS_NZ];
+		char *p = line;
+
+		if (sscanf(p, "%d %d %lf %lf %lf%n", &s, &fp, &lx, &ly, &w, &n) != 5 ||
+		    s != sca || fp < 1 || fp > 5)
+			continue;
+		p += n;
+		for (int j = 0; j < OPTICS_NZ; j++) {
+			v[j] = strtod(p, &p);
+		}
+		int k;
+		for (k = 0; k < t->nwave && t->wave[k] != w; k++)
+			;
+		if (k == t->nwave) {
+			if (t->nwave == ZMAXW)
+				break;
+			t->wave[t->nwave++] = w;
+		}
+		t->lx[fp] = lx;
+		t->ly[fp] = ly;
+		memcpy(t->z[fp][k], v, sizeof(v));
+	}
+	fclose(f);
+	return t->nwave >= 2 ? 0 : -1;
+}
+
+/* STPSF's pixel of a field point, in wfiscene's 0-based science frame
+ * (the 4096 frame less 4): round(2048 - 100 local_x), round(2048 + 100
+ * local_y) (roman-data.md 4). */
+static double fp_x(const struct ztab *t, int fp) { return round(2048 - 100 * t->lx[fp]) - 4; }
+static double fp_y(const struct ztab *t, int fp) { return round(2048 + 100 * t->ly[fp]) - 4; }
+
+static double zdiff(const double *a, const double *b)
+{
+	double m = 0;
+
+	for (int j = 0; j < OPTICS_NZ; j++)
+		m = fmax(m, fabs(a[j] - b[j]));
+	return m;
+}
+
+static void zernike_interp(const struct optics *o, int sca)
+{
+	static struct ztab t;
+	double z[OPTICS_NZ], want[OPTICS_NZ], worst = 0;
+
+	int rc = read_ztab(sca, &t);
+
+	if (!ok(rc == 0, "SCA %d: data/zernike.tsv read (%d wavelengths)", sca,
+		t.nwave))
+		return;
+	/* the wavelengths in increasing order (the table's order) */
+	for (int k = 1; k < t.nwave; k++)
+		if (!(t.wave[k] > t.wave[k - 1]))
+			return (void)ok(0, "table wavelengths increase");
+	for (int fp = 1; fp <= 5; fp++)
+		for (int k = 0; k < t.nwave; k++) {
+			optics_zernike(o, sca, fp_x(&t, fp), fp_y(&t, fp), t.wave[k], z);
+			worst = fmax(worst, zdiff(z, t.z[fp][k]));
+		}
+	ok(worst < 1e-9, "SCA %d: at each field point and table wavelength, the "
+	   "table's row (worst %.1e nm)", sca, worst);
+
+	worst = 0;
+	for (int fp = 1; fp <= 5; fp++)
+		for (int k = 0; k + 1 < t.nwave; k++) {
+			optics_zernike(o, sca, fp_x(&t, fp), fp_y(&t, fp),
+				       0.5 * (t.wave[k] + t.wave[k + 1]), z);
+			for (int j = 0; j < OPTICS_NZ; j++)
+				want[j] = 0.5 * (t.z[fp][k][j] + t.z[fp][k + 1][j]);
+			worst = fmax(worst, zdiff(z, want));
+		}
+	ok(worst < 1e-9, "SCA %d: linear in wavelength (worst %.1e nm)", sca, worst);
+
+	worst = 0;
+	for (int c = 2; c <= 5; c++)
+		for (int k = 0; k < t.nwave; k += 3) {
+			optics_zernike(o, sca, 0.5 * (fp_x(&t, 1) + fp_x(&t, c)),
+				       0.5 * (fp_y(&t, 1) + fp_y(&t, c)), t.wave[k], z);
+			for (int j = 0; j < OPTICS_NZ; j++)
+				want[j] = 0.5 * (t.z[1][k][j] + t.z[c][k][j]);
+			worst = fmax(worst, zdiff(z, want));
+		}
+	ok(worst < 1e-9, "SCA %d: halfway from the centre to each corner, the mean "
+	   "(worst %.1e nm)", sca, worst);
+
+	/* neighbouring corners: consecutive in angle about the centre */
+	int ord[4] = { 2, 3, 4, 5 };
+	double ang[6];
+	for (int c = 2; c <= 5; c++)
+		ang[c] = atan2(fp_y(&t, c) - fp_y(&t, 1), fp_x(&t, c) - fp_x(&t, 1));
+	for (int i = 0; i < 4; i++)
+		for (int j = i + 1; j < 4; j++)
+			if (ang[ord[j]] < ang[ord[i]]) {
+				int tmp = ord[i];
+				ord[i] = ord[j];
+				ord[j] = tmp;
+			}
+	worst = 0;
+	for (int i = 0; i < 4; i++) {
+		int b = ord[i], c = ord[(i + 1) % 4], k = t.nwave / 2;
+
+		optics_zernike(o, sca, (fp_x(&t, 1) + fp_x(&t, b) + fp_x(&t, c)) / 3,
+			       (fp_y(&t, 1) + fp_y(&t, b) + fp_y(&t, c)) / 3, t.wave[k], z);
+		for (int j = 0; j < OPTICS_NZ; j++)
+			want[j] = (t.z[1][k][j] + t.z[b][k][j] + t.z[c][k][j]) / 3;
+		worst = fmax(worst, zdiff(z, want));
+	}
+	ok(worst < 1e-9, "SCA %d: at the centroid of the centre and two "
+	   "neighbouring corners, the mean of the three (worst %.1e nm)", sca, worst);
+
+	optics_zernike(o, sca, fp_x(&t, 3), fp_y(&t, 3), t.wave[t.nwave - 1] + 0.5, z);
+	ok(zdiff(z, t.z[3][t.nwave - 1]) < 1e-9, "SCA %d: beyond the table's "
+	   "wavelengths, its last row", sca);
+}
+
 int main(void)
 {
 	struct err e = { 0 };
@@ -158,6 +303,8 @@ int main(void)
 	ok(p && p->nstrut >= 6 && p->rmax > 1.1 && p->rmax < 1.22,
 	   "SCA01 skinny pupil: %d struts, rim %.3f m", p ? p->nstrut : 0,
 	   p ? p->rmax : 0);
+	zernike_interp(o, 1);
+	zernike_interp(o, 11);
 	ok(optics_pupil_cover(p, 0, 0, 0.005) == 0 &&
 	   optics_pupil_cover(p, 0, 0.8, 0.005) == 1,
 	   "centre obscured, mid-pupil between struts clear");

@@ -1,0 +1,146 @@
+/*
+ * sky_wcs.c - the WCS header that each image HDU carries (the cards of
+ * sky_header(), copied verbatim into the output by image_cards()) read
+ * back with wcslib's own header parser, wcspih(), must be the mapping that
+ * placed the sources: for every SCA of several pointings (position angles,
+ * the boresight reference, near both poles, across RA 0/360), pixels taken
+ * to the sky through the parsed header come back through sky_to_pixel() to
+ * within 1e-6 pixel; the pixel scale is 0.11", the parity standard (east
+ * to the left of north), and +y points at the position angle the header's
+ * PA_APER records.  t4101-wcs.sh does the same through astropy.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <wcslib/wcs.h>
+#include <wcslib/wcshdr.h>
+
+#include "tap.h"
+#include "err.h"
+#include "instrument.h"
+#include "sky.h"
+
+#define D2R (M_PI / 180.0)
+
+/* Angular separation (degrees) and position angle east of north (degrees)
+ * of (ra2, dec2) seen from (ra1, dec1). */
+static double separation(double ra1, double dec1, double ra2, double dec2)
+{
+	double a = sin((dec2 - dec1) * D2R / 2), b = sin((ra2 - ra1) * D2R / 2);
+	double h = a * a + cos(dec1 * D2R) * cos(dec2 * D2R) * b * b;
+
+	return 2 * asin(sqrt(h)) / D2R;
+}
+
+static double pos_angle(double ra1, double dec1, double ra2, double dec2)
+{
+	double dra = (ra2 - ra1) * D2R;
+	double y = sin(dra) * cos(dec2 * D2R);
+	double x = cos(dec1 * D2R) * sin(dec2 * D2R) -
+		   sin(dec1 * D2R) * cos(dec2 * D2R) * cos(dra);
+
+	return atan2(y, x) / D2R;
+}
+
+/* pixel (1-based, FITS) to sky through a parsed header */
+static int p2s(struct wcsprm *w, double x, double y, double *ra, double *dec)
+{
+	double pix[2] = { x, y }, img[2], phi, theta, world[2];
+	int stat;
+
+	if (wcsp2s(w, 1, 2, pix, img, &phi, &theta, world, &stat))
+		return -1;
+	*ra = world[0];
+	*dec = world[1];
+	return 0;
+}
+
+static void pointing(double ra, double dec, double pa, int boresight,
+		     unsigned seed)
+{
+	struct err e = { 0 };
+	struct sky sky;
+	double worst = 0, worst_scale = 0, worst_pa = 0;
+	int parity_ok = 1, parsed_ok = 1;
+
+	if (!ok(sky_init(&sky, ra, dec, pa, boresight, (1u << WFS_NSCA) - 1,
+			 &e) == 0, "sky_init %g %g %g: %s", ra, dec, pa, e.msg))
+		return;
+	srand(seed);
+	for (int s = 1; s <= WFS_NSCA; s++) {
+		char *cards = NULL;
+		int ncards = 0, nrej = 0, nwcs = 0;
+		struct wcsprm *w = NULL;
+
+		if (sky_header(&sky, s, &cards, &ncards, &e) < 0 ||
+		    wcspih(cards, ncards, WCSHDR_all, 0, &nrej, &nwcs, &w) ||
+		    nrej != 0 || nwcs != 1 || wcsset(w)) {
+			parsed_ok = 0;
+			diag("SCA %d: header not parsed (%d rejected, %d WCS)", s,
+			     nrej, nwcs);
+			free(cards);
+			if (w)
+				wcsvfree(&nwcs, &w);
+			continue;
+		}
+		free(cards);
+		/* pixels over the detector and a little beyond its edges */
+		for (int k = 0; k < 60; k++) {
+			double x = -50 + 4188.0 * rand() / RAND_MAX;
+			double y = -50 + 4188.0 * rand() / RAND_MAX;
+			double r, d, px, py;
+
+			if (p2s(w, x + 1, y + 1, &r, &d) ||
+			    sky_to_pixel(&sky, s, 1, &r, &d, &px, &py, &e) < 0) {
+				worst = INFINITY;
+				continue;
+			}
+			worst = fmax(worst, fmax(fabs(px - x), fabs(py - y)));
+		}
+		/* scale, parity and orientation at the centre */
+		double r0, d0, rx, dx, ry, dy;
+		p2s(w, 2044.5, 2044.5, &r0, &d0);
+		p2s(w, 2045.5, 2044.5, &rx, &dx);
+		p2s(w, 2044.5, 2045.5, &ry, &dy);
+		worst_scale = fmax(worst_scale,
+				   fabs(separation(r0, d0, rx, dx) * 3600 / 0.11 - 1));
+		worst_scale = fmax(worst_scale,
+				   fabs(separation(r0, d0, ry, dy) * 3600 / 0.11 - 1));
+		double pax = pos_angle(r0, d0, rx, dx), pay = pos_angle(r0, d0, ry, dy);
+		/* standard parity: +x is 90 degrees clockwise of +y on the sky
+		 * (north up, east left: +y north, +x west) */
+		double turn = remainder(pax - pay, 360);
+		if (fabs(turn + 90) > 1e-6)
+			parity_ok = 0;
+		worst_pa = fmax(worst_pa, fabs(remainder(pay - sky.sca[s - 1].pa, 360)));
+		wcsvfree(&nwcs, &w);
+	}
+	ok(parsed_ok, "%g %g PA %g%s: wcspih reads every SCA's header", ra, dec, pa,
+	   boresight ? " boresight" : "");
+	ok(worst < 1e-6, "%g %g PA %g: header pixel -> sky -> placement within "
+	   "1e-6 px (worst %.2e)", ra, dec, pa, worst);
+	ok(worst_scale < 1e-7, "%g %g PA %g: 0.11\" pixels (worst relative "
+	   "error %.1e)", ra, dec, pa, worst_scale);
+	ok(parity_ok, "%g %g PA %g: standard parity, +x 90 deg clockwise of +y",
+	   ra, dec, pa);
+	ok(worst_pa < 1e-6, "%g %g PA %g: +y at the SCA's recorded position "
+	   "angle (worst %.1e deg)", ra, dec, pa, worst_pa);
+	sky_free(&sky);
+}
+
+int main(void)
+{
+	struct err e = { 0 };
+
+	if (instrument_init(&e) < 0)
+		return printf("# %s\n", e.msg), 1;
+	pointing(10, 20, 0, 0, 1);
+	pointing(10, 20, 90, 0, 2);
+	pointing(200, -35, 217, 1, 3);
+	pointing(45, 89.9, 30, 0, 4);
+	pointing(300, -89.95, 300, 0, 5);
+	pointing(0.05, 0, 10, 0, 6);
+	return done_testing();
+}

@@ -98,11 +98,11 @@ echo
 echo "Faint stars on SCA 1, generated on the fly and piped in (nothing stored):"
 echo "\`starfield -n N -x | wfiscene --filter F129 --flux-unit abmag -o out.fits\`"
 echo
-echo "| rows | wall s | peak MiB |"
-echo "|---|---|---|"
+echo "| rows | wall s | stars/s | peak MiB |"
+echo "|---|---|---|---|"
 for n in 100000 $big $huge; do
 	set -- $(measure "'$GEN' -n $n -x -s 4 | '$WFS' --filter F129 --flux-unit abmag -o '$W/o.fits' -")
-	awk -v n=$n -v t=$1 -v m=$2 'BEGIN { printf "| %d | %.1f | %.0f |\n", n, t, m / 1024 }'
+	awk -v n=$n -v t=$1 -v m=$2 'BEGIN { printf "| %d | %.1f | %.0f | %.0f |\n", n, t, n / t, m / 1024 }'
 done
 
 echo

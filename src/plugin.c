@@ -214,6 +214,13 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	    m->ncolumns < 0)
 		return refuse(pl, e, "%sdescriptor lacks footprint(), render() or its "
 			      "columns", "", 0, 0);
+	if (m->ncolumns > PLUGIN_COLUMNS_MAX)
+		return refuse(pl, e, "%sdescriptor lists %ld columns; a model reads at most %ld",
+			      "", m->ncolumns, PLUGIN_COLUMNS_MAX);
+	for (int c = 0; c < m->ncolumns; c++)
+		if (!m->columns[c].name || !*m->columns[c].name)
+			return refuse(pl, e, "%scolumn %ld of the descriptor has no name", "",
+				      c + 1, 0);
 	pl->m = m;
 	if (m->init && m->init(ps->host, &pl->state) < 0) {
 		err_prefix(e, "model '%s' (%s): set-up failed", name, pl->path);

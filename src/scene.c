@@ -32,7 +32,7 @@
 /* Room beyond an SCA edge, in pixels, within which a point source may still
  * throw light onto it: the 176-pixel extra-bright box's half-width. */
 #define POINT_REACH 88.0
-#define MAX_COLUMNS 32
+#define MAX_COLUMNS PLUGIN_COLUMNS_MAX
 
 /* One requested SCA: its image as a grid of tiles, allocated on first touch. */
 struct slot {
@@ -161,6 +161,9 @@ static void progress(struct engine *g, const char *stage, int force)
 static char placed_tmp_signal[MAX_EXPOSURES][PATH_MAX];
 
 /* ---- host services lent to plugins ---- */
+
+/* Said of a plugin callback that returned -1 without host->error(). */
+#define MODEL_SILENT ", with no message (the plugin must give one with host->error())"
 
 static int host_error(void *ctx, const char *fmt, ...)
 {
@@ -485,20 +488,26 @@ static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
 			       g->o->bunit_counts ? "counts" : "counts/s", sca);
 	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
+		/* A refused row is bad input; a refusal without a message is
+		 * a broken plugin. */
+		if (g->e->code == EXIT_OK)
+			err_set(g->e, EXIT_PLUGIN, "prepare() failed" MODEL_SILENT);
+		else
+			g->e->code = EXIT_INPUT;
 		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
-		g->e->code = EXIT_INPUT;
 		return -1;
 	}
 	return 0;
 }
 
-static int footprint(struct engine *g, int m, const struct wfs_source *src,
-		     struct wfs_box *box)
+static int footprint(struct engine *g, const struct rows *r, size_t i, int m,
+		     const struct wfs_source *src, struct wfs_box *box)
 {
 	const struct wfs_model *md = g->plugins.p[m].m;
 
 	if (md->footprint(g->plugins.p[m].state, src, box) < 0) {
-		err_prefix(g->e, "model '%s': footprint of source %lld", md->name, src->id);
+		err_set(g->e, EXIT_PLUGIN, "footprint() failed" MODEL_SILENT);
+		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
 		return -1;
 	}
 	return 0;
@@ -514,7 +523,7 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	struct wfs_box box;
 
 	if (make_source(g, r, i, m, param, g->slot[slot].sca, x, y, &src) < 0 ||
-	    footprint(g, m, &src, &box) < 0)
+	    footprint(g, r, i, m, &src, &box) < 0)
 		return -1;
 	if (box.x0 < 0) box.x0 = 0;
 	if (box.y0 < 0) box.y0 = 0;
@@ -561,7 +570,7 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 		return 0;
 	}
 	if (make_source(g, r, i, m, param, g->slot[0].sca, 0, 0, &src) < 0 ||
-	    footprint(g, m, &src, &box) < 0)
+	    footprint(g, r, i, m, &src, &box) < 0)
 		return -1;
 	ext = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1));
 	*reach = (ext + 2) * WFS_PIXSCALE;
@@ -842,6 +851,24 @@ static int bin_batch(struct engine *g, struct batch *b)
 	return 0;
 }
 
+/* A model failed in a worker: the first failure names the model (and the
+ * source), later ones on other threads add nothing.  what is the message
+ * when the plugin recorded none, as it must. */
+static void model_failed(struct engine *g, const char *model, const char *what,
+			 const struct wfs_source *src)
+{
+	pthread_mutex_lock(&g->err_mu);
+	if (!atomic_exchange(&g->failed, 1)) {
+		err_set(g->e, EXIT_PLUGIN, "%s" MODEL_SILENT, what);
+		if (src)
+			err_prefix(g->e, "model '%s': source %lld on SCA %d", model,
+				   src->id, src->sca);
+		else
+			err_prefix(g->e, "model '%s'", model);
+	}
+	pthread_mutex_unlock(&g->err_mu);
+}
+
 /* Worker: render every placement of one active tile, in placement order. */
 static void render_tile(void *arg, int wid, size_t task)
 {
@@ -865,7 +892,7 @@ static void render_tile(void *arg, int wid, size_t task)
 		if (!w->started[p->model]) {
 			if (pl->m->thread_start &&
 			    pl->m->thread_start(pl->state, &w->tstate[p->model]) < 0) {
-				atomic_store(&g->failed, 1);
+				model_failed(g, pl->name, "thread_start() failed", NULL);
 				return;
 			}
 			w->started[p->model] = 1;
@@ -877,11 +904,7 @@ static void render_tile(void *arg, int wid, size_t task)
 		win.stride = T;
 		win.pix = tile + (size_t)(win.y0 - y0) * T + (win.x0 - x0);
 		if (pl->m->render(pl->state, w->tstate[p->model], w, &p->src, &win) < 0) {
-			pthread_mutex_lock(&g->err_mu);
-			err_prefix(g->e, "model '%s': source %lld on SCA %d", pl->name,
-				   p->src.id, p->src.sca);
-			pthread_mutex_unlock(&g->err_mu);
-			atomic_store(&g->failed, 1);
+			model_failed(g, pl->name, "render() failed", &p->src);
 			return;
 		}
 	}
@@ -1652,8 +1675,11 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				struct batch *b = &g[i]->b[cur];
 
 				g[i]->rows_read += n;
-				if (build_batch(g[i], &rows, b) < 0)
+				if (build_batch(g[i], &rows, b) < 0) {
+					/* Never a silent end of the run. */
+					err_set(e, EXIT_SYSTEM, "placing the rows of %s failed", *cat);
 					break;
+				}
 				ta = now();
 				g[i]->t_place += ta - tb;
 				if (pending) {

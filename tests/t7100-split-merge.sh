@@ -4,9 +4,11 @@
 # tile-compressed; merge refuses inputs of different exposures, a duplicate
 # SCA, files wfiscene did not write and truncated ones, and leaves nothing
 # behind when it fails or is interrupted.  The Slurm job-array script runs
-# its task body through SLURM_ARRAY_TASK_ID every time, and on a real
-# cluster when one answers; the GNU parallel recipe runs when parallel is
-# installed.  WFS_TEST_FULL=1 adds the whole 1-9 / 10-18 case (slow).
+# its task body through SLURM_ARRAY_TASK_ID every time, and through sbatch
+# on a real cluster: one that answers, or a private one-node cluster this
+# script starts when it can (see below); the GNU parallel recipe runs when
+# parallel is installed (contrib/install-deps.sh installs it and Slurm).
+# WFS_TEST_FULL=1 adds the whole 1-9 / 10-18 case (slow).
 . "$(dirname "$0")/lib.sh"
 
 SLURM=$TOP/contrib/slurm
@@ -239,20 +241,100 @@ else
 	test_skip 'GNU parallel recipe' 'parallel is not installed'
 fi
 
-# A real cluster only when one is already up: tests start no daemons.
+# Slurm for real: a cluster that answers sinfo already, or else (as root,
+# with Debian's slurmctld, slurmd and munge installed) a private one-node
+# cluster started here: its own munge key and socket, configuration, spool
+# and ports under $TRASH, stopped when the script ends.  Without either,
+# the task body above has still run, through SLURM_ARRAY_TASK_ID set by
+# hand, and this test says so when it skips.
+slurm_pids=
+stop_slurm() {
+	for p in $slurm_pids; do kill "$p" 2>/dev/null; done
+	for p in $slurm_pids; do wait "$p" 2>/dev/null; done
+	slurm_pids=
+}
+trap 'stop_slurm; rm -rf "$TRASH"' EXIT
+
+start_slurm() {
+	d=$TRASH/slurm
+	command -v slurmctld >/dev/null && command -v slurmd >/dev/null &&
+		command -v munged >/dev/null && [ "$(id -u)" = 0 ] || return 1
+	mkdir -p "$d/ctld" "$d/spool" "$d/munge" && chmod 711 "$d/munge" &&
+		head -c 1024 /dev/urandom >"$d/munge/key" && chmod 400 "$d/munge/key" ||
+		return 1
+	munged -F --force --key-file="$d/munge/key" --socket="$d/munge/socket" \
+		--pid-file="$d/munge/pid" --log-file="$d/munge/log" \
+		--seed-file="$d/munge/seed" 2>"$d/munged.err" &
+	slurm_pids="$slurm_pids $!"
+	port=$((20000 + $$ % 20000))
+	host=$(hostname -s)
+	# This machine's CPUs and memory, as slurmd sees them.
+	node=$(slurmd -C | sed -n 's/.*\(CPUs=[0-9]*\).*\(RealMemory=[0-9]*\).*/\1 \2/p')
+	cat >"$d/slurm.conf" <<EOT
+ClusterName=wfiscenetest
+SlurmctldHost=$host
+SlurmctldPort=$port
+SlurmdPort=$((port + 1))
+SlurmUser=root
+AuthType=auth/munge
+AuthInfo=socket=$d/munge/socket
+CredType=cred/munge
+StateSaveLocation=$d/ctld
+SlurmdSpoolDir=$d/spool
+SlurmctldPidFile=$d/slurmctld.pid
+SlurmdPidFile=$d/slurmd.pid
+SlurmctldLogFile=$d/slurmctld.log
+SlurmdLogFile=$d/slurmd.log
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+JobAcctGatherType=jobacct_gather/none
+SelectType=select/cons_tres
+SelectTypeParameters=CR_Core_Memory
+ReturnToService=2
+NodeName=wfsnode NodeHostname=$host NodeAddr=127.0.0.1 $node State=UNKNOWN
+PartitionName=wfs Nodes=wfsnode Default=YES MaxTime=INFINITE State=UP
+EOT
+	SLURM_CONF=$d/slurm.conf
+	export SLURM_CONF
+	i=0
+	until [ -S "$d/munge/socket" ] || [ $i -ge 100 ]; do sleep 0.1; i=$((i + 1)); done
+	slurmctld -D -i >"$d/slurmctld.out" 2>&1 &
+	slurm_pids="$slurm_pids $!"
+	slurmd -D -N wfsnode >"$d/slurmd.out" 2>&1 &
+	slurm_pids="$slurm_pids $!"
+	i=0
+	until timeout 5 sinfo -h -o %t 2>/dev/null | grep -q idle || [ $i -ge 30 ]; do
+		sleep 1; i=$((i + 1)); done
+	timeout 5 sinfo -h -o %t 2>/dev/null | grep -q idle && return 0
+	echo "# the private Slurm cluster did not start:" && tail -n 5 "$d"/*.log
+	stop_slurm
+	unset SLURM_CONF
+	return 1
+}
+
+slurm=
 if command -v sbatch >/dev/null 2>&1 && timeout 10 sinfo -h >/dev/null 2>&1; then
+	slurm="the cluster that answers sinfo"
+elif start_slurm; then
+	slurm="a private one-node cluster ($(sinfo -V))"
+fi
+if [ -n "$slurm" ]; then
+	say "Slurm for real on $slurm"
 	test_expect_success 'Slurm for real: array job and dependent merge job' '
 		"$SLURM/wfiscene-submit.sh" tasks.txt sparts sout --cpus-per-task=1 --mem=1G >jobs &&
 		test_grep "array job .* (2 tasks), merge job" jobs &&
 		i=0 && while ! test -f sout/expA.fits && [ $i -lt 300 ]; do
 			sleep 1; i=$((i + 1)); done &&
 		{ test -f sout/expA.fits ||
-		  { scancel $(awk "{ print \$3, \$NF }" jobs); false; }; } &&
-		cmp full.fits sout/expA.fits && ! test -e sparts/expA
+		  { scancel $(awk "{ print \$3, \$NF }" jobs); cat wfiscene-*.log; false; }; } &&
+		cmp full.fits sout/expA.fits && ! test -e sparts/expA &&
+		test_grep "task 1: expA F158 SCAs 1-2" wfiscene-*_1.log &&
+		test_grep "task 2: expA F158 SCAs 3-4" wfiscene-*_2.log
 	'
 else
-	test_skip 'Slurm for real' 'no Slurm cluster answers sinfo here'
+	test_skip 'Slurm for real' 'no Slurm cluster here and none could be started (as root, with slurmctld, slurmd and munge); the array task body ran with SLURM_ARRAY_TASK_ID set by the test instead'
 fi
+stop_slurm
 
 if [ "${WFS_TEST_FULL:-0}" = 1 ]; then
 	test_expect_success 'full exposure: --sca 1-9 and 10-18 merge into --sca 1-18' '

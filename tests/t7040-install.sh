@@ -18,7 +18,7 @@ test_expect_success 'make install PREFIX=... after make: program, plugins, heade
 	wfs_install "$inst" >install.log 2>&1 || { cat install.log; false; } &&
 	test -x "$inst/bin/wfiscene" &&
 	for m in point sersic-quick sersic-precise; do
-		test -f "$inst/lib/wfiscene/$m.so" || { echo "no $m.so"; false; }
+		test -f "$inst/lib/wfiscene/$m.so" || { echo "no $m.so"; exit 1; }
 	done &&
 	cmp "$TOP/include/wfiscene/model.h" "$inst/include/wfiscene/model.h" &&
 	test -f "$inst/share/man/man1/wfiscene.1" &&

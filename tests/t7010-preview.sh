@@ -28,6 +28,7 @@ ap.add_argument('--bright', type=int, default=5)
 ap.add_argument('--nsca', type=int, default=18)
 ap.add_argument('--width', type=int, default=600)
 ap.add_argument('--seed', type=int, default=1)
+ap.add_argument('--zp', type=float, default=None)
 a = ap.parse_args()
 rng = np.random.default_rng(a.seed)
 n = a.n
@@ -68,6 +69,8 @@ for k in range(a.nsca):
     hd['CD1_1'] = -scale * math.cos(pa); hd['CD1_2'] = scale * math.sin(pa)
     hd['CD2_1'] = scale * math.sin(pa);  hd['CD2_2'] = scale * math.cos(pa)
     hd['BUNIT'] = 'counts/s'
+    if a.zp is not None:
+        hd['PHOTZPAB'] = a.zp
     hdus.append(h)
     wcss.append((ra, dec))
 fits.HDUList(hdus).writeto(a.out, overwrite=True)
@@ -249,6 +252,30 @@ r, g, b = Q.px(127, 128)
 assert r == 255 and g < 128 and b < 128, (r, g, b)
 assert \"Lupton\" in Q.text[\"Comment\"], Q.text
 "'
+
+# A star of flat f_nu gives fewer counts/s through a filter of lower
+# zeropoint: 500 in G and B (PHOTZPAB 26.3) is 500 x 10^(-0.2) = 315.5 in R
+# (25.8).  Balanced by PHOTZPAB it is white; by counts it would be cyan.
+test_expect_success 'a colour composite is balanced by PHOTZPAB: a flat spectrum is white' '
+	"$PY" mkfp.py zr.fits --star 2 --starflux 315.479 --zp 25.8 --bright 0 --seed 1 >/dev/null &&
+	"$PY" mkfp.py zg.fits --star 2 --starflux 500 --zp 26.3 --bright 0 --seed 2 >/dev/null &&
+	"$PY" mkfp.py zb.fits --star 2 --starflux 500 --zp 26.3 --bright 0 --seed 3 >/dev/null &&
+	"$WFS" preview --rgb zr.fits zg.fits zb.fits --sca 2 -v -o z.png 2>err &&
+	test_grep "zr.fits: balanced by PHOTZPAB" err &&
+	pycheck "
+P = png.read(\"z.png\")
+# the star: every pixel within 3 of the centre that is not black
+px = [P.px(x, y) for y in range(124, 132) for x in range(124, 132)]
+px = [p for p in px if max(p) > 60]
+assert len(px) > 4, px
+r, g, b = [sum(p[c] for p in px) for c in range(3)]
+assert abs(r / g - 1) < 0.05 and abs(b / g - 1) < 0.05, (r, g, b, px)
+assert \"PHOTZPAB\" in P.text[\"Comment\"], P.text
+" &&
+	"$PY" mkfp.py zn.fits --star 2 --starflux 500 --bright 0 --seed 2 >/dev/null &&
+	"$WFS" preview --rgb zr.fits zn.fits zb.fits --sca 2 -v -o zn.png 2>err &&
+	test_grep "not every image has PHOTZPAB" err
+'
 
 test_expect_success 'levels and stretch are recorded and can be set' '
 	"$WFS" preview fp.fits --sca 1 --min 0 --max 10 --stretch linear -o lin.png &&

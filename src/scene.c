@@ -86,6 +86,7 @@ struct engine {
 
 	struct sky sky;
 	int tile, ntx, nty, ntile;      /* tile side, tiles per axis, per SCA */
+	int ylo, yhi;                   /* the rows drawn and written, [ylo, yhi) */
 	int nslot;
 	struct slot slot[WFS_NSCA];
 	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
@@ -533,6 +534,24 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 		g->offdet++;    /* all its light misses this SCA */
 		return 0;
 	}
+	g->placements++;
+	g->per_model[m]++;
+	g->flux_requested[src.sca - 1] += src.flux;
+	g->placed_on[src.sca - 1]++;
+	if (g->placed &&
+	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
+		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
+		return err_sys(g->e, "%s", g->o->placed);
+	/* With --rows, counted and listed as in a run of the whole SCA (the
+	 * part's header is that run's), but drawn only in the rows written:
+	 * the windows are cut there, and a model gives the same pixels for
+	 * any windows. */
+	if (box.y0 < g->ylo)
+		box.y0 = g->ylo;
+	if (box.y1 > g->yhi)
+		box.y1 = g->yhi;
+	if (box.y0 >= box.y1)
+		return 0;
 	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
 	    grow((void **)&b->param, &b->capparam, b->nparam + md->ncolumns + 1,
 		 sizeof(double)) < 0)
@@ -545,14 +564,6 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	p->param_off = b->nparam;
 	memcpy(b->param + b->nparam, param, md->ncolumns * sizeof(double));
 	b->nparam += md->ncolumns;
-	g->placements++;
-	g->per_model[m]++;
-	g->flux_requested[src.sca - 1] += src.flux;
-	g->placed_on[src.sca - 1]++;
-	if (g->placed &&
-	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
-		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
-		return err_sys(g->e, "%s", g->o->placed);
 	return 0;
 }
 
@@ -1003,7 +1014,7 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 
 	*cards = NULL;
 	*n = 0;
-	if (sky_header(&g->sky, sca, &wcs, &nwcs, g->e) < 0)
+	if (sky_header(&g->sky, sca, g->ylo, &wcs, &nwcs, g->e) < 0)
 		return -1;
 	snprintf(name, sizeof(name), "WFI%02d", sca);
 #define CARD(fn, k, v, com) (fn(c, k, v, com), bad |= add_card(cards, n, &cap, c))
@@ -1017,6 +1028,12 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 	CARD(fits_card_dbl, "RA_APER", g->sky.sca[sca - 1].ra, "detector centre RA");
 	CARD(fits_card_dbl, "DEC_APER", g->sky.sca[sca - 1].dec, "detector centre Dec");
 	CARD(fits_card_int, "NSOURCES", (long long)g->placed_on[sca - 1], "sources drawn on this SCA");
+	if (o->row_first) {
+		char rows[32];
+
+		snprintf(rows, sizeof(rows), "%d-%d", o->row_first, o->row_last);
+		CARD(fits_card_str, "ROWS", rows, "rows of the SCA in this part (--rows)");
+	}
 #undef CARD
 	for (int k = 0; k < nwcs; k++)
 		if (strncmp(wcs + 80 * k, "WCSAXES ", 8) && strncmp(wcs + 80 * k, "COMMENT", 7))
@@ -1034,20 +1051,24 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 
 	if (image_cards(g, s, &cards, &ncards) < 0)
 		return -1;
-	if (fitsout_image_begin(f, WFS_NPIX, WFS_NPIX, cards, ncards, g->e) < 0) {
+	if (fitsout_image_begin(f, WFS_NPIX, g->yhi - g->ylo, cards, ncards, g->e) < 0) {
 		free(cards);
 		return -1;
 	}
 	free(cards);
-	for (int ty = 0; ty < g->nty; ty++) {
+	/* The strips of tiles that hold the rows written, [ylo, yhi): all of
+	 * them but with --rows. */
+	for (int ty = g->ylo / T; ty * T < g->yhi; ty++) {
 		int y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
+		int ya = g->ylo > y0 ? g->ylo - y0 : 0;
+		int yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
 		double **row = &g->slot[s].tile[ty * g->ntx];
 		double t0;
 
 		for (int tx = 0; tx < g->ntx; tx++) {
 			int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
 
-			for (int y = 0; row[tx] && y < ny; y++)
+			for (int y = ya; row[tx] && y < yb; y++)
 				for (int x = 0; x < nx; x++)
 					g->image_sum[g->slot[s].sca - 1] += row[tx][(size_t)y * T + x];
 		}
@@ -1064,10 +1085,10 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 		}
 		g->t_noise += now() - t0;
 		t0 = now();
-		for (int y = 0; y < ny; y++)
+		for (int y = ya; y < yb; y++)
 			for (int tx = 0; tx < g->ntx; tx++) {
 				int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
-				float *out = strip + (size_t)y * WFS_NPIX + x0;
+				float *out = strip + (size_t)(y - ya) * WFS_NPIX + x0;
 
 				if (row[tx])
 					for (int x = 0; x < nx; x++)
@@ -1075,7 +1096,7 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 				else
 					memset(out, 0, nx * sizeof(float));
 			}
-		if (fitsout_image_rows(f, strip, ny, g->e) < 0)
+		if (fitsout_image_rows(f, strip, yb - ya, g->e) < 0)
 			return -1;
 		for (int tx = 0; tx < g->ntx; tx++) {
 			tile_free(row[tx], T);
@@ -1164,6 +1185,8 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct pool
 	g->tile = o->tile;
 	g->ntx = g->nty = (WFS_NPIX + g->tile - 1) / g->tile;
 	g->ntile = g->ntx * g->nty;
+	g->ylo = o->row_first ? o->row_first - 1 : 0;
+	g->yhi = o->row_first ? o->row_last : WFS_NPIX;
 	for (int s = 0; s <= WFS_NSCA; s++)
 		g->slot_of[s] = -1;
 	for (int s = 1; s <= WFS_NSCA; s++)

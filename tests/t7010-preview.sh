@@ -234,6 +234,68 @@ cx, cy = sum(q[0] for q in w) / len(w), sum(q[1] for q in w) / len(w)
 assert len(w) < 30 and abs(cx - $sx) <= 2 and abs(cy - $sy) <= 2, (len(w), cx, cy, $sx, $sy)
 "'
 
+# wfiscene's own output: a star at the centre of SCAs 1, 3, 7 and 16 (the
+# two ends and the middle of the focal plane).  On the PNG, north up and
+# east left, the stars must sit where data/sca.tsv puts the SCA centres in
+# the WFI's ideal frame (+x west and +y north at PA 0; +y east and +x north
+# at PA 90), up to one scale factor, within 2 pixels (the
+# SCAs are 54 pixels apart).
+printf 'x,y,sca,flux\n' >fpstars.csv
+for s in 1 3 7 16; do printf '2044.5,2044.5,%d,100000\n' $s >>fpstars.csv; done
+cat >layout.py <<'EOF'
+import sys, png
+P = png.read(sys.argv[1]); pa = float(sys.argv[2])
+tsv = {}
+for line in open(sys.argv[3]):
+    f = line.split()
+    if f and f[0].isdigit():
+        tsv[int(f[0])] = (float(f[1]), float(f[2]))
+# the stars: white pixels in clusters, each cluster's centre
+white = [(x, y) for y in range(P.h) for x in range(P.w) if P.px(x, y)[0] > 250]
+blobs = []
+for x, y in white:
+    for b in blobs:
+        if abs(b[0][0] - x) < 8 and abs(b[0][1] - y) < 8:
+            b.append((x, y)); break
+    else:
+        blobs.append([(x, y)])
+assert len(blobs) == 4, [b[0] for b in blobs]
+c = [(sum(p[0] for p in b) / len(b), sum(p[1] for p in b) / len(b)) for b in blobs]
+# where each SCA should be on the PNG, up to offset and scale
+want = {}
+for s in (1, 3, 7, 16):
+    fx, fy = tsv[s]
+    want[s] = (fx, -fy) if pa == 0 else (-fy, -fx)
+# pair each blob with its SCA from a rough fit (offset and scale from the
+# extremes along PNG x), then fit offset and scale by least squares
+sx = sorted(want, key=lambda s: want[s][0])
+cx = sorted(c)
+k = (cx[-1][0] - cx[0][0]) / (want[sx[-1]][0] - want[sx[0]][0])
+ox, oy = cx[0][0] - k * want[sx[0]][0], sum(q[1] for q in c) / 4 - k * sum(w[1] for w in want.values()) / 4
+pair = {s: min(c, key=lambda q: (q[0] - ox - k * want[s][0]) ** 2 + (q[1] - oy - k * want[s][1]) ** 2)
+        for s in want}
+assert len(set(pair.values())) == 4, pair
+mw = [sum(want[s][i] for s in want) / 4 for i in (0, 1)]
+mc = [sum(pair[s][i] for s in want) / 4 for i in (0, 1)]
+k = (sum((pair[s][i] - mc[i]) * (want[s][i] - mw[i]) for s in want for i in (0, 1)) /
+     sum((want[s][i] - mw[i]) ** 2 for s in want for i in (0, 1)))
+for s in want:
+    px, py = mc[0] + k * (want[s][0] - mw[0]), mc[1] + k * (want[s][1] - mw[1])
+    d = ((pair[s][0] - px) ** 2 + (pair[s][1] - py) ** 2) ** 0.5
+    assert d < 2, ('WFI%02d' % s, px, py, pair[s])
+print('ok', k)
+EOF
+test_expect_success 'wfiscene'"'"'s focal plane at PA 0 is laid out as the WFI on the sky' '
+	"$WFS" --filter F158 --sca 1,3,7,16 --psf "$PSF" -q -o wfp0.fits fpstars.csv &&
+	"$WFS" preview wfp0.fits --width 400 -o wfp0.png &&
+	PYTHONPATH=$TRASH "$PY" layout.py wfp0.png 0 "$TOP/data/sca.tsv"
+'
+test_expect_success 'and at PA 90 it turns with the position angle (+y east)' '
+	"$WFS" --filter F158 --sca 1,3,7,16 --psf "$PSF" --pa 90 -q -o wfp90.fits fpstars.csv &&
+	"$WFS" preview wfp90.fits --width 400 -o wfp90.png &&
+	PYTHONPATH=$TRASH "$PY" layout.py wfp90.png 90 "$TOP/data/sca.tsv"
+'
+
 test_expect_success 'a colour composite from three filters' '
 	"$PY" mkfp.py r.fits --star 2 --bright 0 --seed 1 --width 500 >/dev/null &&
 	"$PY" mkfp.py g.fits --star 0 --bright 0 --seed 2 >/dev/null &&

@@ -351,7 +351,7 @@ start_slurm() {
 	node=$(slurmd -C | sed -n 's/.*\(CPUs=[0-9]*\).*\(RealMemory=[0-9]*\).*/\1 \2/p')
 	cat >"$d/slurm.conf" <<EOT
 ClusterName=wfiscenetest
-SlurmctldHost=$host
+SlurmctldHost=$host(127.0.0.1)
 SlurmctldPort=$port
 SlurmdPort=$((port + 1))
 SlurmUser=root

@@ -4,7 +4,10 @@
 # command to run.  Called by `make deps`, `make check` and `make demo`.
 set -e
 build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev zstd"
-tests="perl gzip time python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc"
+# parallel, slurm*, munge: tests/t7100 runs contrib/parallel and contrib/slurm
+# for real (a private one-node Slurm cluster, started and stopped by the test).
+tests="perl gzip time python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc
+	parallel slurmctld slurmd slurm-client munge"
 missing=
 for p in $build $tests; do
 	dpkg-query -W -f='${Status}\n' "$p" 2>/dev/null | grep -q '^install ok installed' ||

@@ -41,7 +41,7 @@ PKG_CFLAGS := $(shell $(PKG_CONFIG) --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   := $(shell $(PKG_CONFIG) --libs $(PKGS) 2>/dev/null)
 ALL_CFLAGS  = -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE \
 	-Wall -Wextra -Wno-unused-parameter -pthread -Iinclude -Isrc -I$(B) \
-	-DWFS_VERSION='"$(VERSION)"' -DWFS_PLUGINDIR='"$(PLUGINDIR)"' \
+	-DWFS_VERSION='"$(VERSION)"' -DWFS_BINDIR='"$(BINDIR)"' -DWFS_PLUGINDIR='"$(PLUGINDIR)"' \
 	$(PKG_CFLAGS) $(CFLAGS)
 ALL_LIBS    = $(PKG_LIBS) -lfftw3_threads -lltdl -lm -lpthread
 
@@ -69,12 +69,14 @@ $(B)/obj/%.o: src/%.c $(wildcard src/*.h) include/wfiscene/model.h | $(B)/obj
 	@echo "  CC      $<"
 	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
 
-# The plugin directory is compiled into plugin.o: a stamp holding its value
-# rebuilds it when PREFIX or PLUGINDIR changes (`make`, then `make install
-# PREFIX=/opt/wfs`, must not install a program that looks in /usr/local).
+# The program looks for its plugins in PLUGINDIR, and relative to itself as
+# BINDIR is to PLUGINDIR: both are compiled into plugin.o.  A stamp holding
+# their values rebuilds it when PREFIX, BINDIR or PLUGINDIR changes (`make`,
+# then `make install PREFIX=/opt/wfs`, must not install a program that looks
+# in /usr/local).
 $(B)/plugindir.stamp: FORCE | $(B)/obj
-	$(Q)printf '%s\n' '$(PLUGINDIR)' | cmp -s - $@ 2>/dev/null || \
-		printf '%s\n' '$(PLUGINDIR)' > $@
+	$(Q)printf '%s\n' '$(BINDIR)' '$(PLUGINDIR)' | cmp -s - $@ 2>/dev/null || \
+		printf '%s\n' '$(BINDIR)' '$(PLUGINDIR)' > $@
 $(B)/obj/plugin.o: $(B)/plugindir.stamp
 FORCE:
 

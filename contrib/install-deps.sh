@@ -6,7 +6,10 @@
 # (gnuplot for the error-against-time plot).
 set -e
 build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev zstd"
-tests="perl gzip time python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc"
+# parallel, slurm*, munge: tests/t7100 runs contrib/parallel and contrib/slurm
+# for real (a private one-node Slurm cluster, started and stopped by the test).
+tests="perl gzip time python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc
+	parallel slurmctld slurmd slurm-client munge"
 bench=
 [ "${1:-}" = bench ] && bench="gnuplot-nox"
 missing=

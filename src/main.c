@@ -42,6 +42,8 @@ static const char usage_text[] =
 "  --pointings FILE      several exposures (ra dec pa [name [seed]] a line);\n"
 "                        -o, --placed and --report then need a %s for the name\n"
 "  --compress C          none (default), rice or gzip tile compression\n"
+"  --rows A-B            draw and write only rows A to B of each SCA (a part\n"
+"                        for wfiscene merge)\n"
 "Sources:\n"
 "  --flux-unit U         counts (default), abmag or jy: unit of 'flux' columns\n"
 "  --zeropoints Z        rti (per-SCA, 2024-03-01; default) or stips\n"
@@ -83,7 +85,7 @@ enum {
 	OPT_BRIGHT, OPT_XBRIGHT, OPT_SERSIC, OPT_SERSICFLUX, OPT_PLUGINPATH, OPT_BKG,
 	OPT_NOISE, OPT_READNOISE, OPT_DARK, OPT_CRRATE, OPT_CRRES, OPT_SEED, OPT_THREADS,
 	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET, OPT_POINTINGS,
-	OPT_SERSICTRUNC, OPT_SERSICTOL, OPT_SERSICCORE, OPT_SERSICCONV,
+	OPT_SERSICTRUNC, OPT_SERSICTOL, OPT_SERSICCORE, OPT_SERSICCONV, OPT_ROWS,
 };
 
 static const struct option long_options[] = {
@@ -101,6 +103,7 @@ static const struct option long_options[] = {
 	{ "set", required_argument, NULL, OPT_SET },
 	{ "pointings", required_argument, NULL, OPT_POINTINGS },
 	{ "compress", required_argument, NULL, OPT_COMPRESS },
+	{ "rows", required_argument, NULL, OPT_ROWS },
 	{ "flux-unit", required_argument, NULL, OPT_FLUXUNIT },
 	{ "zeropoints", required_argument, NULL, OPT_ZP },
 	{ "psf", required_argument, NULL, OPT_PSF },
@@ -229,6 +232,32 @@ static int check_name(const char *what, const char *s, int pointings, int per_sc
 	if (!strcmp(s, "-") && pointings)
 		return err_set(e, EXIT_INPUT, "%s: stdout holds one exposure, not several", what);
 	return 0;
+}
+
+/* --rows A-B: FITS rows A to B (1-based, inclusive) of an SCA. */
+static int rows_parse(const char *s, int *first, int *last, struct err *e)
+{
+	const char *p;
+	char *end;
+	long a, b;
+
+	errno = 0;
+	a = strtol(s, &end, 10);
+	if (end == s || *end != '-' || errno)
+		goto bad;
+	p = end + 1;
+	b = strtol(p, &end, 10);
+	if (end == p || *end || errno)
+		goto bad;
+	if (a < 1 || b > WFS_NPIX || a > b)
+		return err_set(e, EXIT_INPUT, "--rows: %ld-%ld: want 1 <= A <= B <= %d",
+			       a, b, WFS_NPIX);
+	*first = (int)a;
+	*last = (int)b;
+	return 0;
+bad:
+	return err_set(e, EXIT_INPUT, "--rows: want A-B, two row numbers from 1 to %d, "
+		       "got '%s'", WFS_NPIX, s);
 }
 
 static void on_fatal_signal(int sig)
@@ -381,6 +410,10 @@ int main(int argc, char **argv)
 				return fail(&e);
 			o.compress = compressions[k];
 			break;
+		case OPT_ROWS:
+			if (rows_parse(optarg, &o.row_first, &o.row_last, &e) < 0)
+				return fail(&e);
+			break;
 		case OPT_FLUXUNIT:
 			if ((k = choice(c, optarg, units, &e)) < 0)
 				return fail(&e);
@@ -528,6 +561,12 @@ int main(int argc, char **argv)
 	if (o.compress && strcmp(o.compress, "none") && !strcmp(o.output, "-")) {
 		err_set(&e, EXIT_INPUT, "--compress %s: stdout cannot be tile-compressed "
 			"(it is written in one pass); write a file instead", o.compress);
+		return fail(&e);
+	}
+	if (o.row_first && o.compress && strcmp(o.compress, "none")) {
+		err_set(&e, EXIT_INPUT, "--rows with --compress %s: the parts of an image "
+			"are joined uncompressed (compress the merged file, e.g. with "
+			"fpack(1))", o.compress);
 		return fail(&e);
 	}
 	if (o.xbright_limit > o.bright_limit) {

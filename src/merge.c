@@ -40,6 +40,7 @@
 
 #include "commands.h"
 #include "err.h"
+#include "fitsout.h"
 #include "instrument.h"
 
 #define MERGE_CARD 80
@@ -59,10 +60,12 @@ static const char merge_usage[] =
 "usage: wfiscene merge [-q] [-v] -o OUT.fits IN.fits ...\n"
 "\n"
 "Assemble one exposure from the files of runs split by SCA (--sca 1-9 and\n"
-"--sca 10-18, or -o 'part%d.fits'): the first input's primary HDU, then\n"
-"every SCA image of all inputs in SCA order, each header and data copied\n"
-"byte for byte.  The inputs' primary headers must agree on every keyword\n"
-"but DATE, and no SCA may appear twice.\n"
+"--sca 10-18, or -o 'part%d.fits') and by rows (--rows 1-2044 and\n"
+"--rows 2045-4088): the first input's primary HDU, then every SCA image of\n"
+"all inputs in SCA order, each header and data copied byte for byte (the\n"
+"parts of an SCA joined in row order).  The inputs' primary headers must\n"
+"agree on every keyword but DATE, no SCA may appear twice, and the row\n"
+"parts of an SCA must cover its rows once each.\n"
 "\n"
 "  -o, --output FILE     output file ('-' for stdout)\n"
 "  -q, --quiet           no messages but errors\n"
@@ -80,6 +83,12 @@ struct merge_hdu {
 	int sca;                /* from EXTNAME = 'WFInn' */
 	int compressed;         /* a binary table with ZIMAGE = T */
 	char cmptype[72];       /* ZCMPTYPE of a compressed HDU */
+	/* A part of --rows A-B (ROWS = 'A-B'): rows A to B of the SCA; 0 0
+	 * for a whole image.  Its cards are kept to rebuild the header. */
+	int row_first, row_last;
+	off_t header_length;
+	char *cards;
+	int ncards;
 };
 
 struct merge_input {
@@ -409,6 +418,37 @@ static int merge_add_hdu(struct merge *m, const struct merge_hdu *h)
 	return 0;
 }
 
+/* A part of --rows A-B: ROWS = 'A-B' on a plain float32 image of A-B+1 rows
+ * of a whole SCA's width. */
+static int merge_rows(struct merge *m, const char *what, struct merge_hdu *h,
+		      const char *card, const char *cards, int ncards)
+{
+	char value[MERGE_CARD + 1];
+	long long bitpix, naxis, nx, ny;
+	int a, b, used;
+
+	merge_value(card, value, sizeof(value));
+	if (sscanf(value, "%d-%d%n", &a, &b, &used) != 2 || used != (int)strlen(value) ||
+	    a < 1 || b > WFS_NPIX || a > b)
+		return err_set(m->e, EXIT_INPUT, "%s: ROWS = '%s' is not a row range "
+			       "'A-B' within 1-%d", what, value, WFS_NPIX);
+	if (h->compressed)
+		return err_set(m->e, EXIT_INPUT, "%s: rows %s of a tile-compressed "
+			       "image cannot be joined", what, value);
+	if (merge_int(m, what, cards, ncards, "BITPIX", &bitpix) ||
+	    merge_int(m, what, cards, ncards, "NAXIS", &naxis) ||
+	    merge_int(m, what, cards, ncards, "NAXIS1", &nx) ||
+	    merge_int(m, what, cards, ncards, "NAXIS2", &ny))
+		return -1;
+	if (bitpix != -32 || naxis != 2 || nx != WFS_NPIX || ny != b - a + 1)
+		return err_set(m->e, EXIT_INPUT, "%s: rows %s: a %lld x %lld image of "
+			       "BITPIX %lld, not %d x %d float32", what, value, nx, ny,
+			       bitpix, WFS_NPIX, b - a + 1);
+	h->row_first = a;
+	h->row_last = b;
+	return 0;
+}
+
 /* One extension of input i at offset at: which SCA it is and how long. */
 static int merge_scan_extension(struct merge *m, int i, int number, off_t at,
 				off_t *next)
@@ -454,15 +494,27 @@ static int merge_scan_extension(struct merge *m, int i, int number, off_t at,
 	if (merge_data_length(m, what, cards, ncards, 0, &dlen))
 		goto fail;
 	h.length = hlen + dlen;
+	h.header_length = hlen;
 	if (h.length > in->size - at) {
 		err_set(m->e, EXIT_INPUT, "%s: truncated: its data need %lld "
 			"bytes, the file has %lld after the header", what,
 			(long long)dlen, (long long)(in->size - at - hlen));
 		goto fail;
 	}
+	if ((c = merge_find(cards, ncards, "ROWS"))) {
+		if (merge_rows(m, what, &h, c, cards, ncards))
+			goto fail;
+		h.cards = cards;
+		h.ncards = ncards;
+		cards = NULL;
+	}
 	free(cards);
 	*next = at + h.length;
-	return merge_add_hdu(m, &h);
+	if (merge_add_hdu(m, &h)) {
+		free(h.cards);
+		return -1;
+	}
+	return 0;
 fail:
 	free(cards);
 	return -1;
@@ -515,31 +567,71 @@ static const char *merge_storage(const struct merge_hdu *h)
 	       h->cmptype[0] ? h->cmptype : "tile-compressed";
 }
 
-/* No SCA twice, and every image stored alike: a file that mixes
- * compressed and plain SCAs is no single run's output. */
+static int merge_by_sca(const void *a, const void *b)
+{
+	const struct merge_hdu *x = a, *y = b;
+
+	if (x->sca != y->sca)
+		return (x->sca > y->sca) - (x->sca < y->sca);
+	if (x->row_first != y->row_first)
+		return (x->row_first > y->row_first) - (x->row_first < y->row_first);
+	/* Equal starts: keep the order of the inputs, for the messages. */
+	return (x->input > y->input) - (x->input < y->input);
+}
+
+/* The keywords in which the row parts of one SCA differ by nature. */
+static int merge_part_key(const char *c)
+{
+	return !memcmp(c, "NAXIS2  ", 8) || !memcmp(c, "CRPIX2  ", 8) ||
+	       !memcmp(c, "ROWS    ", 8);
+}
+
+/* Two row parts of one SCA have the same header but for the keywords
+ * above, card for card. */
+static int merge_same_part(struct merge *m, const struct merge_hdu *a,
+			   const struct merge_hdu *b)
+{
+	int i = 0, j = 0;
+
+	for (;;) {
+		while (i < a->ncards && merge_part_key(a->cards + (size_t)i * MERGE_CARD))
+			i++;
+		while (j < b->ncards && merge_part_key(b->cards + (size_t)j * MERGE_CARD))
+			j++;
+		if (i == a->ncards || j == b->ncards)
+			break;
+		if (memcmp(a->cards + (size_t)i * MERGE_CARD,
+			   b->cards + (size_t)j * MERGE_CARD, MERGE_CARD))
+			return err_set(m->e, EXIT_INPUT, "%s: WFI%02d rows %d-%d: its "
+				       "header has '%.30s' where %s (rows %d-%d) has "
+				       "'%.30s': not parts of one image",
+				       m->in[b->input].path, b->sca, b->row_first,
+				       b->row_last, b->cards + (size_t)j * MERGE_CARD,
+				       m->in[a->input].path, a->row_first, a->row_last,
+				       a->cards + (size_t)i * MERGE_CARD);
+		i++;
+		j++;
+	}
+	if (i != a->ncards || j != b->ncards)
+		return err_set(m->e, EXIT_INPUT, "%s: WFI%02d rows %d-%d: its header has "
+			       "%s cards than %s's (rows %d-%d): not parts of one image",
+			       m->in[b->input].path, b->sca, b->row_first, b->row_last,
+			       j == b->ncards ? "fewer" : "more", m->in[a->input].path,
+			       a->row_first, a->row_last);
+	return 0;
+}
+
+/* Sorted by SCA and first row: every SCA is one whole image, or row parts
+ * that cover rows 1 to WFS_NPIX once each; every image is stored alike (a
+ * file that mixes compressed and plain SCAs is no single run's output). */
 static int merge_check_hdus(struct merge *m)
 {
-	int owner[WFS_NSCA + 1];
-
-	for (int s = 0; s <= WFS_NSCA; s++)
-		owner[s] = -1;
 	for (int k = 0; k < m->nhdu; k++) {
 		const struct merge_hdu *h = &m->hdu[k], *first = &m->hdu[0];
+		const struct merge_hdu *prev = k > 0 && m->hdu[k - 1].sca == h->sca ?
+					       &m->hdu[k - 1] : NULL;
 		const char *path = m->in[h->input].path;
 
-		if (owner[h->sca] >= 0) {
-			const struct merge_hdu *o = &m->hdu[owner[h->sca]];
-
-			if (o->input == h->input)
-				return err_set(m->e, EXIT_INPUT, "%s: WFI%02d "
-					       "appears twice (HDUs %d and %d)",
-					       path, h->sca, o->number, h->number);
-			return err_set(m->e, EXIT_INPUT, "%s: WFI%02d is also in "
-				       "%s: each SCA may come from one input "
-				       "only", path, h->sca,
-				       m->in[o->input].path);
-		}
-		owner[h->sca] = k;
 		if (h->compressed != first->compressed ||
 		    strcmp(h->cmptype, first->cmptype))
 			return err_set(m->e, EXIT_INPUT, "%s: WFI%02d is %s, but "
@@ -548,15 +640,43 @@ static int merge_check_hdus(struct merge *m)
 				       h->sca, merge_storage(h), first->sca,
 				       m->in[first->input].path,
 				       merge_storage(first));
+		if (prev && (!prev->row_first || !h->row_first)) {
+			if (prev->input == h->input)
+				return err_set(m->e, EXIT_INPUT, "%s: WFI%02d "
+					       "appears twice (HDUs %d and %d)",
+					       path, h->sca, prev->number, h->number);
+			return err_set(m->e, EXIT_INPUT, "%s: WFI%02d is also in "
+				       "%s: each SCA may come from one input "
+				       "only", path, h->sca, m->in[prev->input].path);
+		}
+		if (!h->row_first)
+			continue;
+		if (!prev && h->row_first != 1)
+			return err_set(m->e, EXIT_INPUT, "WFI%02d: rows 1-%d are in no "
+				       "input (the first part, in %s, has rows %d-%d)",
+				       h->sca, h->row_first - 1, path, h->row_first,
+				       h->row_last);
+		if (prev && h->row_first <= prev->row_last)
+			return err_set(m->e, EXIT_INPUT, "%s: WFI%02d rows %d-%d overlap "
+				       "rows %d-%d in %s", path, h->sca, h->row_first,
+				       h->row_last, prev->row_first, prev->row_last,
+				       m->in[prev->input].path);
+		if (prev && h->row_first > prev->row_last + 1)
+			return err_set(m->e, EXIT_INPUT, "WFI%02d: rows %d-%d are in no "
+				       "input (%s has rows %d-%d, %s rows %d-%d)", h->sca,
+				       prev->row_last + 1, h->row_first - 1,
+				       m->in[prev->input].path, prev->row_first,
+				       prev->row_last, path, h->row_first, h->row_last);
+		if (prev && merge_same_part(m, prev, h))
+			return -1;
+		if ((k + 1 == m->nhdu || m->hdu[k + 1].sca != h->sca) &&
+		    h->row_last != WFS_NPIX)
+			return err_set(m->e, EXIT_INPUT, "WFI%02d: rows %d-%d are in no "
+				       "input (the last part, in %s, has rows %d-%d)",
+				       h->sca, h->row_last + 1, WFS_NPIX, path,
+				       h->row_first, h->row_last);
 	}
 	return 0;
-}
-
-static int merge_by_sca(const void *a, const void *b)
-{
-	const struct merge_hdu *x = a, *y = b;
-
-	return (x->sca > y->sca) - (x->sca < y->sca);
 }
 
 /* ---- the output ---- */
@@ -774,6 +894,60 @@ static int merge_copy(struct merge *m, struct merge_out *o, int i, off_t offset,
 	return 0;
 }
 
+/*
+ * The row parts of one SCA, hdu[k] (rows 1-...) and those after it, as the
+ * one image a run of the whole SCA writes.  Their headers are that run's
+ * but for NAXIS2 (the part's rows), CRPIX2 (counted from the part's first
+ * row) and ROWS: the first part's CRPIX2 is the whole image's, NAXIS2 is
+ * written as fitsout writes it, and ROWS goes.  The data are the parts'
+ * rows one after the other, without their padding, padded once at the end.
+ */
+static int merge_join_rows(struct merge *m, struct merge_out *o, int k)
+{
+	const struct merge_hdu *first = &m->hdu[k];
+	unsigned char *header;
+	size_t nh = 0, bytes = 0, pad;
+	int rc = -1;
+
+	if (!(header = calloc((size_t)first->ncards / MERGE_CARDS_PER_BLOCK + 1,
+			      MERGE_BLOCK)))
+		return err_sys(m->e, "merge");
+	memset(header, ' ', ((size_t)first->ncards / MERGE_CARDS_PER_BLOCK + 1) *
+	       MERGE_BLOCK);
+	for (int i = 0; i < first->ncards; i++) {
+		const char *c = first->cards + (size_t)i * MERGE_CARD;
+		char card[MERGE_CARD + 1];
+
+		if (!memcmp(c, "ROWS    ", 8))
+			continue;
+		if (!memcmp(c, "NAXIS2  ", 8)) {
+			fits_card_int(card, "NAXIS2", WFS_NPIX, "rows (y)");
+			c = card;
+		}
+		memcpy(header + nh++ * MERGE_CARD, c, MERGE_CARD);
+	}
+	memcpy(header + nh++ * MERGE_CARD, "END", 3);
+	if (merge_out_write(o, header, (nh + MERGE_CARDS_PER_BLOCK - 1) /
+			    MERGE_CARDS_PER_BLOCK * MERGE_BLOCK, m->e))
+		goto done;
+	for (int j = k; j < m->nhdu && m->hdu[j].sca == first->sca; j++) {
+		const struct merge_hdu *h = &m->hdu[j];
+		size_t n = (size_t)(h->row_last - h->row_first + 1) * WFS_NPIX * 4;
+
+		if (merge_copy(m, o, h->input, h->offset + h->header_length, (off_t)n))
+			goto done;
+		bytes += n;
+	}
+	pad = (MERGE_BLOCK - bytes % MERGE_BLOCK) % MERGE_BLOCK;
+	memset(header, 0, pad);
+	if (merge_out_write(o, header, pad, m->e))
+		goto done;
+	rc = 0;
+done:
+	free(header);
+	return rc;
+}
+
 static int merge_run(struct merge *m, const char *output)
 {
 	struct merge_out o;
@@ -781,33 +955,53 @@ static int merge_run(struct merge *m, const char *output)
 	for (int i = 0; i < m->nin; i++)
 		if (merge_scan(m, i))
 			return -1;
+	qsort(m->hdu, (size_t)m->nhdu, sizeof(*m->hdu), merge_by_sca);
 	if (merge_check_hdus(m))
 		return -1;
-	qsort(m->hdu, (size_t)m->nhdu, sizeof(*m->hdu), merge_by_sca);
 	if (m->verbose > 0)
-		for (int k = 0; k < m->nhdu; k++)
-			fprintf(stderr, "wfiscene merge: WFI%02d from %s (HDU %d, "
-				"%s)\n", m->hdu[k].sca, m->in[m->hdu[k].input].path,
-				m->hdu[k].number, merge_storage(&m->hdu[k]));
+		for (int k = 0; k < m->nhdu; k++) {
+			const struct merge_hdu *h = &m->hdu[k];
+
+			if (h->row_first)
+				fprintf(stderr, "wfiscene merge: WFI%02d rows %d-%d from %s "
+					"(HDU %d)\n", h->sca, h->row_first, h->row_last,
+					m->in[h->input].path, h->number);
+			else
+				fprintf(stderr, "wfiscene merge: WFI%02d from %s (HDU %d, "
+					"%s)\n", h->sca, m->in[h->input].path, h->number,
+					merge_storage(h));
+		}
 	if (!(m->buf = malloc(MERGE_BUF_SIZE)))
 		return err_sys(m->e, "merge");
 	if (merge_out_open(&o, output, m->e))
 		return -1;
 	if (merge_copy(m, &o, 0, 0, m->in[0].primary_length))
 		goto fail;
-	for (int k = 0; k < m->nhdu; k++)
-		if (merge_copy(m, &o, m->hdu[k].input, m->hdu[k].offset,
-			       m->hdu[k].length))
-			goto fail;
+	for (int k = 0; k < m->nhdu; k++) {
+		const struct merge_hdu *h = &m->hdu[k];
+
+		if (!h->row_first) {
+			if (merge_copy(m, &o, h->input, h->offset, h->length))
+				goto fail;
+		} else if (h->row_first == 1) {
+			if (merge_join_rows(m, &o, k))
+				goto fail;
+		}
+	}
 	if (merge_interrupted(m)) {
 		err_set(m->e, EXIT_SIGNAL, "interrupted; partial output removed");
 		goto fail;
 	}
 	if (merge_out_commit(&o, m->e))
 		return -1;
-	if (m->verbose > 0)
+	if (m->verbose > 0) {
+		int nsca = 0;
+
+		for (int k = 0; k < m->nhdu; k++)
+			nsca += k == 0 || m->hdu[k].sca != m->hdu[k - 1].sca;
 		fprintf(stderr, "wfiscene merge: %s: %d SCA images from %d "
-			"files\n", o.name, m->nhdu, m->nin);
+			"files\n", o.name, nsca, m->nin);
+	}
 	return 0;
 fail:
 	merge_out_abort(&o);
@@ -911,6 +1105,8 @@ int merge_main(int argc, char **argv)
 			close(m.in[i].fd);
 		free(m.in[i].primary);
 	}
+	for (int k = 0; k < m.nhdu; k++)
+		free(m.hdu[k].cards);
 	free(m.in);
 	free(m.hdu);
 	free(m.buf);

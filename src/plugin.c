@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "err.h"
@@ -26,10 +27,66 @@ static int path_add(char **path, const char *dir)
 	return 0;
 }
 
+/*
+ * The path from directory `from` to directory `to`, both absolute, as
+ * "../lib/wfiscene" for /usr/local/bin and /usr/local/lib/wfiscene.  -1 when
+ * either is not absolute or has a ".." component.
+ */
+static int relative_dir(const char *from, const char *to, char *out, size_t cap)
+{
+	const char *a = from, *b = to;
+	size_t len = 0;
+
+	if (*from != '/' || *to != '/' || strstr(from, "/..") || strstr(to, "/.."))
+		return -1;
+	/* Skip the components the two share. */
+	for (;;) {
+		size_t na, nb;
+
+		while (*a == '/')
+			a++;
+		while (*b == '/')
+			b++;
+		na = strcspn(a, "/");
+		nb = strcspn(b, "/");
+		if (!na || na != nb || memcmp(a, b, na))
+			break;
+		a += na;
+		b += nb;
+	}
+	out[0] = 0;
+	/* One ".." per component of from that is left, then the rest of to. */
+	while (*a) {
+		size_t na = strcspn(a, "/");
+
+		if (na && !(na == 1 && *a == '.'))
+			len += snprintf(out + len, len < cap ? cap - len : 0, "../");
+		a += na;
+		while (*a == '/')
+			a++;
+	}
+	len += snprintf(out + len, len < cap ? cap - len : 0, "%s", *b ? b : ".");
+	return len < cap ? 0 : -1;
+}
+
+/* Adds dir to the path if it is a directory other than the plugin
+ * directory wfiscene was built for (which comes last anyway). */
+static int path_add_own(char **path, const char *dir)
+{
+	char real[PATH_MAX], installed[PATH_MAX];
+	struct stat st;
+
+	if (stat(dir, &st) < 0 || !S_ISDIR(st.st_mode) || !realpath(dir, real))
+		return 0;
+	if (realpath(WFS_PLUGINDIR, installed) && !strcmp(real, installed))
+		return 0;
+	return path_add(path, dir);
+}
+
 int plugins_init(struct plugins *ps, const char *user_path,
 		 const struct wfs_host *host, struct err *e)
 {
-	char exe[PATH_MAX], *slash;
+	char exe[PATH_MAX], dir[PATH_MAX + 16], rel[PATH_MAX], *slash;
 	const char *env = getenv("WFISCENE_PLUGIN_PATH");
 	ssize_t len;
 
@@ -38,19 +95,30 @@ int plugins_init(struct plugins *ps, const char *user_path,
 	if (lt_dlinit())
 		return err_set(e, EXIT_PLUGIN, "libltdl: %s", lt_dlerror());
 	if ((user_path && path_add(&ps->path, user_path) < 0) ||
-	    (env && path_add(&ps->path, env) < 0) ||
-	    path_add(&ps->path, WFS_PLUGINDIR) < 0)
+	    (env && path_add(&ps->path, env) < 0))
 		return err_sys(e, "plugin path");
-	/* Run from the build tree: plugins/ beside the program. */
-	len = readlink("/proc/self/exe", exe, sizeof(exe) - 16);
+	/*
+	 * The plugins that came with this program, before those of the place
+	 * it was built for: plugins/ beside it (a build tree), and the plugin
+	 * directory where `make install` puts it relative to the program (an
+	 * installation under DESTDIR, or moved elsewhere as a whole).
+	 */
+	len = readlink("/proc/self/exe", exe, sizeof(exe) - 1);
 	if (len > 0) {
 		exe[len] = 0;
 		if ((slash = strrchr(exe, '/'))) {
-			strcpy(slash, "/plugins");
-			if (path_add(&ps->path, exe) < 0)
+			*slash = 0;
+			snprintf(dir, sizeof(dir), "%s/plugins", exe);
+			if (path_add_own(&ps->path, dir) < 0)
+				return err_sys(e, "plugin path");
+			if (relative_dir(WFS_BINDIR, WFS_PLUGINDIR, rel, sizeof(rel)) == 0 &&
+			    (size_t)snprintf(dir, sizeof(dir), "%s/%s", exe, rel) < sizeof(dir) &&
+			    path_add_own(&ps->path, dir) < 0)
 				return err_sys(e, "plugin path");
 		}
 	}
+	if (path_add(&ps->path, WFS_PLUGINDIR) < 0)
+		return err_sys(e, "plugin path");
 	return 0;
 }
 
@@ -146,6 +214,13 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	    m->ncolumns < 0)
 		return refuse(pl, e, "%sdescriptor lacks footprint(), render() or its "
 			      "columns", "", 0, 0);
+	if (m->ncolumns > PLUGIN_COLUMNS_MAX)
+		return refuse(pl, e, "%sdescriptor lists %ld columns; a model reads at most %ld",
+			      "", m->ncolumns, PLUGIN_COLUMNS_MAX);
+	for (int c = 0; c < m->ncolumns; c++)
+		if (!m->columns[c].name || !*m->columns[c].name)
+			return refuse(pl, e, "%scolumn %ld of the descriptor has no name", "",
+				      c + 1, 0);
 	pl->m = m;
 	if (m->init && m->init(ps->host, &pl->state) < 0) {
 		err_prefix(e, "model '%s' (%s): set-up failed", name, pl->path);

@@ -3,10 +3,11 @@
  *
  * A model named NAME lives in NAME.so (or NAME.la) on the search path:
  * --plugin-path, then $WFISCENE_PLUGIN_PATH (colon-separated), then the
- * installed plugin directory, then the build tree's plugins/ beside the
- * running program.  Loading happens in the main thread, before workers use
- * the model.  A model name is a word of [a-z0-9_-], so it can never name a
- * path.
+ * plugins that came with the running program (plugins/ beside it in a build
+ * tree, or the plugin directory of its installation found relative to it),
+ * then the plugin directory it was built for.  Loading happens in the main
+ * thread, before workers use the model.  A model name is a word of
+ * [a-z0-9_-], so it can never name a path.
  */
 #ifndef WFS_PLUGIN_H
 #define WFS_PLUGIN_H
@@ -18,6 +19,7 @@
 struct err;
 
 #define PLUGIN_MAX 64
+#define PLUGIN_COLUMNS_MAX 32   /* catalog columns one model may read */
 
 struct plugin {
 	char name[64];

@@ -26,8 +26,10 @@
  * its noise, and a high percentile (99.5 %, or higher when most pixels are
  * empty sky, as in a noiseless sparse field; never below sky + 30 noise)
  * the white point.  The colour
- * composite follows Lupton et al. (2004, PASP 116, 133): each band is sky
- * subtracted and scaled to its white point, and the asinh stretch is applied
+ * composite follows Lupton et al. (2004, PASP 116, 133): the bands are put
+ * in one flux unit by their PHOTZPAB when they have it (see "Colour
+ * balance"), each is sky subtracted and scaled to the common white point
+ * (else each to its own), and the asinh stretch is applied
  * to the mean intensity I with every band multiplied by f(I)/I, so colours
  * of bright, saturated-looking stars are kept instead of bleaching to white.
  */
@@ -962,6 +964,89 @@ static int preview_levels(const struct preview_plane *pl, const char *what,
 	return 0;
 }
 
+/*
+ * Colour balance.  A composite of three filters is only neutral for a
+ * source of flat spectrum if the bands are in the same units, and counts/s
+ * are not: a star of one AB magnitude gives different counts through
+ * different filters.  When every image of the three files carries its AB
+ * zeropoint (PHOTZPAB, the AB magnitude of 1 count/s, which wfiscene writes
+ * per SCA), each band is multiplied by 10^(-0.4 (zp - 25)), zp the mean
+ * PHOTZPAB of its images: the pixels become fluxes per pixel in units
+ * where AB magnitude 25 gives 1 (f_nu in units of 0.3631 uJy), and the
+ * three bands share one black-to-white range, so a star of flat f_nu is
+ * white and a red one red.  One factor per band, not per SCA: wfiscene's
+ * background is a count rate, the same on every SCA, and the SCAs' own
+ * zeropoints (a few hundredths of a magnitude apart) would tint the sky of
+ * one SCA against the next.
+ */
+#define PREVIEW_ZP_UNIT 25.0
+
+/* The factor for each band in scale[3] and 1, if every image HDU of the
+ * three inputs has a finite PHOTZPAB; else 0.  -1 with an error if a file
+ * cannot be read. */
+static int preview_balance(const struct preview_opts *o, double *scale,
+			   struct err *e)
+{
+	int *hdu, c, k, n, ok = o->nin == 3;
+
+	if (!ok)
+		return 0;
+	if (!(hdu = malloc(PREVIEW_MAX_HDU * sizeof(*hdu))))
+		return err_sys(e, "preview");
+	for (c = 0; c < o->nin && ok; c++) {
+		double zp, sum = 0;
+		fitsfile *f;
+
+		if (preview_open(o->in[c], &f, e) < 0 ||
+		    (n = preview_images(f, o->in[c], hdu, PREVIEW_MAX_HDU, e)) < 0) {
+			preview_close(f);
+			free(hdu);
+			return -1;
+		}
+		for (k = 0; k < n && ok; k++) {
+			int status = 0;
+
+			if (fits_movabs_hdu(f, hdu[k], NULL, &status) ||
+			    fits_read_key(f, TDOUBLE, "PHOTZPAB", &zp, NULL, &status) ||
+			    !isfinite(zp))
+				ok = 0;
+			sum += zp;
+		}
+		fits_clear_errmsg();
+		preview_close(f);
+		if (ok && n > 0)
+			scale[c] = pow(10, -0.4 * (sum / n - PREVIEW_ZP_UNIT));
+		else
+			ok = 0;
+	}
+	free(hdu);
+	return ok;
+}
+
+/* Balanced bands: black at each band's own sky, white one common range
+ * above it, the widest of the three bands' own (so no band's noise or
+ * crowding is stretched more than it would be alone). */
+static void preview_common_levels(struct preview_levels *lv,
+				  const struct preview_opts *o)
+{
+	double range = 0;
+	int c;
+
+	for (c = 0; c < 3; c++)
+		range = fmax(range, lv[c].white - lv[c].sky);
+	for (c = 0; c < 3; c++) {
+		if (!o->have_min)
+			lv[c].lo = lv[c].sky;
+		if (!o->have_max)
+			lv[c].hi = lv[c].lo + range;
+		if (!(lv[c].hi > lv[c].lo))
+			lv[c].hi = lv[c].lo + 1;
+		if (o->verbose)
+			fprintf(stderr, "wfiscene: %s: balanced by PHOTZPAB: black at %g, "
+				"white at %g\n", o->in[c], lv[c].lo, lv[c].hi);
+	}
+}
+
 /* PNG output ------------------------------------------------------------- */
 
 struct preview_png {
@@ -969,6 +1054,7 @@ struct preview_png {
 	const struct preview_levels *lv;
 	int nband;
 	int alpha;                  /* write transparency for NaN (sky mode) */
+	int balanced;               /* bands scaled by PHOTZPAB to one unit */
 	int stretch;
 	double q;
 	char msg[256];              /* libpng's error, if any */
@@ -1060,7 +1146,7 @@ static int preview_png_write(FILE *fp, struct preview_png *p,
 	png_infop info = NULL;
 	png_byte *row;
 	png_text text[3];
-	char comment[256], source[PATH_MAX * 3 + 8];
+	char comment[384], source[PATH_MAX * 3 + 8];
 	int nx = p->pl[0].nx, ny = p->pl[0].ny, y, ch = p->nband + p->alpha;
 	int type = p->nband == 1 ? (p->alpha ? PNG_COLOR_TYPE_GRAY_ALPHA : PNG_COLOR_TYPE_GRAY)
 				 : (p->alpha ? PNG_COLOR_TYPE_RGB_ALPHA : PNG_COLOR_TYPE_RGB);
@@ -1094,8 +1180,9 @@ static int preview_png_write(FILE *fp, struct preview_png *p,
 			 p->lv[0].lo, p->lv[0].hi);
 	else
 		snprintf(comment, sizeof(comment),
-			 "Lupton et al. (2004) %s composite, Q %g; black %g %g %g, white %g %g %g",
+			 "Lupton et al. (2004) %s composite, Q %g%s; black %g %g %g, white %g %g %g",
 			 p->stretch == PREVIEW_ASINH ? "asinh" : "linear", p->q,
+			 p->balanced ? ", bands balanced by PHOTZPAB (1 = AB mag 25)" : "",
 			 p->lv[0].lo, p->lv[1].lo, p->lv[2].lo,
 			 p->lv[0].hi, p->lv[1].hi, p->lv[2].hi);
 	memset(text, 0, sizeof(text));
@@ -1305,7 +1392,9 @@ static int preview_run(const struct preview_opts *o, struct err *e)
 	struct preview_levels lv[3];
 	struct preview_png png;
 	struct preview_sky sky;
-	int sky_mode = o->sca == -1, c, rc = -1;
+	double scale[3];
+	int sky_mode = o->sca == -1, balance, c, rc = -1;
+	size_t i;
 
 	memset(pl, 0, sizeof(pl));
 	if (o->sca == 0) {
@@ -1328,6 +1417,11 @@ static int preview_run(const struct preview_opts *o, struct err *e)
 			return err_set(e, EXIT_INPUT, "%s: no 2-D image in the file", o->in[0]);
 		sky_mode = n > 1;
 	}
+	if ((balance = preview_balance(o, scale, e)) < 0)
+		return -1;
+	if (o->nin == 3 && !balance && o->verbose)
+		fprintf(stderr, "wfiscene: not every image has PHOTZPAB: each band is "
+			"scaled to its own white point\n");
 	if (sky_mode && preview_sky_layout(o, o->width ? o->width : PREVIEW_WIDTH,
 					   &sky, e) < 0)
 		return -1;
@@ -1339,14 +1433,19 @@ static int preview_run(const struct preview_opts *o, struct err *e)
 		if (sky_mode ? preview_sky(o, c, &sky, &pl[c], e) < 0
 			     : preview_detector(o, c, &pl[c], e) < 0)
 			goto done;
+		for (i = 0; balance && i < (size_t)pl[c].nx * pl[c].ny; i++)
+			pl[c].pix[i] *= scale[c];
 		if (preview_levels(&pl[c], o->in[c], o, &lv[c], e) < 0)
 			goto done;
 	}
+	if (balance)
+		preview_common_levels(lv, o);
 	memset(&png, 0, sizeof(png));
 	png.pl = pl;
 	png.lv = lv;
 	png.nband = o->nin;
 	png.alpha = sky_mode;
+	png.balanced = balance;
 	png.stretch = o->stretch;
 	png.q = o->q;
 	rc = preview_png_save(&png, o, e);

@@ -32,7 +32,7 @@
 /* Room beyond an SCA edge, in pixels, within which a point source may still
  * throw light onto it: the 176-pixel extra-bright box's half-width. */
 #define POINT_REACH 88.0
-#define MAX_COLUMNS 32
+#define MAX_COLUMNS PLUGIN_COLUMNS_MAX
 
 /* One requested SCA: its image as a grid of tiles, allocated on first touch. */
 struct slot {
@@ -86,6 +86,7 @@ struct engine {
 
 	struct sky sky;
 	int tile, ntx, nty, ntile;      /* tile side, tiles per axis, per SCA */
+	int ylo, yhi;                   /* the rows drawn and written, [ylo, yhi) */
 	int nslot;
 	struct slot slot[WFS_NSCA];
 	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
@@ -162,6 +163,9 @@ static void progress(struct engine *g, const char *stage, int force)
 static char placed_tmp_signal[MAX_EXPOSURES][PATH_MAX];
 
 /* ---- host services lent to plugins ---- */
+
+/* Said of a plugin callback that returned -1 without host->error(). */
+#define MODEL_SILENT ", with no message (the plugin must give one with host->error())"
 
 static int host_error(void *ctx, const char *fmt, ...)
 {
@@ -486,20 +490,26 @@ static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
 			       g->o->bunit_counts ? "counts" : "counts/s", sca);
 	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
+		/* A refused row is bad input; a refusal without a message is
+		 * a broken plugin. */
+		if (g->e->code == EXIT_OK)
+			err_set(g->e, EXIT_PLUGIN, "prepare() failed" MODEL_SILENT);
+		else
+			g->e->code = EXIT_INPUT;
 		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
-		g->e->code = EXIT_INPUT;
 		return -1;
 	}
 	return 0;
 }
 
-static int footprint(struct engine *g, int m, const struct wfs_source *src,
-		     struct wfs_box *box)
+static int footprint(struct engine *g, const struct rows *r, size_t i, int m,
+		     const struct wfs_source *src, struct wfs_box *box)
 {
 	const struct wfs_model *md = g->plugins.p[m].m;
 
 	if (md->footprint(g->plugins.p[m].state, src, box) < 0) {
-		err_prefix(g->e, "model '%s': footprint of source %lld", md->name, src->id);
+		err_set(g->e, EXIT_PLUGIN, "footprint() failed" MODEL_SILENT);
+		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
 		return -1;
 	}
 	return 0;
@@ -515,7 +525,7 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	struct wfs_box box;
 
 	if (make_source(g, r, i, m, param, g->slot[slot].sca, x, y, &src) < 0 ||
-	    footprint(g, m, &src, &box) < 0)
+	    footprint(g, r, i, m, &src, &box) < 0)
 		return -1;
 	if (box.x0 < 0) box.x0 = 0;
 	if (box.y0 < 0) box.y0 = 0;
@@ -525,6 +535,24 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 		g->offdet++;    /* all its light misses this SCA */
 		return 0;
 	}
+	g->placements++;
+	g->per_model[m]++;
+	g->flux_requested[src.sca - 1] += src.flux;
+	g->placed_on[src.sca - 1]++;
+	if (g->placed &&
+	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
+		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
+		return err_sys(g->e, "%s", g->o->placed);
+	/* With --rows, counted and listed as in a run of the whole SCA (the
+	 * part's header is that run's), but drawn only in the rows written:
+	 * the windows are cut there, and a model gives the same pixels for
+	 * any windows. */
+	if (box.y0 < g->ylo)
+		box.y0 = g->ylo;
+	if (box.y1 > g->yhi)
+		box.y1 = g->yhi;
+	if (box.y0 >= box.y1)
+		return 0;
 	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
 	    grow((void **)&b->param, &b->capparam, b->nparam + md->ncolumns + 1,
 		 sizeof(double)) < 0)
@@ -537,14 +565,6 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	p->param_off = b->nparam;
 	memcpy(b->param + b->nparam, param, md->ncolumns * sizeof(double));
 	b->nparam += md->ncolumns;
-	g->placements++;
-	g->per_model[m]++;
-	g->flux_requested[src.sca - 1] += src.flux;
-	g->placed_on[src.sca - 1]++;
-	if (g->placed &&
-	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
-		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
-		return err_sys(g->e, "%s", g->o->placed);
 	return 0;
 }
 
@@ -562,7 +582,7 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 		return 0;
 	}
 	if (make_source(g, r, i, m, param, g->slot[0].sca, 0, 0, &src) < 0 ||
-	    footprint(g, m, &src, &box) < 0)
+	    footprint(g, r, i, m, &src, &box) < 0)
 		return -1;
 	ext = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1));
 	*reach = (ext + 2) * WFS_PIXSCALE;
@@ -843,6 +863,24 @@ static int bin_batch(struct engine *g, struct batch *b)
 	return 0;
 }
 
+/* A model failed in a worker: the first failure names the model (and the
+ * source), later ones on other threads add nothing.  what is the message
+ * when the plugin recorded none, as it must. */
+static void model_failed(struct engine *g, const char *model, const char *what,
+			 const struct wfs_source *src)
+{
+	pthread_mutex_lock(&g->err_mu);
+	if (!atomic_exchange(&g->failed, 1)) {
+		err_set(g->e, EXIT_PLUGIN, "%s" MODEL_SILENT, what);
+		if (src)
+			err_prefix(g->e, "model '%s': source %lld on SCA %d", model,
+				   src->id, src->sca);
+		else
+			err_prefix(g->e, "model '%s'", model);
+	}
+	pthread_mutex_unlock(&g->err_mu);
+}
+
 /* Worker: render every placement of one active tile, in placement order. */
 static void render_tile(void *arg, int wid, size_t task)
 {
@@ -866,7 +904,7 @@ static void render_tile(void *arg, int wid, size_t task)
 		if (!w->started[p->model]) {
 			if (pl->m->thread_start &&
 			    pl->m->thread_start(pl->state, &w->tstate[p->model]) < 0) {
-				atomic_store(&g->failed, 1);
+				model_failed(g, pl->name, "thread_start() failed", NULL);
 				return;
 			}
 			w->started[p->model] = 1;
@@ -878,11 +916,7 @@ static void render_tile(void *arg, int wid, size_t task)
 		win.stride = T;
 		win.pix = tile + (size_t)(win.y0 - y0) * T + (win.x0 - x0);
 		if (pl->m->render(pl->state, w->tstate[p->model], w, &p->src, &win) < 0) {
-			pthread_mutex_lock(&g->err_mu);
-			err_prefix(g->e, "model '%s': source %lld on SCA %d", pl->name,
-				   p->src.id, p->src.sca);
-			pthread_mutex_unlock(&g->err_mu);
-			atomic_store(&g->failed, 1);
+			model_failed(g, pl->name, "render() failed", &p->src);
 			return;
 		}
 	}
@@ -981,7 +1015,7 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 
 	*cards = NULL;
 	*n = 0;
-	if (sky_header(&g->sky, sca, &wcs, &nwcs, g->e) < 0)
+	if (sky_header(&g->sky, sca, g->ylo, &wcs, &nwcs, g->e) < 0)
 		return -1;
 	snprintf(name, sizeof(name), "WFI%02d", sca);
 #define CARD(fn, k, v, com) (fn(c, k, v, com), bad |= add_card(cards, n, &cap, c))
@@ -995,6 +1029,12 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 	CARD(fits_card_dbl, "RA_APER", g->sky.sca[sca - 1].ra, "detector centre RA");
 	CARD(fits_card_dbl, "DEC_APER", g->sky.sca[sca - 1].dec, "detector centre Dec");
 	CARD(fits_card_int, "NSOURCES", (long long)g->placed_on[sca - 1], "sources drawn on this SCA");
+	if (o->row_first) {
+		char rows[32];
+
+		snprintf(rows, sizeof(rows), "%d-%d", o->row_first, o->row_last);
+		CARD(fits_card_str, "ROWS", rows, "rows of the SCA in this part (--rows)");
+	}
 #undef CARD
 	for (int k = 0; k < nwcs; k++)
 		if (strncmp(wcs + 80 * k, "WCSAXES ", 8) && strncmp(wcs + 80 * k, "COMMENT", 7))
@@ -1012,20 +1052,24 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 
 	if (image_cards(g, s, &cards, &ncards) < 0)
 		return -1;
-	if (fitsout_image_begin(f, WFS_NPIX, WFS_NPIX, cards, ncards, g->e) < 0) {
+	if (fitsout_image_begin(f, WFS_NPIX, g->yhi - g->ylo, cards, ncards, g->e) < 0) {
 		free(cards);
 		return -1;
 	}
 	free(cards);
-	for (int ty = 0; ty < g->nty; ty++) {
+	/* The strips of tiles that hold the rows written, [ylo, yhi): all of
+	 * them but with --rows. */
+	for (int ty = g->ylo / T; ty * T < g->yhi; ty++) {
 		int y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
+		int ya = g->ylo > y0 ? g->ylo - y0 : 0;
+		int yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
 		double **row = &g->slot[s].tile[ty * g->ntx];
 		double t0;
 
 		for (int tx = 0; tx < g->ntx; tx++) {
 			int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
 
-			for (int y = 0; row[tx] && y < ny; y++)
+			for (int y = ya; row[tx] && y < yb; y++)
 				for (int x = 0; x < nx; x++)
 					g->image_sum[g->slot[s].sca - 1] += row[tx][(size_t)y * T + x];
 		}
@@ -1045,10 +1089,10 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 		}
 		g->t_noise += now() - t0;
 		t0 = now();
-		for (int y = 0; y < ny; y++)
+		for (int y = ya; y < yb; y++)
 			for (int tx = 0; tx < g->ntx; tx++) {
 				int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
-				float *out = strip + (size_t)y * WFS_NPIX + x0;
+				float *out = strip + (size_t)(y - ya) * WFS_NPIX + x0;
 
 				if (row[tx])
 					for (int x = 0; x < nx; x++)
@@ -1056,7 +1100,7 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 				else
 					memset(out, 0, nx * sizeof(float));
 			}
-		if (fitsout_image_rows(f, strip, ny, g->e) < 0)
+		if (fitsout_image_rows(f, strip, yb - ya, g->e) < 0)
 			return -1;
 		for (int tx = 0; tx < g->ntx; tx++) {
 			tile_free(row[tx], T);
@@ -1145,6 +1189,8 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct pool
 	g->tile = o->tile;
 	g->ntx = g->nty = (WFS_NPIX + g->tile - 1) / g->tile;
 	g->ntile = g->ntx * g->nty;
+	g->ylo = o->row_first ? o->row_first - 1 : 0;
+	g->yhi = o->row_first ? o->row_last : WFS_NPIX;
 	for (int s = 0; s <= WFS_NSCA; s++)
 		g->slot_of[s] = -1;
 	for (int s = 1; s <= WFS_NSCA; s++)
@@ -1679,8 +1725,11 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				struct batch *b = &g[i]->b[cur];
 
 				g[i]->rows_read += n;
-				if (build_batch(g[i], &rows, b) < 0)
+				if (build_batch(g[i], &rows, b) < 0) {
+					/* Never a silent end of the run. */
+					err_set(e, EXIT_SYSTEM, "placing the rows of %s failed", *cat);
 					break;
+				}
 				ta = now();
 				g[i]->t_place += ta - tb;
 				if (pending) {

@@ -42,6 +42,8 @@ struct scene_opts {
 	const char *sersic_flux;        /* NULL (per catalog), "total", "ie" */
 	double bright_limit, xbright_limit;
 	int tile;                       /* tile side in pixels */
+	int row_first, row_last;        /* --rows: FITS rows (1-based) of each
+	                                   SCA to draw and write; 0 0 for all */
 	size_t chunk;                   /* rows per chunk */
 	int flux_unit;                  /* enum flux_unit default */
 	int zp_stips;                   /* STIPS's fixed zeropoints */

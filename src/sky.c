@@ -206,11 +206,24 @@ int sky_to_pixel(struct sky *sky, int s, size_t n, const double *ra,
 	return 0;
 }
 
-int sky_header(struct sky *sky, int s, char **cards, int *ncards, struct err *e)
+int sky_header(struct sky *sky, int s, int row0, char **cards, int *ncards,
+	       struct err *e)
 {
-	int status = wcshdo(WCSHDO_P17, &sky->sca[s - 1].wcs,
-			    ncards, cards);
+	struct wcsprm part = { .flag = -1 };
+	int status;
 
+	if (!row0) {
+		status = wcshdo(WCSHDO_P17, &sky->sca[s - 1].wcs, ncards, cards);
+	} else {
+		/* A copy whose reference pixel is counted from the part's
+		 * first row; the SCA's own WCS stays as it is. */
+		if (!(status = wcssub(1, &sky->sca[s - 1].wcs, NULL, NULL, &part))) {
+			part.crpix[1] -= row0;
+			part.flag = 0;
+			status = wcshdo(WCSHDO_P17, &part, ncards, cards);
+		}
+		wcsfree(&part);
+	}
 	if (status)
 		return err_set(e, EXIT_SYSTEM, "wcslib: %s", wcs_errmsg[status]);
 	return 0;

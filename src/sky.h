@@ -60,8 +60,10 @@ void sky_from_focal(const struct sky *sky, double fx, double fy, double *ra,
 int sky_to_pixel(struct sky *sky, int s, size_t n, const double *ra,
 		 const double *dec, double *x, double *y, struct err *e);
 
-/* The WCS header cards of SCA s (concatenated 80-char cards; free()). */
-int sky_header(struct sky *sky, int s, char **cards, int *ncards,
+/* The WCS header cards of SCA s (concatenated 80-char cards; free()), for
+ * an image whose first row is the SCA's row row0 (0-based; 0 for the whole
+ * SCA): CRPIX2 is counted from there. */
+int sky_header(struct sky *sky, int s, int row0, char **cards, int *ncards,
 	       struct err *e);
 
 /* Half the SCA side in arcsec, for culling in the focal plane. */

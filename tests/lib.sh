@@ -86,6 +86,23 @@ PSF=${WFS_TEST_PSF:-builtin}
 # fitsinfo FILE: one line per image HDU: name sum max x y (0-based argmax).
 fitsinfo() { "$PY" "$TOP/tests/fitsinfo.py" "$@"; }
 
+# wfs_install PREFIX [make variables...]: `make install PREFIX=...` of this
+# build, done from a private copy of the build directory: an install compiles
+# its plugin directory into the program it installs, and the program the
+# other tests are running must not be rebuilt under them.
+wfs_install() {
+	_prefix=$1
+	shift
+	_copy=$TRASH/.build-copy
+	rm -rf "$_copy" && mkdir -p "$_copy" || return 1
+	for _f in obj plugins contrib libwfs.a wfiscene data_tables.c psf_src.h \
+		plugindir.stamp; do
+		[ ! -e "$BUILD/$_f" ] || cp -pR "$BUILD/$_f" "$_copy/" || return 1
+	done
+	case $BUILD in */build-san) set -- SANITIZE=1 "$@" ;; esac
+	make -s -C "$TOP" B="$_copy" PREFIX="$_prefix" "$@" install
+}
+
 have_shared() { [ -d "$SHARED/roman" ]; }
 have_python() { "$PY" -c 'import numpy, astropy' 2>/dev/null; }
 

@@ -28,6 +28,16 @@ test_expect_success 'each exposure equals a single run of its pointing and seed'
 	run --ra 10 --dec 20 --pa 33.5 --seed 99 -o three.fits stars.csv &&
 	cmp exp_third.fits three.fits
 '
+test_expect_success 'the catalog is read once for all exposures: from a pipe, chunk by chunk' '
+	cat stars.csv | run --pointings dither.txt --chunk 500 -o "pipe_%s.fits" \
+		--report "pipe_%s.json" - &&
+	cmp exp_001.fits pipe_001.fits && cmp exp_second.fits pipe_second.fits &&
+	cmp exp_third.fits pipe_third.fits &&
+	for n in 001 second third; do
+		"$PY" -c "import json, sys; r = json.load(open(sys.argv[1]))
+assert r[\"rows\"][\"read\"] == 3000, r[\"rows\"]" pipe_$n.json || exit 1
+	done
+'
 test_expect_success 'the exposures differ (pointing and noise)' '
 	! cmp -s exp_001.fits exp_second.fits
 '

@@ -28,6 +28,7 @@ ap.add_argument('--bright', type=int, default=5)
 ap.add_argument('--nsca', type=int, default=18)
 ap.add_argument('--width', type=int, default=600)
 ap.add_argument('--seed', type=int, default=1)
+ap.add_argument('--zp', type=float, default=None)
 a = ap.parse_args()
 rng = np.random.default_rng(a.seed)
 n = a.n
@@ -68,6 +69,8 @@ for k in range(a.nsca):
     hd['CD1_1'] = -scale * math.cos(pa); hd['CD1_2'] = scale * math.sin(pa)
     hd['CD2_1'] = scale * math.sin(pa);  hd['CD2_2'] = scale * math.cos(pa)
     hd['BUNIT'] = 'counts/s'
+    if a.zp is not None:
+        hd['PHOTZPAB'] = a.zp
     hdus.append(h)
     wcss.append((ra, dec))
 fits.HDUList(hdus).writeto(a.out, overwrite=True)
@@ -231,6 +234,68 @@ cx, cy = sum(q[0] for q in w) / len(w), sum(q[1] for q in w) / len(w)
 assert len(w) < 30 and abs(cx - $sx) <= 2 and abs(cy - $sy) <= 2, (len(w), cx, cy, $sx, $sy)
 "'
 
+# wfiscene's own output: a star at the centre of SCAs 1, 3, 7 and 16 (the
+# two ends and the middle of the focal plane).  On the PNG, north up and
+# east left, the stars must sit where data/sca.tsv puts the SCA centres in
+# the WFI's ideal frame (+x west and +y north at PA 0; +y east and +x north
+# at PA 90), up to one scale factor, within 2 pixels (the
+# SCAs are 54 pixels apart).
+printf 'x,y,sca,flux\n' >fpstars.csv
+for s in 1 3 7 16; do printf '2044.5,2044.5,%d,100000\n' $s >>fpstars.csv; done
+cat >layout.py <<'EOF'
+import sys, png
+P = png.read(sys.argv[1]); pa = float(sys.argv[2])
+tsv = {}
+for line in open(sys.argv[3]):
+    f = line.split()
+    if f and f[0].isdigit():
+        tsv[int(f[0])] = (float(f[1]), float(f[2]))
+# the stars: white pixels in clusters, each cluster's centre
+white = [(x, y) for y in range(P.h) for x in range(P.w) if P.px(x, y)[0] > 250]
+blobs = []
+for x, y in white:
+    for b in blobs:
+        if abs(b[0][0] - x) < 8 and abs(b[0][1] - y) < 8:
+            b.append((x, y)); break
+    else:
+        blobs.append([(x, y)])
+assert len(blobs) == 4, [b[0] for b in blobs]
+c = [(sum(p[0] for p in b) / len(b), sum(p[1] for p in b) / len(b)) for b in blobs]
+# where each SCA should be on the PNG, up to offset and scale
+want = {}
+for s in (1, 3, 7, 16):
+    fx, fy = tsv[s]
+    want[s] = (fx, -fy) if pa == 0 else (-fy, -fx)
+# pair each blob with its SCA from a rough fit (offset and scale from the
+# extremes along PNG x), then fit offset and scale by least squares
+sx = sorted(want, key=lambda s: want[s][0])
+cx = sorted(c)
+k = (cx[-1][0] - cx[0][0]) / (want[sx[-1]][0] - want[sx[0]][0])
+ox, oy = cx[0][0] - k * want[sx[0]][0], sum(q[1] for q in c) / 4 - k * sum(w[1] for w in want.values()) / 4
+pair = {s: min(c, key=lambda q: (q[0] - ox - k * want[s][0]) ** 2 + (q[1] - oy - k * want[s][1]) ** 2)
+        for s in want}
+assert len(set(pair.values())) == 4, pair
+mw = [sum(want[s][i] for s in want) / 4 for i in (0, 1)]
+mc = [sum(pair[s][i] for s in want) / 4 for i in (0, 1)]
+k = (sum((pair[s][i] - mc[i]) * (want[s][i] - mw[i]) for s in want for i in (0, 1)) /
+     sum((want[s][i] - mw[i]) ** 2 for s in want for i in (0, 1)))
+for s in want:
+    px, py = mc[0] + k * (want[s][0] - mw[0]), mc[1] + k * (want[s][1] - mw[1])
+    d = ((pair[s][0] - px) ** 2 + (pair[s][1] - py) ** 2) ** 0.5
+    assert d < 2, ('WFI%02d' % s, px, py, pair[s])
+print('ok', k)
+EOF
+test_expect_success 'wfiscene'"'"'s focal plane at PA 0 is laid out as the WFI on the sky' '
+	"$WFS" --filter F158 --sca 1,3,7,16 --psf "$PSF" -q -o wfp0.fits fpstars.csv &&
+	"$WFS" preview wfp0.fits --width 400 -o wfp0.png &&
+	PYTHONPATH=$TRASH "$PY" layout.py wfp0.png 0 "$TOP/data/sca.tsv"
+'
+test_expect_success 'and at PA 90 it turns with the position angle (+y east)' '
+	"$WFS" --filter F158 --sca 1,3,7,16 --psf "$PSF" --pa 90 -q -o wfp90.fits fpstars.csv &&
+	"$WFS" preview wfp90.fits --width 400 -o wfp90.png &&
+	PYTHONPATH=$TRASH "$PY" layout.py wfp90.png 90 "$TOP/data/sca.tsv"
+'
+
 test_expect_success 'a colour composite from three filters' '
 	"$PY" mkfp.py r.fits --star 2 --bright 0 --seed 1 --width 500 >/dev/null &&
 	"$PY" mkfp.py g.fits --star 0 --bright 0 --seed 2 >/dev/null &&
@@ -249,6 +314,30 @@ r, g, b = Q.px(127, 128)
 assert r == 255 and g < 128 and b < 128, (r, g, b)
 assert \"Lupton\" in Q.text[\"Comment\"], Q.text
 "'
+
+# A star of flat f_nu gives fewer counts/s through a filter of lower
+# zeropoint: 500 in G and B (PHOTZPAB 26.3) is 500 x 10^(-0.2) = 315.5 in R
+# (25.8).  Balanced by PHOTZPAB it is white; by counts it would be cyan.
+test_expect_success 'a colour composite is balanced by PHOTZPAB: a flat spectrum is white' '
+	"$PY" mkfp.py zr.fits --star 2 --starflux 315.479 --zp 25.8 --bright 0 --seed 1 >/dev/null &&
+	"$PY" mkfp.py zg.fits --star 2 --starflux 500 --zp 26.3 --bright 0 --seed 2 >/dev/null &&
+	"$PY" mkfp.py zb.fits --star 2 --starflux 500 --zp 26.3 --bright 0 --seed 3 >/dev/null &&
+	"$WFS" preview --rgb zr.fits zg.fits zb.fits --sca 2 -v -o z.png 2>err &&
+	test_grep "zr.fits: balanced by PHOTZPAB" err &&
+	pycheck "
+P = png.read(\"z.png\")
+# the star: every pixel within 3 of the centre that is not black
+px = [P.px(x, y) for y in range(124, 132) for x in range(124, 132)]
+px = [p for p in px if max(p) > 60]
+assert len(px) > 4, px
+r, g, b = [sum(p[c] for p in px) for c in range(3)]
+assert abs(r / g - 1) < 0.05 and abs(b / g - 1) < 0.05, (r, g, b, px)
+assert \"PHOTZPAB\" in P.text[\"Comment\"], P.text
+" &&
+	"$PY" mkfp.py zn.fits --star 2 --starflux 500 --bright 0 --seed 2 >/dev/null &&
+	"$WFS" preview --rgb zr.fits zn.fits zb.fits --sca 2 -v -o zn.png 2>err &&
+	test_grep "not every image has PHOTZPAB" err
+'
 
 test_expect_success 'levels and stretch are recorded and can be set' '
 	"$WFS" preview fp.fits --sca 1 --min 0 --max 10 --stretch linear -o lin.png &&

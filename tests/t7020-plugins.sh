@@ -28,8 +28,15 @@ refused() {
 	! ls -A | grep -q "out\.fits"
 }
 
-for p in abi_wrong desc_small init_fails render_fails no_entry declines; do
+for p in abi_wrong desc_small init_fails render_fails no_entry declines col_noname; do
 	test_expect_success "test plugin $p builds" "build $p"
+done
+for c in prepare footprint render; do
+	test_expect_success "test plugin silent_$c builds" "
+		\${CC:-cc} -std=c11 -Wall -Wextra -Wno-unused-parameter -shared -fPIC \
+			-fvisibility=hidden -I\"\$TOP/include\" -DSILENT_$(echo $c | tr a-z A-Z) \
+			-DSILENT_NAME='\"silent_$c\"' -o plugins/silent_$c.so \
+			\"\$TOP/tests/plugins/silent.c\""
 done
 
 test_expect_success 'wrong ABI version: refused, and told to rebuild' '
@@ -58,6 +65,17 @@ test_expect_success 'render() failing on several threads at once is reported onc
 	test "$(grep -c "deliberate failure" err)" = 1 &&
 	! ls -A | grep -q "out\.fits"
 '
+
+test_expect_success 'a column without a name: refused when loaded' '
+	refused col_noname "column 2 of the descriptor has no name"
+'
+
+for c in prepare footprint render; do
+	test_expect_success "$c() failing without a message: exit 3, named, no output" "
+		refused silent_$c '$c() failed, with no message' &&
+		test_grep 'cat.csv:2: model .silent_$c.\\|model .silent_$c.: source' err
+	"
+done
 
 test_expect_success 'a shared object without the entry symbol: not a model' '
 	refused no_entry "no symbol .wfs_model_entry."

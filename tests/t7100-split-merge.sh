@@ -1,12 +1,14 @@
 #!/bin/sh
-# Split runs and `wfiscene merge`: an exposure rendered in SCA groups (with
-# every noise stage on) and merged is byte for byte the single run, also
-# tile-compressed; merge refuses inputs of different exposures, a duplicate
+# Split runs and `wfiscene merge`: an exposure rendered in SCA groups and
+# in bands of rows (--rows, with every noise stage on) and merged is byte
+# for byte the single run, also tile-compressed (by SCA); merge refuses inputs of different exposures, a duplicate
 # SCA, files wfiscene did not write and truncated ones, and leaves nothing
 # behind when it fails or is interrupted.  The Slurm job-array script runs
-# its task body through SLURM_ARRAY_TASK_ID every time, and on a real
-# cluster when one answers; the GNU parallel recipe runs when parallel is
-# installed.  WFS_TEST_FULL=1 adds the whole 1-9 / 10-18 case (slow).
+# its task body through SLURM_ARRAY_TASK_ID every time, and through sbatch
+# on a real cluster: one that answers, or a private one-node cluster this
+# script starts when it can (see below); the GNU parallel recipe runs when
+# parallel is installed (contrib/install-deps.sh installs it and Slurm).
+# WFS_TEST_FULL=1 adds the whole 1-9 / 10-18 case (slow).
 . "$(dirname "$0")/lib.sh"
 
 SLURM=$TOP/contrib/slurm
@@ -96,6 +98,85 @@ test_expect_success 'merge -v says where each SCA comes from' '
 '
 test_expect_success 'a part that is itself a merge merges again' '
 	"$WFS" merge -o m3.fits m.fits && cmp full.fits m3.fits
+'
+
+# Splitting by rows (--rows A-B): each part draws and writes a band of rows
+# of its SCAs, with a WCS for its own pixels, and merge joins the bands.
+# The first boundary runs through the brightest star on SCA 1, and none is
+# on a tile edge.
+"$WFS" $OPTS --sca 1 --placed placed1.csv -o /dev/null cat.csv 2>/dev/null
+cut=$(awk -F, 'NR > 1 && $2 == 1 { if ($5 > f) { f = $5; y = int($4) } } END { print y + 0 }' \
+	placed1.csv 2>/dev/null)
+test_expect_success 'row parts (--rows), cut through a star, merge into the single run' '
+	test "$cut" -gt 100 && test "$cut" -lt 3000 &&
+	"$WFS" $OPTS --sca 1-2 --rows 1-$cut -o ra.fits cat.csv 2>/dev/null &&
+	"$WFS" $OPTS --sca 1-2 --rows $((cut + 1))-3000 -o rb.fits cat.csv 2>/dev/null &&
+	"$WFS" $OPTS --sca 1-2 --rows 3001-4088 -o rc.fits cat.csv 2>/dev/null &&
+	"$WFS" merge -v -o rm.fits rc.fits p34.fits rb.fits ra.fits 2>log &&
+	cmp full.fits rm.fits &&
+	test_grep "WFI02 rows $((cut + 1))-3000 from rb.fits (HDU 3)" log &&
+	test_grep "rm.fits: 4 SCA images from 4 files" log
+'
+test_expect_success 'a row part is a proper FITS image of its rows, WCS and all' '
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+from astropy.wcs import WCS
+full = fits.open(\"full.fits\")[\"WFI01\"]
+part = fits.open(\"rb.fits\")[\"WFI01\"]
+a, b = map(int, part.header[\"ROWS\"].split(\"-\"))
+assert part.data.shape == (b - a + 1, 4088), part.data.shape
+assert np.array_equal(part.data, full.data[a - 1:b])
+assert part.header[\"NSOURCES\"] == full.header[\"NSOURCES\"]
+wf, wp = WCS(full.header), WCS(part.header)
+for x, y in ((1, a), (2000.5, a + 17.25), (4088, b)):
+    sf = wf.all_pix2world(x, y, 1); sp = wp.all_pix2world(x, y - a + 1, 1)
+    assert abs(sf[0] - sp[0]) < 1e-12 and abs(sf[1] - sp[1]) < 1e-12, (sf, sp)
+"
+'
+test_expect_success 'merge refuses row parts that leave a gap, overlap, or join a whole image' '
+	"$WFS" $OPTS --sca 1-2 --rows 2990-4088 -o rover.fits cat.csv 2>/dev/null &&
+	test_must_fail --status 1 "$WFS" merge -o x.fits ra.fits rb.fits p34.fits 2>err &&
+	test_grep "WFI01: rows 3001-4088 are in no input (the last part, in rb.fits, has rows $((cut + 1))-3000)" err &&
+	test_must_fail --status 1 "$WFS" merge -o x.fits ra.fits rc.fits 2>err &&
+	test_grep "WFI01: rows $((cut + 1))-3000 are in no input (ra.fits has rows 1-$cut, rc.fits rows 3001-4088)" err &&
+	test_must_fail --status 1 "$WFS" merge -o x.fits rb.fits rc.fits 2>err &&
+	test_grep "WFI01: rows 1-$cut are in no input" err &&
+	test_must_fail --status 1 "$WFS" merge -o x.fits ra.fits rb.fits rover.fits 2>err &&
+	test_grep "rover.fits: WFI01 rows 2990-4088 overlap rows $((cut + 1))-3000 in rb.fits" err &&
+	test_must_fail --status 1 "$WFS" merge -o x.fits ra.fits rb.fits rc.fits p12.fits 2>err &&
+	test_grep "WFI01 is also in" err &&
+	no_output x.fits
+'
+test_expect_success 'merge refuses row parts of different images (another catalog)' '
+	grep -v "^0.01,0.01," cat.csv >cat1.csv &&
+	"$WFS" $OPTS --sca 1-2 --rows 3001-4088 -o rother.fits cat1.csv 2>/dev/null &&
+	test_must_fail --status 1 "$WFS" merge -o x.fits ra.fits rb.fits rother.fits 2>err &&
+	test_grep "rother.fits: WFI0[12] rows 3001-4088: its header has .NSOURCES=" err &&
+	no_output x.fits
+'
+test_expect_success '--rows: bad ranges and tile compression are refused' '
+	for r in 0-10 10-4089 20-10 10 a-b 1-2-3; do
+		test_must_fail --status 1 "$WFS" $OPTS --rows $r -o x.fits cat.csv 2>err &&
+		test_grep "^wfiscene: --rows" err || exit 1
+	done &&
+	test_must_fail --status 1 "$WFS" $OPTS --rows 1-10 --compress rice -o x.fits cat.csv 2>err &&
+	test_grep "joined uncompressed" err && no_output x.fits
+'
+cat > tasks-rows.txt <<\EOF
+expR    0   0    0   F158    1-2    cat.csv  --seed 5 --rows 1-1500
+expR    0   0    0   F158    1-2    cat.csv  --seed 5 --rows=1501-4088
+expR    0   0    0   F158    3,4    cat.csv  --seed 5
+EOF
+test_expect_success 'Slurm scripts with --rows in the task lines: parts named by rows, merged' '
+	for k in 1 2 3; do
+		SLURM_ARRAY_TASK_ID=$k "$SLURM/wfiscene-array.sh" tasks-rows.txt rparts 2>>log ||
+			exit 1
+	done &&
+	test_grep "task 2: expR F158 SCAs 1-2 rows 1501-4088 -> rparts/expR/sca-1-2.rows-1501-4088.fits" log &&
+	test -f rparts/expR/sca-1-2.rows-1-1500.fits && test -f rparts/expR/sca-3+4.fits &&
+	"$SLURM/wfiscene-merge.sh" tasks-rows.txt rparts rout 2>/dev/null &&
+	cmp full.fits rout/expR.fits && ! test -e rparts/expR
 '
 
 test_expect_success 'tile-compressed (rice, with dither) parts merge into the compressed single run' '
@@ -239,20 +320,102 @@ else
 	test_skip 'GNU parallel recipe' 'parallel is not installed'
 fi
 
-# A real cluster only when one is already up: tests start no daemons.
+# Slurm for real: a cluster that answers sinfo already, or else (as root,
+# with Debian's slurmctld, slurmd and munge installed) a private one-node
+# cluster started here: its own munge key and socket, configuration, spool
+# and ports under $TRASH, stopped when the script ends.  Without either,
+# the task body above has still run, through SLURM_ARRAY_TASK_ID set by
+# hand, and this test says so when it skips.
+slurm_pids=
+stop_slurm() {
+	for p in $slurm_pids; do kill "$p" 2>/dev/null; done
+	for p in $slurm_pids; do wait "$p" 2>/dev/null; done
+	slurm_pids=
+}
+trap 'stop_slurm; rm -rf "$TRASH"' EXIT
+
+start_slurm() {
+	d=$TRASH/slurm
+	command -v slurmctld >/dev/null && command -v slurmd >/dev/null &&
+		command -v munged >/dev/null && [ "$(id -u)" = 0 ] || return 1
+	mkdir -p "$d/ctld" "$d/spool" "$d/munge" && chmod 711 "$d/munge" &&
+		head -c 1024 /dev/urandom >"$d/munge/key" && chmod 400 "$d/munge/key" ||
+		return 1
+	munged -F --force --key-file="$d/munge/key" --socket="$d/munge/socket" \
+		--pid-file="$d/munge/pid" --log-file="$d/munge/log" \
+		--seed-file="$d/munge/seed" 2>"$d/munged.err" &
+	slurm_pids="$slurm_pids $!"
+	port=$((20000 + $$ % 20000))
+	host=$(hostname -s)
+	# This machine's CPUs and memory, as slurmd sees them.
+	node=$(slurmd -C | sed -n 's/.*\(CPUs=[0-9]*\).*\(RealMemory=[0-9]*\).*/\1 \2/p')
+	cat >"$d/slurm.conf" <<EOT
+ClusterName=wfiscenetest
+SlurmctldHost=$host(127.0.0.1)
+SlurmctldPort=$port
+SlurmdPort=$((port + 1))
+SlurmUser=root
+AuthType=auth/munge
+AuthInfo=socket=$d/munge/socket
+CredType=cred/munge
+StateSaveLocation=$d/ctld
+SlurmdSpoolDir=$d/spool
+SlurmctldPidFile=$d/slurmctld.pid
+SlurmdPidFile=$d/slurmd.pid
+SlurmctldLogFile=$d/slurmctld.log
+SlurmdLogFile=$d/slurmd.log
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+JobAcctGatherType=jobacct_gather/none
+SelectType=select/cons_tres
+SelectTypeParameters=CR_Core_Memory
+ReturnToService=2
+NodeName=wfsnode NodeHostname=$host NodeAddr=127.0.0.1 $node State=UNKNOWN
+PartitionName=wfs Nodes=wfsnode Default=YES MaxTime=INFINITE State=UP
+EOT
+	SLURM_CONF=$d/slurm.conf
+	export SLURM_CONF
+	i=0
+	until [ -S "$d/munge/socket" ] || [ $i -ge 100 ]; do sleep 0.1; i=$((i + 1)); done
+	slurmctld -D -i >"$d/slurmctld.out" 2>&1 &
+	slurm_pids="$slurm_pids $!"
+	slurmd -D -N wfsnode >"$d/slurmd.out" 2>&1 &
+	slurm_pids="$slurm_pids $!"
+	i=0
+	until timeout 5 sinfo -h -o %t 2>/dev/null | grep -q idle || [ $i -ge 30 ]; do
+		sleep 1; i=$((i + 1)); done
+	timeout 5 sinfo -h -o %t 2>/dev/null | grep -q idle && return 0
+	echo "# the private Slurm cluster did not start:" && tail -n 5 "$d"/*.log
+	stop_slurm
+	unset SLURM_CONF
+	return 1
+}
+
+slurm=
 if command -v sbatch >/dev/null 2>&1 && timeout 10 sinfo -h >/dev/null 2>&1; then
-	test_expect_success 'Slurm for real: array job and dependent merge job' '
-		"$SLURM/wfiscene-submit.sh" tasks.txt sparts sout --cpus-per-task=1 --mem=1G >jobs &&
-		test_grep "array job .* (2 tasks), merge job" jobs &&
-		i=0 && while ! test -f sout/expA.fits && [ $i -lt 300 ]; do
+	slurm="the cluster that answers sinfo"
+elif start_slurm; then
+	slurm="a private one-node cluster ($(sinfo -V))"
+fi
+if [ -n "$slurm" ]; then
+	say "Slurm for real on $slurm"
+	test_expect_success 'Slurm for real: array job (by SCA and by rows) and dependent merge job' '
+		"$SLURM/wfiscene-submit.sh" tasks-rows.txt sparts sout --cpus-per-task=1 \
+			--mem=1G >jobs &&
+		test_grep "array job .* (3 tasks), merge job" jobs &&
+		i=0 && while ! test -f sout/expR.fits && [ $i -lt 300 ]; do
 			sleep 1; i=$((i + 1)); done &&
-		{ test -f sout/expA.fits ||
-		  { scancel $(awk "{ print \$3, \$NF }" jobs); false; }; } &&
-		cmp full.fits sout/expA.fits && ! test -e sparts/expA
+		{ test -f sout/expR.fits ||
+		  { scancel $(awk "{ print \$3, \$NF }" jobs); cat wfiscene-*.log; false; }; } &&
+		cmp full.fits sout/expR.fits && ! test -e sparts/expR &&
+		test_grep "task 1: expR F158 SCAs 1-2 rows 1-1500" wfiscene-*_1.log &&
+		test_grep "task 2: expR F158 SCAs 1-2 rows 1501-4088" wfiscene-*_2.log &&
+		test_grep "task 3: expR F158 SCAs 3,4" wfiscene-*_3.log
 	'
 else
-	test_skip 'Slurm for real' 'no Slurm cluster answers sinfo here'
+	test_skip 'Slurm for real' 'no Slurm cluster here and none could be started (as root, with slurmctld, slurmd and munge); the array task body ran with SLURM_ARRAY_TASK_ID set by the test instead'
 fi
+stop_slurm
 
 if [ "${WFS_TEST_FULL:-0}" = 1 ]; then
 	test_expect_success 'full exposure: --sca 1-9 and 10-18 merge into --sca 1-18' '

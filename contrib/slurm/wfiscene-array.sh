@@ -12,7 +12,9 @@
 #   sbatch --array=1-$n wfiscene-array.sh tasks.txt /scratch/$USER/parts
 #
 # Array task k runs the k-th task line of TASKS (blank lines and # comments
-# do not count) and writes SCRATCH/NAME/sca-SCAS.fits.  A task line is
+# do not count) and writes SCRATCH/NAME/sca-SCAS.fits (sca-SCAS.rows-A-B.fits
+# when its options hold --rows A-B: a band of rows of those SCAs).  A task
+# line is
 #
 #   NAME  RA  DEC  PA  FILTER  SCAS  CATALOG  [wfiscene options ...]
 #
@@ -20,6 +22,8 @@
 #
 #   exp001  150.10  2.20  0  F158  1-9    cosmos.csv  --seed 101
 #   exp001  150.10  2.20  0  F158  10-18  cosmos.csv  --seed 101
+#   exp002  150.12  2.21  0  F158  5      dense.csv   --seed 102 --rows 1-2044
+#   exp002  150.12  2.21  0  F158  5      dense.csv   --seed 102 --rows 2045-4088
 #
 # Every line of one exposure must give it the same settings (the same seed
 # above all: noise is keyed by seed and pixel, so that is what makes the
@@ -69,14 +73,29 @@ case $scas in
 	exit 1 ;;
 esac
 
-# The part's name comes from its SCA list; wfiscene-merge.sh finds it the
-# same way.  wfiscene writes it under a temporary name and renames it when
-# complete, so a task that fails or is requeued never leaves half a part.
+# The part's name comes from its SCA list and --rows; wfiscene-merge.sh
+# finds it the same way.  wfiscene writes it under a temporary name and
+# renames it when complete, so a task that fails or is requeued never leaves
+# half a part.
+rows=
+next=
+for a in "$@"; do
+	if [ -n "$next" ]; then rows=$a next=; continue; fi
+	case $a in
+	--rows) next=1 ;;
+	--rows=*) rows=${a#--rows=} ;;
+	esac
+done
+case $rows in
+*[!0-9-]*)
+	echo "wfiscene-array: $tasks: task $task: bad --rows '$rows'" >&2
+	exit 1 ;;
+esac
 mkdir -p "$scratch/$name"
-part=$scratch/$name/sca-$(printf '%s' "$scas" | tr , +).fits
+part=$scratch/$name/sca-$(printf '%s' "$scas" | tr , +)${rows:+.rows-$rows}.fits
 threads=${SLURM_CPUS_PER_TASK:-0}
 
-echo "wfiscene-array: task $task: $name $filter SCAs $scas -> $part" >&2
+echo "wfiscene-array: task $task: $name $filter SCAs $scas${rows:+ rows $rows} -> $part" >&2
 # shellcheck disable=SC2086
 exec "$wfiscene" --filter "$filter" --ra "$ra" --dec "$dec" --pa "$pa" \
 	--sca "$scas" --threads "$threads" ${WFISCENE_OPTS:-} "$@" \

@@ -11,7 +11,8 @@
 #   sbatch --dependency=afterok:$jobid wfiscene-merge.sh tasks.txt SCRATCH OUTDIR
 #
 # TASKS and SCRATCH are those the array job was given.  Each exposure's
-# parts are the files its task lines name (SCRATCH/NAME/sca-SCAS.fits); a
+# parts are the files its task lines name (SCRATCH/NAME/sca-SCAS.fits, or
+# sca-SCAS.rows-A-B.fits for a line with --rows A-B); a
 # missing part is an error, and so is an SCA in two parts or parts whose
 # settings differ (`wfiscene merge` checks).  The parts are removed once
 # their exposure is merged, unless KEEP_PARTS=1.
@@ -28,10 +29,17 @@ outdir=${3:?$usage}
 wfiscene=${WFISCENE:-wfiscene}
 only=${SLURM_ARRAY_TASK_ID:-}
 
-# "NAME PART" for every task line, in the order of the file.
+# "NAME PART" for every task line, in the order of the file, named as
+# wfiscene-array.sh names them (with the line's --rows, if any).
 parts=$(awk '
 	/^[[:space:]]*(#|$)/ { next }
-	{ s = $6; gsub(",", "+", s); print $1, $1 "/sca-" s ".fits" }' "$tasks")
+	{
+		s = $6; gsub(",", "+", s); r = ""
+		for (i = 8; i <= NF; i++)
+			if ($i == "--rows" && i < NF) r = ".rows-" $(i + 1)
+			else if ($i ~ /^--rows=/) r = ".rows-" substr($i, 8)
+		print $1, $1 "/sca-" s r ".fits"
+	}' "$tasks")
 # The exposures, each once, in the order of their first line.
 names=$(printf '%s\n' "$parts" | awk 'NF && !seen[$1]++ { print $1 }')
 if [ -z "$names" ]; then

@@ -7,7 +7,9 @@
  * to the sky through the parsed header come back through sky_to_pixel() to
  * within 1e-6 pixel; the pixel scale is 0.11", the parity standard (east
  * to the left of north), and +y points at the position angle the header's
- * PA_APER records.  t4101-wcs.sh does the same through astropy.
+ * PA_APER records.  The header of a --rows part (CRPIX2 counted from its
+ * first row) maps its pixel (x, y - row0) as the SCA's (x, y).
+ * t4101-wcs.sh does the same through astropy.
  */
 #include <math.h>
 #include <stdio.h>
@@ -62,7 +64,7 @@ static void pointing(double ra, double dec, double pa, int boresight,
 {
 	struct err e = { 0 };
 	struct sky sky;
-	double worst = 0, worst_scale = 0, worst_pa = 0;
+	double worst = 0, worst_scale = 0, worst_pa = 0, worst_part = 0;
 	int parity_ok = 1, parsed_ok = 1;
 
 	if (!ok(sky_init(&sky, ra, dec, pa, boresight, (1u << WFS_NSCA) - 1,
@@ -70,22 +72,31 @@ static void pointing(double ra, double dec, double pa, int boresight,
 		return;
 	srand(seed);
 	for (int s = 1; s <= WFS_NSCA; s++) {
-		char *cards = NULL;
-		int ncards = 0, nrej = 0, nwcs = 0;
-		struct wcsprm *w = NULL;
+		char *cards = NULL, *pcards = NULL;
+		int ncards = 0, nrej = 0, nwcs = 0, npcards = 0, pnrej = 0, pnwcs = 0;
+		/* the header of a --rows part starting at 0-based row row0 */
+		int row0 = 500 + 37 * s;
+		struct wcsprm *w = NULL, *pw = NULL;
 
-		if (sky_header(&sky, s, &cards, &ncards, &e) < 0 ||
+		if (sky_header(&sky, s, 0, &cards, &ncards, &e) < 0 ||
 		    wcspih(cards, ncards, WCSHDR_all, 0, &nrej, &nwcs, &w) ||
-		    nrej != 0 || nwcs != 1 || wcsset(w)) {
+		    nrej != 0 || nwcs != 1 || wcsset(w) ||
+		    sky_header(&sky, s, row0, &pcards, &npcards, &e) < 0 ||
+		    wcspih(pcards, npcards, WCSHDR_all, 0, &pnrej, &pnwcs, &pw) ||
+		    pnrej != 0 || pnwcs != 1 || wcsset(pw)) {
 			parsed_ok = 0;
 			diag("SCA %d: header not parsed (%d rejected, %d WCS)", s,
 			     nrej, nwcs);
 			free(cards);
+			free(pcards);
 			if (w)
 				wcsvfree(&nwcs, &w);
+			if (pw)
+				wcsvfree(&pnwcs, &pw);
 			continue;
 		}
 		free(cards);
+		free(pcards);
 		/* pixels over the detector and a little beyond its edges */
 		for (int k = 0; k < 60; k++) {
 			double x = -50 + 4188.0 * rand() / RAND_MAX;
@@ -98,6 +109,13 @@ static void pointing(double ra, double dec, double pa, int boresight,
 				continue;
 			}
 			worst = fmax(worst, fmax(fabs(px - x), fabs(py - y)));
+			/* the part's pixel (x, y - row0) is the SCA's (x, y) */
+			if (p2s(pw, x + 1, y + 1 - row0, &r, &d) ||
+			    sky_to_pixel(&sky, s, 1, &r, &d, &px, &py, &e) < 0) {
+				worst_part = INFINITY;
+				continue;
+			}
+			worst_part = fmax(worst_part, fmax(fabs(px - x), fabs(py - y)));
 		}
 		/* scale, parity and orientation at the centre */
 		double r0, d0, rx, dx, ry, dy;
@@ -116,11 +134,14 @@ static void pointing(double ra, double dec, double pa, int boresight,
 			parity_ok = 0;
 		worst_pa = fmax(worst_pa, fabs(remainder(pay - sky.sca[s - 1].pa, 360)));
 		wcsvfree(&nwcs, &w);
+		wcsvfree(&pnwcs, &pw);
 	}
 	ok(parsed_ok, "%g %g PA %g%s: wcspih reads every SCA's header", ra, dec, pa,
 	   boresight ? " boresight" : "");
 	ok(worst < 1e-6, "%g %g PA %g: header pixel -> sky -> placement within "
 	   "1e-6 px (worst %.2e)", ra, dec, pa, worst);
+	ok(worst_part < 1e-6, "%g %g PA %g: a --rows part's header, from its first "
+	   "row, within 1e-6 px (worst %.2e)", ra, dec, pa, worst_part);
 	ok(worst_scale < 1e-7, "%g %g PA %g: 0.11\" pixels (worst relative "
 	   "error %.1e)", ra, dec, pa, worst_scale);
 	ok(parity_ok, "%g %g PA %g: standard parity, +x 90 deg clockwise of +y",

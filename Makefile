@@ -186,8 +186,10 @@ help:
 
 .PHONY: all deps check unit demo bench fuzz lint-man install clean help validate FORCE
 
-## validate: the paper's 1000-star photometry test and the load tests (slow)
-validate: all
+## validate: the paper's 1000-star photometry test and the load tests (slow; installs python3-matplotlib for the plot)
+validate:
+	$(Q)sh contrib/install-deps.sh validate
+	$(Q)$(MAKE) --no-print-directory all
 	$(Q)WFISCENE_CACHE=$${WFISCENE_CACHE:-$(B)/test-cache} /usr/bin/python3 \
 		tests/validate/photometry.py --n 1000 --seed 1 --wfs $(B)/wfiscene \
 		--dir $(B)/validate --table $(B)/validate/table.md \

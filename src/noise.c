@@ -19,7 +19,8 @@
  * keyed by the seed and counted by (cell, draw, domain), where the cell is
  * the absolute pixel y * 4088 + x (for cosmic rays, a segment of 64 hit
  * centres of a row: (y + 1) * 64 + (x + 1) / 64, since centres reach one
- * pixel beyond the detector) and the domain is (stage, filter, SCA).  So
+ * pixel beyond the detector, or in long exposures the centre itself,
+ * (y + 1) * 4090 + x + 1) and the domain is (stage, filter, SCA).  So
  * each stage, filter and SCA has its own numbers, and the image does not
  * depend on the tiling, threads or split runs.
  *
@@ -46,6 +47,10 @@ enum {
 	DOM_CR_HIT = 6,
 	DOM_CR_LOW = 7,
 	DOM_CR_HIGH = 8,
+	DOM_CR_LOW_N = 9,       /* per-centre counts and energies, for */
+	DOM_CR_HIGH_N = 10,     /* lambda >= CR_PER_CENTRE */
+	DOM_CR_LOW_E = 11,
+	DOM_CR_HIGH_E = 12,
 	DOM_ANY_FILTER = 0xff,
 };
 
@@ -203,9 +208,19 @@ static void cr_template(double w[3][3])
  * by the splitting property), with one Philox call per 64 centres instead
  * of one per centre.  The numbers of a segment are its own (cell = row *
  * 64 + segment), so every tile that sees a segment sees the same hits.
+ *
+ * That costs a few draws per hit, so its time grows with the exposure:
+ * 1.7e8 hits per SCA at 1e6 s, 1.7e11 at 1e9 s.  From lambda >= 1 per
+ * centre (2e5 s at the default rate) each centre is drawn instead: its
+ * count n ~ Poisson(lambda) and, when n > 0, the electrons of its n hits
+ * together, Poisson(n E) (a sum of independent Poisson counts is one), all
+ * at the template's place.  The same distribution as hit by hit, at a cost
+ * that no longer grows with the exposure time.  Counts and energies have
+ * their own domains, counted by centre ((cy + 1) * 4090 + cx + 1).
  */
 #define CR_SEG 64
 #define CR_NSEG ((CR_SPAN + CR_SEG - 1) / CR_SEG)
+#define CR_PER_CENTRE 1.0       /* lambda from which centres are drawn one by one */
 
 /* Poisson(lambda) for lambda < 10 by inversion from u (see rng.c),
  * continued from the u that decided "no hit" in the common case. */
@@ -274,6 +289,45 @@ static void cr_segment(const struct cr_tile *t, const struct rng *g, double ener
 	}
 }
 
+/* Long exposures: every centre of the tile's ring drawn by itself. */
+static void cosmic_per_centre(const struct noise_opts *o, const struct cr_tile *t,
+			      int sca, double lambda)
+{
+	static const double energy[2] = { CR_E_LOW, CR_E_HIGH };
+	static const int dom_n[2] = { DOM_CR_LOW_N, DOM_CR_HIGH_N };
+	static const int dom_e[2] = { DOM_CR_LOW_E, DOM_CR_HIGH_E };
+	int xa = t->x0 - 1, xb = t->x0 + t->nx, ya = t->y0 - 1, yb = t->y0 + t->ny;
+	double lam[CR_SPAN], n[CR_SPAN];
+	size_t len;
+
+	if (xb > WFS_NPIX)
+		xb = WFS_NPIX;
+	if (yb > WFS_NPIX)
+		yb = WFS_NPIX;
+	len = (size_t)(xb - xa + 1);
+	for (size_t i = 0; i < len; i++)
+		lam[i] = lambda;
+	for (int p = 0; p < 2; p++) {
+		struct rng gn, ge;
+
+		rng_init(&gn, o->seed, domain(dom_n[p], o->filter, sca));
+		rng_init(&ge, o->seed, domain(dom_e[p], o->filter, sca));
+		for (int cy = ya; cy <= yb; cy++) {
+			uint32_t cell0 = (uint32_t)(cy + 1) * CR_SPAN + (uint32_t)(xa + 1);
+
+			rng_poisson_fill(&gn, cell0, len, lam, n);
+			for (size_t i = 0; i < len; i++) {
+				struct rng_cell c;
+
+				if (n[i] == 0)
+					continue;
+				rng_cell_init(&c, &ge, cell0 + (uint32_t)i, 0);
+				cr_deposit(t, xa + (int)i, cy, rng_poisson(n[i] * energy[p], &c));
+			}
+		}
+	}
+}
+
 static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
 			int nx, int ny, double *pix, ptrdiff_t stride)
 {
@@ -293,11 +347,15 @@ static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
 
 	if (!(lambda > 0) || t.resid == 0)
 		return;
+	cr_template(t.tw);
+	if (lambda >= CR_PER_CENTRE) {
+		cosmic_per_centre(o, &t, sca, lambda);
+		return;
+	}
 	if (yb > WFS_NPIX)
 		yb = WFS_NPIX;
 	if (sb > CR_NSEG - 1)
 		sb = CR_NSEG - 1;
-	cr_template(t.tw);
 	rng_init(&hit, o->seed, domain(DOM_CR_HIT, o->filter, sca));
 	rng_init(&pop[0], o->seed, domain(DOM_CR_LOW, o->filter, sca));
 	rng_init(&pop[1], o->seed, domain(DOM_CR_HIGH, o->filter, sca));

@@ -1043,6 +1043,15 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 	return bad ? err_sys(g->e, "header") : 0;
 }
 
+/* The first pixel of a[0 .. n-1] that is not a finite float, or -1. */
+static ptrdiff_t first_nonfinite(const float *a, size_t n)
+{
+	for (size_t i = 0; i < n; i++)
+		if (!isfinite(a[i]))
+			return (ptrdiff_t)i;
+	return -1;
+}
+
 static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_opts *no,
 		      int apply_noise, float *strip)
 {
@@ -1100,6 +1109,23 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 				else
 					memset(out, 0, nx * sizeof(float));
 			}
+		/* make_source bounds each source, but many sources on one
+		 * pixel, or a model that draws more than its flux or NaN,
+		 * could still put an infinity or NaN in the file. */
+		{
+			ptrdiff_t k = first_nonfinite(strip, (size_t)(yb - ya) * WFS_NPIX);
+			int px = (int)(k % WFS_NPIX) + 1, py = y0 + ya + (int)(k / WFS_NPIX) + 1;
+
+			if (k >= 0 && isnan(strip[k]))
+				return err_set(g->e, EXIT_PLUGIN, "WFI%02d: pixel x=%d, y=%d "
+					       "(1-based) is NaN: a source model drew a value "
+					       "that is not a number", g->slot[s].sca, px, py);
+			if (k >= 0)
+				return err_set(g->e, EXIT_INPUT, "WFI%02d: pixel x=%d, y=%d "
+					       "(1-based) is beyond the largest 32-bit float "
+					       "(3.4e38): the sources there sum to more than "
+					       "the image can hold", g->slot[s].sca, px, py);
+		}
 		if (fitsout_image_rows(f, strip, yb - ya, g->e) < 0)
 			return -1;
 		for (int tx = 0; tx < g->ntx; tx++) {

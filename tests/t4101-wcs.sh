@@ -18,8 +18,8 @@ check() {
 	"
 }
 check 'PA 0, all SCAs' 1-18 --ra 10 --dec 20 --pa 0
-check 'PA 90' 1,7,15,18 --ra 10 --dec 20 --pa 90
-check 'PA 217, boresight' 1,7,15,18 --ra 200 --dec -35 --pa 217 --pointing-ref boresight
+check 'PA 90, all SCAs' 1-18 --ra 10 --dec 20 --pa 90
+check 'PA 217, boresight, all SCAs' 1-18 --ra 200 --dec -35 --pa 217 --pointing-ref boresight
 check 'near the north pole' 1,7,15,18 --ra 45 --dec 89.9 --pa 30
 check 'near the south pole' 1,7,15,18 --ra 300 --dec -89.95 --pa 300
 check 'across RA 0/360' 1,7,15,18 --ra 0.05 --dec 0 --pa 10

@@ -66,6 +66,32 @@ test_expect_success '--noise all --background avg: median and sigma of a flat fi
 	cat s && test "$bad" = 0 &&
 	within "$med" 0.568 0.01 && within "$sig" 0.1417 0.002
 '
+# The stage options through the command line: --readnoise sets sigma;
+# --cosmic-rate and --cosmic-residual set the dose, a mean of rate * 1e-6
+# cm^2 * t * (600 + 5000) e- * residual per pixel (sampling sigma of the
+# SCA mean ~1.3 e- for the first, 0.5% of the mean).
+cat > mean.py <<\PYEOF
+import sys
+import numpy as np
+from astropy.io import fits
+print("%.9g" % np.asarray(fits.open(sys.argv[1])[sys.argv[2]].data, dtype=np.float64).mean())
+PYEOF
+test_expect_success '--readnoise 3: sigma 3 e-' '
+	run --sca 2 --noise readnoise --readnoise 3 --bunit counts -o rn.fits none.csv &&
+	$PY stats.py rn.fits WFI02 > s && read med sig min max bad < s && cat s &&
+	within "$med" 0 0.01 && within "$sig" 3 0.02
+'
+test_expect_success '--cosmic-rate 50 --cosmic-residual 1: dose 280 e- per pixel in 1000 s' '
+	run --sca 2 --noise cosmic --exptime 1000 --cosmic-rate 50 --cosmic-residual 1 \
+		--bunit counts -o cr.fits none.csv &&
+	$PY mean.py cr.fits WFI02 > m && cat m && within "$(cat m)" 280 7
+'
+test_expect_success '--cosmic-residual 0.01 (the default): 2.8 e-; --cosmic-rate 0: no hits' '
+	run --sca 2 --noise cosmic --exptime 1000 --cosmic-rate 50 --bunit counts -o cr1.fits none.csv &&
+	$PY mean.py cr1.fits WFI02 > m && cat m && within "$(cat m)" 2.8 0.07 &&
+	run --sca 2 --noise cosmic --exptime 1000 --cosmic-rate 0 --bunit counts -o cr0.fits none.csv &&
+	$PY stats.py cr0.fits WFI02 > s && read med sig min max bad < s && test "$max" = 0
+'
 test_expect_success '--bunit counts leaves the image in counts' '
 	run --sca 1 --noise poisson --background avg --exptime 100 --bunit counts -o c.fits none.csv &&
 	$PY stats.py c.fits WFI01 > s && read med sig min max bad < s && cat s &&

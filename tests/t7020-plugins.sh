@@ -28,7 +28,7 @@ refused() {
 	! ls -A | grep -q "out\.fits"
 }
 
-for p in abi_wrong desc_small init_fails render_fails no_entry declines col_noname; do
+for p in abi_wrong desc_small init_fails render_fails no_entry declines col_noname draws_bad; do
 	test_expect_success "test plugin $p builds" "build $p"
 done
 for c in prepare footprint render; do
@@ -96,6 +96,29 @@ test_expect_success 'a type with no plugin is bad input (exit 1), not a plugin e
 		--plugin-path "$TRASH/plugins" -o out.fits cat.csv 2>err &&
 	test_grep "unknown source type .nosuchmodel." err &&
 	! ls -A | grep -q "out\.fits"
+'
+
+# draws_bad: flux 42 draws NaN, flux 100 draws 1e39 (beyond float32) in
+# the source's pixel.  The host bounds each source's flux, not what a model
+# draws, so the image itself is checked before it is written.
+test_expect_success 'a model that draws NaN: exit 3, SCA and pixel named, no output' '
+	printf "x,y,flux,type\n1000,1200,42,draws_bad\n" > nan.csv &&
+	test_must_fail --status 3 "$WFS" --filter F129 --sca 1 --placed placed.csv \
+		--plugin-path "$TRASH/plugins" -o out.fits nan.csv 2>err &&
+	test_grep "^wfiscene: WFI01: pixel x=1000, y=1200 (1-based) is NaN: a source model drew" err &&
+	! ls -A | grep -q "out\.fits\|placed\.csv"
+'
+test_expect_success 'a value beyond float32 in the image: exit 1, named, no output' '
+	printf "x,y,flux,type\n10,20,1,draws_bad\n300,4000,100,draws_bad\n" > inf.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 1-2 --placed placed.csv \
+		--plugin-path "$TRASH/plugins" -o out.fits inf.csv 2>err &&
+	test_grep "^wfiscene: WFI01: pixel x=300, y=4000 (1-based) is beyond the largest 32-bit float" err &&
+	! ls -A | grep -q "out\.fits\|placed\.csv"
+'
+test_expect_success '... and 1e37, within float32, is written' '
+	printf "x,y,flux,type\n10,20,1,draws_bad\n" > big.csv &&
+	"$WFS" --filter F129 --sca 1 --plugin-path "$TRASH/plugins" -o big.fits big.csv &&
+	test -s big.fits
 '
 
 test_expect_success 'WFISCENE_PLUGIN_PATH finds plugins too' '

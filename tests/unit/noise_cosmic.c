@@ -178,5 +178,64 @@ int main(void)
 		is_near(sum, NPIX * lambda * 5600, 5 * sd, "dose in 1e5 s: %.1f e-/pixel", sum / NPIX);
 		free(a);
 	}
+	/* From lambda = 1 per centre (2e5 s) each centre is drawn by itself
+	 * (count, then the electrons of all its hits at once).  Either side
+	 * of the switch and far beyond it, the dose per pixel has the mean
+	 * lambda (600 + 5000) and, since the template spreads a centre's
+	 * charge over 3x3 pixels, the variance lambda sum_p (E_p^2 + E_p)
+	 * sum_k w_k^2; a pixel and its right neighbour covary by lambda
+	 * sum_p (E_p^2 + E_p) sum_k w_k w_k', k' the template pixel to the
+	 * right of k.  Standard errors from the fourth moments of the data,
+	 * with one independent sample per 6 x 5 pixels (pixels further apart
+	 * share no centre). */
+	{
+		static const double ts[] = { 1.98e5, 2e5, 1e6, 1e9 };
+		double w[3][3], sum = 0, w2 = 0, w11 = 0;
+		double sig = 0.9 / (2 * sqrt(2 * log(2.0)));
+		double e2 = 600.0 * 601 + 5000.0 * 5001;
+
+		for (int i = 0; i < 3; i++)
+			for (int j = 0; j < 3; j++)
+				sum += w[i][j] = exp(-((i - 1) * (i - 1) + (j - 1) * (j - 1)) /
+						     (2 * sig * sig));
+		for (int i = 0; i < 3; i++)
+			for (int j = 0; j < 3; j++) {
+				w2 += w[i][j] * w[i][j] / (sum * sum);
+				if (j < 2)
+					w11 += w[i][j] * w[i][j + 1] / (sum * sum);
+			}
+		for (size_t k = 0; k < sizeof(ts) / sizeof(ts[0]); k++) {
+			double lambda = 5e-6 * ts[k], want_v = lambda * e2 * w2;
+			double want_c = lambda * e2 * w11;
+			double m = 0, v = 0, c = 0, v4 = 0, c4 = 0, n = 0, neff;
+
+			a = sca_image(ts[k], 1, 5 + (int)k);
+			for (int y = 1; y < S - 1; y++)
+				for (int x = 1; x < S - 2; x++)
+					m += a[(size_t)y * S + x], n++;
+			m /= n;
+			for (int y = 1; y < S - 1; y++)
+				for (int x = 1; x < S - 2; x++) {
+					double d = a[(size_t)y * S + x] - m;
+					double dd = d * (a[(size_t)y * S + x + 1] - m);
+
+					v += d * d;
+					v4 += d * d * d * d;
+					c += dd;
+					c4 += dd * dd;
+				}
+			v /= n;
+			c /= n;
+			neff = n / 30;
+			is_near(m, lambda * 5600, 5 * sqrt(v / neff),
+				"%g s (lambda %g): mean dose %.1f e-/pixel", ts[k], lambda, m);
+			is_near(v, want_v, 5 * sqrt((v4 / n - v * v) / neff),
+				"%g s: variance of the dose / expected = %.4f", ts[k], v / want_v);
+			is_near(c, want_c, 5 * sqrt((c4 / n - c * c) / neff),
+				"%g s: neighbours covary through the template (%.4f)", ts[k],
+				c / want_c);
+			free(a);
+		}
+	}
 	return done_testing();
 }

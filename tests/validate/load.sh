@@ -37,8 +37,8 @@ measure() {
 	name=$1; shift
 	/usr/bin/time -f "%e %U %S %M" -o "$T/$name.time" "$@"
 	read -r wall user sys rss < "$T/$name.time"
-	printf '%-28s wall %7.1f s  cpu %7.1f s  peak RSS %6.0f MB\n' "$name" "$wall" \
-		"$(echo "$user + $sys" | bc)" "$(echo "$rss / 1024" | bc)"
+	awk -v n="$name" -v w="$wall" -v u="$user" -v s="$sys" -v r="$rss" 'BEGIN {
+		printf "%-28s wall %7.1f s  cpu %7.1f s  peak RSS %6.0f MB\n", n, w, u + s, r / 1024 }'
 }
 rss() { awk '{ print $4 }' "$T/$1.time"; }
 report_rows() { grep -o '"read": [0-9]*, "culled_far": [0-9]*, "off_detector": [0-9]*, "placements": [0-9]*' "$1"; }

@@ -71,6 +71,12 @@ PAPER = {
             "(stars brighter than 21)",
 }
 
+# The same figures drawn on the plot, dashed: magnitude levels (lines at
+# each value) and position radii (a circle of that radius about the
+# origin; for sep the size of the centroid offset, else the scatter).
+PAPER_MAG = {"sep": [], "gauss": [0.5], "epsf": [-0.06, 0.06]}
+PAPER_POS = {"sep": 0.1, "gauss": 0.009, "epsf": 0.004}
+
 
 def run(cmd, **kw):
     r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
@@ -306,6 +312,11 @@ def plot(path, truth, res):
         a = ax[0][j]
         a.scatter(truth["mag"], dm, s=4, c="k")
         a.axhline(0, color="r", lw=0.8)
+        for k, v in enumerate(PAPER_MAG[m]):
+            a.axhline(v, color="g", lw=1.0, ls="--",
+                      label="STIPS paper" if k == 0 else None)
+        if PAPER_MAG[m]:
+            a.legend(fontsize=7, loc="lower left")
         a.set_ylim(-1.0, 1.0)
         a.set_xlabel("input magnitude (AB, F129)")
         a.set_ylabel("recovered - input (mag)")
@@ -315,6 +326,9 @@ def plot(path, truth, res):
                   label=">= 21 mag", lw=0.6)
         a.scatter(dx[bright], dy[bright], s=6, marker="o", facecolors="none",
                   edgecolors="b", label="< 21 mag")
+        a.add_patch(plt.Circle((0, 0), PAPER_POS[m], fill=False, color="g",
+                               ls="--", lw=1.0,
+                               label="STIPS paper, %g px" % PAPER_POS[m]))
         lim = 0.3
         a.set_xlim(-lim, lim)
         a.set_ylim(-lim, lim)
@@ -325,7 +339,8 @@ def plot(path, truth, res):
         a.set_ylabel("recovered - input y (px)")
         a.legend(fontsize=7, loc="upper right")
     fig.suptitle("wfiscene: %d stars, F129, SCA01, background avg, noise all, "
-                 "139.8 s" % len(truth), fontsize=11)
+                 "139.8 s (dashed green: the STIPS paper's figures)" % len(truth),
+                 fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
 

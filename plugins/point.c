@@ -172,8 +172,9 @@ enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
  *
  * but on the wing rows jw <= j < jw + nw, over wa <= i < wb,
  *
- *   ((w0 s0[j m + i] + w1 s1[..]) + w2 s2[..]) + w3 s3[..]
+ *   w0 s0[j m + i] + w1 s1[..] + w2 s2[..] + w3 s3[..]
  *
+ * (the last three products fused: fmaf)
  * and on the core rows jc <= j < jc + nc, over ka <= i < kb, kv[] replaces
  * the sum; in float.  Two builds with the same operations per pixel in the
  * same order, so the same bits: 8 pixels at a time with AVX2 (reading on
@@ -208,8 +209,12 @@ static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
 		for (int i = 0; i < nx; i++) {
 			float v = r->wn * sn[i];
 
-			if (wing && i >= r->wa && i < r->wb)
-				v = r->w[0] * s0[i] + r->w[1] * s1[i] + r->w[2] * s2[i] + r->w[3] * s3[i];
+			if (wing && i >= r->wa && i < r->wb) {
+				v = r->w[0] * s0[i];
+				v = fmaf(r->w[1], s1[i], v);
+				v = fmaf(r->w[2], s2[i], v);
+				v = fmaf(r->w[3], s3[i], v);
+			}
 			if (core && i >= r->ka && i < r->kb)
 				v = r->kv[c * KV_PITCH + 8 + i - r->ka];
 			out[i] += v;
@@ -230,7 +235,7 @@ static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
 						  _mm256_cvtps_pd(_mm256_extractf128_ps(v_, 1)))); \
 } while (0)
 /* the same for the first n < 8 lanes only (AMD's masked stores are slow) */
-__attribute__((target("avx2"), always_inline)) static inline void add8_tail(double *out, __m256 v,
+__attribute__((target("avx2,fma"), always_inline)) static inline void add8_tail(double *out, __m256 v,
 									    int n)
 {
 	__m256d lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
@@ -249,7 +254,7 @@ __attribute__((target("avx2"), always_inline)) static inline void add8_tail(doub
 		out[l] += t[l];
 }
 
-__attribute__((target("avx2"))) static void sum_rows_avx2(double *pix, ptrdiff_t stride, int nx,
+__attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdiff_t stride, int nx,
 							  int ny, const struct rows_args *r)
 {
 	__m256 w0 = _mm256_set1_ps(r->w[0]), w1 = _mm256_set1_ps(r->w[1]);
@@ -294,11 +299,9 @@ __attribute__((target("avx2"))) static void sum_rows_avx2(double *pix, ptrdiff_t
 			__m256i lane = _mm256_add_epi32(lanes, _mm256_set1_epi32(i));
 			__m256i in = _mm256_and_si256(_mm256_cmpgt_epi32(lane, wa),
 						      _mm256_cmpgt_epi32(wb, lane));
-			__m256 b = _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(
-				_mm256_mul_ps(w0, _mm256_loadu_ps(s0 + i)),
-				_mm256_mul_ps(w1, _mm256_loadu_ps(s1 + i))),
-				_mm256_mul_ps(w2, _mm256_loadu_ps(s2 + i))),
-				_mm256_mul_ps(w3, _mm256_loadu_ps(s3 + i)));
+			__m256 b = _mm256_fmadd_ps(w3, _mm256_loadu_ps(s3 + i), _mm256_fmadd_ps(
+				w2, _mm256_loadu_ps(s2 + i), _mm256_fmadd_ps(
+				w1, _mm256_loadu_ps(s1 + i), _mm256_mul_ps(w0, _mm256_loadu_ps(s0 + i)))));
 			__m256 v = _mm256_blendv_ps(_mm256_mul_ps(wn, _mm256_loadu_ps(sn + i)), b,
 						    _mm256_castsi256_ps(in));
 
@@ -321,6 +324,118 @@ __attribute__((target("avx2"))) static void sum_rows_avx2(double *pix, ptrdiff_t
 
 #endif
 
+/* The core: for rows c < nc and pixels i < nk (8 at a time; kv gets a
+ * multiple of 8), each lane
+ *
+ *   v = sum over b of ky[b] (kx[0] t[b][0] + kx[1] t[b][1] + ...)   Keys
+ *   v = bw[0] t[1][1] + bw[1] t[1][2] + bw[2] t[2][1] + bw[3] t[2][2] bilinear
+ *   kv = v + sum over k of cw[k] ct[k]         psf-blend=core's correction
+ *
+ * every product but the first of a sum fused (fmaf), in this order, so
+ * that the AVX2 build and the plain one give the same bits; and K, the sum
+ * of kv over the core, in double (lanes l and l + 4 to accumulator l). */
+struct core_args {
+	const float *t[16];     /* tap (a, b) at t[4 b + a], the core's first pixel */
+	const float *ct[32];    /* the correction's streams */
+	int nct, keys, nc, nk;
+	ptrdiff_t m;
+	float kx[4], ky[4], bw[4], cw[32];
+};
+
+static double core_plain(const struct core_args *a, float *kvb)
+{
+	double ks[4] = { 0 };
+
+	for (int c = 0; c < a->nc; c++) {
+		ptrdiff_t o = (ptrdiff_t)c * a->m;
+		float *kv = kvb + c * KV_PITCH + 8;
+
+		for (int i0 = 0; i0 < a->nk; i0 += 8) {
+			float lane[8];
+
+			for (int l = 0; l < 8; l++) {
+				ptrdiff_t at = o + i0 + l;
+				float v, e = 0;
+
+				if (a->keys) {
+					v = 0;
+					for (int b = 0; b < 4; b++) {
+						const float *const *t = a->t + 4 * b;
+						float h = a->kx[0] * t[0][at];
+
+						h = fmaf(a->kx[1], t[1][at], h);
+						h = fmaf(a->kx[2], t[2][at], h);
+						h = fmaf(a->kx[3], t[3][at], h);
+						v = b ? fmaf(a->ky[b], h, v) : a->ky[0] * h;
+					}
+				} else {
+					v = a->bw[0] * a->t[5][at];
+					v = fmaf(a->bw[1], a->t[6][at], v);
+					v = fmaf(a->bw[2], a->t[9][at], v);
+					v = fmaf(a->bw[3], a->t[10][at], v);
+				}
+				for (int k = 0; k < a->nct; k++)
+					e = fmaf(a->cw[k], a->ct[k][at], e);
+				kv[i0 + l] = lane[l] = v + e;
+			}
+			for (int l = 0; l < 4; l++)
+				ks[l] += (double)(i0 + l < a->nk ? lane[l] : 0) +
+					 (double)(i0 + l + 4 < a->nk ? lane[l + 4] : 0);
+		}
+	}
+	return (ks[0] + ks[1]) + (ks[2] + ks[3]);
+}
+
+#ifdef HAVE_ROWS_AVX2
+__attribute__((target("avx2,fma"))) static double core_avx2(const struct core_args *a, float *kvb)
+{
+	__m256d ks = _mm256_setzero_pd();
+	__m256 kx0 = _mm256_set1_ps(a->kx[0]), kx1 = _mm256_set1_ps(a->kx[1]);
+	__m256 kx2 = _mm256_set1_ps(a->kx[2]), kx3 = _mm256_set1_ps(a->kx[3]);
+	__m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), nk = _mm256_set1_epi32(a->nk);
+	double k[4];
+
+	for (int c = 0; c < a->nc; c++) {
+		ptrdiff_t o = (ptrdiff_t)c * a->m;
+		float *kv = kvb + c * KV_PITCH + 8;
+
+		for (int i0 = 0; i0 < a->nk; i0 += 8) {
+			__m256 v, e = _mm256_setzero_ps();
+			__m256i in;
+
+			if (a->keys) {
+				v = _mm256_setzero_ps();
+				for (int b = 0; b < 4; b++) {
+					const float *const *t = a->t + 4 * b;
+					__m256 h = _mm256_mul_ps(kx0, _mm256_loadu_ps(t[0] + o + i0));
+
+					h = _mm256_fmadd_ps(kx1, _mm256_loadu_ps(t[1] + o + i0), h);
+					h = _mm256_fmadd_ps(kx2, _mm256_loadu_ps(t[2] + o + i0), h);
+					h = _mm256_fmadd_ps(kx3, _mm256_loadu_ps(t[3] + o + i0), h);
+					v = b ? _mm256_fmadd_ps(_mm256_set1_ps(a->ky[b]), h, v) :
+						_mm256_mul_ps(_mm256_set1_ps(a->ky[0]), h);
+				}
+			} else {
+				v = _mm256_mul_ps(_mm256_set1_ps(a->bw[0]), _mm256_loadu_ps(a->t[5] + o + i0));
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[1]), _mm256_loadu_ps(a->t[6] + o + i0), v);
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[2]), _mm256_loadu_ps(a->t[9] + o + i0), v);
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[3]), _mm256_loadu_ps(a->t[10] + o + i0), v);
+			}
+			for (int k = 0; k < a->nct; k++)
+				e = _mm256_fmadd_ps(_mm256_set1_ps(a->cw[k]), _mm256_loadu_ps(a->ct[k] + o + i0), e);
+			v = _mm256_add_ps(v, e);
+			_mm256_storeu_ps(kv + i0, v);
+			in = _mm256_cmpgt_epi32(nk, _mm256_add_epi32(lanes, _mm256_set1_epi32(i0)));
+			v = _mm256_and_ps(v, _mm256_castsi256_ps(in));
+			ks = _mm256_add_pd(ks, _mm256_add_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(v)),
+							     _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1))));
+		}
+	}
+	_mm256_storeu_pd(k, ks);
+	return (k[0] + k[1]) + (k[2] + k[3]);
+}
+#endif
+
 struct point {
 	const struct wfs_host *host;
 	int interp;             /* psf-interp */
@@ -332,6 +447,7 @@ struct point {
 	int blend;              /* psf-blend */
 	int cell;               /* psf-cell: side of a blended cell, pixels */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
+	double (*core_rows)(const struct core_args *, float *);
 	struct poly slot[POLY_SLOTS];
 };
 
@@ -575,9 +691,15 @@ static int point_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
 	p->sum_rows = sum_rows_plain;
+	p->core_rows = core_plain;
 #ifdef HAVE_ROWS_AVX2
-	if (__builtin_cpu_supports("avx2"))
+	/* WFISCENE_NO_SIMD: the plain loops, for testing that both give the
+	 * same bits */
+	if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+	    !getenv("WFISCENE_NO_SIMD")) {
 		p->sum_rows = sum_rows_avx2;
+		p->core_rows = core_avx2;
+	}
 #endif
 	p->interp = INTERP_CORE;
 	p->core = 4.0;
@@ -1093,59 +1215,25 @@ static inline __attribute__((always_inline)) int render_one(const struct point *
 	};
 
 	if (nc > 0) {
-		v4d ks = { 0 };
-
-		const float *tap0[16], *ctap0[32];
-		v8f kxf[4], kyf[4], ccwf[32];
-		v8f b0 = SPLAT((float)(fl * g->by[0] * g->bx[0])), b1 = SPLAT((float)(fl * g->by[0] * g->bx[1]));
-		v8f b2 = SPLAT((float)(fl * g->by[1] * g->bx[0])), b3 = SPLAT((float)(fl * g->by[1] * g->bx[1]));
+		struct core_args ca = { .nct = 4 * d->ncor, .keys = d->keys, .nc = nc,
+					.nk = kb - ka, .m = m };
 
 		for (int b = 0; b < 4; b++)
 			for (int a = 0; a < 4; a++)
-				tap0[b * 4 + a] = tap_at(q, g, a, b, X, Y);
+				ca.t[b * 4 + a] = tap_at(q, g, a, b, d->core.x0, d->core.y0);
 		for (int a = 0; a < 4; a++) {
-			kxf[a] = SPLAT((float)g->kx[a]);
-			kyf[a] = SPLAT((float)(g->ky[a] * fl));
+			ca.kx[a] = (float)g->kx[a];
+			ca.ky[a] = (float)(g->ky[a] * fl);
+			ca.bw[a] = (float)(fl * g->by[a >> 1] * g->bx[a & 1]);
 		}
 		for (int c = 0; c < d->ncor; c++)
 			for (int b = 0; b < 2; b++)
 				for (int a = 0; a < 2; a++) {
-					ccwf[(c * 2 + b) * 2 + a] = SPLAT((float)(d->cw[c] * g->by[b] * g->bx[a]));
-					ctap0[(c * 2 + b) * 2 + a] = tap_at(d->cp[c], g, a + 1, b + 1, X, Y);
+					ca.cw[(c * 2 + b) * 2 + a] = (float)(d->cw[c] * g->by[b] * g->bx[a]);
+					ca.ct[(c * 2 + b) * 2 + a] = tap_at(d->cp[c], g, a + 1, b + 1,
+									   d->core.x0, d->core.y0);
 				}
-		for (int c = 0; c < nc; c++) {
-			ptrdiff_t step = (ptrdiff_t)(jc + c) * m;
-			float *kv = kvb + c * KV_PITCH + 8;
-
-			for (int i = ka; i < kb; i += 8) {
-				v8f v = { 0 }, e = { 0 };
-
-				if (d->keys)
-					for (int b = 0; b < 4; b++) {
-						const float *const *t = tap0 + b * 4;
-
-						v += kyf[b] * (kxf[0] * *(const v8f *)(t[0] + step + i) +
-							       kxf[1] * *(const v8f *)(t[1] + step + i) +
-							       kxf[2] * *(const v8f *)(t[2] + step + i) +
-							       kxf[3] * *(const v8f *)(t[3] + step + i));
-					}
-				else
-					v = b0 * *(const v8f *)(tap0[5] + step + i) +
-					    b1 * *(const v8f *)(tap0[6] + step + i) +
-					    b2 * *(const v8f *)(tap0[9] + step + i) +
-					    b3 * *(const v8f *)(tap0[10] + step + i);
-				for (int k = 0; k < 4 * d->ncor; k += 2)
-					e += ccwf[k] * *(const v8f *)(ctap0[k] + step + i) +
-					     ccwf[k + 1] * *(const v8f *)(ctap0[k + 1] + step + i);
-				v += e;
-				*(v8f *)(kv + i - ka) = v;
-				/* K: the lanes inside the core */
-				v = (v8f)((v8i)v & (LANES + i < kb));
-				ks += __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3), v4d) +
-				      __builtin_convertvector(__builtin_shufflevector(v, v, 4, 5, 6, 7), v4d);
-			}
-		}
-		k = (ks[0] + ks[1]) + (ks[2] + ks[3]);
+		k = p->core_rows(&ca, kvb);
 	}
 	f = flux_factor(t, k, u);
 	for (int a = 0; a < 4; a++)

@@ -118,6 +118,17 @@ test_expect_success 'psf-blend=cell: one blended ePSF per cell, close to the def
 	run cell64.fits --set psf-blend=cell --set psf-cell=64 &&
 	"$PY" px.py cell64.fits def.fits close 0.01
 '
+test_expect_success 'the plain loops draw the same bits as the vector ones' '
+	"$BUILD/contrib/starfield" -n 3000 -x -s 7 > field.csv &&
+	"$WFS" --filter F129 --psf epsf.fits --flux-unit abmag -o simd.fits field.csv &&
+	WFISCENE_NO_SIMD=1 "$WFS" --filter F129 --psf epsf.fits --flux-unit abmag -o plain.fits field.csv &&
+	test_cmp simd.fits plain.fits &&
+	"$WFS" --filter F129 --psf epsf.fits --flux-unit abmag --set psf-interp=bilinear \
+		--set psf-wing=3 -o simd2.fits field.csv &&
+	WFISCENE_NO_SIMD=1 "$WFS" --filter F129 --psf epsf.fits --flux-unit abmag \
+		--set psf-interp=bilinear --set psf-wing=3 -o plain2.fits field.csv &&
+	test_cmp simd2.fits plain2.fits
+'
 test_expect_success 'psf-box=adaptive shrinks a faint star to the noise, not a bright one' '
 	run ad.fits --set psf-box=adaptive --set psf-box-sigma=0.1 &&
 	"$PY" px.py ad.fits def.fits faint-box 8 &&

@@ -143,7 +143,9 @@ demo: deps
 	$(Q)WFS_BUILD=$(B) sh contrib/demo.sh
 
 ## bench: the benchmark suite (not part of check); figures go to BENCHMARKS.md
-bench: all
+bench:
+	$(Q)sh contrib/install-deps.sh bench
+	$(Q)$(MAKE) --no-print-directory all unit
 	$(Q)WFS_BUILD=$(B) sh contrib/bench.sh
 
 ## fuzz: build the catalog fuzzer (libFuzzer) and run it for FUZZ_SECONDS (60)

@@ -98,59 +98,73 @@ echo
 echo "Faint stars on SCA 1, generated on the fly and piped in (nothing stored):"
 echo "\`starfield -n N -x | wfiscene --filter F129 --flux-unit abmag -o out.fits\`"
 echo
-echo "| rows | wall s | peak MiB |"
-echo "|---|---|---|"
+echo "| rows | wall s | stars/s | peak MiB |"
+echo "|---|---|---|---|"
 for n in 100000 $big $huge; do
 	set -- $(measure "'$GEN' -n $n -x -s 4 | '$WFS' --filter F129 --flux-unit abmag -o '$W/o.fits' -")
-	awk -v n=$n -v t=$1 -v m=$2 'BEGIN { printf "| %d | %.1f | %.0f |\n", n, t, m / 1024 }'
+	awk -v n=$n -v t=$1 -v m=$2 'BEGIN { printf "| %d | %.1f | %.0f | %.0f |\n", n, t, n / t, m / 1024 }'
 done
 
 echo
 echo "## Render stage against the floor, and error against time"
 echo
-echo "\`cc -O3 -march=native contrib/bench/floor.c -o floor && floor build/plugins/point.so N SETTINGS...\`:"
-echo "point.so's render() through a mock host with a synthetic ePSF grid whose exact"
-echo "value is known (contrib/bench/floor.c), and in the same run the floor loops of"
-echo "issue 8; thread CPU ns per star (faint stars, AB 20-27, one SCA, 512-pixel"
-echo "tiles), errors over 2000 stars against the exact ePSF (worst star):"
+echo "\`cc -O3 -march=native contrib/bench/floor.c -o floor && floor [--epsf GRID] build/plugins/point.so N SETTINGS...\`:"
+echo "point.so's prepare() and render() through a mock host, and in the same run the"
+echo "floor loops of issue 8; thread CPU ns per star (faint stars, AB 20-27, one SCA,"
+echo "512-pixel tiles; render, and prepare() + footprint() on the main thread)."
+echo "Errors over 2000 stars (worst star), twice: on a synthetic ePSF grid whose"
+echo "exact value is known, and on the built-in F129 grid of SCA 1 against the"
+echo "plugin's best evaluation (psf-blend=source, psf-interp=bicubic); σ is 0.1 counts/s:"
 echo
 cc -O3 -march=native -std=c11 -Iinclude -o "$W/floor" contrib/bench/floor.c -lm -ldl
+"$WFS" psf --filter F129 --sca 1 -o "$W/epsf.fits"
 fn=200000
 [ "$quick" = 1 ] && fn=50000
-"$W/floor" "$B/plugins/point.so" $fn - psf-blend=source psf-interp=bilinear psf-interp=bicubic \
-	psf-core=2 psf-core=8 grid=5 psf-cell=256 psf-cell=1024 \
-	psf-blend=cell,psf-cell=256 psf-blend=cell psf-blend=cell,psf-interp=bilinear \
-	psf-box=adaptive,psf-box-sigma=0.1 psf-box=adaptive,psf-box-sigma=0.1,psf-box-noise=0.01 \
-	psf-blend=cell,psf-box=adaptive,psf-box-sigma=0.1 > "$W/floor.txt"
-echo "| loop or settings | ns/star | × stamp floor | pixels/star | max pixel error / peak | flux error | max pixel error / σ |"
-echo "|---|---|---|---|---|---|---|"
-awk '/^#/ { next } NF == 3 { printf "| floor: %s | %.0f | %.2f | 1936 | | | |\n", $1, $2, $3 }
-	NF == 7 { sub(/^point:/, "", $1); gsub(/,/, ", ", $1);
-		printf "| %s | %.0f | %.2f | %d | %s | %s | %s |\n", $1, $2, $3, $4, $5, $6, $7 }' "$W/floor.txt"
+configs="psf-blend=source psf-interp=bilinear psf-interp=bicubic psf-core=2 psf-core=3 psf-core=8
+	psf-wing=4 psf-wing=6 psf-wing=44 psf-cell=256 psf-cell=1024
+	psf-blend=cell,psf-cell=256 psf-blend=cell psf-blend=cell,psf-interp=bilinear
+	psf-box=adaptive,psf-box-sigma=0.1 psf-box=adaptive,psf-box-sigma=0.1,psf-box-noise=0.01
+	psf-blend=cell,psf-box=adaptive,psf-box-sigma=0.1"
+"$W/floor" "$B/plugins/point.so" $fn - $configs grid=5 > "$W/floor.txt"
+"$W/floor" --epsf "$W/epsf.fits" "$B/plugins/point.so" 20000 - $configs > "$W/floor-real.txt"
+echo "| loop or settings | ns/star | × stamp floor | pixels/star | main thread ns/star | error / peak | flux error | error / σ | F129: error / peak | F129: error / σ |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
+awk 'FNR == 1 { file++ } /^#/ { next }
+	file == 1 && NF == 8 { real[$1] = $5 " " $7; next }
+	file == 2 && NF == 3 { printf "| floor: %s | %.0f | %.2f | 1936 | | | | | | |\n", $1, $2, $3 }
+	file == 2 && NF == 8 { split(($1 in real) ? real[$1] : "- -", r, " "); n = $1;
+		sub(/^point:/, "", n); gsub(/,/, ", ", n);
+		printf "| %s | %.0f | %.2f | %d | %.0f | %s | %s | %s | %s | %s |\n", n, $2, $3, $4, $8,
+			$5, $6, $7, r[1], r[2] }' "$W/floor-real.txt" "$W/floor.txt"
 awk '$1 ~ /^point:/ { sub(/^point:/, "", $1); gsub(/psf-/, "", $1); sub(/,box-sigma=0.1/, "", $1)
 	print $2, $5, $1 }' "$W/floor.txt" > "$W/errtime.dat"
+awk 'FNR == 1 { file++ } file == 1 && $1 ~ /^point:/ { real[$1] = $5; next }
+	file == 2 && ($1 in real) { n = $1; sub(/^point:/, "", n); gsub(/psf-/, "", n);
+		sub(/,box-sigma=0.1/, "", n); print $2, real[$1], n }' \
+	"$W/floor-real.txt" "$W/floor.txt" > "$W/errtime-real.dat"
 stamp=$(awk '$1 == "stamp" { print $2 }' "$W/floor.txt")
 poly=$(awk '$1 == "polyphase" { print $2 }' "$W/floor.txt")
 if command -v gnuplot > /dev/null; then
 	gnuplot <<EOF
-set terminal pngcairo size 900,600
+set terminal pngcairo size 1000,650
 set output "contrib/bench/error-time.png"
 set logscale xy
 set xlabel "render CPU time per faint star (ns)"
 set ylabel "largest pixel error / peak (worst of 2000 stars)"
-set title "point sources: error against time (synthetic ePSF, contrib/bench/floor.c)"
-set key off
+set title "point sources: error against time (contrib/bench/floor.c)"
+set key top right
 set grid
-set yrange [0.001:0.2]
-set xrange [300:100000]
+set yrange [1e-5:1]
+set xrange [200:30000]
 set arrow from $stamp, graph 0 to $stamp, graph 1 nohead dt 2 lc rgb "gray40"
 set label "stamp-add floor" at $stamp, graph 0.05 rotate by 90 offset char -0.8,0 font ",8"
 set arrow from $poly, graph 0 to $poly, graph 1 nohead dt 3 lc rgb "gray40"
 set label "polyphase floor" at $poly, graph 0.05 rotate by 90 offset char -0.8,0 font ",8"
 set arrow from 2 * $stamp, graph 0 to 2 * $stamp, graph 1 nohead lc rgb "red"
 set label "2x floor" at 2 * $stamp, graph 0.05 rotate by 90 offset char -0.8,0 font ",8" tc rgb "red"
-plot "$W/errtime.dat" using 1:2 with points pt 7 ps 1.2, \
-     "$W/errtime.dat" using 1:2:3 with labels rotate by 35 offset char 0.8,0.5 left font ",7"
+plot "$W/errtime.dat" using 1:2 with points pt 7 ps 1.2 lc rgb "#1f77b4" title "synthetic ePSF, against the exact value", \
+     "$W/errtime.dat" using 1:2:3 with labels rotate by 35 offset char 0.8,0.5 left font ",7" notitle, \
+     "$W/errtime-real.dat" using 1:2 with points pt 5 ps 1.0 lc rgb "#d62728" title "built-in F129, against the best evaluation"
 EOF
 	echo
 	echo "Plot: contrib/bench/error-time.png"
@@ -226,6 +240,21 @@ r = json.load(open('$W/r18.json'))['seconds']
 print('| %d | %.1f | %.1f | %.0f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f |' % ($huge, $1, $2, $huge / $1, $3 / 1024,
       r['read_parse'], r['project_place'], r['render_busy'], r['render_wait'], r['write']))"
 rm -f "$W/o.fits"
+
+echo
+echo "## Noise, per stage"
+echo
+echo "\`WFS_BENCH=1 build/tests/noise_bench\`: Mpixel/s of each stage on one full SCA (4088², 512-pixel"
+echo "tiles, one thread, CPU seconds, best of 3), against writing the same SCA as float32 FITS:"
+echo
+echo "| stage | Mpixel/s | s per SCA | × write |"
+echo "|---|---|---|---|"
+WFS_BENCH=1 "$B/tests/noise_bench" 2>&1 | sed -n 's/^# //p' | awk '
+	/Mpixel\/s/ { s = $0; sub(/ *[0-9.]+ Mpixel\/s.*/, "", s);
+		match($0, /[0-9.]+ Mpixel\/s/); mp = substr($0, RSTART, RLENGTH - 9);
+		match($0, /\([0-9.]+ s per SCA/); sec = substr($0, RSTART + 1, RLENGTH - 11);
+		x = "1"; if (match($0, /[0-9.]+ x write/)) x = substr($0, RSTART, RLENGTH - 8);
+		printf "| %s | %s | %s | %s |\n", s, mp, sec, x }'
 
 echo
 echo "## Sersic galaxies, end to end"

@@ -3,7 +3,8 @@
 # when some are missing.  As root it runs apt-get; otherwise it prints the
 # command to run.  Called by `make deps`, `make check` and `make demo`;
 # `make validate` calls it with the argument `validate`, which adds what the
-# validation's plot needs.
+# validation's plot needs, and `make bench` with `bench`: gnuplot, for the
+# error-against-time plot.
 #
 # The tests need clang with the libFuzzer runtime (t9003: a short `make
 # fuzz`; Debian's clang only recommends libclang-rt-dev, which apt-get
@@ -18,8 +19,9 @@ tests="perl gzip time python3 python3-numpy python3-astropy python3-scipy python
 extra=
 case ${1:-} in
 validate) extra="python3-matplotlib" ;;
+bench) extra="gnuplot-nox" ;;
 '') ;;
-*) echo "usage: install-deps.sh [validate]" >&2; exit 1 ;;
+*) echo "usage: install-deps.sh [validate|bench]" >&2; exit 1 ;;
 esac
 missing=
 for p in $build $tests $extra; do

@@ -12,49 +12,57 @@
  * Because over * i is an integer, every pixel of a source sits at the same
  * sub-sample phase: the interpolation weights are computed once per source
  * and each pixel reads a fixed set of taps (the hoisting that makes the hot
- * loop cheap).  Within `core` pixels of the centre the ePSF is interpolated
- * with Keys' cubic convolution kernel (a = -1/2, 4 x 4 taps): it reproduces
- * quadratics, so the sharp core is not flattened as bilinear interpolation
- * does (the STIPS paper's Figures 3-4: about 3% error in the core).  Further
- * out the ePSF is smooth on the sample scale and bilinear interpolation
- * (2 x 2 taps) is accurate to well under 1%.  Both kernels' weights sum to 1
- * at every phase, so the total placed does not depend on the phase beyond
- * the ePSF's own sampling.  STIPS blends four local quadratics in the core;
- * this is a standard interpolating cubic instead.
+ * loop cheap).  The box is the set of pixels within half = centre / over
+ * pixels of the source in x and in y (44 x 44 for the 177-sample ePSF),
+ * symmetric about the source; the ePSF array covers exactly that range.
+ * Three nested squares about the source decide how the ePSF is read there:
  *
- * The box is the set of pixels within half = centre / over pixels of the
- * source in x and in y (44 x 44 for the 177-sample ePSF), symmetric about
- * the source; the ePSF array covers exactly that range.
+ *   core   |i - x|, |j - y| < psf-core (4): Keys' cubic convolution kernel
+ *          (a = -1/2, 4 x 4 taps).  It reproduces quadratics, so the sharp
+ *          core is not flattened as bilinear interpolation does (the STIPS
+ *          paper's Figures 3-4: about 3% error in the core).
+ *   wing   within psf-wing (8) pixels: bilinear (2 x 2 taps).  Beyond the
+ *          core the ePSF is smooth on the sample scale.
+ *   beyond the nearest sample (1 tap).  On the built-in F129 ePSF that is
+ *          within 1e-4 of the peak of the bilinear value from 8 pixels out
+ *          (5e-4 from 4 pixels), where the light is a few 1e-4 of the peak.
  *
- * Speed.  A source's bilinear pixels read, for each of its four nodes, the
- * samples at two x phases and two y phases, every `over` samples apart.  So
- * each node is copied once into a polyphase layout: over x over planes of
- * pixel-spaced samples (plane (q, r) holds samples (over m + q, over l + r)).
- * Blended per source, a row is a weighted sum of 16 contiguous rows (4
- * nodes x 2 x 2 taps) and the Keys core reads 4 x 4 taps of 4 nodes: about
- * 78 000 instructions per faint star, 7.7x the floor of adding a
- * precomputed stamp (contrib/bench/floor.c, BENCHMARKS.md).  So by default
- * (psf-blend=core) the four nodes are blended once per 512-pixel cell, at
- * its centre, into one polyphase array, and a source reads that: 4 streams
- * outside its core.  Blending at the cell's centre instead of the source
- * misplaces the PSF's change with position by up to 362 pixels, first
- * order: 2e-2 of the peak on the bench's grid (psf-blend=cell alone).
- * That change lives in the core, so there the source's own blend is
- * restored: the core's pixels are Keys' cubic of the cell plus the
- * bilinear difference (source's blend - cell's) from the nodes, a small
- * field whose interpolation error is small.  Outside the core the cell's
- * blend is scaled by one factor per source so that the total is the
- * source's (core_box_sums' comment).  The core is drawn first into a
- * small float buffer, then every row of the window in one call, straight
+ * Flux.  Bilinear interpolation's weights sum to 1 at every phase and it
+ * reads every sample of the box once per tap, so its sum over the box is
+ * the ePSF's enclosed fraction; the other kernels' sums differ from it a
+ * little (Keys' kernel by about 1e-4 of the flux over a 4-pixel core).  So
+ * everything outside the core is scaled by one factor per source, f, that
+ * makes the total exactly the bilinear sum over the box.  Each total is a
+ * weighted sum of rectangles of the phase planes, read from their
+ * summed-area tables in constant time (flux_factor), so f is computed once
+ * per source in prepare() and every window of the source gets the same f.
+ *
+ * Speed.  A source's pixels read, for each array, the samples at a few x
+ * and y phases, every `over` samples apart.  So each array is copied once
+ * into a polyphase layout: over x over planes of pixel-spaced samples
+ * (plane (q, r) holds samples (over m + q, over l + r)), and a row is a
+ * weighted sum of contiguous rows.  The four grid nodes are blended once
+ * per 512-pixel cell, at its centre, into one polyphase array (psf-blend=
+ * core, the default), which a faint source reads: one stream per pixel
+ * beyond the wing square, four within it.  Blending at the cell's centre
+ * instead of the source misplaces the PSF's change with position by up to
+ * 362 pixels, first order, and that change lives in the core: there the
+ * source's own blend is restored, as the bilinear difference (source's
+ * blend - cell's) from the nodes added to the cell's Keys value, a small
+ * field whose interpolation error is small.  The core is drawn first into
+ * a small float buffer, then every row of the window in one call, straight
  * into the tile (sum_rows_avx2).  The copies and blends are made in
- * footprint(), which the host calls in its main thread before render()
- * sees the source, so render() neither allocates nor locks.
+ * prepare(), which the host calls in its main thread before render() sees
+ * the source, so render() neither allocates nor locks.
  *
  * Approximations, each a setting (wfiscene(1) POINT SOURCES has their
  * measured error and cost):
  *
  *   psf-interp=bilinear|core|bicubic  Keys' cubic nowhere, within psf-core
  *                                     pixels (default 4), or everywhere
+ *   psf-wing=W                        bilinear within W pixels (default 8),
+ *                                     the nearest sample beyond, for sources
+ *                                     drawn from one array of the faint class
  *   psf-box=fixed|adaptive            the box above, or per source the
  *                                     smallest whose left-out light is below
  *                                     psf-box-noise (0.1) of the noise in it;
@@ -66,7 +74,7 @@
  *                                     psf-core (the default; with
  *                                     psf-interp=bicubic the whole box); per
  *                                     source everywhere (16 streams); or per
- *                                     cell everywhere (4 streams)
+ *                                     cell everywhere
  */
 #include <math.h>
 #include <stdint.h>
@@ -79,7 +87,7 @@
  * host's arrays stay put until fini), and of blended cells, found by an odd
  * key (node addresses are even).  Open addressing, never removed. */
 #define POLY_SLOTS 8192
-#define MAX_ROW 1024            /* widest window row handled in one pass */
+#define MAX_ROW 1024            /* widest window row of the general path */
 /* Planes carry PAD zero samples on each side, so that the Keys taps (one
  * sample before, two after) of any pixel inside the box stay inside the
  * plane and read zeros beyond the ePSF, and no pixel needs a range test. */
@@ -87,8 +95,8 @@
 
 /* Eight floats, loaded and stored unaligned: the row sums below are written
  * with GCC's vector extension so that a 44-pixel row is 6 steps with no
- * alignment prologue or scalar tail (rows are summed to a multiple of 8
- * into acc[]; the planes carry VSLACK floats so the last step can read on). */
+ * alignment prologue or scalar tail (rows are summed to a multiple of 8;
+ * the planes carry VSLACK floats so the last step can read on). */
 typedef float v8f __attribute__((vector_size(32), aligned(4), may_alias));
 #define VSLACK 8
 
@@ -104,114 +112,87 @@ struct poly {
 	uint64_t key;
 	int n, over, centre, m; /* m = samples per phase plane side, padded */
 	float *plane;           /* over * over planes of m x m */
+	/* per plane, its summed-area table: (m + 1) x (m + 1), entry (r, c)
+	 * the sum of the plane's rows < r and columns < c, summed in double
+	 * and kept in float (a rectangle's sum to ~1e-8 of the flux) */
+	float *sat;
 	int nee;                /* centre / over */
 	double *ee;             /* ee[h], h = 1..nee: see ee_table() */
-	double *psum;           /* psum[plane]: the sum of each phase plane */
-	/* a blended cell: the nodes and weights it was blended from */
+	/* a blended cell: the nodes and weights it was blended from, and
+	 * (psf-blend=core) the nodes' own polyphase copies */
 	const float *cnode[4];
 	double cweight[4];
+	const struct poly *cpoly[4];
 };
 
-/* psf-blend=core: the factor on the cell's blend outside the core that
- * places the flux of the source's own blend.  The core (Keys' cubic of the
- * cell plus the bilinear difference d = source's blend - cell's) holds
- * what the source's blend puts there; outside it the cell's blend alone
- * would miss d's part, which is not small where the PSF's core and wings
- * trade light with position (a core that narrows feeds the wings: 2.5e-3
- * of the flux on t3004's grid).  With B the bilinear sums over the box and
- * C over the core's pixels,
+/* Pixels [x0, x1) x [y0, y1), 0-based; empty when x0 >= x1 or y0 >= y1. */
+struct zone {
+	long x0, x1, y0, y1;
+};
+
+/* Where a source's pixels read an array (every array of a size class has
+ * the same layout).  Tap a (sample offsets -1, 0, 1, 2 from the sample
+ * below the pixel's) of pixel i is sample o (i + mx[a]) + rx[a]: plane
+ * column i + mx[a] + PAD of x phase rx[a]; likewise in y. */
+struct geom {
+	int o;
+	long mx[4], rx[4], my[4], ry[4];
+	double bx[2], by[2];    /* bilinear weights of taps 1 and 2 */
+	double kx[4], ky[4];    /* Keys' weights of taps 0..3 */
+	int an, bn;             /* the nearest sample's taps (1 or 2) */
+	/* tap (a, b) of pixel (i, j): plane + tx[a] + ty[b] + j m + i, and
+	 * its summed-area table: sat + sx[a] + sy[b] + j (m + 1) + i */
+	ptrdiff_t tx[4], ty[4], sx[4], sy[4];
+	ptrdiff_t m;
+};
+
+/* How one source is drawn: the arrays it reads with their weights times the
+ * flux, psf-blend=core's correction arrays, and its zones. */
+struct draw {
+	int nn, ncor, keys;
+	int cell;               /* one blended cell (psf-blend=cell or core) */
+	const struct poly *pl[4];
+	double wn[4];
+	const struct poly *cp[8];
+	double cw[8];
+	struct geom g;
+	struct zone box;        /* every pixel it lights */
+	struct zone core;       /* Keys' cubic (or psf-blend=core's bilinear
+				 * correction), not scaled by f */
+	struct zone wing;       /* bilinear; beyond it the nearest sample */
+};
+
+enum { INTERP_BILINEAR, INTERP_CORE, INTERP_BICUBIC };
+enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
+
+/* One array, the whole window, straight into the tile: for each row j and
+ * pixel i < nx,
  *
- *   f = 1 + (B(d) - C(d)) / (B(cell) - C(cell))
+ *   pix[j stride + i] += wn sn[j m + i]
  *
- * makes the total that of the source's blend, up to the difference of
- * Keys' and the bilinear kernel on d in the core (second order).  B comes
- * from the planes' sums (the fixed box reads each bilinear phase whole but
- * for the ePSF's outermost sample row or column: a part of d far below
- * 1e-6 of the flux; an adaptive box is taken as whole too), C from the
- * pixels of the whole core, whichever window is drawn, so that every
- * window of a source gets the same f. */
-static void core_box_sums(const struct poly *cell, const struct poly *const cp[],
-			  const double cw[], int ncor, double flux, const long rx[4],
-			  const long ry[4], const double bx[2], const double by[2],
-			  double *bc, double *bd)
-{
-	int o = cell->over;
-
-	*bc = *bd = 0;
-	for (int t = 0; t < 4; t++) {
-		int b = t >> 1, a = t & 1, pl = (int)(ry[b + 1] * o + rx[a + 1]);
-
-		*bc += flux * by[b] * bx[a] * cell->psum[pl];
-		for (int c = 0; c < ncor; c++)
-			*bd += cw[c] * by[b] * bx[a] * cp[c]->psum[pl];
-	}
-}
-
-/* C(cell) and C(d) one pixel at a time, for the windows render() does not
- * draw in one call (a psf-core wider than KV_COLS / 2). */
-static void core_disk_sums(const struct poly *cell, const struct poly *const cp[],
-			   const double cw[], int ncor, double flux, double x, double y,
-			   double core2, const long rx[4], const long mx[4], const long ry[4],
-			   const long my[4], const double bx[2], const double by[2],
-			   double *cc, double *cd)
-{
-	int o = cell->over, m = cell->m;
-	double r = core2 >= 0 ? sqrt(core2) : -1;
-
-	*cc = *cd = 0;
-	for (long j = (long)ceil(y - r); r >= 0 && j <= (long)floor(y + r); j++) {
-		double dy = j - y;
-		long ca = (long)floor(x - r), cb = (long)ceil(x + r) + 1;
-
-		/* the run [ca, cb) by the exact test, as render() takes it */
-		while (ca < cb && (ca - x) * (ca - x) + dy * dy > core2)
-			ca++;
-		while (cb > ca && (cb - 1 - x) * (cb - 1 - x) + dy * dy > core2)
-			cb--;
-		for (int t = 0; t < 4 && ca < cb; t++) {
-			int b = t >> 1, a = t & 1;
-			size_t off = (size_t)(ry[b + 1] * o + rx[a + 1]) * m * m +
-				     (size_t)(j + my[b + 1] + PAD) * m + (size_t)(mx[a + 1] + PAD);
-			double s = 0;
-
-			for (long i = ca; i < cb; i++)
-				s += cell->plane[off + i];
-			*cc += flux * by[b] * bx[a] * s;
-			for (int c = 0; c < ncor; c++) {
-				s = 0;
-				for (long i = ca; i < cb; i++)
-					s += cp[c]->plane[off + i];
-				*cd += cw[c] * by[b] * bx[a] * s;
-			}
-		}
-	}
-}
-
-/* One array (psf-blend=cell or core), the whole window, straight into the
- * tile: for each row j and pixel i < nx,
+ * but on the wing rows jw <= j < jw + nw, over wa <= i < wb,
  *
- *   pix[j stride + i] += ((w0 s0[j m + i] + w1 s1[..]) + w2 s2[..]) + w3 s3[..]
+ *   w0 s0[j m + i] + w1 s1[..] + w2 s2[..] + w3 s3[..]
  *
- * summed in float; on the core rows jc <= j < jc + nc, over the row's run
- * ia <= i < ib, kv[] replaces the sum.  Two
- * builds with the same operations per pixel in the same order, so the same
- * bits: 8 pixels at a time with AVX2 (reading on into the planes' slack and
- * into kv's margins, the lanes outside the row or the run masked), and one
- * by one.  The float sums are converted and added in registers (through a
- * row buffer the loads of a just-stored row cost as much as the sums, and
- * GCC's vector extension converted one lane at a time). */
+ * (the last three products fused: fmaf)
+ * and on the core rows jc <= j < jc + nc, over ka <= i < kb, kv[] replaces
+ * the sum; in float.  Two builds with the same operations per pixel in the
+ * same order, so the same bits: 8 pixels at a time with AVX2 (reading on
+ * into the planes' slack and into kv's margins, the lanes outside a run
+ * masked), and one by one.  The float sums are converted and added in
+ * registers. */
 #define KV_ROWS 48              /* core rows and columns the fast path takes: */
 #define KV_COLS 48              /* the 44-pixel box, so psf-interp=bicubic too */
 #define KV_PITCH (KV_COLS + 16) /* a core row of kv: 8 floats margin, then column ka */
 
 struct rows_args {
-	const float *s[4];      /* the bilinear streams at the window's first row */
+	const float *s[4];      /* the bilinear streams at the window's first pixel */
+	const float *sn;        /* the nearest sample's stream */
 	ptrdiff_t m;            /* floats from one plane row to the next */
-	float w[4];
-	int jc, nc;             /* the core's rows, [jc, jc + nc) of the window */
-	const int *ia, *ib;     /* their runs, [ia[r], ib[r]) */
-	const float *kv;        /* pixel i of core row r: kv[r * KV_PITCH + 8 + i - ka] */
-	int ka;
+	float w[4], wn;         /* their weights: flux f bilinear weight; flux f */
+	int jw, nw, wa, wb;     /* the wing square, window coordinates */
+	int jc, nc, ka, kb;     /* the core, window coordinates */
+	const float *kv;        /* pixel i of row jc + c: kv[c KV_PITCH + 8 + i - ka] */
 };
 
 static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
@@ -220,15 +201,22 @@ static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
 	for (int j = 0; j < ny; j++) {
 		const float *s0 = r->s[0] + j * r->m, *s1 = r->s[1] + j * r->m;
 		const float *s2 = r->s[2] + j * r->m, *s3 = r->s[3] + j * r->m;
+		const float *sn = r->sn + j * r->m;
 		double *out = pix + j * stride;
 		int c = j - r->jc, core = c >= 0 && c < r->nc;
-		const float *kv = core ? r->kv + c * KV_PITCH : NULL;
+		int wing = j >= r->jw && j < r->jw + r->nw;
 
 		for (int i = 0; i < nx; i++) {
-			float v = r->w[0] * s0[i] + r->w[1] * s1[i] + r->w[2] * s2[i] + r->w[3] * s3[i];
+			float v = r->wn * sn[i];
 
-			if (core && i >= r->ia[c] && i < r->ib[c])
-				v = kv[8 + i - r->ka];
+			if (wing && i >= r->wa && i < r->wb) {
+				v = r->w[0] * s0[i];
+				v = fmaf(r->w[1], s1[i], v);
+				v = fmaf(r->w[2], s2[i], v);
+				v = fmaf(r->w[3], s3[i], v);
+			}
+			if (core && i >= r->ka && i < r->kb)
+				v = r->kv[c * KV_PITCH + 8 + i - r->ka];
 			out[i] += v;
 		}
 	}
@@ -238,74 +226,228 @@ static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
 #include <immintrin.h>
 #define HAVE_ROWS_AVX2 1
 
-__attribute__((target("avx2"))) static void sum_rows_avx2(double *pix, ptrdiff_t stride, int nx,
+/* out[0..8) += v */
+#define ADD8(out, v) do { \
+	__m256 v_ = (v); \
+	_mm256_storeu_pd((out), _mm256_add_pd(_mm256_loadu_pd(out), \
+					      _mm256_cvtps_pd(_mm256_castps256_ps128(v_)))); \
+	_mm256_storeu_pd((out) + 4, _mm256_add_pd(_mm256_loadu_pd((out) + 4), \
+						  _mm256_cvtps_pd(_mm256_extractf128_ps(v_, 1)))); \
+} while (0)
+/* the same for the first n < 8 lanes only (AMD's masked stores are slow) */
+__attribute__((target("avx2,fma"), always_inline)) static inline void add8_tail(double *out, __m256 v,
+									    int n)
+{
+	__m256d lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
+	double t[4];
+
+	if (n >= 4) {
+		_mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), lo));
+		lo = _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1));
+		out += 4;
+		n -= 4;
+	}
+	if (!n)
+		return;
+	_mm256_storeu_pd(t, lo);
+	for (int l = 0; l < n; l++)
+		out[l] += t[l];
+}
+
+__attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdiff_t stride, int nx,
 							  int ny, const struct rows_args *r)
 {
 	__m256 w0 = _mm256_set1_ps(r->w[0]), w1 = _mm256_set1_ps(r->w[1]);
 	__m256 w2 = _mm256_set1_ps(r->w[2]), w3 = _mm256_set1_ps(r->w[3]);
+	__m256 wn = _mm256_set1_ps(r->wn);
 	__m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+	__m256i wa = _mm256_set1_epi32(r->wa - 1), wb = _mm256_set1_epi32(r->wb);
+	__m256i ka = _mm256_set1_epi32(r->ka - 1), kb = _mm256_set1_epi32(r->kb);
+	/* the row's last, partial step: its lanes below nx */
+	int nv = nx & ~7, tail = nx - nv;
+	/* on the wing's rows, the steps [va, vb) meet the wing's columns */
+	int va = r->wa <= 0 ? 0 : r->wa & ~7, vb = r->wb <= 0 ? 0 : (r->wb + 7) & ~7;
+	const float *sn = r->sn, *s0 = r->s[0], *s1 = r->s[1], *s2 = r->s[2], *s3 = r->s[3];
+	ptrdiff_t m = r->m;
+	double *out = pix;
+	int i;
 
-	for (int j = 0; j < ny; j++) {
-		const float *s0 = r->s[0] + j * r->m, *s1 = r->s[1] + j * r->m;
-		const float *s2 = r->s[2] + j * r->m, *s3 = r->s[3] + j * r->m;
-		double *out = pix + j * stride;
+#define NEAREST(i) do { \
+	__m256 n_ = _mm256_mul_ps(wn, _mm256_loadu_ps(sn + (i))); \
+	if ((i) < nv) \
+		ADD8(out + (i), n_); \
+	else \
+		add8_tail(out + (i), n_, tail); \
+} while (0)
+
+	if (vb > nx)
+		vb = (nx + 7) & ~7;
+	if (va > vb)
+		va = vb;
+	for (int j = 0; j < ny; j++, sn += m, s0 += m, s1 += m, s2 += m, s3 += m, out += stride) {
 		int c = j - r->jc, core = c >= 0 && c < r->nc;
-		int ia = core ? r->ia[c] : 0, ib = core ? r->ib[c] : 0;
-		const float *kv = core ? r->kv + c * KV_PITCH : NULL;
-		__m256i va = _mm256_set1_epi32(ia - 1), vb = _mm256_set1_epi32(ib);
-		int i;
 
-		for (i = 0; i < nx; i += 8) {
-			__m256 v = _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(
-				_mm256_mul_ps(w0, _mm256_loadu_ps(s0 + i)), _mm256_mul_ps(w1, _mm256_loadu_ps(s1 + i))),
-				_mm256_mul_ps(w2, _mm256_loadu_ps(s2 + i))), _mm256_mul_ps(w3, _mm256_loadu_ps(s3 + i)));
-			__m256d lo, hi;
-
-			if (i < ib && i + 8 > ia) {
-				__m256i lane = _mm256_add_epi32(lanes, _mm256_set1_epi32(i));
-				__m256 in = _mm256_castsi256_ps(_mm256_and_si256(_mm256_cmpgt_epi32(lane, va),
-										 _mm256_cmpgt_epi32(vb, lane)));
-				__m256 k = _mm256_loadu_ps(kv + (8 + i - r->ka));
-
-				v = _mm256_blendv_ps(v, k, in);
-			}
-			lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
-			hi = _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1));
-			if (i + 8 <= nx) {
-				_mm256_storeu_pd(out + i, _mm256_add_pd(_mm256_loadu_pd(out + i), lo));
-				_mm256_storeu_pd(out + i + 4, _mm256_add_pd(_mm256_loadu_pd(out + i + 4), hi));
-				continue;
-			}
-			if (i + 4 <= nx) {
-				_mm256_storeu_pd(out + i, _mm256_add_pd(_mm256_loadu_pd(out + i), lo));
-				lo = hi;
-				i += 4;
-			}
-			{
-				double t[4];
-
-				_mm256_storeu_pd(t, lo);
-				for (int l = 0; i + l < nx; l++)
-					out[i + l] += t[l];
-			}
+		if (j < r->jw || j >= r->jw + r->nw) {
+			/* beyond the wing square: one stream */
+			for (i = 0; i < nx; i += 8)
+				NEAREST(i);
+			continue;
 		}
+		for (i = 0; i < va; i += 8)
+			NEAREST(i);
+		for (; i < vb; i += 8) {
+			__m256i lane = _mm256_add_epi32(lanes, _mm256_set1_epi32(i));
+			__m256i in = _mm256_and_si256(_mm256_cmpgt_epi32(lane, wa),
+						      _mm256_cmpgt_epi32(wb, lane));
+			__m256 b = _mm256_fmadd_ps(w3, _mm256_loadu_ps(s3 + i), _mm256_fmadd_ps(
+				w2, _mm256_loadu_ps(s2 + i), _mm256_fmadd_ps(
+				w1, _mm256_loadu_ps(s1 + i), _mm256_mul_ps(w0, _mm256_loadu_ps(s0 + i)))));
+			__m256 v = _mm256_blendv_ps(_mm256_mul_ps(wn, _mm256_loadu_ps(sn + i)), b,
+						    _mm256_castsi256_ps(in));
+
+			if (core && i < r->kb && i + 8 > r->ka) {
+				__m256 k = _mm256_loadu_ps(r->kv + (c * KV_PITCH + 8 + i - r->ka));
+
+				in = _mm256_and_si256(_mm256_cmpgt_epi32(lane, ka), _mm256_cmpgt_epi32(kb, lane));
+				v = _mm256_blendv_ps(v, k, _mm256_castsi256_ps(in));
+			}
+			if (i < nv)
+				ADD8(out + i, v);
+			else
+				add8_tail(out + i, v, tail);
+		}
+		for (; i < nx; i += 8)
+			NEAREST(i);
 	}
+#undef NEAREST
 }
+
 #endif
 
-enum { INTERP_BILINEAR, INTERP_CORE, INTERP_BICUBIC };
-enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
+/* The core: for rows c < nc and pixels i < nk (8 at a time; kv gets a
+ * multiple of 8), each lane
+ *
+ *   v = sum over b of ky[b] (kx[0] t[b][0] + kx[1] t[b][1] + ...)   Keys
+ *   v = bw[0] t[1][1] + bw[1] t[1][2] + bw[2] t[2][1] + bw[3] t[2][2] bilinear
+ *   kv = v + sum over k of cw[k] ct[k]         psf-blend=core's correction
+ *
+ * every product but the first of a sum fused (fmaf), in this order, so
+ * that the AVX2 build and the plain one give the same bits; and K, the sum
+ * of kv over the core, in double (lanes l and l + 4 to accumulator l). */
+struct core_args {
+	const float *t[16];     /* tap (a, b) at t[4 b + a], the core's first pixel */
+	const float *ct[32];    /* the correction's streams */
+	int nct, keys, nc, nk;
+	ptrdiff_t m;
+	float kx[4], ky[4], bw[4], cw[32];
+};
+
+static double core_plain(const struct core_args *a, float *kvb)
+{
+	double ks[4] = { 0 };
+
+	for (int c = 0; c < a->nc; c++) {
+		ptrdiff_t o = (ptrdiff_t)c * a->m;
+		float *kv = kvb + c * KV_PITCH + 8;
+
+		for (int i0 = 0; i0 < a->nk; i0 += 8) {
+			float lane[8];
+
+			for (int l = 0; l < 8; l++) {
+				ptrdiff_t at = o + i0 + l;
+				float v, e = 0;
+
+				if (a->keys) {
+					v = 0;
+					for (int b = 0; b < 4; b++) {
+						const float *const *t = a->t + 4 * b;
+						float h = a->kx[0] * t[0][at];
+
+						h = fmaf(a->kx[1], t[1][at], h);
+						h = fmaf(a->kx[2], t[2][at], h);
+						h = fmaf(a->kx[3], t[3][at], h);
+						v = b ? fmaf(a->ky[b], h, v) : a->ky[0] * h;
+					}
+				} else {
+					v = a->bw[0] * a->t[5][at];
+					v = fmaf(a->bw[1], a->t[6][at], v);
+					v = fmaf(a->bw[2], a->t[9][at], v);
+					v = fmaf(a->bw[3], a->t[10][at], v);
+				}
+				for (int k = 0; k < a->nct; k++)
+					e = fmaf(a->cw[k], a->ct[k][at], e);
+				kv[i0 + l] = lane[l] = v + e;
+			}
+			for (int l = 0; l < 4; l++)
+				ks[l] += (double)(i0 + l < a->nk ? lane[l] : 0) +
+					 (double)(i0 + l + 4 < a->nk ? lane[l + 4] : 0);
+		}
+	}
+	return (ks[0] + ks[1]) + (ks[2] + ks[3]);
+}
+
+#ifdef HAVE_ROWS_AVX2
+__attribute__((target("avx2,fma"))) static double core_avx2(const struct core_args *a, float *kvb)
+{
+	__m256d ks = _mm256_setzero_pd();
+	__m256 kx0 = _mm256_set1_ps(a->kx[0]), kx1 = _mm256_set1_ps(a->kx[1]);
+	__m256 kx2 = _mm256_set1_ps(a->kx[2]), kx3 = _mm256_set1_ps(a->kx[3]);
+	__m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), nk = _mm256_set1_epi32(a->nk);
+	double k[4];
+
+	for (int c = 0; c < a->nc; c++) {
+		ptrdiff_t o = (ptrdiff_t)c * a->m;
+		float *kv = kvb + c * KV_PITCH + 8;
+
+		for (int i0 = 0; i0 < a->nk; i0 += 8) {
+			__m256 v, e = _mm256_setzero_ps();
+			__m256i in;
+
+			if (a->keys) {
+				v = _mm256_setzero_ps();
+				for (int b = 0; b < 4; b++) {
+					const float *const *t = a->t + 4 * b;
+					__m256 h = _mm256_mul_ps(kx0, _mm256_loadu_ps(t[0] + o + i0));
+
+					h = _mm256_fmadd_ps(kx1, _mm256_loadu_ps(t[1] + o + i0), h);
+					h = _mm256_fmadd_ps(kx2, _mm256_loadu_ps(t[2] + o + i0), h);
+					h = _mm256_fmadd_ps(kx3, _mm256_loadu_ps(t[3] + o + i0), h);
+					v = b ? _mm256_fmadd_ps(_mm256_set1_ps(a->ky[b]), h, v) :
+						_mm256_mul_ps(_mm256_set1_ps(a->ky[0]), h);
+				}
+			} else {
+				v = _mm256_mul_ps(_mm256_set1_ps(a->bw[0]), _mm256_loadu_ps(a->t[5] + o + i0));
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[1]), _mm256_loadu_ps(a->t[6] + o + i0), v);
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[2]), _mm256_loadu_ps(a->t[9] + o + i0), v);
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[3]), _mm256_loadu_ps(a->t[10] + o + i0), v);
+			}
+			for (int k = 0; k < a->nct; k++)
+				e = _mm256_fmadd_ps(_mm256_set1_ps(a->cw[k]), _mm256_loadu_ps(a->ct[k] + o + i0), e);
+			v = _mm256_add_ps(v, e);
+			_mm256_storeu_ps(kv + i0, v);
+			in = _mm256_cmpgt_epi32(nk, _mm256_add_epi32(lanes, _mm256_set1_epi32(i0)));
+			v = _mm256_and_ps(v, _mm256_castsi256_ps(in));
+			ks = _mm256_add_pd(ks, _mm256_add_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(v)),
+							     _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1))));
+		}
+	}
+	_mm256_storeu_pd(k, ks);
+	return (k[0] + k[1]) + (k[2] + k[3]);
+}
+#endif
 
 struct point {
 	const struct wfs_host *host;
 	int interp;             /* psf-interp */
-	double core;            /* radius of the bicubic core, pixels */
+	double core;            /* half-width of the cubic core, pixels */
+	double wing;            /* half-width of the bilinear square, pixels */
 	int adaptive;           /* psf-box=adaptive */
 	double box_noise;       /* psf-box-noise: fraction of the box's noise */
 	double sigma;           /* noise per pixel, counts/s (psf-box-sigma) */
 	int blend;              /* psf-blend */
 	int cell;               /* psf-cell: side of a blended cell, pixels */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
+	double (*core_rows)(const struct core_args *, float *);
 	struct poly slot[POLY_SLOTS];
 };
 
@@ -355,29 +497,60 @@ static void ee_table(struct poly *q, const float *node)
 	}
 }
 
-/* Make the polyphase copy of an n x n ePSF array under key.  Main thread
- * only (footprint). */
-static int poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
+/* The summed-area tables of q's planes; row is m + 1 doubles of scratch. */
+static void sat_table(struct poly *q, double *row)
+{
+	int m = q->m, w = m + 1;
+
+	for (int k = 0; k < q->over * q->over; k++) {
+		const float *pl = q->plane + (size_t)k * m * m;
+		float *s = q->sat + (size_t)k * w * w;
+
+		for (int c = 0; c < w; c++)
+			row[c] = s[c] = 0;
+		for (int r = 0; r < m; r++) {
+			double run = 0;
+
+			s[(size_t)(r + 1) * w] = 0;
+			for (int c = 0; c < m; c++) {
+				run += pl[(size_t)r * m + c];
+				row[c + 1] += run;
+				s[(size_t)(r + 1) * w + c + 1] = (float)row[c + 1];
+			}
+		}
+	}
+}
+
+/* The polyphase copy of an n x n ePSF array under key, made the first time.
+ * Main thread only (prepare).  NULL with an error recorded when it fails. */
+static struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
 {
 	int m = (n + over - 1) / over + 2 * PAD + 1;
 	size_t i = poly_hash(key), k;
 	struct poly q = { .key = key, .n = n, .over = over, .centre = (n - 1) / 2, .m = m };
+	double *row;
 
-	if (poly_find(p, key))
-		return 0;
-	for (k = 0; k < POLY_SLOTS && p->slot[i].key; k++)
+	for (k = 0; k < POLY_SLOTS && p->slot[i].key; k++) {
+		if (p->slot[i].key == key)
+			return &p->slot[i];
 		i = (i + 1) & (POLY_SLOTS - 1);
-	if (k == POLY_SLOTS)
-		return p->host->error(p->host->ctx, "too many ePSF nodes and cells (%d)", POLY_SLOTS);
+	}
+	if (k == POLY_SLOTS) {
+		p->host->error(p->host->ctx, "too many ePSF nodes and cells (%d)", POLY_SLOTS);
+		return NULL;
+	}
 	q.nee = q.centre / over;
 	q.plane = calloc((size_t)over * over * m * m + VSLACK, sizeof(float));
+	q.sat = malloc((size_t)over * over * (m + 1) * (m + 1) * sizeof(float));
 	q.ee = calloc((size_t)q.nee + 1, sizeof(double));
-	q.psum = calloc((size_t)over * over, sizeof(double));
-	if (!q.plane || !q.ee || !q.psum) {
+	row = malloc((size_t)(m + 1) * sizeof(double));
+	if (!q.plane || !q.sat || !q.ee || !row) {
 		free(q.plane);
+		free(q.sat);
 		free(q.ee);
-		free(q.psum);
-		return p->host->error(p->host->ctx, "out of memory");
+		free(row);
+		p->host->error(p->host->ctx, "out of memory");
+		return NULL;
 	}
 	for (int r = 0; r < over; r++)
 		for (int s = 0; s < over; s++) {
@@ -388,16 +561,10 @@ static int poly_add(struct point *p, uint64_t key, const float *node, int n, int
 					pl[a * m + b] = node[(size_t)y * n + x];
 		}
 	ee_table(&q, node);
-	for (int k = 0; k < over * over; k++) {
-		const float *pl = q.plane + (size_t)k * m * m;
-		double t = 0;
-
-		for (int a = 0; a < m * m; a++)
-			t += pl[a];
-		q.psum[k] = t;
-	}
+	sat_table(&q, row);
+	free(row);
 	p->slot[i] = q;
-	return 0;
+	return &p->slot[i];
 }
 
 /* The key of the blended cell holding (x, y): odd, so never a node's. */
@@ -411,23 +578,26 @@ static uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 
 /* psf-blend=cell: the ePSF blended once at the centre of the source's cell
  * (bilinear in position, as the host's weights say), so a source reads one
- * array instead of four. */
-static int cell_add(struct point *p, const struct wfs_source *src, uint64_t key)
+ * array instead of four.  NULL with an error recorded when it fails. */
+static struct poly *cell_add(struct point *p, const struct wfs_source *src)
 {
+	uint64_t key = cell_key(p, src);
 	struct wfs_epsf e;
 	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
 	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
+	struct poly *c = (struct poly *)poly_find(p, key);
 	float *mix;
 	size_t nn;
-	int r;
 
-	if (poly_find(p, key))
-		return 0;
+	if (c)
+		return c;
 	if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
-		return -1;
+		return NULL;
 	nn = (size_t)e.n * e.n;
-	if (!(mix = malloc(nn * sizeof(float))))
-		return p->host->error(p->host->ctx, "out of memory");
+	if (!(mix = malloc(nn * sizeof(float)))) {
+		p->host->error(p->host->ctx, "out of memory");
+		return NULL;
+	}
 	for (size_t i = 0; i < nn; i++) {
 		double v = 0;
 
@@ -436,22 +606,21 @@ static int cell_add(struct point *p, const struct wfs_source *src, uint64_t key)
 				v += e.weight[k] * e.node[k][i];
 		mix[i] = (float)v;
 	}
-	r = poly_add(p, key, mix, e.n, e.over);
+	c = poly_add(p, key, mix, e.n, e.over);
 	free(mix);
-	if (r < 0)
-		return -1;
+	if (!c)
+		return NULL;
 	/* what the cell was blended from, for the core's correction
 	 * (psf-blend=core): the nodes' own polyphase copies too */
-	struct poly *c = (struct poly *)poly_find(p, key);
-
 	for (int k = 0; k < 4; k++) {
 		c->cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
 		c->cweight[k] = e.weight[k] != 0 ? e.weight[k] : 0;
+		c->cpoly[k] = NULL;
 		if (p->blend == BLEND_CORE && c->cnode[k] &&
-		    poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over) < 0)
-			return -1;
+		    !(c->cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over)))
+			return NULL;
 	}
-	return 0;
+	return c;
 }
 
 /* A setting that is one of a list of names: 0 and *out set, or an error
@@ -522,17 +691,25 @@ static int point_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
 	p->sum_rows = sum_rows_plain;
+	p->core_rows = core_plain;
 #ifdef HAVE_ROWS_AVX2
-	if (__builtin_cpu_supports("avx2"))
+	/* WFISCENE_NO_SIMD: the plain loops, for testing that both give the
+	 * same bits */
+	if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+	    !getenv("WFISCENE_NO_SIMD")) {
 		p->sum_rows = sum_rows_avx2;
+		p->core_rows = core_avx2;
+	}
 #endif
 	p->interp = INTERP_CORE;
 	p->core = 4.0;
+	p->wing = 8.0;
 	p->blend = BLEND_CORE;
 	p->box_noise = 0.1;
 	p->sigma = scene_sigma(host);
 	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
 	    setting_number(host, "psf-core", 0, 0, &p->core) < 0 ||
+	    setting_number(host, "psf-wing", 0, 0, &p->wing) < 0 ||
 	    setting_choice(host, "psf-box", box, 2, &p->adaptive) < 0 ||
 	    setting_number(host, "psf-box-noise", 0, 1, &p->box_noise) < 0 ||
 	    setting_number(host, "psf-box-sigma", 0, 1, &p->sigma) < 0 ||
@@ -563,8 +740,8 @@ static void point_fini(void *state)
 
 	for (int i = 0; p && i < POLY_SLOTS; i++) {
 		free(p->slot[i].plane);
+		free(p->slot[i].sat);
 		free(p->slot[i].ee);
-		free(p->slot[i].psum);
 	}
 	free(p);
 }
@@ -634,62 +811,6 @@ static int source_blend(const struct point *p, const struct wfs_source *src)
 	return p->blend == BLEND_CORE && src->psf_class != WFS_PSF_NORMAL ? BLEND_SOURCE : p->blend;
 }
 
-static int point_footprint(void *state, const struct wfs_source *src,
-			   struct wfs_box *box)
-{
-	struct point *p = state;
-	const struct poly *pl[4];
-	double wn[4], half;
-	int nn, blend = source_blend(p, src);
-
-	if (blend != BLEND_SOURCE && cell_add(p, src, cell_key(p, src)) < 0)
-		return -1;
-	if (blend != BLEND_CELL) {
-		struct wfs_epsf e;
-
-		if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
-			return -1;
-		for (int k = 0; k < 4; k++)
-			if (e.weight[k] != 0 &&
-			    poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over) < 0)
-				return -1;
-	}
-	/* the box from the blend at the source, but for psf-blend=cell */
-	if ((nn = source_polys(p, src, blend == BLEND_CELL ? BLEND_CELL : BLEND_SOURCE,
-			       pl, wn)) < 0)
-		return -1;
-	half = (double)pl[0]->centre / pl[0]->over;
-	if (p->adaptive) {
-		/* the smallest half-width whose left-out light is below
-		 * box_noise times the noise summed over the box */
-		int h, H = pl[0]->nee;
-
-		for (h = 1; h < H; h++) {
-			double out = 0;
-
-			for (int k = 0; k < nn; k++)
-				out += wn[k] * (pl[k]->ee[H] - pl[k]->ee[h]);
-			if (fabs(out) <= p->box_noise * p->sigma * 2 * h)
-				break;
-		}
-		if (h < half)
-			half = h;
-	}
-	/* pixels i with x - half < i < x + half */
-	box->x0 = (int)floor(src->x - half) + 1;
-	box->x1 = (int)ceil(src->x + half);
-	box->y0 = (int)floor(src->y - half) + 1;
-	box->y1 = (int)ceil(src->y + half);
-	return 0;
-}
-
-/* row[i] += acc[i] for i < len */
-static inline __attribute__((always_inline)) void add_row(double *row, const float *acc, int len)
-{
-	for (int i = 0; i < len; i++)
-		row[i] += acc[i];
-}
-
 /* Keys' cubic convolution weights for taps -1, 0, 1, 2 at phase t in [0, 1). */
 static void keys_weights(double t, double w[4])
 {
@@ -701,238 +822,474 @@ static void keys_weights(double t, double w[4])
 	w[3] = 0.5 * t3 - 0.5 * t2;
 }
 
+/* floor(x) and ceil(x) for |x| < 2^62, without a library call (the
+ * plugin's baseline build has no rounding instruction) */
+static inline long lfloor(double x)
+{
+	long i = (long)x;
+
+	return i - (x < i);
+}
+
+static inline long lceil(double x)
+{
+	long i = (long)x;
+
+	return i + (x > i);
+}
+
 /* floor(a / b) for b > 0 and any sign of a */
 static long floordiv(long a, long b)
 {
 	return a >= 0 ? a / b : -((-a + b - 1) / b);
 }
 
-/* Built twice, for AVX2 and for any x86-64, and chosen at load time: the
- * row sums run 8 floats wide where the processor allows.
+static void geom_of(const struct poly *q, double x, double y, struct geom *g)
+{
+	/* sample index of pixel i: centre + o i + base, plus the phase f */
+	int o = q->over;
+	double tx = -o * x, ty = -o * y;
+	long basex = lfloor(tx), basey = lfloor(ty);
+	double fx = tx - basex, fy = ty - basey;
+	long sx = q->centre + basex - 1, sy = q->centre + basey - 1;
+	long mx0 = floordiv(sx, o), rx0 = sx - o * mx0, my0 = floordiv(sy, o), ry0 = sy - o * my0;
+	ptrdiff_t m = q->m, w = m + 1;
+
+	g->o = o;
+	g->m = m;
+	g->bx[0] = 1 - fx;
+	g->bx[1] = fx;
+	g->by[0] = 1 - fy;
+	g->by[1] = fy;
+	keys_weights(fx, g->kx);
+	keys_weights(fy, g->ky);
+	g->an = fx < 0.5 ? 1 : 2;
+	g->bn = fy < 0.5 ? 1 : 2;
+	/* tap a is sample sx + a: the next phase, or the next plane column
+	 * after the last phase */
+	for (int a = 0; a < 4; a++) {
+		long rx = rx0 + a, mx = mx0, ry = ry0 + a, my = my0;
+
+		for (; rx >= o; rx -= o)
+			mx++;
+		for (; ry >= o; ry -= o)
+			my++;
+		g->rx[a] = rx;
+		g->mx[a] = mx;
+		g->ry[a] = ry;
+		g->my[a] = my;
+		/* plane (ry o + rx) of m x m, row my + PAD, column mx + PAD */
+		g->tx[a] = rx * m * m + mx + PAD;
+		g->ty[a] = (ry * o * m + my + PAD) * m;
+		g->sx[a] = rx * w * w + mx + PAD;
+		g->sy[a] = (ry * o * w + my + PAD) * w;
+	}
+}
+
+/* Tap (a, b) of q's pixel (i, j). */
+static inline const float *tap_at(const struct poly *q, const struct geom *g, int a, int b,
+				  long i, long j)
+{
+	return q->plane + g->tx[a] + g->ty[b] + j * g->m + i;
+}
+
+/* The pixels within h of (x, y) along both axes: |i - x| < h, |j - y| < h. */
+static struct zone square(double x, double y, double h)
+{
+	return (struct zone){ lfloor(x - h) + 1, lceil(x + h), lfloor(y - h) + 1, lceil(y + h) };
+}
+
+static struct zone meet(struct zone a, struct zone b)
+{
+	a.x0 = a.x0 > b.x0 ? a.x0 : b.x0;
+	a.x1 = a.x1 < b.x1 ? a.x1 : b.x1;
+	a.y0 = a.y0 > b.y0 ? a.y0 : b.y0;
+	a.y1 = a.y1 < b.y1 ? a.y1 : b.y1;
+	return a;
+}
+
+static int zone_empty(struct zone z)
+{
+	return z.x0 >= z.x1 || z.y0 >= z.y1;
+}
+
+/* The corners of zone z in a summed-area table (every zone lies in the
+ * source's box, and every tap of the box inside its plane). */
+struct corners {
+	ptrdiff_t c00, c01, c10, c11;
+};
+
+static inline struct corners corners_of(const struct geom *g, struct zone z)
+{
+	ptrdiff_t w = g->m + 1;
+
+	return (struct corners){ z.y0 * w + z.x0, z.y0 * w + z.x1, z.y1 * w + z.x0, z.y1 * w + z.x1 };
+}
+
+/* The sum of tap (a, b) of q over the pixels of a zone. */
+static inline double tap_sum(const struct poly *q, const struct geom *g, int a, int b,
+			     struct corners k)
+{
+	const float *s = q->sat + g->sx[a] + g->sy[b];
+
+	return ((double)s[k.c11] - s[k.c01]) - ((double)s[k.c10] - s[k.c00]);
+}
+
+/* Bilinear interpolation's and Keys' sums of q over the pixels of z. */
+static double bil_sum(const struct poly *q, const struct geom *g, struct zone z)
+{
+	struct corners k = corners_of(g, z);
+
+	if (zone_empty(z))
+		return 0;
+	return g->by[0] * (g->bx[0] * tap_sum(q, g, 1, 1, k) + g->bx[1] * tap_sum(q, g, 2, 1, k)) +
+	       g->by[1] * (g->bx[0] * tap_sum(q, g, 1, 2, k) + g->bx[1] * tap_sum(q, g, 2, 2, k));
+}
+
+static double keys_sum(const struct poly *q, const struct geom *g, struct zone z)
+{
+	struct corners k = corners_of(g, z);
+	double s = 0;
+
+	for (int b = 0; b < 4 && !zone_empty(z); b++) {
+		double t = 0;
+
+		for (int a = 0; a < 4; a++)
+			t += g->kx[a] * tap_sum(q, g, a, b, k);
+		s += g->ky[b] * t;
+	}
+	return s;
+}
+
+/* The zones of a draw whose arrays are set: box of half-width half, core,
+ * wing square. */
+static void zones(const struct point *p, const struct wfs_source *src, int blend, double half,
+		  struct draw *d)
+{
+	double r = p->core;
+
+	geom_of(d->pl[0], src->x, src->y, &d->g);
+	d->cell = blend != BLEND_SOURCE;
+	d->box = square(src->x, src->y, half);
+	d->keys = p->interp != INTERP_BILINEAR;
+	if (p->interp == INTERP_BILINEAR && blend != BLEND_CORE)
+		r = 0;
+	/* the cubic's taps must stay inside the array (bicubic everywhere
+	 * reads the planes' zero padding at the box's edge instead) */
+	if (p->interp == INTERP_BICUBIC)
+		d->core = d->box;
+	else if (r > 0 && r * d->g.o + 2 < d->pl[0]->centre)
+		d->core = meet(square(src->x, src->y, r), d->box);
+	else
+		d->core = (struct zone){ 0, 0, 0, 0 };
+	/* the nearest sample beyond the wing square (which holds the core):
+	 * one array of the faint class only; bright sources are bilinear to
+	 * the box's edge */
+	if (d->cell && src->psf_class == WFS_PSF_NORMAL && p->wing < half && 2 * half <= KV_COLS &&
+	    p->interp != INTERP_BICUBIC)
+		d->wing = meet(square(src->x, src->y,
+				      zone_empty(d->core) || p->wing > r ? p->wing : r), d->box);
+	else
+		d->wing = d->box;
+}
+
+/* render_one() draws it: one blended cell and a core that fits its buffer */
+static int one_array(const struct draw *d)
+{
+	return d->cell && d->core.x1 - d->core.x0 <= KV_COLS && d->core.y1 - d->core.y0 <= KV_ROWS;
+}
+
+/* psf-blend=core's correction from the cell's own node copies and the
+ * source's node weights w (aux[4..7], in the cell's node order). */
+static void cell_correction(const struct poly *cell, double flux, const double w[4],
+			    struct draw *d)
+{
+	d->ncor = 0;
+	for (int k = 0; k < 4; k++)
+		if (cell->cpoly[k]) {
+			d->cp[d->ncor] = cell->cpoly[k];
+			d->cw[d->ncor++] = flux * w[k] - flux * cell->cweight[k];
+		}
+}
+
+/* How src is drawn in render(), its box and what prepare() found in aux:
+ * which arrays, and the zones.  Returns 0 or -1. */
+static int plan(const struct point *p, const struct wfs_source *src, struct draw *d)
+{
+	int blend = source_blend(p, src);
+
+	d->ncor = 0;
+	if (blend != BLEND_SOURCE && !isnan(src->aux[4])) {
+		/* the cell found by prepare(), and its nodes are the source's */
+		d->nn = 1;
+		d->pl[0] = &p->slot[(size_t)src->aux[3]];
+		d->wn[0] = src->flux;
+		if (blend == BLEND_CORE)
+			cell_correction(d->pl[0], src->flux, src->aux + 4, d);
+	} else {
+		if ((d->nn = source_polys(p, src, blend, d->pl, d->wn)) < 0)
+			return -1;
+		if (blend == BLEND_CORE &&
+		    (d->ncor = core_correction(p, src, d->pl[0], d->cp, d->cw)) < 0)
+			return -1;
+	}
+	zones(p, src, blend, src->aux[0], d);
+	return 0;
+}
+
+/*
+ * The factor on everything outside the core.  With T the bilinear sum of
+ * the source's blend over the box (its enclosed fraction times the flux),
+ * K what the core draws and U what the rest draws before scaling,
  *
- * Per row, the bilinear part is a weighted sum of 4 streams per array (2 x
- * 2 taps), taken 4 streams at a time, each pixel summing its streams in
- * one fixed order.  One array (psf-blend=cell) and no core on the row: the
- * sum goes straight into the tile.  The core's pixels on a row are a run;
- * the Keys sums there run over the run in double, in the same order for
- * every pixel as a pixel-by-pixel loop would take. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
-__attribute__((target_clones("avx2,fma", "default")))
-#endif
-static int point_render(void *state, void *tstate, void *thread,
-			const struct wfs_source *src, const struct wfs_window *win)
+ *   f = (T - K) / U
+ *
+ * makes the total T.  One array (psf-blend=cell or core, render_one): U is
+ * the array's bilinear sum over the wing square less the core plus its
+ * nearest samples beyond; render_one() sums K from the core it draws.
+ * Several arrays: U is their bilinear sum outside the core, and K the
+ * core's Keys sum, both from the tables here.  Where less than 1% of the
+ * light lies outside the core (an adaptive box barely wider than the core,
+ * or the cubic everywhere) f is 1: the kernels' totals then agree to ~1e-4.
+ */
+static double flux_factor(double t, double k, double u)
+{
+	return u > 0.01 * fabs(t) && isfinite(t - k) ? (t - k) / u : 1;
+}
+
+/*
+ * prepare(): the arrays the source reads (polyphase copies of its grid
+ * nodes and of its cell's blend, made once and kept), its box and what its
+ * flux factor needs, in aux:
+ *
+ *   aux[0]     the box's half-width, pixels
+ *   aux[1..2]  T and U (render_one), or f and 0 (several arrays)
+ *   aux[3]     the slot of the source's cell
+ *   aux[4..7]  the source's weights of its cell's nodes (psf-blend=core),
+ *              or NaN when render() must look the arrays up itself
+ */
+static int point_prepare(void *state, struct wfs_source *src)
 {
 	struct point *p = state;
-	const struct poly *pl[4];
-	double wn[4], bx[2], by[2], cx[4], cy[4];
+	struct wfs_epsf e;
+	struct draw d;
+	const struct poly *node[4];
+	double w[4], half, t = 0;
+	struct poly *cell = NULL;
+	int nn = 0, blend = source_blend(p, src), same = blend == BLEND_CORE;
+
+	if (blend != BLEND_SOURCE && !(cell = cell_add(p, src)))
+		return -1;
+	src->aux[4] = src->aux[5] = src->aux[6] = src->aux[7] = 0;
+	if (blend != BLEND_CELL) {
+		/* the source's nodes: the cell's copies when the cell was
+		 * blended from them (their weights go to aux[4..7] in the
+		 * cell's order), else copies made here */
+		if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+			return -1;
+		for (int k = 0; k < 4; k++) {
+			const struct poly *q = NULL;
+
+			if (e.weight[k] == 0)
+				continue;
+			for (int j = 0; cell && j < 4 && !q; j++)
+				if (cell->cnode[j] == e.node[k] && cell->cpoly[j]) {
+					q = cell->cpoly[j];
+					src->aux[4 + j] += e.weight[k];
+				}
+			if (!q) {
+				same = 0;
+				if (!(q = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over)))
+					return -1;
+			}
+			node[nn] = q;
+			w[nn++] = e.weight[k];
+		}
+	}
+	if (!same)
+		src->aux[4] = NAN;
+	/* the arrays render() reads */
+	d.nn = 0;
+	if (cell) {
+		src->aux[3] = (double)(cell - p->slot);
+		d.pl[d.nn] = cell;
+		d.wn[d.nn++] = src->flux;
+	} else
+		for (int k = 0; k < nn; k++) {
+			d.pl[d.nn] = node[k];
+			d.wn[d.nn++] = w[k] * src->flux;
+		}
+	if (d.nn == 0)
+		return p->host->error(p->host->ctx, "no ePSF node with a weight");
+	half = (double)d.pl[0]->centre / d.pl[0]->over;
+	if (p->adaptive) {
+		/* the smallest half-width whose left-out light is below
+		 * box_noise times the noise summed over the box, for the
+		 * blend at the source (at the cell's, psf-blend=cell) */
+		int h, H = d.pl[0]->nee;
+
+		for (h = 1; h < H; h++) {
+			double out = 0;
+
+			if (blend == BLEND_CELL)
+				out = src->flux * (cell->ee[H] - cell->ee[h]);
+			for (int k = 0; k < nn; k++)
+				out += w[k] * src->flux * (node[k]->ee[H] - node[k]->ee[h]);
+			if (fabs(out) <= p->box_noise * p->sigma * 2 * h)
+				break;
+		}
+		if (h < half)
+			half = h;
+	}
+	src->aux[0] = half;
+	zones(p, src, blend, half, &d);
+	/* T: the bilinear sum over the box of the blend at the source (of
+	 * the cell's, psf-blend=cell) */
+	if (blend == BLEND_CELL)
+		t = src->flux * bil_sum(cell, &d.g, d.box);
+	for (int k = 0; k < nn; k++)
+		t += w[k] * src->flux * bil_sum(node[k], &d.g, d.box);
+	if (one_array(&d)) {
+		const struct geom *g = &d.g;
+
+		src->aux[1] = t;
+		src->aux[2] = src->flux * (tap_sum(cell, g, g->an, g->bn, corners_of(g, d.box)) -
+					   (zone_empty(d.wing) ? 0 :
+					    tap_sum(cell, g, g->an, g->bn, corners_of(g, d.wing))) +
+					   bil_sum(cell, g, d.wing) - bil_sum(cell, g, d.core));
+	} else {
+		double k = 0, u = t;
+
+		for (int i = 0; i < d.nn; i++) {
+			double b = bil_sum(d.pl[i], &d.g, d.core);
+
+			u -= d.wn[i] * b;
+			k += d.wn[i] * (d.keys ? keys_sum(d.pl[i], &d.g, d.core) : b);
+		}
+		src->aux[1] = flux_factor(t, k, u);
+		src->aux[2] = 0;
+	}
+	return 0;
+}
+
+static int point_footprint(void *state, const struct wfs_source *src,
+			   struct wfs_box *box)
+{
+	/* pixels i with x - half < i < x + half */
+	struct zone z = square(src->x, src->y, src->aux[0]);
+
+	box->x0 = (int)z.x0;
+	box->x1 = (int)z.x1;
+	box->y0 = (int)z.y0;
+	box->y1 = (int)z.y1;
+	return 0;
+}
+
+/* One array (psf-blend=cell or core) whose core fits the kv buffer: the
+ * core's pixels first (Keys' cubic of the array, or bilinear, plus
+ * psf-blend=core's correction), in float, 8 columns at a time over the
+ * core's columns, and all its rows, inside the window or not, so that their
+ * sum K, and with prepare()'s T and U the flux factor, is the same in every
+ * window of the source; then the whole window in one call. */
+static inline __attribute__((always_inline)) int render_one(const struct point *p,
+							    const struct draw *d, double t,
+							    double u, const struct wfs_window *win)
+{
+	const struct poly *q = d->pl[0];
+	const struct geom *g = &d->g;
+	long X = win->x0, Y = win->y0;
+	ptrdiff_t m = q->m;
+	double fl = d->wn[0];
+	int empty = zone_empty(d->core);
+	int ka = empty ? 0 : (int)(d->core.x0 - X), kb = empty ? 0 : (int)(d->core.x1 - X);
+	int jc = empty ? 0 : (int)(d->core.y0 - Y), nc = empty ? 0 : (int)(d->core.y1 - d->core.y0);
+	float kvb[KV_ROWS * KV_PITCH + 8];
+	double k = 0, f;
+	struct rows_args ra = {
+		{ tap_at(q, g, 1, 1, X, Y), tap_at(q, g, 2, 1, X, Y),
+		  tap_at(q, g, 1, 2, X, Y), tap_at(q, g, 2, 2, X, Y) },
+		tap_at(q, g, g->an, g->bn, X, Y), m, { 0 }, 0,
+		(int)(d->wing.y0 - Y), (int)(d->wing.y1 - d->wing.y0),
+		(int)(d->wing.x0 - X), (int)(d->wing.x1 - X),
+		jc, nc, ka, kb, kvb
+	};
+
+	if (nc > 0) {
+		struct core_args ca = { .nct = 4 * d->ncor, .keys = d->keys, .nc = nc,
+					.nk = kb - ka, .m = m };
+
+		for (int b = 0; b < 4; b++)
+			for (int a = 0; a < 4; a++)
+				ca.t[b * 4 + a] = tap_at(q, g, a, b, d->core.x0, d->core.y0);
+		for (int a = 0; a < 4; a++) {
+			ca.kx[a] = (float)g->kx[a];
+			ca.ky[a] = (float)(g->ky[a] * fl);
+			ca.bw[a] = (float)(fl * g->by[a >> 1] * g->bx[a & 1]);
+		}
+		for (int c = 0; c < d->ncor; c++)
+			for (int b = 0; b < 2; b++)
+				for (int a = 0; a < 2; a++) {
+					ca.cw[(c * 2 + b) * 2 + a] = (float)(d->cw[c] * g->by[b] * g->bx[a]);
+					ca.ct[(c * 2 + b) * 2 + a] = tap_at(d->cp[c], g, a + 1, b + 1,
+									   d->core.x0, d->core.y0);
+				}
+		k = p->core_rows(&ca, kvb);
+	}
+	f = flux_factor(t, k, u);
+	for (int a = 0; a < 4; a++)
+		ra.w[a] = (float)(f * fl * g->by[a >> 1] * g->bx[a & 1]);
+	ra.wn = (float)(f * fl);
+	p->sum_rows(win->pix, win->stride, win->nx, win->ny, &ra);
+	return 0;
+}
+
+/* Several arrays (psf-blend=source, and the bright classes under the
+ * default), or a core too wide for render_one: row by row, the bilinear
+ * sum of every array's 4 streams times f into a float row, then Keys' cubic
+ * over the core's columns, in double, from the same samples. */
+static inline __attribute__((always_inline)) int render_many(const struct point *p, const struct draw *d, double f,
+		       const struct wfs_window *win)
+{
+	const struct geom *g = &d->g;
+	int nn = d->nn;
+	long X = win->x0, Y = win->y0;
 	float wt[16];
-	const float *tap0[64];  /* [node][y tap][x tap] at the window's first row */
-	int blend = source_blend(p, src);
-	const struct poly *cp[8];
-	double cw[8], ccw[32];
-	const float *ctap0[32]; /* psf-blend=core: [node][y tap][x tap], bilinear */
-	double bc = 0, bd = 0;  /* psf-blend=core: box sums of the cell and the difference */
-	long rx[4], mx[4], ry[4], my[4];
-	int nn, ncor = 0, o, m, basex, basey, keys;
-	double tx, ty, fx, fy, core2;
+	const float *tap0[64];  /* [array][y tap][x tap] at the window's first pixel */
+	const float *ctap0[32]; /* psf-blend=core: [array][y tap][x tap], bilinear */
+	double ccw[32];
 	float acc[MAX_ROW + 8];
 	double dv[MAX_ROW + 4], tv[MAX_ROW + 4];
+	int core = !zone_empty(d->core);
+	ptrdiff_t m = d->pl[0]->m;
 
-	if ((nn = source_polys(p, src, blend, pl, wn)) < 0)
-		return -1;
-	if (blend == BLEND_CORE && (ncor = core_correction(p, src, pl[0], cp, cw)) < 0)
-		return -1;
-	o = pl[0]->over;
-	m = pl[0]->m;
-	/* sample index of pixel i: centre + o i + base, plus the phase f */
-	tx = -o * src->x;
-	ty = -o * src->y;
-	basex = (int)floor(tx);
-	basey = (int)floor(ty);
-	fx = tx - basex;
-	fy = ty - basey;
-	bx[0] = 1 - fx; bx[1] = fx;
-	by[0] = 1 - fy; by[1] = fy;
-	keys_weights(fx, cx);
-	keys_weights(fy, cy);
-	/* tap a (sample offsets -1, 0, 1, 2) of pixel i is sample
-	 * o (i + mx[a]) + rx[a]: plane rx[a], column i + mx[a] + PAD */
-	for (int a = 0; a < 4; a++) {
-		long sx = pl[0]->centre + basex + a - 1, sy = pl[0]->centre + basey + a - 1;
-
-		mx[a] = floordiv(sx, o);
-		rx[a] = sx - o * mx[a];
-		my[a] = floordiv(sy, o);
-		ry[a] = sy - o * my[a];
-	}
-	if (win->x0 + mx[0] + PAD < 0 || win->x0 + win->nx + mx[3] + PAD > m ||
-	    win->y0 + my[0] + PAD < 0 || win->y0 + win->ny + my[3] + PAD > m)
-		return p->host->error(p->host->ctx, "window outside the source's box");
 	for (int k = 0; k < nn; k++)
 		for (int b = 0; b < 2; b++)
 			for (int a = 0; a < 2; a++)
-				wt[(k * 2 + b) * 2 + a] = (float)(wn[k] * by[b] * bx[a]);
-	/* psf-blend=core: the box's sums for the flux factor f */
-	if (ncor)
-		core_box_sums(pl[0], cp, cw, ncor, wn[0], rx, ry, bx, by, &bc, &bd);
-	/* the cubic's taps must stay inside the array (bicubic everywhere
-	 * reads the planes' zero padding at the box's edge instead) */
-	keys = p->interp != INTERP_BILINEAR;
-	if (p->interp == INTERP_BICUBIC)
-		core2 = INFINITY;
-	else if (p->interp == INTERP_BILINEAR && blend != BLEND_CORE)
-		core2 = -1;
-	else
-		core2 = p->core * o + 2 < pl[0]->centre ? p->core * p->core : 0;
-	for (int c = 0; c < ncor; c++)
-		for (int b = 0; b < 2; b++)
-			for (int a = 0; a < 2; a++) {
-				ccw[(c * 2 + b) * 2 + a] = cw[c] * by[b] * bx[a];
-				ctap0[(c * 2 + b) * 2 + a] = cp[c]->plane +
-					((size_t)(ry[b + 1] * o + rx[a + 1]) * m + (win->y0 + my[b + 1] + PAD)) * m +
-					(win->x0 + mx[a + 1] + PAD);
-			}
-
-	/* the streams at the window's first row; each row is m samples on */
+				wt[(k * 2 + b) * 2 + a] = (float)(f * d->wn[k] * g->by[b] * g->bx[a]);
 	for (int k = 0; k < nn; k++)
 		for (int b = 0; b < 4; b++)
 			for (int a = 0; a < 4; a++)
-				tap0[(k * 4 + b) * 4 + a] = pl[k]->plane +
-					((size_t)(ry[b] * o + rx[a]) * m + (win->y0 + my[b] + PAD)) * m +
-					(win->x0 + mx[a] + PAD);
-	if (nn == 1 && win->nx <= MAX_ROW) {
-		/* one array: the core's Keys sums (and the source's blend,
-		 * psf-blend=core) first, in float, 8 columns at a time over
-		 * the columns of its widest row, then the whole window in one
-		 * call */
-		double r = core2 >= 0 ? sqrt(core2) : -1;
-		int ka = 0, kb = 0, jc = 0, nc = 0, flux = ncor && !isinf(r);
-		int cia[KV_ROWS], cib[KV_ROWS];
-		float kvb[KV_ROWS * KV_PITCH + 8];
-		v8f kxf[4], kyf[4], ccwf[32], sc = { 0 }, sd = { 0 };
-		struct rows_args ra = { { tap0[5], tap0[6], tap0[9], tap0[10] }, m,
-					{ wt[0], wt[1], wt[2], wt[3] }, 0, 0, cia, cib, kvb, 0 };
-
-		/* the core's rows [jc, jc + nc) and the columns of its widest
-		 * row [ka, kb), whole (past the window, for f: the planes
-		 * cover the box), but for bicubic: the window */
-		if (isinf(r)) {
-			kb = win->nx;
-			nc = win->ny;
-		} else if (r >= 0) {
-			ka = (int)ceil(src->x - r) - win->x0;
-			kb = (int)floor(src->x + r) - win->x0 + 1;
-			jc = (int)ceil(src->y - r) - win->y0;
-			nc = (int)floor(src->y + r) - win->y0 + 1 - jc;
-			if (ka >= kb || nc < 0)
-				ka = kb = nc = 0;
-		}
-		if (nc <= KV_ROWS && kb - ka <= KV_COLS) {
-			v8f b0 = SPLAT(wt[0]), b1 = SPLAT(wt[1]), b2 = SPLAT(wt[2]), b3 = SPLAT(wt[3]);
-
-			for (int a = 0; a < 4; a++) {
-				kxf[a] = SPLAT((float)cx[a]);
-				kyf[a] = SPLAT((float)(cy[a] * wn[0]));
+				tap0[(k * 4 + b) * 4 + a] = tap_at(d->pl[k], g, a, b, X, Y);
+	for (int c = 0; c < d->ncor; c++)
+		for (int b = 0; b < 2; b++)
+			for (int a = 0; a < 2; a++) {
+				ccw[(c * 2 + b) * 2 + a] = d->cw[c] * g->by[b] * g->bx[a];
+				ctap0[(c * 2 + b) * 2 + a] = tap_at(d->cp[c], g, a + 1, b + 1, X, Y);
 			}
-			for (int c = 0; c < 4 * ncor; c++)
-				ccwf[c] = SPLAT((float)ccw[c]);
-			for (int c = 0; c < nc; c++) {
-				int j = win->y0 + jc + c, ca = ka, cb = kb;
-				double dy = j - src->y;
-				ptrdiff_t step = (ptrdiff_t)(jc + c) * m;
-				float *kv = kvb + c * KV_PITCH + 8;
+	for (int j = 0; j < win->ny; j++) {
+		double *row = win->pix + (ptrdiff_t)j * win->stride;
+		ptrdiff_t step = (ptrdiff_t)j * m;
+		long jj = Y + j;
+		/* the core's columns on this row, [ca, cb) of the window */
+		long ca = 0, cb = 0;
 
-				/* the run: the exact test decides, as pixel by pixel */
-				while (ca < cb && (win->x0 + ca - src->x) * (win->x0 + ca - src->x) + dy * dy > core2)
-					ca++;
-				while (cb > ca && (win->x0 + cb - 1 - src->x) * (win->x0 + cb - 1 - src->x) + dy * dy > core2)
-					cb--;
-				/* in the window: rows past it are never drawn */
-				cia[c] = ca < 0 ? 0 : ca;
-				cib[c] = cb > win->nx ? win->nx : cb;
-				for (int i = ka; i < kb; i += 8) {
-					v8f v = { 0 }, d = { 0 };
-
-					for (int b = 0; keys && b < 4; b++) {
-						const float *const *t = tap0 + b * 4;
-
-						v += kyf[b] * (kxf[0] * *(const v8f *)(t[0] + step + i) +
-							       kxf[1] * *(const v8f *)(t[1] + step + i) +
-							       kxf[2] * *(const v8f *)(t[2] + step + i) +
-							       kxf[3] * *(const v8f *)(t[3] + step + i));
-					}
-					for (int q = 0; q < 4 * ncor; q += 2)
-						d += ccwf[q] * *(const v8f *)(ctap0[q] + step + i) +
-						     ccwf[q + 1] * *(const v8f *)(ctap0[q + 1] + step + i);
-					if (flux || !keys) {
-						/* the cell's bilinear sum, as sum_rows()
-						 * takes it before f: with psf-interp=
-						 * bilinear the core's base; C(cell),
-						 * C(d) over the run */
-						v8i lane = LANES + i;
-						v8i in = (lane >= ca) & (lane < cb);
-						v8f bl = b0 * *(const v8f *)(tap0[5] + step + i) +
-							 b1 * *(const v8f *)(tap0[6] + step + i) +
-							 b2 * *(const v8f *)(tap0[9] + step + i) +
-							 b3 * *(const v8f *)(tap0[10] + step + i);
-
-						if (!keys)
-							v = bl;
-						sc += (v8f)((v8i)bl & in);
-						sd += (v8f)((v8i)d & in);
-					}
-					*(v8f *)(kv + i - ka) = v + d;
-				}
-			}
-			if (flux) {
-				double cc = 0, cd = 0, f;
-
-				for (int l = 0; l < 8; l++) {
-					cc += sc[l];
-					cd += sd[l];
-				}
-				f = bc - cc > 0 ? 1 + (bd - cd) / (bc - cc) : 1;
-				for (int t = 0; t < 4; t++)
-					ra.w[t] = (float)(f * wn[0] * by[t >> 1] * bx[t & 1]);
-			}
-			ra.jc = jc;
-			ra.nc = nc;
-			ra.ka = ka;
-			p->sum_rows(win->pix, win->stride, win->nx, win->ny, &ra);
-			return 0;
-		}
-	}
-	if (ncor && !isinf(core2)) {
-		double cc, cd, f;
-
-		core_disk_sums(pl[0], cp, cw, ncor, wn[0], src->x, src->y, core2, rx, mx, ry, my,
-			       bx, by, &cc, &cd);
-		f = bc - cc > 0 ? 1 + (bd - cd) / (bc - cc) : 1;
-		for (int t = 0; t < 4; t++)
-			wt[t] = (float)(f * wn[0] * by[t >> 1] * bx[t & 1]);
-	}
-	for (int j = win->y0; j < win->y0 + win->ny; j++) {
-		double *row = win->pix + (ptrdiff_t)(j - win->y0) * win->stride;
-		double dy = j - src->y;
-		ptrdiff_t step = (ptrdiff_t)(j - win->y0) * m;
-		int ca = 0, cb = 0;     /* the core's run on this row, [ca, cb) of the window */
-
-		if (dy * dy <= core2) {
-			double r = sqrt(core2 - dy * dy), lo = src->x - r - 1, hi = src->x + r + 1;
-
-			ca = lo < win->x0 ? 0 : lo > win->x0 + win->nx ? win->nx : (int)lo - win->x0;
-			cb = hi < win->x0 ? 0 : hi > win->x0 + win->nx ? win->nx : (int)hi - win->x0 + 1;
-			if (cb > win->nx)
-				cb = win->nx;
-			/* the exact test decides, as pixel by pixel */
-			while (ca < cb && (win->x0 + ca - src->x) * (win->x0 + ca - src->x) + dy * dy > core2)
-				ca++;
-			while (cb > ca && (win->x0 + cb - 1 - src->x) * (win->x0 + cb - 1 - src->x) + dy * dy > core2)
-				cb--;
+		if (core && jj >= d->core.y0 && jj < d->core.y1) {
+			ca = d->core.x0 - X < 0 ? 0 : d->core.x0 - X;
+			cb = d->core.x1 - X > win->nx ? win->nx : d->core.x1 - X;
 		}
 		for (int i0 = 0; i0 < win->nx; i0 += MAX_ROW) {
 			int len = win->nx - i0 < MAX_ROW ? win->nx - i0 : MAX_ROW;
-			int ia = ca - i0, ib = cb - i0;
+			long ia = ca - i0, ib = cb - i0;
 
 			if (ia < 0)
 				ia = 0;
@@ -944,6 +1301,7 @@ static int point_render(void *state, void *tstate, void *thread,
 				const float *s2 = t[9] + step + i0, *s3 = t[10] + step + i0;
 				v8f w0 = SPLAT(wt[4 * k]), w1 = SPLAT(wt[4 * k + 1]);
 				v8f w2 = SPLAT(wt[4 * k + 2]), w3 = SPLAT(wt[4 * k + 3]);
+
 				for (int i = 0; i < len; i += 8) {
 					v8f v = { 0 };
 
@@ -956,46 +1314,41 @@ static int point_render(void *state, void *tstate, void *thread,
 					*(v8f *)(acc + i) = v;
 				}
 			}
-			/* the sharp core: Keys cubic from the same samples */
+			/* the core: Keys' cubic from the same samples (or the
+			 * bilinear sum unscaled), 4 pixels at a time, past the
+			 * run's end into the planes' slack; only the run is kept */
 			if (ia < ib) {
-				/* 4 pixels at a time, past the run's end into the
-				 * planes' slack; only the run is kept */
-				int cn = ib - ia;
+				int cn = (int)(ib - ia);
 
 				for (int i = 0; i < cn; i += 4)
 					*(v4d *)(dv + i) = (v4d){ 0 };
-				/* bilinear with psf-blend=core: the cell's sum
-				 * before f (one array, so taps 5, 6, 9, 10) */
-				if (!keys)
-					for (int i = 0; i < cn; i++) {
-						ptrdiff_t at = step + i0 + ia + i;
-
-						dv[i] = (float)((float)(wn[0] * by[0] * bx[0]) * tap0[5][at] +
-								(float)(wn[0] * by[0] * bx[1]) * tap0[6][at] +
-								(float)(wn[0] * by[1] * bx[0]) * tap0[9][at] +
-								(float)(wn[0] * by[1] * bx[1]) * tap0[10][at]);
-					}
-				for (int k = 0; keys && k < nn; k++) {
+				for (int k = 0; k < nn; k++) {
 					for (int i = 0; i < cn; i += 4)
 						*(v4d *)(tv + i) = (v4d){ 0 };
-					for (int b = 0; b < 4; b++) {
+					for (int b = 0; b < 4 && d->keys; b++) {
 						const float *const *t = tap0 + (k * 4 + b) * 4;
 						const float *t0 = t[0] + step + i0 + ia, *t1 = t[1] + step + i0 + ia;
 						const float *t2 = t[2] + step + i0 + ia, *t3 = t[3] + step + i0 + ia;
-						v4d c0 = SPLAT4(cx[0]), c1 = SPLAT4(cx[1]), c2 = SPLAT4(cx[2]);
-						v4d c3 = SPLAT4(cx[3]), cb4 = SPLAT4(cy[b]);
+						v4d c0 = SPLAT4(g->kx[0]), c1 = SPLAT4(g->kx[1]);
+						v4d c2 = SPLAT4(g->kx[2]), c3 = SPLAT4(g->kx[3]);
+						v4d cb4 = SPLAT4(g->ky[b]);
 
 						for (int i = 0; i < cn; i += 4)
 							*(v4d *)(tv + i) += cb4 * (c0 * TO_V4D(t0 + i) + c1 * TO_V4D(t1 + i) +
 										   c2 * TO_V4D(t2 + i) + c3 * TO_V4D(t3 + i));
 					}
+					for (int b = 0; b < 2 && !d->keys; b++) {
+						const float *u0 = tap0[(k * 4 + b + 1) * 4 + 1] + step + i0 + ia;
+						const float *u1 = tap0[(k * 4 + b + 1) * 4 + 2] + step + i0 + ia;
+						v4d w0 = SPLAT4(g->by[b] * g->bx[0]), w1 = SPLAT4(g->by[b] * g->bx[1]);
+
+						for (int i = 0; i < cn; i += 4)
+							*(v4d *)(tv + i) += w0 * TO_V4D(u0 + i) + w1 * TO_V4D(u1 + i);
+					}
 					for (int i = 0; i < cn; i += 4)
-						*(v4d *)(dv + i) += SPLAT4(wn[k]) * *(v4d *)(tv + i);
+						*(v4d *)(dv + i) += SPLAT4(d->wn[k]) * *(v4d *)(tv + i);
 				}
-				/* psf-blend=core: the cell's blend moved to the
-				 * source's position, bilinear (it is a small
-				 * difference: its interpolation error is small) */
-				for (int c = 0; c < ncor; c++)
+				for (int c = 0; c < d->ncor; c++)
 					for (int b = 0; b < 2; b++) {
 						const float *u0 = ctap0[(c * 2 + b) * 2] + step + i0 + ia;
 						const float *u1 = ctap0[(c * 2 + b) * 2 + 1] + step + i0 + ia;
@@ -1007,10 +1360,35 @@ static int point_render(void *state, void *tstate, void *thread,
 				for (int i = 0; i < cn; i++)
 					acc[ia + i] = (float)dv[i];
 			}
-			add_row(row + i0, acc, len);
+			for (int i = 0; i < len; i++)
+				row[i0 + i] += acc[i];
 		}
 	}
 	return 0;
+}
+
+/* Built twice, for AVX2 and for any x86-64, and chosen at load time: the
+ * core's sums run 8 floats wide where the processor allows. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+__attribute__((target_clones("avx2,fma", "default")))
+#endif
+static int point_render(void *state, void *tstate, void *thread,
+			const struct wfs_source *src, const struct wfs_window *win)
+{
+	struct point *p = state;
+	struct draw d;
+	const struct geom *g = &d.g;
+	int m;
+
+	if (plan(p, src, &d) < 0)
+		return -1;
+	m = d.pl[0]->m;
+	if (win->x0 + g->mx[0] + PAD < 0 || win->x0 + win->nx + g->mx[3] + PAD > m ||
+	    win->y0 + g->my[0] + PAD < 0 || win->y0 + win->ny + g->my[3] + PAD > m)
+		return p->host->error(p->host->ctx, "window outside the source's box");
+	if (one_array(&d))
+		return render_one(p, &d, src->aux[1], src->aux[2], win);
+	return render_many(p, &d, src->aux[1], win);
 }
 
 static const struct wfs_model point_model = {
@@ -1022,6 +1400,7 @@ static const struct wfs_model point_model = {
 	.ncolumns = 0,
 	.init = point_init,
 	.fini = point_fini,
+	.prepare = point_prepare,
 	.footprint = point_footprint,
 	.render = point_render,
 };

@@ -26,6 +26,17 @@ struct fftconv_thread {
 	fftw_complex *cimg, *cker;
 };
 
+int fftconv_nplans(struct fftconv *fc)
+{
+	int n = 0;
+
+	pthread_mutex_lock(&fc->lock);
+	for (const struct fftconv_plan *p = fc->plans; p; p = p->next)
+		n++;
+	pthread_mutex_unlock(&fc->lock);
+	return n;
+}
+
 int fftconv_good_size(int n)
 {
 	if (n < 1)

@@ -39,6 +39,10 @@ struct fftconv *fftconv_new(void);
  * inside fftconv_convolve. */
 void fftconv_free(struct fftconv *fc);
 
+/* How many plan pairs the cache has made (sizes planned): 0 for a scene
+ * that convolved nothing.  Not while a thread is inside fftconv_convolve. */
+int fftconv_nplans(struct fftconv *fc);
+
 /* Per-thread buffers, initially empty.  NULL when out of memory. */
 struct fftconv_thread *fftconv_thread_new(void);
 void fftconv_thread_free(struct fftconv_thread *t);

@@ -124,6 +124,7 @@ struct engine {
 	int index;                      /* exposure number, 0-based */
 
 	unsigned long long rows_read, placements, culled, offdet;
+	unsigned long long tiles_drawn, tiles;  /* before noise, and in all */
 	unsigned long long per_model[PLUGIN_MAX];
 	double flux_requested[WFS_NSCA];        /* sum of placed sources' flux */
 	unsigned long long placed_on[WFS_NSCA];
@@ -1081,6 +1082,9 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 				for (int x = 0; x < nx; x++)
 					g->image_sum[g->slot[s].sca - 1] += row[tx][(size_t)y * T + x];
 		}
+		for (int tx = 0; tx < g->ntx; tx++)
+			g->tiles_drawn += row[tx] != NULL;
+		g->tiles += g->ntx;
 		t0 = now();
 		if (apply_noise) {
 			struct strip_job j = { g, no, s, ty };
@@ -1499,7 +1503,29 @@ static int write_report(struct engine *g)
 		fprintf(f, "%s\n    {\"sca\": %d, \"requested\": %.10g, \"placed\": %.10g}",
 			s ? "," : "", sca, g->flux_requested[sca - 1], g->image_sum[sca - 1]);
 	}
-	fprintf(f, "\n  ],\n  \"psf_grids\": {\"built\": %d, \"loaded\": %d, \"boxes\": [",
+	/* What the scene needed and so did: the models loaded, the FFT sizes
+	 * planned (Sersic convolution), the tiles drawn on before noise (the
+	 * rest were never allocated), the noise stages that drew random
+	 * numbers (none: the random number code never ran). */
+	fprintf(f, "\n  ],\n  \"work\": {\"models\": [");
+	first = 1;
+	for (int m = 0; m < g->plugins.n; m++)
+		if (g->plugins.p[m].ready) {
+			fprintf(f, "%s\"%s\"", first ? "" : ", ", g->plugins.p[m].name);
+			first = 0;
+		}
+	fprintf(f, "], \"fft_plans\": %d, \"tiles_drawn\": %llu, \"tiles\": %llu, "
+		"\"noise_stages\": [", fftconv_nplans(g->fft), g->tiles_drawn, g->tiles);
+	first = 1;
+	for (int k = 0; k < 5; k++)
+		if (o->noise & (1u << k)) {
+			static const char *const stage[] = { "poisson", "readnoise", "dark", "flat",
+							     "cosmic" };
+
+			fprintf(f, "%s\"%s\"", first ? "" : ", ", stage[k]);
+			first = 0;
+		}
+	fprintf(f, "]},\n  \"psf_grids\": {\"built\": %d, \"loaded\": %d, \"boxes\": [",
 		g->pbo.built, g->pbo.loaded);
 	/* The light a point source's box leaves out, at the grid's worst node
 	 * and phase: the largest truncation loss of the settings. */
@@ -1525,7 +1551,8 @@ static int write_report(struct engine *g)
 	/* The point model's approximations as --set chose them (its defaults
 	 * otherwise), so that a report says which evaluation made the image. */
 	report_setting(f, g, "interpolation", "psf-interp", "core");
-	report_setting(f, g, "core_radius_px", "psf-core", "4");
+	report_setting(f, g, "core_halfwidth_px", "psf-core", "4");
+	report_setting(f, g, "wing_halfwidth_px", "psf-wing", "8");
 	report_setting(f, g, "box", "psf-box", "fixed");
 	report_setting(f, g, "box_noise_fraction", "psf-box-noise", "0.1");
 	report_setting(f, g, "blend", "psf-blend", "core");

@@ -10,6 +10,9 @@ implementation of the evaluation wfiscene(1) documents.
     flux_check.py check GRID CAT IMAGE TOL
                                         per SCA, the image sum must equal
                                         sum(flux * enclosed fraction) to TOL
+                                        (drawn with psf-blend=source)
+    flux_check.py check-default GRID CAT IMAGE TOL
+                                        the same for the default evaluation
 """
 import csv
 import math
@@ -100,41 +103,95 @@ def keys_np(t):
 
 
 def enclosed(grid, x, y):
-    """Sum over the pixels a star at 0-based (x, y) lights on the detector."""
+    """Sum over the pixels a star at 0-based (x, y) lights on the detector,
+    blended at the source (psf-blend=source): Keys' cubic within 4 pixels
+    in x and y, bilinear beyond, scaled by the one factor that makes the
+    box's total its bilinear sum."""
     xs, ys, nodes = grid
     ix, tx = bracket(xs, x)
     iy, ty = bracket(ys, y)
     e = ((1 - tx) * (1 - ty) * nodes[(ix, iy)] + tx * (1 - ty) * nodes[(ix + 1, iy)] +
          (1 - tx) * ty * nodes[(ix, iy + 1)] + tx * ty * nodes[(ix + 1, iy + 1)])
     half = C / OVER
-    core2 = 16.0 if 4 * OVER + 2 < C else 0.0
+    r = 4.0 if 4 * OVER + 2 < C else 0.0
     i = np.arange(math.floor(x - half) + 1, math.ceil(x + half))
     j = np.arange(math.floor(y - half) + 1, math.ceil(y + half))
-    i = i[(i >= 0) & (i < NPIX)]
-    j = j[(j >= 0) & (j < NPIX)]
-    if i.size == 0 or j.size == 0:
-        return 0.0
     I, J = np.meshgrid(i, j)
     rx, ry = C + OVER * (I - x), C + OVER * (J - y)
     sx, sy = np.floor(rx).astype(int), np.floor(ry).astype(int)
     fx, fy = rx - sx, ry - sy
-    v = ((1 - fy) * ((1 - fx) * e[sy, sx] + fx * e[sy, sx + 1]) +
-         fy * ((1 - fx) * e[sy + 1, sx] + fx * e[sy + 1, sx + 1]))
-    core = (I - x) ** 2 + (J - y) ** 2 <= core2
+    # the box's samples, with a border of zeros for the cubic's outer taps
+    ep = np.pad(e, 2)
+    v = ((1 - fy) * ((1 - fx) * ep[sy + 2, sx + 2] + fx * ep[sy + 2, sx + 3]) +
+         fy * ((1 - fx) * ep[sy + 3, sx + 2] + fx * ep[sy + 3, sx + 3]))
+    core = (np.abs(I - x) < r) & (np.abs(J - y) < r)
+    t = v.sum()
     if core.any():
         cx, cy = keys_np(fx[core]), keys_np(fy[core])
         csx, csy = sx[core], sy[core]
-        v[core] = sum(cy[b] * cx[a] * e[csy - 1 + b, csx - 1 + a]
-                      for a in range(4) for b in range(4))
-    return float(v.sum())
+        kv = sum(cy[b] * cx[a] * ep[csy + 1 + b, csx + 1 + a]
+                 for a in range(4) for b in range(4))
+        u = t - v[core].sum()
+        f = (t - kv.sum()) / u if u > 0.01 * abs(t) else 1.0
+        v = v * f
+        v[core] = kv
+    on = (I >= 0) & (I < NPIX) & (J >= 0) & (J < NPIX)
+    return float(v[on].sum())
 
 
-def check(gridpath, catpath, imgpath, tol):
+def blend_at(grid, x, y):
+    xs, ys, nodes = grid
+    ix, tx = bracket(xs, x)
+    iy, ty = bracket(ys, y)
+    return ((1 - tx) * (1 - ty) * nodes[(ix, iy)] + tx * (1 - ty) * nodes[(ix + 1, iy)] +
+            (1 - tx) * ty * nodes[(ix, iy + 1)] + tx * ty * nodes[(ix + 1, iy + 1)])
+
+
+def enclosed_default(grid, x, y, cell=512, core=4.0, wing=8.0):
+    """The same for the default evaluation (psf-blend=core): the ePSF
+    blended at the centre of the source's cell; in the core (within 4
+    pixels in x and y) Keys' cubic of that plus the bilinear difference
+    (blend at the source - the cell's); the cell's blend bilinear within 8
+    pixels, its nearest sample beyond; all but the core scaled so that the
+    box's total is the bilinear sum of the blend at the source."""
+    e = blend_at(grid, x, y)
+    cxy = [(math.floor(v / cell) + 0.5) * cell - 0.5 for v in (x, y)]
+    ec = blend_at(grid, *cxy).astype(np.float32).astype(np.float64)
+    half = C / OVER
+    i = np.arange(math.floor(x - half) + 1, math.ceil(x + half))
+    j = np.arange(math.floor(y - half) + 1, math.ceil(y + half))
+    I, J = np.meshgrid(i, j)
+    rx, ry = C + OVER * (I - x), C + OVER * (J - y)
+    sx, sy = np.floor(rx).astype(int), np.floor(ry).astype(int)
+    fx, fy = rx - sx, ry - sy
+    ep, cp = np.pad(e, 2), np.pad(ec, 2)
+
+    def bil(a):
+        return ((1 - fy) * ((1 - fx) * a[sy + 2, sx + 2] + fx * a[sy + 2, sx + 3]) +
+                fy * ((1 - fx) * a[sy + 3, sx + 2] + fx * a[sy + 3, sx + 3]))
+    t = bil(ep).sum()
+    dx, dy = np.abs(I - x), np.abs(J - y)
+    incore = (dx < core) & (dy < core)
+    inwing = (dx < wing) & (dy < wing)
+    v = np.where(inwing, bil(cp), cp[sy + 2 + (fy >= 0.5), sx + 2 + (fx >= 0.5)])
+    cx_, cy_ = keys_np(fx[incore]), keys_np(fy[incore])
+    csx, csy = sx[incore], sy[incore]
+    kv = sum(cy_[b] * cx_[a] * cp[csy + 1 + b, csx + 1 + a] for a in range(4) for b in range(4))
+    kv = kv + (bil(ep) - bil(cp))[incore]
+    u = v[~incore].sum()
+    f = (t - kv.sum()) / u if u > 0.01 * abs(t) else 1.0
+    v = v * f
+    v[incore] = kv
+    on = (I >= 0) & (I < NPIX) & (J >= 0) & (J < NPIX)
+    return float(v[on].sum())
+
+
+def check(gridpath, catpath, imgpath, tol, default=False):
     grid = read_grid(gridpath)
     want = {}
     for r in csv.DictReader(open(catpath)):
         s = int(r["sca"])
-        want[s] = want.get(s, 0.0) + float(r["flux"]) * enclosed(
+        want[s] = want.get(s, 0.0) + float(r["flux"]) * (enclosed_default if default else enclosed)(
             grid, float(r["x"]) - 1, float(r["y"]) - 1)
     worst = 0.0
     with fits.open(imgpath) as h:
@@ -154,5 +211,7 @@ if cmd == "grid":
     make_grid(sys.argv[2])
 elif cmd == "stars":
     stars([int(s) for s in sys.argv[2].split(",")], int(sys.argv[3]))
+elif cmd == "check-default":
+    sys.exit(check(sys.argv[2], sys.argv[3], sys.argv[4], float(sys.argv[5]), default=True))
 else:
     sys.exit(check(sys.argv[2], sys.argv[3], sys.argv[4], float(sys.argv[5])))

@@ -27,6 +27,24 @@ assert all(v >= 0 for v in r[\"seconds\"].values())
 assert r[\"psf_grids\"][\"built\"] + r[\"psf_grids\"][\"loaded\"] >= 1 or r[\"settings\"][\"psf\"] != \"builtin\"
 "
 '
+test_expect_success 'the report shows what a scene left out: models, FFT plans, tiles, noise' '
+	printf "x,y,flux\n100,100,50\n" > pt.csv &&
+	"$WFS" --filter F129 --psf "$PSF" --report w1.json -o w1.fits pt.csv &&
+	printf "x,y,flux,type,n,re,phi,ratio\n300,300,50,sersic,1.5,3,20,0.6\n" > gal.csv &&
+	"$WFS" --filter F129 --psf "$PSF" --noise poisson,readnoise --exptime 100 --seed 3 \
+		--report w2.json -o w2.fits gal.csv &&
+	"$PY" -c "
+import json
+w = json.load(open(\"w1.json\"))[\"work\"]
+assert w == {\"models\": [\"point\"], \"fft_plans\": 0, \"tiles_drawn\": 1,
+             \"tiles\": 256, \"noise_stages\": []}, w
+r = json.load(open(\"w1.json\"))
+assert [b[\"class\"] for b in r[\"psf_grids\"][\"boxes\"]] in ([0], []), r[\"psf_grids\"]
+w = json.load(open(\"w2.json\"))[\"work\"]
+assert w[\"models\"] == [\"sersic-quick\"] and w[\"fft_plans\"] >= 1, w
+assert w[\"noise_stages\"] == [\"poisson\", \"readnoise\"] and w[\"tiles_drawn\"] >= 1, w
+"
+'
 test_expect_success 'no progress line when stderr is not a terminal' '
 	"$BUILD/contrib/starfield" -n 30000 -x > many.csv &&
 	"$WFS" --filter F129 --psf "$PSF" --flux-unit abmag --chunk 500 -o m.fits many.csv 2> err &&

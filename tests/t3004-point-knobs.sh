@@ -1,8 +1,8 @@
 #!/bin/sh
-# The point model's settings: psf-interp, psf-core, psf-box (adaptive, with
-# psf-box-noise and psf-box-sigma), psf-blend (source, cell, core) and psf-cell.  Each one's
-# effect on the image, and bad values refused with a message naming the key
-# and no output left behind.
+# The point model's settings: psf-interp, psf-core, psf-wing, psf-box
+# (adaptive, with psf-box-noise and psf-box-sigma), psf-blend (source, cell,
+# core) and psf-cell.  Each one's effect on the image, and bad values
+# refused with a message naming the key and no output left behind.
 . "$(dirname "$0")/lib.sh"
 require_python
 
@@ -21,28 +21,43 @@ a = fits.getdata(sys.argv[1], 1).astype(float)
 b = fits.getdata(sys.argv[2], 1).astype(float)
 what = sys.argv[3]
 d = np.abs(a - b)
-def r2(x, y):    # squared distance to the nearer star (0-based pixels)
-    return np.minimum((x - 999.3) ** 2 + (y - 999.6) ** 2, (x - 2999.7) ** 2 + (y - 2999.2) ** 2)
-if what == "core-only":      # differ only within R px of a star
+def cheb(x, y):   # distance to the nearer star along the farther axis (0-based pixels)
+    return np.minimum(np.maximum(abs(x - 999.3), abs(y - 999.6)),
+                      np.maximum(abs(x - 2999.7), abs(y - 2999.2)))
+def one_factor(r):  # beyond R px of each star a / b is one number per star
+    for cx, cy in ((999.3, 999.6), (2999.7, 2999.2)):
+        y, x = np.nonzero(b)
+        near = (np.abs(x - cx) < 30) & (np.abs(y - cy) < 30)
+        far = near & (np.maximum(abs(x - cx), abs(y - cy)) >= r)
+        q = a[y[far], x[far]] / b[y[far], x[far]]
+        assert len(q) > 1000 and q.max() - q.min() < 2e-5 * q.max() and abs(q[0] - 1) < 5e-2, \
+            (cx, q.min(), q.max())
+if what == "core-only":      # differ within R px of a star, and by one factor beyond
     r = float(sys.argv[4])
     y, x = np.nonzero(d)
     assert len(x) > 0, "no difference"
-    assert np.all(r2(x, y) <= r * r + 1e-9), (x, y)
+    assert np.any(cheb(x, y) < r), "no difference in the core"
+    one_factor(r)
 elif what == "outside-core":  # differ, and not within 4 px of a star
     y, x = np.nonzero(d)
     assert len(x) > 0, "no difference"
-    assert np.all(r2(x, y) > 16), (x, y)
+    assert np.all(cheb(x, y) >= 4), (x, y)
 elif what == "close":         # differ, by less than a fraction of the peak
     f = float(sys.argv[4])
     assert d.max() > 0, "no difference"
     assert d.max() < f * b.max(), (d.max(), b.max())
     assert abs(a.sum() - b.sum()) < f * b.sum(), (a.sum(), b.sum())
+elif what == "same-core":     # identical within R px of the stars
+    r = float(sys.argv[4])
+    y, x = np.nonzero(d)
+    assert len(x) > 0, "no difference"
+    assert np.all(cheb(x, y) >= r), (x, y)
 elif what == "scaled-outside":  # beyond R px of the faint star: one factor, within 5 % of 1
     r = float(sys.argv[4])
     y, x = np.nonzero(b)
     for cx, cy in ((2999.7, 2999.2),):
         near = (np.abs(x - cx) < 30) & (np.abs(y - cy) < 30)
-        far = near & ((x - cx) ** 2 + (y - cy) ** 2 > r * r)
+        far = near & (np.maximum(abs(x - cx), abs(y - cy)) >= r)
         q = a[y[far], x[far]] / b[y[far], x[far]]
         assert len(q) > 1000 and q.max() - q.min() < 1e-5 and abs(q[0] - 1) < 5e-2, \
             (cx, q.min(), q.max())
@@ -61,16 +76,25 @@ run() { out=$1; shift; "$WFS" --filter F129 --psf epsf.fits -o "$out" "$@" stars
 test_expect_success 'a synthetic ePSF grid; the defaults spelled out change nothing' '
 	"$PY" "$TOP/tests/flux_check.py" grid epsf.fits &&
 	run def.fits &&
-	run expl.fits --set psf-interp=core --set psf-core=4 --set psf-box=fixed \
+	run expl.fits --set psf-interp=core --set psf-core=4 --set psf-wing=8 --set psf-box=fixed \
 		--set psf-blend=core --set psf-cell=512 &&
 	test_cmp def.fits expl.fits
 '
-test_expect_success 'psf-interp=bilinear changes only the core (radius psf-core)' '
+test_expect_success 'psf-interp=bilinear changes the core (psf-core), and the rest by one factor' '
 	run bil.fits --set psf-interp=bilinear &&
 	"$PY" px.py bil.fits def.fits core-only 4 &&
 	run src.fits --set psf-blend=source &&
 	run c2.fits --set psf-blend=source --set psf-core=2 &&
 	"$PY" px.py c2.fits src.fits core-only 4
+'
+test_expect_success 'psf-wing: the nearest sample beyond it, close to bilinear everywhere' '
+	run w44.fits --set psf-wing=44 &&
+	"$PY" px.py w44.fits def.fits same-core 4 &&
+	"$PY" px.py w44.fits def.fits close 1e-3 &&
+	run w0.fits --set psf-wing=0 &&
+	"$PY" px.py w0.fits def.fits same-core 4 &&
+	"$PY" px.py w0.fits def.fits close 1e-2 &&
+	"$PY" px.py w0.fits w44.fits close 1e-2
 '
 test_expect_success 'psf-interp=bicubic changes only pixels beyond the core' '
 	run bic.fits --set psf-interp=bicubic &&
@@ -94,6 +118,17 @@ test_expect_success 'psf-blend=cell: one blended ePSF per cell, close to the def
 	run cell64.fits --set psf-blend=cell --set psf-cell=64 &&
 	"$PY" px.py cell64.fits def.fits close 0.01
 '
+test_expect_success 'the plain loops draw the same bits as the vector ones' '
+	"$BUILD/contrib/starfield" -n 3000 -x -s 7 > field.csv &&
+	"$WFS" --filter F129 --psf epsf.fits --flux-unit abmag -o simd.fits field.csv &&
+	WFISCENE_NO_SIMD=1 "$WFS" --filter F129 --psf epsf.fits --flux-unit abmag -o plain.fits field.csv &&
+	test_cmp simd.fits plain.fits &&
+	"$WFS" --filter F129 --psf epsf.fits --flux-unit abmag --set psf-interp=bilinear \
+		--set psf-wing=3 -o simd2.fits field.csv &&
+	WFISCENE_NO_SIMD=1 "$WFS" --filter F129 --psf epsf.fits --flux-unit abmag \
+		--set psf-interp=bilinear --set psf-wing=3 -o plain2.fits field.csv &&
+	test_cmp simd2.fits plain2.fits
+'
 test_expect_success 'psf-box=adaptive shrinks a faint star to the noise, not a bright one' '
 	run ad.fits --set psf-box=adaptive --set psf-box-sigma=0.1 &&
 	"$PY" px.py ad.fits def.fits faint-box 8 &&
@@ -111,13 +146,14 @@ test_expect_success '--report names the point settings a run used' '
 	"$PY" -c "
 import json
 b = json.load(open(\"r.json\"))[\"error_budget\"]
-assert b[\"interpolation\"] == \"core\" and b[\"core_radius_px\"] == \"4\", b
+assert b[\"interpolation\"] == \"core\" and b[\"core_halfwidth_px\"] == \"4\", b
+assert b[\"wing_halfwidth_px\"] == \"8\", b
 assert b[\"box\"] == \"adaptive\" and b[\"blend\"] == \"cell\", b
 assert b[\"blend_cell_px\"] == \"512\", b
 "
 '
-for kv in psf-interp=cubic psf-core=-1 psf-box=small psf-box-noise=0 psf-box-sigma=x \
-	psf-blend=tile psf-cell=0 psf-cell=10.5; do
+for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-box-noise=0 \
+	psf-box-sigma=x psf-blend=tile psf-cell=0 psf-cell=10.5; do
 	key=${kv%%=*}
 	test_expect_success "--set $kv is refused, naming $key" "
 		test_must_fail --status 3 run bad.fits --set $kv 2> err &&

@@ -42,6 +42,7 @@
 #define WFS_SERSIC_H
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -959,6 +960,18 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 /* ------------------------------------------------------------------ */
 /* prepare() and footprint(), shared.                                  */
 
+/* v as the shortest of %.15g, %.16g, %.17g that reads back as v, so a
+ * message quotes the value the row holds ("1.0000001", not "1"). */
+static const char *sersic_num(char buf[32], double v)
+{
+	for (int p = 15; p <= 17; p++) {
+		snprintf(buf, 32, "%.*g", p, v);
+		if (isnan(v) || strtod(buf, NULL) == v)
+			break;
+	}
+	return buf;
+}
+
 /*
  * Validate a row and fill src->aux.  eps is the truncation fraction.  With
  * flux meaning "ie", src->flux is the intensity at r_e and is replaced by
@@ -970,20 +983,25 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 	double n = src->param[SERSIC_N], re = src->param[SERSIC_RE];
 	double phi = src->param[SERSIC_PHI], q = src->param[SERSIC_RATIO];
 
+	char num[32];
+
 	if (isnan(n) || n <= 0)
-		return host->error(host->ctx, "column 'n': Sérsic index must be > 0, got %g", n);
+		return host->error(host->ctx, "column 'n': Sérsic index must be > 0, got %s", sersic_num(num, n));
 	if (n < SERSIC_N_MIN || n > SERSIC_N_MAX)
-		return host->error(host->ctx, "column 'n': Sérsic index %g is outside the supported range %g to %g",
-				   n, SERSIC_N_MIN, SERSIC_N_MAX);
+		return host->error(host->ctx, "column 'n': Sérsic index %s is outside the supported range %g to %g",
+				   sersic_num(num, n), SERSIC_N_MIN, SERSIC_N_MAX);
 	if (isnan(re) || re <= 0 || isinf(re))
-		return host->error(host->ctx, "column 're': half-light radius must be > 0 pixels, got %g", re);
+		return host->error(host->ctx, "column 're': half-light radius must be > 0 pixels, got %s",
+				   sersic_num(num, re));
 	if (isnan(q) || q <= 0 || q > 1)
-		return host->error(host->ctx, "column 'ratio': axis ratio must be in (0, 1], got %g", q);
+		return host->error(host->ctx, "column 'ratio': axis ratio must be in (0, 1], got %s",
+				   sersic_num(num, q));
 	if (!isfinite(phi))
-		return host->error(host->ctx, "column 'phi': orientation must be a finite angle in degrees, got %g", phi);
+		return host->error(host->ctx, "column 'phi': orientation must be a finite angle in degrees, got %s",
+				   sersic_num(num, phi));
 	if (!isfinite(src->flux) || src->flux < 0)
-		return host->error(host->ctx, "column 'flux': a galaxy's flux must be finite and >= 0, got %g",
-				   src->flux);
+		return host->error(host->ctx, "column 'flux': a galaxy's flux must be finite and >= 0, got %s",
+				   sersic_num(num, src->flux));
 
 	double b = sersic_bn(n), a = 2 * n, ra, rb;
 	/* ln of F_inf / I0 = 2 pi n q re^2 Gamma(2n) / b^(2n), in logs so n = 20
@@ -1000,8 +1018,8 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 		double ie = src->flux;
 		src->flux = ie * exp(b + lng + log(q) + 2 * log(re));
 		if (!isfinite(src->flux))
-			return host->error(host->ctx, "column 'flux': surface brightness %g gives an infinite total",
-					   ie);
+			return host->error(host->ctx, "column 'flux': surface brightness %s gives an infinite total",
+					   sersic_num(num, ie));
 	} else if (meaning && strcmp(meaning, "total")) {
 		return host->error(host->ctx, "setting sersic-flux: '%s' is neither 'total' nor 'ie'", meaning);
 	}

@@ -74,6 +74,15 @@ for row in "0,2,0,1:column 'n'" "-1,2,0,1:column 'n'" "nan,2,0,1:column 'n'" \
 		test_grep \"bad.csv:3: .*$want\" err && ! test -e bad.fits
 	"
 done
+test_expect_success 'a refused value is quoted to the digit it differs by' '
+	printf "x,y,flux,type,n,re,phi,ratio\n100,100,10,sersic,1,2,0,1.0000001\n100,100,10,sersic,0.04999999,2,0,1\n" > near.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o near.fits near.csv 2> err &&
+	test_grep "near.csv:2: .*column .ratio.: axis ratio must be in (0, 1\], got 1.0000001$" err &&
+	! test -e near.fits &&
+	sed -i 2d near.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o near.fits near.csv 2> err &&
+	test_grep "near.csv:2: .*Sérsic index 0.04999999 is outside" err && ! test -e near.fits
+'
 test_expect_success 'a galaxy centred off the detector lights its edge' '
 	printf "x,y,flux,type,n,re,phi,ratio\n-3,500,10000,sersic,1,4,0,1\n" > off.csv &&
 	"$WFS" --filter F129 -o off.fits off.csv &&

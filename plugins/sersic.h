@@ -55,9 +55,11 @@
 /* The catalog columns of both plugins, in this order in src->param. */
 enum { SERSIC_N, SERSIC_RE, SERSIC_PHI, SERSIC_RATIO, SERSIC_NCOL };
 
+/* n and re have no fallback: an empty cell reads as NaN, which prepare()
+ * refuses (the host refuses a cell that says nan before). */
 static const struct wfs_column sersic_columns[SERSIC_NCOL] = {
-	{ "n", 1.0, 1, "Sérsic index, 0.05 to 20 (1 exponential disc, 4 de Vaucouleurs)" },
-	{ "re", 0.0, 1, "half-light radius along the major axis, pixels" },
+	{ "n", NAN, 1, "Sérsic index, 0.05 to 20 (1 exponential disc, 4 de Vaucouleurs)" },
+	{ "re", NAN, 1, "half-light radius along the major axis, pixels" },
 	{ "phi", 0.0, 0, "orientation, degrees: 0 = major axis along +y, increasing toward -x" },
 	{ "ratio", 1.0, 0, "axis ratio b/a, in (0, 1]" },
 };
@@ -985,12 +987,16 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 
 	char num[32];
 
-	if (isnan(n) || n <= 0)
+	if (isnan(n))
+		return host->error(host->ctx, "column 'n': empty; a Sérsic row needs its index");
+	if (n <= 0)
 		return host->error(host->ctx, "column 'n': Sérsic index must be > 0, got %s", sersic_num(num, n));
 	if (n < SERSIC_N_MIN || n > SERSIC_N_MAX)
 		return host->error(host->ctx, "column 'n': Sérsic index %s is outside the supported range %g to %g",
 				   sersic_num(num, n), SERSIC_N_MIN, SERSIC_N_MAX);
-	if (isnan(re) || re <= 0 || isinf(re))
+	if (isnan(re))
+		return host->error(host->ctx, "column 're': empty; a Sérsic row needs its half-light radius");
+	if (re <= 0 || isinf(re))
 		return host->error(host->ctx, "column 're': half-light radius must be > 0 pixels, got %s",
 				   sersic_num(num, re));
 	if (isnan(q) || q <= 0 || q > 1)

@@ -69,7 +69,8 @@ test_expect_success 'type sersic is --sersic (quick by default); sersic-quick an
 '
 for row in "0,2,0,1:column 'n'" "-1,2,0,1:column 'n'" "nan,2,0,1:column 'n'" \
 	   "1,0,0,1:column 're'" "1,-2,0,1:column 're'" "1,2,0,0:column 'ratio'" \
-	   "1,2,0,1.5:column 'ratio'" "1,2,nan,1:column 'phi'"; do
+	   "1,2,0,1.5:column 'ratio'" "1,2,nan,1:column 'phi'" \
+	   ",2,0,1:column 'n': empty" "1,,0,1:column 're': empty"; do
 	vals=${row%%:*} want=${row#*:}
 	test_expect_success "a row with n,re,phi,ratio = $vals is refused" "
 		printf 'x,y,flux,type,n,re,phi,ratio\n10,10,5,point,,,,\n100,100,10,sersic,$vals\n' > bad.csv &&

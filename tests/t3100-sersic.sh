@@ -252,6 +252,29 @@ print(s)
 sys.exit(not (abs(s[0] / s[2] - 0.5) < 1e-3 and abs(s[1] / s[2] - 0.25) < 1e-3))
 "
 '
+test_expect_success 'galaxies do not depend on threads; tile and chunk sizes move them by rounding only' '
+	cat > thr.csv <<-CSV &&
+	x,y,flux,type,n,re,phi,ratio
+	100.3,100.6,1000,point,,,,
+	300.3,300.6,1000,sersic,4,3,10,0.5
+	500.3,300.6,1000,sersic-precise,1,30,70,0.3
+	2000.5,2000.5,100000,sersic,1,300,20,0.7
+	260,250,500,sersic,1,8,0,0.01
+	CSV
+	"$WFS" -q --filter F129 --threads 1 -o t1.fits thr.csv &&
+	"$WFS" -q --filter F129 --threads 2 -o t2.fits thr.csv &&
+	"$WFS" -q --filter F129 --threads 3 --tile 64 --chunk 2 -o t3.fits thr.csv &&
+	cmp t1.fits t2.fits &&
+	"$PY" -c "
+import sys
+import numpy as np
+from astropy.io import fits
+a, b = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float) for f in (\"t1.fits\", \"t3.fits\"))
+d = np.abs(a - b).max()
+print(d, a.max())
+sys.exit(not d <= 1e-6 * a.max())
+"
+'
 test_expect_success 'two catalogs whose galaxy columns stand in different places' '
 	printf "x,y,flux,type,n,re,phi,ratio\n100.3,100.6,1000,sersic,1,2,0,1\n" > a.csv &&
 	printf "ratio,phi,re,n,type,flux,y,x\n1,0,2,1,sersic,1000,100.6,100.3\n" > b.csv &&

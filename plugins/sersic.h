@@ -42,6 +42,7 @@
 #define WFS_SERSIC_H
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -54,9 +55,11 @@
 /* The catalog columns of both plugins, in this order in src->param. */
 enum { SERSIC_N, SERSIC_RE, SERSIC_PHI, SERSIC_RATIO, SERSIC_NCOL };
 
+/* n and re have no fallback: an empty cell reads as NaN, which prepare()
+ * refuses (the host refuses a cell that says nan before). */
 static const struct wfs_column sersic_columns[SERSIC_NCOL] = {
-	{ "n", 1.0, 1, "Sérsic index, 0.05 to 20 (1 exponential disc, 4 de Vaucouleurs)" },
-	{ "re", 0.0, 1, "half-light radius along the major axis, pixels" },
+	{ "n", NAN, 1, "Sérsic index, 0.05 to 20 (1 exponential disc, 4 de Vaucouleurs)" },
+	{ "re", NAN, 1, "half-light radius along the major axis, pixels" },
 	{ "phi", 0.0, 0, "orientation, degrees: 0 = major axis along +y, increasing toward -x" },
 	{ "ratio", 1.0, 0, "axis ratio b/a, in (0, 1]" },
 };
@@ -122,7 +125,9 @@ static double sersic_gamma_cfrac(double a, double x)
 		d = 1.0 / d;
 		double del = d * c;
 		h *= del;
-		if (fabs(del - 1.0) < 1e-16)
+		/* two ulp: for x above ~1e16, b = x + 1 - a has lost its 1 and
+		 * del never reaches 1 exactly (a 1e-16 test ran 10^4 steps) */
+		if (fabs(del - 1.0) < 2.5e-16)
 			break;
 	}
 	return exp(a * log(x) - x - lgamma(a)) * h;
@@ -223,17 +228,41 @@ static double sersic_trunc_x(double n, double eps)
 
 struct sersic_gal {
 	double xc, yc;          /* centre, pixels */
-	double n, inv_n, b, q, re;
+	double n, inv_n, b;
+	double re, minor;       /* semi-axes r_e and q r_e as drawn (sersic_axes) */
 	double ct, st;          /* cos and sin of theta = phi + 90° */
 	double lni0;            /* ln I0 */
 	double rho_t, rho_t2;   /* truncation radius (units of r_e) and square */
 	double xt;              /* b rho_t^(1/n) */
 	double finf, pt, qt;    /* F_inf, 1 - eps, eps */
-	double flux;            /* = finf * pt */
-	double rt;              /* truncation radius along the major axis, pixels */
-	/* rho^2 = A dx^2 + 2 B dx dy + C dy^2 */
+	double flux;            /* the row's flux, the scale of absolute tolerances */
+	double rt, rtb;         /* truncation semi-axes, pixels */
+	/* rho^2 = u^2 ia2 + v^2 ib2 (below); and as a quadratic form in
+	 * (dx, dy), A dx^2 + 2 B dx dy + C dy^2, only for its ratios */
+	double ia2, ib2;
 	double qa, qb, qc;
 };
+
+/*
+ * The semi-axes a galaxy is drawn with: r_e and q r_e, each at least
+ * SERSIC_AXIS_MIN pixels.  Below that nothing of the profile can be seen
+ * or even represented: the light farther than 0.01 pixel from the centre
+ * (or from the major axis) of a galaxy 1e-9 pixel across is below 3e-9 of
+ * its flux at n = 20 and 1e-22 at n <= 10, so it is a point (or a line)
+ * on the pixel grid whether its axis is 1e-9 or 1e-300 pixel; and a
+ * pixel's offset along the minor axis carries a rounding error of 1e-16
+ * of its distance from the centre (1e-12 pixel across an SCA), which a
+ * narrower needle's 1/(q r_e) would magnify into darkness.  q r_e is
+ * formed in logarithms, so that 1e-300 x 1e-300 does not underflow on the
+ * way.
+ */
+#define SERSIC_AXIS_MIN 1e-9
+
+static void sersic_axes(double re, double q, double *major, double *minor)
+{
+	*major = fmax(re, SERSIC_AXIS_MIN);
+	*minor = fmin(fmax(exp(log(q) + log(re)), SERSIC_AXIS_MIN), *major);
+}
 
 static void sersic_unpack(const struct wfs_source *src, struct sersic_gal *g)
 {
@@ -243,8 +272,7 @@ static void sersic_unpack(const struct wfs_source *src, struct sersic_gal *g)
 	g->yc = src->y;
 	g->n = src->param[SERSIC_N];
 	g->inv_n = 1.0 / g->n;
-	g->re = src->param[SERSIC_RE];
-	g->q = src->param[SERSIC_RATIO];
+	sersic_axes(src->param[SERSIC_RE], src->param[SERSIC_RATIO], &g->re, &g->minor);
 	g->ct = cos(th);
 	g->st = sin(th);
 	g->b = src->aux[AUX_B];
@@ -255,13 +283,27 @@ static void sersic_unpack(const struct wfs_source *src, struct sersic_gal *g)
 	g->finf = src->aux[AUX_FINF];
 	g->pt = src->aux[AUX_PT];
 	g->qt = src->aux[AUX_QT];
-	g->flux = g->finf * g->pt;
+	g->flux = fabs(src->flux);
 	g->rt = fmin(g->rho_t * g->re, SERSIC_RT_MAX);
-	/* u = c dx + s dy, v = -s dx + c dy, rho^2 = (u^2 + v^2/q^2) / re^2 */
-	double ire2 = 1.0 / (g->re * g->re), iq2 = 1.0 / (g->q * g->q);
-	g->qa = (g->ct * g->ct + g->st * g->st * iq2) * ire2;
-	g->qc = (g->st * g->st + g->ct * g->ct * iq2) * ire2;
-	g->qb = g->ct * g->st * (1.0 - iq2) * ire2;
+	g->rtb = fmin(g->rho_t * g->minor, g->rt);
+	/* u = c dx + s dy, v = -s dx + c dy, rho^2 = u^2 / a^2 + v^2 / b^2
+	 * with a, b the semi-axes (a 1/a^2 below 1e-308 is 0: flat) */
+	double ia2 = 1.0 / (g->re * g->re), ib2 = 1.0 / (g->minor * g->minor);
+	g->ia2 = ia2;
+	g->ib2 = ib2;
+	g->qa = g->ct * g->ct * ia2 + g->st * g->st * ib2;
+	g->qc = g->st * g->st * ia2 + g->ct * g->ct * ib2;
+	g->qb = g->ct * g->st * (ia2 - ib2);
+}
+
+/* rho^2 at offset (dx, dy), through u and v: for a needle the quadratic
+ * form's terms are each 1/(q r_e)^2 times larger than their sum along the
+ * major axis, and would cancel to noise; v carries only its own rounding. */
+static inline double sersic_rho2(const struct sersic_gal *g, double dx, double dy)
+{
+	double u = g->ct * dx + g->st * dy, v = g->ct * dy - g->st * dx;
+
+	return u * u * g->ia2 + v * v * g->ib2;
 }
 
 /* Surface brightness (counts/s per pixel^2) at offset (dx, dy) from the
@@ -269,7 +311,7 @@ static void sersic_unpack(const struct wfs_source *src, struct sersic_gal *g)
  * exp(log(rho^2) / 2n), one log and two exps. */
 static inline double sersic_sb(const struct sersic_gal *g, double dx, double dy)
 {
-	double r2 = g->qa * dx * dx + 2 * g->qb * dx * dy + g->qc * dy * dy;
+	double r2 = sersic_rho2(g, dx, dy);
 
 	if (r2 >= g->rho_t2)
 		return 0.0;
@@ -279,20 +321,23 @@ static inline double sersic_sb(const struct sersic_gal *g, double dx, double dy)
 }
 
 /* The gradient of the surface brightness at (dx, dy): with
- * rho^2 = d' M d, grad rho^2 = 2 M d and
+ * rho^2 = u^2 ia2 + v^2 ib2, grad rho^2 = 2 (u ia2 grad u + v ib2 grad v),
+ * grad u = (c, s), grad v = (-s, c), and
  * d I / d rho^2 = -I b rho^(1/n) / (2 n rho^2). */
 static inline void sersic_grad(const struct sersic_gal *g, double dx, double dy,
 			       double *gx, double *gy)
 {
-	double r2 = g->qa * dx * dx + 2 * g->qb * dx * dy + g->qc * dy * dy;
+	double u = g->ct * dx + g->st * dy, v = g->ct * dy - g->st * dx;
+	double r2 = u * u * g->ia2 + v * v * g->ib2;
 
 	*gx = *gy = 0;
 	if (r2 >= g->rho_t2 || r2 <= 0)
 		return;
 	double p = g->b * exp(0.5 * g->inv_n * log(r2));
 	double d = -exp(g->lni0 - p) * p * g->inv_n / r2;      /* 2 dI/drho^2 */
-	*gx = d * (g->qa * dx + g->qb * dy);
-	*gy = d * (g->qb * dx + g->qc * dy);
+	double pu = u * g->ia2, pv = v * g->ib2;
+	*gx = d * (pu * g->ct - pv * g->st);
+	*gy = d * (pu * g->st + pv * g->ct);
 }
 
 /*
@@ -302,7 +347,7 @@ static inline void sersic_grad(const struct sersic_gal *g, double dx, double dy,
  */
 static void sersic_halfbox(const struct sersic_gal *g, double *hx, double *hy)
 {
-	double a = g->rt, b = g->rt * g->q;
+	double a = g->rt, b = g->rtb;
 
 	*hx = sqrt(a * a * g->ct * g->ct + b * b * g->st * g->st);
 	*hy = sqrt(a * a * g->st * g->st + b * b * g->ct * g->ct);
@@ -322,20 +367,48 @@ static double sersic_scale(const struct sersic_gal *g, double rho)
 	double p = exp((g->inv_n - 1.0) * log(rho));
 	double s1 = g->b * g->inv_n * p;
 	double s2 = g->b * g->inv_n * fabs(g->inv_n - 1.0) * p / rho;
-	return g->q * g->re / sqrt(s1 * s1 + s2 + 1e-300);
+	return g->minor / sqrt(s1 * s1 + s2 + 1e-300);
 }
 
-/* The smallest elliptical radius (units of r_e) of any point of the box
+static inline double sersic_clamp(double v, double lo, double hi)
+{
+	return v < lo ? lo : v > hi ? hi : v;
+}
+
+/* Whether the cell [x0, x1] x [y0, y1] (offsets from the centre) lies
+ * within h of the centre, where the cusp of n > 1 sits. */
+static inline int sersic_near_centre(double x0, double x1, double y0, double y1, double h)
+{
+	return x0 - h <= 0 && x1 + h >= 0 && y0 - h <= 0 && y1 + h >= 0;
+}
+
+/*
+ * The smallest elliptical radius (units of r_e) of any point of the box
  * [x0, x1] x [y0, y1] (offsets from the centre): zero if the box holds the
- * centre, else a lower bound from the nearest point in pixel distance and
- * the major semi-axis (rho >= dist / r_e). */
+ * centre.  Else rho^2, convex with its least value at the centre, is least
+ * on an edge that faces the centre (x = x0 when x0 > 0, and so on; one or
+ * two of them).  Along x = x0, rho^2 = A x0^2 + 2 B x0 y + C y^2 is least
+ * at y = -B x0 / C, clamped to [y0, y1]; likewise for the others.  Exact,
+ * so a cell beside a needle (q -> 0) is seen to be dark however close it
+ * is in pixels.
+ */
 static double sersic_rho_min(const struct sersic_gal *g, double x0, double x1,
 			     double y0, double y1)
 {
-	double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0;
-	double dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0;
+	double m = INFINITY;
 
-	return sqrt(dx * dx + dy * dy) / g->re;
+	if (x0 > 0 || x1 < 0) {
+		double x = x0 > 0 ? x0 : x1;
+		double y = g->qc > 0 ? sersic_clamp(-g->qb * x / g->qc, y0, y1) : y0;
+		m = sersic_rho2(g, x, y);
+	}
+	if (y0 > 0 || y1 < 0) {
+		double y = y0 > 0 ? y0 : y1;
+		double x = g->qa > 0 ? sersic_clamp(-g->qb * y / g->qa, x0, x1) : x0;
+		double r = sersic_rho2(g, x, y);
+		m = r < m ? r : m;
+	}
+	return m < INFINITY ? sqrt(m > 0 ? m : 0.0) : 0.0;
 }
 
 /* The largest rho^2 over the box: rho^2 is convex, so at a corner. */
@@ -346,7 +419,7 @@ static inline double sersic_rho2_max(const struct sersic_gal *g, double x0, doub
 
 	for (int k = 0; k < 4; k++) {
 		double dx = k & 1 ? x1 : x0, dy = k & 2 ? y1 : y0;
-		m = fmax(m, g->qa * dx * dx + 2 * g->qb * dx * dy + g->qc * dy * dy);
+		m = fmax(m, sersic_rho2(g, dx, dy));
 	}
 	return m;
 }
@@ -441,7 +514,7 @@ static double sersic_gk(const struct sersic_gal *g, double d, double a, double b
 	}
 	k *= h;
 	gs *= h;
-	if (fabs(k - gs) <= tol || depth >= 40 || h < 1e-15)
+	if (fabs(k - gs) <= tol || depth >= 40 || h < 1e-15 || !isfinite(k))
 		return k;
 	return sersic_gk(g, d, a, m, 0.5 * tol, depth + 1)
 	       + sersic_gk(g, d, m, b, 0.5 * tol, depth + 1);
@@ -457,7 +530,7 @@ static double sersic_rect_polar(const struct sersic_gal *g, double x0, double x1
 {
 	double vx[4] = { x0, x1, x1, x0 }, vy[4] = { y0, y0, y1, y1 };
 	double s[4], t[4], sum = 0;
-	double ire = 1.0 / g->re, iqre = 1.0 / (g->q * g->re);
+	double ire = 1.0 / g->re, iqre = 1.0 / g->minor;
 
 	for (int k = 0; k < 4; k++) {
 		double u = g->ct * vx[k] + g->st * vy[k];
@@ -486,6 +559,32 @@ static double sersic_rect_polar(const struct sersic_gal *g, double x0, double x1
 		sum += (sweep > 0 ? 1.0 : -1.0) * (g->pt * fabs(sweep) - gi);
 	}
 	return g->finf / (2 * M_PI) * sum;
+}
+
+/*
+ * The same integral to a relative tolerance rel of the cell's own light
+ * (or an absolute floor atol, a fraction of the flux).  rmin is the cell's
+ * sersic_rho_min.  The first pass asks for rel times a bound on the light,
+ * I(rho_min) times the area; where the light turns out far below that
+ * bound (a needle crossing the cell, a far cell whose wedges nearly
+ * cancel) the integral is redone to rel of what the first pass found,
+ * at most twice more.
+ */
+static double sersic_rect_rel(const struct sersic_gal *g, double x0, double x1, double y0,
+			      double y1, double rmin, double rel, double atol)
+{
+	double bound = exp(g->lni0 - g->b * pow(rmin, g->inv_n)) * (x1 - x0) * (y1 - y0) / g->flux;
+	double t = fmax(rel * fmin(bound, 1.0), atol);
+	double v = sersic_rect_polar(g, x0, x1, y0, y1, t);
+
+	for (int k = 0; k < 2; k++) {
+		double want = fmax(0.5 * rel * fabs(v) / g->flux, atol);
+		if (!(want < 0.25 * t))
+			break;
+		t = want;
+		v = sersic_rect_polar(g, x0, x1, y0, y1, t);
+	}
+	return v;
 }
 
 /* ------------------------------------------------------------------ */
@@ -863,6 +962,18 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 /* ------------------------------------------------------------------ */
 /* prepare() and footprint(), shared.                                  */
 
+/* v as the shortest of %.15g, %.16g, %.17g that reads back as v, so a
+ * message quotes the value the row holds ("1.0000001", not "1"). */
+static const char *sersic_num(char buf[32], double v)
+{
+	for (int p = 15; p <= 17; p++) {
+		snprintf(buf, 32, "%.*g", p, v);
+		if (isnan(v) || strtod(buf, NULL) == v)
+			break;
+	}
+	return buf;
+}
+
 /*
  * Validate a row and fill src->aux.  eps is the truncation fraction.  With
  * flux meaning "ie", src->flux is the intensity at r_e and is replaced by
@@ -874,52 +985,71 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 	double n = src->param[SERSIC_N], re = src->param[SERSIC_RE];
 	double phi = src->param[SERSIC_PHI], q = src->param[SERSIC_RATIO];
 
-	if (isnan(n) || n <= 0)
-		return host->error(host->ctx, "column 'n': Sérsic index must be > 0, got %g", n);
-	if (n < SERSIC_N_MIN || n > SERSIC_N_MAX)
-		return host->error(host->ctx, "column 'n': Sérsic index %g is outside the supported range %g to %g",
-				   n, SERSIC_N_MIN, SERSIC_N_MAX);
-	if (isnan(re) || re <= 0 || isinf(re))
-		return host->error(host->ctx, "column 're': half-light radius must be > 0 pixels, got %g", re);
-	if (isnan(q) || q <= 0 || q > 1)
-		return host->error(host->ctx, "column 'ratio': axis ratio must be in (0, 1], got %g", q);
-	if (!isfinite(phi))
-		return host->error(host->ctx, "column 'phi': orientation must be a finite angle in degrees, got %g", phi);
-	if (!isfinite(src->flux) || src->flux < 0)
-		return host->error(host->ctx, "column 'flux': a galaxy's flux must be finite and >= 0, got %g",
-				   src->flux);
+	char num[32];
 
-	double b = sersic_bn(n), a = 2 * n;
+	if (isnan(n))
+		return host->error(host->ctx, "column 'n': empty; a Sérsic row needs its index");
+	if (n <= 0)
+		return host->error(host->ctx, "column 'n': Sérsic index must be > 0, got %s", sersic_num(num, n));
+	if (n < SERSIC_N_MIN || n > SERSIC_N_MAX)
+		return host->error(host->ctx, "column 'n': Sérsic index %s is outside the supported range %g to %g",
+				   sersic_num(num, n), SERSIC_N_MIN, SERSIC_N_MAX);
+	if (isnan(re))
+		return host->error(host->ctx, "column 're': empty; a Sérsic row needs its half-light radius");
+	if (re <= 0 || isinf(re))
+		return host->error(host->ctx, "column 're': half-light radius must be > 0 pixels, got %s",
+				   sersic_num(num, re));
+	if (isnan(q) || q <= 0 || q > 1)
+		return host->error(host->ctx, "column 'ratio': axis ratio must be in (0, 1], got %s",
+				   sersic_num(num, q));
+	if (!isfinite(phi))
+		return host->error(host->ctx, "column 'phi': orientation must be a finite angle in degrees, got %s",
+				   sersic_num(num, phi));
+	if (!isfinite(src->flux) || src->flux < 0)
+		return host->error(host->ctx, "column 'flux': a galaxy's flux must be finite and >= 0, got %s",
+				   sersic_num(num, src->flux));
+
+	double b = sersic_bn(n), a = 2 * n, ra, rb;
 	/* ln of F_inf / I0 = 2 pi n q re^2 Gamma(2n) / b^(2n), in logs so n = 20
-	 * (Gamma(40) ~ 1e46) and re = 0.01 stay in range. */
-	double lnk = log(2 * M_PI * n * q) + 2 * log(re) + lgamma(a) - a * log(b);
+	 * (Gamma(40) ~ 1e46), re = 0.01 and re = 1e300 stay in range: first
+	 * for the row's own re and q (the total of --sersic-flux ie), then for
+	 * the semi-axes the galaxy is drawn with. */
+	double lng = log(2 * M_PI * n) + lgamma(a) - a * log(b);
+	sersic_axes(re, q, &ra, &rb);
+	double lnk = lng + log(ra) + log(rb);
 
 	const char *meaning = host->setting ? host->setting(host->ctx, "sersic-flux") : NULL;
 	if (meaning && !strcmp(meaning, "ie")) {
 		/* flux column = I(r_e) = I0 e^-b: total = Ie e^b F_inf / I0. */
-		src->flux = src->flux * exp(b + lnk);
+		double ie = src->flux;
+		src->flux = ie * exp(b + lng + log(q) + 2 * log(re));
 		if (!isfinite(src->flux))
-			return host->error(host->ctx, "column 'flux': surface brightness %g gives an infinite total",
-					   src->param[SERSIC_RE]);
+			return host->error(host->ctx, "column 'flux': surface brightness %s gives an infinite total",
+					   sersic_num(num, ie));
 	} else if (meaning && strcmp(meaning, "total")) {
 		return host->error(host->ctx, "setting sersic-flux: '%s' is neither 'total' nor 'ie'", meaning);
 	}
 
 	double xt = sersic_trunc_x(n, eps);
-	double qt = sersic_gamma_q(a, xt), pt = 1.0 - qt;
+	double qt, pt;
 	double rho_t = exp(n * log(xt / b));
 	/* Never cut inside the central 5 x 5 pixels, whose values the accuracy
 	 * targets are about: the cut ellipse's minor semi-axis is at least
 	 * SERSIC_RT_MIN pixels (or its major one 10 x that for needles). */
-	double rmin_px = fmin(SERSIC_RT_MIN / q, 10 * SERSIC_RT_MIN);
-	if (rho_t * re < rmin_px)
-		rho_t = rmin_px / re;
-	if (rho_t * re > SERSIC_RT_MAX)
-		rho_t = SERSIC_RT_MAX / re;     /* the flux beyond is off any SCA */
+	double rho_floor = fmin(SERSIC_RT_MIN / rb, 10 * SERSIC_RT_MIN / ra);
+	if (rho_t < rho_floor)
+		rho_t = rho_floor;
+	/* A cut beyond SERSIC_RT_MAX pixels is made there instead; the light
+	 * beyond is off any SCA, so the profile is not renormalised for it
+	 * (for re = 1e300 that light is nearly all of it). */
+	int beyond = rho_t * ra > SERSIC_RT_MAX;
+	if (beyond)
+		rho_t = SERSIC_RT_MAX / ra;
 	xt = b * exp(log(rho_t) / n);
 	qt = sersic_gamma_q(a, xt);
 	pt = 1.0 - qt;
-	double finf = src->flux / pt;           /* renormalised: flux inside rho_t */
+	/* renormalised: the flux inside rho_t is the row's */
+	double finf = beyond ? src->flux : src->flux / pt;
 
 	src->aux[AUX_B] = b;
 	src->aux[AUX_LNI0] = src->flux > 0 ? log(finf) - lnk : -INFINITY;
@@ -951,7 +1081,9 @@ static int sersic_footprint_common(const struct wfs_host *host, const struct wfs
 	const double lim = 1e8;
 	double x0 = fmax(floor(g.xc - hx + 0.5) - hp, -lim), x1 = fmin(floor(g.xc + hx + 0.5) + hp + 1, lim);
 	double y0 = fmax(floor(g.yc - hy + 0.5) - hp, -lim), y1 = fmin(floor(g.yc + hy + 0.5) + hp + 1, lim);
-	if (!(x0 < x1) || !(y0 < y1))
+	/* A central surface brightness below the least double (e^-745 per
+	 * pixel; r_e = 1e300, or no flux) puts nothing in any pixel. */
+	if (!(x0 < x1) || !(y0 < y1) || !(g.lni0 > -745))
 		x0 = x1 = y0 = y1 = 0;  /* far out of range: an empty box */
 	box->x0 = (int)x0;
 	box->x1 = (int)x1;

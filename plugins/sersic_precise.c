@@ -6,14 +6,22 @@
  * Cell integration:
  *  - cells within one cell size of the centre (the cusp for n > 1, all of a
  *    galaxy smaller than a cell) by wedges from the centre, exact up to a
- *    one-dimensional Gauss-Kronrod quadrature (sersic_rect_polar);
+ *    one-dimensional Gauss-Kronrod quadrature (sersic_rect_rel), to a
+ *    tenth of the tolerance;
+ *  - cells wider than twice the profile's length scale ell (sersic_scale)
+ *    by adaptive Gauss-Legendre (below), which splits them until they are
+ *    not, or past 8 ell (a needle, q r_e far below a pixel) takes the
+ *    wedges;
  *  - cells where the profile's length scale ell is at least 10 cell sizes by
  *    the 2 x 2 Gauss-Legendre rule, whose error ~ (h/ell)^4 / 4320 is below
  *    3e-8 of the cell there;
- *  - cells cut by the truncation ellipse by 8 x 8 midpoints (see below);
+ *  - cells (and sub-cells no wider than 2 ell) cut by the truncation
+ *    ellipse by 8 x 8 midpoints (see adapt);
  *  - the rest by adaptive 2 x 2 / 3 x 3 Gauss-Legendre: a cell is accepted
  *    when the two rules agree to the tolerance (the 3 x 3 result, far more
- *    accurate than that difference, is kept), else split in four.
+ *    accurate than that difference, is kept), else split in four.  The
+ *    rules are not asked on a cell wider than 2 ell, where both could step
+ *    over a feature that narrow and agree on missing it.
  *
  * Settings: sersic-tol (relative tolerance per cell, default 1e-5),
  * sersic-trunc (flux fraction beyond the truncation radius, default 1e-4),
@@ -24,6 +32,14 @@
 #define PRECISE_TOL 1e-5
 #define PRECISE_TRUNC 1e-4
 #define PRECISE_DEPTH 18
+/* The 2 x 2 and 3 x 3 rules are trusted on a cell no wider than
+ * PRECISE_SEEN of the profile's length scales; their points are then close
+ * enough to see any feature of the light.  A wider cell is split in four
+ * without asking them, up to PRECISE_WEDGE length scales; wider still (a
+ * needle, the middle of a galaxy far below a pixel) it goes to the
+ * wedges, whose cost does not grow as the feature narrows. */
+#define PRECISE_SEEN 2.0
+#define PRECISE_WEDGE 8.0
 
 struct precise {
 	const struct wfs_host *host;
@@ -67,10 +83,27 @@ static double gauss3(const struct sersic_gal *g, double x0, double x1, double y0
 static double adapt(const struct sersic_gal *g, const struct precise_opt *o,
 		    double x0, double x1, double y0, double y1, double atol, int depth)
 {
-	double g3 = gauss3(g, x0, x1, y0, y1), g2 = gauss2(g, x0, x1, y0, y1);
-
-	if (fabs(g3 - g2) <= fmax(o->tol * fabs(g3), atol) || depth >= PRECISE_DEPTH)
-		return g3;
+	double rmin = sersic_rho_min(g, x0, x1, y0, y1);
+	if (rmin >= g->rho_t)
+		return 0.0;
+	/* A cell the two rules cannot see into (a line narrower than their
+	 * points' spacing, which both would step over and agree on missing):
+	 * split, or if far too wide, wedges. */
+	double side = fmax(x1 - x0, y1 - y0), ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
+	if (ell * PRECISE_WEDGE < side)
+		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 0.1 * o->tol, atol / g->flux);
+	int seen = ell * PRECISE_SEEN >= side || depth >= PRECISE_DEPTH;
+	/* A cell cut by the truncation ellipse holds light at the eps level
+	 * (about eps / (pi q rho_t^2 r_e^2) of the flux per pixel), behind a
+	 * step no rule converges on quickly: 8 x 8 points resolve the step to
+	 * 1/8 of the cell, an error of a few per cent of that faint light. */
+	if (seen && sersic_rho2_max(g, x0, x1, y0, y1) > g->rho_t2)
+		return sersic_midpoint(g, x0, x1, y0, y1, 8);
+	if (seen) {
+		double g3 = gauss3(g, x0, x1, y0, y1), g2 = gauss2(g, x0, x1, y0, y1);
+		if (fabs(g3 - g2) <= fmax(o->tol * fabs(g3), atol) || depth >= PRECISE_DEPTH)
+			return g3;
+	}
 	double mx = 0.5 * (x0 + x1), my = 0.5 * (y0 + y1);
 	atol *= 0.25;
 	return adapt(g, o, x0, mx, y0, my, atol, depth + 1) + adapt(g, o, mx, x1, y0, my, atol, depth + 1)
@@ -90,22 +123,15 @@ static double precise_cell(const struct sersic_gal *g, const void *opt,
 	double area = (x1 - x0) * (y1 - y0);
 	if (exp(g->lni0 - g->b * pow(rmin, g->inv_n)) * area <= o->atol * g->flux)
 		return sersic_sb(g, 0.5 * (x0 + x1), 0.5 * (y0 + y1)) * area;
-	/* Near the centre: exact wedges.  The tolerance is relative to a bound
-	 * on the cell's own light, I(rho_min) times its area. */
-	if (sersic_rho_min(g, x0 - h, x1 + h, y0 - h, y1 + h) == 0.0) {
-		double est = fmin(1.0, exp(g->lni0 - g->b * pow(rmin, g->inv_n)) * (x1 - x0) * (y1 - y0)
-				  / fabs(g->flux));
-		return sersic_rect_polar(g, x0, x1, y0, y1, 0.1 * o->tol * est);
-	}
-	/* A cell cut by the truncation ellipse holds light at the eps level
-	 * (about eps / (pi q rho_t^2 r_e^2) of the flux per pixel), behind a
-	 * step no rule converges on quickly: 8 x 8 points resolve the step to
-	 * 1/8 of the cell, an error of a few per cent of that faint light. */
-	if (sersic_rho2_max(g, x0, x1, y0, y1) > g->rho_t2)
-		return sersic_midpoint(g, x0, x1, y0, y1, 8);
-	if (sersic_cell_scale(g, rmin, x0, x1, y0, y1) >= 10.0 * h)
+	/* Near the centre: exact wedges, to the tolerance of the cell's own
+	 * light. */
+	if (sersic_near_centre(x0, x1, y0, y1, h))
+		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 0.1 * o->tol, o->atol);
+	/* Smooth light well inside the cut: 2 x 2 points. */
+	double ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
+	if (ell >= 10.0 * h && sersic_rho2_max(g, x0, x1, y0, y1) <= g->rho_t2)
 		return gauss2(g, x0, x1, y0, y1);
-	return adapt(g, o, x0, x1, y0, y1, o->atol * fabs(g->flux), 0);
+	return adapt(g, o, x0, x1, y0, y1, o->atol * g->flux, 0);
 }
 
 static int precise_init(const struct wfs_host *host, void **state)

@@ -5,13 +5,16 @@
  *
  * Cell integration: the cells within one cell of the centre (where the cusp
  * of n > 1, or a galaxy smaller than a cell, defeats any sampling) by wedges
- * from the centre (sersic_rect_polar), to 1e-4 of the cell; every other cell by the midpoint rule on an
- * N x N grid.  The midpoint rule's error on a cell of side h is about
- * (h/N)^2 / (24 ell^2) of the cell, ell the profile's length scale at the
- * cell's nearest point (sersic_scale), so N = ceil(h / (QUICK_STEP ell)),
- * at most QUICK_NMAX: with QUICK_STEP = 0.5 a cell is within about 1%, and
- * most of the light sits in cells far better than that.  The measured
- * total-flux error is below 1% for n <= 4 (BENCHMARKS.md).
+ * from the centre (sersic_rect_rel), to 1e-4 of the cell; every other cell
+ * by the midpoint rule on an N x N grid.  The midpoint rule's error on a
+ * cell of side h is about (h/N)^2 / (24 ell^2) of the cell, ell the
+ * profile's length scale at the cell's nearest point (sersic_scale), so
+ * N = ceil(h / (QUICK_STEP ell)): with QUICK_STEP = 0.5 a cell is within
+ * about 1%, and most of the light sits in cells far better than that.  A
+ * cell that would need more than QUICK_NMAX points a side (a needle, q r_e
+ * far below a pixel, which points would step over) goes to the wedges too,
+ * to 1e-3 of its light.  The measured total-flux error is below 1% for
+ * n <= 4 (BENCHMARKS.md).
  *
  * Settings: sersic-trunc (flux fraction beyond the truncation radius,
  * default 1e-3), sersic-convolve (yes/no), sersic-flux (total/ie).
@@ -37,16 +40,19 @@ static double quick_cell(const struct sersic_gal *g, const void *opt,
 
 	if (rmin >= g->rho_t)
 		return 0.0;
-	if (sersic_rho_min(g, x0 - h, x1 + h, y0 - h, y1 + h) == 0.0) {
-		double est = fmin(1.0, exp(g->lni0 - g->b * pow(rmin, g->inv_n)) * (x1 - x0) * (y1 - y0)
-				  / g->flux);
-		return sersic_rect_polar(g, x0, x1, y0, y1, 1e-4 * est);
-	}
-	double ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
-	int n = (int)fmin(ceil(h / (QUICK_STEP * ell)), QUICK_NMAX);
-	if (n < 1)
-		n = 1;
-	return sersic_midpoint(g, x0, x1, y0, y1, n);
+	if (sersic_near_centre(x0, x1, y0, y1, h))
+		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-4, 1e-12);
+	/* More points than QUICK_NMAX even at the cell's nearest point: a
+	 * needle or a galaxy far below a pixel, which points would miss. */
+	if (!(ceil(h / (QUICK_STEP * sersic_cell_scale(g, rmin, x0, x1, y0, y1))) <= QUICK_NMAX))
+		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12);
+	/* The points per side from the length scale at a lower bound on rho,
+	 * the cell's distance over r_e, which rounds the count up: what the
+	 * errors in BENCHMARKS.md were measured with. */
+	double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0, dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0;
+	double n = ceil(h / (QUICK_STEP * sersic_cell_scale(g, sqrt(dx * dx + dy * dy) / g->re,
+							      x0, x1, y0, y1)));
+	return sersic_midpoint(g, x0, x1, y0, y1, n < 1 ? 1 : n > QUICK_NMAX ? QUICK_NMAX : (int)n);
 }
 
 static int quick_init(const struct wfs_host *host, void **state)

@@ -57,16 +57,20 @@ got = float(open(\"sums\").read())
 sys.exit(not (0.98 < got / want < 1.0))
 "
 '
-test_expect_success '--sersic precise draws type sersic with the precise model' '
+test_expect_success 'type sersic is --sersic (quick by default); sersic-quick and sersic-precise choose for themselves' '
 	printf "x,y,flux,type,n,re,phi,ratio\n400.5,400.5,100,sersic,4,2,0,0.7\n" > s.csv &&
+	sed s/sersic,/sersic-quick,/ s.csv > sq.csv && sed s/sersic,/sersic-precise,/ s.csv > sp.csv &&
+	"$WFS" --filter F129 -o d.fits s.csv &&
 	"$WFS" --filter F129 --sersic precise -o p.fits s.csv &&
 	"$WFS" --filter F129 --sersic quick -o q.fits s.csv &&
-	"$PY" boxsum.py p.fits 40 400.5,400.5 > sp && "$PY" boxsum.py q.fits 40 400.5,400.5 > sq &&
-	! cmp -s p.fits q.fits
+	"$WFS" --filter F129 --sersic precise -o eq.fits sq.csv &&
+	"$WFS" --filter F129 -o ep.fits sp.csv &&
+	cmp d.fits q.fits && cmp q.fits eq.fits && cmp p.fits ep.fits && ! cmp -s p.fits q.fits
 '
 for row in "0,2,0,1:column 'n'" "-1,2,0,1:column 'n'" "nan,2,0,1:column 'n'" \
 	   "1,0,0,1:column 're'" "1,-2,0,1:column 're'" "1,2,0,0:column 'ratio'" \
-	   "1,2,0,1.5:column 'ratio'" "1,2,nan,1:column 'phi'"; do
+	   "1,2,0,1.5:column 'ratio'" "1,2,nan,1:column 'phi'" \
+	   ",2,0,1:column 'n': empty" "1,,0,1:column 're': empty"; do
 	vals=${row%%:*} want=${row#*:}
 	test_expect_success "a row with n,re,phi,ratio = $vals is refused" "
 		printf 'x,y,flux,type,n,re,phi,ratio\n10,10,5,point,,,,\n100,100,10,sersic,$vals\n' > bad.csv &&
@@ -74,6 +78,15 @@ for row in "0,2,0,1:column 'n'" "-1,2,0,1:column 'n'" "nan,2,0,1:column 'n'" \
 		test_grep \"bad.csv:3: .*$want\" err && ! test -e bad.fits
 	"
 done
+test_expect_success 'a refused value is quoted to the digit it differs by' '
+	printf "x,y,flux,type,n,re,phi,ratio\n100,100,10,sersic,1,2,0,1.0000001\n100,100,10,sersic,0.04999999,2,0,1\n" > near.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o near.fits near.csv 2> err &&
+	test_grep "near.csv:2: .*column .ratio.: axis ratio must be in (0, 1\], got 1.0000001$" err &&
+	! test -e near.fits &&
+	sed -i 2d near.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o near.fits near.csv 2> err &&
+	test_grep "near.csv:2: .*Sérsic index 0.04999999 is outside" err && ! test -e near.fits
+'
 test_expect_success 'a galaxy centred off the detector lights its edge' '
 	printf "x,y,flux,type,n,re,phi,ratio\n-3,500,10000,sersic,1,4,0,1\n" > off.csv &&
 	"$WFS" --filter F129 -o off.fits off.csv &&
@@ -110,6 +123,158 @@ for bad in "--sersic-core 2.5:not an integer" "--sersic-core 17:out of range" \
 		test_grep \"$want\" err && ! test -e o.fits
 	"
 done
+# The shape of a rendered galaxy in the FITS image (numpy rows are y,
+# columns x): flux, centroid (1-based), the angle of its major axis from +x
+# toward +y by second moments, their axis ratio, and the half-light radius
+# along the major axis (the ellipse of the catalog's own shape that holds
+# half the light).  A pixel's light counted at its centre adds the
+# variance of the pixel, 1/12, to each second moment; it is taken off.
+# (Counted at pixel centres, the centroid of a cusp, n = 4, is off by up
+# to 0.02 pixel with the phase; the n = 4 case checks no centroid.)
+cat > shape.py <<'PY'
+import math, sys
+import numpy as np
+from astropy.io import fits
+d = [h.data for h in fits.open(sys.argv[1]) if h.data is not None][0].astype(float)
+x0, y0, h, q, phi = (float(v) for v in sys.argv[2:7])
+i0, j0, h = int(round(x0 - 1)), int(round(y0 - 1)), int(h)
+a = d[j0 - h:j0 + h + 1, i0 - h:i0 + h + 1]
+y, x = np.mgrid[j0 - h:j0 + h + 1, i0 - h:i0 + h + 1] + 1.0
+f = a.sum()
+cx, cy = (a * x).sum() / f, (a * y).sum() / f
+mxx, myy, mxy = ((a * (x - cx) ** 2).sum() / f - 1 / 12, (a * (y - cy) ** 2).sum() / f - 1 / 12,
+                 (a * (x - cx) * (y - cy)).sum() / f)
+ang = math.degrees(0.5 * math.atan2(2 * mxy, mxx - myy)) % 180
+tr, det = mxx + myy, mxx * myy - mxy * mxy
+l1, l2 = tr / 2 + math.sqrt(tr * tr / 4 - det), tr / 2 - math.sqrt(tr * tr / 4 - det)
+th = math.radians(phi + 90)
+def rho(px, py):
+    u = (px - x0) * math.cos(th) + (py - y0) * math.sin(th)
+    v = -(px - x0) * math.sin(th) + (py - y0) * math.cos(th)
+    return np.sqrt(u * u + (v / q) ** 2)
+# the light inside the ellipse of semi-major axis R about the catalog's
+# centre, a pixel cut by it shared by the part of its area inside (8 x 8)
+s = (np.arange(8) + 0.5) / 8 - 0.5
+def inside(R):
+    cs = [rho(x + dx, y + dy) for dx in (-0.5, 0.5) for dy in (-0.5, 0.5)]
+    lo, hi = np.minimum.reduce(cs), np.maximum.reduce(cs)
+    t = a[hi < R].sum()
+    for j, i in zip(*np.nonzero((lo < R) & (hi >= R))):
+        fr = (rho(x[j, i] + s[None, :], y[j, i] + s[:, None]) < R).mean()
+        t += a[j, i] * fr
+    return t
+lo, hi = 0.0, float(h)
+for it in range(40):
+    mid = 0.5 * (lo + hi)
+    lo, hi = (mid, hi) if inside(mid) < f / 2 else (lo, mid)
+hlr = 0.5 * (lo + hi)
+print("%.6f %.4f %.4f %.3f %.4f %.4f" % (f, cx, cy, ang, math.sqrt(l2 / l1), hlr))
+PY
+
+# near.py got want tol ...: each got within tol of want
+cat > near.py <<'PY'
+import sys
+v = [float(a) for a in sys.argv[1:]]
+bad = [(g, w, t) for g, w, t in zip(v[0::3], v[1::3], v[2::3]) if not abs(g - w) <= t]
+if bad:
+    print("out of tolerance (got, want, tol):", bad)
+    sys.exit(1)
+PY
+
+for m in quick precise; do
+	test_expect_success "sersic-$m through wfiscene: flux, centre, orientation (phi + 90 from +x toward +y), axis ratio, half-light radius" "
+		printf 'x,y,flux,type,n,re,phi,ratio\\n300.2,400.7,5000,sersic-$m,1,12,30,0.5\\n700.6,400.3,5000,sersic-$m,1,10,0,0.3\\n1500.4,1500.5,5000,sersic-$m,4,6,-60,0.6\\n' > shape.csv &&
+		\"\$WFS\" -q --filter F129 --sersic-convolve no -o shape.fits shape.csv &&
+		\"\$PY\" shape.py shape.fits 300.2 400.7 150 0.5 30 > a &&
+		\"\$PY\" shape.py shape.fits 700.6 400.3 120 0.3 0 > b &&
+		\"\$PY\" shape.py shape.fits 1500.4 1500.5 400 0.6 -60 > c &&
+		cat a b c &&
+		read f cx cy ang r hlr < a &&
+		\"\$PY\" near.py \$f 5000 10 \$cx 300.2 0.005 \$cy 400.7 0.005 \$ang 120 0.1 \$r 0.5 0.002 \$hlr 12 0.18 &&
+		read f cx cy ang r hlr < b &&
+		\"\$PY\" near.py \$f 5000 10 \$cx 700.6 0.005 \$cy 400.3 0.005 \$ang 90 0.1 \$r 0.3 0.002 \$hlr 10 0.15 &&
+		read f cx cy ang r hlr < c &&
+		\"\$PY\" near.py \$f 5000 10 \$ang 30 0.1 \$r 0.6 0.003 \$hlr 6 0.09
+	"
+done
+test_expect_success 'through the PSF the major axis keeps its direction' '
+	printf "x,y,flux,type,n,re,phi,ratio\n300.2,400.7,5000,sersic,1,8,30,0.4\n" > psf.csv &&
+	"$WFS" -q --filter F129 -o psf.fits psf.csv &&
+	"$PY" shape.py psf.fits 300.2 400.7 60 0.4 30 > a && cat a && read f cx cy ang r hlr < a &&
+	"$PY" near.py $ang 120 0.5
+'
+
+# Extremes from the command line: the whole supported n, axes from 1e-300
+# to 1e300 pixels, needles (one 2000 px long), centres on the detector's
+# edge and corner and off it.  Every image finite; a galaxy of r_e 1e-300 is a point source.
+test_expect_success 'extreme galaxies give finite images, a vanishing one a point source' '
+	cat > ext.csv <<-CSV &&
+	x,y,flux,type,n,re,phi,ratio
+	100.3,100.6,1000,point,,,,
+	300.3,100.6,1000,sersic,4,1e-300,10,1e-300
+	500.3,100.6,1000,sersic-precise,0.05,1e-9,10,1
+	700.3,100.6,1000,sersic,20,0.01,10,1
+	900.3,100.6,1000,sersic-precise,1,3,33,1e-300
+	2000,2000,1000,sersic,1,1e300,10,0.5
+	1500.3,300.6,1000,sersic,1,2000,77,0.01
+	-500,-500,1000,sersic-precise,4,20,10,0.7
+	0.5,1000,1000,sersic,1,3,0,1
+	4088.5,4088.5,1000,sersic,1,3,0,1
+	CSV
+	"$WFS" -q --filter F129 -o ext.fits ext.csv &&
+	"$PY" -c "
+import sys
+import numpy as np
+from astropy.io import fits
+d = [h.data for h in fits.open(\"ext.fits\") if h.data is not None][0].astype(float)
+sys.exit(not np.isfinite(d).all())
+" &&
+	"$PY" boxsum.py ext.fits 25 100.3,100.6 300.3,100.6 500.3,100.6 > sums &&
+	"$PY" -c "
+import sys
+p, a, b = (float(v) for v in open(\"sums\"))
+sys.exit(not (abs(a / p - 1) < 1e-4 and abs(b / p - 1) < 1e-4))
+"
+'
+test_expect_success 'a galaxy centred on the detector'"'"'s edge or corner puts half or a quarter of its light on it' '
+	printf "x,y,flux,type,n,re,phi,ratio\n0.5,1000,1000,sersic,1,3,0,1\n" > edge.csv &&
+	printf "x,y,flux,type,n,re,phi,ratio\n4088.5,4088.5,1000,sersic-precise,1,3,0,1\n" > corner.csv &&
+	printf "x,y,flux,type,n,re,phi,ratio\n1000.5,1000,1000,sersic,1,3,0,1\n" > inside.csv &&
+	for c in edge corner inside; do
+		"$WFS" -q --filter F129 --sersic-convolve no -o $c.fits $c.csv || return 1
+	done &&
+	"$PY" -c "
+import sys
+from astropy.io import fits
+s = [[h.data for h in fits.open(f + \".fits\") if h.data is not None][0].astype(float).sum()
+     for f in (\"edge\", \"corner\", \"inside\")]
+print(s)
+sys.exit(not (abs(s[0] / s[2] - 0.5) < 1e-3 and abs(s[1] / s[2] - 0.25) < 1e-3))
+"
+'
+test_expect_success 'galaxies do not depend on threads; tile and chunk sizes move them by rounding only' '
+	cat > thr.csv <<-CSV &&
+	x,y,flux,type,n,re,phi,ratio
+	100.3,100.6,1000,point,,,,
+	300.3,300.6,1000,sersic,4,3,10,0.5
+	500.3,300.6,1000,sersic-precise,1,30,70,0.3
+	2000.5,2000.5,100000,sersic,1,60,20,0.7
+	260,250,500,sersic,1,8,0,0.01
+	CSV
+	"$WFS" -q --filter F129 --threads 1 -o t1.fits thr.csv &&
+	"$WFS" -q --filter F129 --threads 2 -o t2.fits thr.csv &&
+	"$WFS" -q --filter F129 --threads 3 --tile 64 --chunk 2 -o t3.fits thr.csv &&
+	cmp t1.fits t2.fits &&
+	"$PY" -c "
+import sys
+import numpy as np
+from astropy.io import fits
+a, b = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float) for f in (\"t1.fits\", \"t3.fits\"))
+d = np.abs(a - b).max()
+print(d, a.max())
+sys.exit(not d <= 1e-6 * a.max())
+"
+'
 test_expect_success 'two catalogs whose galaxy columns stand in different places' '
 	printf "x,y,flux,type,n,re,phi,ratio\n100.3,100.6,1000,sersic,1,2,0,1\n" > a.csv &&
 	printf "ratio,phi,re,n,type,flux,y,x\n1,0,2,1,sersic,1000,100.6,100.3\n" > b.csv &&

@@ -356,6 +356,112 @@ static double ref_rect(const struct ref *r, double x0, double x1, double y0, dou
 	return ref_adapt(r, x0, x1, y0, y1, ref_gl6(r, x0, x1, y0, y1), atol, 0);
 }
 
+/*
+ * A second reference, good for any axis ratio: the pixel in the galaxy's
+ * own frame (u along the major axis, v along the minor), where it is a
+ * turned square, integrated as int du int dv I(u, v), each by adaptive
+ * 7/15-point Gauss-Kronrod with breakpoints where the integrand has a kink
+ * or its peak: v = 0 inside, u = 0 and the square's corners outside.  A
+ * needle (q r_e far below a pixel) is then a peak at the end of an inner
+ * interval, which bisection finds however narrow it is, where a grid of
+ * points in x and y (ref_rect) may step over it.
+ */
+static const double k15_x[8] = { 0.991455371120813, 0.949107912342759, 0.864864423359769,
+				  0.741531185599394, 0.586087235467691, 0.405845151377397,
+				  0.207784955007898, 0.0 };
+static const double k15_w[8] = { 0.022935322010529, 0.063092092629979, 0.104790010322250,
+				  0.140653259715525, 0.169004726639267, 0.190350578064785,
+				  0.204432940075298, 0.209482141084728 };
+static const double g7_w[4] = { 0.129484966168870, 0.279705391489277, 0.381830050505119,
+				0.417959183673469 };
+
+typedef double (*ref_fn)(const void *ctx, double t);
+
+static double ref_gk(ref_fn f, const void *ctx, double a, double b, double rel, double atol, int depth)
+{
+	double m = 0.5 * (a + b), h = 0.5 * (b - a), fc = f(ctx, m);
+	double k = k15_w[7] * fc, gs = g7_w[3] * fc;
+
+	for (int i = 0; i < 7; i++) {
+		double f1 = f(ctx, m - h * k15_x[i]), f2 = f(ctx, m + h * k15_x[i]);
+		k += k15_w[i] * (f1 + f2);
+		if (i & 1)
+			gs += g7_w[i / 2] * (f1 + f2);
+	}
+	k *= h;
+	gs *= h;
+	if (fabs(k - gs) <= fmax(rel * fabs(k), atol) || depth > 60)
+		return k;
+	return ref_gk(f, ctx, a, m, rel, 0.5 * atol, depth + 1) + ref_gk(f, ctx, m, b, rel, 0.5 * atol, depth + 1);
+}
+
+struct ref_uv {
+	const struct ref *r;
+	double u[4], v[4];      /* the pixel's corners in (u, v), in order */
+	double uc, atol;        /* the inner integral's u and tolerance */
+};
+
+static double ref_uv_inner(const void *ctx, double v)
+{
+	const struct ref_uv *p = ctx;
+	const struct ref *r = p->r;
+	double rho = sqrt(p->uc * p->uc / (r->re * r->re) + v * v / (r->q * r->q * r->re * r->re));
+
+	return r->i0 * exp(-r->b * pow(rho, 1 / r->n));
+}
+
+static double ref_uv_outer(const void *ctx, double u)
+{
+	struct ref_uv p = *(const struct ref_uv *)ctx;
+	double lo = INFINITY, hi = -INFINITY;
+
+	for (int k = 0; k < 4; k++) {
+		double ua = p.u[k], ub = p.u[(k + 1) & 3], va = p.v[k], vb = p.v[(k + 1) & 3];
+		if (ua == ub || (u - ua) * (u - ub) > 0)
+			continue;
+		double v = va + (vb - va) * (u - ua) / (ub - ua);
+		lo = fmin(lo, v);
+		hi = fmax(hi, v);
+	}
+	if (!(hi > lo))
+		return 0;
+	p.uc = u;
+	if (lo < 0 && hi > 0)
+		return ref_gk(ref_uv_inner, &p, lo, 0, 1e-13, p.atol, 0)
+		       + ref_gk(ref_uv_inner, &p, 0, hi, 1e-13, p.atol, 0);
+	return ref_gk(ref_uv_inner, &p, lo, hi, 1e-13, p.atol, 0);
+}
+
+/* The integral of the untruncated profile over a rectangle (offsets from
+ * the centre), by the galaxy's own axes. */
+static double ref_rect_uv(const struct ref *r, double x0, double x1, double y0, double y1, double atol)
+{
+	double cx[4] = { x0, x1, x1, x0 }, cy[4] = { y0, y0, y1, y1 }, br[6];
+	struct ref_uv p = { .r = r, .atol = 1e-3 * atol };
+	int nb = 0;
+
+	for (int k = 0; k < 4; k++) {
+		p.u[k] = r->c * cx[k] + r->s * cy[k];
+		p.v[k] = -r->s * cx[k] + r->c * cy[k];
+		br[nb++] = p.u[k];
+	}
+	double umin = fmin(fmin(br[0], br[1]), fmin(br[2], br[3]));
+	double umax = fmax(fmax(br[0], br[1]), fmax(br[2], br[3]));
+	if (umin < 0 && umax > 0)
+		br[nb++] = 0;
+	for (int i = 1; i < nb; i++)
+		for (int j = i; j > 0 && br[j] < br[j - 1]; j--) {
+			double t = br[j];
+			br[j] = br[j - 1];
+			br[j - 1] = t;
+		}
+	double sum = 0;
+	for (int i = 0; i + 1 < nb; i++)
+		if (br[i + 1] > br[i])
+			sum += ref_gk(ref_uv_outer, &p, br[i], br[i + 1], 1e-11, atol / nb, 0);
+	return sum;
+}
+
 /* ------------------------------------------------------------------ */
 /* Helpers                                                             */
 
@@ -398,9 +504,10 @@ static double *draw(struct model *md, const struct gal *g, int h, int tile, int 
 	return img;
 }
 
-/* Worst relative error of the central 5 x 5 pixels against the reference,
- * over those holding at least 1e-4 of the flux (fainter ones may lie
- * beyond the truncation radius). */
+/* Worst relative error of the central 5 x 5 pixels against the reference
+ * (by the galaxy's own axes for ratios below 0.1, needles), over those
+ * holding at least 1e-4 of the flux (fainter ones may lie beyond the
+ * truncation radius). */
 static double core_error(const double *img, int h, int ox, int oy, const struct gal *g)
 {
 	struct ref r;
@@ -411,8 +518,8 @@ static double core_error(const double *img, int h, int ox, int oy, const struct 
 	for (int j = -2; j <= 2; j++)
 		for (int i = -2; i <= 2; i++) {
 			int x = (int)floor(g->x + 0.5) + i, y = (int)floor(g->y + 0.5) + j;
-			double want = ref_rect(&r, x - 0.5 - g->x, x + 0.5 - g->x, y - 0.5 - g->y,
-					       y + 0.5 - g->y, 1e-14 * g->flux);
+			double want = (g->ratio < 0.1 ? ref_rect_uv : ref_rect)(&r, x - 0.5 - g->x, x + 0.5 - g->x,
+					       y - 0.5 - g->y, y + 0.5 - g->y, 1e-14 * g->flux);
 			double got = img[(size_t)(y - oy) * nx + (x - ox)];
 			if (want >= 1e-4 * g->flux)
 				worst = fmax(worst, fabs(got / want - 1));
@@ -644,26 +751,39 @@ static void test_errors(const struct wfs_model *m)
 		mock_set(&mock, "sersic-trunc", "1e-3");
 }
 
-/* PSF-free accuracy against the reference: total and central pixels. */
+/*
+ * PSF-free accuracy against the reference: total and central pixels, for
+ * the grid of BENCHMARKS.md (n = 0.5 ... 10, r_e = 0.3, 3, 30, ratio 0.6)
+ * and a few more, needles (ratio 0.01 and 1e-4) among them, with the
+ * targets of issue 4: precise within 1e-3 of the flux and 1e-2 per central
+ * pixel for all; quick within 1e-2 of the flux for n <= 4.  The image is
+ * a 121^2 box: where the galaxy's footprint fits in it the total is
+ * against the flux itself, else against the reference's integral over the
+ * box (BENCHMARKS.md renders the whole footprint instead).
+ */
 static void test_accuracy(const struct wfs_model *m, int precise)
 {
-	static const double cases[][2] = {
-		{ 0.5, 0.3 }, { 1, 0.3 }, { 4, 0.3 }, { 1, 3 }, { 2.5, 3 }, { 4, 3 }, { 6, 3 },
-		{ 0.2, 2 }, { 10, 0.3 }, { 4, 30 },
+	static const double cases[][3] = {
+		{ 0.5, 0.3, 0.6 }, { 0.5, 3, 0.6 }, { 0.5, 30, 0.6 }, { 1, 0.3, 0.6 }, { 1, 3, 0.6 },
+		{ 1, 30, 0.6 }, { 2, 0.3, 0.6 }, { 2, 3, 0.6 }, { 2, 30, 0.6 }, { 4, 0.3, 0.6 },
+		{ 4, 3, 0.6 }, { 4, 30, 0.6 }, { 6, 0.3, 0.6 }, { 6, 3, 0.6 }, { 6, 30, 0.6 },
+		{ 8, 0.3, 0.6 }, { 8, 3, 0.6 }, { 8, 30, 0.6 }, { 10, 0.3, 0.6 }, { 10, 3, 0.6 },
+		{ 10, 30, 0.6 },
+		{ 2.5, 3, 0.6 }, { 0.2, 2, 0.6 },
+		{ 1, 3, 0.01 }, { 4, 3, 0.01 }, { 0.5, 30, 0.01 }, { 10, 0.3, 0.01 }, { 1, 3, 1e-4 },
+		{ 4, 0.3, 1e-4 },
 	};
 	struct model md;
 
 	mock_set(&mock, "sersic-convolve", "no");
 	model_init(&md, m);
 	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
-		double n = cases[i][0], re = cases[i][1];
-		struct gal g = { 100.37, 200.81, 1000, n, re, 20, 0.6 };
+		double n = cases[i][0], re = cases[i][1], q = cases[i][2];
+		struct gal g = { 100.37, 200.81, 1000, n, re, 20, q };
 		int ox, oy, h = 60;
 		double *img = draw(&md, &g, h, 64, &ox, &oy);
-		if (!ok(img != NULL, "%s n %g re %g drawn", m->name, n, re))
+		if (!ok(img != NULL, "%s n %g re %g ratio %g drawn", m->name, n, re, q))
 			continue;
-		/* The flux in the box, reference: 1 - flux outside; for the cases
-		 * whose truncation reaches past the box only the core is checked. */
 		struct ref r;
 		ref_setup(&r, &g);
 		double tot = sum(img, (size_t)(2 * h + 1) * (2 * h + 1));
@@ -674,17 +794,95 @@ static void test_accuracy(const struct wfs_model *m, int precise)
 		prepare(&md, &g, &src, param);
 		md.m->footprint(md.state, &src, &fp);
 		int boxed = fp.x0 >= ox && fp.y0 >= oy && fp.x1 <= ox + 2 * h + 1 && fp.y1 <= oy + 2 * h + 1;
-		if (boxed) {
-			double tol = precise ? 1e-3 : (n <= 4 ? 1e-2 : 5e-2);
-			if (!ok(fabs(tot / g.flux - 1) <= tol, "%s n %g re %g: total within %g", m->name, n, re, tol))
-				diag("total %.8g", tot / g.flux);
-		}
+		double want = g.flux;
+		if (!boxed)
+			want = (q < 0.1 ? ref_rect_uv : ref_rect)(&r, ox - 0.5 - g.x, ox + 2 * h + 0.5 - g.x,
+								oy - 0.5 - g.y, oy + 2 * h + 0.5 - g.y,
+								1e-9 * g.flux);
+		double tol = precise ? 1e-3 : (n <= 4 ? 1e-2 : 2e-2);
+		if (!ok(fabs(tot / want - 1) <= tol, "%s n %g re %g ratio %g: total within %g (%s)", m->name,
+			n, re, q, tol, boxed ? "all of it" : "in the box"))
+			diag("total / reference %.8g", tot / want);
 		double ctol = precise ? 1e-2 : (n <= 4 ? 3e-2 : 0.3);
-		if (!ok(core <= ctol, "%s n %g re %g: central 5x5 within %g", m->name, n, re, ctol))
+		if (!ok(core <= ctol, "%s n %g re %g ratio %g: central 5x5 within %g", m->name, n, re, q, ctol))
 			diag("worst core pixel error %.3g", core);
+		if (getenv("SERSIC_DEBUG"))
+			diag("total %.3g, core %.3g", tot / want - 1, core);
 		free(img);
 	}
 	model_fini(&md);
+	mock_set(&mock, "sersic-convolve", "yes");
+}
+
+/*
+ * The stated tolerance of sersic-precise: every pixel of a 41^2 box within
+ * sersic-tol (default 1e-5) of the reference, relative, where the pixel
+ * holds at least 1e-9 of the flux (the model's absolute floor is 1e-12 of
+ * it per cell).  The truncation is set to 1e-12, so that renormalising
+ * moves no pixel by more than that.  Also the two references against each
+ * other where both apply.
+ */
+static void test_tolerance(const struct wfs_model *m)
+{
+	static const double cases[][3] = {
+		{ 0.5, 3, 0.6 }, { 1, 3, 0.6 }, { 4, 3, 0.6 }, { 4, 0.3, 0.6 }, { 10, 3, 0.6 },
+		{ 0.2, 2, 0.6 }, { 4, 30, 0.3 }, { 1, 3, 0.01 }, { 4, 1, 0.02 },
+	};
+	static const char *tols[] = { "1e-5", "1e-3" };
+	struct model md;
+	int h = 20, nx = 2 * h + 1;
+
+	mock_set(&mock, "sersic-convolve", "no");
+	mock_set(&mock, "sersic-trunc", "1e-12");
+	for (int t = 0; t < 2; t++) {
+		mock_set(&mock, "sersic-tol", tols[t]);
+		model_init(&md, m);
+		for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
+			struct gal g = { 100.37, 200.81, 1000, cases[i][0], cases[i][1], 20, cases[i][2] };
+			int ox, oy;
+			double *img = draw(&md, &g, h, 64, &ox, &oy), worst = 0;
+			struct ref r;
+			ref_setup(&r, &g);
+			for (int j = 0; img && j < nx; j++)
+				for (int k = 0; k < nx; k++) {
+					double x0 = ox + k - 0.5 - g.x, y0 = oy + j - 0.5 - g.y;
+					double want = (g.ratio < 0.1 ? ref_rect_uv : ref_rect)(&r, x0, x0 + 1, y0, y0 + 1,
+											  1e-14 * g.flux);
+					if (want >= 1e-9 * g.flux)
+						worst = fmax(worst, fabs(img[(size_t)j * nx + k] / want - 1));
+				}
+			if (!ok(img && worst <= atof(tols[t]), "%s sersic-tol %s: n %g re %g ratio %g, every pixel within it",
+				m->name, tols[t], g.n, g.re, g.ratio))
+				diag("worst pixel %.3g", worst);
+			if (getenv("SERSIC_DEBUG"))
+				diag("worst pixel %.3g", worst);
+			free(img);
+		}
+		model_fini(&md);
+	}
+	mock_set(&mock, "sersic-tol", "1e-5");
+	mock_set(&mock, "sersic-trunc", "1e-4");
+
+	/* the references agree where both apply */
+	static const struct gal both[] = {
+		{ 100.37, 200.81, 1000, 1, 3, 20, 0.6 }, { 100.37, 200.81, 1000, 4, 0.3, 20, 0.6 },
+		{ 100.37, 200.81, 1000, 0.5, 30, 70, 0.3 },
+	};
+	for (size_t i = 0; i < sizeof(both) / sizeof(both[0]); i++) {
+		struct ref r;
+		double worst = 0;
+		ref_setup(&r, &both[i]);
+		for (int j = -2; j <= 2; j++)
+			for (int k = -2; k <= 2; k++) {
+				double x0 = floor(both[i].x + 0.5) + k - 0.5 - both[i].x;
+				double y0 = floor(both[i].y + 0.5) + j - 0.5 - both[i].y;
+				double a = ref_rect(&r, x0, x0 + 1, y0, y0 + 1, 1e-14 * both[i].flux);
+				double b = ref_rect_uv(&r, x0, x0 + 1, y0, y0 + 1, 1e-14 * both[i].flux);
+				worst = fmax(worst, fabs(a / b - 1));
+			}
+		if (!ok(worst < 1e-9, "references agree: n %g re %g ratio %g", both[i].n, both[i].re, both[i].ratio))
+			diag("worst %.3g", worst);
+	}
 	mock_set(&mock, "sersic-convolve", "yes");
 }
 
@@ -802,19 +1000,29 @@ static void test_psf(const struct wfs_model *m)
 		free(img2);
 	}
 
-	/* A point-like galaxy (re = 0.01; n = 1 so 1 - 1e-5 of its light is
-	 * inside the central cell) against the point model itself.  (At n = 4
-	 * a few per cent of the light of re = 0.01 lies beyond 1/8 pixel.) */
+	/* Point-like galaxies against the point model itself: re = 0.01 at
+	 * n = 1 (1 - 1e-5 of its light inside the central cell) and the
+	 * smallest axes at any n have its pixels; re = 0.01 at n = 4 and 10
+	 * (a few per cent of their light beyond 1/8 pixel) its total. */
 	const struct wfs_model *pm = load("point");
-	if (!pm) {
-		ok(1, "# skip point model not built");
-		ok(1, "# skip point model not built");
-	} else {
+	static const struct { struct gal g; int pixels; } pts[] = {
+		{ { 500.37, 600.81, 1000, 1, 0.01, 10, 0.5 }, 1 },
+		{ { 500.37, 600.81, 1000, 4, 0.01, 10, 0.5 }, 0 },
+		{ { 500.37, 600.81, 1000, 10, 0.01, 10, 1 }, 0 },
+		{ { 500.37, 600.81, 1000, 0.05, 1e-300, 10, 1 }, 1 },
+		{ { 500.37, 600.81, 1000, 4, 1e-300, 10, 1e-300 }, 1 },
+		{ { 500.37, 600.81, 1000, 20, 1e-9, 10, 0.3 }, 1 },
+	};
+	for (size_t i = 0; i < sizeof(pts) / sizeof(pts[0]); i++) {
+		const struct gal *pt = &pts[i].g;
+		if (!pm) {
+			ok(1, "# skip point model not built");
+			continue;
+		}
 		struct model pmd;
-		struct gal pt = { 500.37, 600.81, 1000, 1, 0.01, 10, 0.5 };
 		struct wfs_source ps;
 		int nx = 2 * h + 1;
-		double *img = draw(&md, &pt, h, 256, &ox, &oy), worst = 0;
+		double *img = draw(&md, pt, h, 256, &ox, &oy), worst = 0;
 		double *pimg = calloc((size_t)nx * nx, sizeof(double));
 
 		/* the point model read bilinearly to the box's edge, as the
@@ -824,19 +1032,23 @@ static void test_psf(const struct wfs_model *m)
 		model_init(&pmd, pm);
 		mock_set(&mock, "psf-wing", NULL);
 		memset(&ps, 0, sizeof(ps));
-		ps.x = pt.x;
-		ps.y = pt.y;
-		ps.flux = pt.flux;
+		ps.x = pt->x;
+		ps.y = pt->y;
+		ps.flux = pt->flux;
 		ps.sca = 1;
 		if (pm->prepare)        /* as the host does, before footprint */
 			pm->prepare(pmd.state, &ps);
 		render(&pmd, &ps, pimg, ox, oy, nx, nx, 256);
-		for (int k = 0; k < nx * nx; k++)
+		for (int k = 0; img && k < nx * nx; k++)
 			worst = fmax(worst, fabs(img[k] - pimg[k]));
-		/* the point model sums in float: 1e-4 */
-		is_near(sum(img, (size_t)nx * nx), sum(pimg, (size_t)nx * nx), 1e-4 * pt.flux,
-			"%s: re = 0.01 has the point model's total", m->name);
-		is_near(worst, 0, 1e-5 * pt.flux, "%s: re = 0.01 has the point model's pixels", m->name);
+		/* the point model sums in float: 1e-4; quick draws the light
+		 * beyond a pixel to 1e-3 */
+		is_near(img ? sum(img, (size_t)nx * nx) : NAN, sum(pimg, (size_t)nx * nx),
+			(pts[i].pixels ? 1e-4 : 1e-3) * pt->flux,
+			"%s: n %g re %g ratio %g has the point model's total", m->name, pt->n, pt->re, pt->ratio);
+		if (pts[i].pixels)
+			is_near(worst, 0, 1e-5 * pt->flux, "%s: n %g re %g ratio %g has the point model's pixels",
+				m->name, pt->n, pt->re, pt->ratio);
 		free(img);
 		free(pimg);
 		model_fini(&pmd);
@@ -855,6 +1067,12 @@ static void test_extremes(const struct wfs_model *m)
 		{ 50.5, 50.5, 100, 0.2, 0.01, 0, 1 }, { 50.1, 50.2, 100, 10, 0.01, 0, 0.01 },
 		{ 50.1, 50.2, 100, 10, 0.3, 77, 0.01 }, { 50.4, 50.9, 100, 0.2, 5, 33, 0.01 },
 		{ 50.0, 50.0, 100, 1, 3, 1e6, 1 }, { 50.5, 50.5, 100, 4, 1, -720.5, 0.05 },
+		/* beyond the tested range: the whole supported n, axes of
+		 * 1e-300 pixel, needles of any length */
+		{ 50.5, 50.5, 100, 0.05, 0.5, 0, 0.3 }, { 50.3, 50.6, 100, 20, 0.01, 10, 1 },
+		{ 50.3, 50.6, 100, 1, 1e-300, 10, 1 }, { 50.3, 50.6, 100, 20, 1e-300, 10, 1e-300 },
+		{ 50.3, 50.6, 100, 1, 3, 33, 1e-300 }, { 50.3, 50.6, 100, 4, 1e-9, 33, 1e-300 },
+		{ 50.3, 50.6, 100, 0.05, 2000, 33, 1e-300 },
 	};
 	for (size_t i = 0; i < sizeof(gs) / sizeof(gs[0]); i++) {
 		int h = 40;
@@ -868,19 +1086,50 @@ static void test_extremes(const struct wfs_model *m)
 		}
 		ok(finite && mn > -1e-9 * gs[i].flux, "%s: n %g re %g ratio %g phi %g finite and >= 0",
 		   m->name, gs[i].n, gs[i].re, gs[i].ratio, gs[i].phi);
-		if (gs[i].n < 5 && img) {
+		if (gs[i].n < 5 && gs[i].re < 1e3 && img) {
 			double t = sum(img, np) / gs[i].flux / EPSF_ENCL;
 			is_near(t, 1, 1e-2, "%s: n %g re %g ratio %g total", m->name, gs[i].n, gs[i].re, gs[i].ratio);
 		}
 		free(img);
 	}
 
-	/* re = 2000 px: one 256^2 tile in the middle of the galaxy holds the
-	 * surface brightness near the centre. */
-	struct gal big = { 2044, 2044, 1e6, 1, 2000, 0, 1 };
+	/* re = 1e300 px: every pixel of the SCA holds I0 ~ 1e-597 of the flux,
+	 * which is zero, and the footprint is empty rather than 16.7 Mpixel of
+	 * zeros.  (It was NaN: the cut at 1e7 px was renormalised by the
+	 * flux inside it, which is none.) */
+	struct gal huge = { 2044, 2044, 1e6, 4, 1e300, 33, 0.5 };
 	struct wfs_source src;
 	double param[4];
 	struct wfs_box fp;
+	ok(prepare(&md, &huge, &src, param) == 0 && md.m->footprint(md.state, &src, &fp) == 0 &&
+	   fp.x0 >= fp.x1, "%s: re = 1e300 is a galaxy too faint for any pixel", m->name);
+	{
+		int h = 8;
+		double *img = draw(&md, &huge, h, 256, &ox, &oy), mx = 0;
+		for (int k = 0; img && k < (2 * h + 1) * (2 * h + 1); k++)
+			mx = fmax(mx, isfinite(img[k]) ? fabs(img[k]) : INFINITY);
+		ok(img && mx == 0, "%s: re = 1e300 draws zeros", m->name);
+		free(img);
+	}
+
+	/* Needles: q = 1e-300 (drawn 1e-9 pixel wide) has the pixels of
+	 * q = 1e-7, a line of the flux. */
+	{
+		struct gal a = { 50.3, 50.6, 100, 1, 3, 33, 1e-300 }, b = a;
+		int h = 40, np = (2 * h + 1) * (2 * h + 1);
+		b.ratio = 1e-7;
+		double *ia = draw(&md, &a, h, 256, &ox, &oy), *ib = draw(&md, &b, h, 256, &ox, &oy), d = 0;
+		for (int k = 0; ia && ib && k < np; k++)
+			d = fmax(d, fabs(ia[k] - ib[k]));
+		ok(ia && ib && d <= 1e-6 * a.flux, "%s: a needle of ratio 1e-300 is one of 1e-7 (%.2g)", m->name,
+		   d / a.flux);
+		free(ia);
+		free(ib);
+	}
+
+	/* re = 2000 px: one 256^2 tile in the middle of the galaxy holds the
+	 * surface brightness near the centre. */
+	struct gal big = { 2044, 2044, 1e6, 1, 2000, 0, 1 };
 	prepare(&md, &big, &src, param);
 	md.m->footprint(md.state, &src, &fp);
 	ok(fp.x0 < -2000 && fp.x1 > 6000, "%s: re = 2000 footprint reaches past the SCA (%d..%d)",
@@ -925,19 +1174,33 @@ static void test_extremes(const struct wfs_model *m)
 	model_fini(&md);
 }
 
+/* --sersic-flux ie: the total is 2 pi n q re^2 Ie e^b Gamma(2n) / b^2n,
+ * the axis ratio included, with b_n from scipy's gammaincinv(2n, 1/2) for
+ * every tabulated n from 0.05 to 20: the model's b_n to 1e-11 or so. */
 static void test_ie(const struct wfs_model *m)
 {
 	struct model md;
 	struct wfs_source src;
-	double param[4];
-	struct gal g = { 10, 10, 2.0, 1, 3, 0, 0.5 };
+	double param[4], worst = 0, wn = 0;
 
 	mock_set(&mock, "sersic-flux", "ie");
 	model_init(&md, m);
-	prepare(&md, &g, &src, param);
-	/* n = 1: total = 2 pi q re^2 Ie e^b / b^2 */
-	double b = 1.6783469900166612, want = 2 * M_PI * 0.5 * 9 * 2.0 * exp(b) / (b * b);
-	is_near(src.flux / want, 1, 1e-12, "%s: sersic-flux=ie: total includes the axis ratio", m->name);
+	for (size_t i = 0; i < sizeof(ref_bn_tab) / sizeof(ref_bn_tab[0]); i++) {
+		double n = ref_bn_tab[i][0], b = ref_bn_tab[i][1];
+		struct gal g = { 10, 10, 2.0, n, 3, 0, 0.5 };
+		if (prepare(&md, &g, &src, param))
+			diag("n %g: %s", n, mock.err);
+		double want = 2 * M_PI * n * 0.5 * 9 * 2.0 * exp(b + lgamma(2 * n) - 2 * n * log(b));
+		if (!(fabs(src.flux / want - 1) <= worst)) {
+			worst = fabs(src.flux / want - 1);
+			wn = n;
+		}
+	}
+	if (getenv("SERSIC_DEBUG"))
+		diag("worst %.3g at n %g", worst, wn);
+	if (!ok(worst < 1e-10, "%s: sersic-flux=ie: total includes the axis ratio, b_n exact for n 0.05..20",
+		m->name))
+		diag("worst %.3g at n %g", worst, wn);
 	model_fini(&md);
 	mock_set(&mock, "sersic-flux", "total");
 }
@@ -954,7 +1217,8 @@ int main(int argc, char **argv)
 	if (argc >= 5 && !strcmp(argv[1], "--tot")) {
 		/* totals through the ePSF for several core sizes (debugging) */
 		const struct wfs_model *m = load(argv[2]);
-		struct gal g = { 100.3, 100.6, 1000, atof(argv[3]), atof(argv[4]), 10, 0.7 };
+		struct gal g = { 100.3, 100.6, 1000, atof(argv[3]), atof(argv[4]), argc > 6 ? atof(argv[6]) : 10,
+				 argc > 5 ? atof(argv[5]) : 0.7 };
 		static const char *ks[] = { "0", "1", "2", "4", "12" };
 		for (int k = 0; k < 5; k++) {
 			struct model md;
@@ -986,6 +1250,8 @@ int main(int argc, char **argv)
 		test_errors(ms[k]);
 		test_ie(ms[k]);
 		test_accuracy(ms[k], k);
+		if (k)
+			test_tolerance(ms[k]);
 		test_shape(ms[k]);
 		test_psf(ms[k]);
 		test_extremes(ms[k]);

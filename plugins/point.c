@@ -254,6 +254,23 @@ __attribute__((target("avx2,fma"), always_inline)) static inline void add8_tail(
 		out[l] += t[l];
 }
 
+/* Rows [j0, j1) beyond the wing square: one stream each. */
+__attribute__((target("avx2,fma"), always_inline)) static inline void
+nearest_rows(double *pix, ptrdiff_t stride, const float *sn, ptrdiff_t m, __m256 wn, int j0,
+	     int j1, int nv, int tail)
+{
+	for (int j = j0; j < j1; j++) {
+		const float *s = sn + j * m;
+		double *out = pix + j * stride;
+		int i;
+
+		for (i = 0; i < nv; i += 8)
+			ADD8(out + i, _mm256_mul_ps(wn, _mm256_loadu_ps(s + i)));
+		if (tail)
+			add8_tail(out + nv, _mm256_mul_ps(wn, _mm256_loadu_ps(s + nv)), tail);
+	}
+}
+
 __attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdiff_t stride, int nx,
 							  int ny, const struct rows_args *r)
 {
@@ -267,34 +284,27 @@ __attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdi
 	int nv = nx & ~7, tail = nx - nv;
 	/* on the wing's rows, the steps [va, vb) meet the wing's columns */
 	int va = r->wa <= 0 ? 0 : r->wa & ~7, vb = r->wb <= 0 ? 0 : (r->wb + 7) & ~7;
-	const float *sn = r->sn, *s0 = r->s[0], *s1 = r->s[1], *s2 = r->s[2], *s3 = r->s[3];
+	/* the wing's rows in the window, [j0, j1) */
+	int j0 = r->jw < 0 ? 0 : r->jw > ny ? ny : r->jw;
+	int j1 = r->jw + r->nw > ny ? ny : r->jw + r->nw < j0 ? j0 : r->jw + r->nw;
 	ptrdiff_t m = r->m;
-	double *out = pix;
-	int i;
-
-#define NEAREST(i) do { \
-	__m256 n_ = _mm256_mul_ps(wn, _mm256_loadu_ps(sn + (i))); \
-	if ((i) < nv) \
-		ADD8(out + (i), n_); \
-	else \
-		add8_tail(out + (i), n_, tail); \
-} while (0)
 
 	if (vb > nx)
 		vb = (nx + 7) & ~7;
 	if (va > vb)
 		va = vb;
-	for (int j = 0; j < ny; j++, sn += m, s0 += m, s1 += m, s2 += m, s3 += m, out += stride) {
+	nearest_rows(pix, stride, r->sn, m, wn, 0, j0, nv, tail);
+	for (int j = j0; j < j1; j++) {
+		const float *sn = r->sn + j * m, *s0 = r->s[0] + j * m, *s1 = r->s[1] + j * m;
+		const float *s2 = r->s[2] + j * m, *s3 = r->s[3] + j * m;
+		double *out = pix + j * stride;
 		int c = j - r->jc, core = c >= 0 && c < r->nc;
+		int i;
 
-		if (j < r->jw || j >= r->jw + r->nw) {
-			/* beyond the wing square: one stream */
-			for (i = 0; i < nx; i += 8)
-				NEAREST(i);
-			continue;
-		}
-		for (i = 0; i < va; i += 8)
-			NEAREST(i);
+		/* full steps before the wing's; then the steps meeting it, the
+		 * row's partial one among them if it does; then the rest */
+		for (i = 0; i < va && i < nv; i += 8)
+			ADD8(out + i, _mm256_mul_ps(wn, _mm256_loadu_ps(sn + i)));
 		for (; i < vb; i += 8) {
 			__m256i lane = _mm256_add_epi32(lanes, _mm256_set1_epi32(i));
 			__m256i in = _mm256_and_si256(_mm256_cmpgt_epi32(lane, wa),
@@ -316,10 +326,12 @@ __attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdi
 			else
 				add8_tail(out + i, v, tail);
 		}
-		for (; i < nx; i += 8)
-			NEAREST(i);
+		for (; i < nv; i += 8)
+			ADD8(out + i, _mm256_mul_ps(wn, _mm256_loadu_ps(sn + i)));
+		if (i < nx)
+			add8_tail(out + i, _mm256_mul_ps(wn, _mm256_loadu_ps(sn + i)), tail);
 	}
-#undef NEAREST
+	nearest_rows(pix, stride, r->sn, m, wn, j1, ny, nv, tail);
 }
 
 #endif
@@ -393,7 +405,13 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 	__m256 kx0 = _mm256_set1_ps(a->kx[0]), kx1 = _mm256_set1_ps(a->kx[1]);
 	__m256 kx2 = _mm256_set1_ps(a->kx[2]), kx3 = _mm256_set1_ps(a->kx[3]);
 	__m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), nk = _mm256_set1_epi32(a->nk);
+	__m256 ky[4], cw[32];
 	double k[4];
+
+	for (int b = 0; b < 4; b++)
+		ky[b] = _mm256_set1_ps(a->ky[b]);
+	for (int q = 0; q < a->nct; q++)
+		cw[q] = _mm256_set1_ps(a->cw[q]);
 
 	for (int c = 0; c < a->nc; c++) {
 		ptrdiff_t o = (ptrdiff_t)c * a->m;
@@ -412,8 +430,7 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 					h = _mm256_fmadd_ps(kx1, _mm256_loadu_ps(t[1] + o + i0), h);
 					h = _mm256_fmadd_ps(kx2, _mm256_loadu_ps(t[2] + o + i0), h);
 					h = _mm256_fmadd_ps(kx3, _mm256_loadu_ps(t[3] + o + i0), h);
-					v = b ? _mm256_fmadd_ps(_mm256_set1_ps(a->ky[b]), h, v) :
-						_mm256_mul_ps(_mm256_set1_ps(a->ky[0]), h);
+					v = b ? _mm256_fmadd_ps(ky[b], h, v) : _mm256_mul_ps(ky[0], h);
 				}
 			} else {
 				v = _mm256_mul_ps(_mm256_set1_ps(a->bw[0]), _mm256_loadu_ps(a->t[5] + o + i0));
@@ -421,8 +438,8 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[2]), _mm256_loadu_ps(a->t[9] + o + i0), v);
 				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[3]), _mm256_loadu_ps(a->t[10] + o + i0), v);
 			}
-			for (int k = 0; k < a->nct; k++)
-				e = _mm256_fmadd_ps(_mm256_set1_ps(a->cw[k]), _mm256_loadu_ps(a->ct[k] + o + i0), e);
+			for (int q = 0; q < a->nct; q++)
+				e = _mm256_fmadd_ps(cw[q], _mm256_loadu_ps(a->ct[q] + o + i0), e);
 			v = _mm256_add_ps(v, e);
 			_mm256_storeu_ps(kv + i0, v);
 			in = _mm256_cmpgt_epi32(nk, _mm256_add_epi32(lanes, _mm256_set1_epi32(i0)));

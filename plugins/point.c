@@ -347,10 +347,12 @@ __attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdi
  * that the AVX2 build and the plain one give the same bits; and K, the sum
  * of kv over the core, in double (lanes l and l + 4 to accumulator l). */
 struct core_args {
-	const float *t[16];     /* tap (a, b) at t[4 b + a], the core's first pixel */
-	const float *ct[32];    /* the correction's streams */
-	int nct, keys, nc, nk;
-	ptrdiff_t m;
+	/* tap (a, b) of core row c, pixel i: base + ty[b] + tx[a] + c m + i;
+	 * the correction's array k, bilinear tap (a, b): cbase[k] + ty[b + 1]
+	 * + tx[a + 1] + c m + i */
+	const float *base, *cbase[8];
+	ptrdiff_t tx[4], ty[4], m;
+	int ncor, keys, nc, nk;
 	float kx[4], ky[4], bw[4], cw[32];
 };
 
@@ -366,28 +368,34 @@ static double core_plain(const struct core_args *a, float *kvb)
 			float lane[8];
 
 			for (int l = 0; l < 8; l++) {
-				ptrdiff_t at = o + i0 + l;
+				const float *r = a->base + o + i0 + l;
 				float v, e = 0;
 
 				if (a->keys) {
 					v = 0;
 					for (int b = 0; b < 4; b++) {
-						const float *const *t = a->t + 4 * b;
-						float h = a->kx[0] * t[0][at];
+						const float *rb = r + a->ty[b];
+						float h = a->kx[0] * rb[a->tx[0]];
 
-						h = fmaf(a->kx[1], t[1][at], h);
-						h = fmaf(a->kx[2], t[2][at], h);
-						h = fmaf(a->kx[3], t[3][at], h);
+						h = fmaf(a->kx[1], rb[a->tx[1]], h);
+						h = fmaf(a->kx[2], rb[a->tx[2]], h);
+						h = fmaf(a->kx[3], rb[a->tx[3]], h);
 						v = b ? fmaf(a->ky[b], h, v) : a->ky[0] * h;
 					}
 				} else {
-					v = a->bw[0] * a->t[5][at];
-					v = fmaf(a->bw[1], a->t[6][at], v);
-					v = fmaf(a->bw[2], a->t[9][at], v);
-					v = fmaf(a->bw[3], a->t[10][at], v);
+					v = a->bw[0] * r[a->ty[1] + a->tx[1]];
+					v = fmaf(a->bw[1], r[a->ty[1] + a->tx[2]], v);
+					v = fmaf(a->bw[2], r[a->ty[2] + a->tx[1]], v);
+					v = fmaf(a->bw[3], r[a->ty[2] + a->tx[2]], v);
 				}
-				for (int k = 0; k < a->nct; k++)
-					e = fmaf(a->cw[k], a->ct[k][at], e);
+				for (int k = 0; k < a->ncor; k++) {
+					const float *rk = a->cbase[k] + o + i0 + l;
+
+					e = fmaf(a->cw[4 * k], rk[a->ty[1] + a->tx[1]], e);
+					e = fmaf(a->cw[4 * k + 1], rk[a->ty[1] + a->tx[2]], e);
+					e = fmaf(a->cw[4 * k + 2], rk[a->ty[2] + a->tx[1]], e);
+					e = fmaf(a->cw[4 * k + 3], rk[a->ty[2] + a->tx[2]], e);
+				}
 				kv[i0 + l] = lane[l] = v + e;
 			}
 			for (int l = 0; l < 4; l++)
@@ -405,41 +413,46 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 	__m256 kx0 = _mm256_set1_ps(a->kx[0]), kx1 = _mm256_set1_ps(a->kx[1]);
 	__m256 kx2 = _mm256_set1_ps(a->kx[2]), kx3 = _mm256_set1_ps(a->kx[3]);
 	__m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), nk = _mm256_set1_epi32(a->nk);
-	__m256 ky[4], cw[32];
+	ptrdiff_t x0 = a->tx[0], x1 = a->tx[1], x2 = a->tx[2], x3 = a->tx[3];
+	ptrdiff_t y11 = a->ty[1] + x1, y12 = a->ty[1] + x2, y21 = a->ty[2] + x1, y22 = a->ty[2] + x2;
 	double k[4];
-
-	for (int b = 0; b < 4; b++)
-		ky[b] = _mm256_set1_ps(a->ky[b]);
-	for (int q = 0; q < a->nct; q++)
-		cw[q] = _mm256_set1_ps(a->cw[q]);
 
 	for (int c = 0; c < a->nc; c++) {
 		ptrdiff_t o = (ptrdiff_t)c * a->m;
 		float *kv = kvb + c * KV_PITCH + 8;
 
 		for (int i0 = 0; i0 < a->nk; i0 += 8) {
+			const float *r = a->base + o + i0;
 			__m256 v, e = _mm256_setzero_ps();
 			__m256i in;
 
 			if (a->keys) {
 				v = _mm256_setzero_ps();
 				for (int b = 0; b < 4; b++) {
-					const float *const *t = a->t + 4 * b;
-					__m256 h = _mm256_mul_ps(kx0, _mm256_loadu_ps(t[0] + o + i0));
+					const float *rb = r + a->ty[b];
+					__m256 h = _mm256_mul_ps(kx0, _mm256_loadu_ps(rb + x0));
 
-					h = _mm256_fmadd_ps(kx1, _mm256_loadu_ps(t[1] + o + i0), h);
-					h = _mm256_fmadd_ps(kx2, _mm256_loadu_ps(t[2] + o + i0), h);
-					h = _mm256_fmadd_ps(kx3, _mm256_loadu_ps(t[3] + o + i0), h);
-					v = b ? _mm256_fmadd_ps(ky[b], h, v) : _mm256_mul_ps(ky[0], h);
+					h = _mm256_fmadd_ps(kx1, _mm256_loadu_ps(rb + x1), h);
+					h = _mm256_fmadd_ps(kx2, _mm256_loadu_ps(rb + x2), h);
+					h = _mm256_fmadd_ps(kx3, _mm256_loadu_ps(rb + x3), h);
+					v = b ? _mm256_fmadd_ps(_mm256_set1_ps(a->ky[b]), h, v) :
+						_mm256_mul_ps(_mm256_set1_ps(a->ky[0]), h);
 				}
 			} else {
-				v = _mm256_mul_ps(_mm256_set1_ps(a->bw[0]), _mm256_loadu_ps(a->t[5] + o + i0));
-				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[1]), _mm256_loadu_ps(a->t[6] + o + i0), v);
-				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[2]), _mm256_loadu_ps(a->t[9] + o + i0), v);
-				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[3]), _mm256_loadu_ps(a->t[10] + o + i0), v);
+				v = _mm256_mul_ps(_mm256_set1_ps(a->bw[0]), _mm256_loadu_ps(r + y11));
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[1]), _mm256_loadu_ps(r + y12), v);
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[2]), _mm256_loadu_ps(r + y21), v);
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[3]), _mm256_loadu_ps(r + y22), v);
 			}
-			for (int q = 0; q < a->nct; q++)
-				e = _mm256_fmadd_ps(cw[q], _mm256_loadu_ps(a->ct[q] + o + i0), e);
+			for (int q = 0; q < a->ncor; q++) {
+				const float *rk = a->cbase[q] + o + i0;
+				const float *w = a->cw + 4 * q;
+
+				e = _mm256_fmadd_ps(_mm256_set1_ps(w[0]), _mm256_loadu_ps(rk + y11), e);
+				e = _mm256_fmadd_ps(_mm256_set1_ps(w[1]), _mm256_loadu_ps(rk + y12), e);
+				e = _mm256_fmadd_ps(_mm256_set1_ps(w[2]), _mm256_loadu_ps(rk + y21), e);
+				e = _mm256_fmadd_ps(_mm256_set1_ps(w[3]), _mm256_loadu_ps(rk + y22), e);
+			}
 			v = _mm256_add_ps(v, e);
 			_mm256_storeu_ps(kv + i0, v);
 			in = _mm256_cmpgt_epi32(nk, _mm256_add_epi32(lanes, _mm256_set1_epi32(i0)));
@@ -1232,24 +1245,23 @@ static inline __attribute__((always_inline)) int render_one(const struct point *
 	};
 
 	if (nc > 0) {
-		struct core_args ca = { .nct = 4 * d->ncor, .keys = d->keys, .nc = nc,
+		struct core_args ca = { .ncor = d->ncor, .keys = d->keys, .nc = nc,
 					.nk = kb - ka, .m = m };
+		ptrdiff_t at = (ptrdiff_t)d->core.y0 * m + d->core.x0;
 
-		for (int b = 0; b < 4; b++)
-			for (int a = 0; a < 4; a++)
-				ca.t[b * 4 + a] = tap_at(q, g, a, b, d->core.x0, d->core.y0);
+		ca.base = q->plane + at;
 		for (int a = 0; a < 4; a++) {
+			ca.tx[a] = g->tx[a];
+			ca.ty[a] = g->ty[a];
 			ca.kx[a] = (float)g->kx[a];
 			ca.ky[a] = (float)(g->ky[a] * fl);
 			ca.bw[a] = (float)(fl * g->by[a >> 1] * g->bx[a & 1]);
 		}
-		for (int c = 0; c < d->ncor; c++)
-			for (int b = 0; b < 2; b++)
-				for (int a = 0; a < 2; a++) {
-					ca.cw[(c * 2 + b) * 2 + a] = (float)(d->cw[c] * g->by[b] * g->bx[a]);
-					ca.ct[(c * 2 + b) * 2 + a] = tap_at(d->cp[c], g, a + 1, b + 1,
-									   d->core.x0, d->core.y0);
-				}
+		for (int c = 0; c < d->ncor; c++) {
+			ca.cbase[c] = d->cp[c]->plane + at;
+			for (int t = 0; t < 4; t++)
+				ca.cw[4 * c + t] = (float)(d->cw[c] * g->by[t >> 1] * g->bx[t & 1]);
+		}
 		k = p->core_rows(&ca, kvb);
 	}
 	f = flux_factor(t, k, u);

@@ -111,12 +111,14 @@ echo
 echo "\`cc -O3 -march=native contrib/bench/floor.c -o floor && floor [--epsf GRID] build/plugins/point.so N SETTINGS...\`:"
 echo "point.so's prepare() and render() through a mock host, and in the same run the"
 echo "floor loops of issue 8; thread CPU ns per star (faint stars, AB 20-27, one SCA,"
-echo "512-pixel tiles; render, and prepare() + footprint() on the main thread)."
+echo "256-pixel tiles as the engine's default; render, and prepare() + footprint() on"
+echo "the main thread)."
 echo "Errors over 2000 stars (worst star), twice: on a synthetic ePSF grid whose"
 echo "exact value is known, and on the built-in F129 grid of SCA 1 against the"
 echo "plugin's best evaluation (psf-blend=source, psf-interp=bicubic); σ is 0.1 counts/s:"
 echo
 cc -O3 -march=native -std=c11 -Iinclude -o "$W/floor" contrib/bench/floor.c -lm -ldl
+cc -O3 -march=native -std=c11 -Iinclude -DTILE=512 -o "$W/floor512" contrib/bench/floor.c -lm -ldl
 "$WFS" psf --filter F129 --sca 1 -o "$W/epsf.fits"
 fn=200000
 [ "$quick" = 1 ] && fn=50000
@@ -127,6 +129,7 @@ configs="psf-blend=source psf-interp=bilinear psf-interp=bicubic psf-core=2 psf-
 	psf-blend=cell,psf-box=adaptive,psf-box-sigma=0.1"
 "$W/floor" "$B/plugins/point.so" $fn - $configs grid=5 > "$W/floor.txt"
 "$W/floor" --epsf "$W/epsf.fits" "$B/plugins/point.so" 20000 - $configs > "$W/floor-real.txt"
+"$W/floor512" "$B/plugins/point.so" $fn - psf-blend=source > "$W/floor512.txt"
 echo "| loop or settings | ns/star | × stamp floor | pixels/star | main thread ns/star | error / peak | flux error | error / σ | F129: error / peak | F129: error / σ |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 awk 'FNR == 1 { file++ } /^#/ { next }
@@ -136,6 +139,14 @@ awk 'FNR == 1 { file++ } /^#/ { next }
 		sub(/^point:/, "", n); gsub(/,/, ", ", n);
 		printf "| %s | %.0f | %.2f | %d | %.0f | %s | %s | %s | %s | %s |\n", n, $2, $3, $4, $8,
 			$5, $6, $7, r[1], r[2] }' "$W/floor-real.txt" "$W/floor.txt"
+echo
+echo "The same with 512-pixel tiles (\`-DTILE=512\`; a tile of doubles is then twice the"
+echo "1 MiB L2 cache, the floor slower):"
+echo
+echo "| loop or settings | ns/star | × stamp floor |"
+echo "|---|---|---|"
+awk '/^#/ { next } NF >= 3 { n = $1; sub(/^point:/, "", n); if ((n != $1 && n !~ /^exact/) || $1 ~ /^(stamp|polyphase|random)$/)
+	printf "| %s%s | %.0f | %.2f |\n", (n == $1 ? "floor: " : ""), n, $2, $3 }' "$W/floor512.txt"
 awk '$1 ~ /^point:/ { sub(/^point:/, "", $1); gsub(/psf-/, "", $1); sub(/,box-sigma=0.1/, "", $1)
 	print $2, $5, $1 }' "$W/floor.txt" > "$W/errtime.dat"
 awk 'FNR == 1 { file++ } file == 1 && $1 ~ /^point:/ { real[$1] = $5; next }

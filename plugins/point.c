@@ -254,6 +254,23 @@ __attribute__((target("avx2,fma"), always_inline)) static inline void add8_tail(
 		out[l] += t[l];
 }
 
+/* Rows [j0, j1) beyond the wing square: one stream each. */
+__attribute__((target("avx2,fma"), always_inline)) static inline void
+nearest_rows(double *pix, ptrdiff_t stride, const float *sn, ptrdiff_t m, __m256 wn, int j0,
+	     int j1, int nv, int tail)
+{
+	for (int j = j0; j < j1; j++) {
+		const float *s = sn + j * m;
+		double *out = pix + j * stride;
+		int i;
+
+		for (i = 0; i < nv; i += 8)
+			ADD8(out + i, _mm256_mul_ps(wn, _mm256_loadu_ps(s + i)));
+		if (tail)
+			add8_tail(out + nv, _mm256_mul_ps(wn, _mm256_loadu_ps(s + nv)), tail);
+	}
+}
+
 __attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdiff_t stride, int nx,
 							  int ny, const struct rows_args *r)
 {
@@ -267,34 +284,27 @@ __attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdi
 	int nv = nx & ~7, tail = nx - nv;
 	/* on the wing's rows, the steps [va, vb) meet the wing's columns */
 	int va = r->wa <= 0 ? 0 : r->wa & ~7, vb = r->wb <= 0 ? 0 : (r->wb + 7) & ~7;
-	const float *sn = r->sn, *s0 = r->s[0], *s1 = r->s[1], *s2 = r->s[2], *s3 = r->s[3];
+	/* the wing's rows in the window, [j0, j1) */
+	int j0 = r->jw < 0 ? 0 : r->jw > ny ? ny : r->jw;
+	int j1 = r->jw + r->nw > ny ? ny : r->jw + r->nw < j0 ? j0 : r->jw + r->nw;
 	ptrdiff_t m = r->m;
-	double *out = pix;
-	int i;
-
-#define NEAREST(i) do { \
-	__m256 n_ = _mm256_mul_ps(wn, _mm256_loadu_ps(sn + (i))); \
-	if ((i) < nv) \
-		ADD8(out + (i), n_); \
-	else \
-		add8_tail(out + (i), n_, tail); \
-} while (0)
 
 	if (vb > nx)
 		vb = (nx + 7) & ~7;
 	if (va > vb)
 		va = vb;
-	for (int j = 0; j < ny; j++, sn += m, s0 += m, s1 += m, s2 += m, s3 += m, out += stride) {
+	nearest_rows(pix, stride, r->sn, m, wn, 0, j0, nv, tail);
+	for (int j = j0; j < j1; j++) {
+		const float *sn = r->sn + j * m, *s0 = r->s[0] + j * m, *s1 = r->s[1] + j * m;
+		const float *s2 = r->s[2] + j * m, *s3 = r->s[3] + j * m;
+		double *out = pix + j * stride;
 		int c = j - r->jc, core = c >= 0 && c < r->nc;
+		int i;
 
-		if (j < r->jw || j >= r->jw + r->nw) {
-			/* beyond the wing square: one stream */
-			for (i = 0; i < nx; i += 8)
-				NEAREST(i);
-			continue;
-		}
-		for (i = 0; i < va; i += 8)
-			NEAREST(i);
+		/* full steps before the wing's; then the steps meeting it, the
+		 * row's partial one among them if it does; then the rest */
+		for (i = 0; i < va && i < nv; i += 8)
+			ADD8(out + i, _mm256_mul_ps(wn, _mm256_loadu_ps(sn + i)));
 		for (; i < vb; i += 8) {
 			__m256i lane = _mm256_add_epi32(lanes, _mm256_set1_epi32(i));
 			__m256i in = _mm256_and_si256(_mm256_cmpgt_epi32(lane, wa),
@@ -316,10 +326,12 @@ __attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdi
 			else
 				add8_tail(out + i, v, tail);
 		}
-		for (; i < nx; i += 8)
-			NEAREST(i);
+		for (; i < nv; i += 8)
+			ADD8(out + i, _mm256_mul_ps(wn, _mm256_loadu_ps(sn + i)));
+		if (i < nx)
+			add8_tail(out + i, _mm256_mul_ps(wn, _mm256_loadu_ps(sn + i)), tail);
 	}
-#undef NEAREST
+	nearest_rows(pix, stride, r->sn, m, wn, j1, ny, nv, tail);
 }
 
 #endif
@@ -335,10 +347,12 @@ __attribute__((target("avx2,fma"))) static void sum_rows_avx2(double *pix, ptrdi
  * that the AVX2 build and the plain one give the same bits; and K, the sum
  * of kv over the core, in double (lanes l and l + 4 to accumulator l). */
 struct core_args {
-	const float *t[16];     /* tap (a, b) at t[4 b + a], the core's first pixel */
-	const float *ct[32];    /* the correction's streams */
-	int nct, keys, nc, nk;
-	ptrdiff_t m;
+	/* tap (a, b) of core row c, pixel i: base + ty[b] + tx[a] + c m + i;
+	 * the correction's array k, bilinear tap (a, b): cbase[k] + ty[b + 1]
+	 * + tx[a + 1] + c m + i */
+	const float *base, *cbase[8];
+	ptrdiff_t tx[4], ty[4], m;
+	int ncor, keys, nc, nk;
 	float kx[4], ky[4], bw[4], cw[32];
 };
 
@@ -354,28 +368,34 @@ static double core_plain(const struct core_args *a, float *kvb)
 			float lane[8];
 
 			for (int l = 0; l < 8; l++) {
-				ptrdiff_t at = o + i0 + l;
+				const float *r = a->base + o + i0 + l;
 				float v, e = 0;
 
 				if (a->keys) {
 					v = 0;
 					for (int b = 0; b < 4; b++) {
-						const float *const *t = a->t + 4 * b;
-						float h = a->kx[0] * t[0][at];
+						const float *rb = r + a->ty[b];
+						float h = a->kx[0] * rb[a->tx[0]];
 
-						h = fmaf(a->kx[1], t[1][at], h);
-						h = fmaf(a->kx[2], t[2][at], h);
-						h = fmaf(a->kx[3], t[3][at], h);
+						h = fmaf(a->kx[1], rb[a->tx[1]], h);
+						h = fmaf(a->kx[2], rb[a->tx[2]], h);
+						h = fmaf(a->kx[3], rb[a->tx[3]], h);
 						v = b ? fmaf(a->ky[b], h, v) : a->ky[0] * h;
 					}
 				} else {
-					v = a->bw[0] * a->t[5][at];
-					v = fmaf(a->bw[1], a->t[6][at], v);
-					v = fmaf(a->bw[2], a->t[9][at], v);
-					v = fmaf(a->bw[3], a->t[10][at], v);
+					v = a->bw[0] * r[a->ty[1] + a->tx[1]];
+					v = fmaf(a->bw[1], r[a->ty[1] + a->tx[2]], v);
+					v = fmaf(a->bw[2], r[a->ty[2] + a->tx[1]], v);
+					v = fmaf(a->bw[3], r[a->ty[2] + a->tx[2]], v);
 				}
-				for (int k = 0; k < a->nct; k++)
-					e = fmaf(a->cw[k], a->ct[k][at], e);
+				for (int k = 0; k < a->ncor; k++) {
+					const float *rk = a->cbase[k] + o + i0 + l;
+
+					e = fmaf(a->cw[4 * k], rk[a->ty[1] + a->tx[1]], e);
+					e = fmaf(a->cw[4 * k + 1], rk[a->ty[1] + a->tx[2]], e);
+					e = fmaf(a->cw[4 * k + 2], rk[a->ty[2] + a->tx[1]], e);
+					e = fmaf(a->cw[4 * k + 3], rk[a->ty[2] + a->tx[2]], e);
+				}
 				kv[i0 + l] = lane[l] = v + e;
 			}
 			for (int l = 0; l < 4; l++)
@@ -393,6 +413,8 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 	__m256 kx0 = _mm256_set1_ps(a->kx[0]), kx1 = _mm256_set1_ps(a->kx[1]);
 	__m256 kx2 = _mm256_set1_ps(a->kx[2]), kx3 = _mm256_set1_ps(a->kx[3]);
 	__m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), nk = _mm256_set1_epi32(a->nk);
+	ptrdiff_t x0 = a->tx[0], x1 = a->tx[1], x2 = a->tx[2], x3 = a->tx[3];
+	ptrdiff_t y11 = a->ty[1] + x1, y12 = a->ty[1] + x2, y21 = a->ty[2] + x1, y22 = a->ty[2] + x2;
 	double k[4];
 
 	for (int c = 0; c < a->nc; c++) {
@@ -400,29 +422,37 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 		float *kv = kvb + c * KV_PITCH + 8;
 
 		for (int i0 = 0; i0 < a->nk; i0 += 8) {
+			const float *r = a->base + o + i0;
 			__m256 v, e = _mm256_setzero_ps();
 			__m256i in;
 
 			if (a->keys) {
 				v = _mm256_setzero_ps();
 				for (int b = 0; b < 4; b++) {
-					const float *const *t = a->t + 4 * b;
-					__m256 h = _mm256_mul_ps(kx0, _mm256_loadu_ps(t[0] + o + i0));
+					const float *rb = r + a->ty[b];
+					__m256 h = _mm256_mul_ps(kx0, _mm256_loadu_ps(rb + x0));
 
-					h = _mm256_fmadd_ps(kx1, _mm256_loadu_ps(t[1] + o + i0), h);
-					h = _mm256_fmadd_ps(kx2, _mm256_loadu_ps(t[2] + o + i0), h);
-					h = _mm256_fmadd_ps(kx3, _mm256_loadu_ps(t[3] + o + i0), h);
+					h = _mm256_fmadd_ps(kx1, _mm256_loadu_ps(rb + x1), h);
+					h = _mm256_fmadd_ps(kx2, _mm256_loadu_ps(rb + x2), h);
+					h = _mm256_fmadd_ps(kx3, _mm256_loadu_ps(rb + x3), h);
 					v = b ? _mm256_fmadd_ps(_mm256_set1_ps(a->ky[b]), h, v) :
 						_mm256_mul_ps(_mm256_set1_ps(a->ky[0]), h);
 				}
 			} else {
-				v = _mm256_mul_ps(_mm256_set1_ps(a->bw[0]), _mm256_loadu_ps(a->t[5] + o + i0));
-				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[1]), _mm256_loadu_ps(a->t[6] + o + i0), v);
-				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[2]), _mm256_loadu_ps(a->t[9] + o + i0), v);
-				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[3]), _mm256_loadu_ps(a->t[10] + o + i0), v);
+				v = _mm256_mul_ps(_mm256_set1_ps(a->bw[0]), _mm256_loadu_ps(r + y11));
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[1]), _mm256_loadu_ps(r + y12), v);
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[2]), _mm256_loadu_ps(r + y21), v);
+				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[3]), _mm256_loadu_ps(r + y22), v);
 			}
-			for (int k = 0; k < a->nct; k++)
-				e = _mm256_fmadd_ps(_mm256_set1_ps(a->cw[k]), _mm256_loadu_ps(a->ct[k] + o + i0), e);
+			for (int q = 0; q < a->ncor; q++) {
+				const float *rk = a->cbase[q] + o + i0;
+				const float *w = a->cw + 4 * q;
+
+				e = _mm256_fmadd_ps(_mm256_set1_ps(w[0]), _mm256_loadu_ps(rk + y11), e);
+				e = _mm256_fmadd_ps(_mm256_set1_ps(w[1]), _mm256_loadu_ps(rk + y12), e);
+				e = _mm256_fmadd_ps(_mm256_set1_ps(w[2]), _mm256_loadu_ps(rk + y21), e);
+				e = _mm256_fmadd_ps(_mm256_set1_ps(w[3]), _mm256_loadu_ps(rk + y22), e);
+			}
 			v = _mm256_add_ps(v, e);
 			_mm256_storeu_ps(kv + i0, v);
 			in = _mm256_cmpgt_epi32(nk, _mm256_add_epi32(lanes, _mm256_set1_epi32(i0)));
@@ -1215,24 +1245,23 @@ static inline __attribute__((always_inline)) int render_one(const struct point *
 	};
 
 	if (nc > 0) {
-		struct core_args ca = { .nct = 4 * d->ncor, .keys = d->keys, .nc = nc,
+		struct core_args ca = { .ncor = d->ncor, .keys = d->keys, .nc = nc,
 					.nk = kb - ka, .m = m };
+		ptrdiff_t at = (ptrdiff_t)d->core.y0 * m + d->core.x0;
 
-		for (int b = 0; b < 4; b++)
-			for (int a = 0; a < 4; a++)
-				ca.t[b * 4 + a] = tap_at(q, g, a, b, d->core.x0, d->core.y0);
+		ca.base = q->plane + at;
 		for (int a = 0; a < 4; a++) {
+			ca.tx[a] = g->tx[a];
+			ca.ty[a] = g->ty[a];
 			ca.kx[a] = (float)g->kx[a];
 			ca.ky[a] = (float)(g->ky[a] * fl);
 			ca.bw[a] = (float)(fl * g->by[a >> 1] * g->bx[a & 1]);
 		}
-		for (int c = 0; c < d->ncor; c++)
-			for (int b = 0; b < 2; b++)
-				for (int a = 0; a < 2; a++) {
-					ca.cw[(c * 2 + b) * 2 + a] = (float)(d->cw[c] * g->by[b] * g->bx[a]);
-					ca.ct[(c * 2 + b) * 2 + a] = tap_at(d->cp[c], g, a + 1, b + 1,
-									   d->core.x0, d->core.y0);
-				}
+		for (int c = 0; c < d->ncor; c++) {
+			ca.cbase[c] = d->cp[c]->plane + at;
+			for (int t = 0; t < 4; t++)
+				ca.cw[4 * c + t] = (float)(d->cw[c] * g->by[t >> 1] * g->bx[t & 1]);
+		}
 		k = p->core_rows(&ca, kvb);
 	}
 	f = flux_factor(t, k, u);

@@ -5,8 +5,8 @@
  *   floor POINT_SO N [KEY=VALUE ...]
  *
  * Places N faint stars (AB 20-27, the starfield luminosity function) at
- * uniform positions on one 4088 x 4088 SCA, bins them by 512-pixel tile as
- * the engine does, and times, in thread CPU time (the machine is shared;
+ * uniform positions on one 4088 x 4088 SCA, bins them by TILE-pixel tile
+ * (256, the engine's default --tile) as the engine does, and times, in thread CPU time (the machine is shared;
  * CPU time moves far less than the wall clock), per star:
  *
  *   stamp      adding one precomputed 44 x 44 float stamp into the double
@@ -48,7 +48,9 @@
 #include "wfiscene/model.h"
 
 #define NPIX 4088
-#define TILE 512
+#ifndef TILE
+#define TILE 256                /* the engine's default --tile; -DTILE=512 for another */
+#endif
 #define NT ((NPIX + TILE - 1) / TILE)
 #define N 177                   /* ePSF samples per side */
 #define OVER 4

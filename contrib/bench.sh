@@ -166,7 +166,7 @@ set title "point sources: error against time (contrib/bench/floor.c)"
 set key top right
 set grid
 set yrange [1e-5:1]
-set xrange [200:30000]
+set xrange [200:100000]
 set arrow from $stamp, graph 0 to $stamp, graph 1 nohead dt 2 lc rgb "gray40"
 set label "stamp-add floor" at $stamp, graph 0.05 rotate by 90 offset char -0.8,0 font ",8"
 set arrow from $poly, graph 0 to $poly, graph 1 nohead dt 3 lc rgb "gray40"
@@ -175,7 +175,8 @@ set arrow from 2 * $stamp, graph 0 to 2 * $stamp, graph 1 nohead lc rgb "red"
 set label "2x floor" at 2 * $stamp, graph 0.05 rotate by 90 offset char -0.8,0 font ",8" tc rgb "red"
 plot "$W/errtime.dat" using 1:2 with points pt 7 ps 1.2 lc rgb "#1f77b4" title "synthetic ePSF, against the exact value", \
      "$W/errtime.dat" using 1:2:3 with labels rotate by 35 offset char 0.8,0.5 left font ",7" notitle, \
-     "$W/errtime-real.dat" using 1:2 with points pt 5 ps 1.0 lc rgb "#d62728" title "built-in F129, against the best evaluation"
+     "$W/errtime-real.dat" using 1:2 with points pt 5 ps 1.0 lc rgb "#d62728" title "built-in F129, against the best evaluation", \
+     "< grep ' defaults\$' $W/errtime.dat $W/errtime-real.dat | cut -d: -f2" using 1:2 with points pt 6 ps 3 lw 2 lc rgb "black" title "the defaults"
 EOF
 	echo
 	echo "Plot: contrib/bench/error-time.png"

@@ -102,49 +102,67 @@ def keys_np(t):
                      -1.5 * t ** 3 + 2 * t * t + 0.5 * t, 0.5 * t ** 3 - 0.5 * t * t])
 
 
-def enclosed(grid, x, y):
-    """Sum over the pixels a star at 0-based (x, y) lights on the detector,
-    blended at the source (psf-blend=source): Keys' cubic within 4 pixels
-    in x and y, bilinear beyond, scaled by the one factor that makes the
-    box's total its bilinear sum."""
-    xs, ys, nodes = grid
-    ix, tx = bracket(xs, x)
-    iy, ty = bracket(ys, y)
-    e = ((1 - tx) * (1 - ty) * nodes[(ix, iy)] + tx * (1 - ty) * nodes[(ix + 1, iy)] +
-         (1 - tx) * ty * nodes[(ix, iy + 1)] + tx * ty * nodes[(ix + 1, iy + 1)])
-    half = C / OVER
-    r = 4.0 if 4 * OVER + 2 < C else 0.0
-    i = np.arange(math.floor(x - half) + 1, math.ceil(x + half))
-    j = np.arange(math.floor(y - half) + 1, math.ceil(y + half))
-    I, J = np.meshgrid(i, j)
-    rx, ry = C + OVER * (I - x), C + OVER * (J - y)
-    sx, sy = np.floor(rx).astype(int), np.floor(ry).astype(int)
-    fx, fy = rx - sx, ry - sy
-    # the box's samples, with a border of zeros for the cubic's outer taps
-    ep = np.pad(e, 2)
-    v = ((1 - fy) * ((1 - fx) * ep[sy + 2, sx + 2] + fx * ep[sy + 2, sx + 3]) +
-         fy * ((1 - fx) * ep[sy + 3, sx + 2] + fx * ep[sy + 3, sx + 3]))
-    core = (np.abs(I - x) < r) & (np.abs(J - y) < r)
-    t = v.sum()
-    if core.any():
-        cx, cy = keys_np(fx[core]), keys_np(fy[core])
-        csx, csy = sx[core], sy[core]
-        kv = sum(cy[b] * cx[a] * ep[csy + 1 + b, csx + 1 + a]
-                 for a in range(4) for b in range(4))
-        u = t - v[core].sum()
-        f = (t - kv.sum()) / u if u > 0.01 * abs(t) else 1.0
-        v = v * f
-        v[core] = kv
-    on = (I >= 0) & (I < NPIX) & (J >= 0) & (J < NPIX)
-    return float(v[on].sum())
-
-
 def blend_at(grid, x, y):
+    """The ePSF bilinear in position between the four nodes about (x, y)."""
     xs, ys, nodes = grid
     ix, tx = bracket(xs, x)
     iy, ty = bracket(ys, y)
     return ((1 - tx) * (1 - ty) * nodes[(ix, iy)] + tx * (1 - ty) * nodes[(ix + 1, iy)] +
             (1 - tx) * ty * nodes[(ix, iy + 1)] + tx * ty * nodes[(ix + 1, iy + 1)])
+
+
+class Box:
+    """The pixels within C / OVER of a star at 0-based (x, y), the sample
+    below each pixel centre (sx, sy) and its phase (fx, fy)."""
+
+    def __init__(self, x, y):
+        half = C / OVER
+        i = np.arange(math.floor(x - half) + 1, math.ceil(x + half))
+        j = np.arange(math.floor(y - half) + 1, math.ceil(y + half))
+        self.I, self.J = np.meshgrid(i, j)
+        rx, ry = C + OVER * (self.I - x), C + OVER * (self.J - y)
+        self.sx, self.sy = np.floor(rx).astype(int), np.floor(ry).astype(int)
+        self.fx, self.fy = rx - self.sx, ry - self.sy
+        self.dx, self.dy = np.abs(self.I - x), np.abs(self.J - y)
+
+    def bil(self, a):
+        """Bilinear interpolation of a (padded by 2 zero samples)."""
+        sx, sy, fx, fy = self.sx, self.sy, self.fx, self.fy
+        return ((1 - fy) * ((1 - fx) * a[sy + 2, sx + 2] + fx * a[sy + 2, sx + 3]) +
+                fy * ((1 - fx) * a[sy + 3, sx + 2] + fx * a[sy + 3, sx + 3]))
+
+    def keys(self, a, m):
+        """Keys' cubic of a (padded) at the pixels of mask m."""
+        cx, cy = keys_np(self.fx[m]), keys_np(self.fy[m])
+        sx, sy = self.sx[m], self.sy[m]
+        return sum(cy[b] * cx[a_] * a[sy + 1 + b, sx + 1 + a_] for a_ in range(4) for b in range(4))
+
+    def on_detector(self, v):
+        I, J = self.I, self.J
+        return float(v[(I >= 0) & (I < NPIX) & (J >= 0) & (J < NPIX)].sum())
+
+
+def scaled(v, kv, core, t):
+    """v with the core kv and everything else times the one factor that
+    makes the box's total t."""
+    u = v[~core].sum()
+    f = (t - kv.sum()) / u if u > 0.01 * abs(t) else 1.0
+    v = v * f
+    v[core] = kv
+    return v
+
+
+def enclosed(grid, x, y):
+    """Sum over the pixels a star at 0-based (x, y) lights on the detector,
+    blended at the source (psf-blend=source): Keys' cubic within 4 pixels
+    in x and y, bilinear beyond, scaled by the one factor that makes the
+    box's total its bilinear sum."""
+    ep = np.pad(blend_at(grid, x, y), 2)
+    box = Box(x, y)
+    r = 4.0 if 4 * OVER + 2 < C else 0.0
+    v = box.bil(ep)
+    core = (box.dx < r) & (box.dy < r)
+    return box.on_detector(scaled(v, box.keys(ep, core), core, v.sum()))
 
 
 def enclosed_default(grid, x, y, cell=512, core=4.0, wing=8.0):
@@ -154,36 +172,16 @@ def enclosed_default(grid, x, y, cell=512, core=4.0, wing=8.0):
     (blend at the source - the cell's); the cell's blend bilinear within 8
     pixels, its nearest sample beyond; all but the core scaled so that the
     box's total is the bilinear sum of the blend at the source."""
-    e = blend_at(grid, x, y)
     cxy = [(math.floor(v / cell) + 0.5) * cell - 0.5 for v in (x, y)]
-    ec = blend_at(grid, *cxy).astype(np.float32).astype(np.float64)
-    half = C / OVER
-    i = np.arange(math.floor(x - half) + 1, math.ceil(x + half))
-    j = np.arange(math.floor(y - half) + 1, math.ceil(y + half))
-    I, J = np.meshgrid(i, j)
-    rx, ry = C + OVER * (I - x), C + OVER * (J - y)
-    sx, sy = np.floor(rx).astype(int), np.floor(ry).astype(int)
-    fx, fy = rx - sx, ry - sy
-    ep, cp = np.pad(e, 2), np.pad(ec, 2)
-
-    def bil(a):
-        return ((1 - fy) * ((1 - fx) * a[sy + 2, sx + 2] + fx * a[sy + 2, sx + 3]) +
-                fy * ((1 - fx) * a[sy + 3, sx + 2] + fx * a[sy + 3, sx + 3]))
-    t = bil(ep).sum()
-    dx, dy = np.abs(I - x), np.abs(J - y)
-    incore = (dx < core) & (dy < core)
-    inwing = (dx < wing) & (dy < wing)
-    v = np.where(inwing, bil(cp), cp[sy + 2 + (fy >= 0.5), sx + 2 + (fx >= 0.5)])
-    cx_, cy_ = keys_np(fx[incore]), keys_np(fy[incore])
-    csx, csy = sx[incore], sy[incore]
-    kv = sum(cy_[b] * cx_[a] * cp[csy + 1 + b, csx + 1 + a] for a in range(4) for b in range(4))
-    kv = kv + (bil(ep) - bil(cp))[incore]
-    u = v[~incore].sum()
-    f = (t - kv.sum()) / u if u > 0.01 * abs(t) else 1.0
-    v = v * f
-    v[incore] = kv
-    on = (I >= 0) & (I < NPIX) & (J >= 0) & (J < NPIX)
-    return float(v[on].sum())
+    ep = np.pad(blend_at(grid, x, y), 2)
+    cp = np.pad(blend_at(grid, *cxy).astype(np.float32).astype(np.float64), 2)
+    box = Box(x, y)
+    incore = (box.dx < core) & (box.dy < core)
+    inwing = (box.dx < wing) & (box.dy < wing)
+    v = np.where(inwing, box.bil(cp),
+                 cp[box.sy + 2 + (box.fy >= 0.5), box.sx + 2 + (box.fx >= 0.5)])
+    kv = box.keys(cp, incore) + (box.bil(ep) - box.bil(cp))[incore]
+    return box.on_detector(scaled(v, kv, incore, box.bil(ep).sum()))
 
 
 def check(gridpath, catpath, imgpath, tol, default=False):

@@ -32,10 +32,12 @@
  * the ePSF's enclosed fraction; the other kernels' sums differ from it a
  * little (Keys' kernel by about 1e-4 of the flux over a 4-pixel core).  So
  * everything outside the core is scaled by one factor per source, f, that
- * makes the total exactly the bilinear sum over the box.  Each total is a
- * weighted sum of rectangles of the phase planes, read from their
- * summed-area tables in constant time (flux_factor), so f is computed once
- * per source in prepare() and every window of the source gets the same f.
+ * makes the total exactly the bilinear sum over the box (flux_factor).  The
+ * box's totals are weighted sums of rectangles of the phase planes, read
+ * from their summed-area tables in constant time in prepare(); the core's
+ * is the sum of what it draws, and every window draws the whole core into
+ * its buffer (only the rows it holds go into the tile), so every window of
+ * a source gets the same f.
  *
  * Speed.  A source's pixels read, for each array, the samples at a few x
  * and y phases, every `over` samples apart.  So each array is copied once
@@ -105,8 +107,6 @@ typedef double v4d __attribute__((vector_size(32), aligned(8), may_alias));
 #define SPLAT4(f) ((v4d){ (f), (f), (f), (f) })
 #define TO_V4D(p) __builtin_convertvector(*(const v4f *)(p), v4d)
 #define SPLAT(f) ((v8f){ (f), (f), (f), (f), (f), (f), (f), (f) })
-typedef int32_t v8i __attribute__((vector_size(32)));
-#define LANES ((v8i){ 0, 1, 2, 3, 4, 5, 6, 7 })
 
 struct poly {
 	uint64_t key;
@@ -1276,7 +1276,7 @@ static inline __attribute__((always_inline)) int render_one(const struct point *
  * default), or a core too wide for render_one: row by row, the bilinear
  * sum of every array's 4 streams times f into a float row, then Keys' cubic
  * over the core's columns, in double, from the same samples. */
-static inline __attribute__((always_inline)) int render_many(const struct point *p, const struct draw *d, double f,
+static inline __attribute__((always_inline)) int render_many(const struct draw *d, double f,
 		       const struct wfs_window *win)
 {
 	const struct geom *g = &d->g;
@@ -1417,7 +1417,7 @@ static int point_render(void *state, void *tstate, void *thread,
 		return p->host->error(p->host->ctx, "window outside the source's box");
 	if (one_array(&d))
 		return render_one(p, &d, src->aux[1], src->aux[2], win);
-	return render_many(p, &d, src->aux[1], win);
+	return render_many(&d, src->aux[1], win);
 }
 
 static const struct wfs_model point_model = {

@@ -55,8 +55,9 @@
 /* The catalog columns of both plugins, in this order in src->param. */
 enum { SERSIC_N, SERSIC_RE, SERSIC_PHI, SERSIC_RATIO, SERSIC_NCOL };
 
-/* n and re have no fallback: an empty cell reads as NaN, which prepare()
- * refuses (the host refuses a cell that says nan before). */
+/* n and re are required: wfiscene refuses an empty cell of them (and one
+ * that says nan) before prepare() runs; their fallback is NaN, which
+ * prepare() refuses too, for a host that passes one. */
 static const struct wfs_column sersic_columns[SERSIC_NCOL] = {
 	{ "n", NAN, 1, "Sérsic index, 0.05 to 20 (1 exponential disc, 4 de Vaucouleurs)" },
 	{ "re", NAN, 1, "half-light radius along the major axis, pixels" },

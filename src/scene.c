@@ -712,11 +712,18 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 		for (int c = 0; c < md->ncolumns; c++) {
 			double *v = &param[i * nparam_row + c];
 
+			/* an empty cell is the fallback, but for a required
+			 * column (no number parses to NaN) */
 			if (g->colidx[m][c] < 0)
 				*v = md->columns[c].fallback;
-			else if (rows_number(r, g->colidx[m][c], i, md->columns[c].fallback,
-					     v, g->e) < 0)
+			else if (rows_number(r, g->colidx[m][c], i, md->columns[c].required ? NAN :
+					     md->columns[c].fallback, v, g->e) < 0)
 				goto out;
+			else if (md->columns[c].required && isnan(*v)) {
+				err_set(g->e, EXIT_INPUT, "%s:%ld: model '%s': column '%s': empty value",
+					r->file, r->line[i], md->name, md->columns[c].name);
+				goto out;
+			}
 		}
 		g->reach[i] = 0;
 		if (isnan(r->ra[i]))

@@ -93,7 +93,7 @@ refused $B/multifilter-no-column.tbl 1 "catalog type 'multifilter' has no column
 refused $B/unknown-model.csv 1 ":2: unknown source type 'comet'"
 refused $B/sersic-n-zero.csv 1 ":3: model 'sersic-quick': column 'n': Sérsic index must be > 0, got 0"
 refused $B/sersic-n-range.csv 1 ":2: model 'sersic-quick': column 'n': Sérsic index 25 is outside the supported range 0.05 to 20"
-refused $B/sersic-empty-re.csv 1 ":2: model 'sersic-precise': column 're': empty; a Sérsic row needs its half-light radius"
+refused $B/sersic-empty-re.csv 1 ":2: model 'sersic-precise': column 're': empty value"
 refused $B/sersic-ratio.csv 1 ":2: model 'sersic-quick': column 'ratio': axis ratio must be in (0, 1], got 1.0000001"
 refused $B/too-many-fields.csv 1 ":2: row has 4 fields, the header has 3"
 refused $B/too-few-fields.csv 1 ":2: row has 2 fields, the header has 3"

@@ -165,8 +165,9 @@ struct wfs_host {
 /*
  * A catalog column a model reads.  The host reads it case-insensitively by
  * name from any catalog format.  A required column missing from a catalog
- * that has a row of this model is an error naming the column; an empty or
- * absent optional cell reads as fallback.
+ * that has a row of this model is an error naming the column, and so is an
+ * empty cell of it (file, line, column): the model never sees one; an
+ * empty or absent optional cell reads as fallback.
  */
 struct wfs_column {
 	const char *name;

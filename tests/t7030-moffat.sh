@@ -220,7 +220,9 @@ test_expect_success 'bad parameters are refused with the row and the reason' '
 	bad 1 2 0 "beta must be above 1" &&
 	bad 3 -1 0 "fwhm must be a positive" &&
 	bad 3 2 1 "ellip must be at least 0 and below 1" &&
-	bad 1.05 2 0 "beyond 512 pixels"
+	bad 1.05 2 0 "beyond 512 pixels" &&
+	bad "" 2 0 "model .moffat.: column .beta.: empty value" &&
+	bad 3 "" 0 "column .fwhm.: empty value"
 '
 
 test_expect_success 'a missing required column is named' '

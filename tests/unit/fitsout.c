@@ -554,14 +554,15 @@ static void test_errors(const char *dir)
 		   "writing to /dev/full: %s", e.msg);
 
 	/* A reader that went away: EPIPE is an error, not silence (with
-	 * SIGPIPE ignored, as a program may do). */
+	 * SIGPIPE ignored, as a program may do).  The read end is closed
+	 * before the writer starts, so no write can land in the pipe's
+	 * buffer first (the test was flaky when the writer won that race). */
 	{
 		int pfd[2], st;
 		fflush(stdout);
-		if (pipe(pfd) == 0 && fork() == 0) {
+		if (pipe(pfd) == 0 && close(pfd[0]) == 0 && fork() == 0) {
 			struct err ce = { 0 };
 			signal(SIGPIPE, SIG_IGN);
-			close(pfd[0]);
 			dup2(pfd[1], STDOUT_FILENO);
 			close(pfd[1]);
 			if (write_sample("-", NULL, &ce) == 0)
@@ -569,7 +570,6 @@ static void test_errors(const char *dir)
 			_exit(strstr(ce.msg, "<stdout>") &&
 			      strstr(ce.msg, "Broken pipe") ? 0 : 2);
 		}
-		close(pfd[0]);
 		close(pfd[1]);
 		wait(&st);
 		ok(WIFEXITED(st) && WEXITSTATUS(st) == 0,

@@ -160,6 +160,13 @@ struct psf_grid *psf_grid_read(const char *path, struct err *e)
 	double pixscale = 0;
 	char str[FLEN_VALUE], key[FLEN_KEYWORD];
 
+	/* a plain file name that cannot be read: the system's reason, rather
+	 * than cfitsio's "could not open the named file" (names with cfitsio's
+	 * extended syntax, [filters] or URLs, go to cfitsio as they are) */
+	if (!strchr(path, '[') && !strstr(path, "://") && access(path, R_OK) < 0) {
+		err_set(e, EXIT_SYSTEM, "%s: %s", path, strerror(errno));
+		return NULL;
+	}
 	if (fits_open_diskfile(&f, path, READONLY, &st)) {
 		/* compressed or remote files: cfitsio's general opener */
 		st = 0;

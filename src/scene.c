@@ -491,7 +491,11 @@ static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 			       g->o->bunit_counts ? "counts" : "counts/s", sca);
 	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
 		/* A refused row is bad input; a refusal without a message is
-		 * a broken plugin. */
+		 * a broken plugin; a host service that failed under it (a
+		 * PSF file that cannot be read) keeps its own message and
+		 * status. */
+		if (g->e->code != EXIT_OK && g->e->code != EXIT_PLUGIN)
+			return -1;
 		if (g->e->code == EXIT_OK)
 			err_set(g->e, EXIT_PLUGIN, "prepare() failed" MODEL_SILENT);
 		else

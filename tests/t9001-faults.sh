@@ -210,10 +210,12 @@ test_expect_success 'a scene with an unusable PSF cache still renders' '
 	test -s out.fits && test ! -s cachefile
 '
 
-test_expect_success '--psf naming a missing file: exit 2, no output' '
+test_expect_success '--psf naming a missing file: exit 2, the system's reason, no output' '
 	d=$TRASH/psf-missing && mkdir "$d" && cd "$d" &&
 	test_must_fail --status 2 "$WFS" --filter F129 --psf nosuch.fits -o out.fits ../two.csv 2> err &&
-	test_grep "nosuch.fits" err && nothing_left
+	test_grep "nosuch.fits: No such file or directory" err && nothing_left &&
+	test_must_fail --status 2 "$WFS" --filter F129 --psf nosuch_%d.fits -o out.fits ../two.csv 2> err &&
+	test_grep "^wfiscene: nosuch_1.fits: No such file or directory" err && nothing_left
 '
 test_expect_success '--psf naming a file that is not a PSF grid: an error, no output' '
 	d=$TRASH/psf-bad && mkdir "$d" && cd "$d" &&

@@ -210,7 +210,7 @@ test_expect_success 'a scene with an unusable PSF cache still renders' '
 	test -s out.fits && test ! -s cachefile
 '
 
-test_expect_success '--psf naming a missing file: exit 2, the system's reason, no output' '
+test_expect_success '--psf naming a missing file: exit 2, the system error, no output' '
 	d=$TRASH/psf-missing && mkdir "$d" && cd "$d" &&
 	test_must_fail --status 2 "$WFS" --filter F129 --psf nosuch.fits -o out.fits ../two.csv 2> err &&
 	test_grep "nosuch.fits: No such file or directory" err && nothing_left &&

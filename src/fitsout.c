@@ -39,6 +39,7 @@
 
 #include "err.h"
 #include "fitsout.h"
+#include "tempfile.h"
 
 #define CARD 80
 #define BLOCK 2880
@@ -492,55 +493,14 @@ static void fitsout_free(struct fitsout *f)
 	free(f);
 }
 
-/* Create ".BASE.XXXXXX" next to path with O_EXCL.  Returns the fd, -1.
- * Not mkstemp: that makes the file 0600, and a finished image should get
- * the usual 0666 & ~umask. */
+/* The temporary file beside the output (tempfile.h), its name in f->tmp. */
 static int make_temp(struct fitsout *f, struct err *e)
 {
-	const char *slash = strrchr(f->path, '/');
-	size_t dirlen = slash ? (size_t)(slash - f->path + 1) : 0;
-	const char *base = f->path + dirlen;
-	static const char alnum[] =
-		"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
-	struct timespec ts;
-	uint64_t x;
-	size_t n;
+	size_t n = TEMPFILE_SIZE(f->path);
 
-	if (!*base)
-		return err_set(e, EXIT_INPUT, "%s: not a file name", f->path);
-	n = dirlen + 1 + strlen(base) + 8;
-	if (n >= PATH_MAX) {
-		errno = ENAMETOOLONG;
+	if (!(f->tmp = malloc(n)))
 		return err_sys(e, "%s", f->path);
-	}
-	f->tmp = malloc(n);
-	if (!f->tmp)
-		return err_sys(e, "%s", f->path);
-	clock_gettime(CLOCK_REALTIME, &ts);
-	x = (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^
-	    ((uint64_t)getpid() << 16) ^ (uint64_t)(uintptr_t)f;
-	for (int attempt = 0; attempt < 100; attempt++) {
-		char suffix[7];
-		int fd;
-		/* splitmix64 step: well-mixed bits from a weak seed */
-		uint64_t z = (x += 0x9E3779B97F4A7C15u);
-		z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
-		z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
-		z ^= z >> 31;
-		for (int i = 0; i < 6; i++, z /= 62)
-			suffix[i] = alnum[z % 62];
-		suffix[6] = 0;
-		snprintf(f->tmp, n, "%.*s.%s.%s", (int)dirlen, f->path, base,
-			 suffix);
-		fd = open(f->tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-		if (fd >= 0)
-			return fd;
-		if (errno != EEXIST)
-			return err_sys(e, "%s: cannot create temporary file '%s'",
-				       f->path, f->tmp);
-	}
-	return err_sys(e, "%s: cannot create temporary file '%s'", f->path,
-		       f->tmp);
+	return tempfile_beside(f->path, f->tmp, n, e);
 }
 
 static int parse_compress(const char *s, int *ctype, struct err *e)

@@ -41,6 +41,7 @@
 #include "commands.h"
 #include "err.h"
 #include "fitsout.h"
+#include "tempfile.h"
 #include "instrument.h"
 
 #define MERGE_CARD 80
@@ -681,56 +682,20 @@ static int merge_check_hdus(struct merge *m)
 
 /* ---- the output ---- */
 
-/* Create ".BASE.XXXXXX" beside the output with O_EXCL and mode 0666 (less
- * the umask, as for any new file; mkstemp would make it 0600). */
+/* The temporary file beside the output (tempfile.h). */
 static int merge_out_temp(struct merge_out *o, struct err *e)
 {
-	static const char digits[] =
-		"0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ";
-	const char *slash = strrchr(o->path, '/');
-	size_t dirlen = slash ? (size_t)(slash - o->path) + 1 : 0, n;
-	const char *base = o->path + dirlen;
-	struct timespec ts;
-	uint64_t state;
+	size_t n = TEMPFILE_SIZE(o->path);
 
-	if (!*base)
-		return err_set(e, EXIT_INPUT, "%s: not a file name", o->path);
-	n = strlen(o->path) + 9;
-	if (n > PATH_MAX) {
-		errno = ENAMETOOLONG;
-		return err_sys(e, "%s", o->path);
-	}
 	if (!(o->tmp = malloc(n)))
 		return err_sys(e, "%s", o->path);
-	clock_gettime(CLOCK_REALTIME, &ts);
-	state = ((uint64_t)ts.tv_sec << 32) ^ (uint64_t)ts.tv_nsec ^
-		((uint64_t)getpid() << 20);
-	for (int attempt = 0; attempt < 100; attempt++) {
-		char suffix[7];
-		uint64_t x;
-
-		/* A 64-bit LCG step (Knuth's MMIX constants), upper bits
-		 * used: a name nobody else is likely to be trying. */
-		state = state * 6364136223846793005u + 1442695040888963407u;
-		x = state >> 24;
-		for (int k = 0; k < 6; k++, x /= 62)
-			suffix[k] = digits[x % 62];
-		suffix[6] = 0;
-		snprintf(o->tmp, n, "%.*s.%s.%s", (int)dirlen, o->path, base,
-			 suffix);
-		o->fd = open(o->tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC,
-			     0666);
-		if (o->fd >= 0) {
-			o->close_fd = 1;
-			return 0;
-		}
-		if (errno != EEXIST)
-			break;
+	if ((o->fd = tempfile_beside(o->path, o->tmp, n, e)) < 0) {
+		free(o->tmp);
+		o->tmp = NULL;
+		return -1;
 	}
-	err_sys(e, "%s: cannot create temporary file '%s'", o->path, o->tmp);
-	free(o->tmp);
-	o->tmp = NULL;
-	return -1;
+	o->close_fd = 1;
+	return 0;
 }
 
 static int merge_out_open(struct merge_out *o, const char *path, struct err *e)

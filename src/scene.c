@@ -26,6 +26,7 @@
 #include "pool.h"
 #include "psf.h"
 #include "scene.h"
+#include "tempfile.h"
 #include "sky.h"
 #include "wfiscene/model.h"
 
@@ -1307,21 +1308,16 @@ static void engine_free(struct engine *g)
 
 /*
  * Open a side file (--placed, --report) for writing.  A new name or an
- * existing regular file is written under a temporary name ".NAME.XXXXXX"
- * beside it (returned in tmp), renamed over NAME when complete; it gets
- * the mode any new file gets, 0666 less the umask (mkstemp would make it
- * 0600).  An existing device, FIFO or socket (/dev/stdout, /dev/null, a
+ * existing regular file is written under a temporary name beside it
+ * (tempfile_beside, returned in tmp), renamed over NAME when complete.
+ * An existing device, FIFO or socket (/dev/stdout, /dev/null, a
  * named pipe, also through a symbolic link) is written in place, as -o
  * writes it: renaming over it would replace the device node; tmp is then
  * "".  A directory is a usage error.  Returns the descriptor or -1.
  */
 static int side_open(const char *path, char *tmp, size_t cap, struct err *e)
 {
-	const char *slash = strrchr(path, '/');
-	const char *base = slash ? slash + 1 : path;
 	struct stat st;
-	struct timespec ts;
-	uint64_t x;
 	int fd;
 
 	tmp[0] = 0;
@@ -1332,37 +1328,7 @@ static int side_open(const char *path, char *tmp, size_t cap, struct err *e)
 			return err_sys(e, "%s", path);
 		return fd;
 	}
-	if (!*base)
-		return err_set(e, EXIT_INPUT, "%s: not a file name", path);
-	clock_gettime(CLOCK_REALTIME, &ts);
-	x = (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^
-	    ((uint64_t)getpid() << 16) ^ (uint64_t)(uintptr_t)tmp;
-	for (int attempt = 0; attempt < 100; attempt++) {
-		static const char alnum[] =
-			"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
-		uint64_t z = (x += 0x9E3779B97F4A7C15u);       /* splitmix64 */
-		char suffix[7];
-
-		z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
-		z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
-		z ^= z >> 31;
-		for (int i = 0; i < 6; i++, z /= 62)
-			suffix[i] = alnum[z % 62];
-		suffix[6] = 0;
-		if (snprintf(tmp, cap, "%.*s.%s.%s", (int)(base - path), path, base,
-			     suffix) >= (int)cap) {
-			tmp[0] = 0;
-			errno = ENAMETOOLONG;
-			return err_sys(e, "%s", path);
-		}
-		fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-		if (fd >= 0)
-			return fd;
-		if (errno != EEXIST)
-			break;
-	}
-	tmp[0] = 0;
-	return err_sys(e, "%s: cannot create a temporary file beside it", path);
+	return tempfile_beside(path, tmp, cap, e);
 }
 
 /* Before a run: a side file that could not be written at its end (a

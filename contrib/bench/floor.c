@@ -264,6 +264,21 @@ static int by_tile(const void *a, const void *b)
 		} \
 } while (0)
 
+/* Draw source q alone into a zeroed buffer of w x w pixels whose pixel 0
+ * is the first of its box (returned in b), as the host would: prepare(),
+ * footprint(), render().  Returns 0 or -1. */
+static int draw_alone(const struct wfs_model *md, void *state, struct wfs_source *q,
+		      double *buf, int w, struct wfs_box *b)
+{
+	struct wfs_window win;
+
+	if ((md->prepare && md->prepare(state, q) < 0) || md->footprint(state, q, b) < 0)
+		return -1;
+	memset(buf, 0, sizeof(double) * w * w);
+	win = (struct wfs_window){ buf, w, b->x0, b->y0, b->x1 - b->x0, b->y1 - b->y0 };
+	return md->render(state, NULL, NULL, q, &win);
+}
+
 int main(int argc, char **argv)
 {
 	static float stamp[2 * HALF * 2 * HALF];
@@ -499,26 +514,16 @@ int main(int argc, char **argv)
 			static double buf[W * W], rbuf[W * W];
 			struct wfs_source q = src[i], rq;
 			struct wfs_box b, rb;
-			struct wfs_window w;
 			double peak = 0, dmax = 0, dsum = 0;
 
 			q.x = 40 + uniform() * (NPIX - 80);
 			q.y = 40 + uniform() * (NPIX - 80);
 			rq = q;
-			if ((md->prepare && md->prepare(state, &q) < 0) || md->footprint(state, &q, &b) < 0)
-				return 3;
-			memset(buf, 0, sizeof(buf));
-			w = (struct wfs_window){ buf, W, b.x0, b.y0, b.x1 - b.x0, b.y1 - b.y0 };
-			if (md->render(state, NULL, NULL, &q, &w) < 0)
+			if (draw_alone(md, state, &q, buf, W, &b) < 0)
 				return 3;
 			if (rstate) {
 				settings = "psf-blend=source,psf-interp=bicubic";
-				if ((md->prepare && md->prepare(rstate, &rq) < 0) ||
-				    md->footprint(rstate, &rq, &rb) < 0)
-					return 3;
-				memset(rbuf, 0, sizeof(rbuf));
-				w = (struct wfs_window){ rbuf, W, rb.x0, rb.y0, rb.x1 - rb.x0, rb.y1 - rb.y0 };
-				if (md->render(rstate, NULL, NULL, &rq, &w) < 0)
+				if (draw_alone(md, rstate, &rq, rbuf, W, &rb) < 0)
 					return 3;
 				settings = mine;
 			}
@@ -562,7 +567,6 @@ int main(int argc, char **argv)
 			static double buf[W * W];
 			struct wfs_source q = { .flux = st[i].flux, .sca = 1 };
 			struct wfs_box b;
-			struct wfs_window w;
 			void *state;
 			double t = cpu_now(), peak = 0, dmax = 0, dsum = 0;
 
@@ -577,11 +581,7 @@ int main(int argc, char **argv)
 			if (md->init(&host, &state) < 0)
 				return 3;
 			t = cpu_now();
-			if ((md->prepare && md->prepare(state, &q) < 0) || md->footprint(state, &q, &b) < 0)
-				return 3;
-			memset(buf, 0, sizeof(buf));
-			w = (struct wfs_window){ buf, W, b.x0, b.y0, b.x1 - b.x0, b.y1 - b.y0 };
-			if (md->render(state, NULL, NULL, &q, &w) < 0)
+			if (draw_alone(md, state, &q, buf, W, &b) < 0)
 				return 3;
 			tdraw += cpu_now() - t;
 			md->fini(state);

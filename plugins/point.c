@@ -1273,9 +1273,13 @@ static inline __attribute__((always_inline)) int render_one(const struct point *
 }
 
 /* Several arrays (psf-blend=source, and the bright classes under the
- * default), or a core too wide for render_one: row by row, the bilinear
- * sum of every array's 4 streams times f into a float row, then Keys' cubic
- * over the core's columns, in double, from the same samples. */
+ * default), or a cell's blend with a core too wide for render_one (the
+ * cubic everywhere in a bright box under psf-blend=cell): row by row, the
+ * bilinear sum of every array's 4 streams times f into a float row, then
+ * Keys' cubic over the core's columns, in double, from the same samples.
+ * No psf-blend=core correction comes here (a faint box's core always fits
+ * render_one), and a core here is always cubic (a bilinear one is only
+ * psf-blend=core's). */
 static inline __attribute__((always_inline)) int render_many(const struct draw *d, double f,
 		       const struct wfs_window *win)
 {
@@ -1284,8 +1288,6 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 	long X = win->x0, Y = win->y0;
 	float wt[16];
 	const float *tap0[64];  /* [array][y tap][x tap] at the window's first pixel */
-	const float *ctap0[32]; /* psf-blend=core: [array][y tap][x tap], bilinear */
-	double ccw[32];
 	float acc[MAX_ROW + 8];
 	double dv[MAX_ROW + 4], tv[MAX_ROW + 4];
 	int core = !zone_empty(d->core);
@@ -1299,12 +1301,6 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 		for (int b = 0; b < 4; b++)
 			for (int a = 0; a < 4; a++)
 				tap0[(k * 4 + b) * 4 + a] = tap_at(d->pl[k], g, a, b, X, Y);
-	for (int c = 0; c < d->ncor; c++)
-		for (int b = 0; b < 2; b++)
-			for (int a = 0; a < 2; a++) {
-				ccw[(c * 2 + b) * 2 + a] = d->cw[c] * g->by[b] * g->bx[a];
-				ctap0[(c * 2 + b) * 2 + a] = tap_at(d->cp[c], g, a + 1, b + 1, X, Y);
-			}
 	for (int j = 0; j < win->ny; j++) {
 		double *row = win->pix + (ptrdiff_t)j * win->stride;
 		ptrdiff_t step = (ptrdiff_t)j * m;
@@ -1343,9 +1339,9 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 					*(v8f *)(acc + i) = v;
 				}
 			}
-			/* the core: Keys' cubic from the same samples (or the
-			 * bilinear sum unscaled), 4 pixels at a time, past the
-			 * run's end into the planes' slack; only the run is kept */
+			/* the core: Keys' cubic from the same samples, 4 pixels
+			 * at a time, past the run's end into the planes' slack;
+			 * only the run is kept */
 			if (ia < ib) {
 				int cn = (int)(ib - ia);
 
@@ -1354,7 +1350,7 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 				for (int k = 0; k < nn; k++) {
 					for (int i = 0; i < cn; i += 4)
 						*(v4d *)(tv + i) = (v4d){ 0 };
-					for (int b = 0; b < 4 && d->keys; b++) {
+					for (int b = 0; b < 4; b++) {
 						const float *const *t = tap0 + (k * 4 + b) * 4;
 						const float *t0 = t[0] + step + i0 + ia, *t1 = t[1] + step + i0 + ia;
 						const float *t2 = t[2] + step + i0 + ia, *t3 = t[3] + step + i0 + ia;
@@ -1366,26 +1362,9 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 							*(v4d *)(tv + i) += cb4 * (c0 * TO_V4D(t0 + i) + c1 * TO_V4D(t1 + i) +
 										   c2 * TO_V4D(t2 + i) + c3 * TO_V4D(t3 + i));
 					}
-					for (int b = 0; b < 2 && !d->keys; b++) {
-						const float *u0 = tap0[(k * 4 + b + 1) * 4 + 1] + step + i0 + ia;
-						const float *u1 = tap0[(k * 4 + b + 1) * 4 + 2] + step + i0 + ia;
-						v4d w0 = SPLAT4(g->by[b] * g->bx[0]), w1 = SPLAT4(g->by[b] * g->bx[1]);
-
-						for (int i = 0; i < cn; i += 4)
-							*(v4d *)(tv + i) += w0 * TO_V4D(u0 + i) + w1 * TO_V4D(u1 + i);
-					}
 					for (int i = 0; i < cn; i += 4)
 						*(v4d *)(dv + i) += SPLAT4(d->wn[k]) * *(v4d *)(tv + i);
 				}
-				for (int c = 0; c < d->ncor; c++)
-					for (int b = 0; b < 2; b++) {
-						const float *u0 = ctap0[(c * 2 + b) * 2] + step + i0 + ia;
-						const float *u1 = ctap0[(c * 2 + b) * 2 + 1] + step + i0 + ia;
-						v4d w0 = SPLAT4(ccw[(c * 2 + b) * 2]), w1 = SPLAT4(ccw[(c * 2 + b) * 2 + 1]);
-
-						for (int i = 0; i < cn; i += 4)
-							*(v4d *)(dv + i) += w0 * TO_V4D(u0 + i) + w1 * TO_V4D(u1 + i);
-					}
 				for (int i = 0; i < cn; i++)
 					acc[ia + i] = (float)dv[i];
 			}
@@ -1417,6 +1396,8 @@ static int point_render(void *state, void *tstate, void *thread,
 		return p->host->error(p->host->ctx, "window outside the source's box");
 	if (one_array(&d))
 		return render_one(p, &d, src->aux[1], src->aux[2], win);
+	if (d.ncor || (!zone_empty(d.core) && !d.keys))
+		return p->host->error(p->host->ctx, "no drawing for this blend and core");
 	return render_many(&d, src->aux[1], win);
 }
 

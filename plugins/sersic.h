@@ -633,9 +633,10 @@ static void sersic_keys(double t, double w[4])
 /*
  * The ePSF at a fixed fractional sample offset (phx, phy) in [0, 1), as the
  * point model evaluates it between samples: within `core` pixels of the
- * centre (setting psf-core, default 4) Keys' cubic on 4 x 4 samples, so the
- * sharp core is not flattened; farther out bilinear, where the ePSF is
- * smooth on the sample scale.  ep[k] = E(k + ph).  A galaxy much smaller
+ * centre in x and in y (setting psf-core, default 4) Keys' cubic on 4 x 4
+ * samples, so the sharp core is not flattened; farther out bilinear, where
+ * the ePSF is smooth on the sample scale (the point model's psf-wing=44,
+ * without its nearest samples beyond 8 pixels).  ep[k] = E(k + ph).  A galaxy much smaller
  * than a cell is therefore drawn exactly as a point source of its flux.
  * The four nodes are blended once into eb first (n x n scratch).
  */
@@ -656,7 +657,8 @@ static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, 
 		for (int kx = 0; kx < n; kx++) {
 			double dx = (kx + phx - e->centre) / e->over, v = 0;
 			const double *r0 = eb + (size_t)ky * n + kx;
-			if (dx * dx + dy * dy <= core * core && kx >= 1 && ky >= 1 && kx + 2 < n && ky + 2 < n) {
+			if (fabs(dx) < core && fabs(dy) < core && kx >= 1 && ky >= 1 && kx + 2 < n &&
+			    ky + 2 < n) {
 				const double *r = r0 - n - 1;
 				for (int bb = 0; bb < 4; bb++, r += n)
 					v += wy[bb] * (wx[0] * r[0] + wx[1] * r[1] + wx[2] * r[2] + wx[3] * r[3]);

@@ -51,6 +51,7 @@
 
 #include "commands.h"
 #include "err.h"
+#include "tempfile.h"
 
 #ifndef WFS_VERSION
 #define WFS_VERSION "unknown"
@@ -1205,14 +1206,15 @@ static int preview_png_write(FILE *fp, struct preview_png *p,
 	return 0;
 }
 
-/* Write to a temporary name beside the target and rename when complete, so
- * a failure never leaves a half-written PNG under the requested name. */
+/* Write to a temporary name beside the target (tempfile_beside) and rename
+ * when complete, so a failure never leaves a half-written PNG under the
+ * requested name.  "-", and an existing device or FIFO (/dev/stdout), are
+ * written in place: renaming over one would replace the node itself. */
 static int preview_png_save(struct preview_png *p, const struct preview_opts *o,
 			    struct err *e)
 {
 	char tmp[PATH_MAX];
-	const char *slash, *base;
-	mode_t mask;
+	struct stat st;
 	FILE *fp;
 	int fd;
 
@@ -1223,44 +1225,42 @@ static int preview_png_save(struct preview_png *p, const struct preview_opts *o,
 			return err_sys(e, "writing PNG to stdout");
 		return 0;
 	}
-	slash = strrchr(o->out, '/');
-	base = slash ? slash + 1 : o->out;
-	if (snprintf(tmp, sizeof(tmp), "%.*s.%s.XXXXXX",
-		     (int)(slash ? slash - o->out + 1 : 0), o->out, base) >= (int)sizeof(tmp))
-		return err_set(e, EXIT_INPUT, "%s: name too long", o->out);
-	if ((fd = mkstemp(tmp)) < 0)
-		return err_sys(e, "%s", o->out);
-	/* mkstemp makes the file 0600; give it the mode a new file gets. */
-	mask = umask(0);
-	umask(mask);
-	if (fchmod(fd, 0666 & ~mask) < 0 || !(fp = fdopen(fd, "wb"))) {
+	tmp[0] = 0;
+	if (stat(o->out, &st) == 0 && !S_ISREG(st.st_mode)) {
+		if (S_ISDIR(st.st_mode))
+			return err_set(e, EXIT_INPUT, "%s: is a directory", o->out);
+		fd = open(o->out, O_WRONLY | O_CLOEXEC | O_NOCTTY);
+		if (fd < 0)
+			return err_sys(e, "%s", o->out);
+	} else if ((fd = tempfile_beside(o->out, tmp, sizeof(tmp), e)) < 0)
+		return -1;
+	if (!(fp = fdopen(fd, "wb"))) {
 		err_sys(e, "%s", o->out);
 		close(fd);
-		unlink(tmp);
-		return -1;
+		goto fail;
 	}
 	if (preview_png_write(fp, p, o, e) < 0) {
 		fclose(fp);
-		unlink(tmp);
-		return -1;
+		goto fail;
 	}
-	if (fflush(fp) || ferror(fp) || fsync(fileno(fp)) < 0) {
+	if (fflush(fp) || ferror(fp) || (tmp[0] && fsync(fileno(fp)) < 0)) {
 		err_sys(e, "%s", o->out);
 		fclose(fp);
-		unlink(tmp);
-		return -1;
+		goto fail;
 	}
 	if (fclose(fp)) {
 		err_sys(e, "%s", o->out);
-		unlink(tmp);
-		return -1;
+		goto fail;
 	}
-	if (rename(tmp, o->out) < 0) {
+	if (tmp[0] && rename(tmp, o->out) < 0) {
 		err_sys(e, "%s", o->out);
-		unlink(tmp);
-		return -1;
+		goto fail;
 	}
 	return 0;
+fail:
+	if (tmp[0])
+		unlink(tmp);
+	return -1;
 }
 
 /* The whole command ------------------------------------------------------ */

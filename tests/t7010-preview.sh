@@ -354,6 +354,15 @@ test_expect_success 'writing to stdout' '
 	"$WFS" preview plain.fits -o - >out.png &&
 	pycheck "assert png.read(\"out.png\").w == 400"
 '
+test_expect_success 'a FIFO (like /dev/stdout) is written in place, not renamed over' '
+	mkfifo fifo.png &&
+	{ timeout 30 cat fifo.png >fromfifo.png & } &&
+	"$WFS" preview plain.fits -o fifo.png &&
+	wait &&
+	test -p fifo.png &&
+	pycheck "assert png.read(\"fromfifo.png\").w == 400" &&
+	rm -f fifo.png fromfifo.png
+'
 
 # Refusals: a message naming the subject, exit 1 (bad input) or 2 (I/O),
 # and no PNG left behind.

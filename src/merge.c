@@ -682,26 +682,26 @@ static int merge_check_hdus(struct merge *m)
 
 /* ---- the output ---- */
 
-/* The temporary file beside the output (tempfile.h). */
-static int merge_out_temp(struct merge_out *o, struct err *e)
+/* The output (tempfile_open_output): its temporary, or a device or FIFO
+ * in place (o->tmp NULL then). */
+static int merge_out_file(struct merge_out *o, struct err *e)
 {
 	size_t n = TEMPFILE_SIZE(o->path);
 
 	if (!(o->tmp = malloc(n)))
 		return err_sys(e, "%s", o->path);
-	if ((o->fd = tempfile_beside(o->path, o->tmp, n, e)) < 0) {
+	if ((o->fd = tempfile_open_output(o->path, o->tmp, n, e)) < 0 || !o->tmp[0]) {
 		free(o->tmp);
 		o->tmp = NULL;
-		return -1;
 	}
+	if (o->fd < 0)
+		return -1;
 	o->close_fd = 1;
 	return 0;
 }
 
 static int merge_out_open(struct merge_out *o, const char *path, struct err *e)
 {
-	struct stat st;
-
 	memset(o, 0, sizeof(*o));
 	o->fd = -1;
 	o->path = o->name = path;
@@ -714,18 +714,7 @@ static int merge_out_open(struct merge_out *o, const char *path, struct err *e)
 		o->fd = STDOUT_FILENO;
 		return 0;
 	}
-	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
-		/* A device or FIFO is written in place: renaming over it
-		 * would replace the node, not feed it. */
-		if (S_ISDIR(st.st_mode))
-			return err_set(e, EXIT_INPUT, "%s: is a directory", path);
-		o->fd = open(path, O_WRONLY | O_CLOEXEC | O_NOCTTY);
-		if (o->fd < 0)
-			return err_sys(e, "%s", path);
-		o->close_fd = 1;
-		return 0;
-	}
-	return merge_out_temp(o, e);
+	return merge_out_file(o, e);
 }
 
 static int merge_out_write(struct merge_out *o, const unsigned char *p,

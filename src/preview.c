@@ -1206,15 +1206,13 @@ static int preview_png_write(FILE *fp, struct preview_png *p,
 	return 0;
 }
 
-/* Write to a temporary name beside the target (tempfile_beside) and rename
- * when complete, so a failure never leaves a half-written PNG under the
- * requested name.  "-", and an existing device or FIFO (/dev/stdout), are
- * written in place: renaming over one would replace the node itself. */
+/* Write to a temporary name beside the target and rename when complete
+ * (tempfile_open_output), so a failure never leaves a half-written PNG under
+ * the requested name; "-", and an existing device or FIFO, in place. */
 static int preview_png_save(struct preview_png *p, const struct preview_opts *o,
 			    struct err *e)
 {
 	char tmp[PATH_MAX];
-	struct stat st;
 	FILE *fp;
 	int fd;
 
@@ -1225,14 +1223,7 @@ static int preview_png_save(struct preview_png *p, const struct preview_opts *o,
 			return err_sys(e, "writing PNG to stdout");
 		return 0;
 	}
-	tmp[0] = 0;
-	if (stat(o->out, &st) == 0 && !S_ISREG(st.st_mode)) {
-		if (S_ISDIR(st.st_mode))
-			return err_set(e, EXIT_INPUT, "%s: is a directory", o->out);
-		fd = open(o->out, O_WRONLY | O_CLOEXEC | O_NOCTTY);
-		if (fd < 0)
-			return err_sys(e, "%s", o->out);
-	} else if ((fd = tempfile_beside(o->out, tmp, sizeof(tmp), e)) < 0)
+	if ((fd = tempfile_open_output(o->out, tmp, sizeof(tmp), e)) < 0)
 		return -1;
 	if (!(fp = fdopen(fd, "wb"))) {
 		err_sys(e, "%s", o->out);

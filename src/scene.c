@@ -1306,31 +1306,6 @@ static void engine_free(struct engine *g)
 	pthread_mutex_destroy(&g->err_mu);
 }
 
-/*
- * Open a side file (--placed, --report) for writing.  A new name or an
- * existing regular file is written under a temporary name beside it
- * (tempfile_beside, returned in tmp), renamed over NAME when complete.
- * An existing device, FIFO or socket (/dev/stdout, /dev/null, a
- * named pipe, also through a symbolic link) is written in place, as -o
- * writes it: renaming over it would replace the device node; tmp is then
- * "".  A directory is a usage error.  Returns the descriptor or -1.
- */
-static int side_open(const char *path, char *tmp, size_t cap, struct err *e)
-{
-	struct stat st;
-	int fd;
-
-	tmp[0] = 0;
-	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
-		if (S_ISDIR(st.st_mode))
-			return err_set(e, EXIT_INPUT, "%s: is a directory", path);
-		if ((fd = open(path, O_WRONLY | O_CLOEXEC | O_NOCTTY)) < 0)
-			return err_sys(e, "%s", path);
-		return fd;
-	}
-	return tempfile_beside(path, tmp, cap, e);
-}
-
 /* Before a run: a side file that could not be written at its end (a
  * directory, a directory that is not writable) is refused up front, so
  * that no image is written for a run whose --report must fail. */
@@ -1375,7 +1350,7 @@ static int open_placed(struct engine *g)
 	const char *path = g->o->placed;
 	int fd;
 
-	if ((fd = side_open(path, g->placed_tmp, sizeof(g->placed_tmp), g->e)) < 0)
+	if ((fd = tempfile_open_output(path, g->placed_tmp, sizeof(g->placed_tmp), g->e)) < 0)
 		return -1;
 	memcpy(placed_tmp_signal[g->index], g->placed_tmp, sizeof(placed_tmp_signal[0]));
 	if (!(g->placed = fdopen(fd, "w"))) {
@@ -1440,7 +1415,7 @@ static int write_report(struct engine *g)
 	FILE *f;
 	int fd, first;
 
-	if ((fd = side_open(o->report, tmp, sizeof(tmp), g->e)) < 0)
+	if ((fd = tempfile_open_output(o->report, tmp, sizeof(tmp), g->e)) < 0)
 		return -1;
 	if (!(f = fdopen(fd, "w"))) {
 		close(fd);

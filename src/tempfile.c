@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -53,4 +54,20 @@ int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e)
 	err_sys(e, "%s: cannot create temporary file '%s'", path, tmp);
 	tmp[0] = 0;
 	return -1;
+}
+
+int tempfile_open_output(const char *path, char *tmp, size_t cap, struct err *e)
+{
+	struct stat st;
+	int fd;
+
+	tmp[0] = 0;
+	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
+		if (S_ISDIR(st.st_mode))
+			return err_set(e, EXIT_INPUT, "%s: is a directory", path);
+		if ((fd = open(path, O_WRONLY | O_CLOEXEC | O_NOCTTY)) < 0)
+			return err_sys(e, "%s", path);
+		return fd;
+	}
+	return tempfile_beside(path, tmp, cap, e);
 }

@@ -26,4 +26,14 @@
  */
 int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e);
 
+/*
+ * Open an output for writing.  A new name or an existing regular file gets
+ * its temporary beside it (tempfile_beside; its name in tmp), to be renamed
+ * over path when complete.  An existing device, FIFO or socket (/dev/stdout,
+ * /dev/null, a named pipe, also through a symbolic link) is opened in place,
+ * since renaming over it would replace the node itself; tmp is then "".  A
+ * directory is refused (exit 1).  Returns the descriptor or -1.
+ */
+int tempfile_open_output(const char *path, char *tmp, size_t cap, struct err *e);
+
 #endif

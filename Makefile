@@ -131,8 +131,8 @@ deps:
 ## check: run the whole test suite (installs missing packages first)
 check: deps
 	$(Q)$(MAKE) --no-print-directory all unit
-	$(Q)rc=0; WFS_BUILD=$(B) prove -j2 --exec sh $(TESTS) :: || rc=1; \
-	  WFS_BUILD=$(B) prove -j2 $(UNIT_BIN) || rc=1; exit $$rc
+	$(Q)rc=0; WFS_BUILD=$(B) prove -j2 $(UNIT_BIN) || rc=1; \
+	  WFS_BUILD=$(B) prove -j2 --exec sh $(TESTS) :: || rc=1; exit $$rc
 
 ## unit: build the C unit tests
 unit: $(UNIT_BIN)

@@ -46,7 +46,11 @@ test_expect_success() {
 		echo "ok $test_count - $1"
 	else
 		echo "not ok $test_count - $1"
-		sed 's/^/#   /' "$TRASH/.out" | tail -n 30
+		# The diagnostics on stderr, as Test::More prints them, so that a
+		# failure explains itself in prove's summary output too: every
+		# line ends in a newline (a file without one would swallow the
+		# plan) and control characters are shown, not obeyed.
+		tail -n 30 "$TRASH/.out" | cat -v | awk '{ print "#   " $0 }' >&2
 		test_fail=$((test_fail + 1))
 	fi
 }

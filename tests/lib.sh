@@ -55,21 +55,21 @@ test_expect_success() {
 	fi
 }
 
-# wait_caught PID: wait, up to ten seconds, until process PID catches
-# SIGTERM, that is, until wfiscene has installed its signal handlers; a
-# signal sent earlier would take the default action.  Without /proc it
-# waits a second.
-wait_caught() {
-	[ -r "/proc/$1/status" ] || { sleep 1; return 0; }
+# wait_sigterm Cgt|Blk PID: wait, up to ten seconds, until process PID
+# catches (Cgt) or blocks (Blk) SIGTERM, that is, until wfiscene has set up
+# its signal handling; a signal sent earlier would take the default action.
+# Without /proc it waits a second.
+wait_sigterm() {
+	[ -r "/proc/$2/status" ] || { sleep 1; return 0; }
 	i=0
 	while [ $i -lt 1000 ]; do
-		m=$(sed -n 's/^SigCgt:[[:space:]]*//p' "/proc/$1/status" 2>/dev/null)
+		m=$(sed -n "s/^Sig$1:[[:space:]]*//p" "/proc/$2/status" 2>/dev/null)
 		m=${m#"${m%????}"}
 		[ -n "$m" ] && [ $((0x$m & 0x4000)) -ne 0 ] && return 0
 		sleep 0.01
 		i=$((i + 1))
 	done
-	echo "wait_caught: process $1 never caught SIGTERM" >&2
+	echo "wait_sigterm: process $2 never had SIGTERM in Sig$1" >&2
 	return 1
 }
 

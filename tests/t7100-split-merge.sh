@@ -293,10 +293,8 @@ fi
 if [ -r /proc/self/status ]; then
 	test_expect_success 'SIGTERM stops a merge with status 4' '
 		mkfifo pipe &&
-		{ "$WFS" merge -o pipe p12.fits p34.fits 2>err & } && pid=$! && i=0 &&
-		until grep -q "^SigBlk:.*[1-9a-f]" /proc/$pid/status 2>/dev/null ||
-			[ $i -ge 1000 ]; do i=$((i + 1)); sleep 0.01; done &&
-		kill -TERM $pid && cat pipe > got && { wait $pid; rc=$?; } ; test $rc = 4 &&
+		{ "$WFS" merge -o pipe p12.fits p34.fits 2>err & } && pid=$! &&
+		{ wait_sigterm Blk $pid; kill -TERM $pid; } && cat pipe > got && { wait $pid; rc=$?; } ; test $rc = 4 &&
 		test_grep "wfiscene merge: interrupted; partial output removed" err &&
 		test $(wc -c < got) -lt 10000000
 	'

@@ -40,7 +40,7 @@ signal_reading() {
 	pid=$!
 	exec 3> in
 	printf 'x,y,flux\n1000,1000,500\n' >&3
-	wait_caught $pid && sleep 0.2
+	wait_sigterm Cgt $pid && sleep 0.2
 	kill -s "$sig" $pid
 	wait $pid
 	rc=$?
@@ -58,8 +58,8 @@ test_expect_success 'SIGINT while reading keeps an existing output file' '
 	"$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits ../two.csv &&
 	cp out.fits before.fits && mkfifo in &&
 	{ "$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits < in 2> err & } &&
-	pid=$! && exec 3> in && printf "x,y,flux\n" >&3 && wait_caught $pid && sleep 0.2 &&
-	kill -INT $pid; wait $pid; rc=$?; exec 3>&-
+	pid=$! && exec 3> in && printf "x,y,flux\n" >&3 &&
+	{ wait_sigterm Cgt $pid; sleep 0.2; kill -INT $pid; }; wait $pid; rc=$?; exec 3>&-
 	test $rc -eq 4 && cmp before.fits out.fits && test -z "$(ls -A | grep "^\.out")"
 '
 

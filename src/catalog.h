@@ -28,6 +28,9 @@ enum flux_unit {
 	UNIT_JY = 'j',          /* Jansky */
 	UNIT_PHOT = 'p',        /* STIPS mixed 'p' */
 	UNIT_ERG = 'e',         /* STIPS mixed 'e' */
+	/* Read, never passed on: turned into UNIT_ABMAG as rows are read. */
+	UNIT_MAGGIES = 'g',     /* maggies: AB mag = -2.5 log10(value) */
+	UNIT_NMGY = 'n',        /* nanomaggies: AB mag = 22.5 - 2.5 log10 */
 };
 
 struct catalog_opts {
@@ -55,6 +58,12 @@ struct rows {
 	long long *id;          /* the id column, else the 1-based row number */
 	int sersic_ie;          /* 1 when this catalog's Sersic fluxes are the
 	                           surface brightness at re (STIPS internal) */
+	int sky_angle_col;      /* column whose angles are position angles on
+	                           the sky (degrees east of north, romanisim's
+	                           pa read as "phi"), turned into detector
+	                           angles by the engine; -1 for none */
+	int roman;              /* 1: the catalog follows romanisim's
+	                           convention (ROMANISIM CATALOGS) */
 
 	/* Every column, as text, for models that read columns by name. */
 	int ncol;

@@ -115,12 +115,14 @@ struct engine {
 	double *fx, *fy, *px, *py, *reach;
 	uint32_t *cand;
 	uint32_t *mask;                 /* slots the row may reach */
+	unsigned char *listed;          /* row already in a romanisim --placed */
 	size_t cap_rows;
 
 	struct batch b[2];
 	const struct batch *rendering;
 
 	FILE *placed;
+	int placed_roman;               /* --placed in romanisim's convention */
 	char placed_tmp[PATH_MAX];
 	int index;                      /* exposure number, 0-based */
 
@@ -520,6 +522,71 @@ static int footprint(struct engine *g, const struct rows *r, size_t i, int m,
 	return 0;
 }
 
+/*
+ * The position angle, degrees east of north, of the detectors' +y axis at
+ * (ra, dec) in exposure g: the direction of a short step north in the
+ * focal-plane frame, whose +y is the detectors' +y and whose parity is
+ * the sky's (east left when north is up).  A galaxy whose major axis lies
+ * pa east of north then lies phi = pa - north_pa on the detector, in the
+ * sense of the "phi" column (from +y toward -x).  0 when the row does not
+ * project.
+ */
+static double north_pa(const struct engine *g, double ra, double dec)
+{
+	double h = dec > 89.0 ? -1e-4 : 1e-4;
+	double rr[2] = { ra, ra }, dd[2] = { dec, dec + h }, fx[2], fy[2];
+	double dx, dy;
+
+	sky_to_focal(&g->sky, 2, rr, dd, INFINITY, fx, fy);
+	dx = (fx[1] - fx[0]) * (h > 0 ? 1 : -1);
+	dy = (fy[1] - fy[0]) * (h > 0 ? 1 : -1);
+	if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0))
+		return 0;
+	return atan2(dx, dy) * (180.0 / M_PI);
+}
+
+/* Parameter `name' of a row of model md, or fallback. */
+static double param_named(const struct wfs_model *md, const double *param,
+			  const char *name, double fallback)
+{
+	for (int c = 0; c < md->ncolumns; c++)
+		if (!strcasecmp(md->columns[c].name, name))
+			return param[c];
+	return fallback;
+}
+
+/* One row of a --placed list in romanisim's convention (see
+ * wfiscene-catalog(5)): the source as a romanisim catalog would give it,
+ * read back to the same image.  Returns fprintf's sign. */
+static int placed_roman_row(struct engine *g, const struct rows *r, size_t i,
+			    const struct wfs_model *md, const double *param,
+			    const struct wfs_source *src)
+{
+	double maggies = pow(10.0, -0.4 * src->mag);
+	const char *type = md->name;
+	double n = -1, hlr = 0, pa = 0, ba = 1;
+
+	if (!strcmp(md->name, "point"))
+		type = "PSF";
+	else if (!strncmp(md->name, "sersic", 6)) {
+		type = !strcmp(md->name + 6, "") ||
+		       !strcmp(md->name + 6, g->o->sersic[0] == 'p' ? "-precise" : "-quick")
+		       ? "SER" : md->name;
+		n = param_named(md, param, "n", -1);
+		hlr = param_named(md, param, "re", 0) * WFS_PIXSCALE;
+		ba = param_named(md, param, "ratio", 1);
+		pa = param_named(md, param, "phi", 0);
+		if (!isnan(r->ra[i]))
+			pa += north_pa(g, r->ra[i], r->dec[i]);
+		pa = fmod(pa, 360.0);
+		if (pa < 0)
+			pa += 360.0;
+	}
+	return fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.15g,%.15g,%s,%.17g,%.17g,%.17g,%.17g,%.17g\n",
+		       src->id, src->sca, src->x + 1, src->y + 1, r->ra[i], r->dec[i], type,
+		       n, hlr, pa, ba, maggies) < 0 ? -1 : 0;
+}
+
 static int add_placement(struct engine *g, struct batch *b, const struct rows *r,
 			 size_t i, int m, const double *param, int slot, double x,
 			 double y)
@@ -544,10 +611,15 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	g->per_model[m]++;
 	g->flux_requested[src.sca - 1] += src.flux;
 	g->placed_on[src.sca - 1]++;
-	if (g->placed &&
+	if (g->placed && !g->placed_roman &&
 	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
 		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
 		return err_sys(g->e, "%s", g->o->placed);
+	if (g->placed && g->placed_roman && !g->listed[i]) {
+		g->listed[i] = 1;
+		if (placed_roman_row(g, r, i, md, param, &src) < 0)
+			return err_sys(g->e, "%s", g->o->placed);
+	}
 	/* With --rows, counted and listed as in a run of the whole SCA (the
 	 * part's header is that run's), but drawn only in the rows written:
 	 * the windows are cut there, and a model gives the same pixels for
@@ -681,8 +753,10 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    !(g->py = realloc(g->py, g->cap_rows * sizeof(double))) ||
 	    !(g->reach = realloc(g->reach, g->cap_rows * sizeof(double))) ||
 	    !(g->cand = realloc(g->cand, g->cap_rows * sizeof(uint32_t))) ||
-	    !(g->mask = realloc(g->mask, g->cap_rows * sizeof(uint32_t))))
+	    !(g->mask = realloc(g->mask, g->cap_rows * sizeof(uint32_t))) ||
+	    !(g->listed = realloc(g->listed, g->cap_rows)))
 		return err_sys(g->e, "rows");
+	memset(g->listed, 0, r->n);
 	g->sersic_flux_now = g->o->sersic_flux ? g->o->sersic_flux
 			   : r->sersic_ie ? "ie" : "total";
 
@@ -728,6 +802,9 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 				err_set(g->e, EXIT_INPUT, "%s:%ld: model '%s': column '%s': empty value",
 					r->file, r->line[i], md->name, md->columns[c].name);
 				goto out;
+			} else if (g->colidx[m][c] == r->sky_angle_col && !isnan(r->ra[i])) {
+				/* romanisim's pa is on the sky */
+				*v -= north_pa(g, r->ra[i], r->dec[i]);
 			}
 		}
 		g->reach[i] = 0;
@@ -1302,6 +1379,7 @@ static void engine_free(struct engine *g)
 		free(g->b[i].active);
 	}
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
+	free(g->listed);
 	sky_free(&g->sky);
 	pthread_mutex_destroy(&g->err_mu);
 }
@@ -1345,6 +1423,21 @@ static int side_close(FILE *f, const char *path, const char *tmp, int keep)
 	return keep ? -1 : 0;
 }
 
+/* --set placed=romanisim: the --placed list in romanisim's convention. */
+static int placed_convention_roman(const struct engine *g)
+{
+	const char *hit = NULL;
+
+	for (const char *const *kv = g->o->settings; kv && *kv; kv++)
+		if (!strncmp(*kv, "placed=", 7))
+			hit = *kv + 7;
+	if (!hit || !strcasecmp(hit, "wfiscene"))
+		return 0;
+	if (!strcasecmp(hit, "romanisim"))
+		return 1;
+	return err_set(g->e, EXIT_INPUT, "--set placed=%s: want wfiscene or romanisim", hit);
+}
+
 static int open_placed(struct engine *g)
 {
 	const char *path = g->o->placed;
@@ -1360,7 +1453,30 @@ static int open_placed(struct engine *g)
 		placed_tmp_signal[g->index][0] = 0;
 		return err_sys(g->e, "%s", path);
 	}
-	fputs("id,sca,x,y,flux,mag,model\n", g->placed);
+	if ((g->placed_roman = placed_convention_roman(g)) < 0) {
+		fclose(g->placed);
+		g->placed = NULL;
+		if (g->placed_tmp[0])
+			unlink(g->placed_tmp);
+		placed_tmp_signal[g->index][0] = 0;
+		return -1;
+	}
+	if (g->placed_roman)
+		fprintf(g->placed,
+			"# %%ECSV 1.0\n# ---\n# delimiter: ','\n# datatype:\n"
+			"# - {name: id, datatype: int64}\n# - {name: sca, datatype: int64}\n"
+			"# - {name: x, datatype: float64}\n# - {name: y, datatype: float64}\n"
+			"# - {name: ra, unit: deg, datatype: float64}\n"
+			"# - {name: dec, unit: deg, datatype: float64}\n"
+			"# - {name: type, datatype: string}\n# - {name: n, datatype: float64}\n"
+			"# - {name: half_light_radius, unit: arcsec, datatype: float64}\n"
+			"# - {name: pa, unit: deg, datatype: float64}\n# - {name: ba, datatype: float64}\n"
+			"# - {name: %s, datatype: float64}\n"
+			"# meta: {convention: romanisim}\n# schema: astropy-2.0\n"
+			"id,sca,x,y,ra,dec,type,n,half_light_radius,pa,ba,%s\n",
+			g->filter_name, g->filter_name);
+	else
+		fputs("id,sca,x,y,flux,mag,model\n", g->placed);
 	return 0;
 }
 

@@ -18,6 +18,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "table.h"
+#include "tree.h"
 
 /* Magnitudes outside this range are surely a mistake (99 for "no data",
  * a flux in the magnitude column); an error beats a blank or blinding
@@ -46,6 +47,16 @@ struct catalog {
 	const char **re_text;   /* NULL (use re_num) or "" for an empty cell */
 	const char ***text_ext; /* the chunk's text[] with "re" appended */
 	const double **num_ext;
+
+	/* A catalog tree (tree.h): its files are read in turn as one
+	 * catalog, all with the columns of the first that has any. */
+	struct tree *tree;
+	size_t tree_next;       /* the next file of the tree to open */
+	char **first_cols;      /* the first table's column names */
+	int nfirst;
+	int first_roman;
+	unsigned long long bytes_done;  /* raw bytes of the tables closed */
+	char *dir;              /* the tree's path, for messages */
 	unsigned long long nrows;
 	size_t cap;
 	char **colname;
@@ -332,15 +343,25 @@ static int alloc_rows(struct catalog *c, struct err *e)
 	c->unit = malloc(n);
 	c->type = malloc(n * sizeof(char *));
 	c->id = malloc(n * sizeof(long long));
-	c->ncol_table = table_ncol(c->t);
-	c->colname = calloc((size_t)c->ncol_table + 2, sizeof(char *));
-	c->text_ext = calloc((size_t)c->ncol_table + 2, sizeof(char **));
-	c->num_ext = calloc((size_t)c->ncol_table + 2, sizeof(double *));
 	c->re_num = malloc(n * sizeof(double));
 	c->re_text = malloc(n * sizeof(char *));
 	if (!c->ra || !c->dec || !c->x || !c->y || !c->flux || !c->sca ||
-	    !c->unit || !c->type || !c->id || !c->colname || !c->text_ext ||
-	    !c->num_ext || !c->re_num || !c->re_text)
+	    !c->unit || !c->type || !c->id || !c->re_num || !c->re_text)
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	return 0;
+}
+
+/* The names rows carry for the current table's columns. */
+static int set_columns(struct catalog *c, struct err *e)
+{
+	free(c->colname);
+	free(c->text_ext);
+	free(c->num_ext);
+	c->ncol_table = c->t ? table_ncol(c->t) : 0;
+	c->colname = calloc((size_t)c->ncol_table + 2, sizeof(char *));
+	c->text_ext = calloc((size_t)c->ncol_table + 2, sizeof(char **));
+	c->num_ext = calloc((size_t)c->ncol_table + 2, sizeof(double *));
+	if (!c->colname || !c->text_ext || !c->num_ext)
 		return err_set(e, EXIT_SYSTEM, "out of memory");
 	for (int i = 0; i < c->ncol_table; i++)
 		c->colname[i] = (char *)table_colname(c->t, i);
@@ -353,6 +374,67 @@ static int alloc_rows(struct catalog *c, struct err *e)
 			c->colname[c->ncol_table] = "re";
 	}
 	return 0;
+}
+
+/* A tree's files after the first with columns must have the same columns
+ * in the same order: the engine resolves a catalog's columns once. */
+static int same_columns(struct catalog *c, struct err *e)
+{
+	int ok = c->nfirst == table_ncol(c->t) && c->first_roman == c->roman;
+
+	for (int i = 0; ok && i < c->nfirst; i++)
+		ok = !strcmp(c->first_cols[i], table_colname(c->t, i));
+	if (!ok)
+		return err_set(e, EXIT_INPUT,
+			       "%s: its columns differ from those of the tree's first file, '%s'",
+			       table_name(c->t), c->first_cols[c->nfirst]);
+	return 0;
+}
+
+static int catalog_plan(struct catalog *c, struct err *e);
+
+/* Open path as the current table and give its columns their meaning. */
+static int open_table(struct catalog *c, const char *path, struct err *e)
+{
+	if (!(c->t = table_open(path, c->cap, e)))
+		return -1;
+	if (table_format(c->t) == TABLE_EMPTY) {
+		if (!c->colname && set_columns(c, e) < 0)
+			return -1;
+		return 0;
+	}
+	if (catalog_plan(c, e) < 0)
+		return -1;
+	if (c->first_cols)
+		return same_columns(c, e) < 0 || set_columns(c, e) < 0 ? -1 : 0;
+	if (set_columns(c, e) < 0)
+		return -1;
+	if (!c->tree)
+		return 0;
+	/* the first file of a tree that has columns: remember them */
+	c->nfirst = c->ncol_table;
+	c->first_roman = c->roman;
+	if (!(c->first_cols = calloc((size_t)c->nfirst + 1, sizeof(char *))))
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	for (int i = 0; i <= c->nfirst; i++)
+		if (!(c->first_cols[i] = strdup(i < c->nfirst ? table_colname(c->t, i)
+							      : table_name(c->t))))
+			return err_set(e, EXIT_SYSTEM, "out of memory");
+	return 0;
+}
+
+/* Close the current table and open the tree's next file: 1 when one
+ * was opened, 0 at the end of the tree, -1. */
+static int next_table(struct catalog *c, struct err *e)
+{
+	if (c->t) {
+		c->bytes_done += table_raw_bytes(c->t);
+		table_close(c->t);
+		c->t = NULL;
+	}
+	if (!c->tree || c->tree_next >= tree_nread(c->tree))
+		return 0;
+	return open_table(c, tree_path(c->tree, c->tree_next++), e) < 0 ? -1 : 1;
 }
 
 /* The column a numeric meaning needs must not be a FITS string column. */
@@ -600,13 +682,20 @@ struct catalog *catalog_open(const char *path, const struct catalog_opts *o,
 		err_set(e, EXIT_INPUT, "catalog: unknown filter %d", c->o.filter);
 		goto fail;
 	}
-	c->t = table_open(path, c->cap, e);
-	if (!c->t)
-		goto fail;
-	if (table_format(c->t) != TABLE_EMPTY && catalog_plan(c, e) < 0)
-		goto fail;
 	if (alloc_rows(c, e) < 0)
 		goto fail;
+	if (tree_is_dir(path)) {
+		struct tree_opts to = { c->o.disc, c->o.ndisc, c->o.settings };
+
+		if (!(c->tree = tree_open(path, &to, e)) || !(c->dir = strdup(path)))
+			goto fail;
+		if (next_table(c, e) < 0)
+			goto fail;
+		if (!c->t && set_columns(c, e) < 0)
+			goto fail;
+	} else if (open_table(c, path, e) < 0) {
+		goto fail;
+	}
 	return c;
 fail:
 	catalog_close(c);
@@ -722,9 +811,16 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 
 	memset(r, 0, sizeof(*r));
 	r->sky_angle_col = -1;
-	n = table_read(c->t, &ch, e);
+	for (;;) {
+		n = c->t ? table_read(c->t, &ch, e) : 0;
+		if (n != 0)
+			break;
+		/* the end of a table: a tree goes on with its next file */
+		if (!c->tree || (n = next_table(c, e)) <= 0)
+			break;
+	}
 	if (n <= 0) {
-		r->file = table_name(c->t);
+		r->file = c->t ? table_name(c->t) : c->dir ? c->dir : "";
 		return n;
 	}
 	fn = ch.file;
@@ -889,7 +985,15 @@ unsigned long long catalog_rows(const struct catalog *c)
 
 unsigned long long catalog_bytes(const struct catalog *c)
 {
-	return table_raw_bytes(c->t);
+	return c->bytes_done + (c->t ? table_raw_bytes(c->t) : 0);
+}
+
+int catalog_tree_counts(const struct catalog *c, struct tree_counts *out)
+{
+	if (!c->tree)
+		return 0;
+	tree_get_counts(c->tree, out);
+	return 1;
 }
 
 void catalog_close(struct catalog *c)
@@ -897,6 +1001,12 @@ void catalog_close(struct catalog *c)
 	if (!c)
 		return;
 	table_close(c->t);
+	tree_free(c->tree);
+	free(c->dir);
+	if (c->first_cols)
+		for (int i = 0; i <= c->nfirst; i++)
+			free(c->first_cols[i]);
+	free(c->first_cols);
 	free(c->ra);
 	free(c->dec);
 	free(c->x);

@@ -28,6 +28,7 @@
 #include "scene.h"
 #include "tempfile.h"
 #include "sky.h"
+#include "tree.h"
 #include "wfiscene/model.h"
 
 /* Room beyond an SCA edge, in pixels, within which a point source may still
@@ -127,6 +128,9 @@ struct engine {
 	int index;                      /* exposure number, 0-based */
 
 	unsigned long long rows_read, placements, culled, offdet;
+	/* catalog trees: files in them, skipped unread, what those held */
+	unsigned long long trees, tree_files, tree_skipped, tree_bytes_skipped;
+	unsigned long long tree_rows_skipped, tree_rows_uncounted;
 	unsigned long long tiles_drawn, tiles;  /* before noise, and in all */
 	unsigned long long per_model[PLUGIN_MAX];
 	double flux_requested[WFS_NSCA];        /* sum of placed sources' flux */
@@ -1564,7 +1568,14 @@ static int write_report(struct engine *g)
 				g->per_model[m]);
 			first = 0;
 		}
-	fprintf(f, "}},\n  \"flux\": [");
+	fprintf(f, "}},\n");
+	if (g->trees)
+		fprintf(f, "  \"catalog_trees\": {\"trees\": %llu, \"files\": %llu, "
+			"\"files_read\": %llu, \"files_skipped\": %llu, \"bytes_skipped\": %llu, "
+			"\"rows_skipped\": %llu, \"files_skipped_rows_unknown\": %llu},\n",
+			g->trees, g->tree_files, g->tree_files - g->tree_skipped, g->tree_skipped,
+			g->tree_bytes_skipped, g->tree_rows_skipped, g->tree_rows_uncounted);
+	fprintf(f, "  \"flux\": [");
 	for (int s = 0; s < g->nslot; s++) {
 		int sca = g->slot[s].sca;
 
@@ -1786,6 +1797,44 @@ static char *expand_name(const char *tmpl, const char *name)
 	return out;
 }
 
+/*
+ * The region a catalog tree must cover: a disc about each SCA of each
+ * exposure, of the SCA's half diagonal plus a margin for the light of
+ * sources centred outside it (--set tree-margin=ARCSEC, default 30: the
+ * largest ePSF box reaches 9.7 arcsec; galaxies reach farther).
+ */
+static int tree_region(struct engine **g, int ng, struct tree_disc **out, int *nout,
+		       struct err *e)
+{
+	const char *m = host_setting(g[0], "tree-margin");
+	double margin = 30;
+	int n = 0;
+
+	if (m) {
+		char *end;
+
+		margin = strtod(m, &end);
+		if (end == m || *end || !(margin >= 0) || margin > 648000)
+			return err_set(e, EXIT_INPUT, "--set tree-margin=%s: want arcseconds "
+				       "from 0 to 648000", m);
+	}
+	for (int i = 0; i < ng; i++)
+		n += g[i]->nslot;
+	if (!(*out = malloc((size_t)(n ? n : 1) * sizeof(**out))))
+		return err_sys(e, "tree region");
+	n = 0;
+	for (int i = 0; i < ng; i++)
+		for (int s = 0; s < g[i]->nslot; s++) {
+			const struct sky_sca *ss = &g[i]->sky.sca[g[i]->slot[s].sca - 1];
+
+			(*out)[n].ra = ss->ra;
+			(*out)[n].dec = ss->dec;
+			(*out)[n++].radius = (SKY_SCA_HALF * M_SQRT2 + margin) / 3600.0;
+		}
+	*nout = n;
+	return 0;
+}
+
 /* Read the next chunk into every exposure's engine: each builds its
  * placements while the workers draw the previous engine's, one loop at a
  * time on the shared pool. */
@@ -1793,9 +1842,14 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			const struct scene_opts *o, struct err *e)
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
-				   .chunk_rows = o->chunk };
+				   .chunk_rows = o->chunk, .settings = o->settings };
 	struct engine *pending = NULL;
+	struct tree_disc *disc = NULL;
 	int cur = 0, rc = -1;
+
+	if (tree_region(g, ng, &disc, &co.ndisc, e) < 0)
+		return -1;
+	co.disc = disc;
 
 	for (char *const *cat = catalogs; *cat; cat++) {
 		struct catalog *c = catalog_open(*cat, &co, e);
@@ -1848,12 +1902,26 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				break;
 			cur ^= 1;
 		}
+		{
+			struct tree_counts tc;
+
+			if (catalog_tree_counts(c, &tc))
+				for (int i = 0; i < ng; i++) {
+					g[i]->tree_files += tc.files;
+					g[i]->tree_skipped += tc.skipped;
+					g[i]->tree_bytes_skipped += tc.bytes_skipped;
+					g[i]->tree_rows_skipped += tc.rows_skipped;
+					g[i]->tree_rows_uncounted += tc.rows_uncounted;
+					g[i]->trees++;
+				}
+		}
 		catalog_close(c);
 		if (n < 0 || e->code != EXIT_OK)
 			break;
 	}
 	rc = 0;
 out:
+	free(disc);
 	if (pending) {
 		double ta = now();
 

@@ -38,6 +38,7 @@ static const char usage_text[] =
 "  --exptime S           exposure time in seconds (default 1)\n"
 "  --bunit UNIT          counts/s (default) or counts\n"
 "  --placed FILE         write the sources placed on each SCA (CSV)\n"
+"  --into IMAGE[[N]]     add the sources to an existing image, placed by its WCS\n"
 "  --report FILE         write a JSON report: timings, counts, flux, errors\n"
 "  --pointings FILE      several exposures (ra dec pa [name [seed]] a line);\n"
 "                        -o, --placed and --report then need a %s for the name\n"
@@ -84,7 +85,7 @@ enum {
 	OPT_BUNIT, OPT_PLACED, OPT_COMPRESS, OPT_FLUXUNIT, OPT_ZP, OPT_PSF, OPT_PSFCACHE,
 	OPT_BRIGHT, OPT_XBRIGHT, OPT_SERSIC, OPT_SERSICFLUX, OPT_PLUGINPATH, OPT_BKG,
 	OPT_NOISE, OPT_READNOISE, OPT_DARK, OPT_CRRATE, OPT_CRRES, OPT_SEED, OPT_THREADS,
-	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET, OPT_POINTINGS,
+	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET, OPT_POINTINGS, OPT_INTO,
 	OPT_SERSICTRUNC, OPT_SERSICTOL, OPT_SERSICCORE, OPT_SERSICCONV, OPT_ROWS,
 };
 
@@ -99,6 +100,7 @@ static const struct option long_options[] = {
 	{ "exptime", required_argument, NULL, OPT_EXPTIME },
 	{ "bunit", required_argument, NULL, OPT_BUNIT },
 	{ "placed", required_argument, NULL, OPT_PLACED },
+	{ "into", required_argument, NULL, OPT_INTO },
 	{ "report", required_argument, NULL, OPT_REPORT },
 	{ "set", required_argument, NULL, OPT_SET },
 	{ "pointings", required_argument, NULL, OPT_POINTINGS },
@@ -387,6 +389,9 @@ int main(int argc, char **argv)
 			if ((k = choice(c, optarg, bunits, &e)) < 0)
 				return fail(&e);
 			o.bunit_counts = k == 1;
+			break;
+		case OPT_INTO:
+			o.into = optarg;
 			break;
 		case OPT_PLACED:
 			o.placed = optarg;

@@ -21,6 +21,7 @@
 #include "fftconv.h"
 #include "fitsout.h"
 #include "instrument.h"
+#include "into.h"
 #include "noise.h"
 #include "plugin.h"
 #include "pool.h"
@@ -1960,10 +1961,21 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	struct scene_opts *opts = NULL;
 	struct engine **g = NULL;
 	struct pool *pool = NULL;
+	struct into *into = NULL;
 	struct timespec t0;
-	int n = 1, made = 0, rc = -1;
+	int n = 1, made = 0, rc = -1, boresight = o->boresight;
 
 	clock_gettime(CLOCK_MONOTONIC, &t0);
+	if (o->into) {
+		/* The image says where the SCAs look (into.h). */
+		if (o->pointings || o->row_first || !strcmp(o->output, "-") ||
+		    strstr(o->output, "%d"))
+			return err_set(e, EXIT_INPUT, "--into: one output file, without "
+				       "--pointings, --rows, '-' or '%%d'");
+		if (!(into = into_open(o->into, o->sca_mask, e)))
+			return -1;
+		into_pointing(into, &one.ra, &one.dec, &one.pa, &boresight);
+	}
 	if (o->pointings && read_pointings(o, &pt, &n, e) < 0)
 		return -1;
 	if (!(opts = calloc(n, sizeof(*opts))) || !(g = calloc(n, sizeof(*g))) ||
@@ -1977,6 +1989,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		opts[i].dec = pt[i].dec;
 		opts[i].pa = pt[i].pa;
 		opts[i].seed = pt[i].seed;
+		opts[i].boresight = boresight;
 		if (o->pointings &&
 		    (!(opts[i].output = expand_name(o->output, pt[i].name)) ||
 		     (o->placed && !(opts[i].placed = expand_name(o->placed, pt[i].name))) ||
@@ -1991,7 +2004,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 			goto out;
 		}
 		made++;
-		if (engine_init(g[i], &opts[i], pool, e) < 0)
+		if (engine_init(g[i], &opts[i], pool, e) < 0 ||
+		    (into && into_apply(into, &g[i]->sky, e) < 0))
 			goto out;
 		g[i]->index = i;
 		if ((opts[i].placed && open_placed(g[i]) < 0) ||
@@ -2005,8 +2019,11 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	for (int i = 0; i < n; i++)
 		if (finish(g[i], t0) < 0)
 			goto out;
+	if (into && into_compose(into, o->output, e) < 0)
+		goto out;
 	rc = 0;
 out:
+	into_free(into);
 	for (int i = 0; i < made; i++) {
 		close_placed(g[i], 0);
 		engine_free(g[i]);

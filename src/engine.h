@@ -14,6 +14,7 @@
  *   host.c       the services the host lends to every model (struct wfs_host)
  *   psfgrids.c   the ePSF grids the scene's models ask for
  *   render.c     worker threads drawing whole tiles
+ *   detector.c   the detector stage after rendering (detector.h)
  *   write.c      FITS header cards and the image written strip by strip
  *   report.c     the --placed list and the --report JSON
  */

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "err.h"
+#include "detector.h"
 #include "exposure.h"
 #include "scene.h"
 
@@ -173,7 +174,7 @@ int exposures_make(const struct scene_opts *o, struct exposure **out, int *n, st
 		x[i].boresight = o->boresight;
 		x[i].date = NAN;
 		x[i].sca_mask = o->sca_mask;
-		x[i].level = 0;
+		x[i].level = DETECTOR_SCENE;
 		x[i].background = o->background;
 		x[i].output = o->output;
 		x[i].placed = o->placed;

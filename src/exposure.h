@@ -26,7 +26,7 @@ struct exposure {
 	int boresight;          /* reference aperture: 1 the boresight, 0 WFI01 */
 	double date;            /* MJD of the exposure; NaN when none was given */
 	unsigned sca_mask;      /* bit s-1 for SCA s */
-	int level;              /* how far the detector is simulated (detector.h) */
+	int level;              /* enum detector_level: how far the detector is simulated */
 	double background;      /* counts/s/pixel */
 	uint64_t seed;
 	/* Output paths with a --pointings "%s" replaced by the name; owned by

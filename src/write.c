@@ -4,9 +4,9 @@
  *
  * After the last chunk is drawn, each SCA's image is written one strip of
  * tiles at a time: the strip's drawn light is summed for the report, the
- * detector stage (background, exposure time, noise) runs on its tiles in
- * parallel, the tiles are converted to float32, checked for values a float
- * cannot hold, written through fitsout.c and freed.  So an exposure never
+ * detector stage (detector.c: background, exposure time, noise) runs on
+ * its tiles in parallel, the tiles are converted to float32, checked for
+ * values a float cannot hold, written through fitsout.c and freed.  So an exposure never
  * holds a second copy of its image.
  */
 #include <math.h>
@@ -20,27 +20,8 @@
 #include "engine.h"
 #include "err.h"
 #include "fitsout.h"
-#include "noise.h"
+#include "detector.h"
 #include "pool.h"
-
-struct strip_job {
-	struct engine *g;
-	struct noise_opts *no;
-	int slot, ty;
-};
-
-static void noise_strip_tile(void *arg, int wid, size_t tx)
-{
-	struct strip_job *j = arg;
-	struct engine *g = j->g;
-	int T = g->tile, x0 = tx * T, y0 = j->ty * T;
-	int nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
-	int ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
-	double *tile = g->slot[j->slot].tile[j->ty * g->ntx + tx];
-
-	if (noise_tile(j->no, g->slot[j->slot].sca, x0, y0, nx, ny, tile, T) < 0)
-		atomic_store(&g->failed, 1);
-}
 
 static int add_card(char **cards, int *n, int *cap, const char *card)
 {
@@ -151,8 +132,8 @@ static ptrdiff_t first_nonfinite(const float *a, size_t n)
 	return -1;
 }
 
-static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_opts *no,
-		      int apply_noise, float *strip)
+static int write_slot(struct engine *g, struct fitsout *f, int s, const struct detector *d,
+		      float *strip)
 {
 	int T = g->tile;
 	char *cards;
@@ -185,14 +166,11 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, struct noise_o
 			g->tiles_drawn += row[tx] != NULL;
 		g->tiles += g->ntx;
 		t0 = engine_clock();
-		if (apply_noise) {
-			struct strip_job j = { g, no, s, ty };
-
+		if (d->active) {
 			for (int tx = 0; tx < g->ntx; tx++)
 				if (!row[tx] && !(row[tx] = tile_alloc(T)))
 					return err_sys(g->e, "tile memory");
-			pool_run(g->pool, noise_strip_tile, &j, g->ntx);
-			if (atomic_load(&g->failed))
+			if (detector_strip(d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T) < 0)
 				return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		}
 		g->t_noise += engine_clock() - t0;
@@ -241,13 +219,7 @@ int write_exposure(struct engine *g)
 {
 	const struct scene_opts *o = g->o;
 	const struct exposure *x = g->x;
-	struct noise_opts no = {
-		.stages = o->noise, .background = x->background, .exptime = o->exptime,
-		.readnoise = o->readnoise, .dark_current = o->dark_current,
-		.cosmic_rate = o->cosmic_rate, .cosmic_residual = o->cosmic_residual,
-		.seed = x->seed, .filter = o->filter, .counts = o->bunit_counts,
-	};
-	int apply_noise = o->noise || x->background != 0 || o->bunit_counts;
+	struct detector d;
 	int per_sca = strstr(x->output, "%") != NULL;
 	float *strip = malloc((size_t)g->tile * WFS_NPIX * sizeof(float));
 	struct fitsout *f = NULL;
@@ -256,6 +228,7 @@ int write_exposure(struct engine *g)
 
 	if (!strip)
 		return err_sys(g->e, "output buffer");
+	detector_init(&d, o, x);
 	if (primary_cards(g, &cards, &ncards) < 0) {
 		err_sys(g->e, "header");
 		goto fail;
@@ -269,7 +242,7 @@ int write_exposure(struct engine *g)
 			    fitsout_primary(f, cards, ncards, g->e) < 0)
 				goto fail;
 		}
-		if (write_slot(g, f, s, &no, apply_noise, strip) < 0)
+		if (write_slot(g, f, s, &d, strip) < 0)
 			goto fail;
 		if (per_sca || s == g->nslot - 1) {
 			struct fitsout *done = f;

@@ -426,6 +426,12 @@ struct tree *tree_open(const char *dir, const struct tree_opts *o,
 	}
 	if (find_scheme(t, o, e) < 0 || walk(t, dir, 0, -1, setting(o, "tree-glob"), e) < 0)
 		goto fail;
+	if (!t->n) {
+		err_set(e, EXIT_INPUT, "%s: a directory (a catalog tree) without catalog files: "
+			"none is named NAME_PIXEL.EXT or Norder=K/.../Npix=N.EXT%s", dir,
+			setting(o, "tree-glob") ? " and matches tree-glob" : "");
+		goto fail;
+	}
 	for (size_t i = 0; i < t->n; i++) {
 		flat += t->f[i].order < 0;
 		hats += t->f[i].order >= 0;

@@ -134,7 +134,8 @@ fail:
 	return -1;
 }
 
-/* tmpl with its "%s" replaced by name (a word of safe characters). */
+/* tmpl with its "%s" replaced by name (a word of safe characters); NULL for
+ * a NULL tmpl, or when out of memory. */
 static char *expand_name(const char *tmpl, const char *name)
 {
 	const char *at;
@@ -143,8 +144,7 @@ static char *expand_name(const char *tmpl, const char *name)
 
 	if (!tmpl)
 		return NULL;
-	at = strstr(tmpl, "%s");
-	if (!at)
+	if (!(at = strstr(tmpl, "%s")))
 		return strdup(tmpl);
 	n = strlen(tmpl) + strlen(name);
 	if (!(out = malloc(n + 1)))

@@ -279,6 +279,12 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			struct tree_counts tc;
 
 			if (catalog_tree_counts(c, &tc))
+				host_log(g[0], 1, "%s: catalog tree: %llu of %llu files read; %llu "
+					 "skipped unread (%llu bytes, %llu rows counted, %llu "
+					 "files uncounted)", *cat, tc.files - tc.skipped, tc.files,
+					 tc.skipped, tc.bytes_skipped, tc.rows_skipped,
+					 tc.rows_uncounted);
+			if (catalog_tree_counts(c, &tc))
 				for (int i = 0; i < ng; i++) {
 					g[i]->tree_files += tc.files;
 					g[i]->tree_skipped += tc.skipped;

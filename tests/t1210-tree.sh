@@ -160,6 +160,10 @@ test_expect_success 'it opens only the file under the pointing and gives the big
 	expect ring.rows $("$PY" -c "import hp; print(hp.ang2pix_ring(2, $RA, $DEC))") > want &&
 	test_cmp want got
 '
+test_expect_success '-v says what the tree skipped' '
+	"$WFS" $POINT -v -o /dev/null ring 2> err &&
+	test_grep "ring: catalog tree: 1 of 48 files read; 47 skipped unread" err
+'
 test_expect_success 'the rows the tree skipped were far from the SCAs' '
 	"$WFS" $POINT --report repb.json -o /dev/null ring.big.csv &&
 	"$PY" -c "

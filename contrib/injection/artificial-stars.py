@@ -84,7 +84,7 @@ def detect(data, thresh):
     sub = d - bkg.back()
     sep.set_extract_pixstack(5000000)
     sep.set_sub_object_limit(4096)
-    obj = sep.extract(sub, thresh, err=bkg.globalrms, minarea=4)
+    obj = sep.extract(sub, thresh, err=bkg.globalrms, minarea=5)
     flux, _, _ = sep.sum_circle(sub, obj["x"], obj["y"], 3.0, err=bkg.globalrms)
     return obj["x"], obj["y"], flux
 
@@ -118,7 +118,7 @@ def main():
     p.add_argument("--mag-min", type=float, default=21.0)
     p.add_argument("--mag-max", type=float, default=28.0)
     p.add_argument("--spacing", type=float, default=30.0)
-    p.add_argument("--thresh", type=float, default=3.0)
+    p.add_argument("--thresh", type=float, default=1.5)
     p.add_argument("--radius", type=float, default=1.0)
     p.add_argument("--seed", type=int, default=42)
     p.add_argument("--zeropoint", type=float,

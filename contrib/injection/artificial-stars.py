@@ -8,8 +8,8 @@
    pixels, so they do not crowd each other), magnitudes uniform in
    [--mag-min, --mag-max], added with wfiscene --into and the photon noise
    of the light added.
-3. Detection with sep (background map, threshold --thresh sigma) on the
-   image before and after; an artificial star is recovered when a new
+3. Detection with sep (background map, threshold --thresh sigma, 5 pixels)
+   on the image before and after; an artificial star is recovered when a new
    detection (none in the image before within --radius pixels) lies within
    --radius pixels of it and its flux is within 0.75 mag of the input.
 4. Completeness against magnitude: a table on stdout, the magnitude of 50 %

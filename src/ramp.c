@@ -466,12 +466,14 @@ static const double cas_power[6] = { 0, 0.4, 1, 3, 6, 10 };
 
 /* Fixsen et al. (2000) / Casertano et al. (2022): the weighting power for a
  * ramp of signal-to-noise snr. */
-static int power_index(double snr)
+static int power_index(double sig, double var)
 {
-	static const double edge[5] = { 5, 10, 20, 50, 100 };
+	/* snr = sig / sqrt(var) against the edges, squared */
+	static const double edge2[5] = { 25, 100, 400, 2500, 10000 };
+	double s2 = sig * sig;
 	int i = 0;
 
-	while (i < 5 && !(snr < edge[i]))
+	while (i < 5 && !(s2 < edge2[i] * var))
 		i++;
 	return i;
 }
@@ -504,8 +506,8 @@ static void seg_weights(const struct ramp_pattern *p, const double *var_read,
 	}
 }
 
-void ramp_fit_plan_init(struct ramp_fit_plan *fp, const struct ramp_pattern *p,
-			const struct ramp_det *d)
+int ramp_fit_plan_init(struct ramp_fit_plan *fp, const struct ramp_pattern *p,
+		       const struct ramp_det *d)
 {
 	memset(fp, 0, sizeof(*fp));
 	fp->p = *p;
@@ -518,6 +520,26 @@ void ramp_fit_plan_init(struct ramp_fit_plan *fp, const struct ramp_pattern *p,
 		for (int pi = 0; pi < 6; pi++)
 			seg_weights(p, fp->var_read, 0, p->nres, pi, fp->w[pi],
 				    &fp->vr[pi], &fp->vp[pi]);
+	/* the difference of resultants i and i + 1: its time, its read
+	 * variance and its Poisson variance per unit rate */
+	for (int i = 0; i + 1 < p->nres; i++) {
+		fp->dtbar[i] = p->tbar[i + 1] - p->tbar[i];
+		fp->vdiff[i] = fp->var_read[i] + fp->var_read[i + 1];
+		fp->cdiff[i] = p->tau[i + 1] + p->tau[i] - 2 * p->tbar[i];
+	}
+	fp->jump2 = d->jump_threshold * d->jump_threshold;
+	/* resultants are 16-bit: their linearised charge is a table */
+	if (!(fp->nlinv = malloc(65536 * sizeof(double))))
+		return -1;
+	for (int v = 0; v < 65536; v++)
+		fp->nlinv[v] = ramp_nl_inverse(d, v * d->gain);
+	return 0;
+}
+
+void ramp_fit_plan_free(struct ramp_fit_plan *fp)
+{
+	free(fp->nlinv);
+	fp->nlinv = NULL;
 }
 
 struct seg {
@@ -529,13 +551,13 @@ static void fit_seg(const struct ramp_fit_plan *fp, const double *s, struct seg 
 {
 	const struct ramp_pattern *p = &fp->p;
 	int a = sg->a, b = sg->b, pi;
-	double span = p->tbar[b - 1] - p->tbar[a], sig, snr, f0, Wl[RAMP_MAX_RES];
+	double sig = s[b - 1] - s[a], Wl[RAMP_MAX_RES];
 	const double *W;
 
-	f0 = (s[b - 1] - s[a]) / span;
-	sig = (f0 > 0 ? f0 : 0) * span;
-	snr = sig / sqrt(sig + fp->var_read[a] + fp->var_read[b - 1]);
-	pi = power_index(snr);
+	/* the signal-to-noise of the piece: its rise over its noise */
+	if (sig < 0)
+		sig = 0;
+	pi = power_index(sig, sig + fp->var_read[a] + fp->var_read[b - 1]);
 	if (a == 0 && b == fp->nres) {
 		W = fp->w[pi];
 		sg->vr = fp->vr[pi];
@@ -556,6 +578,11 @@ static double combine(const struct seg *sg, int nseg, double *vr, double *vp)
 {
 	double f = 0;
 
+	if (nseg == 1) {
+		*vr = sg[0].vr;
+		*vp = sg[0].vp * (sg[0].f > 0 ? sg[0].f : 0);
+		return sg[0].f;
+	}
 	for (int pass = 0; pass < 2; pass++) {
 		double fr = pass && f > 0 ? f : 0, sw = 0, sf = 0, svr = 0, svp = 0;
 
@@ -616,7 +643,7 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 
 		if (v >= sat_dn && nuse == n)
 			nuse = i;
-		s[i] = ramp_nl_inverse(d, v * d->gain);
+		s[i] = fp->nlinv[dn[(size_t)i * stride]];
 	}
 	if (nuse < n) {
 		int i = nuse - 1;
@@ -667,20 +694,25 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 			break;
 		if (f < 0)
 			f = 0;
+		/* z^2 = r^2 / var > threshold^2 for a rise r > 0, tested
+		 * without a root or a division, which most pixels never
+		 * need */
 		for (int j = 0; j < nseg; j++)
 			for (int i = sg[j].a; i < sg[j].b - 1; i++) {
-				double dtb = p->tbar[i + 1] - p->tbar[i];
-				double var = fp->var_read[i] + fp->var_read[i + 1] +
-					     f * (p->tau[i + 1] + p->tau[i] - 2 * p->tbar[i]);
-				double z = (s[i + 1] - s[i] - f * dtb) / sqrt(var);
+				double r = s[i + 1] - s[i] - f * fp->dtbar[i];
+				double var = fp->vdiff[i] + f * fp->cdiff[i];
 
-				if (z > best) {
-					best = z;
-					bi = i;
-					bj = j;
+				if (r > 0 && r * r > fp->jump2 * var) {
+					double z = r / sqrt(var);
+
+					if (z > best) {
+						best = z;
+						bi = i;
+						bj = j;
+					}
 				}
 			}
-		if (bi < 0 || !(best > d->jump_threshold))
+		if (bi < 0)
 			break;
 		/* split piece bj after resultant bi */
 		memmove(&sg[bj + 2], &sg[bj + 1], (size_t)(nseg - bj - 1) * sizeof(*sg));

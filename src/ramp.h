@@ -115,10 +115,15 @@ struct ramp_fit_plan {
 	double var_read[RAMP_MAX_RES];  /* e^2 per resultant */
 	int nres;
 	double w[6][RAMP_MAX_RES], vr[6], vp[6];
+	double *nlinv;          /* true charge of each DN value, 65536 */
+	double jump2;           /* jump_threshold^2 */
+	double dtbar[RAMP_MAX_RES], vdiff[RAMP_MAX_RES], cdiff[RAMP_MAX_RES];
 };
 
-void ramp_fit_plan_init(struct ramp_fit_plan *fp, const struct ramp_pattern *p,
-			const struct ramp_det *d);
+/* 0, or -1 when out of memory.  Free with ramp_fit_plan_free(). */
+int ramp_fit_plan_init(struct ramp_fit_plan *fp, const struct ramp_pattern *p,
+		       const struct ramp_det *d);
+void ramp_fit_plan_free(struct ramp_fit_plan *fp);
 
 /* The level-2 result of a pixel. */
 struct ramp_fit {

@@ -32,7 +32,8 @@ static struct result run(const struct ramp_pattern *p, const struct ramp_det *d,
 	double sum = 0, sum2 = 0, var = 0;
 	long used = 0;
 
-	ramp_fit_plan_init(&fp, p, d);
+	if (ramp_fit_plan_init(&fp, p, d) < 0)
+		exit(1);
 	for (int i = 0; i < ROW; i++)
 		r[i] = rate;
 	for (long c = 0; c < npix; c += ROW) {
@@ -69,6 +70,7 @@ static struct result run(const struct ramp_pattern *p, const struct ramp_det *d,
 	free(r);
 	free(scr);
 	free(dn);
+	ramp_fit_plan_free(&fp);
 	return res;
 }
 
@@ -266,6 +268,7 @@ int main(void)
 		   (double)clean_flag / clean);
 		ok(fabs(sum / hit / rate - 1) < 0.01, "the rate of hit pixels is unbiased (%+.3f%%)",
 		   100 * (sum / hit / rate - 1));
+		ramp_fit_plan_free(&fp);
 		free(a);
 		free(b);
 		free(scr);

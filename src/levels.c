@@ -254,6 +254,8 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 		    !(s.rate[w] = calloc(WFS_NPIX, sizeof(double))) ||
 		    !(s.dnrow[w] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))))
 			goto nomem;
+		else
+			ramp_scratch_init(s.scr[w]);
 	if (L->level == LEVEL_1) {
 		if (!(s.l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
 			goto nomem;

@@ -248,6 +248,94 @@ double ramp_nl_inverse(const struct ramp_det *d, double m)
 
 /* ---- level 1 ---- */
 
+/*
+ * Poisson counts of a row, one Philox call per pixel (draw 0 of its cell).
+ * Means below POIS_INV use inversion, the smallest k with u < F(k), which
+ * depends on u and the mean alone; the distribution function is tabulated
+ * once a mean repeats (a flat sky: one table per group, kept across rows in
+ * the caller's scratch) and searched by bisection, or else built on the way
+ * (Devroye's sequential search).  Larger means go to rng_poisson (PTRS) on
+ * the same cell.  So a count never depends on the pixels beside it.
+ */
+#define POIS_INV 32.0
+#define POIS_TAB 128            /* F(k) for k < 128: 1 - F < 1e-30 at 32 */
+
+struct pois_tab {
+	double mu;              /* the mean tabulated, or -1 */
+	int n;
+	double cdf[POIS_TAB];
+};
+
+static double pois_search(double mu, double u)
+{
+	double pk = exp(-mu), f = pk;
+	int k = 0;
+
+	while (u >= f && k < 400) {
+		k++;
+		pk *= mu / k;
+		f += pk;
+	}
+	return k;
+}
+
+static void pois_tabulate(struct pois_tab *t, double mu)
+{
+	double pk = exp(-mu), f = pk;
+
+	t->mu = mu;
+	t->cdf[0] = f;
+	for (t->n = 1; t->n < POIS_TAB; t->n++) {
+		pk *= mu / t->n;
+		f += pk;
+		t->cdf[t->n] = f;
+	}
+}
+
+static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
+		     double *out, struct pois_tab *t)
+{
+	uint32_t w[256][4];
+	double prev = -1;
+
+	for (int i0 = 0; i0 < n; i0 += 256) {
+		int m = n - i0 < 256 ? n - i0 : 256;
+
+		rng_bits_n(g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
+		for (int j = 0; j < m; j++) {
+			int i = i0 + j;
+			double v = mu[i];
+
+			if (!(v > 0)) {
+				out[i] = 0;
+			} else if (v < POIS_INV) {
+				double u = rng_u01(w[j][0], w[j][1]);
+
+				if (v != t->mu && v == prev)
+					pois_tabulate(t, v);
+				if (v == t->mu && u < t->cdf[POIS_TAB - 1]) {
+					int k = 0;
+
+					/* the count of F(k) <= u, i.e. the smallest
+					 * k with u < F(k), by bisection without
+					 * branches to mispredict */
+					for (int step = POIS_TAB / 2; step; step >>= 1)
+						k += (t->cdf[k + step - 1] <= u) * step;
+					out[i] = k;
+				} else {
+					out[i] = pois_search(v, u);
+				}
+			} else {
+				struct rng_cell c;
+
+				rng_cell_preload(&c, g, cell0 + (uint32_t)i, w[j]);
+				out[i] = rng_poisson(v, &c);
+			}
+			prev = v;
+		}
+	}
+}
+
 struct cr_hit {
 	int pix, read;
 	double e;
@@ -304,12 +392,25 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 	return nh;
 }
 
+/* The tables at the start of the scratch, in doubles. */
+#define RAMP_TABS ((RAMP_MAX_RES + 1) * 132)
+_Static_assert(sizeof(struct pois_tab) <= 132 * sizeof(double), "scratch tables");
+
+void ramp_scratch_init(double *scratch)
+{
+	struct pois_tab *t = (struct pois_tab *)scratch;
+
+	for (int i = 0; i <= RAMP_MAX_RES; i++)
+		t[i].mu = -1;
+}
+
 void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 		     const struct ramp_key *k, uint32_t cell0, int n,
 		     const double *rate, int light, uint16_t *out, size_t plane,
 		     double *scratch)
 {
-	double *r = scratch, *S = r + n, *P = S + n, *mu = P + n, *D = mu + n;
+	struct pois_tab *tabs = (struct pois_tab *)scratch;
+	double *r = scratch + RAMP_TABS, *S = r + n, *P = S + n, *mu = P + n, *D = mu + n;
 	double *zs = D + n, *zr = zs + n;
 	double dt = p->read_time, exact_max = k->split_exact_max > 0 ? k->split_exact_max : 4;
 	double inv_g = 1 / d->gain, dnmax = 65535;
@@ -340,7 +441,7 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 			for (int i = 0; i < n; i++)
 				mu[i] = r[i] * gap * dt;
 			rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
-			rng_poisson_fill(&g, cell0, (size_t)n, mu, mu);
+			pois_row(&g, cell0, n, mu, mu, &tabs[RAMP_MAX_RES]);
 			for (int i = 0; i < n; i++)
 				S[i] += mu[i];
 		}
@@ -352,7 +453,7 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 				any |= (mu[i] = r[i] * N * dt) > 0;
 			rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
 			if (any)
-				rng_poisson_fill(&g, cell0, (size_t)n, mu, D);
+				pois_row(&g, cell0, n, mu, D, &tabs[gi]);
 			else
 				memset(D, 0, (size_t)n * sizeof(*D));
 		} else {

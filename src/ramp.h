@@ -101,7 +101,10 @@ struct ramp_key {
  * pixels: pedestal, reset and read noise only.  Resultant r of pixel i goes
  * to out[r * plane + i].  scratch: RAMP_SCRATCH(n) doubles.  Thread-safe.
  */
-#define RAMP_SCRATCH(n) ((size_t)(n) * 8 + 64)
+#define RAMP_SCRATCH(n) ((size_t)(n) * 7 + (RAMP_MAX_RES + 1) * 132)
+/* Before its first use, scratch must be set up by ramp_scratch_init() (it
+ * keeps tables across calls; they change the speed, never the numbers). */
+void ramp_scratch_init(double *scratch);
 void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 		     const struct ramp_key *k, uint32_t cell0, int n,
 		     const double *rate, int light, uint16_t *out, size_t plane,

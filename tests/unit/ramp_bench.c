@@ -52,6 +52,7 @@ int main(void)
 		return 1;
 	rate = malloc(N * sizeof(double));
 	scr = malloc(RAMP_SCRATCH(N) * sizeof(double));
+	ramp_scratch_init(scr);
 	dn = malloc((size_t)p.nres * N * sizeof(uint16_t));
 	tile = malloc((size_t)T * T * sizeof(double));
 

@@ -28,6 +28,8 @@ static struct result run(const struct ramp_pattern *p, const struct ramp_det *d,
 	double *r = malloc(ROW * sizeof(double));
 	double *scr = malloc(RAMP_SCRATCH(ROW) * sizeof(double));
 	uint16_t *dn = malloc((size_t)p->nres * ROW * sizeof(uint16_t));
+
+	ramp_scratch_init(scr);
 	struct result res = { 0 };
 	double sum = 0, sum2 = 0, var = 0;
 	long used = 0;
@@ -146,6 +148,7 @@ int main(void)
 		q.pedestal = 0;
 		q.saturation = 65535;
 		ramp_det_finish(&q);
+		ramp_scratch_init(scr);
 		for (int i = 0; i < ROW; i++)
 			r[i] = rate;
 		for (long c = 0; c < NP; c += ROW) {
@@ -230,6 +233,7 @@ int main(void)
 		long hit = 0, hit_flag = 0, clean = 0, clean_flag = 0;
 		double rate = 10, sum = 0;
 
+		ramp_scratch_init(scr);
 		c.cosmic_rate = 0.3 / (2 * c.pixel_area * p.exptime);   /* 0.3 hits/pixel */
 		ramp_fit_plan_init(&fp, &p, &c);
 		for (int i = 0; i < ROW; i++)
@@ -283,6 +287,7 @@ int main(void)
 		uint16_t *w = malloc((size_t)p.nres * ROW * 2), *s = malloc((size_t)p.nres * ROW * 2);
 		int same = 1;
 
+		ramp_scratch_init(scr);
 		for (int i = 0; i < ROW; i++)
 			r[i] = i * 3.7;
 		ramp_level1_row(&p, &d, &k, 8192, ROW, r, 1, w, ROW, scr);

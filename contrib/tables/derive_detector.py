@@ -73,7 +73,7 @@ def ma_tables(m):
         o.write("# that each resultant is a run of consecutive reads, that the reads ascend\n")
         o.write("# and that exposure = last read x %.5f s.  Read k ends k read times after\n" % READ_TIME)
         o.write("# the reset.  Tables 109 and 110 are test tables (109 skips reads).\n")
-        o.write("# ma_table\tn_resultants\tlast_read\texposure_s\tresultants (first-last read of each, ';' between)\n")
+        o.write("ma_table\tn_resultants\tlast_read\texposure_s\tresultants (first-last read of each, ';' between)\n")
         for r in rows:
             o.write("%d\t%d\t%d\t%.3f\t%s\n" % r)
 
@@ -115,7 +115,7 @@ def detector(m):
         o.write("#   SCU n of those tables is taken as SCA WFInn.\n")
         o.write("# Constants: their source in the last column.  ipc rows: GalSim's roman\n")
         o.write("#   ipc_kernel normalised to sum 1 (sum before %.9f).\n" % s)
-        o.write("# kind\tkey\tvalue\tunit\tsource\n")
+        o.write("kind\tkey\tvalue\tunit\tsource\n")
         for k, v, u, src in consts:
             o.write("const\t%s\t%.10g\t%s\t%s\n" % (k, v, u, src))
         for dy in range(3):

@@ -412,7 +412,9 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 	struct pois_tab *tabs = (struct pois_tab *)scratch;
 	double *r = scratch + RAMP_TABS, *S = r + n, *P = S + n, *mu = P + n, *D = mu + n;
 	double *zs = D + n, *zr = zs + n;
-	double dt = p->read_time, exact_max = k->split_exact_max > 0 ? k->split_exact_max : 4;
+	/* 0: the default 4; below 0: never exact (the normal for every split) */
+	double dt = p->read_time, exact_max = k->split_exact_max > 0 ? k->split_exact_max :
+					      k->split_exact_max < 0 ? 0 : 4;
 	double inv_g = 1 / d->gain, dnmax = 65535;
 	struct cr_hit hits[CR_MAX];
 	int nh = 0, prev = 0;

@@ -264,7 +264,30 @@ static int write_slot_level(struct engine *g, struct fitsout *f, int s, const st
 	char *cards;
 	int ncards;
 
-	if (ramp_det_get(sca, &det, g->e) < 0 || image_cards(g, s, &cards, &ncards) < 0)
+	if (ramp_det_get(sca, &det, g->e) < 0)
+		return -1;
+	/* the knobs of the approximations (wfiscene(1), DETECTOR LEVELS) */
+	{
+		static const char *const keys[2] = { "ramp-split-exact", "ramp-jump-threshold" };
+
+		for (int k = 0; k < 2; k++) {
+			const char *v = host_setting(g, keys[k]);
+			char *end;
+			double val;
+
+			if (!v)
+				continue;
+			val = strtod(v, &end);
+			if (end == v || *end || !isfinite(val) || val < (k ? 0.5 : 0) || val > 1e9)
+				return err_set(g->e, EXIT_INPUT, "--set %s=%s: expected a number "
+					       "from %g to 1e9", keys[k], v, k ? 0.5 : 0.0);
+			if (k)
+				det.jump_threshold = val;
+			else
+				L.key.split_exact_max = val > 0 ? val : -1;
+		}
+	}
+	if (image_cards(g, s, &cards, &ncards) < 0)
 		return -1;
 	L.cards = cards;
 	L.ncards = ncards;

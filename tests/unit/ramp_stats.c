@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "tap.h"
 #include "err.h"
@@ -279,6 +280,27 @@ int main(void)
 		free(r);
 		free(d0);
 		free(d1);
+	}
+
+	/* the split of a group's arrivals among its reads: the normal above 4
+	 * arrivals against the exact placement of every arrival (--set
+	 * ramp-split-exact=1e9): the fitted rates agree in mean and scatter */
+	{
+		struct ramp_key ex = k;
+		struct result a, b;
+		clock_t t0, t1, t2;
+
+		ex.split_exact_max = 1e9;
+		t0 = clock();
+		a = run(&p, &d, &k, 5, 400000, NULL);
+		t1 = clock();
+		b = run(&p, &d, &ex, 5, 400000, NULL);
+		t2 = clock();
+		diag("split at 5 e-/s: normal above 4: mean %.5f sd %.5f (%.2f s); exact: mean %.5f sd %.5f (%.2f s)",
+		     a.mean, a.sd, (double)(t1 - t0) / CLOCKS_PER_SEC, b.mean, b.sd,
+		     (double)(t2 - t1) / CLOCKS_PER_SEC);
+		ok(fabs(a.mean - b.mean) < 4 * a.sd / sqrt(200000.0) && fabs(a.sd / b.sd - 1) < 0.01,
+		   "the normal split gives the exact split's rate and scatter (sd ratio %.4f)", a.sd / b.sd);
 	}
 
 	/* same bytes for any split of a row */

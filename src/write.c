@@ -69,7 +69,13 @@ static int primary_cards(struct engine *g, char **cards, int *n)
 	     "what RA_TARG/DEC_TARG point at");
 	CARD(fits_card_int, "SEED", (long long)x->seed, "random seed");
 	CARD(fits_card_str, "PSFSRC", o->psf, "PSF source");
-	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
+	CARD(fits_card_str, "BUNIT", o->level == DETECTOR_L1 ? "DN" : o->bunit_counts ?
+	     "counts" : "counts/s", NULL);
+	if (o->level) {
+		CARD(fits_card_str, "LEVEL", o->level == DETECTOR_L1 ? "1" : "2",
+		     "detector level (--level)");
+		CARD(fits_card_int, "MATABLE", o->ma_table, "MultiAccum table (--ma-table)");
+	}
 	CARD(fits_card_str, "BKGRND", o->background_arg ? o->background_arg : "none",
 	     "background setting");
 	CARD(fits_card_dbl, "BKGRATE", x->background, "background (counts/s/pixel)");

@@ -30,9 +30,15 @@
 #include "sky.h"
 #include "wfiscene/model.h"
 
-/* Room beyond an SCA edge, in pixels, within which a point source may still
- * throw light onto it: the 176-pixel extra-bright box's half-width. */
+/* Room beyond an SCA edge, in pixels, within which a point source fainter
+ * than POINT_REACH_MAG may still throw light onto it: the 176-pixel
+ * extra-bright box's half-width (psf-extent=noise draws such a star out to
+ * well under 88 pixels for any noise of 0.01 counts/s or more).  A brighter
+ * one's reach is its footprint's. */
 #define POINT_REACH 88.0
+#define POINT_REACH_MAG 20.0
+/* The halo's default radius (psf-halo-radius), pixels */
+#define HALO_RADIUS 256
 #define MAX_COLUMNS PLUGIN_COLUMNS_MAX
 
 /* One requested SCA: its image as a grid of tiles, allocated on first touch. */
@@ -92,7 +98,7 @@ struct engine {
 	struct slot slot[WFS_NSCA];
 	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
 
-	struct psf_grid *grid[WFS_NSCA][3];
+	struct psf_grid *grid[WFS_NSCA][4];     /* [3]: the halo (psf.h) */
 	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
 	struct psf_build_opts pbo;
 
@@ -104,7 +110,7 @@ struct engine {
 	int nworker;
 
 	char filter_name[16], exptime_str[32], seed_str[32];
-	char bkg_str[32], readnoise_str[32], noise_str[64];
+	char bkg_str[32], readnoise_str[32], noise_str[64], sigma_str[32];
 	const char *sersic_flux_now;    /* "total" or "ie" for the catalog being read */
 
 	struct type_cache types[PLUGIN_MAX];
@@ -217,6 +223,8 @@ static const char *host_setting(void *ctx, const char *key)
 		return g->readnoise_str;
 	if (!strcmp(key, "noise"))
 		return g->noise_str;
+	if (!strcmp(key, "pixel-sigma"))
+		return g->sigma_str;
 	/* --set key=value: the last one given wins */
 	const char *hit = NULL;
 	size_t n = strlen(key);
@@ -229,7 +237,7 @@ static const char *host_setting(void *ctx, const char *key)
 
 static const struct psf_grid *grid_for(const struct engine *g, int sca, int cls)
 {
-	if (g->user_grid)
+	if (g->user_grid && cls < 3)
 		return g->user_grid;
 	return g->grid[sca - 1][cls];
 }
@@ -245,7 +253,7 @@ static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 	struct engine *g = ctx;
 	const struct psf_grid *grid;
 
-	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2)
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 3)
 		return host_error(ctx, "no ePSF for SCA %d class %d", sca, cls);
 	if (!(grid = grid_for(g, sca, cls))) {
 		if (!pthread_equal(pthread_self(), g->main_thread))
@@ -311,6 +319,31 @@ static int need_grid(struct engine *g, int sca, int cls)
 
 	if (grid_for(g, sca, cls))
 		return 0;
+	if (cls == 3) {
+		/* the halo: always the built-in optics' (a --psf file's core
+		 * is scaled to join it) */
+		const char *rs = host_setting(g, "psf-halo-radius");
+		const char *ns = host_setting(g, "psf-halo-nodes");
+		char *end = NULL;
+		long rad = rs ? strtol(rs, &end, 10) : HALO_RADIUS, nodes = 1;
+
+		if (rs && (*end || end == rs || rad < 32 || rad > PSF_HALO_MAX))
+			return err_set(g->e, EXIT_INPUT, "psf-halo-radius: expected 32 to %d "
+				       "pixels, not '%s'", PSF_HALO_MAX, rs);
+		if (ns && ((nodes = strtol(ns, &end, 10)) < 1 || nodes > 5 || *end))
+			return err_set(g->e, EXIT_INPUT, "psf-halo-nodes: expected 1 to 5, "
+				       "not '%s'", ns);
+		if (strcmp(o->psf, "builtin"))
+			host_log(g, 1, "%s: the far wing beyond its box is the built-in "
+				 "optics' (%s SCA %d), scaled to join", o->psf, g->filter_name, sca);
+		host_log(g, 1, "PSF halo for %s SCA %d, +-%ld pixels: building or loading",
+			 g->filter_name, sca, rad);
+		if (!(grid = psf_builtin_halo(o->filter, sca, (int)rad, (int)nodes, &g->pbo,
+					      g->e)))
+			return -1;
+		g->grid[sca - 1][3] = grid;
+		return 0;
+	}
 	if (strcmp(o->psf, "builtin")) {
 		/* A user file: per SCA when the name holds %d, and then its one
 		 * size serves every brightness class. */
@@ -582,7 +615,9 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 	struct wfs_box box;
 	double ext;
 
-	if (!strcmp(g->plugins.p[m].name, "point")) {
+	if (!strcmp(g->plugins.p[m].name, "point") &&
+	    zeropoint(g, g->slot[0].sca) - 2.5 * log10(counts_on(g, r, i, g->slot[0].sca)) >
+	    POINT_REACH_MAG) {
 		*reach = POINT_REACH * WFS_PIXSCALE;
 		return 0;
 	}
@@ -1222,6 +1257,26 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct pool
 		 o->noise & NOISE_DARK ? "dark," : "", o->noise & NOISE_FLAT ? "flat," : "",
 		 o->noise & NOISE_COSMIC ? "cosmic," : "");
 	g->sersic_flux_now = o->sersic_flux ? o->sersic_flux : "total";
+	{
+		/* The noise of one pixel in counts/s, for models that draw
+		 * down to a fraction of it (point's psf-extent): the noise
+		 * stages' sky, read noise and dark current over the exposure;
+		 * with none of them (or none that adds anything), the nominal
+		 * ones (the scene's or the filter's average sky, the default
+		 * read noise), so a noiseless image is the mean of a noisy one. */
+		double t = o->exptime, var = 0;
+		double sky = o->background > 0 ? o->background : filter_get(o->filter)->bkg_avg;
+
+		if (o->noise & NOISE_POISSON)
+			var += o->background * t;
+		if (o->noise & NOISE_READ)
+			var += o->readnoise * o->readnoise;
+		if (o->noise & NOISE_DARK)
+			var += o->dark_current * t;
+		if (!(var > 0))
+			var = sky * t + NOISE_READNOISE * NOISE_READNOISE;
+		snprintf(g->sigma_str, sizeof(g->sigma_str), "%.17g", sqrt(var) / t);
+	}
 	if (sky_init(&g->sky, o->ra, o->dec, o->pa, o->boresight, o->sca_mask, e) < 0)
 		return -1;
 	g->tile = o->tile;
@@ -1290,7 +1345,7 @@ static void engine_free(struct engine *g)
 		free(g->slot[s].tile);
 	}
 	for (int s = 0; s < WFS_NSCA; s++)
-		for (int c = 0; c < 3; c++)
+		for (int c = 0; c < 4; c++)
 			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
 				psf_grid_free(g->grid[s][c]);
 	psf_grid_free(g->user_grid);

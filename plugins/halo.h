@@ -242,7 +242,9 @@ static inline double halo_envelope(const struct halo *h, double r)
 	return h->amax * pow(r, -h->alpha);
 }
 
-/* The smallest whole radius beyond which the model stays below level. */
+/* The smallest whole radius beyond which the model stays below level: the
+ * envelope's, one pixel on (the bilinear read of a pixel at distance d
+ * takes samples from d - 1/sqrt(2) on). */
 static inline double halo_radius(const struct halo *h, double level, double cap)
 {
 	int lo = 0;
@@ -256,6 +258,8 @@ static inline double halo_radius(const struct halo *h, double level, double cap)
 	}
 	while (lo < h->nenv && h->env[lo] >= level)
 		lo++;
+	/* a pixel at distance d reads samples up to half a pixel nearer */
+	lo++;
 	return lo < cap ? lo : cap;
 }
 

@@ -485,6 +485,8 @@ struct point {
 	int extent;             /* psf-extent: EXTENT_NOISE or EXTENT_STIPS */
 	double extent_noise;    /* psf-extent-noise: fraction of sigma */
 	double extent_max;      /* psf-extent-max: largest radius, pixels */
+	double extent_min;      /* psf-extent-min: smallest box half-width, pixels
+				 * (negative: the class's box) */
 	double halo_power;      /* psf-halo-power: the tail's power */
 	double halo_taper;      /* psf-halo-taper: pixels */
 	struct halo halo[19];   /* per SCA, set up in prepare() */
@@ -759,6 +761,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	p->extent = EXTENT_NOISE;
 	p->extent_noise = 0.1;
 	p->extent_max = 8192;
+	p->extent_min = -1;
 	p->halo_power = 3;
 	p->halo_taper = 16;
 	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
@@ -772,6 +775,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	    setting_choice(host, "psf-extent", extent, 2, &p->extent) < 0 ||
 	    setting_number(host, "psf-extent-noise", 1e-6, 0, &p->extent_noise) < 0 ||
 	    setting_number(host, "psf-extent-max", 1, 0, &p->extent_max) < 0 ||
+	    setting_number(host, "psf-extent-min", 1, 0, &p->extent_min) < 0 ||
 	    setting_number(host, "psf-halo-power", 2.5, 0, &p->halo_power) < 0 ||
 	    setting_number(host, "psf-halo-taper", 0, 0, &p->halo_taper) < 0)
 		goto fail;
@@ -1330,12 +1334,19 @@ static int point_prepare(void *state, struct wfs_source *src)
 		r = 1;
 	fs = *src;
 	fs.flux = c * fl;
-	if (fine_prepare(p, &fs, r) < 0)
+	/* the box: the class's unless psf-extent-min lets it shrink toward r */
+	if (fine_prepare(p, &fs, p->extent_min > 0 ? fmax(r, p->extent_min) : 0) < 0)
 		return -1;
 	memcpy(src->aux, fs.aux, sizeof(src->aux));
 	half = fs.aux[0];
-	if (r <= half)
+	/* no halo when the box holds everything above the level; the core's
+	 * own values at the box's edge may stand a few per cent above the
+	 * halo's (it is sampled twice as finely), so the halo takes over
+	 * once the envelope there reaches half the level */
+	if (r <= half && fl * halo_envelope(h, half - 1) < 0.5 * p->extent_noise * p->sigma)
 		r = 0;
+	else if (r <= half)
+		r = half + 1;
 	src->aux[0] = half + HALO_PACK * r;
 	p->requested += fabs(fl);
 	p->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, half - 0.5));

@@ -28,6 +28,8 @@ static const char usage[] =
 "  -k, --kind K          epsf (default: pixel and IPC kernels applied)\n"
 "                        or psf (the optical PSF)\n"
 "      --size N          samples per side: 177 (default), 353 or 705\n"
+"      --halo R          the halo instead: 2 samples per pixel over +-R\n"
+"                        pixels (32 to 1024), one node unless --grid\n"
 "      --grid N          nodes per axis (default 3)\n"
 "      --nwave N         wavelengths (default: measured per filter)\n"
 "      --pupil-n N       pupil samples across (default 256)\n"
@@ -55,7 +57,7 @@ static void sca_name(char *buf, size_t n, const char *file, int sca)
 int psf_main(int argc, char **argv)
 {
 	enum { O_SIZE = 256, O_GRID, O_NWAVE, O_PUPIL, O_CACHE, O_NOCACHE,
-	       O_JITTER };
+	       O_JITTER, O_HALO };
 	static const struct option opts[] = {
 		{ "filter", required_argument, NULL, 'f' },
 		{ "sca", required_argument, NULL, 's' },
@@ -68,6 +70,7 @@ int psf_main(int argc, char **argv)
 		{ "cache-dir", required_argument, NULL, O_CACHE },
 		{ "no-cache", no_argument, NULL, O_NOCACHE },
 		{ "jitter", required_argument, NULL, O_JITTER },
+		{ "halo", required_argument, NULL, O_HALO },
 		{ "output", required_argument, NULL, 'o' },
 		{ "verbose", no_argument, NULL, 'v' },
 		{ "help", no_argument, NULL, 'h' },
@@ -76,7 +79,7 @@ int psf_main(int argc, char **argv)
 	struct psf_build_opts bo = { 0 };
 	struct err e = { 0 };
 	const char *filter_s = NULL, *sca_s = NULL, *out = NULL;
-	int kind = PSF_EPSF, cls = 0, c;
+	int kind = PSF_EPSF, cls = 0, c, halo = 0;
 	double jit = -1;
 	unsigned mask = 0;
 	char *end;
@@ -87,7 +90,7 @@ int psf_main(int argc, char **argv)
 		long v = 0;
 
 		if (optarg && (c == 'j' || c == O_SIZE || c == O_GRID ||
-			       c == O_NWAVE || c == O_PUPIL)) {
+			       c == O_NWAVE || c == O_PUPIL || c == O_HALO)) {
 			v = strtol(optarg, &end, 10);
 			if (*end || end == optarg || v < 1 || v > 100000) {
 				fprintf(stderr, "wfiscene psf: %s: not a positive "
@@ -102,6 +105,14 @@ int psf_main(int argc, char **argv)
 		case 'v': bo.verbose = 1; break;
 		case 'j': bo.threads = (int)v; break;
 		case O_GRID: bo.grid = (int)v; break;
+		case O_HALO:
+			if (v < 32 || v > PSF_HALO_MAX) {
+				fprintf(stderr, "wfiscene psf: --halo: want 32 to %d pixels, "
+					"not '%s'\n", PSF_HALO_MAX, optarg);
+				return EXIT_INPUT;
+			}
+			halo = (int)v;
+			break;
 		case O_NWAVE: bo.nwave = (int)v; break;
 		case O_PUPIL: bo.pupil_n = (int)v; break;
 		case O_CACHE: bo.cache_dir = optarg; break;
@@ -187,7 +198,14 @@ int psf_main(int argc, char **argv)
 			sca_name(path, sizeof(path), out, s);
 		else
 			snprintf(path, sizeof(path), "%s", out);
-		if (jit >= 0 && jit != OPTICS_JITTER)
+		if (halo && (kind != PSF_EPSF || (jit >= 0 && jit != OPTICS_JITTER))) {
+			fprintf(stderr, "wfiscene psf: --halo is the built-in ePSF: no "
+				"--kind psf or --jitter with it\n");
+			return EXIT_INPUT;
+		}
+		if (halo)
+			g = psf_builtin_halo(filter, s, halo, bo.grid, &bo, &e);
+		else if (jit >= 0 && jit != OPTICS_JITTER)
 			g = psf_build_uncached(filter, s, cls, kind, &bo, jit, &e);
 		else
 			g = psf_builtin(filter, s, cls, kind, &bo, &e);

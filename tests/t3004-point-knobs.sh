@@ -71,7 +71,8 @@ elif what == "faint-box":     # the faint star's box shrinks, the bright one's n
     assert fa <= (2 * h) ** 2 and fb == 44 * 44, (fa, fb)
     assert np.array_equal(a[900:1100, 900:1100], b[900:1100, 900:1100])
 EOT
-run() { out=$1; shift; "$WFS" --filter F129 --psf epsf.fits -o "$out" "$@" stars.csv; }
+# the box evaluation itself: STIPS's boxes (psf-extent=stips), no halo
+run() { out=$1; shift; "$WFS" --filter F129 --psf epsf.fits --set psf-extent=stips -o "$out" "$@" stars.csv; }
 
 test_expect_success 'a synthetic ePSF grid; the defaults spelled out change nothing' '
 	"$PY" "$TOP/tests/flux_check.py" grid epsf.fits &&
@@ -120,12 +121,12 @@ test_expect_success 'psf-blend=cell: one blended ePSF per cell, close to the def
 '
 test_expect_success 'the plain loops draw the same bits as the vector ones' '
 	"$BUILD/contrib/starfield" -n 3000 -x -s 7 > field.csv &&
-	"$WFS" --filter F129 --psf epsf.fits --flux-unit abmag -o simd.fits field.csv &&
-	WFISCENE_NO_SIMD=1 "$WFS" --filter F129 --psf epsf.fits --flux-unit abmag -o plain.fits field.csv &&
+	"$WFS" --filter F129 --psf epsf.fits --set psf-extent=stips --flux-unit abmag -o simd.fits field.csv &&
+	WFISCENE_NO_SIMD=1 "$WFS" --filter F129 --psf epsf.fits --set psf-extent=stips --flux-unit abmag -o plain.fits field.csv &&
 	test_cmp simd.fits plain.fits &&
-	"$WFS" --filter F129 --psf epsf.fits --flux-unit abmag --set psf-interp=bilinear \
+	"$WFS" --filter F129 --psf epsf.fits --set psf-extent=stips --flux-unit abmag --set psf-interp=bilinear \
 		--set psf-wing=3 -o simd2.fits field.csv &&
-	WFISCENE_NO_SIMD=1 "$WFS" --filter F129 --psf epsf.fits --flux-unit abmag \
+	WFISCENE_NO_SIMD=1 "$WFS" --filter F129 --psf epsf.fits --set psf-extent=stips --flux-unit abmag \
 		--set psf-interp=bilinear --set psf-wing=3 -o plain2.fits field.csv &&
 	test_cmp simd2.fits plain2.fits
 '

@@ -48,6 +48,8 @@ struct halo {
 	double *env;            /* env[r], r < nenv: the largest value at d >= r */
 	double *cum;            /* cum[r]: the light within d < r + 1/2 (phase 0) */
 	double total;           /* the model's total: the array's square sum */
+	double atot;            /* the integral of A(t) over the turn */
+	double envend;          /* the tail's largest value at d = nenv */
 };
 
 static inline double halo_bilinear(const struct halo *h, double u, double v)
@@ -183,10 +185,13 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 	h->s = square / (disc + tail);
 	h->total = square;
 	h->amax = 0;
+	h->atot = 0;
 	for (int k = 0; k <= HALO_NT; k++) {
 		h->A[k] *= h->s;
 		if (h->A[k] > h->amax)
 			h->amax = h->A[k];
+		if (k < HALO_NT)
+			h->atot += h->A[k] * (2 * M_PI / HALO_NT);
 	}
 	/* the envelope, from every sample (any phase) and the tail */
 	h->nenv = (int)ceil(R) + 1;
@@ -227,6 +232,7 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 	}
 	for (int r = 1; r < h->nenv; r++)
 		h->cum[r] += h->cum[r - 1];
+	h->envend = h->amax * pow(h->nenv, -alpha);
 	return 0;
 }
 
@@ -247,17 +253,25 @@ static inline double halo_envelope(const struct halo *h, double r)
  * takes samples from d - 1/sqrt(2) on). */
 static inline double halo_radius(const struct halo *h, double level, double cap)
 {
-	int lo = 0;
+	int lo = 0, hi;
 
 	if (!(level > 0))
 		return cap;
-	if (halo_envelope(h, h->nenv) >= level) {
+	if (h->envend >= level) {
 		double r = ceil(pow(h->amax / level, 1 / h->alpha));
 
 		return r < cap ? r : cap;
 	}
-	while (lo < h->nenv && h->env[lo] >= level)
-		lo++;
+	/* the first r with env[r] < level (env never rises) */
+	hi = h->nenv;
+	while (lo < hi) {
+		int mid = (lo + hi) / 2;
+
+		if (h->env[mid] >= level)
+			lo = mid + 1;
+		else
+			hi = mid;
+	}
 	/* a pixel at distance d reads samples up to half a pixel nearer */
 	lo++;
 	return lo < cap ? lo : cap;
@@ -266,12 +280,8 @@ static inline double halo_radius(const struct halo *h, double level, double cap)
 /* The model's light beyond distance r (a source centred on a pixel). */
 static inline double halo_beyond(const struct halo *h, double r)
 {
-	double tail = 0;
-
-	for (int k = 0; k < HALO_NT; k++)
-		tail += h->A[k] * (2 * M_PI / HALO_NT);
 	if (r >= h->R)
-		return tail * pow(r, 2 - h->alpha) / (h->alpha - 2);
+		return h->atot * pow(r, 2 - h->alpha) / (h->alpha - 2);
 	return h->total - h->cum[(int)floor(r)];
 }
 

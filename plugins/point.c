@@ -492,6 +492,7 @@ struct point {
 	struct halo halo[19];   /* per SCA, set up in prepare() */
 	double cfac[19][3];     /* per SCA and class: the core's scale, 0 unset */
 	double requested, left; /* flux of the sources prepared, and left out */
+	long long nhalo, npoint; /* sources drawn with a halo, and all */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
 	double (*core_rows)(const struct core_args *, float *);
 	struct poly slot[POLY_SLOTS];
@@ -818,8 +819,8 @@ static void point_fini(void *state)
 	}
 	if (p && p->extent == EXTENT_NOISE && p->requested > 0)
 		p->host->log(p->host->ctx, 1, "point: %.6g of %.6g counts/s (%.3g%%) left beyond "
-			     "the drawn radii", p->left, p->requested,
-			     100 * p->left / p->requested);
+			     "the drawn radii; %lld of %lld sources with a halo", p->left,
+			     p->requested, 100 * p->left / p->requested, p->nhalo, p->npoint);
 	for (int s = 0; p && s < 19; s++)
 		halo_free(&p->halo[s]);
 	free(p);
@@ -1349,6 +1350,8 @@ static int point_prepare(void *state, struct wfs_source *src)
 		r = half + 1;
 	src->aux[0] = half + HALO_PACK * r;
 	p->requested += fabs(fl);
+	p->npoint++;
+	p->nhalo += r > 0;
 	p->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, half - 0.5));
 	return 0;
 }

@@ -136,10 +136,13 @@ test_expect_success 'psf-box=adaptive shrinks a faint star to the noise, not a b
 	run ad2.fits --noise readnoise --readnoise 14 --exptime 139.8 --seed 1 --set psf-box=adaptive &&
 	test -s ad2.fits
 '
-test_expect_success 'psf-box=adaptive without a noise scale is refused' '
-	test_must_fail --status 3 run no.fits --set psf-box=adaptive 2> err &&
-	test_grep "psf-box: adaptive needs the noise" err &&
-	! test -e no.fits
+test_expect_success 'psf-box=adaptive without noise stages follows the nominal noise (sky and read noise)' '
+	run nom.fits --set psf-box=adaptive --report nom.json &&
+	"$PY" -c "
+import json
+s = float(json.load(open(\"nom.json\"))[\"error_budget\"][\"pixel_sigma\"])
+assert abs(s - (0.81 + 144) ** 0.5) < 1, s
+" && ! test_cmp nom.fits def.fits >/dev/null
 '
 test_expect_success '--report names the point settings a run used' '
 	run rep.fits --set psf-box=adaptive --set psf-box-sigma=0.1 --set psf-blend=cell \

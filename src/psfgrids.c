@@ -43,22 +43,19 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 static int need_halo(struct engine *g, int sca)
 {
 	const char *rs = host_setting(g, "psf-halo-radius");
-	const char *ns = host_setting(g, "psf-halo-nodes");
 	char *end = NULL;
-	long rad = rs ? strtol(rs, &end, 10) : HALO_RADIUS, nodes = 1;
+	long rad = rs ? strtol(rs, &end, 10) : HALO_RADIUS;
 	struct psf_grid *grid;
 
 	if (rs && (*end || end == rs || rad < 32 || rad > PSF_HALO_MAX))
 		return err_set(g->e, EXIT_INPUT, "psf-halo-radius: expected 32 to %d "
 			       "pixels, not '%s'", PSF_HALO_MAX, rs);
-	if (ns && ((nodes = strtol(ns, &end, 10)) < 1 || nodes > 5 || *end))
-		return err_set(g->e, EXIT_INPUT, "psf-halo-nodes: expected 1 to 5, not '%s'", ns);
 	if (strcmp(g->o->psf, "builtin"))
 		host_log(g, 1, "%s: the far wing beyond its box is the built-in optics' "
 			 "(%s SCA %d), scaled to join", g->o->psf, g->filter_name, sca);
 	host_log(g, 1, "PSF halo for %s SCA %d, +-%ld pixels: building or loading",
 		 g->filter_name, sca, rad);
-	if (!(grid = psf_builtin_halo(g->o->filter, sca, (int)rad, (int)nodes, &g->pbo, g->e)))
+	if (!(grid = psf_builtin_halo(g->o->filter, sca, (int)rad, 1, &g->pbo, g->e)))
 		return -1;
 	g->grid[sca - 1][3] = grid;
 	return 0;

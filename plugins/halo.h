@@ -34,6 +34,7 @@
 
 #define HALO_NT 1024            /* direction bins of the tail */
 #define HALO_BAND 0.6           /* inner edge of the band A(t) is measured in, / R */
+#define HALO_SW 8               /* half-width of a spike, bins, at most */
 
 struct halo {
 	const float *a;
@@ -49,6 +50,11 @@ struct halo {
 	double *cum;            /* cum[r]: the light within d < r + 1/2 (phase 0) */
 	double total;           /* the model's total: the array's square sum */
 	double atot;            /* the integral of A(t) over the turn */
+	/* A = B + S: the baseline B (the least of A within HALO_SW bins) and
+	 * the spikes S above it; cen[k] is the bin position of the spike
+	 * bin k belongs to (-1: none); rb the band's mean radius */
+	double B[HALO_NT + 1], S[HALO_NT + 1], cen[HALO_NT];
+	double rb, bmax, smax;
 	double envend;          /* the tail's largest value at d = nenv */
 };
 
@@ -82,9 +88,16 @@ static inline double halo_bin(double y, double x)
 	return (t + M_PI) * (HALO_NT / (2 * M_PI));
 }
 
+/*
+ * The tail at (dx, dy): (B(t) + S(t') d / rb) d^-alpha.  A spike keeps its
+ * width in pixels as it goes out, as the optics' do (a strut's edge
+ * diffracts into a line of fixed width whose light falls as d^-2 along
+ * it): its angular profile measured at rb is narrowed about its centre by
+ * rb / d and raised by d / rb, which keeps its light per unit length.
+ */
 static inline double halo_tail(const struct halo *h, double dx, double dy)
 {
-	double d2 = dx * dx + dy * dy, t = halo_bin(dy, dx);
+	double d2 = dx * dx + dy * dy, t = halo_bin(dy, dx), d = sqrt(d2);
 	int k = (int)t;
 	double f = t - k, a;
 
@@ -95,8 +108,21 @@ static inline double halo_tail(const struct halo *h, double dx, double dy)
 		k = 0;
 		f = 0;
 	}
-	a = h->A[k] + f * (h->A[k + 1] - h->A[k]);
-	return h->alpha == 3 ? a / (d2 * sqrt(d2)) : a * pow(d2, -0.5 * h->alpha);
+	a = h->B[k] + f * (h->B[k + 1] - h->B[k]);
+	if (h->cen[k] >= 0) {
+		double q = d / h->rb, c = h->cen[k], o = remainder(t - c, HALO_NT) * q, u = c + o;
+		int ku;
+
+		if (fabs(o) >= HALO_SW)
+			goto out;
+		u = u < 0 ? u + HALO_NT : (u >= HALO_NT ? u - HALO_NT : u);
+		ku = (int)u;
+		if (ku >= HALO_NT)
+			ku = HALO_NT - 1;
+		a += q * (h->S[ku] + (u - ku) * (h->S[ku + 1] - h->S[ku]));
+	}
+out:
+	return h->alpha == 3 ? a / (d2 * d) : a * pow(d, -h->alpha);
 }
 
 /* The model's value of a pixel at offset (dx, dy) from the source. */
@@ -109,6 +135,13 @@ static inline double halo_value(const struct halo *h, double dx, double dy)
 	w = h->taper > 0 ? (d - (h->R - h->taper)) / h->taper : -1;
 	double v = h->s * halo_bilinear(h, h->c + h->over * dx, h->c + h->over * dy);
 	return w <= 0 ? v : (1 - w) * v + w * halo_tail(h, dx, dy);
+}
+
+/* The tail's largest value at distance d (d^-alpha of the baseline's
+ * largest, and d^(1 - alpha) of the spikes'). */
+static inline double halo_tail_max(const struct halo *h, double d)
+{
+	return (h->bmax + h->smax * d / h->rb) * pow(d, -h->alpha);
 }
 
 static inline void halo_free(struct halo *h)
@@ -193,6 +226,46 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 		if (k < HALO_NT)
 			h->atot += h->A[k] * (2 * M_PI / HALO_NT);
 	}
+	/* baseline and spikes */
+	h->rb = 0.5 * (1 + HALO_BAND) * R;
+	h->bmax = h->smax = 0;
+	for (int k = 0; k < HALO_NT; k++) {
+		double m = h->A[k];
+
+		for (int j = -HALO_SW; j <= HALO_SW; j++) {
+			double v = h->A[(k + j + HALO_NT) % HALO_NT];
+
+			m = v < m ? v : m;
+		}
+		h->B[k] = m;
+		h->S[k] = h->A[k] - m;
+		h->bmax = m > h->bmax ? m : h->bmax;
+		h->smax = h->S[k] > h->smax ? h->S[k] : h->smax;
+	}
+	h->B[HALO_NT] = h->B[0];
+	h->S[HALO_NT] = h->S[0];
+	/* a spike: a local peak of S standing above the baseline; each bin
+	 * within HALO_SW of one belongs to the nearest */
+	for (int k = 0; k < HALO_NT; k++)
+		h->cen[k] = -1;
+	for (int k = 0; k < HALO_NT; k++) {
+		double v = h->S[k];
+		int peak = v > h->B[k];
+
+		for (int j = -HALO_SW; j <= HALO_SW && peak; j++)
+			if (j && h->S[(k + j + HALO_NT) % HALO_NT] > v)
+				peak = 0;
+		if (!peak)
+			continue;
+		for (int j = -HALO_SW; j <= HALO_SW; j++) {
+			int b = (k + j + HALO_NT) % HALO_NT;
+			double c = h->cen[b];
+			double dc = c < 0 ? 1e9 : fabs(remainder(b + 0.5 - c, HALO_NT));
+
+			if (fabs((double)j) < dc)
+				h->cen[b] = k;
+		}
+	}
 	/* the envelope, from every sample (any phase) and the tail */
 	h->nenv = (int)ceil(R) + 1;
 	if (!(h->env = calloc(h->nenv, sizeof(double))) ||
@@ -221,18 +294,17 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 	for (int r = h->nenv - 2; r >= 0; r--)
 		if (h->env[r + 1] > h->env[r])
 			h->env[r] = h->env[r + 1];
-	{
-		double tr = h->amax * pow(R - h->taper, -alpha);
+	/* the tail's largest value at d >= r is at max(r, R - taper): it
+	 * only falls */
+	for (int r = 0; r < h->nenv; r++) {
+		double t = halo_tail_max(h, r > R - h->taper ? r : R - h->taper);
 
-		for (int r = 0; r < h->nenv; r++)
-			if (h->env[r] < tr * pow((R - h->taper) / (r > R - h->taper ? r : R - h->taper),
-						 alpha))
-				h->env[r] = tr * pow((R - h->taper) / (r > R - h->taper ? r : R - h->taper),
-						     alpha);
+		if (h->env[r] < t)
+			h->env[r] = t;
 	}
 	for (int r = 1; r < h->nenv; r++)
 		h->cum[r] += h->cum[r - 1];
-	h->envend = h->amax * pow(h->nenv, -alpha);
+	h->envend = halo_tail_max(h, h->nenv);
 	return 0;
 }
 
@@ -245,7 +317,7 @@ static inline double halo_envelope(const struct halo *h, double r)
 		k = 0;
 	if (k < h->nenv)
 		return h->env[k];
-	return h->amax * pow(r, -h->alpha);
+	return halo_tail_max(h, r);
 }
 
 /* The smallest whole radius beyond which the model stays below level: the
@@ -258,9 +330,25 @@ static inline double halo_radius(const struct halo *h, double level, double cap)
 	if (!(level > 0))
 		return cap;
 	if (h->envend >= level) {
-		double r = ceil(pow(h->amax / level, 1 / h->alpha));
+		/* beyond the array: the tail's maximum falls monotonically */
+		double a = h->nenv, b = 2 * a;
 
-		return r < cap ? r : cap;
+		while (b < cap && halo_tail_max(h, b) >= level) {
+			a = b;
+			b *= 2;
+		}
+		if (b >= cap)
+			return cap;
+		for (int it = 0; it < 40 && b - a > 0.5; it++) {
+			double m = 0.5 * (a + b);
+
+			if (halo_tail_max(h, m) >= level)
+				a = m;
+			else
+				b = m;
+		}
+		b = ceil(b) + 1;
+		return b < cap ? b : cap;
 	}
 	/* the first r with env[r] < level (env never rises) */
 	hi = h->nenv;

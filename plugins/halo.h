@@ -110,11 +110,13 @@ static inline double halo_tail(const struct halo *h, double dx, double dy)
 	}
 	a = h->B[k] + f * (h->B[k + 1] - h->B[k]);
 	if (h->cen[k] >= 0) {
-		double q = d / h->rb, c = h->cen[k], o = remainder(t - c, HALO_NT) * q, u = c + o;
+		double q = d / h->rb, c = h->cen[k], o = t - c, u;
 		int ku;
 
+		o = (o > HALO_NT / 2 ? o - HALO_NT : (o < -HALO_NT / 2 ? o + HALO_NT : o)) * q;
 		if (fabs(o) >= HALO_SW)
 			goto out;
+		u = c + o;
 		u = u < 0 ? u + HALO_NT : (u >= HALO_NT ? u - HALO_NT : u);
 		ku = (int)u;
 		if (ku >= HALO_NT)

@@ -16,7 +16,9 @@
 struct err;
 struct wfs_epsf;
 
-enum psf_kind { PSF_OPTICAL = 0, PSF_EPSF = 1 };
+/* PSF_EPSF_NOIPC: the ePSF without the IPC kernel, for the up-the-ramp
+ * levels, whose detector applies IPC itself to the collected charge. */
+enum psf_kind { PSF_OPTICAL = 0, PSF_EPSF = 1, PSF_EPSF_NOIPC = 2 };
 
 /* Samples per side of each size class (44, 88 and 176 pixel boxes at 4x). */
 #define PSF_OVER 4
@@ -58,6 +60,9 @@ int psf_grid_write(const char *path, const struct psf_grid *g,
  * (no unconvolved border).  Only for over == 4. */
 int psf_make_epsf(struct psf_grid *g, struct err *e);
 
+/* The same for kind PSF_EPSF or PSF_EPSF_NOIPC (pixel box only). */
+int psf_make_epsf_kind(struct psf_grid *g, int kind, struct err *e);
+
 /* The interpolation nodes and weights for position (x, y), clamped to the
  * node range.  Fills out (see wfiscene/model.h). */
 void psf_grid_at(const struct psf_grid *g, double x, double y,
@@ -95,7 +100,7 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
  */
 #define PSF_HALO_OVER 2
 #define PSF_HALO_MAX 1024
-struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid,
+struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid, int kind,
 				  struct psf_build_opts *o, struct err *e);
 
 #endif

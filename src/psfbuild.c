@@ -240,7 +240,7 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 	g->kind = PSF_OPTICAL;
 	g->pixscale = WFS_PIXSCALE / over;
 	snprintf(g->origin, sizeof(g->origin), "builtin");
-	if (kind == PSF_EPSF && psf_make_epsf(g, e))
+	if (kind != PSF_OPTICAL && psf_make_epsf_kind(g, kind, e))
 		goto fail;
 	free(zern);
 	free(img);
@@ -266,14 +266,14 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		       o && o->grid > 0 ? o->grid : 3, o, e);
 }
 
-struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid,
+struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid, int kind,
 				  struct psf_build_opts *o, struct err *e)
 {
 	if (radius < 8 || radius > PSF_HALO_MAX)
 		return err_set(e, EXIT_INPUT, "halo radius %d: expected 8 to %d pixels",
 			       radius, PSF_HALO_MAX), NULL;
 	return builtin(filter, sca, 2 * PSF_HALO_OVER * radius + 1, PSF_HALO_OVER,
-		       PSF_EPSF, grid > 0 ? grid : 1, o, e);
+		       kind, grid > 0 ? grid : 1, o, e);
 }
 
 static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
@@ -304,7 +304,8 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 	cache_dir(o->cache_dir, dir, sizeof(dir));
 	if (dir[0]) {
 		snprintf(path, sizeof(path), "%s/psf-%s-sca%02d-%d-%s-%016llx.fits",
-			 dir, fname, sca, n, kind == PSF_EPSF ? "epsf" : "psf",
+			 dir, fname, sca, n, kind == PSF_EPSF ? "epsf" :
+			 kind == PSF_EPSF_NOIPC ? "epsf-noipc" : "psf",
 			 (unsigned long long)key);
 		double t0 = now();
 		if ((g = cache_load(path, key, n, over, kind, grid))) {

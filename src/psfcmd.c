@@ -203,13 +203,13 @@ int psf_main(int argc, char **argv)
 			sca_name(path, sizeof(path), out, s);
 		else
 			snprintf(path, sizeof(path), "%s", out);
-		if (c.halo && (c.kind != PSF_EPSF || (c.jitter >= 0 && c.jitter != OPTICS_JITTER))) {
+		if (c.halo && (c.kind == PSF_OPTICAL || (c.jitter >= 0 && c.jitter != OPTICS_JITTER))) {
 			fprintf(stderr, "wfiscene psf: --halo is the built-in ePSF: no "
 				"--kind psf or --jitter with it\n");
 			return EXIT_INPUT;
 		}
 		if (c.halo)
-			g = psf_builtin_halo(filter, s, c.halo, bo->grid, bo, &e);
+			g = psf_builtin_halo(filter, s, c.halo, bo->grid, c.kind, bo, &e);
 		else if (c.jitter >= 0 && c.jitter != OPTICS_JITTER)
 			g = psf_build_uncached(filter, s, c.cls, c.kind, bo, c.jitter, &e);
 		else

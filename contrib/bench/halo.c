@@ -90,11 +90,11 @@ int main(int argc, char **argv)
 	if (filter < 0)
 		return fprintf(stderr, "no filter %s\n", fname), 1;
 	t0 = now();
-	if (!(halo = psf_builtin_halo(filter, sca, radius, 1, &o, &e)))
+	if (!(halo = psf_builtin_halo(filter, sca, radius, 1, PSF_EPSF, &o, &e)))
 		return fprintf(stderr, "%s\n", e.msg), 2;
 	th = now() - t0;
 	o.grid = 3;
-	if (!(corner = psf_builtin_halo(filter, sca, radius, 3, &o, &e)))
+	if (!(corner = psf_builtin_halo(filter, sca, radius, 3, PSF_EPSF, &o, &e)))
 		return fprintf(stderr, "%s\n", e.msg), 2;
 	o.grid = 1;
 	t0 = now();

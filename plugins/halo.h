@@ -109,7 +109,9 @@ static inline double halo_tail(const struct halo *h, double dx, double dy)
 		f = 0;
 	}
 	a = h->B[k] + f * (h->B[k + 1] - h->B[k]);
-	if (h->cen[k] >= 0) {
+	if (h->cen[k] < 0)      /* no spike here: the rest of A as it is */
+		a += h->S[k] + f * (h->S[k + 1] - h->S[k]);
+	else {
 		double q = d / h->rb, c = h->cen[k], o = t - c, u;
 		int ku;
 

@@ -84,6 +84,7 @@
 #include <string.h>
 
 #include "wfiscene/model.h"
+#include "halo.h"
 
 /* Polyphase copies of the ePSF nodes, found by the node's address (the
  * host's arrays stay put until fini), and of blended cells, found by an odd
@@ -163,6 +164,11 @@ struct draw {
 };
 
 enum { INTERP_BILINEAR, INTERP_CORE, INTERP_BICUBIC };
+enum { EXTENT_NOISE, EXTENT_STIPS };
+/* aux[0] holds the box's half-width plus HALO_PACK times the halo's radius
+ * (both whole numbers of pixels) */
+#define HALO_PACK 65536.0
+#define WFS_PSF_HALO 3          /* the host's class of the halo array */
 enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
 
 /* One array, the whole window, straight into the tile: for each row j and
@@ -476,6 +482,17 @@ struct point {
 	double sigma;           /* noise per pixel, counts/s (psf-box-sigma) */
 	int blend;              /* psf-blend */
 	int cell;               /* psf-cell: side of a blended cell, pixels */
+	int extent;             /* psf-extent: EXTENT_NOISE or EXTENT_STIPS */
+	double extent_noise;    /* psf-extent-noise: fraction of sigma */
+	double extent_max;      /* psf-extent-max: largest radius, pixels */
+	double extent_min;      /* psf-extent-min: smallest box half-width, pixels
+				 * (negative: the class's box) */
+	double halo_power;      /* psf-halo-power: the tail's power */
+	double halo_taper;      /* psf-halo-taper: pixels */
+	struct halo halo[19];   /* per SCA, set up in prepare() */
+	double cfac[19][3];     /* per SCA and class: the core's scale, 0 unset */
+	double requested, left; /* flux of the sources prepared, and left out */
+	long long nhalo, npoint; /* sources drawn with a halo, and all */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
 	double (*core_rows)(const struct core_args *, float *);
 	struct poly slot[POLY_SLOTS];
@@ -697,6 +714,10 @@ static int setting_number(const struct wfs_host *host, const char *key, double l
  * adaptive box is for, and they are background-limited). */
 static double scene_sigma(const struct wfs_host *host)
 {
+	const char *ps = host->setting(host->ctx, "pixel-sigma");
+
+	if (ps && strtod(ps, NULL) > 0)
+		return strtod(ps, NULL);
 	const char *t = host->setting(host->ctx, "exptime");
 	const char *b = host->setting(host->ctx, "background");
 	const char *r = host->setting(host->ctx, "readnoise");
@@ -714,6 +735,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	static const char *const interp[] = { "bilinear", "core", "bicubic" };
 	static const char *const box[] = { "fixed", "adaptive" };
 	static const char *const blend[] = { "source", "cell", "core" };
+	static const char *const extent[] = { "noise", "stips" };
 	struct point *p = calloc(1, sizeof(*p));
 	double cell = 512;
 
@@ -737,6 +759,12 @@ static int point_init(const struct wfs_host *host, void **state)
 	p->blend = BLEND_CORE;
 	p->box_noise = 0.1;
 	p->sigma = scene_sigma(host);
+	p->extent = EXTENT_NOISE;
+	p->extent_noise = 0.1;
+	p->extent_max = 8192;
+	p->extent_min = -1;
+	p->halo_power = 3;
+	p->halo_taper = 16;
 	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
 	    setting_number(host, "psf-core", 0, 0, &p->core) < 0 ||
 	    setting_number(host, "psf-wing", 0, 0, &p->wing) < 0 ||
@@ -744,8 +772,24 @@ static int point_init(const struct wfs_host *host, void **state)
 	    setting_number(host, "psf-box-noise", 0, 1, &p->box_noise) < 0 ||
 	    setting_number(host, "psf-box-sigma", 0, 1, &p->sigma) < 0 ||
 	    setting_choice(host, "psf-blend", blend, 3, &p->blend) < 0 ||
-	    setting_number(host, "psf-cell", 1, 0, &cell) < 0)
+	    setting_number(host, "psf-cell", 1, 0, &cell) < 0 ||
+	    setting_choice(host, "psf-extent", extent, 2, &p->extent) < 0 ||
+	    setting_number(host, "psf-extent-noise", 1e-6, 0, &p->extent_noise) < 0 ||
+	    setting_number(host, "psf-extent-max", 1, 0, &p->extent_max) < 0 ||
+	    setting_number(host, "psf-extent-min", 1, 0, &p->extent_min) < 0 ||
+	    setting_number(host, "psf-halo-power", 2.5, 0, &p->halo_power) < 0 ||
+	    setting_number(host, "psf-halo-taper", 0, 0, &p->halo_taper) < 0)
 		goto fail;
+	if (p->extent == EXTENT_NOISE && p->adaptive) {
+		host->error(host->ctx, "psf-box=adaptive goes with psf-extent=stips; "
+			    "psf-extent=noise sizes every box itself");
+		goto fail;
+	}
+	if (p->extent == EXTENT_NOISE && !(p->sigma > 0)) {
+		host->error(host->ctx, "psf-extent: noise needs the noise per pixel: "
+			    "--set psf-box-sigma=S, or psf-extent=stips");
+		goto fail;
+	}
 	if (cell != floor(cell) || cell > 4096) {
 		host->error(host->ctx, "psf-cell: expected a whole number of pixels up to 4096, not '%s'",
 			    host->setting(host->ctx, "psf-cell"));
@@ -773,6 +817,12 @@ static void point_fini(void *state)
 		free(p->slot[i].sat);
 		free(p->slot[i].ee);
 	}
+	if (p && p->extent == EXTENT_NOISE && p->requested > 0)
+		p->host->log(p->host->ctx, 1, "point: %.6g of %.6g counts/s (%.3g%%) left beyond "
+			     "the drawn radii; %lld of %lld sources with a halo", p->left,
+			     p->requested, 100 * p->left / p->requested, p->nhalo, p->npoint);
+	for (int s = 0; p && s < 19; s++)
+		halo_free(&p->halo[s]);
 	free(p);
 }
 
@@ -1098,9 +1148,8 @@ static double flux_factor(double t, double k, double u)
  *   aux[4..7]  the source's weights of its cell's nodes (psf-blend=core),
  *              or NaN when render() must look the arrays up itself
  */
-static int point_prepare(void *state, struct wfs_source *src)
+static int fine_prepare(struct point *p, struct wfs_source *src, double cap)
 {
-	struct point *p = state;
 	struct wfs_epsf e;
 	struct draw d;
 	const struct poly *node[4];
@@ -1171,6 +1220,8 @@ static int point_prepare(void *state, struct wfs_source *src)
 		if (h < half)
 			half = h;
 	}
+	if (cap > 0 && cap < half)
+		half = cap;
 	src->aux[0] = half;
 	zones(p, src, blend, half, &d);
 	/* T: the bilinear sum over the box of the blend at the source (of
@@ -1202,11 +1253,115 @@ static int point_prepare(void *state, struct wfs_source *src)
 	return 0;
 }
 
+/* The halo of SCA sca, set up on first use (main thread). */
+static const struct halo *halo_of(struct point *p, const struct wfs_source *src)
+{
+	struct halo *h = &p->halo[src->sca];
+	struct wfs_epsf e;
+
+	if (h->env)
+		return h;
+	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, WFS_PSF_HALO, &e) < 0)
+		return NULL;
+	if (halo_setup(h, e.node[0], e.n, e.over, p->halo_power, p->halo_taper) < 0) {
+		p->host->error(p->host->ctx, "halo of SCA %d: %d samples at %d per pixel are "
+			       "too few (or out of memory)", src->sca, e.n, e.over);
+		return NULL;
+	}
+	return h;
+}
+
+/*
+ * The core's scale for SCA sca and the source's class: the halo's light in
+ * the class's box over the core's own (the cores are normalised within
+ * their boxes, so they hold the light beyond them too), both for a source
+ * on a pixel centre, from the first node of the source's position.
+ */
+static double core_scale(struct point *p, const struct wfs_source *src, const struct halo *h)
+{
+	double *c = &p->cfac[src->sca][src->psf_class];
+	struct wfs_epsf e;
+
+	if (*c > 0)
+		return *c;
+	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+		return -1;
+	double fine = 0, far = 0;
+	int half = e.centre / e.over;
+
+	for (int j = -half; j <= half; j++)
+		for (int i = -half; i <= half; i++) {
+			if (abs(i) == half || abs(j) == half)
+				continue;       /* the box: |i - x| < half */
+			fine += e.node[0][(size_t)(e.centre + e.over * j) * e.n + e.centre + e.over * i];
+			far += h->s * h->a[(size_t)(h->c + h->over * j) * h->n + h->c + h->over * i];
+		}
+	*c = fine > 0 && far > 0 ? far / fine : 1;
+	return *c;
+}
+
+/* The source's halo radius (0: none) and its box's half-width from aux[0]. */
+static inline double halo_radius_of(const struct wfs_source *src)
+{
+	return floor(src->aux[0] / HALO_PACK);
+}
+
+static inline double box_half_of(const struct wfs_source *src)
+{
+	return src->aux[0] - HALO_PACK * halo_radius_of(src);
+}
+
+/*
+ * prepare(), psf-extent=noise: the radius r beyond which the source's model
+ * stays below psf-extent-noise of the noise per pixel (the halo's
+ * envelope, spikes included); the core's box is the class's, or the
+ * square of half-width r when that is smaller; the halo draws the disc of
+ * radius r outside the box.  The core is scaled to the halo's light in its
+ * box (core_scale).
+ */
+static int point_prepare(void *state, struct wfs_source *src)
+{
+	struct point *p = state;
+	const struct halo *h;
+	struct wfs_source fs;
+	double r, half, c, fl = src->flux;
+
+	if (p->extent == EXTENT_STIPS)
+		return fine_prepare(p, src, 0);
+	if (!(h = halo_of(p, src)) || (c = core_scale(p, src, h)) < 0)
+		return -1;
+	r = fl > 0 ? halo_radius(h, p->extent_noise * p->sigma / fl, p->extent_max) : 1;
+	if (r < 1)
+		r = 1;
+	fs = *src;
+	fs.flux = c * fl;
+	/* the box: the class's unless psf-extent-min lets it shrink toward r */
+	if (fine_prepare(p, &fs, p->extent_min > 0 ? fmax(r, p->extent_min) : 0) < 0)
+		return -1;
+	memcpy(src->aux, fs.aux, sizeof(src->aux));
+	half = fs.aux[0];
+	/* no halo when the box holds everything above the level; the core's
+	 * own values at the box's edge may stand a few per cent above the
+	 * halo's (it is sampled twice as finely), so the halo takes over
+	 * once the envelope there reaches half the level */
+	if (r <= half && fl * halo_envelope(h, half - 1) < 0.5 * p->extent_noise * p->sigma)
+		r = 0;
+	else if (r <= half)
+		r = half + 1;
+	src->aux[0] = half + HALO_PACK * r;
+	p->requested += fabs(fl);
+	p->npoint++;
+	p->nhalo += r > 0;
+	p->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, half - 0.5));
+	return 0;
+}
+
 static int point_footprint(void *state, const struct wfs_source *src,
 			   struct wfs_box *box)
 {
-	/* pixels i with x - half < i < x + half */
-	struct zone z = square(src->x, src->y, src->aux[0]);
+	/* pixels i with x - half < i < x + half, or within the halo's radius */
+	double half = box_half_of(src), r = halo_radius_of(src);
+	struct zone z = square(src->x, src->y, r + 1 > half ? r + 1 : half);
 
 	box->x0 = (int)z.x0;
 	box->x1 = (int)z.x1;
@@ -1380,10 +1535,9 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 __attribute__((target_clones("avx2,fma", "default")))
 #endif
-static int point_render(void *state, void *tstate, void *thread,
-			const struct wfs_source *src, const struct wfs_window *win)
+static int fine_render(struct point *p, const struct wfs_source *src,
+		       const struct wfs_window *win)
 {
-	struct point *p = state;
 	struct draw d;
 	const struct geom *g = &d.g;
 	int m;
@@ -1399,6 +1553,98 @@ static int point_render(void *state, void *tstate, void *thread,
 	if (d.ncor || (!zone_empty(d.core) && !d.keys))
 		return p->host->error(p->host->ctx, "no drawing for this blend and core");
 	return render_many(&d, src->aux[1], win);
+}
+
+/*
+ * The halo of a source: every pixel of the window within radius r of it and
+ * outside its box (the zone box), flux times the halo model.  Inside the
+ * array's disc less the taper, the bilinear read with one set of weights
+ * for the source (its pixels share one sub-sample phase); elsewhere
+ * halo_value().
+ */
+static void halo_render(const struct halo *h, double flux, double x, double y, double r,
+			struct zone box, const struct wfs_window *win)
+{
+	double ux = h->c + h->over * (win->x0 - x), uy = h->c + h->over * (win->y0 - y);
+	long iu = (long)floor(ux), iv = (long)floor(uy);
+	double fu = ux - iu, fv = uy - iv;
+	double w00 = flux * h->s * (1 - fu) * (1 - fv), w10 = flux * h->s * fu * (1 - fv);
+	double w01 = flux * h->s * (1 - fu) * fv, w11 = flux * h->s * fu * fv;
+	double rin = h->R - h->taper, rin2 = rin * rin, r2 = r * r, R2 = h->R * h->R;
+	long n = h->n, o = h->over;
+
+	for (int j = 0; j < win->ny; j++) {
+		double dy = win->y0 + j - y, dy2 = dy * dy;
+		double *row = win->pix + (ptrdiff_t)j * win->stride;
+		long jj = win->y0 + j;
+		int inbox = jj >= box.y0 && jj < box.y1;
+		double span, lo, hi;
+
+		if (dy2 > r2)
+			continue;
+		span = sqrt(r2 - dy2);
+		lo = ceil(x - span) - win->x0;
+		hi = floor(x + span) - win->x0;
+		if (lo < 0)
+			lo = 0;
+		if (hi > win->nx - 1)
+			hi = win->nx - 1;
+		for (int i = (int)lo; i <= (int)hi; i++) {
+			long ii = win->x0 + i;
+			double dx = ii - x, d2 = dx * dx + dy2;
+
+			if (inbox && ii >= box.x0 && ii < box.x1) {
+				i = (int)(box.x1 - win->x0) - 1;
+				continue;
+			}
+			if (d2 < rin2) {
+				const float *q = h->a + (iv + o * j) * n + iu + o * i;
+
+				row[i] += w00 * q[0] + w10 * q[1] + w01 * q[n] + w11 * q[n + 1];
+			} else if (d2 >= R2)
+				row[i] += flux * halo_tail(h, dx, dy);
+			else
+				row[i] += flux * halo_value(h, dx, dy);
+		}
+	}
+}
+
+/* Built twice, for AVX2 and for any x86-64, and chosen at load time: the
+ * core's sums run 8 floats wide where the processor allows. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+__attribute__((target_clones("avx2,fma", "default")))
+#endif
+static int point_render(void *state, void *tstate, void *thread,
+			const struct wfs_source *src, const struct wfs_window *win)
+{
+	struct point *p = state;
+	struct wfs_source fs;
+	struct wfs_window sub;
+	struct zone box, w;
+	double r, half;
+
+	if (p->extent == EXTENT_STIPS)
+		return fine_render(p, src, win);
+	fs = *src;
+	r = halo_radius_of(src);
+	half = box_half_of(src);
+	fs.aux[0] = half;
+	fs.flux = src->flux * p->cfac[src->sca][src->psf_class];
+	box = square(src->x, src->y, half);
+	w = meet(box, (struct zone){ win->x0, win->x0 + win->nx, win->y0, win->y0 + win->ny });
+	if (!zone_empty(w)) {
+		sub.pix = win->pix + (w.y0 - win->y0) * win->stride + (w.x0 - win->x0);
+		sub.stride = win->stride;
+		sub.x0 = (int)w.x0;
+		sub.y0 = (int)w.y0;
+		sub.nx = (int)(w.x1 - w.x0);
+		sub.ny = (int)(w.y1 - w.y0);
+		if (fine_render(p, &fs, &sub) < 0)
+			return -1;
+	}
+	if (r > 0)
+		halo_render(&p->halo[src->sca], src->flux, src->x, src->y, r, box, win);
+	return 0;
 }
 
 static const struct wfs_model point_model = {

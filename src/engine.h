@@ -107,7 +107,7 @@ struct engine {
 	struct slot slot[WFS_NSCA];
 	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
 
-	struct psf_grid *grid[WFS_NSCA][3];
+	struct psf_grid *grid[WFS_NSCA][4];     /* [3]: the halo (psf.h) */
 	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
 	struct psf_build_opts pbo;
 
@@ -119,7 +119,7 @@ struct engine {
 	int nworker;
 
 	char filter_name[16], exptime_str[32], seed_str[32];
-	char bkg_str[32], readnoise_str[32], noise_str[64];
+	char bkg_str[32], readnoise_str[32], noise_str[64], sigma_str[32];
 	const char *sersic_flux_now;    /* "total" or "ie" for the catalog being read */
 
 	struct type_cache types[PLUGIN_MAX];

@@ -69,6 +69,8 @@ const char *host_setting(void *ctx, const char *key)
 		return g->readnoise_str;
 	if (!strcmp(key, "noise"))
 		return g->noise_str;
+	if (!strcmp(key, "pixel-sigma"))
+		return g->sigma_str;
 	/* --set key=value: the last one given wins */
 	const char *hit = NULL;
 	size_t n = strlen(key);
@@ -88,7 +90,7 @@ static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 	struct engine *g = ctx;
 	const struct psf_grid *grid;
 
-	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2)
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 3)
 		return host_error(ctx, "no ePSF for SCA %d class %d", sca, cls);
 	if (!(grid = psfgrids_get(g, sca, cls))) {
 		if (!pthread_equal(pthread_self(), g->main_thread))

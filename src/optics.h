@@ -124,4 +124,10 @@ struct psf_grid *psf_build_uncached(int filter, int sca, int cls, int kind,
 				    const struct psf_build_opts *o,
 				    double jitter, struct err *e);
 
+/* For the measurements of the halo (contrib/bench/halo.c): one grid of n
+ * samples at `over` (2 or 4) per pixel, o->grid nodes per axis (0: one, at
+ * the centre), computed without the cache.  NULL on error. */
+struct psf_grid *psf_build_one(int filter, int sca, int n, int over, int kind,
+			       const struct psf_build_opts *o, struct err *e);
+
 #endif

@@ -19,9 +19,13 @@
 #include "engine.h"
 #include "err.h"
 
-/* Room beyond an SCA edge, in pixels, within which a point source may still
- * throw light onto it: the 176-pixel extra-bright box's half-width. */
+/* Room beyond an SCA edge, in pixels, within which a point source fainter
+ * than POINT_REACH_MAG may still throw light onto it: the 176-pixel
+ * extra-bright box's half-width (psf-extent=noise draws such a star out to
+ * well under 88 pixels for any noise of 0.01 counts/s or more).  A brighter
+ * one's reach is its footprint's, as for any other model. */
 #define POINT_REACH 88.0
+#define POINT_REACH_MAG 20.0
 
 
 /*
@@ -339,7 +343,9 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 	struct wfs_box box;
 	double ext;
 
-	if (!strcmp(g->plugins.p[m].name, "point")) {
+	if (!strcmp(g->plugins.p[m].name, "point") &&
+	    place_zeropoint(g, g->slot[0].sca) - 2.5 * log10(counts_on(g, r, i, g->slot[0].sca)) >
+	    POINT_REACH_MAG) {
 		*reach = POINT_REACH * WFS_PIXSCALE;
 		return 0;
 	}

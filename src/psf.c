@@ -439,25 +439,27 @@ fitsfail:
  * the trapezoid rule on the sample lattice weights those samples 1/2, 1, 1,
  * 1, 1/2 along each axis.  The 5x5 kernel is the outer product of that row
  * (corners 1/4, other outer-ring entries 1/2, inner 3x3 1, sum 16), so the
- * convolution is done as two 1-D passes.  One pass over n samples of each
- * line: element i of a line is at line * stride_line + i * stride_i.
+ * convolution is done as two 1-D passes.  Any even sampling s works the
+ * same way (s + 1 taps, 1/2 at the ends; the halo's s = 2 is 1/2, 1, 1/2;
+ * the kernel sums to s^2, the samples a pixel holds).  One pass over n samples of each line: element i of a line is at
+ * line * stride_line + i * stride_i.
  */
-static void epsf4_pass(const float *in, float *out, int n, int stride_line,
-		       int stride_i)
+static void epsf_pass(const float *in, float *out, int n, int s, int stride_line,
+		      int stride_i)
 {
-	static const double w[5] = { 0.5, 1, 1, 1, 0.5 };
+	int h = s / 2;
 
 	for (int line = 0; line < n; line++)
 		for (int i = 0; i < n; i++) {
-			double s = 0;
+			double sum = 0;
 
-			for (int k = -2; k <= 2; k++) {
+			for (int k = -h; k <= h; k++) {
 				int j = i - k;
 				if (j >= 0 && j < n)
-					s += w[k + 2] * in[line * stride_line +
-							   j * stride_i];
+					sum += (k == -h || k == h ? 0.5 : 1) *
+					       in[line * stride_line + j * stride_i];
 			}
-			out[line * stride_line + i * stride_i] = (float)s;
+			out[line * stride_line + i * stride_i] = (float)sum;
 		}
 }
 
@@ -485,7 +487,7 @@ int psf_make_epsf_kind(struct psf_grid *g, int kind, struct err *e)
 	if (g->kind != PSF_OPTICAL)
 		return err_set(e, EXIT_INPUT, "%s: an ePSF grid cannot be made "
 			       "into another kind of ePSF", g->origin);
-	if (g->over != 4)
+	if (g->over != 4 && !(g->over == 2 && !strcmp(g->origin, "builtin")))
 		return err_set(e, EXIT_INPUT, "%s: the ePSF kernel needs 4 "
 			       "samples per pixel, not %d", g->origin, g->over);
 	if (!(a = malloc(np * sizeof(*a))) || !(b = malloc(np * sizeof(*b)))) {
@@ -496,8 +498,8 @@ int psf_make_epsf_kind(struct psf_grid *g, int kind, struct err *e)
 		float *p = g->data + k * np;
 
 		/* rows (along x), then columns (along y) */
-		epsf4_pass(p, a, n, n, 1);
-		epsf4_pass(a, b, n, 1, n);
+		epsf_pass(p, a, n, s, n, 1);
+		epsf_pass(a, b, n, s, 1, n);
 		if (kind == PSF_EPSF_NOIPC) {
 			for (size_t i = 0; i < np; i++)
 				p[i] = b[i];

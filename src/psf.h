@@ -90,4 +90,17 @@ struct psf_build_opts {
 struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 			     struct psf_build_opts *o, struct err *e);
 
+/*
+ * The halo: the built-in ePSF of a point source far from its core, for the
+ * wings of bright stars.  Computed from the same optical model as the
+ * grids above (same wavelengths, pupil sampling, jitter) but PSF_HALO_OVER
+ * samples per pixel over +-radius pixels, with grid x grid nodes (0: one,
+ * at the SCA's centre), cached like them.  Each wavelength's optical PSF is
+ * normalised to 1 over the halo's larger box.
+ */
+#define PSF_HALO_OVER 2
+#define PSF_HALO_MAX 1024
+struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid, int kind,
+				  struct psf_build_opts *o, struct err *e);
+
 #endif

@@ -82,7 +82,7 @@ static const char *const table_names[] = {
 	"pupil_edge.tsv", "pupil_strut.tsv", "zernike.tsv", "throughput.tsv"
 };
 
-static uint64_t cache_key(int filter, int sca, int n, int kind, int nwave,
+static uint64_t cache_key(int filter, int sca, int n, int over, int kind, int nwave,
 			  int pupil_n, int grid)
 {
 	char buf[512];
@@ -93,9 +93,9 @@ static uint64_t cache_key(int filter, int sca, int n, int kind, int nwave,
 		h = fnv(h, &c, sizeof(c));
 	}
 	snprintf(buf, sizeof(buf), "%s|f%d|s%d|n%d|o%d|k%d|w%d|p%d|g%d|j%.6f|"
-		 "T%.1f|ps%.6f", PSF_CODE_VERSION, filter, sca, n, PSF_OVER,
+		 "T%.1f|ps%.6f", PSF_CODE_VERSION, filter, sca, n, over,
 		 kind, nwave, pupil_n, grid, OPTICS_JITTER, OPTICS_BB_TEMP,
-		 WFS_PIXSCALE / PSF_OVER);
+		 WFS_PIXSCALE / over);
 	return fnv(h, buf, strlen(buf));
 }
 
@@ -140,7 +140,7 @@ static int make_dirs(const char *path)
 
 /* Load a cache file if it is whole and holds what key names. */
 static struct psf_grid *cache_load(const char *path, uint64_t key, int n,
-				   int kind, int grid)
+				   int over, int kind, int grid)
 {
 	fitsfile *f = NULL;
 	int st = 0, dataok = 0, hduok = 0;
@@ -163,7 +163,8 @@ static struct psf_grid *cache_load(const char *path, uint64_t key, int n,
 		return NULL;
 	if (!(g = psf_grid_read(path, &e)))
 		return NULL;
-	if (g->n != n || g->kind != kind || g->nx != grid || g->ny != grid) {
+	if (g->n != n || g->over != over || g->kind != kind || g->nx != grid ||
+	    g->ny != grid) {
 		psf_grid_free(g);
 		return NULL;
 	}
@@ -180,7 +181,7 @@ static double now(void)
 
 /* Compute a grid. */
 static struct psf_grid *build(const struct optics *o, int filter, int sca,
-			      int n, int kind, int nwave, int pupil_n, int grid,
+			      int n, int over, int kind, int nwave, int pupil_n, int grid,
 			      double jit, int threads, struct err *e)
 {
 	const struct filter_info *fi = filter_get(filter);
@@ -193,7 +194,7 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 		nwave = 64;
 	if (optics_weights(o, filter, sca, nwave, lam, wt, e))
 		return NULL;
-	if (!(g = psf_grid_new(n, PSF_OVER, grid, grid)) ||
+	if (!(g = psf_grid_new(n, over, grid, grid)) ||
 	    !(zern = malloc(sizeof(double) * npos * nwave * OPTICS_NZ)) ||
 	    !(img = malloc(sizeof(double) * npos * n * n))) {
 		err_set(e, EXIT_SYSTEM, "out of memory");
@@ -216,7 +217,7 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 		.pupil = optics_pupil(o, sca, fi && fi->wide_pupil),
 		.flip_y = 1,
 		.n = n,
-		.scale = WFS_PIXSCALE / PSF_OVER,
+		.scale = WFS_PIXSCALE / over,
 		.pupil_n = pupil_n,
 		.nwave = nwave,
 		.lam = lam,
@@ -237,7 +238,7 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 	g->sca = sca;
 	g->filter = filter;
 	g->kind = PSF_OPTICAL;
-	g->pixscale = WFS_PIXSCALE / PSF_OVER;
+	g->pixscale = WFS_PIXSCALE / over;
 	snprintf(g->origin, sizeof(g->origin), "builtin");
 	if (kind != PSF_OPTICAL && psf_make_epsf_kind(g, kind, e))
 		goto fail;
@@ -251,8 +252,32 @@ fail:
 	return NULL;
 }
 
+/* A grid of n samples per side at `over` per pixel, from the cache or
+ * built and kept; what psf_builtin() and psf_builtin_halo() share. */
+static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
+				int grid, struct psf_build_opts *o, struct err *e);
+
 struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 			     struct psf_build_opts *o, struct err *e)
+{
+	if (cls < 0 || cls > 2)
+		return err_set(e, EXIT_INPUT, "no PSF size class %d", cls), NULL;
+	return builtin(filter, sca, psf_class_n[cls], PSF_OVER, kind,
+		       o && o->grid > 0 ? o->grid : 3, o, e);
+}
+
+struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid, int kind,
+				  struct psf_build_opts *o, struct err *e)
+{
+	if (radius < 8 || radius > PSF_HALO_MAX)
+		return err_set(e, EXIT_INPUT, "halo radius %d: expected 8 to %d pixels",
+			       radius, PSF_HALO_MAX), NULL;
+	return builtin(filter, sca, 2 * PSF_HALO_OVER * radius + 1, PSF_HALO_OVER,
+		       kind, grid > 0 ? grid : 1, o, e);
+}
+
+static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
+				int grid, struct psf_build_opts *o, struct err *e)
 {
 	struct psf_build_opts none = { 0 };
 	char dir[4096], path[4400];
@@ -264,8 +289,6 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		return err_set(e, EXIT_INPUT, "unknown filter %d", filter), NULL;
 	if (sca < 1 || sca > WFS_NSCA)
 		return err_set(e, EXIT_INPUT, "no SCA %d", sca), NULL;
-	if (cls < 0 || cls > 2)
-		return err_set(e, EXIT_INPUT, "no PSF size class %d", cls), NULL;
 	if (instrument_init(e))
 		return NULL;
 	pthread_once(&optics_once, optics_load);
@@ -273,11 +296,9 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		err_set(e, optics_err.code, "%s", optics_err.msg);
 		return NULL;
 	}
-	int n = psf_class_n[cls];
 	int nwave = o->nwave > 0 ? o->nwave : psf_default_nwave(filter);
 	int pupil_n = o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N;
-	int grid = o->grid > 0 ? o->grid : 3;
-	uint64_t key = cache_key(filter, sca, n, kind, nwave, pupil_n, grid);
+	uint64_t key = cache_key(filter, sca, n, over, kind, nwave, pupil_n, grid);
 	const char *fname = filter_get(filter)->name;
 
 	cache_dir(o->cache_dir, dir, sizeof(dir));
@@ -287,7 +308,7 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 			 kind == PSF_EPSF_NOIPC ? "epsf-noipc" : "psf",
 			 (unsigned long long)key);
 		double t0 = now();
-		if ((g = cache_load(path, key, n, kind, grid))) {
+		if ((g = cache_load(path, key, n, over, kind, grid))) {
 			o->loaded++;
 			snprintf(g->origin, sizeof(g->origin), "builtin");
 			if (o->verbose > 0)
@@ -298,7 +319,7 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 		}
 	}
 	double t0 = now();
-	if (!(g = build(optics_tables, filter, sca, n, kind, nwave, pupil_n,
+	if (!(g = build(optics_tables, filter, sca, n, over, kind, nwave, pupil_n,
 			grid, OPTICS_JITTER, o->threads, e))) {
 		err_prefix(e, "PSF %s SCA%02d", fname, sca);
 		return NULL;
@@ -356,8 +377,30 @@ struct psf_grid *psf_build_uncached(int filter, int sca, int cls, int kind,
 		err_set(e, optics_err.code, "%s", optics_err.msg);
 		return NULL;
 	}
-	return build(optics_tables, filter, sca, psf_class_n[cls], kind,
+	return build(optics_tables, filter, sca, psf_class_n[cls], PSF_OVER, kind,
 		     o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
 		     o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
 		     o->grid > 0 ? o->grid : 3, jitter, o->threads, e);
+}
+
+struct psf_grid *psf_build_one(int filter, int sca, int n, int over, int kind,
+			       const struct psf_build_opts *o, struct err *e)
+{
+	if (filter < 0 || filter >= WFS_NFILTER || sca < 1 || sca > WFS_NSCA ||
+	    n < 3 || n % 2 == 0 || (over != 2 && over != 4)) {
+		err_set(e, EXIT_INPUT, "no such PSF: filter %d SCA %d, %d samples at %d per pixel",
+			filter, sca, n, over);
+		return NULL;
+	}
+	if (instrument_init(e))
+		return NULL;
+	pthread_once(&optics_once, optics_load);
+	if (!optics_tables) {
+		err_set(e, optics_err.code, "%s", optics_err.msg);
+		return NULL;
+	}
+	return build(optics_tables, filter, sca, n, over, kind,
+		     o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
+		     o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
+		     o->grid > 0 ? o->grid : 1, OPTICS_JITTER, o->threads, e);
 }

@@ -27,6 +27,7 @@ struct psf_cmd {
 	int kind;               /* enum psf_kind */
 	int cls;                /* index into psf_class_n */
 	double jitter;          /* arcsec; -1: the default, through the cache */
+	int halo;               /* --halo R: the halo of +-R pixels, 0 for none */
 };
 
 #define OFF(f) offsetof(struct psf_cmd, f)
@@ -42,6 +43,9 @@ static const struct opt psf_options[] = {
 	  "optical PSF)", set_kind, OFF(kind)) },
 	{ OPT("size", 0, "N", "177", "samples per side: 177, 353 or 705", set_size,
 	  OFF(cls)) },
+	{ OPT("halo", 0, "R", NULL, "the halo instead (the far wing of bright stars): "
+	  "2 samples per pixel over +-R pixels (32 to " STR(PSF_HALO_MAX) "), one node "
+	  "unless --grid", opt_int, OFF(halo)), .lo = 32, .hi = PSF_HALO_MAX },
 	{ OPT("grid", 0, "N", "3", "nodes per axis", set_count, OFF(bo.grid)),
 	  .flags = OPT_SHOW_DEFAULT },
 	{ OPT("nwave", 0, "N", "measured per filter", "wavelengths", set_count,
@@ -199,7 +203,14 @@ int psf_main(int argc, char **argv)
 			sca_name(path, sizeof(path), out, s);
 		else
 			snprintf(path, sizeof(path), "%s", out);
-		if (c.jitter >= 0 && c.jitter != OPTICS_JITTER)
+		if (c.halo && (c.kind == PSF_OPTICAL || (c.jitter >= 0 && c.jitter != OPTICS_JITTER))) {
+			fprintf(stderr, "wfiscene psf: --halo is the built-in ePSF: no "
+				"--kind psf or --jitter with it\n");
+			return EXIT_INPUT;
+		}
+		if (c.halo)
+			g = psf_builtin_halo(filter, s, c.halo, bo->grid, c.kind, bo, &e);
+		else if (c.jitter >= 0 && c.jitter != OPTICS_JITTER)
 			g = psf_build_uncached(filter, s, c.cls, c.kind, bo, c.jitter, &e);
 		else
 			g = psf_builtin(filter, s, c.cls, c.kind, bo, &e);

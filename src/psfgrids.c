@@ -8,6 +8,7 @@
  */
 #include <limits.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "engine.h"
@@ -16,7 +17,7 @@
 
 const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls)
 {
-	if (g->user_grid)
+	if (g->user_grid && cls < 3)
 		return g->user_grid;
 	return g->grid[sca - 1][cls];
 }
@@ -34,6 +35,33 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 			 grid->sca, sca);
 }
 
+/* The halo's default radius (psf-halo-radius), pixels */
+#define HALO_RADIUS 256
+
+/* The halo (class 3): always the built-in optics' (a --psf file's core is
+ * scaled to join it by the point model). */
+static int need_halo(struct engine *g, int sca)
+{
+	const char *rs = host_setting(g, "psf-halo-radius");
+	char *end = NULL;
+	long rad = rs ? strtol(rs, &end, 10) : HALO_RADIUS;
+	struct psf_grid *grid;
+
+	if (rs && (*end || end == rs || rad < 32 || rad > PSF_HALO_MAX))
+		return err_set(g->e, EXIT_INPUT, "psf-halo-radius: expected 32 to %d "
+			       "pixels, not '%s'", PSF_HALO_MAX, rs);
+	if (strcmp(g->o->psf, "builtin"))
+		host_log(g, 1, "%s: the far wing beyond its box is the built-in optics' "
+			 "(%s SCA %d), scaled to join", g->o->psf, g->filter_name, sca);
+	host_log(g, 1, "PSF halo for %s SCA %d, +-%ld pixels: building or loading",
+		 g->filter_name, sca, rad);
+	if (!(grid = psf_builtin_halo(g->o->filter, sca, (int)rad, 1,
+				      g->o->level ? PSF_EPSF_NOIPC : PSF_EPSF, &g->pbo, g->e)))
+		return -1;
+	g->grid[sca - 1][3] = grid;
+	return 0;
+}
+
 /* Make sure the ePSF grid of (sca, cls) is loaded.  Main thread only. */
 int psfgrids_need(struct engine *g, int sca, int cls)
 {
@@ -42,6 +70,8 @@ int psfgrids_need(struct engine *g, int sca, int cls)
 
 	if (psfgrids_get(g, sca, cls))
 		return 0;
+	if (cls == 3)
+		return need_halo(g, sca);
 	if (strcmp(o->psf, "builtin")) {
 		/* A user file: per SCA when the name holds %d, and then its one
 		 * size serves every brightness class. */
@@ -95,7 +125,7 @@ int psfgrids_open_user(struct engine *g)
 void psfgrids_free(struct engine *g)
 {
 	for (int s = 0; s < WFS_NSCA; s++)
-		for (int c = 0; c < 3; c++)
+		for (int c = 0; c < 4; c++)
 			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
 				psf_grid_free(g->grid[s][c]);
 	psf_grid_free(g->user_grid);

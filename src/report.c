@@ -272,6 +272,13 @@ int report_write(struct engine *g)
 	report_setting(f, g, "box", "psf-box", "fixed");
 	report_setting(f, g, "box_noise_fraction", "psf-box-noise", "0.1");
 	report_setting(f, g, "blend", "psf-blend", "core");
+	/* how far a point source is drawn (psf-extent): to the radius where
+	 * it sinks below a fraction of this noise per pixel; the light left
+	 * beyond is "requested" less "placed" above */
+	report_setting(f, g, "extent", "psf-extent", "noise");
+	report_setting(f, g, "extent_noise_fraction", "psf-extent-noise", "0.1");
+	report_setting(f, g, "pixel_sigma", "pixel-sigma", "");
+	report_setting(f, g, "halo_radius_px", "psf-halo-radius", "256");
 	fprintf(f, "\"blend_cell_px\": ");
 	report_string(f, host_setting(g, "psf-cell") ? host_setting(g, "psf-cell") : "512");
 	fprintf(f, "}\n}\n");

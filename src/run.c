@@ -65,6 +65,26 @@ static void engine_setting_strings(struct engine *g)
 		 o->noise & NOISE_DARK ? "dark," : "", o->noise & NOISE_FLAT ? "flat," : "",
 		 o->noise & NOISE_COSMIC ? "cosmic," : "");
 	g->sersic_flux_now = o->sersic_flux ? o->sersic_flux : "total";
+	{
+		/* The noise of one pixel in counts/s, for models that draw
+		 * down to a fraction of it (point's psf-extent): the noise
+		 * stages' sky, read noise and dark current over the exposure;
+		 * with none of them (or none that adds anything), the nominal
+		 * ones (the exposure's or the filter's average sky, the default
+		 * read noise), so a noiseless image is the mean of a noisy one. */
+		double t = o->exptime, var = 0, bk = g->x->background;
+		double sky = bk > 0 ? bk : filter_get(o->filter)->bkg_avg;
+
+		if (o->noise & NOISE_POISSON)
+			var += bk * t;
+		if (o->noise & NOISE_READ)
+			var += o->readnoise * o->readnoise;
+		if (o->noise & NOISE_DARK)
+			var += o->dark_current * t;
+		if (!(var > 0))
+			var = sky * t + NOISE_READNOISE * NOISE_READNOISE;
+		snprintf(g->sigma_str, sizeof(g->sigma_str), "%.17g", sqrt(var) / t);
+	}
 }
 
 /* An engine for exposure x: its sky geometry, its SCAs' tile grids, the

@@ -1,0 +1,380 @@
+/*
+ * halo.h - the far wing ("halo") of a point source: the model point.c draws
+ * a bright star with beyond its ePSF box, shared with the measurement
+ * program contrib/bench/halo.c so that both evaluate the same numbers.
+ *
+ * The host lends a halo array: the built-in ePSF computed on a larger field
+ * (+-R pixels) at a coarser sampling (`over` = 2 samples per pixel) than the
+ * grids of the core (4), one node per SCA.  A sample is, as in the core's
+ * ePSF, the fraction of the flux in a detector pixel centred at that offset.
+ * The model of a pixel at distance d from the source, in the direction t:
+ *
+ *   d <= R - taper   the array, interpolated bilinearly (the pixels of a
+ *                    source share one sub-sample phase, so one set of four
+ *                    weights per source)
+ *   d >= R           a power-law tail A(t) d^-alpha: A(t) is the mean of
+ *                    value * d^alpha over the outer band of the array
+ *                    (HALO_BAND R to R) in HALO_NT bins of direction,
+ *                    interpolated linearly between bins, so the diffraction
+ *                    spikes carry on outward (wider in pixels than the real
+ *                    ones, with the same light per unit length: see
+ *                    BENCHMARKS.md)
+ *   in between       a linear blend of the two, so nothing jumps at R
+ *
+ * The optical model normalises each wavelength's PSF to 1 over the array,
+ * which leaves out the light beyond it; the model's total (the array's disc
+ * plus the tail integrated to infinity) is scaled back to the array's own
+ * total, so the tail's light is taken from the array in proportion.
+ */
+#ifndef WFS_HALO_H
+#define WFS_HALO_H
+
+#include <math.h>
+#include <stdlib.h>
+
+#define HALO_NT 1024            /* direction bins of the tail */
+#define HALO_BAND 0.6           /* inner edge of the band A(t) is measured in, / R */
+#define HALO_SW 8               /* half-width of a spike, bins, at most */
+
+struct halo {
+	const float *a;
+	int n, over, c;
+	double R;               /* the array's disc, pixels */
+	double taper;           /* width of the hand-over to the tail, pixels */
+	double alpha;           /* the tail's power */
+	double s;               /* scale on the array's values */
+	double A[HALO_NT + 1];  /* the tail's amplitude (s included); A[NT] = A[0] */
+	double amax;
+	int nenv;
+	double *env;            /* env[r], r < nenv: the largest value at d >= r */
+	double *cum;            /* cum[r]: the light within d < r + 1/2 (phase 0) */
+	double total;           /* the model's total: the array's square sum */
+	double atot;            /* the integral of A(t) over the turn */
+	/* A = B + S: the baseline B (the least of A within HALO_SW bins) and
+	 * the spikes S above it; cen[k] is the bin position of the spike
+	 * bin k belongs to (-1: none); rb the band's mean radius */
+	double B[HALO_NT + 1], S[HALO_NT + 1], cen[HALO_NT];
+	double rb, bmax, smax;
+	double envend;          /* the tail's largest value at d = nenv */
+};
+
+static inline double halo_bilinear(const struct halo *h, double u, double v)
+{
+	int i = (int)floor(u), j = (int)floor(v);
+	double fu = u - i, fv = v - j;
+	const float *p;
+
+	if (i < 0 || j < 0 || i + 1 >= h->n || j + 1 >= h->n)
+		return 0;
+	p = h->a + (size_t)j * h->n + i;
+	return (1 - fv) * ((1 - fu) * p[0] + fu * p[1]) + fv * ((1 - fu) * p[h->n] + fu * p[h->n + 1]);
+}
+
+/* atan2(y, x) + pi in turns of HALO_NT bins, to ~2e-6 of a turn (a
+ * minimax polynomial for atan on [0, 1]; the bins are 1e-3 of a turn). */
+static inline double halo_bin(double y, double x)
+{
+	double ax = fabs(x), ay = fabs(y), mx = ax > ay ? ax : ay, mn = ax > ay ? ay : ax;
+	double a = mx > 0 ? mn / mx : 0, a2 = a * a;
+	double t = a * (0.99997726 + a2 * (-0.33262347 + a2 * (0.19354346 +
+	           a2 * (-0.11643287 + a2 * (0.05265332 + a2 * -0.01172120)))));
+
+	if (ay > ax)
+		t = M_PI_2 - t;
+	if (x < 0)
+		t = M_PI - t;
+	if (y < 0)
+		t = -t;
+	return (t + M_PI) * (HALO_NT / (2 * M_PI));
+}
+
+/*
+ * The tail at (dx, dy): (B(t) + S(t') d / rb) d^-alpha.  A spike keeps its
+ * width in pixels as it goes out, as the optics' do (a strut's edge
+ * diffracts into a line of fixed width whose light falls as d^-2 along
+ * it): its angular profile measured at rb is narrowed about its centre by
+ * rb / d and raised by d / rb, which keeps its light per unit length.
+ */
+static inline double halo_tail(const struct halo *h, double dx, double dy)
+{
+	double d2 = dx * dx + dy * dy, t = halo_bin(dy, dx), d = sqrt(d2);
+	int k = (int)t;
+	double f = t - k, a;
+
+	if (k >= HALO_NT) {
+		k = HALO_NT - 1;
+		f = 1;
+	} else if (k < 0) {
+		k = 0;
+		f = 0;
+	}
+	a = h->B[k] + f * (h->B[k + 1] - h->B[k]);
+	if (h->cen[k] < 0)      /* no spike here: the rest of A as it is */
+		a += h->S[k] + f * (h->S[k + 1] - h->S[k]);
+	else {
+		double q = d / h->rb, c = h->cen[k], o = t - c, u;
+		int ku;
+
+		o = (o > HALO_NT / 2 ? o - HALO_NT : (o < -HALO_NT / 2 ? o + HALO_NT : o)) * q;
+		if (fabs(o) >= HALO_SW)
+			goto out;
+		u = c + o;
+		u = u < 0 ? u + HALO_NT : (u >= HALO_NT ? u - HALO_NT : u);
+		ku = (int)u;
+		if (ku >= HALO_NT)
+			ku = HALO_NT - 1;
+		a += q * (h->S[ku] + (u - ku) * (h->S[ku + 1] - h->S[ku]));
+	}
+out:
+	return h->alpha == 3 ? a / (d2 * d) : a * pow(d, -h->alpha);
+}
+
+/* The model's value of a pixel at offset (dx, dy) from the source. */
+static inline double halo_value(const struct halo *h, double dx, double dy)
+{
+	double d = sqrt(dx * dx + dy * dy), w;
+
+	if (d >= h->R)
+		return halo_tail(h, dx, dy);
+	w = h->taper > 0 ? (d - (h->R - h->taper)) / h->taper : -1;
+	double v = h->s * halo_bilinear(h, h->c + h->over * dx, h->c + h->over * dy);
+	return w <= 0 ? v : (1 - w) * v + w * halo_tail(h, dx, dy);
+}
+
+/* The tail's largest value at distance d (d^-alpha of the baseline's
+ * largest, and d^(1 - alpha) of the spikes'). */
+static inline double halo_tail_max(const struct halo *h, double d)
+{
+	return (h->bmax + h->smax * d / h->rb) * pow(d, -h->alpha);
+}
+
+static inline void halo_free(struct halo *h)
+{
+	free(h->env);
+	free(h->cum);
+	h->env = h->cum = NULL;
+}
+
+/* Set up the model of array a (n x n, over samples per pixel, centre at
+ * (n - 1) / 2).  Returns 0, or -1 when out of memory or the array is too
+ * small (R < 16 pixels). */
+static inline int halo_setup(struct halo *h, const float *a, int n, int over,
+			     double alpha, double taper)
+{
+	int c = (n - 1) / 2;
+	double R = (double)c / over, cnt[HALO_NT] = { 0 };
+	double disc = 0, square = 0, tail = 0;
+
+	h->a = a;
+	h->n = n;
+	h->over = over;
+	h->c = c;
+	h->R = R - 1;           /* a bilinear read at R - 1 stays inside */
+	h->taper = taper < h->R / 2 ? taper : h->R / 2;
+	h->alpha = alpha;
+	h->s = 1;
+	if (R < 16 || alpha <= 2)
+		return -1;
+	R = h->R;
+	for (int k = 0; k <= HALO_NT; k++)
+		h->A[k] = 0;
+	/* the tail's amplitude, from every sample of the band */
+	for (int j = 0; j < n; j++)
+		for (int i = 0; i < n; i++) {
+			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
+			double d = hypot(dx, dy), v = a[(size_t)j * n + i];
+
+			square += v;
+			if (d < R)
+				disc += v;
+			if (d >= HALO_BAND * R && d < R) {
+				int k = (int)((atan2(dy, dx) + M_PI) * (HALO_NT / (2 * M_PI)));
+
+				k = k >= HALO_NT ? HALO_NT - 1 : k;
+				h->A[k] += v * pow(d, alpha);
+				cnt[k]++;
+			}
+		}
+	/* A bin is a direction's mean; an empty one (a small array) takes
+	 * its neighbour's */
+	for (int k = 0; k < HALO_NT; k++)
+		h->A[k] = cnt[k] > 0 ? h->A[k] / cnt[k] : (k > 0 ? h->A[k - 1] : 0);
+	/* the bins are centred half a bin on: shift so that A[k] is the value
+	 * at the bin's start, as halo_tail() reads it */
+	{
+		double first = h->A[0], prev = h->A[HALO_NT - 1];
+
+		for (int k = 0; k < HALO_NT; k++) {
+			double cur = h->A[k];
+
+			h->A[k] = 0.5 * (prev + cur);
+			prev = cur;
+		}
+		(void)first;
+		h->A[HALO_NT] = h->A[0];
+	}
+	/* samples are over^2 per pixel: a pixel sum is the sample sum / over^2 */
+	square /= (double)over * over;
+	disc /= (double)over * over;
+	for (int k = 0; k < HALO_NT; k++)
+		tail += h->A[k] * (2 * M_PI / HALO_NT);
+	tail *= pow(R, 2 - alpha) / (alpha - 2);
+	h->s = square / (disc + tail);
+	h->total = square;
+	h->amax = 0;
+	h->atot = 0;
+	for (int k = 0; k <= HALO_NT; k++) {
+		h->A[k] *= h->s;
+		if (h->A[k] > h->amax)
+			h->amax = h->A[k];
+		if (k < HALO_NT)
+			h->atot += h->A[k] * (2 * M_PI / HALO_NT);
+	}
+	/* baseline and spikes */
+	h->rb = 0.5 * (1 + HALO_BAND) * R;
+	h->bmax = h->smax = 0;
+	for (int k = 0; k < HALO_NT; k++) {
+		double m = h->A[k];
+
+		for (int j = -HALO_SW; j <= HALO_SW; j++) {
+			double v = h->A[(k + j + HALO_NT) % HALO_NT];
+
+			m = v < m ? v : m;
+		}
+		h->B[k] = m;
+		h->S[k] = h->A[k] - m;
+		h->bmax = m > h->bmax ? m : h->bmax;
+		h->smax = h->S[k] > h->smax ? h->S[k] : h->smax;
+	}
+	h->B[HALO_NT] = h->B[0];
+	h->S[HALO_NT] = h->S[0];
+	/* a spike: a local peak of S standing above the baseline; each bin
+	 * within HALO_SW of one belongs to the nearest */
+	for (int k = 0; k < HALO_NT; k++)
+		h->cen[k] = -1;
+	for (int k = 0; k < HALO_NT; k++) {
+		double v = h->S[k];
+		int peak = v > h->B[k];
+
+		for (int j = -HALO_SW; j <= HALO_SW && peak; j++)
+			if (j && h->S[(k + j + HALO_NT) % HALO_NT] > v)
+				peak = 0;
+		if (!peak)
+			continue;
+		for (int j = -HALO_SW; j <= HALO_SW; j++) {
+			int b = (k + j + HALO_NT) % HALO_NT;
+			double c = h->cen[b];
+			double dc = c < 0 ? 1e9 : fabs(remainder(b + 0.5 - c, HALO_NT));
+
+			if (fabs((double)j) < dc)
+				h->cen[b] = k;
+		}
+	}
+	/* the envelope, from every sample (any phase) and the tail */
+	h->nenv = (int)ceil(R) + 1;
+	if (!(h->env = calloc(h->nenv, sizeof(double))) ||
+	    !(h->cum = calloc(h->nenv, sizeof(double)))) {
+		halo_free(h);
+		return -1;
+	}
+	for (int j = 0; j < n; j++)
+		for (int i = 0; i < n; i++) {
+			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
+			double d = hypot(dx, dy), v = h->s * a[(size_t)j * n + i];
+			int r = (int)d;
+
+			if (r >= h->nenv)
+				continue;
+			if (v > h->env[r])
+				h->env[r] = v;
+			/* phase 0: the samples a whole number of pixels out */
+			if ((i - c) % over == 0 && (j - c) % over == 0) {
+				int rr = (int)floor(d + 0.5);
+
+				if (rr < h->nenv)
+					h->cum[rr] += v;
+			}
+		}
+	for (int r = h->nenv - 2; r >= 0; r--)
+		if (h->env[r + 1] > h->env[r])
+			h->env[r] = h->env[r + 1];
+	/* the tail's largest value at d >= r is at max(r, R - taper): it
+	 * only falls */
+	for (int r = 0; r < h->nenv; r++) {
+		double t = halo_tail_max(h, r > R - h->taper ? r : R - h->taper);
+
+		if (h->env[r] < t)
+			h->env[r] = t;
+	}
+	for (int r = 1; r < h->nenv; r++)
+		h->cum[r] += h->cum[r - 1];
+	h->envend = halo_tail_max(h, h->nenv);
+	return 0;
+}
+
+/* The largest value of the model at distance >= r. */
+static inline double halo_envelope(const struct halo *h, double r)
+{
+	int k = (int)floor(r);
+
+	if (k < 0)
+		k = 0;
+	if (k < h->nenv)
+		return h->env[k];
+	return halo_tail_max(h, r);
+}
+
+/* The smallest whole radius beyond which the model stays below level: the
+ * envelope's, one pixel on (the bilinear read of a pixel at distance d
+ * takes samples from d - 1/sqrt(2) on). */
+static inline double halo_radius(const struct halo *h, double level, double cap)
+{
+	int lo = 0, hi;
+
+	if (!(level > 0))
+		return cap;
+	if (h->envend >= level) {
+		/* beyond the array: the tail's maximum falls monotonically */
+		double a = h->nenv, b = 2 * a;
+
+		while (b < cap && halo_tail_max(h, b) >= level) {
+			a = b;
+			b *= 2;
+		}
+		if (b >= cap)
+			return cap;
+		for (int it = 0; it < 40 && b - a > 0.5; it++) {
+			double m = 0.5 * (a + b);
+
+			if (halo_tail_max(h, m) >= level)
+				a = m;
+			else
+				b = m;
+		}
+		b = ceil(b) + 1;
+		return b < cap ? b : cap;
+	}
+	/* the first r with env[r] < level (env never rises) */
+	hi = h->nenv;
+	while (lo < hi) {
+		int mid = (lo + hi) / 2;
+
+		if (h->env[mid] >= level)
+			lo = mid + 1;
+		else
+			hi = mid;
+	}
+	/* a pixel at distance d reads samples up to half a pixel nearer */
+	lo++;
+	return lo < cap ? lo : cap;
+}
+
+/* The model's light beyond distance r (a source centred on a pixel). */
+static inline double halo_beyond(const struct halo *h, double r)
+{
+	if (r >= h->R)
+		return h->atot * pow(r, 2 - h->alpha) / (h->alpha - 2);
+	return h->total - h->cum[(int)floor(r)];
+}
+
+#endif

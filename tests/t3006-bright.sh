@@ -1,0 +1,134 @@
+#!/bin/sh
+# Bright stars (psf-extent=noise, the default): drawn out to where the PSF
+# sinks below 0.1 of the noise per pixel, with the optical model's wing and
+# spikes out there, and no edge.  The reference is the built-in optics' own
+# large PSF (`wfiscene psf --halo 512`: +-512 pixels computed directly, no
+# tail), against which the drawn wing is compared out to 300 pixels (the
+# image beyond 256 pixels is the model's power-law tail).
+. "$(dirname "$0")/lib.sh"
+require_python
+
+cat > check.py <<'EOT'
+import json, sys
+import numpy as np
+from astropy.io import fits
+
+def ref_profile(ref, px, py):
+    """annulus medians and enclosed light of the reference for a star at
+    fractional pixel (px, py) = (0.5, 0.5): its 2x samples at half-integer
+    offsets are the pixels' values"""
+    a = fits.getdata(ref).astype(float)
+    if a.ndim == 3:
+        a = a[0]
+    n = a.shape[0]
+    c = (n - 1) // 2
+    # pixel i has offset i - x; at x = X + 0.5 the offsets are k + 0.5
+    sub = a[1::2, 1::2]          # samples at odd indices: offsets (j - c) / 2 = k + 1/2
+    off = (np.arange(1, n, 2) - c) / 2.0
+    yy, xx = np.meshgrid(off, off, indexing="ij")
+    return sub, np.hypot(xx, yy)
+
+what = sys.argv[1]
+if what == "annuli":
+    ref, clean, noisy, flux = sys.argv[2], sys.argv[3], sys.argv[4], float(sys.argv[5])
+    x0, y0 = 1999.5, 1999.5      # 0-based centre of the catalog's 2000.5, 2000.5
+    sub, rr = ref_profile(ref, 0.5, 0.5)
+    c = fits.getdata(clean, 1).astype(float)
+    z = fits.getdata(noisy, 1).astype(float)
+    y, x = np.indices(c.shape)
+    r = np.hypot(x - x0, y - y0)
+    sky = np.median(z[r > 1500])
+    last = None
+    for R in (60, 100, 150, 200, 300):
+        m = (r >= R - 2) & (r < R + 2)
+        mr = (rr >= R - 2) & (rr < R + 2)
+        want = flux * np.median(sub[mr])
+        got, gotn = np.median(c[m]), np.median(z[m]) - sky
+        print("# %3d px: reference %.4g, drawn %.4g, noisy - sky %.4g" % (R, want, got, gotn))
+        assert gotn > 0 and got > 0, (R, got, gotn)
+        assert abs(got / want - 1) < 0.15, (R, got, want)
+        # the noisy image's median follows the wing (within its noise)
+        assert abs(gotn - got) < 0.2 * got + 0.5, (R, gotn, got)
+        assert last is None or got < last, (R, got, last)
+        last = got
+    inside = c[r < 300].sum()
+    want = flux * sub[rr < 300].sum()
+    print("# within 300 px: drawn %.6g of %.6g (%.4f)" % (inside, want, inside / want))
+    assert 0.99 <= inside / want <= 1.01, (inside, want)
+elif what == "edge":
+    img, rep = sys.argv[2], sys.argv[3]
+    sigma = float(json.load(open(rep))["error_budget"]["pixel_sigma"])
+    a = fits.getdata(img, 1).astype(float)
+    drawn = a != 0
+    assert drawn.any()
+    border = np.zeros_like(drawn)
+    # drawn pixels with an undrawn neighbour on the detector
+    for sl_in, sl_out in (((slice(1, None), slice(None)), (slice(None, -1), slice(None))),
+                          ((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
+                          ((slice(None), slice(1, None)), (slice(None), slice(None, -1))),
+                          ((slice(None), slice(None, -1)), (slice(None), slice(1, None)))):
+        border[sl_in] |= drawn[sl_in] & ~drawn[sl_out]
+    worst = np.abs(a[border]).max() if border.any() else 0.0
+    print("# %s: %d border pixels, largest %.3g = %.4f sigma (sigma %.4g)" %
+          (img, border.sum(), worst, worst / sigma, sigma))
+    assert worst < 0.1 * sigma, (worst, sigma)
+EOT
+
+test_expect_success 'the built-in optics'"'"' own large PSF (+-512 pixels)' '
+	"$WFS" psf --filter F158 --sca 1 --halo 512 -o ref.fits &&
+	printf "id,x,y,flux\n1,2000.5,2000.5,2\n" > two.csv
+'
+test_expect_success 'a 2-mag star: annulus medians at 60-300 px positive, falling as the optics'"'"' wing; 99 % within 300 px' '
+	"$WFS" --filter F158 --flux-unit abmag --report clean.json -o clean.fits two.csv &&
+	"$WFS" --filter F158 --flux-unit abmag --noise all --background avg -o noisy.fits two.csv &&
+	flux=$("$PY" -c "import json; print(json.load(open(\"clean.json\"))[\"flux\"][0][\"requested\"])") &&
+	"$PY" check.py annuli ref.fits clean.fits noisy.fits $flux
+'
+test_expect_success 'no jump above 0.1 sigma at the edge of what is drawn, stars of 0 to 28 mag' '
+	for m in 0 2 4 6 8 10 12 14 16 18 20 22 24 26 28; do
+		printf "id,x,y,flux\n1,2000.3,2000.6,$m\n" > m$m.csv &&
+		"$WFS" --filter F158 --flux-unit abmag --exptime 100 --report m$m.json \
+			-o m$m.fits m$m.csv &&
+		"$PY" check.py edge m$m.fits m$m.json || return 1
+	done
+'
+test_expect_success 'and with the noise stages'"'"' sigma (psf-box-sigma sets it by hand)' '
+	"$WFS" --filter F158 --flux-unit abmag --exptime 100 --set psf-box-sigma=0.5 \
+		--report s.json -o s.fits m14.csv &&
+	"$PY" -c "
+import json; r = json.load(open(\"s.json\")); r[\"error_budget\"][\"pixel_sigma\"] = \"0.5\"
+json.dump(r, open(\"s2.json\", \"w\"))" &&
+	"$PY" check.py edge s.fits s2.json
+'
+test_expect_success 'psf-extent=stips: the square boxes of STIPS, the light beyond them left out' '
+	"$WFS" --filter F158 --flux-unit abmag --set psf-extent=stips -o st.fits two.csv &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+a = fits.getdata(\"st.fits\", 1)
+y, x = np.nonzero(a)
+assert x.max() - x.min() + 1 == 176 and y.max() - y.min() + 1 == 176, (x.min(), x.max())
+"
+'
+test_expect_success 'the report gives the noise the extent follows and the light left out' '
+	"$PY" -c "
+import json
+r = json.load(open(\"clean.json\"))
+b = r[\"error_budget\"]
+assert b[\"extent\"] == \"noise\" and b[\"extent_noise_fraction\"] == \"0.1\", b
+assert float(b[\"pixel_sigma\"]) > 0, b
+f = r[\"flux\"][0]
+assert 0.98 < f[\"placed\"] / f[\"requested\"] < 1, f
+"
+'
+for kv in psf-extent=box psf-extent-noise=0 psf-extent-max=x psf-halo-power=2 \
+	psf-halo-radius=8 psf-halo-taper=x; do
+	key=${kv%%=*}
+	test_expect_success "--set $kv is refused, naming $key" "
+		test_must_fail \"\$WFS\" --filter F158 --flux-unit abmag --set $kv \
+			-o bad.fits two.csv 2> err &&
+		test_grep \"$key: expected\" err &&
+		! test -e bad.fits
+	"
+done
+test_done

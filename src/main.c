@@ -14,6 +14,7 @@
 #include "commands.h"
 #include "err.h"
 #include "fitsout.h"
+#include "geometry.h"
 #include "instrument.h"
 #include "noise.h"
 #include "pool.h"
@@ -86,6 +87,7 @@ enum {
 	OPT_NOISE, OPT_READNOISE, OPT_DARK, OPT_CRRATE, OPT_CRRES, OPT_SEED, OPT_THREADS,
 	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET, OPT_POINTINGS,
 	OPT_SERSICTRUNC, OPT_SERSICTOL, OPT_SERSICCORE, OPT_SERSICCONV, OPT_ROWS,
+	OPT_GEOMETRY,
 };
 
 static const struct option long_options[] = {
@@ -96,6 +98,7 @@ static const struct option long_options[] = {
 	{ "dec", required_argument, NULL, OPT_DEC },
 	{ "pa", required_argument, NULL, OPT_PA },
 	{ "pointing-ref", required_argument, NULL, OPT_POINTREF },
+	{ "geometry", required_argument, NULL, OPT_GEOMETRY },
 	{ "exptime", required_argument, NULL, OPT_EXPTIME },
 	{ "bunit", required_argument, NULL, OPT_BUNIT },
 	{ "placed", required_argument, NULL, OPT_PLACED },
@@ -312,6 +315,7 @@ static int fail(const struct err *e)
 int main(int argc, char **argv)
 {
 	static const char *const refs[] = { "wfi01", "boresight", NULL };
+	static const char *const geometries[] = { "siaf", "stips", NULL };
 	static const char *const bunits[] = { "counts/s", "counts", NULL };
 	static const char *const units[] = { "counts", "abmag", "jy", NULL };
 	static const char *const zps[] = { "rti", "stips", NULL };
@@ -378,6 +382,11 @@ int main(int argc, char **argv)
 			if ((k = choice(c, optarg, refs, &e)) < 0)
 				return fail(&e);
 			o.boresight = k == 1;
+			break;
+		case OPT_GEOMETRY:
+			if ((k = choice(c, optarg, geometries, &e)) < 0)
+				return fail(&e);
+			o.geometry = k == 1 ? GEOM_STIPS : GEOM_SIAF;
 			break;
 		case OPT_EXPTIME:
 			if (number(c, optarg, 1e-9, 1e12, &o.exptime, &e) < 0)

@@ -598,7 +598,7 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
  * Which requested SCAs each sky row may reach, as a bit mask per row (bit s
  * for slot s), and the rows near none of them counted as culled.  A row is
  * a candidate for slot s when its focal-plane position is within
- * SKY_SCA_HALF + its reach + 2" of the SCA centre along both axes.  Rather
+ * the SCA's half extent + its reach + 2" of the SCA centre along both axes.  Rather
  * than test every slot for every row, a per-axis table gives the slots
  * whose window, widened by the largest reach in the chunk, covers a band of
  * the focal plane; only those slots get the exact test.  The table is a
@@ -614,11 +614,12 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 	uint32_t xm[SLOT_BINS], ym[SLOT_BINS];
 	/* widened a little, so that a row passing the exact test within an
 	 * ulp of a window's edge is still inside the window's bins */
-	double lim = (SKY_SCA_HALF + maxreach + 2.0) * (1 + 1e-9) + 1e-6;
+#define LIM(ss) (((ss)->half + maxreach + 2.0) * (1 + 1e-9) + 1e-6)
 	double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY, wx, wy;
 
 	for (int s = 0; s < g->nslot; s++) {
 		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+		double lim = LIM(ss);
 
 		x0 = fmin(x0, ss->fx - lim);
 		x1 = fmax(x1, ss->fx + lim);
@@ -631,6 +632,7 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 	memset(ym, 0, sizeof(ym));
 	for (int s = 0; s < g->nslot; s++) {
 		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+		double lim = LIM(ss);
 		int a = (int)((ss->fx - lim - x0) / wx), b = (int)((ss->fx + lim - x0) / wx);
 		int c = (int)((ss->fy - lim - y0) / wy), d = (int)((ss->fy + lim - y0) / wy);
 
@@ -640,7 +642,7 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 			ym[k] |= 1u << s;
 	}
 	for (size_t i = 0; i < r->n; i++) {
-		double fx = g->fx[i], fy = g->fy[i], l;
+		double fx = g->fx[i], fy = g->fy[i];
 		uint32_t m = 0, c;
 
 		/* also false for NaN: x/y rows and rows far from the pointing */
@@ -649,10 +651,10 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 
 			c = xm[bx < SLOT_BINS ? bx : SLOT_BINS - 1] &
 			    ym[by < SLOT_BINS ? by : SLOT_BINS - 1];
-			l = SKY_SCA_HALF + g->reach[i] + 2.0;
 			while (c) {
 				int s = __builtin_ctz(c);
 				const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+				double l = ss->half + g->reach[i] + 2.0;
 
 				c &= c - 1;
 				if (fabs(fx - ss->fx) < l && fabs(fy - ss->fy) < l)
@@ -746,7 +748,7 @@ static int build_batch(struct engine *g, const struct rows *r, struct batch *b)
 	 * Those rows skip the trigonometry of the projection. */
 	for (int s = 0; s < g->nslot; s++) {
 		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
-		double lim = SKY_SCA_HALF + maxreach + 2.0;
+		double lim = ss->half + maxreach + 2.0;
 
 		band = fmax(band, hypot(fabs(ss->fx) + lim, fabs(ss->fy) + lim));
 	}
@@ -1222,7 +1224,7 @@ static int engine_init(struct engine *g, const struct scene_opts *o, struct pool
 		 o->noise & NOISE_DARK ? "dark," : "", o->noise & NOISE_FLAT ? "flat," : "",
 		 o->noise & NOISE_COSMIC ? "cosmic," : "");
 	g->sersic_flux_now = o->sersic_flux ? o->sersic_flux : "total";
-	if (sky_init(&g->sky, o->ra, o->dec, o->pa, o->boresight, o->sca_mask, e) < 0)
+	if (sky_init(&g->sky, o->ra, o->dec, o->pa, o->boresight, o->geometry, o->sca_mask, e) < 0)
 		return -1;
 	g->tile = o->tile;
 	g->ntx = g->nty = (WFS_NPIX + g->tile - 1) / g->tile;

@@ -997,9 +997,11 @@ static int primary_cards(struct engine *g, char **cards, int *n)
 	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
 	CARD(fits_card_dbl, "RA_TARG", g->sky.ra0, "pointing RA (deg)");
 	CARD(fits_card_dbl, "DEC_TARG", g->sky.dec0, "pointing Dec (deg)");
-	CARD(fits_card_dbl, "PA_APER", g->sky.pa0, "position angle of detector +y (deg E of N)");
+	CARD(fits_card_dbl, "PA_APER", g->sky.pa0, "position angle of reference +y (deg E of N)");
 	CARD(fits_card_str, "POINTREF", o->boresight ? "BORESIGHT" : "WFI01",
 	     "what RA_TARG/DEC_TARG point at");
+	CARD(fits_card_str, "GEOMETRY", geom_name(o->geometry),
+	     o->geometry == GEOM_STIPS ? "0.11\" square aligned SCAs, TAN" : "Roman SIAF, TAN-SIP");
 	CARD(fits_card_int, "SEED", (long long)o->seed, "random seed");
 	CARD(fits_card_str, "PSFSRC", o->psf, "PSF source");
 	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
@@ -1431,10 +1433,11 @@ static int write_report(struct engine *g)
 	fprintf(f, "  \"settings\": {\"filter\": \"%s\", \"scas\": [", g->filter_name);
 	for (int s = 0; s < g->nslot; s++)
 		fprintf(f, "%s%d", s ? ", " : "", g->slot[s].sca);
-	fprintf(f, "], \"ra\": %.10g, \"dec\": %.10g, \"pa\": %.10g, \"exptime\": %.10g, "
+	fprintf(f, "], \"ra\": %.10g, \"dec\": %.10g, \"pa\": %.10g, \"geometry\": \"%s\", "
+		"\"exptime\": %.10g, "
 		"\"psf\": \"%s\", \"threads\": %d, \"tile\": %d, \"chunk\": %zu, "
 		"\"seed\": %llu, \"noise\": %u, \"background\": %.10g},\n",
-		g->sky.ra0, g->sky.dec0, g->sky.pa0, o->exptime, o->psf, g->nworker, g->tile,
+		g->sky.ra0, g->sky.dec0, g->sky.pa0, geom_name(o->geometry), o->exptime, o->psf, g->nworker, g->tile,
 		o->chunk, (unsigned long long)o->seed, o->noise, o->background);
 	fprintf(f, "  \"seconds\": {\"total\": %.6f, \"read_parse\": %.6f, "
 		"\"project_place\": %.6f, \"render_busy\": %.6f, \"render_wait\": %.6f, "

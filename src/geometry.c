@@ -470,6 +470,56 @@ double geom_area(const struct geom_sca *g, double x, double y)
 	return fabs(j[0] * j[3] - j[1] * j[2]) / (WFS_PIXSCALE * WFS_PIXSCALE);
 }
 
+/* The Jacobian's entries along row v as polynomials in u (degree <= 4):
+ * d[0] dxi/du, d[1] dxi/dv, d[2] dyi/du, d[3] dyi/dv, coefficient of u^p
+ * in d[k][p]. */
+static void row_jacobian(const struct geom_aperture *ap, double v, double d[4][GEOM_DEG])
+{
+	double vp[GEOM_DEG + 1];
+
+	powers(v, vp, GEOM_DEG);
+	memset(d, 0, 4 * GEOM_DEG * sizeof(double));
+	for (int i = 1; i <= GEOM_DEG; i++)
+		for (int j = 0; j <= i; j++) {
+			int k = i * (i + 1) / 2 + j, p = i - j;
+
+			if (p) {
+				d[0][p - 1] += p * ap->sx[k] * vp[j];
+				d[2][p - 1] += p * ap->sy[k] * vp[j];
+			}
+			if (j) {
+				d[1][p] += j * ap->sx[k] * vp[j - 1];
+				d[3][p] += j * ap->sy[k] * vp[j - 1];
+			}
+		}
+}
+
+void geom_area_row(const struct geom_sca *g, int y, int x0, int n, double *area)
+{
+	const struct geom_aperture *ap = g->ap;
+	double d[4][GEOM_DEG], c[2 * GEOM_DEG - 1] = { 0 }, u0, nominal;
+
+	if (g->kind == GEOM_STIPS) {
+		for (int i = 0; i < n; i++)
+			area[i] = 1.0;
+		return;
+	}
+	/* det J along the row, a polynomial of degree 8 in u, then Horner */
+	row_jacobian(ap, y + 1 - ap->yref, d);
+	for (int p = 0; p < GEOM_DEG; p++)
+		for (int q = 0; q < GEOM_DEG; q++)
+			c[p + q] += d[0][p] * d[3][q] - d[1][p] * d[2][q];
+	nominal = WFS_PIXSCALE * WFS_PIXSCALE;
+	u0 = x0 + 1 - ap->xref;
+	for (int i = 0; i < n; i++) {
+		double u = u0 + i, s = c[2 * GEOM_DEG - 2];
+
+		for (int k = 2 * GEOM_DEG - 3; k >= 0; k--)
+			s = s * u + c[k];
+		area[i] = fabs(s) / nominal;
+	}
+}
+
 /* ---- headers ---- */
 
 static int add(char **cards, int *n, int *cap, const char *card)

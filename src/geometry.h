@@ -108,6 +108,10 @@ void geom_jacobian(const struct geom_sca *g, double x, double y, double j[4]);
  * pixel (1 everywhere for stips). */
 double geom_area(const struct geom_sca *g, double x, double y);
 
+/* geom_area() of pixels x0 .. x0 + n - 1 of row y (0-based), by a
+ * polynomial per row: a few operations a pixel, for the background. */
+void geom_area_row(const struct geom_sca *g, int y, int x0, int n, double *area);
+
 /* The WCS cards (concatenated 80-char cards, free()) of an image whose
  * first row is the SCA's row row0: TAN for stips, TAN-SIP for siaf. */
 int geom_header(struct geom_sca *g, int row0, char **cards, int *ncards,

@@ -953,8 +953,28 @@ static void noise_strip_tile(void *arg, int wid, size_t tx)
 	int nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
 	int ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
 	double *tile = g->slot[j->slot].tile[j->ty * g->ntx + tx];
+	const struct geom_sca *geo = &g->sky.sca[g->slot[j->slot].sca - 1].geo;
+	struct noise_opts no = *j->no;
 
-	if (noise_tile(j->no, g->slot[j->slot].sca, x0, y0, nx, ny, tile, T) < 0)
+	/* The SIAF geometry: the background is per nominal 0.11" pixel, and
+	 * each pixel gets it times its own area (before the noise stages, as
+	 * noise_tile would add it).  stips: noise_tile adds it, as before. */
+	if (geo->kind == GEOM_SIAF && no.background != 0 && tile) {
+		enum { SPAN = 256 };
+		double area[SPAN];
+
+		for (int y = 0; y < ny; y++)
+			for (int x = 0; x < nx; x += SPAN) {
+				int m = nx - x < SPAN ? nx - x : SPAN;
+				double *r = tile + (size_t)y * T + x;
+
+				geom_area_row(geo, y0 + y, x0 + x, m, area);
+				for (int i = 0; i < m; i++)
+					r[i] += no.background * area[i];
+			}
+		no.background = 0;
+	}
+	if (noise_tile(&no, g->slot[j->slot].sca, x0, y0, nx, ny, tile, T) < 0)
 		atomic_store(&g->failed, 1);
 }
 

@@ -5,7 +5,8 @@
 # 18 SCAs to the sky, and wfiscene must place those rows within 1e-3 px of
 # where they came from and back on the sky within 0.1 mas; astropy's
 # reading of the TAN-SIP headers (forward, AP/BP and its own iterative
-# inverse) within 0.005 px of the same chain.  --pa is the position angle
+# inverse) within 0.005 px of the same chain; the background of every
+# pixel in proportion to its area on the sky.  --pa is the position angle
 # of the reference aperture's +y_idl (checked by siaf_check.py itself).
 . "$(dirname "$0")/lib.sh"
 require_python
@@ -30,6 +31,18 @@ check 'PA 217 about the boresight' 200 -35 217 boresight 2
 check 'near the north pole' 45 89.9 300 wfi01 3
 check 'across RA 0/360' 0.02 -5 95 boresight 4
 
+test_expect_success 'the background follows each pixel'"'"'s area (SIAF), is flat (stips)' '
+	: > empty.csv &&
+	"$WFS" --filter F129 --sca 1,9,18 --compress gzip --background 0.7 -o b.fits empty.csv &&
+	"$PY" "$TOP/tests/siaf_check.py" bkg "$SIAF" 0.7 b.fits &&
+	"$WFS" --filter F129 --sca 9 --compress gzip --background 0.7 --geometry stips \
+		-o t.fits empty.csv &&
+	"$PY" -c "
+from astropy.io import fits; import numpy as np
+d = fits.getdata(\"t.fits\", 1)
+assert np.all(d == np.float32(0.7)), (d.min(), d.max())
+"
+'
 test_expect_success 'siaf is the default, --geometry stips the old layout' '
 	: > empty.csv &&
 	"$WFS" --filter F129 --sca 9 --compress gzip -o d.fits empty.csv &&

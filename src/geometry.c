@@ -297,6 +297,9 @@ static void vec_to_radec(const double s[3], double *ra, double *dec)
 	*ra = atan2(s[1], s[0]) / D2R;
 	if (*ra < 0)
 		*ra += 360;
+	/* -1e-15 + 360 rounds to 360 */
+	if (*ra >= 360)
+		*ra -= 360;
 	*dec = atan2(s[2], hypot(s[0], s[1])) / D2R;
 }
 

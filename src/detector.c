@@ -1,0 +1,80 @@
+/*
+ * detector.c - the detector stage after rendering; see detector.h.
+ *
+ * Today one level: the scene level of STIPS, a rate image with background,
+ * exposure time, noise and detector residuals applied per tile by noise.c.
+ */
+#include <stdatomic.h>
+
+#include "detector.h"
+#include "exposure.h"
+#include "instrument.h"
+#include "pool.h"
+#include "scene.h"
+#include "sky.h"
+
+void detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x)
+{
+	d->level = x->level;
+	d->noise = (struct noise_opts){
+		.stages = o->noise, .background = x->background, .exptime = o->exptime,
+		.readnoise = o->readnoise, .dark_current = o->dark_current,
+		.cosmic_rate = o->cosmic_rate, .cosmic_residual = o->cosmic_residual,
+		.seed = x->seed, .filter = o->filter, .counts = o->bunit_counts,
+	};
+	/* With no noise, no background and counts/s, the stage is the
+	 * identity and the tiles never drawn on are never allocated. */
+	d->active = o->noise || x->background != 0 || o->bunit_counts;
+	d->sky = NULL;
+}
+
+struct strip_job {
+	const struct detector *d;
+	int sca, y0, ny, T;
+	double *const *tiles;
+	atomic_int failed;
+};
+
+static void detector_tile(void *arg, int wid, size_t tx)
+{
+	struct strip_job *j = arg;
+	int x0 = (int)tx * j->T;
+	int nx = x0 + j->T > WFS_NPIX ? WFS_NPIX - x0 : j->T;
+
+	const struct geom_sca *geo = j->d->sky ? &j->d->sky->sca[j->sca - 1].geo : NULL;
+	struct noise_opts no = j->d->noise;
+	double *tile = j->tiles[tx];
+
+	/* The SIAF geometry: the background is per nominal 0.11" pixel, and
+	 * each pixel gets it times its own area, before the noise stages as
+	 * noise_tile would add it.  stips: noise_tile adds it, as before. */
+	if (geo && geo->kind == GEOM_SIAF && no.background != 0 && tile) {
+		enum { SPAN = 256 };
+		double area[SPAN];
+
+		for (int y = 0; y < j->ny; y++)
+			for (int x = 0; x < nx; x += SPAN) {
+				int m = nx - x < SPAN ? nx - x : SPAN;
+				double *r = tile + (size_t)y * j->T + x;
+
+				geom_area_row(geo, j->y0 + y, x0 + x, m, area);
+				for (int i = 0; i < m; i++)
+					r[i] += no.background * area[i];
+			}
+		no.background = 0;
+	}
+	if (noise_tile(&no, j->sca, x0, j->y0, nx, j->ny, tile, j->T) < 0)
+		atomic_store(&j->failed, 1);
+}
+
+int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
+		   double *const *tiles, int ntx, int T)
+{
+	struct strip_job j = { .d = d, .sca = sca, .y0 = y0, .ny = ny, .T = T, .tiles = tiles };
+
+	if (!d->active)
+		return 0;
+	atomic_init(&j.failed, 0);
+	pool_run(pool, detector_tile, &j, ntx);
+	return atomic_load(&j.failed) ? -1 : 0;
+}

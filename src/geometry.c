@@ -193,9 +193,12 @@ void geom_idl_to_sci(const struct geom_aperture *ap, double xi, double yi,
 {
 	double up[GEOM_DEG + 1], vp[GEOM_DEG + 1], x, y, d[4];
 
-	/* The SIAF's inverse polynomial is good to ~1e-3 pixel; Newton steps
-	 * on Sci2Idl make it the exact inverse (one step gives ~1e-9 pixel
-	 * on the SCA; a second only far outside it). */
+	/* The SIAF's inverse polynomial is good to 3.5e-3 pixel on the SCA;
+	 * Newton steps on Sci2Idl make it the exact inverse.  The error after
+	 * a step is of the order of the step squared times the relative
+	 * curvature (< 1e-5 per pixel), so a step under 0.01 pixel leaves
+	 * < 1e-9 and ends the loop: on the SCA one step is enough, only far
+	 * outside it does a second one run. */
 	powers(xi, up, GEOM_DEG);
 	powers(yi, vp, GEOM_DEG);
 	x = poly5_value(ap->ix, up, vp);
@@ -211,7 +214,7 @@ void geom_idl_to_sci(const struct geom_aperture *ap, double xi, double yi,
 		dy = (d[0] * fy - d[2] * fx) / det;
 		x -= dx;
 		y -= dy;
-		if (!(fabs(dx) + fabs(dy) > 1e-10))
+		if (!(fabs(dx) + fabs(dy) > 1e-2))
 			break;
 	}
 	*u = x;

@@ -134,16 +134,17 @@ fail:
 	return -1;
 }
 
-/* tmpl with its "%s" replaced by name (a word of safe characters). */
+/* tmpl with its "%s" replaced by name (a word of safe characters); NULL for
+ * a NULL tmpl, or when out of memory. */
 static char *expand_name(const char *tmpl, const char *name)
 {
-	const char *at = strstr(tmpl, "%s");
+	const char *at;
 	size_t n;
 	char *out;
 
 	if (!tmpl)
 		return NULL;
-	if (!at)
+	if (!(at = strstr(tmpl, "%s")))
 		return strdup(tmpl);
 	n = strlen(tmpl) + strlen(name);
 	if (!(out = malloc(n + 1)))

@@ -12,11 +12,13 @@
 #include "instrument.h"
 #include "pool.h"
 #include "scene.h"
+#include "sky.h"
 
 int detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x,
 		  struct err *e)
 {
 	d->level = x->level;
+	d->sky = NULL;
 	if (d->level != DETECTOR_SCENE) {
 		d->active = 1;
 		return ramp_pattern_get(o->ma_table, &d->pattern, e);
@@ -46,7 +48,29 @@ static void detector_tile(void *arg, int wid, size_t tx)
 	int x0 = (int)tx * j->T;
 	int nx = x0 + j->T > WFS_NPIX ? WFS_NPIX - x0 : j->T;
 
-	if (noise_tile(&j->d->noise, j->sca, x0, j->y0, nx, j->ny, j->tiles[tx], j->T) < 0)
+	const struct geom_sca *geo = j->d->sky ? &j->d->sky->sca[j->sca - 1].geo : NULL;
+	struct noise_opts no = j->d->noise;
+	double *tile = j->tiles[tx];
+
+	/* The SIAF geometry: the background is per nominal 0.11" pixel, and
+	 * each pixel gets it times its own area, before the noise stages as
+	 * noise_tile would add it.  stips: noise_tile adds it, as before. */
+	if (geo && geo->kind == GEOM_SIAF && no.background != 0 && tile) {
+		enum { SPAN = 256 };
+		double area[SPAN];
+
+		for (int y = 0; y < j->ny; y++)
+			for (int x = 0; x < nx; x += SPAN) {
+				int m = nx - x < SPAN ? nx - x : SPAN;
+				double *r = tile + (size_t)y * j->T + x;
+
+				geom_area_row(geo, j->y0 + y, x0 + x, m, area);
+				for (int i = 0; i < m; i++)
+					r[i] += no.background * area[i];
+			}
+		no.background = 0;
+	}
+	if (noise_tile(&no, j->sca, x0, j->y0, nx, j->ny, tile, j->T) < 0)
 		atomic_store(&j->failed, 1);
 }
 

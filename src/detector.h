@@ -21,6 +21,7 @@ struct err;
 struct exposure;
 struct pool;
 struct scene_opts;
+struct sky;
 
 enum detector_level {
 	/* A rate image (or counts with --bunit counts): background, exposure
@@ -39,6 +40,10 @@ struct detector {
 	struct noise_opts noise;        /* DETECTOR_SCENE */
 	int active;                     /* 0: the drawn image is written as is */
 	struct ramp_pattern pattern;    /* DETECTOR_L1, DETECTOR_L2 */
+	/* The geometry of each SCA (NULL: a flat background, as stips): in
+	 * the SIAF geometry each pixel's background is the --background value
+	 * times its area over a nominal 0.11" square (DETECTOR_SCENE). */
+	const struct sky *sky;
 };
 
 /* The detector stage of exposure x of a run with options o. */

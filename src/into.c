@@ -290,10 +290,14 @@ int into_apply(const struct into *in, struct sky *sky, struct err *e)
 				 (h->ny + 1) / 2.0, 0.5, h->ny + 0.5 };
 		int status;
 
-		wcsfree(&ss->wcs);
-		ss->wcs.flag = -1;
-		if ((status = wcssub(1, &h->wcs, NULL, NULL, &ss->wcs)) ||
-		    (status = wcsset(&ss->wcs)))
+		/* The SCA takes the image's own WCS, through wcslib (the geometry
+		 * kind that maps by a wcsprm, whatever the image's projection) */
+		geom_sca_free(&ss->geo);
+		ss->geo.kind = GEOM_STIPS;
+		ss->geo.wcs.flag = -1;
+		ss->geo.have_wcs = 1;
+		if ((status = wcssub(1, &h->wcs, NULL, NULL, &ss->geo.wcs)) ||
+		    (status = wcsset(&ss->geo.wcs)))
 			return err_set(e, EXIT_SYSTEM, "--into %s: wcslib: %s", in->spec,
 				       wcs_errmsg[status]);
 		ss->ra = h->ra;
@@ -311,17 +315,20 @@ int into_apply(const struct into *in, struct sky *sky, struct err *e)
 			double pix[2] = { px[c], py[c] }, img[2], world[2], phi, theta, fx, fy;
 			int stat;
 
-			if (wcsp2s(&ss->wcs, 1, 2, pix, img, &phi, &theta, world, &stat) || stat)
+			if (wcsp2s(&ss->geo.wcs, 1, 2, pix, img, &phi, &theta, world, &stat) || stat)
 				return err_set(e, EXIT_INPUT, "--into %s[%d]: a corner of the image "
 					       "has no sky position", in->path, h->hdu - 1);
-			sky_to_focal(sky, 1, &world[ss->wcs.lng], &world[ss->wcs.lat], INFINITY,
+			sky_to_focal(sky, 1, &world[ss->geo.wcs.lng], &world[ss->geo.wcs.lat], INFINITY,
 				     &fx, &fy);
 			far = fmax(far, fmax(fabs(fx - cx), fabs(fy - cy)));
 		}
-		if (!(far <= SKY_SCA_HALF + 1.0))
+		/* An SCA of the SIAF geometry reaches up to ~231": allow 10 % over
+		 * the 0.11" square, and cull with the image's own extent. */
+		if (!(far <= SKY_SCA_HALF * 1.1))
 			return err_set(e, EXIT_INPUT, "--into %s[%d]: the image reaches %.1f arcsec "
 				       "from its centre along the detector axes, more than an SCA's "
-				       "%.1f", in->path, h->hdu - 1, far, SKY_SCA_HALF);
+				       "%.1f", in->path, h->hdu - 1, far, SKY_SCA_HALF * 1.1);
+		ss->half = fmax(SKY_SCA_HALF, far + 1.0);
 	}
 	return 0;
 }

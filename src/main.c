@@ -43,6 +43,8 @@ static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
 	set_seed, set_version, set_exptime, set_level;
 
 static const char *const refs[] = { "wfi01", "boresight", NULL };
+/* in the order of enum wfs_geometry */
+static const char *const geometries[] = { "siaf", "stips", NULL };
 static const char *const bunits[] = { "counts/s", "counts", NULL };
 static const char *const units[] = { "counts", "abmag", "jy", NULL };
 static const char *const zps[] = { "rti", "stips", NULL };
@@ -62,10 +64,12 @@ static const struct opt scene_options[] = {
 	  .lo = -360, .hi = 720 },
 	{ OPT("dec", 0, "DEG", "0", "declination of the pointing", opt_double, OFF(o.dec)),
 	  .lo = -90, .hi = 90 },
-	{ OPT("pa", 0, "DEG", "0", "position angle of the detectors' +y axis", opt_double,
+	{ OPT("pa", 0, "DEG", "0", "position angle of the reference's +y axis", opt_double,
 	  OFF(o.pa)), .lo = -720, .hi = 720 },
 	{ OPT("pointing-ref", 0, "REF", "wfi01", "wfi01 (ra/dec is WFI01's centre) or boresight",
 	  opt_choice, OFF(o.boresight)), .words = refs },
+	{ OPT("geometry", 0, "G", "siaf", "siaf (Roman's SIAF distortion) or stips (0.11\" "
+	  "square aligned pixels)", opt_choice, OFF(o.geometry)), .words = geometries },
 	{ OPT("exptime", 0, "S", "1", "exposure time in seconds", set_exptime, OFF(o.exptime)),
 	  .lo = 1e-9, .hi = 1e12 },
 	{ OPT("bunit", 0, "UNIT", "counts/s", "counts/s or counts", opt_choice,

@@ -361,7 +361,7 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
  * Which requested SCAs each sky row may reach, as a bit mask per row (bit s
  * for slot s), and the rows near none of them counted as culled.  A row is
  * a candidate for slot s when its focal-plane position is within
- * SKY_SCA_HALF + its reach + 2" of the SCA centre along both axes.  Rather
+ * the SCA's half extent + its reach + 2" of the SCA centre along both axes.  Rather
  * than test every slot for every row, a per-axis table gives the slots
  * whose window, widened by the largest reach in the chunk, covers a band of
  * the focal plane; only those slots get the exact test.  The table is a
@@ -377,11 +377,12 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 	uint32_t xm[SLOT_BINS], ym[SLOT_BINS];
 	/* widened a little, so that a row passing the exact test within an
 	 * ulp of a window's edge is still inside the window's bins */
-	double lim = (SKY_SCA_HALF + maxreach + 2.0) * (1 + 1e-9) + 1e-6;
+#define LIM(ss) (((ss)->half + maxreach + 2.0) * (1 + 1e-9) + 1e-6)
 	double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY, wx, wy;
 
 	for (int s = 0; s < g->nslot; s++) {
 		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+		double lim = LIM(ss);
 
 		x0 = fmin(x0, ss->fx - lim);
 		x1 = fmax(x1, ss->fx + lim);
@@ -394,6 +395,7 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 	memset(ym, 0, sizeof(ym));
 	for (int s = 0; s < g->nslot; s++) {
 		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+		double lim = LIM(ss);
 		int a = (int)((ss->fx - lim - x0) / wx), b = (int)((ss->fx + lim - x0) / wx);
 		int c = (int)((ss->fy - lim - y0) / wy), d = (int)((ss->fy + lim - y0) / wy);
 
@@ -403,7 +405,7 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 			ym[k] |= 1u << s;
 	}
 	for (size_t i = 0; i < r->n; i++) {
-		double fx = g->fx[i], fy = g->fy[i], l;
+		double fx = g->fx[i], fy = g->fy[i];
 		uint32_t m = 0, c;
 
 		/* also false for NaN: x/y rows and rows far from the pointing */
@@ -412,10 +414,10 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 
 			c = xm[bx < SLOT_BINS ? bx : SLOT_BINS - 1] &
 			    ym[by < SLOT_BINS ? by : SLOT_BINS - 1];
-			l = SKY_SCA_HALF + g->reach[i] + 2.0;
 			while (c) {
 				int s = __builtin_ctz(c);
 				const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+				double l = ss->half + g->reach[i] + 2.0;
 
 				c &= c - 1;
 				if (fabs(fx - ss->fx) < l && fabs(fy - ss->fy) < l)
@@ -425,6 +427,7 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 		g->mask[i] = m;
 		g->culled += !isnan(r->ra[i]) && !m;
 	}
+#undef LIM
 }
 
 /* The model of each row (model[i]), the values of the columns it reads
@@ -499,7 +502,7 @@ static void project_sky_to_focal(struct engine *g, const struct rows *r, double 
 
 	for (int s = 0; s < g->nslot; s++) {
 		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
-		double lim = SKY_SCA_HALF + maxreach + 2.0;
+		double lim = ss->half + maxreach + 2.0;
 
 		band = fmax(band, hypot(fabs(ss->fx) + lim, fabs(ss->fy) + lim));
 	}

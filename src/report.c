@@ -186,10 +186,11 @@ int report_write(struct engine *g)
 	fprintf(f, "  \"settings\": {\"filter\": \"%s\", \"scas\": [", g->filter_name);
 	for (int s = 0; s < g->nslot; s++)
 		fprintf(f, "%s%d", s ? ", " : "", g->slot[s].sca);
-	fprintf(f, "], \"ra\": %.10g, \"dec\": %.10g, \"pa\": %.10g, \"exptime\": %.10g, "
+	fprintf(f, "], \"ra\": %.10g, \"dec\": %.10g, \"pa\": %.10g, \"geometry\": \"%s\", "
+		"\"exptime\": %.10g, "
 		"\"psf\": \"%s\", \"threads\": %d, \"tile\": %d, \"chunk\": %zu, "
 		"\"seed\": %llu, \"noise\": %u, \"background\": %.10g},\n",
-		g->sky.ra0, g->sky.dec0, g->sky.pa0, o->exptime, o->psf, g->nworker, g->tile,
+		g->sky.ra0, g->sky.dec0, g->sky.pa0, geom_name(o->geometry), o->exptime, o->psf, g->nworker, g->tile,
 		o->chunk, (unsigned long long)x->seed, o->noise, x->background);
 	fprintf(f, "  \"seconds\": {\"total\": %.6f, \"read_parse\": %.6f, "
 		"\"project_place\": %.6f, \"render_busy\": %.6f, \"render_wait\": %.6f, "

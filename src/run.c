@@ -100,7 +100,7 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	g->main_thread = pthread_self();
 	pthread_mutex_init(&g->err_mu, NULL);
 	engine_setting_strings(g);
-	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, x->sca_mask, e) < 0)
+	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, o->geometry, x->sca_mask, e) < 0)
 		return -1;
 	g->tile = o->tile;
 	g->ntx = g->nty = (WFS_NPIX + g->tile - 1) / g->tile;

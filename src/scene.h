@@ -21,6 +21,7 @@ struct scene_opts {
 	unsigned sca_mask;              /* bit s-1 for SCA s */
 	double ra, dec, pa;             /* pointing, degrees */
 	int boresight;                  /* ra/dec is the boresight, not WFI01 */
+	int geometry;                   /* GEOM_SIAF (0, the default) or GEOM_STIPS */
 	double exptime;                 /* seconds */
 	int bunit_counts;               /* output counts instead of counts/s */
 	const char *psf;                /* "builtin" or a gridded PSF file */

@@ -4,10 +4,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <wcslib/wcshdr.h>
-#include <wcslib/wcsfix.h>
-
 #include "err.h"
+#include "geometry.h"
 #include "instrument.h"
 #include "sky.h"
 
@@ -108,50 +106,47 @@ static double position_angle(double a1, double d1, double a2, double d2)
 		     cos(d1) * sin(d2) - sin(d1) * cos(d2) * cos(da)) / D2R;
 }
 
-static int setup_wcs(struct sky_sca *s, struct err *e)
+/* The stips geometry's SCA extent, or the siaf one's from its boundary
+ * pixels taken to the focal plane, with half a pixel to spare. */
+static double sca_half(const struct sky *sky, struct sky_sca *s)
 {
-	struct wcsprm *w = &s->wcs;
-	double c = cos(s->pa * D2R), sn = sin(s->pa * D2R);
-	int status;
+	double half = 0;
 
-	w->flag = -1;
-	if ((status = wcsini(1, 2, w)))
-		return err_set(e, EXIT_SYSTEM, "wcslib: %s", wcs_errmsg[status]);
-	strcpy(w->ctype[0], "RA---TAN");
-	strcpy(w->ctype[1], "DEC--TAN");
-	strcpy(w->cunit[0], "deg");
-	strcpy(w->cunit[1], "deg");
-	strcpy(w->radesys, "ICRS");
-	w->crval[0] = s->ra;
-	w->crval[1] = s->dec;
-	/* FITS pixel (1, 1) is the centre of the first pixel, so the centre of
-	 * a 4088-pixel axis is at 2044.5 (STIPS uses 2044, half a pixel off). */
-	w->crpix[0] = w->crpix[1] = (WFS_NPIX + 1) / 2.0;
-	w->cdelt[0] = -WFS_PIXSCALE / 3600.0;
-	w->cdelt[1] = WFS_PIXSCALE / 3600.0;
-	w->pc[0] = c;
-	w->pc[1] = -sn;
-	w->pc[2] = sn;
-	w->pc[3] = c;
-	w->lonpole = 180;
-	if ((status = wcsset(w)))
-		return err_set(e, EXIT_SYSTEM, "wcslib: %s", wcs_errmsg[status]);
-	return 0;
+	if (sky->geometry == GEOM_STIPS)
+		return SKY_SCA_HALF;
+	for (int k = 0; k <= 64; k++) {
+		double t = -0.5 + k * WFS_NPIX / 64.0;
+		double px[4] = { t, t, -0.5, WFS_NPIX - 0.5 };
+		double py[4] = { -0.5, WFS_NPIX - 0.5, t, t };
+
+		for (int c = 0; c < 4; c++) {
+			double ra, dec, fx, fy;
+
+			geom_pix_to_sky(&s->geo, px[c], py[c], &ra, &dec);
+			sky_to_focal(sky, 1, &ra, &dec, INFINITY, &fx, &fy);
+			half = fmax(half, fmax(fabs(fx - s->fx), fabs(fy - s->fy)));
+		}
+	}
+	return half + 0.06;
 }
 
 int sky_init(struct sky *sky, double ra, double dec, double pa, int boresight,
-	     unsigned mask, struct err *e)
+	     int geometry, unsigned mask, struct err *e)
 {
 	memset(sky, 0, sizeof(*sky));
 	if (!isfinite(ra) || !isfinite(dec) || dec < -90 || dec > 90)
 		return err_set(e, EXIT_INPUT, "bad pointing: ra %g, dec %g", ra, dec);
 	if (!isfinite(pa))
 		return err_set(e, EXIT_INPUT, "bad position angle %g", pa);
+	if (geom_init(e) < 0)
+		return -1;
 	sky->ra0 = fmod(fmod(ra, 360) + 360, 360);
 	sky->dec0 = dec;
 	sky->pa0 = fmod(fmod(pa, 360) + 360, 360);
 	sky->boresight = boresight;
+	sky->geometry = geometry;
 	make_rot(sky);
+	geom_attitude(geom_aperture(boresight ? 0 : 1), sky->ra0, sky->dec0, sky->pa0, sky->att);
 	for (int i = 0; i < WFS_NSCA; i++) {
 		const struct sca_info *si = sca_get(i + 1);
 		struct sky_sca *s = &sky->sca[i];
@@ -167,8 +162,14 @@ int sky_init(struct sky *sky, double ra, double dec, double pa, int boresight,
 		 * 1" keeps the finite difference exact to ~1e-9 deg. */
 		sky_from_focal(sky, s->fx, s->fy + 1.0, &ra2, &dec2);
 		s->pa = position_angle(s->ra, s->dec, ra2, dec2);
-		if (setup_wcs(s, e) < 0)
+		if (geom_sca_init(&s->geo, geometry, i + 1, (const double (*)[3])sky->att,
+				  s->ra, s->dec, s->pa, e) < 0)
 			return -1;
+		/* siaf: the SCA's own reference pixel and +y */
+		s->ra = s->geo.ra;
+		s->dec = s->geo.dec;
+		s->pa = s->geo.pa;
+		s->half = sca_half(sky, s);
 	}
 	return 0;
 }
@@ -177,54 +178,17 @@ void sky_free(struct sky *sky)
 {
 	for (int i = 0; i < WFS_NSCA; i++)
 		if (sky->sca[i].sca)
-			wcsfree(&sky->sca[i].wcs);
+			geom_sca_free(&sky->sca[i].geo);
 }
 
 int sky_to_pixel(struct sky *sky, int s, size_t n, const double *ra,
 		 const double *dec, double *x, double *y, struct err *e)
 {
-	struct wcsprm *w = &sky->sca[s - 1].wcs;
-	enum { BLOCK = 512 };
-	double world[BLOCK][2], img[BLOCK][2], pix[BLOCK][2], phi[BLOCK], theta[BLOCK];
-	int stat[BLOCK];
-
-	for (size_t i0 = 0; i0 < n; i0 += BLOCK) {
-		int m = n - i0 < BLOCK ? (int)(n - i0) : BLOCK, status;
-
-		for (int k = 0; k < m; k++) {
-			world[k][0] = ra[i0 + k];
-			world[k][1] = dec[i0 + k];
-		}
-		status = wcss2p(w, m, 2, world[0], phi, theta, img[0], pix[0], stat);
-		if (status && status != WCSERR_BAD_WORLD)
-			return err_set(e, EXIT_SYSTEM, "wcslib: %s", wcs_errmsg[status]);
-		for (int k = 0; k < m; k++) {
-			x[i0 + k] = stat[k] ? NAN : pix[k][0] - 1.0;
-			y[i0 + k] = stat[k] ? NAN : pix[k][1] - 1.0;
-		}
-	}
-	return 0;
+	return geom_sky_to_pix(&sky->sca[s - 1].geo, n, ra, dec, x, y, e);
 }
 
 int sky_header(struct sky *sky, int s, int row0, char **cards, int *ncards,
 	       struct err *e)
 {
-	struct wcsprm part = { .flag = -1 };
-	int status;
-
-	if (!row0) {
-		status = wcshdo(WCSHDO_P17, &sky->sca[s - 1].wcs, ncards, cards);
-	} else {
-		/* A copy whose reference pixel is counted from the part's
-		 * first row; the SCA's own WCS stays as it is. */
-		if (!(status = wcssub(1, &sky->sca[s - 1].wcs, NULL, NULL, &part))) {
-			part.crpix[1] -= row0;
-			part.flag = 0;
-			status = wcshdo(WCSHDO_P17, &part, ncards, cards);
-		}
-		wcsfree(&part);
-	}
-	if (status)
-		return err_set(e, EXIT_SYSTEM, "wcslib: %s", wcs_errmsg[status]);
-	return 0;
+	return geom_header(&sky->sca[s - 1].geo, row0, cards, ncards, e);
 }

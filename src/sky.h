@@ -1,25 +1,30 @@
 /*
- * sky.h - where each SCA looks: the focal-plane layout for a pointing and a
- * TAN WCS per SCA (wcslib).
+ * sky.h - where each SCA looks: the focal-plane layout for a pointing, and
+ * each SCA's geometry (geometry.h).
  *
  * The pointing (ra, dec, pa) is the centre of WFI01 (STIPS's convention) or
- * the WFI boresight.  pa is the position angle of the detectors' +y axis,
- * degrees east of north.  SCA centres sit at their focal-plane offsets
- * (data/sca.tsv) rotated by pa and projected gnomonically about the
- * reference, so the whole layout turns with pa (STIPS spins each detector
- * about its own centre instead).  Each SCA gets its own TAN projection about
- * its centre, 0.11"/pixel, CRPIX at the geometric centre (2044.5, 2044.5),
- * standard parity (east left when north is up), rotated by the position
- * angle of its +y axis measured at its own centre, which differs from pa
- * away from the reference and near the poles.
+ * the WFI boresight.  pa is the position angle of the reference aperture's
+ * +y axis (its ideal +y, which is WFI01's detector +y to 0.16 degrees, or
+ * the boresight's), degrees east of north, at the reference point.  The
+ * focal plane is the reference aperture's ideal frame: the plane tangent to
+ * the sky at the reference, +y at pa, +x 90 degrees west of it.  SCA
+ * centres sit there at their SIAF offsets (data/sca.tsv), so the whole
+ * layout turns with pa (STIPS spins each detector about its own centre
+ * instead).
+ *
+ * --geometry stips: each SCA gets its own TAN projection about its centre,
+ * 0.11"/pixel, CRPIX at the geometric centre (2044.5, 2044.5), standard
+ * parity (east left when north is up), rotated by the position angle of the
+ * focal plane's +y axis measured at its own centre, which differs from pa
+ * away from the reference and near the poles.  --geometry siaf: the SIAF's
+ * own scales, rotation and distortion per SCA (geometry.h).
  */
 #ifndef WFS_SKY_H
 #define WFS_SKY_H
 
 #include <stddef.h>
 
-#include <wcslib/wcs.h>
-
+#include "geometry.h"
 #include "instrument.h"
 
 struct err;
@@ -29,19 +34,24 @@ struct sky_sca {
 	double ra, dec;         /* centre, degrees */
 	double pa;              /* position angle of +y at the centre, degrees */
 	double fx, fy;          /* centre in the focal-plane frame, arcsec */
-	struct wcsprm wcs;      /* set up; one thread at a time */
+	double half;            /* the SCA lies within +-half of (fx, fy) on
+	                           both focal-plane axes, arcsec */
+	struct geom_sca geo;    /* pixels <-> sky */
 };
 
 struct sky {
 	double ra0, dec0, pa0;  /* the reference point and position angle */
 	int boresight;          /* reference is the boresight, not WFI01 */
+	int geometry;           /* GEOM_SIAF or GEOM_STIPS */
+	double att[3][3];       /* siaf: V2/V3 unit vector -> sky unit vector */
 	double rot[3][3];       /* sky unit vector -> frame with ref on +x */
 	struct sky_sca sca[WFS_NSCA];
 };
 
-/* Set up the layout for the SCAs in mask (bit s-1 for SCA s). */
+/* Set up the layout for the SCAs in mask (bit s-1 for SCA s) in geometry
+ * GEOM_SIAF or GEOM_STIPS. */
 int sky_init(struct sky *sky, double ra, double dec, double pa,
-	     int boresight, unsigned mask, struct err *e);
+	     int boresight, int geometry, unsigned mask, struct err *e);
 void sky_free(struct sky *sky);
 
 /* Focal-plane coordinates (arcsec, ideal frame of the reference: +x along
@@ -56,7 +66,7 @@ void sky_from_focal(const struct sky *sky, double fx, double fy, double *ra,
 		    double *dec);
 
 /* Exact 0-based pixel coordinates on SCA s of n sky positions through its
- * wcslib WCS.  Positions that do not project get NaN.  Returns 0 or -1. */
+ * geometry.  Positions that do not project get NaN.  Returns 0 or -1. */
 int sky_to_pixel(struct sky *sky, int s, size_t n, const double *ra,
 		 const double *dec, double *x, double *y, struct err *e);
 
@@ -66,7 +76,7 @@ int sky_to_pixel(struct sky *sky, int s, size_t n, const double *ra,
 int sky_header(struct sky *sky, int s, int row0, char **cards, int *ncards,
 	       struct err *e);
 
-/* Half the SCA side in arcsec, for culling in the focal plane. */
+/* Half the SCA side in arcsec in the stips geometry (sky_sca.half). */
 #define SKY_SCA_HALF (WFS_NPIX * WFS_PIXSCALE / 2.0)
 
 #endif

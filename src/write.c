@@ -64,9 +64,11 @@ static int primary_cards(struct engine *g, char **cards, int *n)
 	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
 	CARD(fits_card_dbl, "RA_TARG", g->sky.ra0, "pointing RA (deg)");
 	CARD(fits_card_dbl, "DEC_TARG", g->sky.dec0, "pointing Dec (deg)");
-	CARD(fits_card_dbl, "PA_APER", g->sky.pa0, "position angle of detector +y (deg E of N)");
+	CARD(fits_card_dbl, "PA_APER", g->sky.pa0, "position angle of reference +y (deg E of N)");
 	CARD(fits_card_str, "POINTREF", x->boresight ? "BORESIGHT" : "WFI01",
 	     "what RA_TARG/DEC_TARG point at");
+	CARD(fits_card_str, "GEOMETRY", geom_name(o->geometry),
+	     o->geometry == GEOM_STIPS ? "0.11\" square aligned SCAs, TAN" : "Roman SIAF, TAN-SIP");
 	CARD(fits_card_int, "SEED", (long long)x->seed, "random seed");
 	CARD(fits_card_str, "PSFSRC", o->psf, "PSF source");
 	CARD(fits_card_str, "BUNIT", o->level == DETECTOR_L1 ? "DN" : o->bunit_counts ?
@@ -336,6 +338,7 @@ int write_exposure(struct engine *g)
 		return err_sys(g->e, "output buffer");
 	if (detector_init(&d, o, x, g->e) < 0)
 		goto fail;
+	d.sky = &g->sky;
 	if (primary_cards(g, &cards, &ncards) < 0) {
 		err_sys(g->e, "header");
 		goto fail;

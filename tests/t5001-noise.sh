@@ -5,7 +5,10 @@
 # settings that stay finite, and bad values refused.
 . "$(dirname "$0")/lib.sh"
 
-run() { "$WFS" --filter F129 --ra 0 --dec 0 "$@"; }
+# The noise model's statistics need a flat field: STIPS's geometry, whose
+# pixels all have the same area.  (In the default SIAF geometry the
+# background follows each pixel's area: the last test here, and t4102.)
+run() { "$WFS" --filter F129 --ra 0 --dec 0 --geometry stips "$@"; }
 
 # An empty catalog: the image is background and noise alone.
 printf 'ra,dec,flux\n' > none.csv
@@ -54,6 +57,11 @@ test_expect_success '--noise none --background 0.5 gives exactly 0.5' '
 	run --noise none --background 0.5 -o flat.fits none.csv &&
 	$PY stats.py flat.fits WFI01 > s && read med sig min max bad < s &&
 	test "$min" = 0.5 && test "$max" = 0.5 && test "$bad" = 0
+'
+test_expect_success 'the SIAF geometry: 0.5 times each pixel'"'"'s area (0.974-0.998 on SCA 1)' '
+	"$WFS" --filter F129 --ra 0 --dec 0 --noise none --background 0.5 -o siaf.fits none.csv &&
+	$PY stats.py siaf.fits WFI01 > s && read med sig min max bad < s && cat s &&
+	within "$min" 0.4870 0.0002 && within "$max" 0.4991 0.0002 && test "$bad" = 0
 '
 
 # F129 avg background 0.54 counts/s, dark 0.028 e-/s, 100 s: Poisson mean

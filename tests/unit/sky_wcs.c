@@ -5,11 +5,12 @@
  * placed the sources: for every SCA of several pointings (position angles,
  * the boresight reference, near both poles, across RA 0/360), pixels taken
  * to the sky through the parsed header come back through sky_to_pixel() to
- * within 1e-6 pixel; the pixel scale is 0.11", the parity standard (east
- * to the left of north), and +y points at the position angle the header's
+ * within 1e-6 pixel; the pixel scales are 0.11" (stips) or the SIAF's
+ * linear terms (siaf), the parity standard (east to the left of north,
+ * less the SIAF's skew of the pixel axes), and +y points at the position angle the header's
  * PA_APER records.  The header of a --rows part (CRPIX2 counted from its
  * first row) maps its pixel (x, y - row0) as the SCA's (x, y).
- * t4101-wcs.sh does the same through astropy.
+ * Both geometries.  t4101-wcs.sh does the same through astropy.
  */
 #include <math.h>
 #include <stdio.h>
@@ -21,6 +22,7 @@
 
 #include "tap.h"
 #include "err.h"
+#include "geometry.h"
 #include "instrument.h"
 #include "sky.h"
 
@@ -46,6 +48,17 @@ static double pos_angle(double ra1, double dec1, double ra2, double dec2)
 	return atan2(y, x) / D2R;
 }
 
+/* The position angle at (r0, d0) of the direction toward (r1, d1), the
+ * point one step forward, averaged with that toward (r2, d2), one step back,
+ * turned by 180 degrees. */
+static double mean_bearing(double r0, double d0, double r1, double d1, double r2,
+			   double d2)
+{
+	double a = pos_angle(r0, d0, r1, d1), b = pos_angle(r0, d0, r2, d2) + 180;
+
+	return a + remainder(b - a, 360) / 2;
+}
+
 /* pixel (1-based, FITS) to sky through a parsed header */
 static int p2s(struct wcsprm *w, double x, double y, double *ra, double *dec)
 {
@@ -60,14 +73,15 @@ static int p2s(struct wcsprm *w, double x, double y, double *ra, double *dec)
 }
 
 static void pointing(double ra, double dec, double pa, int boresight,
-		     unsigned seed)
+		     int geometry, unsigned seed)
 {
+	const char *gn = geom_name(geometry);
 	struct err e = { 0 };
 	struct sky sky;
 	double worst = 0, worst_scale = 0, worst_pa = 0, worst_part = 0;
 	int parity_ok = 1, parsed_ok = 1;
 
-	if (!ok(sky_init(&sky, ra, dec, pa, boresight, (1u << WFS_NSCA) - 1,
+	if (!ok(sky_init(&sky, ra, dec, pa, boresight, geometry, (1u << WFS_NSCA) - 1,
 			 &e) == 0, "sky_init %g %g %g: %s", ra, dec, pa, e.msg))
 		return;
 	srand(seed);
@@ -117,37 +131,52 @@ static void pointing(double ra, double dec, double pa, int boresight,
 			}
 			worst_part = fmax(worst_part, fmax(fabs(px - x), fabs(py - y)));
 		}
-		/* scale, parity and orientation at the centre */
-		double r0, d0, rx, dx, ry, dy;
+		/* scale, parity and orientation at the centre: 0.11" square
+		 * pixels for stips; the SIAF's linear terms for siaf, whose
+		 * axes are a fraction of a degree from square */
+		const struct geom_aperture *ap = geom_aperture(s);
+		double sxs = geometry == GEOM_STIPS ? 0.11 : hypot(ap->sx[1], ap->sy[1]);
+		double sys = geometry == GEOM_STIPS ? 0.11 : hypot(ap->sx[2], ap->sy[2]);
+		double skew = geometry == GEOM_STIPS ? 0 :
+			(atan2(ap->sx[2], ap->sy[2]) + atan2(ap->sy[1], ap->sx[1])) / D2R;
+		double r0 = 0, d0 = 0, rx = 0, dx = 0, ry = 0, dy = 0;
+		/* centred differences: the SIAF's quadratic terms cancel in the
+		 * scale and in the mean of the bearings from the centre toward
+		 * +1 and (turned by 180 degrees) toward -1 pixel */
 		p2s(w, 2044.5, 2044.5, &r0, &d0);
 		p2s(w, 2045.5, 2044.5, &rx, &dx);
-		p2s(w, 2044.5, 2045.5, &ry, &dy);
+		p2s(w, 2043.5, 2044.5, &ry, &dy);
 		worst_scale = fmax(worst_scale,
-				   fabs(separation(r0, d0, rx, dx) * 3600 / 0.11 - 1));
+				   fabs(separation(ry, dy, rx, dx) * 3600 / 2 / sxs - 1));
+		double pax = mean_bearing(r0, d0, rx, dx, ry, dy);
+		p2s(w, 2044.5, 2045.5, &rx, &dx);
+		p2s(w, 2044.5, 2043.5, &ry, &dy);
 		worst_scale = fmax(worst_scale,
-				   fabs(separation(r0, d0, ry, dy) * 3600 / 0.11 - 1));
-		double pax = pos_angle(r0, d0, rx, dx), pay = pos_angle(r0, d0, ry, dy);
+				   fabs(separation(ry, dy, rx, dx) * 3600 / 2 / sys - 1));
+		double pay = mean_bearing(r0, d0, rx, dx, ry, dy);
 		/* standard parity: +x is 90 degrees clockwise of +y on the sky
-		 * (north up, east left: +y north, +x west) */
+		 * (north up, east left: +y north, +x west), less the skew */
 		double turn = remainder(pax - pay, 360);
-		if (fabs(turn + 90) > 1e-6)
+		if (fabs(turn + 90 - skew) > 1e-4) {
 			parity_ok = 0;
+			diag("SCA %d: +x is %.6f deg from +y (skew %.6f)", s, turn, skew);
+		}
 		worst_pa = fmax(worst_pa, fabs(remainder(pay - sky.sca[s - 1].pa, 360)));
 		wcsvfree(&nwcs, &w);
 		wcsvfree(&pnwcs, &pw);
 	}
-	ok(parsed_ok, "%g %g PA %g%s: wcspih reads every SCA's header", ra, dec, pa,
+	ok(parsed_ok, "%s %g %g PA %g%s: wcspih reads every SCA's header", gn, ra, dec, pa,
 	   boresight ? " boresight" : "");
-	ok(worst < 1e-6, "%g %g PA %g: header pixel -> sky -> placement within "
-	   "1e-6 px (worst %.2e)", ra, dec, pa, worst);
-	ok(worst_part < 1e-6, "%g %g PA %g: a --rows part's header, from its first "
-	   "row, within 1e-6 px (worst %.2e)", ra, dec, pa, worst_part);
-	ok(worst_scale < 1e-7, "%g %g PA %g: 0.11\" pixels (worst relative "
-	   "error %.1e)", ra, dec, pa, worst_scale);
-	ok(parity_ok, "%g %g PA %g: standard parity, +x 90 deg clockwise of +y",
-	   ra, dec, pa);
-	ok(worst_pa < 1e-6, "%g %g PA %g: +y at the SCA's recorded position "
-	   "angle (worst %.1e deg)", ra, dec, pa, worst_pa);
+	ok(worst < 1e-6, "%s %g %g PA %g: header pixel -> sky -> placement within "
+	   "1e-6 px (worst %.2e)", gn, ra, dec, pa, worst);
+	ok(worst_part < 1e-6, "%s %g %g PA %g: a --rows part's header, from its first "
+	   "row, within 1e-6 px (worst %.2e)", gn, ra, dec, pa, worst_part);
+	ok(worst_scale < 1e-7, "%s %g %g PA %g: the pixel scales at the centre "
+	   "(worst relative error %.1e)", gn, ra, dec, pa, worst_scale);
+	ok(parity_ok, "%s %g %g PA %g: standard parity, +x 90 deg clockwise of +y",
+	   gn, ra, dec, pa);
+	ok(worst_pa < 1e-6, "%s %g %g PA %g: +y at the SCA's recorded position "
+	   "angle (worst %.1e deg)", gn, ra, dec, pa, worst_pa);
 	sky_free(&sky);
 }
 
@@ -157,11 +186,13 @@ int main(void)
 
 	if (instrument_init(&e) < 0)
 		return printf("# %s\n", e.msg), 1;
-	pointing(10, 20, 0, 0, 1);
-	pointing(10, 20, 90, 0, 2);
-	pointing(200, -35, 217, 1, 3);
-	pointing(45, 89.9, 30, 0, 4);
-	pointing(300, -89.95, 300, 0, 5);
-	pointing(0.05, 0, 10, 0, 6);
+	for (int g = GEOM_SIAF; g <= GEOM_STIPS; g++) {
+		pointing(10, 20, 0, 0, g, 1);
+		pointing(10, 20, 90, 0, g, 2);
+		pointing(200, -35, 217, 1, g, 3);
+		pointing(45, 89.9, 30, 0, g, 4);
+		pointing(300, -89.95, 300, 0, g, 5);
+		pointing(0.05, 0, 10, 0, g, 6);
+	}
 	return done_testing();
 }

@@ -9,7 +9,7 @@ Draws N point sources, magnitudes uniform in [15, 26] AB, at uniform random
 1-based pixel positions on SCA01 (kept 30 pixels from the edges so that
 every fit box is whole) in F129, with the paper's background and noise:
 
-    wfiscene --filter F129 --sca 1 --background avg --noise all
+    wfiscene --filter F129 --sca 1 --geometry stips --background avg --noise all
              --exptime 139.8 --seed S --placed placed.csv
 
 and recovers them three ways, as the paper does:
@@ -101,8 +101,9 @@ def make_scene(args):
     placed = os.path.join(args.dir, "placed.csv")
     psf = os.path.join(args.dir, "epsf.fits")
     t0 = time.time()
-    run([args.wfs, "--filter", FILTER, "--sca", "1", "--background", "avg",
-         "--noise", "all", "--exptime", str(EXPTIME), "--seed", str(args.seed),
+    # the paper's setting: STIPS's geometry (a flat background per pixel)
+    run([args.wfs, "--filter", FILTER, "--sca", "1", "--geometry", "stips",
+         "--background", "avg", "--noise", "all", "--exptime", str(EXPTIME), "--seed", str(args.seed),
          "--placed", placed, "-o", img, cat])
     t1 = time.time()
     run([args.wfs, "psf", "--filter", FILTER, "--sca", "1", "--kind", "epsf",

@@ -8,6 +8,7 @@
 
 #include "background.h"
 #include "data.h"
+#include "date.h"
 #include "ephem.h"
 #include "err.h"
 #include "instrument.h"
@@ -198,4 +199,50 @@ void background_avg(int f, int sca, struct bkg_part *p)
 		p->r_sca = 1;
 	}
 	p->total = p->zodi + p->thermal;
+}
+
+int background_exposure(struct bkg_exposure *b, int model, double number, int f,
+			double mjd, int norm, int allow_sun, const double *ra,
+			const double *dec, double bra, double bdec, struct err *e)
+{
+	char when[32];
+
+	b->model = model;
+	b->norm = norm;
+	b->mjd = mjd;
+	b->sun_angle = NAN;
+	b->least = INFINITY;
+	if (!isnan(mjd)) {
+		date_format(mjd, when, sizeof(when));
+		b->sun_angle = background_sun_angle(bra, bdec, mjd);
+		if (!allow_sun && !(b->sun_angle >= BKG_SUN_MIN && b->sun_angle <= BKG_SUN_MAX))
+			return err_set(e, EXIT_INPUT, "the boresight (ra %.4f, dec %.4f) is %.1f "
+				       "degrees from the Sun on %s: Roman points %g-%g degrees "
+				       "from it (--allow-sun-angle simulates it anyway)", bra, bdec,
+				       b->sun_angle, when, BKG_SUN_MIN, BKG_SUN_MAX);
+	} else if (model == BKG_SKY) {
+		return err_set(e, EXIT_INPUT, "--background sky needs a date (--date, or a date "
+			       "column in --pointings): the Sun's place sets the zodiacal light");
+	}
+	for (int s = 0; s < WFS_NSCA; s++) {
+		struct bkg_part *p = &b->sca[s];
+
+		switch (model) {
+		case BKG_SKY:
+			if (background_sky(f, s + 1, ra[s], dec[s], mjd, norm, p, e) < 0)
+				return -1;
+			break;
+		case BKG_AVG:
+			background_avg(f, s + 1, p);
+			break;
+		default:
+			*p = (struct bkg_part){ .total = model == BKG_NUMBER ? number : 0,
+						.r_sca = 1, .table = NAN, .scale = NAN,
+						.ecl_lon = NAN, .ecl_lat = NAN, .dlon = NAN,
+						.sun_angle = NAN };
+			break;
+		}
+		b->least = fmin(b->least, p->total);
+	}
+	return 0;
 }

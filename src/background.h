@@ -33,6 +33,8 @@
 
 struct err;
 
+#include "instrument.h"
+
 /* What --background asked for. */
 enum bkg_model {
 	BKG_NONE,               /* no background */
@@ -93,6 +95,31 @@ int background_sky(int f, int sca, double ra, double dec, double mjd, int norm,
  * the same on every SCA.  The mean over the 18 SCAs is Table 1's number.
  */
 void background_avg(int f, int sca, struct bkg_part *p);
+
+/*
+ * The background of one exposure on all 18 SCAs (whatever SCAs a run
+ * draws, so that runs split by SCA agree on everything derived from it).
+ */
+struct bkg_exposure {
+	int model;              /* enum bkg_model */
+	int norm;               /* enum bkg_norm (BKG_SKY) */
+	double mjd;             /* the date, NaN when none was given */
+	double sun_angle;       /* of the boresight, degrees; NaN without a date */
+	struct bkg_part sca[WFS_NSCA];  /* per SCA (index sca - 1) */
+	double least;           /* the smallest total over the 18 SCAs */
+};
+
+/*
+ * Work out an exposure's background: model (enum bkg_model) with number
+ * for BKG_NUMBER, in filter f, at mjd (NaN for none), the 18 SCA centres
+ * ra[s], dec[s] (degrees, index sca - 1) and the boresight (bra, bdec).
+ * With a date, a boresight outside BKG_SUN_MIN-BKG_SUN_MAX from the Sun is
+ * refused unless allow_sun.  BKG_SKY needs a date.  Returns 0 or -1 with
+ * a message (EXIT_INPUT) naming the angle and the date.
+ */
+int background_exposure(struct bkg_exposure *b, int model, double number, int f,
+			double mjd, int norm, int allow_sun, const double *ra,
+			const double *dec, double bra, double bdec, struct err *e);
 
 /* The internal thermal rate and the zodiacal response of an SCA (for
  * tests and reports). */

@@ -16,14 +16,19 @@ void detector_init(struct detector *d, const struct scene_opts *o, const struct 
 {
 	d->level = x->level;
 	d->noise = (struct noise_opts){
-		.stages = o->noise, .background = x->background, .exptime = o->exptime,
+		.stages = o->noise, .exptime = o->exptime,
 		.readnoise = o->readnoise, .dark_current = o->dark_current,
 		.cosmic_rate = o->cosmic_rate, .cosmic_residual = o->cosmic_residual,
 		.seed = x->seed, .filter = o->filter, .counts = o->bunit_counts,
 	};
 	/* With no noise, no background and counts/s, the stage is the
-	 * identity and the tiles never drawn on are never allocated. */
-	d->active = o->noise || x->background != 0 || o->bunit_counts;
+	 * identity and the tiles never drawn on are never allocated.  (Every
+	 * SCA has a background or none does, so that split runs agree.) */
+	d->active = o->noise || o->bunit_counts;
+	for (int s = 0; s < WFS_NSCA; s++) {
+		d->background[s] = x->bkg.sca[s].total;
+		d->active |= d->background[s] != 0;
+	}
 }
 
 struct strip_job {
@@ -38,8 +43,10 @@ static void detector_tile(void *arg, int wid, size_t tx)
 	struct strip_job *j = arg;
 	int x0 = (int)tx * j->T;
 	int nx = x0 + j->T > WFS_NPIX ? WFS_NPIX - x0 : j->T;
+	struct noise_opts no = j->d->noise;
 
-	if (noise_tile(&j->d->noise, j->sca, x0, j->y0, nx, j->ny, j->tiles[tx], j->T) < 0)
+	no.background = j->d->background[j->sca - 1];
+	if (noise_tile(&no, j->sca, x0, j->y0, nx, j->ny, j->tiles[tx], j->T) < 0)
 		atomic_store(&j->failed, 1);
 }
 

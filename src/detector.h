@@ -14,6 +14,7 @@
 
 #include <stddef.h>
 
+#include "instrument.h"
 #include "noise.h"
 
 struct exposure;
@@ -28,7 +29,8 @@ enum detector_level {
 
 struct detector {
 	enum detector_level level;
-	struct noise_opts noise;        /* DETECTOR_SCENE */
+	struct noise_opts noise;        /* DETECTOR_SCENE, but the background: */
+	double background[WFS_NSCA];    /* each SCA's, counts/s/pixel */
 	int active;                     /* 0: the drawn image is written as is */
 };
 

@@ -237,7 +237,8 @@ int background_exposure(struct bkg_exposure *b, int model, double number, int f,
 			break;
 		default:
 			*p = (struct bkg_part){ .total = model == BKG_NUMBER ? number : 0,
-						.r_sca = 1, .table = NAN, .scale = NAN,
+						.zodi = NAN, .thermal = NAN,
+						.r_sca = NAN, .table = NAN, .scale = NAN,
 						.ecl_lon = NAN, .ecl_lat = NAN, .dlon = NAN,
 						.sun_angle = NAN };
 			break;

@@ -56,6 +56,7 @@ enum bkg_norm { BKG_NORM_PROJECT, BKG_NORM_ETC };
 /* One SCA's background and its parts. */
 struct bkg_part {
 	double total;           /* e-/s/pixel: zodi + thermal */
+	/* BKG_AVG and BKG_SKY (NaN for a number or none): */
 	double zodi;            /* zodiacal light through this SCA's response */
 	double thermal;         /* internal thermal */
 	double r_sca;           /* the SCA's response relative to the mean */

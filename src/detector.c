@@ -26,8 +26,12 @@ void detector_init(struct detector *d, const struct scene_opts *o, const struct 
 	 * SCA has a background or none does, so that split runs agree.) */
 	d->active = o->noise || o->bunit_counts;
 	for (int s = 0; s < WFS_NSCA; s++) {
-		d->background[s] = x->bkg.sca[s].total;
-		d->active |= d->background[s] != 0;
+		const struct bkg_part *p = &x->bkg.sca[s];
+		int split = x->bkg.model == BKG_AVG || x->bkg.model == BKG_SKY;
+
+		d->bkg_sky[s] = split ? p->zodi : p->total;
+		d->bkg_pixel[s] = split ? p->thermal : 0;
+		d->active |= p->total != 0;
 	}
 }
 
@@ -45,7 +49,9 @@ static void detector_tile(void *arg, int wid, size_t tx)
 	int nx = x0 + j->T > WFS_NPIX ? WFS_NPIX - x0 : j->T;
 	struct noise_opts no = j->d->noise;
 
-	no.background = j->d->background[j->sca - 1];
+	/* Every pixel has the nominal area in this geometry, so the two
+	 * parts of the background add up to one number for the SCA. */
+	no.background = j->d->bkg_sky[j->sca - 1] + j->d->bkg_pixel[j->sca - 1];
 	if (noise_tile(&no, j->sca, x0, j->y0, nx, j->ny, j->tiles[tx], j->T) < 0)
 		atomic_store(&j->failed, 1);
 }

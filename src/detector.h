@@ -30,7 +30,12 @@ enum detector_level {
 struct detector {
 	enum detector_level level;
 	struct noise_opts noise;        /* DETECTOR_SCENE, but the background: */
-	double background[WFS_NSCA];    /* each SCA's, counts/s/pixel */
+	/* Each SCA's background in counts/s per pixel, in two parts: the
+	 * sky's light, per nominal 0.11" pixel (the zodiacal light of avg and
+	 * sky, all of a number), which a geometry whose pixels differ in area
+	 * scales by each pixel's area; and the internal thermal glow, per
+	 * detector pixel whatever its area on the sky. */
+	double bkg_sky[WFS_NSCA], bkg_pixel[WFS_NSCA];
 	int active;                     /* 0: the drawn image is written as is */
 };
 

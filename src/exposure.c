@@ -179,7 +179,8 @@ static int exposure_background(struct exposure *x, const struct scene_opts *o, s
 				   o->zodi_norm, o->allow_sun, ra, dec, bra, bdec, e);
 }
 
-/* tmpl with its "%s" replaced by name (a word of safe characters). */
+/* tmpl with its "%s" replaced by name (a word of safe characters); NULL for
+ * a NULL tmpl, or when out of memory. */
 static char *expand_name(const char *tmpl, const char *name)
 {
 	const char *at;
@@ -188,8 +189,7 @@ static char *expand_name(const char *tmpl, const char *name)
 
 	if (!tmpl)
 		return NULL;
-	at = strstr(tmpl, "%s");
-	if (!at)
+	if (!(at = strstr(tmpl, "%s")))
 		return strdup(tmpl);
 	n = strlen(tmpl) + strlen(name);
 	if (!(out = malloc(n + 1)))

@@ -162,13 +162,12 @@ static int exposure_background(struct exposure *x, const struct scene_opts *o, s
 	double ra[WFS_NSCA], dec[WFS_NSCA], bra, bdec;
 	struct sky sky;
 
-	if (sky_init(&sky, x->ra, x->dec, x->pa, x->boresight, 0, e) < 0)
+	/* The layout of all 18 SCAs, for their centres as the run places them. */
+	if (sky_init(&sky, x->ra, x->dec, x->pa, x->boresight, (1u << WFS_NSCA) - 1, e) < 0)
 		return -1;
 	for (int s = 0; s < WFS_NSCA; s++) {
-		const struct sca_info *si = sca_get(s + 1);
-
-		sky_from_focal(&sky, x->boresight ? si->x_bore : si->x_idl,
-			       x->boresight ? si->y_bore : si->y_idl, &ra[s], &dec[s]);
+		ra[s] = sky.sca[s].ra;
+		dec[s] = sky.sca[s].dec;
 	}
 	bra = sky.ra0;
 	bdec = sky.dec0;

@@ -1,8 +1,9 @@
 /*
  * detector.c - the detector stage after rendering; see detector.h.
  *
- * Today one level: the scene level of STIPS, a rate image with background,
- * exposure time, noise and detector residuals applied per tile by noise.c.
+ * The scene level of STIPS, a rate image with background, exposure time,
+ * noise and detector residuals applied per tile by noise.c; levels 1 and 2
+ * (the ramp) are written whole by levels.c from write.c.
  */
 #include <stdatomic.h>
 
@@ -12,9 +13,24 @@
 #include "pool.h"
 #include "scene.h"
 
-void detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x)
+int detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x,
+		  struct err *e)
 {
+	int any_bkg = 0;
+
 	d->level = x->level;
+	for (int s = 0; s < WFS_NSCA; s++) {
+		const struct bkg_part *p = &x->bkg.sca[s];
+		int split = x->bkg.model == BKG_AVG || x->bkg.model == BKG_SKY;
+
+		d->bkg_sky[s] = split ? p->zodi : p->total;
+		d->bkg_pixel[s] = split ? p->thermal : 0;
+		any_bkg |= p->total != 0;
+	}
+	if (d->level != DETECTOR_SCENE) {
+		d->active = 1;
+		return ramp_pattern_get(o->ma_table, &d->pattern, e);
+	}
 	d->noise = (struct noise_opts){
 		.stages = o->noise, .exptime = o->exptime,
 		.readnoise = o->readnoise, .dark_current = o->dark_current,
@@ -24,15 +40,8 @@ void detector_init(struct detector *d, const struct scene_opts *o, const struct 
 	/* With no noise, no background and counts/s, the stage is the
 	 * identity and the tiles never drawn on are never allocated.  (Every
 	 * SCA has a background or none does, so that split runs agree.) */
-	d->active = o->noise || o->bunit_counts;
-	for (int s = 0; s < WFS_NSCA; s++) {
-		const struct bkg_part *p = &x->bkg.sca[s];
-		int split = x->bkg.model == BKG_AVG || x->bkg.model == BKG_SKY;
-
-		d->bkg_sky[s] = split ? p->zodi : p->total;
-		d->bkg_pixel[s] = split ? p->thermal : 0;
-		d->active |= p->total != 0;
-	}
+	d->active = o->noise || any_bkg || o->bunit_counts;
+	return 0;
 }
 
 struct strip_job {

@@ -219,7 +219,7 @@ int exposures_make(const struct scene_opts *o, struct exposure **out, int *n, st
 		x[i].index = i;
 		x[i].boresight = o->boresight;
 		x[i].sca_mask = o->sca_mask;
-		x[i].level = DETECTOR_SCENE;
+		x[i].level = o->level;
 		x[i].background = o->background;
 		if (exposure_background(&x[i], o, e) < 0) {
 			if (o->pointings)

@@ -308,4 +308,18 @@ test_expect_success '--pointings: a bad date names file and line; a refused one 
 	test_must_fail --status 1 run --background sky --pointings nodate.txt -o "n_%s.fits" 2>err &&
 	test_grep "exposure 001: --background sky needs a date" err
 '
+test_expect_success '--level 2: each SCA ramp-fitted to its own sky' '
+	"$WFS" --filter F129 --sca 1,18 --rows 1-64 -q --background sky --date $D1 --ra 270 \
+		--dec 66.56 --level 2 -o lev.fits none.csv &&
+	"$PY" - <<-\EOF
+	import numpy as np
+	from astropy.io import fits
+	with fits.open("lev.fits") as h:
+	    for n in ("WFI01", "WFI18"):
+	        b, m = h[n].header["BKGRATE"], np.median(h[n].data)
+	        print(n, b, m)
+	        assert abs(m / b - 1) < 0.03, (n, b, m)
+	    assert h["WFI18"].header["BKGRATE"] > 1.1 * h["WFI01"].header["BKGRATE"]
+	EOF
+'
 test_done

@@ -75,6 +75,8 @@ static const struct opt scene_options[] = {
 	  OFF(o.bunit_counts)), .words = bunits },
 	{ OPT("placed", 0, "FILE", NULL, "write the sources placed on each SCA (CSV)",
 	  opt_string, OFF(o.placed)) },
+	{ OPT("into", 0, "IMAGE[[N]]", NULL, "add the sources to an existing image, placed by "
+	  "its WCS", opt_string, OFF(o.into)) },
 	{ OPT("report", 0, "FILE", NULL, "write a JSON report: timings, counts, flux, errors",
 	  opt_string, OFF(o.report)) },
 	{ OPT("pointings", 0, "FILE", NULL, "several exposures (ra dec pa [name [seed [date]]] a "

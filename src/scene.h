@@ -39,6 +39,8 @@ struct scene_opts {
 	double readnoise, dark_current, cosmic_rate, cosmic_residual;
 	const char *output;             /* "-", a path, or a path with %d */
 	const char *placed;             /* --placed file or NULL */
+	const char *into;               /* --into IMAGE[.fits[HDU]] or NULL: add
+	                                   the sources to that image (into.h) */
 	const char *report;             /* --report JSON file or NULL */
 	const char *pointings;          /* --pointings file: one exposure a line */
 	const char *compress;           /* NULL, "none", "rice", "gzip" */

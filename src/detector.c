@@ -17,21 +17,32 @@
 int detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x,
 		  struct err *e)
 {
+	int any_bkg = 0;
+
 	d->level = x->level;
 	d->sky = NULL;
+	for (int s = 0; s < WFS_NSCA; s++) {
+		const struct bkg_part *p = &x->bkg.sca[s];
+		int split = x->bkg.model == BKG_AVG || x->bkg.model == BKG_SKY;
+
+		d->bkg_sky[s] = split ? p->zodi : p->total;
+		d->bkg_pixel[s] = split ? p->thermal : 0;
+		any_bkg |= p->total != 0;
+	}
 	if (d->level != DETECTOR_SCENE) {
 		d->active = 1;
 		return ramp_pattern_get(o->ma_table, &d->pattern, e);
 	}
 	d->noise = (struct noise_opts){
-		.stages = o->noise, .background = x->background, .exptime = o->exptime,
+		.stages = o->noise, .exptime = o->exptime,
 		.readnoise = o->readnoise, .dark_current = o->dark_current,
 		.cosmic_rate = o->cosmic_rate, .cosmic_residual = o->cosmic_residual,
 		.seed = x->seed, .filter = o->filter, .counts = o->bunit_counts,
 	};
 	/* With no noise, no background and counts/s, the stage is the
-	 * identity and the tiles never drawn on are never allocated. */
-	d->active = o->noise || x->background != 0 || o->bunit_counts;
+	 * identity and the tiles never drawn on are never allocated.  (Every
+	 * SCA has a background or none does, so that split runs agree.) */
+	d->active = o->noise || any_bkg || o->bunit_counts;
 	return 0;
 }
 
@@ -47,15 +58,20 @@ static void detector_tile(void *arg, int wid, size_t tx)
 	struct strip_job *j = arg;
 	int x0 = (int)tx * j->T;
 	int nx = x0 + j->T > WFS_NPIX ? WFS_NPIX - x0 : j->T;
+	struct noise_opts no = j->d->noise;
 
 	const struct geom_sca *geo = j->d->sky ? &j->d->sky->sca[j->sca - 1].geo : NULL;
-	struct noise_opts no = j->d->noise;
 	double *tile = j->tiles[tx];
+	double sky = j->d->bkg_sky[j->sca - 1], thermal = j->d->bkg_pixel[j->sca - 1];
 
-	/* The SIAF geometry: the background is per nominal 0.11" pixel, and
-	 * each pixel gets it times its own area, before the noise stages as
-	 * noise_tile would add it.  stips: noise_tile adds it, as before. */
-	if (geo && geo->kind == GEOM_SIAF && no.background != 0 && tile) {
+	/* The background comes in two parts: the sky's light, per nominal
+	 * 0.11" pixel, and the internal thermal glow, per detector pixel.  In
+	 * the SIAF geometry each pixel gets the sky's part times its own area,
+	 * added here before the noise stages as noise_tile would add it; in
+	 * stips every pixel has the nominal area, so the parts add up to one
+	 * number for the SCA that noise_tile adds, as before. */
+	no.background = sky + thermal;
+	if (geo && geo->kind == GEOM_SIAF && sky != 0 && tile) {
 		enum { SPAN = 256 };
 		double area[SPAN];
 
@@ -66,9 +82,9 @@ static void detector_tile(void *arg, int wid, size_t tx)
 
 				geom_area_row(geo, j->y0 + y, x0 + x, m, area);
 				for (int i = 0; i < m; i++)
-					r[i] += no.background * area[i];
+					r[i] += sky * area[i];
 			}
-		no.background = 0;
+		no.background = thermal;
 	}
 	if (noise_tile(&no, j->sca, x0, j->y0, nx, j->ny, tile, j->T) < 0)
 		atomic_store(&j->failed, 1);

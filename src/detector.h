@@ -14,6 +14,7 @@
 
 #include <stddef.h>
 
+#include "instrument.h"
 #include "noise.h"
 #include "ramp.h"
 
@@ -37,7 +38,13 @@ enum detector_level {
 
 struct detector {
 	enum detector_level level;
-	struct noise_opts noise;        /* DETECTOR_SCENE */
+	struct noise_opts noise;        /* DETECTOR_SCENE, but the background: */
+	/* Each SCA's background in counts/s per pixel, in two parts: the
+	 * sky's light, per nominal 0.11" pixel (the zodiacal light of avg and
+	 * sky, all of a number), which a geometry whose pixels differ in area
+	 * scales by each pixel's area; and the internal thermal glow, per
+	 * detector pixel whatever its area on the sky. */
+	double bkg_sky[WFS_NSCA], bkg_pixel[WFS_NSCA];
 	int active;                     /* 0: the drawn image is written as is */
 	struct ramp_pattern pattern;    /* DETECTOR_L1, DETECTOR_L2 */
 	/* The geometry of each SCA (NULL: a flat background, as stips): in

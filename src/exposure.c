@@ -3,15 +3,19 @@
  * line of a --pointings file, each with its pointing, seed and output names.
  */
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "date.h"
 #include "err.h"
 #include "detector.h"
 #include "exposure.h"
+#include "instrument.h"
 #include "scene.h"
+#include "sky.h"
 
 static int is_number(const char *s, double *v)
 {
@@ -22,11 +26,13 @@ static int is_number(const char *s, double *v)
 }
 
 /*
- * A pointings file: one exposure a line, "ra dec pa [name [seed]]", fields
- * separated by blanks or commas; '#' starts a comment; a first line whose
- * first field is not a number is a header.  Exposure k (from 1) is named
- * k with three digits unless named, and has seed --seed + k - 1 unless given,
- * so that a single run of that pointing with that seed gives the same image.
+ * A pointings file: one exposure a line, "ra dec pa [name [seed [date]]]",
+ * fields separated by blanks or commas; '#' starts a comment; a first line
+ * whose first field is not a number is a header.  Exposure k (from 1) is
+ * named k with three digits unless named, and has seed --seed + k - 1 unless
+ * given, so that a single run of that pointing with that seed gives the same
+ * image; a '-' for the name or the seed keeps that default.  The date (as
+ * --date takes it, without blanks) is --date's unless given.
  */
 static int read_pointings(const struct scene_opts *o, struct exposure **out, int *nout,
 			  struct err *e)
@@ -43,7 +49,7 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 		return err_sys(e, "pointings");
 	}
 	while (fgets(line, sizeof(line), f)) {
-		char *field[6], *save = NULL, *tok, *hash = strchr(line, '#');
+		char *field[7], *save = NULL, *tok, *hash = strchr(line, '#');
 		int nf = 0;
 		double v[3];
 
@@ -54,16 +60,16 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 		}
 		if (hash)
 			*hash = 0;
-		for (tok = strtok_r(line, " \t\r\n,", &save); tok && nf < 6;
+		for (tok = strtok_r(line, " \t\r\n,", &save); tok && nf < 7;
 		     tok = strtok_r(NULL, " \t\r\n,", &save))
 			field[nf++] = tok;
 		if (nf == 0)
 			continue;
 		if (!seen_data++ && !is_number(field[0], &v[0]))
 			continue;       /* a header line */
-		if (nf < 3 || nf > 5) {
-			err_set(e, EXIT_INPUT, "%s:%d: expected 'ra dec pa [name [seed]]', got %d "
-				"field%s", o->pointings, lineno, nf, nf == 1 ? "" : "s");
+		if (nf < 3 || nf > 6) {
+			err_set(e, EXIT_INPUT, "%s:%d: expected 'ra dec pa [name [seed [date]]]', "
+				"got %d field%s", o->pointings, lineno, nf, nf == 1 ? "" : "s");
 			goto fail;
 		}
 		for (int k = 0; k < 3; k++)
@@ -87,7 +93,8 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 		p[n].pa = v[2];
 		p[n].seed = o->seed + n;
 		snprintf(p[n].name, sizeof(p[n].name), "%03d", n + 1);
-		if (nf >= 4) {
+		p[n].date = o->date;
+		if (nf >= 4 && strcmp(field[3], "-")) {
 			if (strlen(field[3]) >= sizeof(p[n].name) ||
 			    strspn(field[3], "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
 				   "0123456789_.-") != strlen(field[3])) {
@@ -103,7 +110,7 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 					goto fail;
 				}
 		}
-		if (nf == 5) {
+		if (nf >= 5 && strcmp(field[4], "-")) {
 			char *end;
 
 			errno = 0;
@@ -113,6 +120,13 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 					o->pointings, lineno, field[4]);
 				goto fail;
 			}
+		}
+		if (nf == 6) {
+			char what[PATH_MAX + 32];
+
+			snprintf(what, sizeof(what), "%s:%d: date", o->pointings, lineno);
+			if (date_parse(field[5], what, &p[n].date, e) < 0)
+				goto fail;
 		}
 		n++;
 	}
@@ -132,6 +146,37 @@ fail:
 	fclose(f);
 	free(p);
 	return -1;
+}
+
+/*
+ * The exposure's background on all 18 SCAs, requested or not, so that runs
+ * split by SCA agree on it (the models' noise level is the least of the 18).
+ * The SCA centres come from the layout of the pointing; the Sun angle is
+ * the boresight's: with the WFI01 reference, the boresight is where the WFI
+ * centre falls in WFI01's focal plane.  Done before anything is drawn or
+ * opened, so a refused pointing leaves no file behind.
+ */
+static int exposure_background(struct exposure *x, const struct scene_opts *o, struct err *e)
+{
+	const struct sca_info *s1 = sca_get(1);
+	double ra[WFS_NSCA], dec[WFS_NSCA], bra, bdec;
+	struct sky sky;
+
+	/* The layout of all 18 SCAs, for their centres as the run places them. */
+	if (sky_init(&sky, x->ra, x->dec, x->pa, x->boresight, o->geometry,
+		     (1u << WFS_NSCA) - 1, e) < 0)
+		return -1;
+	for (int s = 0; s < WFS_NSCA; s++) {
+		ra[s] = sky.sca[s].ra;
+		dec[s] = sky.sca[s].dec;
+	}
+	bra = sky.ra0;
+	bdec = sky.dec0;
+	if (!x->boresight)
+		sky_from_focal(&sky, s1->x_idl - s1->x_bore, s1->y_idl - s1->y_bore, &bra, &bdec);
+	sky_free(&sky);
+	return background_exposure(&x->bkg, o->bkg_model, x->background, o->filter, x->date,
+				   o->zodi_norm, o->allow_sun, ra, dec, bra, bdec, e);
 }
 
 /* tmpl with its "%s" replaced by name (a word of safe characters); NULL for
@@ -169,14 +214,20 @@ int exposures_make(const struct scene_opts *o, struct exposure **out, int *n, st
 		x->dec = o->dec;
 		x->pa = o->pa;
 		x->seed = o->seed;
+		x->date = o->date;
 	}
 	for (int i = 0; i < *n; i++) {
 		x[i].index = i;
 		x[i].boresight = o->boresight;
-		x[i].date = NAN;
 		x[i].sca_mask = o->sca_mask;
 		x[i].level = o->level;
 		x[i].background = o->background;
+		if (exposure_background(&x[i], o, e) < 0) {
+			if (o->pointings)
+				err_prefix(e, "%s: exposure %s", o->pointings, x[i].name);
+			exposures_free(x, *n);
+			return -1;
+		}
 		x[i].output = o->output;
 		x[i].placed = o->placed;
 		x[i].report = o->report;

@@ -13,6 +13,8 @@
 
 #include <stdint.h>
 
+#include "background.h"
+
 struct err;
 struct scene_opts;
 
@@ -27,7 +29,8 @@ struct exposure {
 	double date;            /* MJD of the exposure; NaN when none was given */
 	unsigned sca_mask;      /* bit s-1 for SCA s */
 	int level;              /* enum detector_level: how far the detector is simulated */
-	double background;      /* counts/s/pixel */
+	double background;      /* counts/s/pixel: the number, or avg's filter-wide one */
+	struct bkg_exposure bkg;/* the background of each SCA and its parts */
 	uint64_t seed;
 	/* Output paths with a --pointings "%s" replaced by the name; owned by
 	 * the exposure when they differ from the options' strings. */
@@ -36,8 +39,9 @@ struct exposure {
 };
 
 /* The exposures of a run: one from the options, or one per line of
- * o->pointings.  Returns 0 with *out (free with exposures_free) and *n, or
- * -1 with the message in e. */
+ * o->pointings, each with its background worked out (and, with a date, a
+ * pointing Roman cannot take refused: see background_exposure).  Returns 0
+ * with *out (free with exposures_free) and *n, or -1 with the message in e. */
 int exposures_make(const struct scene_opts *o, struct exposure **out, int *n, struct err *e);
 
 void exposures_free(struct exposure *x, int n);

@@ -5,6 +5,8 @@
 #ifndef WFS_INSTRUMENT_H
 #define WFS_INSTRUMENT_H
 
+struct err;
+
 #define WFS_NSCA 18
 #define WFS_NPIX 4088           /* science pixels per side */
 #define WFS_PIXSCALE 0.11       /* arcsec per pixel, as STIPS uses */

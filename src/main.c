@@ -10,8 +10,10 @@
 #include <strings.h>
 #include <unistd.h>
 
+#include "background.h"
 #include "catalog.h"
 #include "commands.h"
+#include "date.h"
 #include "err.h"
 #include "fitsout.h"
 #include "instrument.h"
@@ -40,7 +42,7 @@ struct scene_cmd {
 
 static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
 	set_model_int, set_model_word, set_flux_unit, set_psf, set_background, set_noise,
-	set_seed, set_version, set_exptime, set_level;
+	set_seed, set_version, set_date, set_exptime, set_level;
 
 static const char *const refs[] = { "wfi01", "boresight", NULL };
 /* in the order of enum wfs_geometry */
@@ -52,6 +54,7 @@ static const char *const methods[] = { "quick", "precise", NULL };
 static const char *const meanings[] = { "total", "ie", NULL };
 static const char *const yesno[] = { "yes", "no", NULL };
 static const char *const compressions[] = { "none", "rice", "gzip", NULL };
+static const char *const norms[] = { "project", "etc", NULL };    /* enum bkg_norm */
 
 static const struct opt scene_options[] = {
 	OPT_SECTION("Scene:"),
@@ -80,7 +83,8 @@ static const struct opt scene_options[] = {
 	  "its WCS", opt_string, OFF(o.into)) },
 	{ OPT("report", 0, "FILE", NULL, "write a JSON report: timings, counts, flux, errors",
 	  opt_string, OFF(o.report)) },
-	{ OPT("pointings", 0, "FILE", NULL, "several exposures (ra dec pa [name [seed]] a line); "
+	{ OPT("pointings", 0, "FILE", NULL, "several exposures (ra dec pa [name [seed [date]]] a "
+	  "line); "
 	  "-o, --placed and --report then need a %s for the name", opt_string,
 	  OFF(o.pointings)) },
 	{ OPT("compress", 0, "C", "none", "none, rice or gzip tile compression",
@@ -119,8 +123,15 @@ static const struct opt scene_options[] = {
 	{ OPT("set", 0, "KEY=VALUE", NULL, "a setting for the source models (repeatable)",
 	  set_setting, 0) },
 	OPT_SECTION("Noise:"),
-	{ OPT("background", 0, "B", "none", "none, avg (STIPS paper Table 1) or counts/s/px",
+	{ OPT("background", 0, "B", "none", "none, avg (STIPS paper Table 1), sky (zodiacal "
+	  "light by position and --date, and thermal) or counts/s/px",
 	  set_background, OFF(o.background)), .lo = 0, .hi = 1e12 },
+	{ OPT("date", 0, "D", NULL, "UTC date of the exposure: 2027-05-15[T06:30[:12.5]] or an "
+	  "MJD", set_date, OFF(o.date)) },
+	{ OPT("zodi", 0, "N", "project", "project or etc: the zodiacal light scale of "
+	  "--background sky", opt_choice, OFF(o.zodi_norm)), .words = norms },
+	{ OPT("allow-sun-angle", 0, NULL, NULL, "simulate pointings Roman cannot take (the Sun "
+	  "outside 54-126 deg)", opt_store_lo, OFF(o.allow_sun)), .lo = 1 },
 	{ OPT("noise", 0, "LIST", "none", "none, all, or poisson,readnoise,dark,flat,cosmic",
 	  set_noise, OFF(o.noise)) },
 	{ OPT("readnoise", 0, "E", STR(NOISE_READNOISE), "read noise in e-", opt_double,
@@ -291,13 +302,23 @@ static int set_background(const struct opt_arg *a, struct err *e)
 	struct scene_opts *o = &((struct scene_cmd *)a->base)->o;
 
 	o->background_arg = a->value;
+	o->background = 0;
 	if (!strcasecmp(a->value, "none"))
-		o->background = 0;
+		o->bkg_model = BKG_NONE;
 	else if (!strcasecmp(a->value, "avg"))
-		o->background = NAN;    /* the filter's, once known */
+		o->bkg_model = BKG_AVG;         /* the filter's number, once known */
+	else if (!strcasecmp(a->value, "sky"))
+		o->bkg_model = BKG_SKY;
+	else if (opt_parse_double(a, &o->background, e) < 0)
+		return -1;
 	else
-		return opt_parse_double(a, &o->background, e);
+		o->bkg_model = BKG_NUMBER;
 	return 0;
+}
+
+static int set_date(const struct opt_arg *a, struct err *e)
+{
+	return date_parse(a->value, "--date", a->field, e);
 }
 
 /* As opt_double, remembering whether the value came from the command line
@@ -421,8 +442,11 @@ static int check_options(struct scene_opts *o, struct err *e)
 	if (o->filter < 0)
 		return err_set(e, EXIT_INPUT, "--filter is required (F062, F087, F106, F129, "
 			       "F158, F184, F213 or F146)");
-	if (isnan(o->background))
+	if (o->bkg_model == BKG_AVG)
 		o->background = filter_get(o->filter)->bkg_avg;
+	if (o->bkg_model == BKG_SKY && isnan(o->date) && !o->pointings)
+		return err_set(e, EXIT_INPUT, "--background sky needs --date (the Sun's place "
+			       "sets the zodiacal light)");
 	if (!o->output) {
 		if (isatty(1))
 			return err_set(e, EXIT_INPUT, "no output: give -o FILE (or -o - for "
@@ -475,7 +499,7 @@ static int check_options(struct scene_opts *o, struct err *e)
 
 int main(int argc, char **argv)
 {
-	static struct scene_cmd cmd = { .o = { .filter = -1 } };
+	static struct scene_cmd cmd = { .o = { .filter = -1, .date = NAN } };
 	static char *stdin_only[] = { "-", NULL };
 	struct err e = { 0 };
 	int first;
@@ -486,7 +510,7 @@ int main(int argc, char **argv)
 		return preview_main(argc - 1, argv + 1);
 	if (argc > 1 && !strcmp(argv[1], "merge"))
 		return merge_main(argc - 1, argv + 1);
-	if (instrument_init(&e) < 0)
+	if (instrument_init(&e) < 0 || background_init(&e) < 0)
 		return fail(&e);
 	first = opt_parse(&scene_cmd_line, argc, argv, &cmd, &e);
 	if (first == OPT_PARSE_DONE)

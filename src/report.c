@@ -17,6 +17,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "background.h"
+#include "date.h"
 #include "engine.h"
 #include "err.h"
 #include "fftconv.h"
@@ -161,6 +163,52 @@ static void report_setting(FILE *f, struct engine *g, const char *name, const ch
 	fputs(", ", f);
 }
 
+/* "name": number, or null for NaN (JSON has no NaN); then sep. */
+static void report_number(FILE *f, const char *name, double v, const char *sep)
+{
+	if (isfinite(v))
+		fprintf(f, "\"%s\": %.10g%s", name, v, sep);
+	else
+		fprintf(f, "\"%s\": null%s", name, sep);
+}
+
+/* The background used on each SCA written, and its parts. */
+static void report_background(FILE *f, struct engine *g)
+{
+	static const char *const model[] = { "none", "number", "avg", "sky" };
+	const struct bkg_exposure *b = &g->x->bkg;
+	char when[32];
+
+	fprintf(f, "  \"background\": {\"model\": \"%s\", ", model[b->model]);
+	if (b->model == BKG_SKY)
+		fprintf(f, "\"zodi_norm\": \"%s\", ", background_norm_name(b->norm));
+	if (isnan(b->mjd)) {
+		fputs("\"date\": null, ", f);
+	} else {
+		date_format(b->mjd, when, sizeof(when));
+		fprintf(f, "\"date\": \"%s\", ", when);
+	}
+	report_number(f, "mjd", b->mjd, ", ");
+	report_number(f, "sun_angle", b->sun_angle, ", ");
+	fputs("\"sca\": [", f);
+	for (int s = 0; s < g->nslot; s++) {
+		const struct bkg_part *p = &b->sca[g->slot[s].sca - 1];
+
+		fprintf(f, "%s\n    {\"sca\": %d, ", s ? "," : "", g->slot[s].sca);
+		report_number(f, "total", p->total, ", ");
+		report_number(f, "zodi", p->zodi, ", ");
+		report_number(f, "thermal", p->thermal, ", ");
+		report_number(f, "r_sca", p->r_sca, ", ");
+		report_number(f, "table", p->table, ", ");
+		report_number(f, "scale", p->scale, ", ");
+		report_number(f, "ecl_lon", p->ecl_lon, ", ");
+		report_number(f, "ecl_lat", p->ecl_lat, ", ");
+		report_number(f, "dlon_sun", p->dlon, ", ");
+		report_number(f, "sun_angle", p->sun_angle, "}");
+	}
+	fputs("\n  ]},\n", f);
+}
+
 /* The per-run report: what was done, how long each stage took, what the
  * chosen settings cost in accuracy.  JSON, written atomically. */
 int report_write(struct engine *g)
@@ -189,9 +237,14 @@ int report_write(struct engine *g)
 	fprintf(f, "], \"ra\": %.10g, \"dec\": %.10g, \"pa\": %.10g, \"geometry\": \"%s\", "
 		"\"exptime\": %.10g, "
 		"\"psf\": \"%s\", \"threads\": %d, \"tile\": %d, \"chunk\": %zu, "
-		"\"seed\": %llu, \"noise\": %u, \"background\": %.10g},\n",
-		g->sky.ra0, g->sky.dec0, g->sky.pa0, geom_name(o->geometry), o->exptime, o->psf, g->nworker, g->tile,
-		o->chunk, (unsigned long long)x->seed, o->noise, x->background);
+		"\"seed\": %llu, \"noise\": %u, \"background\": ",
+		g->sky.ra0, g->sky.dec0, g->sky.pa0, geom_name(o->geometry), o->exptime, o->psf,
+		g->nworker, g->tile, o->chunk, (unsigned long long)x->seed, o->noise);
+	if (o->bkg_model == BKG_SKY)
+		fputs("\"sky\"},\n", f);
+	else
+		fprintf(f, "%.10g},\n", x->background);
+	report_background(f, g);
 	fprintf(f, "  \"seconds\": {\"total\": %.6f, \"read_parse\": %.6f, "
 		"\"project_place\": %.6f, \"render_busy\": %.6f, \"render_wait\": %.6f, "
 		"\"noise\": %.6f, \"write\": %.6f},\n", g->t_total, g->t_read, g->t_place,

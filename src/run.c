@@ -57,7 +57,8 @@ static void engine_setting_strings(struct engine *g)
 	snprintf(g->filter_name, sizeof(g->filter_name), "%s", filter_get(o->filter)->name);
 	snprintf(g->exptime_str, sizeof(g->exptime_str), "%.17g", o->exptime);
 	snprintf(g->seed_str, sizeof(g->seed_str), "%llu", (unsigned long long)g->x->seed);
-	snprintf(g->bkg_str, sizeof(g->bkg_str), "%.17g", g->x->background);
+	/* the least of the 18 SCAs' backgrounds: the same for runs split by SCA */
+	snprintf(g->bkg_str, sizeof(g->bkg_str), "%.17g", g->x->bkg.least);
 	snprintf(g->readnoise_str, sizeof(g->readnoise_str), "%.17g",
 		 o->noise & NOISE_READ ? o->readnoise : 0.0);
 	snprintf(g->noise_str, sizeof(g->noise_str), "%s%s%s%s%s",

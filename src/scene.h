@@ -29,8 +29,13 @@ struct scene_opts {
 	int threads;                    /* 0: all cores */
 	uint64_t seed;
 	int verbose;                    /* -1 quiet, 0 normal, 1.. -v */
-	double background;              /* counts/s/pixel */
+	double background;              /* counts/s/pixel: BKG_NUMBER's, or
+	                                   BKG_AVG's filter-wide number */
 	const char *background_arg;     /* as given, for the header */
+	int bkg_model;                  /* enum bkg_model */
+	int zodi_norm;                  /* enum bkg_norm */
+	int allow_sun;                  /* --allow-sun-angle */
+	double date;                    /* MJD (UTC) of --date; NaN for none */
 	unsigned noise;                 /* enum noise_stage bits */
 	double readnoise, dark_current, cosmic_rate, cosmic_residual;
 	const char *output;             /* "-", a path, or a path with %d */

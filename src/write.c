@@ -17,6 +17,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "background.h"
+#include "date.h"
 #include "engine.h"
 #include "err.h"
 #include "fitsout.h"
@@ -80,7 +82,23 @@ static int primary_cards(struct engine *g, char **cards, int *n)
 	}
 	CARD(fits_card_str, "BKGRND", o->background_arg ? o->background_arg : "none",
 	     "background setting");
-	CARD(fits_card_dbl, "BKGRATE", x->background, "background (counts/s/pixel)");
+	/* Only what every SCA shares: a run split by SCA has the same primary. */
+	if (o->bkg_model == BKG_AVG)
+		CARD(fits_card_dbl, "BKGRATE", x->background,
+		     "STIPS Table 1 (counts/s/px); per SCA in HDUs");
+	else if (o->bkg_model != BKG_SKY)
+		CARD(fits_card_dbl, "BKGRATE", x->background, "background (counts/s/pixel)");
+	if (o->bkg_model == BKG_SKY)
+		CARD(fits_card_str, "ZODINORM", background_norm_name(o->zodi_norm),
+		     "zodiacal light scale (--zodi)");
+	if (!isnan(x->date)) {
+		char when[32];
+
+		date_format(x->date, when, sizeof(when));
+		CARD(fits_card_str, "DATE-OBS", when, "exposure date (UTC)");
+		CARD(fits_card_dbl, "MJD-OBS", x->date, "exposure date (MJD, UTC)");
+		CARD(fits_card_dbl, "SUNANGLE", x->bkg.sun_angle, "boresight to Sun (deg)");
+	}
 	snprintf(buf, sizeof(buf), "%s%s%s%s%s", o->noise & NOISE_POISSON ? "P" : "",
 		 o->noise & NOISE_READ ? "R" : "", o->noise & NOISE_DARK ? "D" : "",
 		 o->noise & NOISE_FLAT ? "F" : "", o->noise & NOISE_COSMIC ? "C" : "");
@@ -101,6 +119,7 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 	const struct scene_opts *o = g->o;
 	char c[81], name[16], *wcs = NULL;
 	int nwcs = 0, cap = 0, bad = 0, sca = g->slot[s].sca;
+	const struct bkg_part *bp = &g->x->bkg.sca[sca - 1];
 
 	*cards = NULL;
 	*n = 0;
@@ -117,6 +136,11 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 	CARD(fits_card_dbl, "PA_APER", g->sky.sca[sca - 1].pa, "position angle of +y (deg)");
 	CARD(fits_card_dbl, "RA_APER", g->sky.sca[sca - 1].ra, "detector centre RA");
 	CARD(fits_card_dbl, "DEC_APER", g->sky.sca[sca - 1].dec, "detector centre Dec");
+	CARD(fits_card_dbl, "BKGRATE", bp->total, "background (counts/s/pixel)");
+	if (o->bkg_model == BKG_AVG || o->bkg_model == BKG_SKY) {
+		CARD(fits_card_dbl, "BKGZODI", bp->zodi, "of which zodiacal light");
+		CARD(fits_card_dbl, "BKGTHERM", bp->thermal, "of which internal thermal");
+	}
 	CARD(fits_card_int, "NSOURCES", (long long)g->placed_on[sca - 1], "sources drawn on this SCA");
 	if (o->row_first) {
 		char rows[32];
@@ -266,7 +290,8 @@ static int write_slot_level(struct engine *g, struct fitsout *f, int s, const st
 	struct level_sca L = {
 		.level = d->level, .pat = &d->pattern, .det = &det,
 		.key = { .seed = x->seed, .filter = g->o->filter, .sca = sca },
-		.ylo = g->ylo, .yhi = g->yhi, .strip = T, .background = x->background,
+		.ylo = g->ylo, .yhi = g->yhi, .strip = T,
+		.background = d->bkg_sky[sca - 1] + d->bkg_pixel[sca - 1],
 		.rate_row = level_rate_row, .arg = &rows, .pool = g->pool,
 	};
 	char *cards;

@@ -9,8 +9,9 @@ Draws N point sources, magnitudes uniform in [15, 26] AB, at uniform random
 1-based pixel positions on SCA01 (kept 30 pixels from the edges so that
 every fit box is whole) in F129, with the paper's background and noise:
 
-    wfiscene --filter F129 --sca 1 --geometry stips --background avg --noise all
-             --exptime 139.8 --seed S --placed placed.csv
+    wfiscene --filter F129 --sca 1 --geometry stips --set psf-extent=stips
+        --background avg --noise all
+        --exptime 139.8 --seed S --placed placed.csv
 
 and recovers them three ways, as the paper does:
 
@@ -102,7 +103,10 @@ def make_scene(args):
     psf = os.path.join(args.dir, "epsf.fits")
     t0 = time.time()
     # the paper's setting: STIPS's geometry (a flat background per pixel)
+    # and STIPS's PSF boxes (each box holds the whole flux, as the ePSF the
+    # photometry fits is normalised)
     run([args.wfs, "--filter", FILTER, "--sca", "1", "--geometry", "stips",
+         "--set", "psf-extent=stips",
          "--background", "avg", "--noise", "all", "--exptime", str(EXPTIME), "--seed", str(args.seed),
          "--placed", placed, "-o", img, cat])
     t1 = time.time()

@@ -9,7 +9,9 @@ require_python
 echo "ra,dec,flux" > none.csv
 # Three SCAs far apart in the field (left, middle, right), two rows each:
 # the headers and the report carry the background, the pixels show it.
-run() { "$WFS" --filter F129 --sca 1,9,18 --rows 1-2 -q "$@" none.csv; }
+# STIPS's geometry, where every pixel has the nominal area; the last test
+# checks the SIAF geometry's pixels, which get the sky's part times their area.
+run() { "$WFS" --geometry stips --filter F129 --sca 1,9,18 --rows 1-2 -q "$@" none.csv; }
 
 # sky_check.py FITS REPORT DATE NORM FILTER: every image HDU's BKGRATE and
 # BKGZODI against the table interpolated here at the HDU's RA_APER/DEC_APER.
@@ -130,7 +132,7 @@ a, b = (json.load(open(n + \".json\"))[\"background\"][\"sca\"][0][\"zodi\"] for
 assert 4.5 < a / b < 5.3, a / b"
 	'
 	test_expect_success 'F213: thermal-dominated, the same check' '
-		"$WFS" --filter F213 --sca 1,9,18 --rows 1-2 -q --background sky --date $D1 \
+		"$WFS" --geometry stips --filter F213 --sca 1,9,18 --rows 1-2 -q --background sky --date $D1 \
 			--ra 270 --dec 66.56 --report k.json -o k.fits none.csv &&
 		check k $D1 project F213
 	'
@@ -192,7 +194,7 @@ test_expect_success 'the pixels carry each SCA its own background' '
 test_expect_success 'an SCA run alone has the bytes it has in a run of three' '
 	run --background sky --date $D1 --ra 270 --dec 66.56 --noise all --exptime 100 \
 		-o three.fits &&
-	"$WFS" --filter F129 --sca 9 --rows 1-2 -q --background sky --date $D1 --ra 270 \
+	"$WFS" --geometry stips --filter F129 --sca 9 --rows 1-2 -q --background sky --date $D1 --ra 270 \
 		--dec 66.56 --noise all --exptime 100 -o nine.fits none.csv &&
 	"$PY" -c "
 from astropy.io import fits
@@ -202,7 +204,7 @@ assert np.array_equal(a[\"WFI09\"].data, b[\"WFI09\"].data)
 assert a[\"WFI09\"].header[\"BKGRATE\"] == b[\"WFI09\"].header[\"BKGRATE\"]"
 '
 test_expect_success 'avg: STIPS Table 1 shared among the SCAs, its mean kept' '
-	"$WFS" --filter F129 --sca 1-18 --rows 1-1 -q --background avg --report avg.json \
+	"$WFS" --geometry stips --filter F129 --sca 1-18 --rows 1-1 -q --background avg --report avg.json \
 		-o avg.fits none.csv &&
 	"$PY" - <<-\EOF
 	import json
@@ -220,7 +222,7 @@ test_expect_success 'avg: STIPS Table 1 shared among the SCAs, its mean kept' '
 	EOF
 '
 test_expect_success 'avg in F213 (below its thermal rate) is one number' '
-	"$WFS" --filter F213 --sca 1,18 --rows 1-1 -q --background avg --report k.json \
+	"$WFS" --geometry stips --filter F213 --sca 1,18 --rows 1-1 -q --background avg --report k.json \
 		-o k.fits none.csv &&
 	"$PY" -c "import json
 b = json.load(open(\"k.json\"))[\"background\"][\"sca\"]
@@ -309,7 +311,7 @@ test_expect_success '--pointings: a bad date names file and line; a refused one 
 	test_grep "exposure 001: --background sky needs a date" err
 '
 test_expect_success '--level 2: each SCA ramp-fitted to its own sky' '
-	"$WFS" --filter F129 --sca 1,18 --rows 1-64 -q --background sky --date $D1 --ra 270 \
+	"$WFS" --geometry stips --filter F129 --sca 1,18 --rows 1-64 -q --background sky --date $D1 --ra 270 \
 		--dec 66.56 --level 2 -o lev.fits none.csv &&
 	"$PY" - <<-\EOF
 	import numpy as np
@@ -320,6 +322,37 @@ test_expect_success '--level 2: each SCA ramp-fitted to its own sky' '
 	        print(n, b, m)
 	        assert abs(m / b - 1) < 0.03, (n, b, m)
 	    assert h["WFI18"].header["BKGRATE"] > 1.1 * h["WFI01"].header["BKGRATE"]
+	EOF
+'
+test_expect_success 'SIAF geometry: each pixel gets the sky part times its area, thermal as is' '
+	"$WFS" --filter F158 --sca 1,18 --rows 1-1 -q --background sky --date $D1 \
+		--ra 270 --dec 66.56 -o siaf.fits none.csv &&
+	"$PY" - <<-\EOF
+	import warnings
+	import numpy as np
+	from astropy.io import fits
+	from astropy.wcs import WCS
+	warnings.simplefilter("ignore")
+	nominal = (0.11 / 3600) ** 2
+	with fits.open("siaf.fits") as h:
+	    for hdu in h[1:]:
+	        hd = hdu.header
+	        assert hd["CTYPE1"].endswith("-SIP"), hd["CTYPE1"]
+	        w = WCS(hd)
+	        for x in (0, 1000, 4087):
+	            # the solid angle of the pixel from the WCS: the Jacobian of the
+	            # tangent-plane offsets at its centre (0-based x, row 0)
+	            d = 0.5
+	            c = w.all_pix2world([[x - d, 0], [x + d, 0], [x, -d], [x, d]], 0)
+	            cosd = np.cos(np.radians(c[:, 1].mean()))
+	            dra = ((c[:, 0] + 180) % 360 - 180) * cosd
+	            j = np.array([[dra[1] - dra[0], dra[3] - dra[2]],
+	                          [c[1, 1] - c[0, 1], c[3, 1] - c[2, 1]]])
+	            area = abs(np.linalg.det(j)) / nominal
+	            want = hd["BKGZODI"] * area + hd["BKGTHERM"]
+	            got = float(hdu.data[0, x])
+	            assert 0.85 < area < 1.05, area
+	            assert abs(got / want - 1) < 1e-4, (hd["EXTNAME"], x, got, want, area)
 	EOF
 '
 test_done

@@ -13,7 +13,7 @@
 # parallel, Slurm and munge (t7100 runs contrib/parallel and contrib/slurm
 # for real, on a private one-node cluster it starts and stops).
 set -e
-build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev zstd"
+build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev libchealpix-dev zstd"
 tests="perl gzip time python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc
 	parallel slurmctld slurmd slurm-client munge clang libclang-rt-dev valgrind"
 extra=

@@ -18,6 +18,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "table.h"
+#include "tree.h"
 
 /* Magnitudes outside this range are surely a mistake (99 for "no data",
  * a flux in the magnitude column); an error beats a blank or blinding
@@ -35,6 +36,27 @@ struct catalog {
 	int sky;                /* 1: ra, dec; 0: x, y */
 	int c_ra, c_dec, c_x, c_y, c_sca, c_flux, c_mag, c_units, c_type, c_id;
 	int flux_unit;          /* unit of the flux column, per file */
+	/* romanisim's convention (wfiscene-catalog(5) ROMANISIM CATALOGS):
+	 * its columns are given wfiscene's meaning; half_light_radius
+	 * (arcsec) becomes the extra column "re" (pixels), ncol_table + 0. */
+	int roman;
+	int c_hlr, c_pa, c_ba;
+	int ncol_table;         /* columns of the table; rows have one more
+	                           ("re") in romanisim's convention */
+	double *re_num;         /* the "re" column's values */
+	const char **re_text;   /* NULL (use re_num) or "" for an empty cell */
+	const char ***text_ext; /* the chunk's text[] with "re" appended */
+	const double **num_ext;
+
+	/* A catalog tree (tree.h): its files are read in turn as one
+	 * catalog, all with the columns of the first that has any. */
+	struct tree *tree;
+	size_t tree_next;       /* the next file of the tree to open */
+	char **first_cols;      /* the first table's column names */
+	int nfirst;
+	int first_roman;
+	unsigned long long bytes_done;  /* raw bytes of the tables closed */
+	char *dir;              /* the tree's path, for messages */
 	unsigned long long nrows;
 	size_t cap;
 	char **colname;
@@ -284,6 +306,8 @@ static int unit_code(const char *s)
 		{ "mag", UNIT_ABMAG }, { "mag(ab)", UNIT_ABMAG },
 		{ "j", UNIT_JY }, { "jy", UNIT_JY }, { "jansky", UNIT_JY },
 		{ "p", UNIT_PHOT }, { "e", UNIT_ERG },
+		{ "maggies", UNIT_MAGGIES }, { "maggy", UNIT_MAGGIES },
+		{ "nanomaggies", UNIT_NMGY }, { "nmgy", UNIT_NMGY },
 	};
 
 	for (; *s && n + 1 < sizeof(b); s++)
@@ -319,13 +343,98 @@ static int alloc_rows(struct catalog *c, struct err *e)
 	c->unit = malloc(n);
 	c->type = malloc(n * sizeof(char *));
 	c->id = malloc(n * sizeof(long long));
-	c->colname = calloc((size_t)table_ncol(c->t) + 1, sizeof(char *));
+	c->re_num = malloc(n * sizeof(double));
+	c->re_text = malloc(n * sizeof(char *));
 	if (!c->ra || !c->dec || !c->x || !c->y || !c->flux || !c->sca ||
-	    !c->unit || !c->type || !c->id || !c->colname)
+	    !c->unit || !c->type || !c->id || !c->re_num || !c->re_text)
 		return err_set(e, EXIT_SYSTEM, "out of memory");
-	for (int i = 0; i < table_ncol(c->t); i++)
-		c->colname[i] = (char *)table_colname(c->t, i);
 	return 0;
+}
+
+/* The names rows carry for the current table's columns. */
+static int set_columns(struct catalog *c, struct err *e)
+{
+	free(c->colname);
+	free(c->text_ext);
+	free(c->num_ext);
+	c->ncol_table = c->t ? table_ncol(c->t) : 0;
+	c->colname = calloc((size_t)c->ncol_table + 2, sizeof(char *));
+	c->text_ext = calloc((size_t)c->ncol_table + 2, sizeof(char **));
+	c->num_ext = calloc((size_t)c->ncol_table + 2, sizeof(double *));
+	if (!c->colname || !c->text_ext || !c->num_ext)
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	for (int i = 0; i < c->ncol_table; i++)
+		c->colname[i] = (char *)table_colname(c->t, i);
+	if (c->roman) {
+		if (c->c_pa >= 0)
+			c->colname[c->c_pa] = "phi";
+		if (c->c_ba >= 0)
+			c->colname[c->c_ba] = "ratio";
+		if (c->c_hlr >= 0)
+			c->colname[c->ncol_table] = "re";
+	}
+	return 0;
+}
+
+/* A tree's files after the first with columns must have the same columns
+ * in the same order: the engine resolves a catalog's columns once. */
+static int same_columns(struct catalog *c, struct err *e)
+{
+	int ok = c->nfirst == table_ncol(c->t) && c->first_roman == c->roman;
+
+	for (int i = 0; ok && i < c->nfirst; i++)
+		ok = !strcmp(c->first_cols[i], table_colname(c->t, i));
+	if (!ok)
+		return err_set(e, EXIT_INPUT,
+			       "%s: its columns differ from those of the tree's first file, '%s'",
+			       table_name(c->t), c->first_cols[c->nfirst]);
+	return 0;
+}
+
+static int catalog_plan(struct catalog *c, struct err *e);
+
+/* Open path as the current table and give its columns their meaning. */
+static int open_table(struct catalog *c, const char *path, struct err *e)
+{
+	if (!(c->t = table_open(path, c->cap, e)))
+		return -1;
+	if (table_format(c->t) == TABLE_EMPTY) {
+		if (!c->colname && set_columns(c, e) < 0)
+			return -1;
+		return 0;
+	}
+	if (catalog_plan(c, e) < 0)
+		return -1;
+	if (c->first_cols)
+		return same_columns(c, e) < 0 || set_columns(c, e) < 0 ? -1 : 0;
+	if (set_columns(c, e) < 0)
+		return -1;
+	if (!c->tree)
+		return 0;
+	/* the first file of a tree that has columns: remember them */
+	c->nfirst = c->ncol_table;
+	c->first_roman = c->roman;
+	if (!(c->first_cols = calloc((size_t)c->nfirst + 1, sizeof(char *))))
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	for (int i = 0; i <= c->nfirst; i++)
+		if (!(c->first_cols[i] = strdup(i < c->nfirst ? table_colname(c->t, i)
+							      : table_name(c->t))))
+			return err_set(e, EXIT_SYSTEM, "out of memory");
+	return 0;
+}
+
+/* Close the current table and open the tree's next file: 1 when one
+ * was opened, 0 at the end of the tree, -1. */
+static int next_table(struct catalog *c, struct err *e)
+{
+	if (c->t) {
+		c->bytes_done += table_raw_bytes(c->t);
+		table_close(c->t);
+		c->t = NULL;
+	}
+	if (!c->tree || c->tree_next >= tree_nread(c->tree))
+		return 0;
+	return open_table(c, tree_path(c->tree, c->tree_next++), e) < 0 ? -1 : 1;
 }
 
 /* The column a numeric meaning needs must not be a FITS string column. */
@@ -334,6 +443,79 @@ static int want_number(struct catalog *c, int col, struct err *e)
 	if (col >= 0 && table_colkind(c->t, col) == TABLE_STRING)
 		return err_set(e, EXIT_INPUT, "%s: column '%s' is a string column, not a number",
 			       table_name(c->t), table_colname(c->t, col));
+	return 0;
+}
+
+/*
+ * romanisim's convention: ra, dec, type (PSF, SER), n, half_light_radius
+ * (arcsec), pa (degrees east of north), ba (b/a), and one flux column per
+ * filter, named by the filter, in maggies.  A table follows it when its
+ * metadata says "convention=romanisim", or, without STIPS type metadata
+ * and without a 'flux' or 'mag' column, when it has a column named by a
+ * WFI filter or one of half_light_radius, pa, ba.  Its columns then
+ * stand for wfiscene's: the filter's column is the flux (in maggies
+ * unless its own unit says otherwise), ba is read as "ratio", pa as "phi"
+ * (an angle on the sky, which the engine turns into one on the detector),
+ * and half_light_radius / 0.11 as an extra column "re" in pixels.
+ */
+static int roman_plan(struct catalog *c, const char *lc, const char *where,
+		      struct err *e)
+{
+	struct table *t = c->t;
+	const char *name = table_name(t);
+	const char *conv = table_meta(t, "convention");
+	int any_filter = 0;
+	static const char *const pairs[3][2] = {
+		{ "half_light_radius", "re" }, { "pa", "phi" }, { "ba", "ratio" },
+	};
+
+	c->c_hlr = col_of(t, "half_light_radius");
+	c->c_pa = col_of(t, "pa");
+	c->c_ba = col_of(t, "ba");
+	for (int f = 0; f < WFS_NFILTER; f++) {
+		char fl[16];
+		size_t k;
+		const char *fn = filter_get(f)->name;
+
+		for (k = 0; fn[k] && k + 1 < sizeof(fl); k++)
+			fl[k] = (char)tolower((unsigned char)fn[k]);
+		fl[k] = 0;
+		any_filter |= col_of(t, fl) >= 0;
+	}
+	if (conv && *conv) {
+		if (strcasecmp(conv, "romanisim") == 0)
+			c->roman = 1;
+		else if (strcasecmp(conv, "wfiscene") == 0)
+			c->roman = 0;
+		else
+			return err_set(e, EXIT_INPUT,
+				       "%s: metadata 'convention': unknown convention '%s' (want wfiscene or romanisim)",
+				       name, conv);
+	} else {
+		c->roman = c->stips == STIPS_NONE && c->c_flux < 0 && c->c_mag < 0 &&
+			(any_filter || c->c_hlr >= 0 || c->c_pa >= 0 || c->c_ba >= 0);
+	}
+	if (!c->roman)
+		return 0;
+	if (c->stips != STIPS_NONE)
+		return err_set(e, EXIT_INPUT,
+			       "%s: a STIPS catalog type cannot follow romanisim's convention", name);
+	if (c->c_flux >= 0 || c->c_mag >= 0)
+		return err_set(e, EXIT_INPUT,
+			       "%s%s: column '%s' in a catalog in romanisim's convention, whose fluxes "
+			       "are columns named by the filter", name, where,
+			       c->c_flux >= 0 ? "flux" : "mag");
+	for (int k = 0; k < 3; k++)
+		if (col_of(t, pairs[k][0]) >= 0 && col_of(t, pairs[k][1]) >= 0)
+			return err_set(e, EXIT_INPUT,
+				       "%s%s: both '%s' (romanisim's) and '%s' (wfiscene's): keep one",
+				       name, where, pairs[k][0], pairs[k][1]);
+	c->c_flux = col_of(t, lc);
+	if (c->c_flux < 0)
+		return err_set(e, EXIT_INPUT,
+			       "%s%s: catalog in romanisim's convention has no column '%s' for the "
+			       "scene's filter (fluxes in maggies, one column per filter)",
+			       name, where, filter_get(c->o.filter)->name);
 	return 0;
 }
 
@@ -419,6 +601,9 @@ static int catalog_plan(struct catalog *c, struct err *e)
 				       name, where, lc);
 	}
 
+	if (roman_plan(c, lc, where, e) < 0)
+		return -1;
+
 	if (c->c_ra >= 0 && c->c_dec >= 0) {
 		c->sky = 1;
 	} else if (c->c_x >= 0 && c->c_y >= 0) {
@@ -442,8 +627,8 @@ static int catalog_plan(struct catalog *c, struct err *e)
 	 * TUNIT), else the fluxunit metadata, else the scene's --flux-unit,
 	 * else counts/s.  STIPS's own types are in counts/s by definition,
 	 * so the scene's default does not apply to them. */
-	c->flux_unit = UNIT_COUNTS;
-	if (c->o.flux_unit && c->stips == STIPS_NONE)
+	c->flux_unit = c->roman ? UNIT_MAGGIES : UNIT_COUNTS;
+	if (c->o.flux_unit && c->stips == STIPS_NONE && !c->roman)
 		c->flux_unit = c->o.flux_unit;
 	{
 		const char *mu = table_meta(t, "fluxunit");
@@ -452,7 +637,7 @@ static int catalog_plan(struct catalog *c, struct err *e)
 			c->flux_unit = unit_code(mu);
 			if (!c->flux_unit)
 				return err_set(e, EXIT_INPUT,
-					       "%s: metadata 'fluxunit': unknown unit '%s' (want counts, abmag or jy)",
+					       "%s: metadata 'fluxunit': unknown unit '%s' (want counts, abmag, jy or maggies)",
 					       name, mu);
 		}
 	}
@@ -462,9 +647,12 @@ static int catalog_plan(struct catalog *c, struct err *e)
 		c->flux_unit = unit_code(cu);
 		if (!c->flux_unit)
 			return err_set(e, EXIT_INPUT,
-				       "%s: column '%s': unknown unit '%s' (want counts/s, mag(AB) or Jy)",
+				       "%s: column '%s': unknown unit '%s' (want counts/s, mag(AB), Jy or maggies)",
 				       name, table_colname(t, c->c_flux), cu);
 	}
+	if (c->roman && (want_number(c, c->c_hlr, e) || want_number(c, c->c_pa, e) ||
+			 want_number(c, c->c_ba, e)))
+		return -1;
 	if (want_number(c, c->c_ra, e) || want_number(c, c->c_dec, e) ||
 	    want_number(c, c->c_x, e) || want_number(c, c->c_y, e) ||
 	    want_number(c, c->c_sca, e) || want_number(c, c->c_flux, e) ||
@@ -494,13 +682,20 @@ struct catalog *catalog_open(const char *path, const struct catalog_opts *o,
 		err_set(e, EXIT_INPUT, "catalog: unknown filter %d", c->o.filter);
 		goto fail;
 	}
-	c->t = table_open(path, c->cap, e);
-	if (!c->t)
-		goto fail;
-	if (table_format(c->t) != TABLE_EMPTY && catalog_plan(c, e) < 0)
-		goto fail;
 	if (alloc_rows(c, e) < 0)
 		goto fail;
+	if (tree_is_dir(path)) {
+		struct tree_opts to = { c->o.disc, c->o.ndisc, c->o.settings };
+
+		if (!(c->tree = tree_open(path, &to, e)) || !(c->dir = strdup(path)))
+			goto fail;
+		if (next_table(c, e) < 0)
+			goto fail;
+		if (!c->t && set_columns(c, e) < 0)
+			goto fail;
+	} else if (open_table(c, path, e) < 0) {
+		goto fail;
+	}
 	return c;
 fail:
 	catalog_close(c);
@@ -615,9 +810,17 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 	const char *fn;
 
 	memset(r, 0, sizeof(*r));
-	n = table_read(c->t, &ch, e);
+	r->sky_angle_col = -1;
+	for (;;) {
+		n = c->t ? table_read(c->t, &ch, e) : 0;
+		if (n != 0)
+			break;
+		/* the end of a table: a tree goes on with its next file */
+		if (!c->tree || (n = next_table(c, e)) <= 0)
+			break;
+	}
 	if (n <= 0) {
-		r->file = table_name(c->t);
+		r->file = c->t ? table_name(c->t) : c->dir ? c->dir : "";
 		return n;
 	}
 	fn = ch.file;
@@ -671,6 +874,14 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 				if (u < 0)
 					return -1;
 			}
+			if (u == UNIT_MAGGIES || u == UNIT_NMGY) {
+				if (!(f > 0))
+					return err_set(e, EXIT_INPUT,
+						       "%s:%ld: column '%s': flux must be positive: '%.40s'",
+						       fn, ch.line[i], cn, table_text(&ch, c->c_flux, i));
+				f = (u == UNIT_NMGY ? 22.5 : 0.0) - 2.5 * log10(f);
+				u = UNIT_ABMAG;
+			}
 			if (u == UNIT_ABMAG) {
 				if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)
 					return err_set(e, EXIT_INPUT,
@@ -702,8 +913,25 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 
 			lower_trim(&s);
 			c->type[i] = *s ? s : "point";
+			if (c->roman && !strcmp(s, "psf"))
+				c->type[i] = "point";
+			else if (c->roman && !strcmp(s, "ser"))
+				c->type[i] = "sersic";
 		} else {
 			c->type[i] = "point";
+		}
+
+		if (c->roman && c->c_hlr >= 0) {
+			const char *h = ch.text[c->c_hlr][i];
+
+			if (h && is_empty(h)) {
+				c->re_text[i] = "";
+			} else {
+				if (cell_number(&ch, c->c_hlr, i, "half_light_radius", &v, e) < 0)
+					return -1;
+				c->re_text[i] = NULL;
+				c->re_num[i] = v / WFS_PIXSCALE;
+			}
 		}
 
 		if (c->c_id >= 0 && (!ch.text[c->c_id][i] || !is_empty(ch.text[c->c_id][i]))) {
@@ -729,10 +957,22 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 	r->id = c->id;
 	r->sersic_ie = c->stips == STIPS_INTERNAL || c->stips == STIPS_MIXED ||
 		c->stips == STIPS_MULTI;
-	r->ncol = table_ncol(c->t);
+	r->ncol = c->ncol_table;
 	r->colname = c->colname;
 	r->text = ch.text;
 	r->num = ch.num;
+	r->roman = c->roman;
+	r->sky_angle_col = c->roman ? c->c_pa : -1;
+	if (c->roman && c->c_hlr >= 0) {
+		/* the chunk's columns and "re" after them */
+		memcpy(c->text_ext, ch.text, (size_t)c->ncol_table * sizeof(char **));
+		memcpy(c->num_ext, ch.num, (size_t)c->ncol_table * sizeof(double *));
+		c->text_ext[c->ncol_table] = c->re_text;
+		c->num_ext[c->ncol_table] = c->re_num;
+		r->text = c->text_ext;
+		r->num = c->num_ext;
+		r->ncol++;
+	}
 	c->ch = ch;
 	r->chunk = &c->ch;
 	return n;
@@ -745,7 +985,15 @@ unsigned long long catalog_rows(const struct catalog *c)
 
 unsigned long long catalog_bytes(const struct catalog *c)
 {
-	return table_raw_bytes(c->t);
+	return c->bytes_done + (c->t ? table_raw_bytes(c->t) : 0);
+}
+
+int catalog_tree_counts(const struct catalog *c, struct tree_counts *out)
+{
+	if (!c->tree)
+		return 0;
+	tree_get_counts(c->tree, out);
+	return 1;
 }
 
 void catalog_close(struct catalog *c)
@@ -753,6 +1001,12 @@ void catalog_close(struct catalog *c)
 	if (!c)
 		return;
 	table_close(c->t);
+	tree_free(c->tree);
+	free(c->dir);
+	if (c->first_cols)
+		for (int i = 0; i <= c->nfirst; i++)
+			free(c->first_cols[i]);
+	free(c->first_cols);
 	free(c->ra);
 	free(c->dec);
 	free(c->x);
@@ -763,5 +1017,9 @@ void catalog_close(struct catalog *c)
 	free(c->type);
 	free(c->id);
 	free(c->colname);
+	free(c->text_ext);
+	free(c->num_ext);
+	free(c->re_num);
+	free(c->re_text);
 	free(c);
 }

@@ -20,6 +20,8 @@
 
 struct err;
 struct table_chunk;
+struct tree_counts;
+struct tree_disc;
 
 /* Units a flux value can carry (per file or per row). */
 enum flux_unit {
@@ -28,6 +30,9 @@ enum flux_unit {
 	UNIT_JY = 'j',          /* Jansky */
 	UNIT_PHOT = 'p',        /* STIPS mixed 'p' */
 	UNIT_ERG = 'e',         /* STIPS mixed 'e' */
+	/* Read, never passed on: turned into UNIT_ABMAG as rows are read. */
+	UNIT_MAGGIES = 'g',     /* maggies: AB mag = -2.5 log10(value) */
+	UNIT_NMGY = 'n',        /* nanomaggies: AB mag = 22.5 - 2.5 log10 */
 };
 
 struct catalog_opts {
@@ -35,6 +40,11 @@ struct catalog_opts {
 	int flux_unit;          /* default unit of a flux column, or 0 for the
 	                           file's metadata, else counts/s */
 	size_t chunk_rows;      /* rows per chunk; 0 for the default 65536 */
+	/* For a catalog tree (a directory, tree.h): the region where rows
+	 * matter, and the settings that describe the tree. */
+	const struct tree_disc *disc;
+	int ndisc;              /* 0: every file of a tree is read */
+	const char *const *settings;    /* "key=value", NULL-ended, or NULL */
 };
 
 /*
@@ -55,6 +65,12 @@ struct rows {
 	long long *id;          /* the id column, else the 1-based row number */
 	int sersic_ie;          /* 1 when this catalog's Sersic fluxes are the
 	                           surface brightness at re (STIPS internal) */
+	int sky_angle_col;      /* column whose angles are position angles on
+	                           the sky (degrees east of north, romanisim's
+	                           pa read as "phi"), turned into detector
+	                           angles by the engine; -1 for none */
+	int roman;              /* 1: the catalog follows romanisim's
+	                           convention (ROMANISIM CATALOGS) */
 
 	/* Every column, as text, for models that read columns by name. */
 	int ncol;
@@ -72,7 +88,9 @@ const char *rows_text(const struct rows *r, int col, size_t i);
 
 struct catalog;
 
-/* Open a catalog file, or stdin for "-".  The format is recognised from the
+/* Open a catalog file, or stdin for "-", or a catalog tree (a directory of
+ * files split by HEALPix pixel, tree.h: its files that reach o's region are
+ * read in turn as one catalog).  The format is recognised from the
  * content.  Reads the header (and metadata) so that column errors such as a
  * missing position or flux column are reported here, with the file name. */
 struct catalog *catalog_open(const char *path, const struct catalog_opts *o,
@@ -99,6 +117,10 @@ int catalog_parse_double(const char *s, double *out);
 /* Rows read and raw bytes consumed so far, for reports. */
 unsigned long long catalog_rows(const struct catalog *c);
 unsigned long long catalog_bytes(const struct catalog *c);
+
+/* For a catalog tree: its counts of files and rows skipped unread (1);
+ * 0 for a single file. */
+int catalog_tree_counts(const struct catalog *c, struct tree_counts *out);
 
 void catalog_close(struct catalog *c);
 

@@ -131,15 +131,20 @@ struct engine {
 	double *fx, *fy, *px, *py, *reach;
 	uint32_t *cand;
 	uint32_t *mask;                 /* slots the row may reach */
+	unsigned char *listed;          /* row already in a romanisim --placed */
 	size_t cap_rows;
 
 	struct batch b[2];              /* double buffer: see run_catalogs() */
 	const struct batch *rendering;
 
 	FILE *placed;
+	int placed_roman;               /* --placed in romanisim's convention */
 	char placed_tmp[PATH_MAX];
 
 	unsigned long long rows_read, placements, culled, offdet;
+	/* catalog trees: files in them, skipped unread, what those held */
+	unsigned long long trees, tree_files, tree_skipped, tree_bytes_skipped;
+	unsigned long long tree_rows_skipped, tree_rows_uncounted;
 	unsigned long long tiles_drawn, tiles;  /* before noise, and in all */
 	unsigned long long per_model[PLUGIN_MAX];
 	double flux_requested[WFS_NSCA];        /* sum of placed sources' flux */

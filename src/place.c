@@ -202,6 +202,71 @@ static int footprint(struct engine *g, const struct rows *r, size_t i, int m,
 	return 0;
 }
 
+/*
+ * The position angle, degrees east of north, of the detectors' +y axis at
+ * (ra, dec) in exposure g: the direction of a short step north in the
+ * focal-plane frame, whose +y is the detectors' +y and whose parity is
+ * the sky's (east left when north is up).  A galaxy whose major axis lies
+ * pa east of north then lies phi = pa - north_pa on the detector, in the
+ * sense of the "phi" column (from +y toward -x).  0 when the row does not
+ * project.
+ */
+static double north_pa(const struct engine *g, double ra, double dec)
+{
+	double h = dec > 89.0 ? -1e-4 : 1e-4;
+	double rr[2] = { ra, ra }, dd[2] = { dec, dec + h }, fx[2], fy[2];
+	double dx, dy;
+
+	sky_to_focal(&g->sky, 2, rr, dd, INFINITY, fx, fy);
+	dx = (fx[1] - fx[0]) * (h > 0 ? 1 : -1);
+	dy = (fy[1] - fy[0]) * (h > 0 ? 1 : -1);
+	if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0))
+		return 0;
+	return atan2(dx, dy) * (180.0 / M_PI);
+}
+
+/* Parameter `name' of a row of model md, or fallback. */
+static double param_named(const struct wfs_model *md, const double *param,
+			  const char *name, double fallback)
+{
+	for (int c = 0; c < md->ncolumns; c++)
+		if (!strcasecmp(md->columns[c].name, name))
+			return param[c];
+	return fallback;
+}
+
+/* One row of a --placed list in romanisim's convention (see
+ * wfiscene-catalog(5)): the source as a romanisim catalog would give it,
+ * read back to the same image.  Returns fprintf's sign. */
+static int placed_roman_row(struct engine *g, const struct rows *r, size_t i,
+			    const struct wfs_model *md, const double *param,
+			    const struct wfs_source *src)
+{
+	double maggies = pow(10.0, -0.4 * src->mag);
+	const char *type = md->name;
+	double n = -1, hlr = 0, pa = 0, ba = 1;
+
+	if (!strcmp(md->name, "point"))
+		type = "PSF";
+	else if (!strncmp(md->name, "sersic", 6)) {
+		type = !strcmp(md->name + 6, "") ||
+		       !strcmp(md->name + 6, g->o->sersic[0] == 'p' ? "-precise" : "-quick")
+		       ? "SER" : md->name;
+		n = param_named(md, param, "n", -1);
+		hlr = param_named(md, param, "re", 0) * WFS_PIXSCALE;
+		ba = param_named(md, param, "ratio", 1);
+		pa = param_named(md, param, "phi", 0);
+		if (!isnan(r->ra[i]))
+			pa += north_pa(g, r->ra[i], r->dec[i]);
+		pa = fmod(pa, 360.0);
+		if (pa < 0)
+			pa += 360.0;
+	}
+	return fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.15g,%.15g,%s,%.17g,%.17g,%.17g,%.17g,%.17g\n",
+		       src->id, src->sca, src->x + 1, src->y + 1, r->ra[i], r->dec[i], type,
+		       n, hlr, pa, ba, maggies) < 0 ? -1 : 0;
+}
+
 static int add_placement(struct engine *g, struct batch *b, const struct rows *r,
 			 size_t i, int m, const double *param, int slot, double x,
 			 double y)
@@ -226,18 +291,28 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	g->per_model[m]++;
 	g->flux_requested[src.sca - 1] += src.flux;
 	g->placed_on[src.sca - 1]++;
-	if (g->placed &&
+	if (g->placed && !g->placed_roman &&
 	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
 		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
 		return err_sys(g->e, "%s", g->o->placed);
+	if (g->placed && g->placed_roman && !g->listed[i]) {
+		g->listed[i] = 1;
+		if (placed_roman_row(g, r, i, md, param, &src) < 0)
+			return err_sys(g->e, "%s", g->o->placed);
+	}
 	/* With --rows, counted and listed as in a run of the whole SCA (the
 	 * part's header is that run's), but drawn only in the rows written:
 	 * the windows are cut there, and a model gives the same pixels for
-	 * any windows. */
-	if (box.y0 < g->ylo)
-		box.y0 = g->ylo;
-	if (box.y1 > g->yhi)
-		box.y1 = g->yhi;
+	 * any windows.  The detector levels also need the row on either side
+	 * of the part, whose light IPC brings into it. */
+	{
+		int margin = g->o->level ? 1 : 0;
+
+		if (box.y0 < g->ylo - margin)
+			box.y0 = g->ylo - margin;
+		if (box.y1 > g->yhi + margin)
+			box.y1 = g->yhi + margin;
+	}
 	if (box.y0 >= box.y1)
 		return 0;
 	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
@@ -387,6 +462,8 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
 				return err_set(g->e, EXIT_INPUT, "%s:%ld: model '%s': column '%s': "
 					       "empty value", r->file, r->line[i], md->name,
 					       md->columns[c].name);
+			else if (g->colidx[m][c] == r->sky_angle_col && !isnan(r->ra[i]))
+				*v -= north_pa(g, r->ra[i], r->dec[i]);   /* romanisim's pa */
 		}
 		g->reach[i] = 0;
 		if (isnan(r->ra[i]))
@@ -507,8 +584,10 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    !(g->py = realloc(g->py, g->cap_rows * sizeof(double))) ||
 	    !(g->reach = realloc(g->reach, g->cap_rows * sizeof(double))) ||
 	    !(g->cand = realloc(g->cand, g->cap_rows * sizeof(uint32_t))) ||
-	    !(g->mask = realloc(g->mask, g->cap_rows * sizeof(uint32_t))))
+	    !(g->mask = realloc(g->mask, g->cap_rows * sizeof(uint32_t))) ||
+	    !(g->listed = realloc(g->listed, g->cap_rows)))
 		return err_sys(g->e, "rows");
+	memset(g->listed, 0, r->n);
 	g->sersic_flux_now = g->o->sersic_flux ? g->o->sersic_flux
 			   : r->sersic_ie ? "ie" : "total";
 

@@ -62,6 +62,22 @@ static int side_close(FILE *f, const char *path, const char *tmp, int keep)
 	return keep ? -1 : 0;
 }
 
+/* --set placed=romanisim: the --placed list in romanisim's convention
+ * (1), wfiscene's (0), or -1 for an unknown one. */
+static int placed_convention_roman(const struct engine *g)
+{
+	const char *hit = NULL;
+
+	for (const char *const *kv = g->o->settings; kv && *kv; kv++)
+		if (!strncmp(*kv, "placed=", 7))
+			hit = *kv + 7;
+	if (!hit || !strcasecmp(hit, "wfiscene"))
+		return 0;
+	if (!strcasecmp(hit, "romanisim"))
+		return 1;
+	return err_set(g->e, EXIT_INPUT, "--set placed=%s: want wfiscene or romanisim", hit);
+}
+
 int placed_open(struct engine *g)
 {
 	const char *path = g->x->placed;
@@ -77,7 +93,30 @@ int placed_open(struct engine *g)
 		placed_tmp_signal[g->x->index][0] = 0;
 		return err_sys(g->e, "%s", path);
 	}
-	fputs("id,sca,x,y,flux,mag,model\n", g->placed);
+	if ((g->placed_roman = placed_convention_roman(g)) < 0) {
+		fclose(g->placed);
+		g->placed = NULL;
+		if (g->placed_tmp[0])
+			unlink(g->placed_tmp);
+		placed_tmp_signal[g->x->index][0] = 0;
+		return -1;
+	}
+	if (g->placed_roman)
+		fprintf(g->placed,
+			"# %%ECSV 1.0\n# ---\n# delimiter: ','\n# datatype:\n"
+			"# - {name: id, datatype: int64}\n# - {name: sca, datatype: int64}\n"
+			"# - {name: x, datatype: float64}\n# - {name: y, datatype: float64}\n"
+			"# - {name: ra, unit: deg, datatype: float64}\n"
+			"# - {name: dec, unit: deg, datatype: float64}\n"
+			"# - {name: type, datatype: string}\n# - {name: n, datatype: float64}\n"
+			"# - {name: half_light_radius, unit: arcsec, datatype: float64}\n"
+			"# - {name: pa, unit: deg, datatype: float64}\n# - {name: ba, datatype: float64}\n"
+			"# - {name: %s, datatype: float64}\n"
+			"# meta: {convention: romanisim}\n# schema: astropy-2.0\n"
+			"id,sca,x,y,ra,dec,type,n,half_light_radius,pa,ba,%s\n",
+			g->filter_name, g->filter_name);
+	else
+		fputs("id,sca,x,y,flux,mag,model\n", g->placed);
 	return 0;
 }
 
@@ -166,7 +205,14 @@ int report_write(struct engine *g)
 				g->per_model[m]);
 			first = 0;
 		}
-	fprintf(f, "}},\n  \"flux\": [");
+	fprintf(f, "}},\n");
+	if (g->trees)
+		fprintf(f, "  \"catalog_trees\": {\"trees\": %llu, \"files\": %llu, "
+			"\"files_read\": %llu, \"files_skipped\": %llu, \"bytes_skipped\": %llu, "
+			"\"rows_skipped\": %llu, \"files_skipped_rows_unknown\": %llu},\n",
+			g->trees, g->tree_files, g->tree_files - g->tree_skipped, g->tree_skipped,
+			g->tree_bytes_skipped, g->tree_rows_skipped, g->tree_rows_uncounted);
+	fprintf(f, "  \"flux\": [");
 	for (int s = 0; s < g->nslot; s++) {
 		int sca = g->slot[s].sca;
 

@@ -22,8 +22,10 @@
 #include "engine.h"
 #include "err.h"
 #include "fftconv.h"
+#include "into.h"
 #include "noise.h"
 #include "pool.h"
+#include "tree.h"
 
 double engine_clock(void)
 {
@@ -130,6 +132,7 @@ static void engine_free(struct engine *g)
 		free(g->b[i].active);
 	}
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
+	free(g->listed);
 	sky_free(&g->sky);
 	pthread_mutex_destroy(&g->err_mu);
 }
@@ -168,13 +171,56 @@ static void engine_free(struct engine *g)
  * finishes (a worker may be writing into the tiles); a failure in a worker
  * is seen at the next wait.
  */
+/*
+ * The region a catalog tree must cover: a disc about each SCA of each
+ * exposure, of the SCA's half diagonal plus a margin for the light of
+ * sources centred outside it (--set tree-margin=ARCSEC, default 30: the
+ * largest ePSF box reaches 9.7 arcsec; galaxies reach farther).
+ */
+static int tree_region(struct engine **g, int ng, struct tree_disc **out, int *nout,
+		       struct err *e)
+{
+	const char *m = host_setting(g[0], "tree-margin");
+	double margin = 30;
+	int n = 0;
+
+	if (m) {
+		char *end;
+
+		margin = strtod(m, &end);
+		if (end == m || *end || !(margin >= 0) || margin > 648000)
+			return err_set(e, EXIT_INPUT, "--set tree-margin=%s: want arcseconds "
+				       "from 0 to 648000", m);
+	}
+	for (int i = 0; i < ng; i++)
+		n += g[i]->nslot;
+	if (!(*out = malloc((size_t)(n ? n : 1) * sizeof(**out))))
+		return err_sys(e, "tree region");
+	n = 0;
+	for (int i = 0; i < ng; i++)
+		for (int s = 0; s < g[i]->nslot; s++) {
+			const struct sky_sca *ss = &g[i]->sky.sca[g[i]->slot[s].sca - 1];
+
+			(*out)[n].ra = ss->ra;
+			(*out)[n].dec = ss->dec;
+			(*out)[n++].radius = (SKY_SCA_HALF * M_SQRT2 + margin) / 3600.0;
+		}
+	*nout = n;
+	return 0;
+}
+
 static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			const struct scene_opts *o, struct err *e)
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
-				   .chunk_rows = o->chunk };
+				   .chunk_rows = o->chunk, .settings = o->settings };
 	struct engine *pending = NULL;  /* whose batch the pool is drawing */
+	struct tree_disc *disc = NULL;
 	int cur = 0, rc = -1;
+
+	if (tree_region(g, ng, &disc, &co.ndisc, e) < 0)
+		return -1;
+	co.disc = disc;
 
 	for (char *const *cat = catalogs; *cat; cat++) {
 		struct catalog *c = catalog_open(*cat, &co, e);
@@ -229,12 +275,32 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				break;
 			cur ^= 1;
 		}
+		{
+			struct tree_counts tc;
+
+			if (catalog_tree_counts(c, &tc))
+				host_log(g[0], 1, "%s: catalog tree: %llu of %llu files read; %llu "
+					 "skipped unread (%llu bytes, %llu rows counted, %llu "
+					 "files uncounted)", *cat, tc.files - tc.skipped, tc.files,
+					 tc.skipped, tc.bytes_skipped, tc.rows_skipped,
+					 tc.rows_uncounted);
+			if (catalog_tree_counts(c, &tc))
+				for (int i = 0; i < ng; i++) {
+					g[i]->tree_files += tc.files;
+					g[i]->tree_skipped += tc.skipped;
+					g[i]->tree_bytes_skipped += tc.bytes_skipped;
+					g[i]->tree_rows_skipped += tc.rows_skipped;
+					g[i]->tree_rows_uncounted += tc.rows_uncounted;
+					g[i]->trees++;
+				}
+		}
 		catalog_close(c);
 		if (n < 0 || e->code != EXIT_OK)
 			break;
 	}
 	rc = 0;
 out:
+	free(disc);
 	if (pending) {
 		double ta = engine_clock();
 
@@ -272,12 +338,24 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	struct exposure *x = NULL;
 	struct engine **g = NULL;
 	struct pool *pool = NULL;
+	struct into *into = NULL;
 	struct timespec t0;
 	int n = 0, made = 0, rc = -1;
 
 	clock_gettime(CLOCK_MONOTONIC, &t0);
-	if (exposures_make(o, &x, &n, e) < 0)
+	if (o->into && (o->pointings || o->row_first || !strcmp(o->output, "-") ||
+			strstr(o->output, "%d")))
+		return err_set(e, EXIT_INPUT, "--into: one output file, without "
+			       "--pointings, --rows, '-' or '%%d'");
+	if (o->into && !(into = into_open(o->into, o->sca_mask, e)))
 		return -1;
+	if (exposures_make(o, &x, &n, e) < 0) {
+		into_free(into);
+		return -1;
+	}
+	/* With --into, the image says where the SCAs look (into.h). */
+	if (into)
+		into_pointing(into, &x[0].ra, &x[0].dec, &x[0].pa, &x[0].boresight);
 	if (!(g = calloc(n, sizeof(*g))) ||
 	    !(pool = pool_new(o->threads > 0 ? o->threads : pool_cpus()))) {
 		err_sys(e, "memory");
@@ -289,7 +367,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 			goto out;
 		}
 		made++;
-		if (engine_init(g[i], o, &x[i], pool, e) < 0)
+		if (engine_init(g[i], o, &x[i], pool, e) < 0 ||
+		    (into && into_apply(into, &g[i]->sky, e) < 0))
 			goto out;
 		if ((x[i].placed && placed_open(g[i]) < 0) ||
 		    (x[i].report && side_check(x[i].report, e) < 0))
@@ -302,8 +381,11 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	for (int i = 0; i < n; i++)
 		if (finish(g[i], t0) < 0)
 			goto out;
+	if (into && into_compose(into, x[0].output, e) < 0)
+		goto out;
 	rc = 0;
 out:
+	into_free(into);
 	for (int i = 0; i < made; i++) {
 		placed_close(g[i], 0);
 		engine_free(g[i]);

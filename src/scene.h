@@ -34,6 +34,8 @@ struct scene_opts {
 	double readnoise, dark_current, cosmic_rate, cosmic_residual;
 	const char *output;             /* "-", a path, or a path with %d */
 	const char *placed;             /* --placed file or NULL */
+	const char *into;               /* --into IMAGE[.fits[HDU]] or NULL: add
+	                                   the sources to that image (into.h) */
 	const char *report;             /* --report JSON file or NULL */
 	const char *pointings;          /* --pointings file: one exposure a line */
 	const char *compress;           /* NULL, "none", "rice", "gzip" */
@@ -48,6 +50,9 @@ struct scene_opts {
 	int flux_unit;                  /* enum flux_unit default */
 	int zp_stips;                   /* STIPS's fixed zeropoints */
 	const char *const *settings;    /* "key=value" for models (--set), NULL-ended */
+	int level;                      /* enum detector_level: --level */
+	int ma_table;                   /* --ma-table: read pattern of levels 1, 2 */
+	int exptime_given;              /* --exptime was on the command line */
 };
 
 /* Simulate the scene from the catalogs (NULL-terminated; "-" is stdin).

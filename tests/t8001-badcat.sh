@@ -84,7 +84,7 @@ refused $B/sca-range.csv 1 ":2: column 'sca': not an SCA (1 to 18): '19'"
 refused $B/sca-zero.csv 1 ":2: column 'sca': not an SCA (1 to 18): '0'"
 refused $B/id-not-integer.csv 1 ":2: column 'id': not an integer: '1.5'"
 refused $B/unknown-unit.csv 1 ":2: column 'units': unknown unit 'furlong' (want c, j, p, e or m)"
-refused $B/unknown-fluxunit.csv 1 ": metadata 'fluxunit': unknown unit 'furlongs' (want counts, abmag or jy)"
+refused $B/unknown-fluxunit.csv 1 ": metadata 'fluxunit': unknown unit 'furlongs' (want counts, abmag, jy or maggies)"
 refused $B/unknown-type.csv 1 ": unknown catalog type 'bogus' (want internal, mixed, multifilter or generic)"
 refused $B/phoenix-type.tbl 1 ": catalog type 'phoenix' needs stellar or galaxy spectra"
 refused $B/internal-no-filter.tbl 1 ": catalog type 'internal' needs metadata 'filter'"
@@ -183,10 +183,10 @@ test_expect_success 'a missing catalog: status 2, cannot open' '
 	test_must_fail --status 2 "$WFS" --filter F129 -o out.fits nosuch.csv 2>err &&
 	test_grep "nosuch.csv: cannot open" err && test "$(ls -A)" = err
 '
-test_expect_success 'a directory as catalog: status 2, read error' '
+test_expect_success 'a directory without catalog files as catalog: status 1' '
 	d=$(mktemp -d "$TRASH/run.XXXXXX") && cd "$d" && mkdir cat.csv &&
-	test_must_fail --status 2 "$WFS" --filter F129 -o out.fits cat.csv 2>err &&
-	test_grep "cat.csv: read error: Is a directory" err &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o out.fits cat.csv 2>err &&
+	test_grep "cat.csv: a directory (a catalog tree) without catalog files" err &&
 	test "$(ls -A | sort | tr "\n" " ")" = "cat.csv err "
 '
 test_expect_success 'a good catalog then a bad one: no output at all' '

@@ -24,7 +24,7 @@ int main(void)
 		skip_all("tests/fuzz/corpus not found (run from the top of the tree)");
 	while ((de = readdir(d))) {
 		char path[1024];
-		struct catalog_opts o = { F129, 0, 3 };
+		struct catalog_opts o = { .filter = F129, .chunk_rows = 3 };
 		struct catalog *c;
 		struct rows r;
 		struct err e = { 0 };

@@ -78,7 +78,7 @@ static int make_fits(const char *path, int nhdu, const char *type)
 
 static long read_all(const char *p, size_t chunk, struct err *e)
 {
-	struct catalog_opts o = { F129, 0, chunk };
+	struct catalog_opts o = { .filter = F129, .chunk_rows = chunk };
 	struct catalog *c;
 	struct rows r;
 	long n, total = 0;
@@ -104,7 +104,7 @@ static void fails(const char *p, const char *want, const char *what)
 
 static void test_read(void)
 {
-	struct catalog_opts o = { F129, 0, 3 };
+	struct catalog_opts o = { .filter = F129, .chunk_rows = 3 };
 	struct catalog *c;
 	struct rows r;
 	struct err e = { 0 };

@@ -34,7 +34,7 @@ static const char *fixture(const char *name, const char *text, size_t len)
 
 static struct catalog_opts opts(void)
 {
-	struct catalog_opts o = { F129, 0, 0 };
+	struct catalog_opts o = { .filter = F129 };
 
 	return o;
 }

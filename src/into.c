@@ -1,0 +1,431 @@
+/*
+ * into.c - injection into an existing image (--into); see into.h.
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <fitsio.h>
+#include <wcslib/wcs.h>
+#include <wcslib/wcshdr.h>
+
+#include "err.h"
+#include "instrument.h"
+#include "into.h"
+#include "sky.h"
+#include "tempfile.h"
+
+struct into_hdu {
+	int sca;                /* 1..18 */
+	int hdu;                /* cfitsio HDU number, 1 = primary */
+	long nx, ny;
+	struct wcsprm wcs;      /* the image's celestial WCS, set */
+	double ra, dec, pa;     /* centre and position angle of +y there */
+};
+
+struct into {
+	char *path;             /* the file, without an [HDU] suffix */
+	char *spec;             /* as given, for messages */
+	struct into_hdu h[WFS_NSCA];
+	int nh;
+	int has_pointing;       /* the primary header gave one */
+	double ra, dec, pa;
+	int boresight;
+};
+
+/* Split "file[hdu]" into the file and the HDU text (NULL when none). */
+static int split_spec(struct into *in, const char *spec, char **hdu, struct err *e)
+{
+	size_t n = strlen(spec);
+	const char *lb = strrchr(spec, '[');
+
+	*hdu = NULL;
+	if (n > 2 && spec[n - 1] == ']' && lb && lb > spec) {
+		in->path = strndup(spec, (size_t)(lb - spec));
+		*hdu = strndup(lb + 1, (size_t)(spec + n - 1 - lb - 1));
+		if (!in->path || !*hdu)
+			return err_set(e, EXIT_SYSTEM, "out of memory");
+		return 0;
+	}
+	if (!(in->path = strdup(spec)))
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	return 0;
+}
+
+/* Centre and +y position angle of a set-up WCS for an nx x ny image. */
+static int centre_of(struct into_hdu *h, const char *where, struct err *e)
+{
+	double pix[2][2] = { { (h->nx + 1) / 2.0, (h->ny + 1) / 2.0 } }, img[2][2], world[2][2];
+	double phi[2], theta[2], dx, dy, step;
+	int stat[2], status;
+
+	if ((status = wcsp2s(&h->wcs, 1, 2, pix[0], img[0], phi, theta, world[0], stat)) ||
+	    stat[0])
+		return err_set(e, EXIT_INPUT, "%s: the image's centre has no sky position (wcslib: %s)",
+			       where, status ? wcs_errmsg[status] : "bad pixel");
+	h->ra = world[0][h->wcs.lng];
+	h->dec = world[0][h->wcs.lat];
+	/* a step toward the pole, whose direction gives north's */
+	step = h->dec > 89 ? -1e-4 : 1e-4;
+	world[1][h->wcs.lng] = h->ra;
+	world[1][h->wcs.lat] = h->dec + step;
+	if ((status = wcss2p(&h->wcs, 1, 2, world[1], phi, theta, img[1], pix[1], stat)) ||
+	    stat[0])
+		return err_set(e, EXIT_INPUT, "%s: no position angle at the image's centre", where);
+	dx = (pix[1][0] - pix[0][0]) * (step > 0 ? 1 : -1);
+	dy = (pix[1][1] - pix[0][1]) * (step > 0 ? 1 : -1);
+	h->pa = atan2(dx, dy) * (180.0 / M_PI);
+	return 0;
+}
+
+/* Read HDU hdu's size and celestial WCS into h. */
+static int read_hdu(struct into *in, fitsfile *f, int hdu, int sca,
+		    struct err *e)
+{
+	struct into_hdu *h = &in->h[in->nh];
+	char where[4200], *hdr = NULL;
+	int status = 0, naxis = 0, nkeys = 0, nreject = 0, nwcs = 0, type, rc = -1;
+	long nax[2] = { 0, 0 };
+	struct wcsprm *w = NULL;
+
+	snprintf(where, sizeof(where), "%s[%d]", in->path, hdu - 1);
+	if (fits_movabs_hdu(f, hdu, &type, &status) ||
+	    fits_get_img_dim(f, &naxis, &status))
+		return err_fits(e, status, "%s", where);
+	if (type != IMAGE_HDU || naxis != 2)
+		return err_set(e, EXIT_INPUT, "%s: not a two-dimensional image", where);
+	if (fits_get_img_size(f, 2, nax, &status))
+		return err_fits(e, status, "%s", where);
+	if (nax[0] > WFS_NPIX || nax[1] > WFS_NPIX)
+		return err_set(e, EXIT_INPUT, "%s: %ld x %ld pixels, larger than an SCA (%d x %d)",
+			       where, nax[0], nax[1], WFS_NPIX, WFS_NPIX);
+	if (fits_hdr2str(f, 1, NULL, 0, &hdr, &nkeys, &status))
+		return err_fits(e, status, "%s: header", where);
+	if ((status = wcspih(hdr, nkeys, WCSHDR_all, 0, &nreject, &nwcs, &w)) || !nwcs) {
+		err_set(e, EXIT_INPUT, "%s: no WCS in the header%s%s", where,
+			status ? ": wcslib: " : "", status ? wcs_errmsg[status] : "");
+		goto out;
+	}
+	h->wcs.flag = -1;
+	if ((status = wcssub(1, &w[0], NULL, NULL, &h->wcs)) || (status = wcsset(&h->wcs))) {
+		err_set(e, EXIT_INPUT, "%s: WCS: wcslib: %s", where, wcs_errmsg[status]);
+		goto out;
+	}
+	h->sca = sca;
+	h->hdu = hdu;
+	h->nx = nax[0];
+	h->ny = nax[1];
+	in->nh++;
+	if (h->wcs.lng < 0 || h->wcs.lat < 0) {
+		err_set(e, EXIT_INPUT, "%s: the WCS is not celestial (CTYPE '%s', '%s')", where,
+			h->wcs.ctype[0], h->wcs.ctype[1]);
+		goto out;
+	}
+	rc = centre_of(h, where, e);
+out:
+	if (w)
+		wcsvfree(&nwcs, &w);
+	free(hdr);
+	return rc;
+}
+
+/* The primary header's pointing (a wfiscene image), if it has one. */
+static void read_pointing(struct into *in, fitsfile *f)
+{
+	int status = 0, type;
+	char ref[FLEN_VALUE] = "";
+
+	if (fits_movabs_hdu(f, 1, &type, &status) ||
+	    fits_read_key(f, TDOUBLE, "RA_TARG", &in->ra, NULL, &status) ||
+	    fits_read_key(f, TDOUBLE, "DEC_TARG", &in->dec, NULL, &status) ||
+	    fits_read_key(f, TDOUBLE, "PA_APER", &in->pa, NULL, &status)) {
+		fits_clear_errmsg();
+		return;
+	}
+	if (fits_read_key(f, TSTRING, "POINTREF", ref, NULL, &status))
+		fits_clear_errmsg();
+	in->boresight = !strcasecmp(ref, "BORESIGHT");
+	in->has_pointing = 1;
+}
+
+struct into *into_open(const char *spec, unsigned mask, struct err *e)
+{
+	struct into *in = calloc(1, sizeof(*in));
+	fitsfile *f = NULL;
+	char *hdu = NULL;
+	int status = 0, nhdu = 0, nscas = 0, one = 0;
+
+	if (!in || !(in->spec = strdup(spec))) {
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		goto fail;
+	}
+	for (int s = 1; s <= WFS_NSCA; s++)
+		if (mask & (1u << (s - 1))) {
+			nscas++;
+			one = s;
+		}
+	if (split_spec(in, spec, &hdu, e) < 0)
+		goto fail;
+	if (fits_open_diskfile(&f, in->path, READONLY, &status) ||
+	    fits_get_num_hdus(f, &nhdu, &status)) {
+		err_fits(e, status, "--into %s", in->path);
+		if (e->code != EXIT_OK && access(in->path, R_OK) == 0)
+			e->code = EXIT_INPUT;
+		goto fail;
+	}
+	read_pointing(in, f);
+	if (hdu) {
+		/* IMAGE[N] (0 the primary) or IMAGE[EXTNAME]: the scene's one SCA */
+		char *end;
+		long n = strtol(hdu, &end, 10);
+		int type;
+
+		if (nscas != 1) {
+			err_set(e, EXIT_INPUT, "--into %s: one HDU stands for one SCA; the scene has %d",
+				spec, nscas);
+			goto fail;
+		}
+		if (*end || end == hdu) {
+			if (fits_movnam_hdu(f, IMAGE_HDU, hdu, 0, &status)) {
+				err_set(e, EXIT_INPUT, "--into %s: no image HDU named '%s'", spec, hdu);
+				fits_clear_errmsg();
+				goto fail;
+			}
+			fits_get_hdu_num(f, &type);
+			n = type - 1;
+		}
+		if (n < 0 || n >= nhdu) {
+			err_set(e, EXIT_INPUT, "--into %s: HDU %ld: the file has HDUs 0 to %d",
+				spec, n, nhdu - 1);
+			goto fail;
+		}
+		if (read_hdu(in, f, (int)n + 1, one, e) < 0)
+			goto fail;
+	} else {
+		/* WFInn for each SCA; else the file's only image, for one SCA */
+		int found[WFS_NSCA + 1] = { 0 }, images = 0, last = 0;
+
+		for (int k = 1; k <= nhdu; k++) {
+			char name[FLEN_VALUE] = "";
+			int type, naxis = 0, s;
+
+			if (fits_movabs_hdu(f, k, &type, &status)) {
+				err_fits(e, status, "--into %s", in->path);
+				goto fail;
+			}
+			if (type != IMAGE_HDU)
+				continue;
+			fits_get_img_dim(f, &naxis, &status);
+			if (naxis == 2)
+				images++, last = k;
+			if (fits_read_key(f, TSTRING, "EXTNAME", name, NULL, &status)) {
+				status = 0;
+				fits_clear_errmsg();
+				continue;
+			}
+			if (strlen(name) == 5 && !strncasecmp(name, "WFI", 3) &&
+			    isdigit((unsigned char)name[3]) && isdigit((unsigned char)name[4]) &&
+			    (s = atoi(name + 3)) >= 1 && s <= WFS_NSCA && !found[s])
+				found[s] = k;
+		}
+		for (int s = 1; s <= WFS_NSCA; s++) {
+			if (!(mask & (1u << (s - 1))))
+				continue;
+			if (found[s]) {
+				if (read_hdu(in, f, found[s], s, e) < 0)
+					goto fail;
+			} else if (nscas == 1 && images == 1) {
+				if (read_hdu(in, f, last, s, e) < 0)
+					goto fail;
+			} else {
+				err_set(e, EXIT_INPUT, "--into %s: no image HDU 'WFI%02d' for SCA %d "
+					"(name one HDU with %s[N] for a scene of one SCA)",
+					spec, s, s, in->path);
+				goto fail;
+			}
+		}
+	}
+	fits_close_file(f, &status);
+	free(hdu);
+	if (!in->has_pointing) {
+		in->ra = in->h[0].ra;
+		in->dec = in->h[0].dec;
+		in->pa = in->h[0].pa;
+		in->boresight = 0;
+	}
+	return in;
+fail:
+	if (f) {
+		status = 0;
+		fits_close_file(f, &status);
+	}
+	free(hdu);
+	into_free(in);
+	return NULL;
+}
+
+void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
+		   int *boresight)
+{
+	*ra = in->ra;
+	*dec = in->dec;
+	*pa = in->pa;
+	*boresight = in->boresight;
+}
+
+int into_apply(const struct into *in, struct sky *sky, struct err *e)
+{
+	for (int k = 0; k < in->nh; k++) {
+		const struct into_hdu *h = &in->h[k];
+		struct sky_sca *ss = &sky->sca[h->sca - 1];
+		double cx, cy, far = 0;
+		/* corners and edge midpoints, 1-based pixels */
+		double px[8] = { 0.5, h->nx + 0.5, 0.5, h->nx + 0.5, 0.5, h->nx + 0.5,
+				 (h->nx + 1) / 2.0, (h->nx + 1) / 2.0 };
+		double py[8] = { 0.5, 0.5, h->ny + 0.5, h->ny + 0.5, (h->ny + 1) / 2.0,
+				 (h->ny + 1) / 2.0, 0.5, h->ny + 0.5 };
+		int status;
+
+		wcsfree(&ss->wcs);
+		ss->wcs.flag = -1;
+		if ((status = wcssub(1, &h->wcs, NULL, NULL, &ss->wcs)) ||
+		    (status = wcsset(&ss->wcs)))
+			return err_set(e, EXIT_SYSTEM, "--into %s: wcslib: %s", in->spec,
+				       wcs_errmsg[status]);
+		ss->ra = h->ra;
+		ss->dec = h->dec;
+		ss->pa = h->pa;
+		sky_to_focal(sky, 1, &h->ra, &h->dec, INFINITY, &cx, &cy);
+		if (!isfinite(cx) || !isfinite(cy))
+			return err_set(e, EXIT_INPUT, "--into %s[%d]: the image is far from the "
+				       "pointing", in->path, h->hdu - 1);
+		ss->fx = cx;
+		ss->fy = cy;
+		/* The engine culls rows outside a square of an SCA's size about
+		 * the centre in the focal plane: the image must fit in it. */
+		for (int c = 0; c < 8; c++) {
+			double pix[2] = { px[c], py[c] }, img[2], world[2], phi, theta, fx, fy;
+			int stat;
+
+			if (wcsp2s(&ss->wcs, 1, 2, pix, img, &phi, &theta, world, &stat) || stat)
+				return err_set(e, EXIT_INPUT, "--into %s[%d]: a corner of the image "
+					       "has no sky position", in->path, h->hdu - 1);
+			sky_to_focal(sky, 1, &world[ss->wcs.lng], &world[ss->wcs.lat], INFINITY,
+				     &fx, &fy);
+			far = fmax(far, fmax(fabs(fx - cx), fabs(fy - cy)));
+		}
+		if (!(far <= SKY_SCA_HALF + 1.0))
+			return err_set(e, EXIT_INPUT, "--into %s[%d]: the image reaches %.1f arcsec "
+				       "from its centre along the detector axes, more than an SCA's "
+				       "%.1f", in->path, h->hdu - 1, far, SKY_SCA_HALF);
+	}
+	return 0;
+}
+
+/* Checksums are brought up to date where the image had them. */
+static int had_checksum(fitsfile *f)
+{
+	char v[FLEN_VALUE];
+	int status = 0;
+
+	if (fits_read_key(f, TSTRING, "CHECKSUM", v, NULL, &status)) {
+		fits_clear_errmsg();
+		return 0;
+	}
+	return 1;
+}
+
+int into_compose(const struct into *in, const char *path, struct err *e)
+{
+	fitsfile *src = NULL, *eng = NULL, *out = NULL;
+	char tmp[4200], name[4210];
+	double *a = NULL, *b = NULL;
+	int status = 0, fd, rc = -1;
+
+	if ((fd = tempfile_beside(path, tmp, sizeof(tmp), e)) < 0)
+		return -1;
+	close(fd);
+	snprintf(name, sizeof(name), "!%s", tmp);
+	if (fits_open_diskfile(&src, in->path, READONLY, &status) ||
+	    fits_open_diskfile(&eng, path, READONLY, &status) ||
+	    fits_create_file(&out, name, &status) ||
+	    fits_copy_file(src, out, 1, 1, 1, &status)) {
+		err_fits(e, status, "--into %s: %s", in->spec, path);
+		goto out;
+	}
+	for (int k = 0; k < in->nh; k++) {
+		const struct into_hdu *h = &in->h[k];
+		size_t n = (size_t)h->nx * (size_t)h->ny;
+		long fp[2] = { 1, 1 }, lp[2] = { h->nx, h->ny }, inc[2] = { 1, 1 };
+		char ext[16], hist[80];
+		int type, any;
+
+		snprintf(ext, sizeof(ext), "WFI%02d", h->sca);
+		if (!(a = malloc(n * sizeof(double))) || !(b = malloc(n * sizeof(double)))) {
+			err_set(e, EXIT_SYSTEM, "out of memory");
+			goto out;
+		}
+		if (fits_movnam_hdu(eng, IMAGE_HDU, ext, 0, &status) ||
+		    fits_read_subset(eng, TDOUBLE, fp, lp, inc, NULL, a, &any, &status) ||
+		    fits_movabs_hdu(out, h->hdu, &type, &status) ||
+		    fits_read_pix(out, TDOUBLE, fp, (LONGLONG)n, NULL, b, &any, &status)) {
+			err_fits(e, status, "--into %s[%d]", in->path, h->hdu - 1);
+			goto out;
+		}
+		for (size_t i = 0; i < n; i++)
+			b[i] += a[i];
+		snprintf(hist, sizeof(hist), "wfiscene %s: sources added to these pixels "
+			 "(SCA %d)", WFS_VERSION, h->sca);
+		if (fits_write_pix(out, TDOUBLE, fp, (LONGLONG)n, b, &status) ||
+		    fits_write_history(out, hist, &status) ||
+		    (had_checksum(out) && fits_write_chksum(out, &status))) {
+			err_fits(e, status, "%s: HDU %d", path, h->hdu - 1);
+			goto out;
+		}
+		free(a);
+		free(b);
+		a = b = NULL;
+	}
+	fits_close_file(out, &status);
+	out = NULL;
+	if (status) {
+		err_fits(e, status, "%s", tmp);
+		goto out;
+	}
+	if (rename(tmp, path) < 0) {
+		err_sys(e, "%s", path);
+		goto out;
+	}
+	tmp[0] = 0;
+	rc = 0;
+out:
+	status = 0;
+	if (out)
+		fits_close_file(out, &status);
+	status = 0;
+	if (src)
+		fits_close_file(src, &status);
+	status = 0;
+	if (eng)
+		fits_close_file(eng, &status);
+	if (tmp[0])
+		unlink(tmp);
+	free(a);
+	free(b);
+	return rc;
+}
+
+void into_free(struct into *in)
+{
+	if (!in)
+		return;
+	for (int k = 0; k < in->nh; k++)
+		wcsfree(&in->h[k].wcs);
+	free(in->path);
+	free(in->spec);
+	free(in);
+}

@@ -1,0 +1,44 @@
+/*
+ * into.h - injection: sources added to an existing image (--into) instead
+ * of an empty one.
+ *
+ * The image's HDUs stand for the requested SCAs: the one whose EXTNAME is
+ * WFInn for SCA nn (wfiscene's own images), or the HDU named in
+ * "IMAGE[N]" / "IMAGE[EXTNAME]" for the one SCA of the scene, or the file's
+ * only image for the one SCA.  Each HDU's own WCS (wcslib, with SIP and
+ * other distortions) places the sources on its pixels: it replaces that
+ * SCA's geometry in the engine.  The engine draws the added light (and its
+ * noise, when asked) as usual; the output is then the image itself, every
+ * HDU and header kept, with that light added to the mapped HDUs' pixels.
+ */
+#ifndef WFS_INTO_H
+#define WFS_INTO_H
+
+struct err;
+struct sky;
+struct into;
+
+/* Open spec ("IMAGE.fits" or "IMAGE.fits[N]") for the SCAs in mask (bit
+ * s-1 for SCA s) and read each mapped HDU's size and WCS.  NULL with a
+ * message naming the file and HDU at fault. */
+struct into *into_open(const char *spec, unsigned mask, struct err *e);
+
+/* The pointing to simulate: the primary header's RA_TARG, DEC_TARG,
+ * PA_APER and POINTREF (a wfiscene image), else the centre of the first
+ * mapped HDU and the position angle of its +y axis there. */
+void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
+		   int *boresight);
+
+/* Give the mapped SCAs of sky the images' WCSs and centres.  Refuses an
+ * image larger than an SCA or reaching farther from its centre than an
+ * SCA's window.  Returns 0 or -1. */
+int into_apply(const struct into *in, struct sky *sky, struct err *e);
+
+/* Replace the engine's image at path (one HDU WFInn per SCA) by a copy of
+ * the --into image with those HDUs' pixels added to the mapped HDUs'.
+ * Written beside path and renamed over it.  Returns 0 or -1. */
+int into_compose(const struct into *in, const char *path, struct err *e);
+
+void into_free(struct into *in);
+
+#endif

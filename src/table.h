@@ -2,6 +2,8 @@
  * table.h - the table layer under catalog.h (internal to the catalog
  * module): any supported format, plain or compressed, read as chunks of
  * rows whose cells are text, plus the file's metadata and column units.
+ * The core is table.c; the readers are table_text.c (CSV, whitespace, IPAC,
+ * ECSV) and table_fits.c (FITS), built on table_build.h.
  *
  * Formats are recognised from the content (table_open):
  *   FITS        "SIMPLE  =" at byte 0; binary (and ASCII) table HDUs in turn
@@ -18,7 +20,6 @@
 #include <stddef.h>
 
 struct err;
-struct input;
 
 enum table_format { TABLE_CSV, TABLE_WS, TABLE_IPAC, TABLE_ECSV, TABLE_FITS,
 	TABLE_EMPTY };
@@ -41,7 +42,10 @@ struct table_chunk {
 	                           yet: table_text() writes it */
 	const double **num;     /* num[col][row] for TABLE_NUMBER columns, else
 	                           num[col] == NULL */
-	struct table_fits *fits;        /* the FITS reader, for table_text() */
+	/* Writes the text of a cell whose text[col][row] is NULL (a FITS
+	 * double), for table_text(); src is the reader. */
+	const char *(*cell_text)(void *src, int col, size_t row);
+	void *src;
 	int padded;             /* text tables: TABLE_PAD defined bytes follow
 	                           every cell's NUL, so a cell may be read a
 	                           word at a time past its end */
@@ -79,29 +83,5 @@ long table_header_line(const struct table *t);
 const char *table_meta(const struct table *t, const char *key);
 unsigned long long table_raw_bytes(const struct table *t);
 void table_close(struct table *t);
-
-/* Shared by the format readers (table.c, table_text.c, table_fits.c). */
-int table_add_column(struct table *t, const char *name, size_t len,
-		     struct err *e);
-int table_add_meta(struct table *t, const char *key, size_t klen,
-		   const char *val, size_t vlen, struct err *e);
-int table_set_unit(struct table *t, int col, const char *unit, size_t len,
-		   struct err *e);
-void table_set_kind(struct table *t, int col, enum table_kind kind);
-
-/* Write v as snprintf(buf, size, "%.*g", digits, v) does, faster
- * (table_fits.c).  Needs size >= 26 for its fast path. */
-int table_format_double(char *buf, size_t size, double v, int digits);
-
-/* The FITS reader (table_fits.c).  in is the opened input; a plain file is
- * opened again by path, anything else is spooled to an unlinked temporary
- * file first, because cfitsio needs to seek. */
-struct table_fits;
-struct table_fits *table_fits_open(struct table *t, struct input *in,
-				   size_t chunk_rows, struct err *e);
-long table_fits_read(struct table_fits *f, struct table_chunk *c,
-		     struct err *e);
-const char *table_fits_text(struct table_fits *f, int col, size_t row);
-void table_fits_close(struct table_fits *f);
 
 #endif

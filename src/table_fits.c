@@ -1,6 +1,6 @@
 /*
- * table_fits.c - FITS binary (and ASCII) tables through cfitsio; see
- * table.h.
+ * table_fits.c - the FITS table reader: binary (and ASCII) tables through
+ * cfitsio, for the table core (table.c, table_build.h).
  *
  * Every table HDU is read in turn, as STIPS writes one HDU per chunk of
  * 100,000 rows; all must have the columns of the first.  Rows are read in
@@ -25,7 +25,7 @@
 
 #include "err.h"
 #include "input.h"
-#include "table.h"
+#include "table_build.h"
 
 /* Text of one chunk at most this size: a table with very wide string
  * columns is read in fewer rows per chunk. */
@@ -523,16 +523,18 @@ static int alloc_buffers(struct table_fits *x, struct err *e)
 	return 0;
 }
 
-struct table_fits *table_fits_open(struct table *t, struct input *in,
-				   size_t chunk_rows, struct err *e)
+static long fits_read(void *rd, struct table_chunk *c, struct err *e);
+static void fits_close(void *rd);
+static const struct table_reader fits_ops = { fits_read, fits_close };
+
+int table_fits_open(struct table *t, struct input *in, size_t chunk_rows,
+		    struct err *e)
 {
 	struct table_fits *x = calloc(1, sizeof(*x));
 	int status = 0, r;
 
-	if (!x) {
-		err_set(e, EXIT_SYSTEM, "out of memory");
-		return NULL;
-	}
+	if (!x)
+		return table_oom(e);
 	x->t = t;
 	x->chunk_rows = chunk_rows;
 	x->fd = -1;
@@ -583,10 +585,11 @@ struct table_fits *table_fits_open(struct table *t, struct input *in,
 	if (read_keywords(x, e) < 0 || read_columns(x, 1, e) < 0 ||
 	    alloc_buffers(x, e) < 0)
 		goto fail;
-	return x;
+	table_set_reader(t, &fits_ops, x);
+	return 0;
 fail:
-	table_fits_close(x);
-	return NULL;
+	fits_close(x);
+	return -1;
 }
 
 /* v as "%lld" writes it; s has room for 21 bytes. */
@@ -606,8 +609,10 @@ static void format_integer(char *s, long long v)
 	*s = 0;
 }
 
-const char *table_fits_text(struct table_fits *x, int col, size_t row)
+/* Write the text of a double cell (table_chunk cell_text). */
+static const char *fits_text(void *rd, int col, size_t row)
 {
+	struct table_fits *x = rd;
 	struct fits_col *fc = &x->col[col];
 	char *s = x->arena + fc->text_off + row * fc->text_width;
 
@@ -616,9 +621,9 @@ const char *table_fits_text(struct table_fits *x, int col, size_t row)
 	return s;
 }
 
-long table_fits_read(struct table_fits *x, struct table_chunk *c,
-		     struct err *e)
+static long fits_read(void *rd, struct table_chunk *c, struct err *e)
 {
+	struct table_fits *x = rd;
 	size_t n, used = 0;
 	int status = 0;
 
@@ -700,13 +705,13 @@ long table_fits_read(struct table_fits *x, struct table_chunk *c,
 			if (digits == 17) {
 				/* A double's 17-digit text reads back to the
 				 * same value, so it is written only when asked
-				 * for (table_fits_text).  A float's 9-digit text
+				 * for (fits_text).  A float's 9-digit text
 				 * does not (2.3f is 2.29999995): columns read as
 				 * text must keep seeing that text. */
 				memset(cell, 0, n * sizeof(*cell));
 			} else {
 				for (size_t k = 0; k < n; k++)
-					cell[k] = table_fits_text(x, i, k);
+					cell[k] = fits_text(x, i, k);
 			}
 			used += n * fc->text_width;
 		}
@@ -723,11 +728,14 @@ long table_fits_read(struct table_fits *x, struct table_chunk *c,
 	c->line = x->line;
 	c->text = x->text;
 	c->num = x->nums;
+	c->cell_text = fits_text;
+	c->src = x;
 	return (long)n;
 }
 
-void table_fits_close(struct table_fits *x)
+static void fits_close(void *rd)
 {
+	struct table_fits *x = rd;
 	int status = 0;
 
 	if (!x)

@@ -15,7 +15,7 @@
 #include "catalog.h"
 #include "err.h"
 #include "instrument.h"
-#include "table.h"
+#include "table_build.h"
 #include "tap.h"
 
 static char dir[] = "/tmp/wfs-catfits-XXXXXX";

@@ -1,0 +1,1217 @@
+/*
+ * table_text.c - the text table readers: CSV, whitespace separated, IPAC and
+ * ECSV, recognised from their header (see table.h); the core (table.c) hands
+ * them every input that is not FITS.
+ *
+ * Text is read into one buffer and cells point into it: a delimiter is
+ * overwritten with NUL and quoted cells are unquoted in place, so a row
+ * costs no allocation.  Because cells of the current chunk point into the
+ * buffer, the buffer is only compacted or grown at the start of a chunk; a
+ * chunk simply ends early when the buffer is full.  The buffer grows only
+ * for a single line longer than it, up to TABLE_MAX_LINE.  Memory is thus
+ * bounded by max(TABLE_BUF, TABLE_MAX_LINE) for text plus chunk_rows x
+ * (ncol + 1) words for the cell pointers and line numbers.
+ */
+#include <ctype.h>
+#include <stdint.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "err.h"
+#include "input.h"
+#include "table_build.h"
+
+/* Initial text buffer.  Overridable at build time so that the fuzzer
+ * reaches the buffer-full and line-growth paths with small inputs. */
+#ifndef TABLE_BUF
+#define TABLE_BUF (8u << 20)
+#endif
+#define NONE ((size_t)-1)
+/* Bytes after the text buffer and the IPAC arena, kept zero (defined), so
+ * that a cell may be read 8 bytes at a time past its NUL (table.h,
+ * TABLE_PAD). */
+#define PAD TABLE_PAD
+#define TABLE_MAX_CELLS (8u << 20)
+
+enum cls { C_PLAIN, C_DELIM, C_QUOTE, C_BAD, C_HIGH, C_CR };
+
+/* One text table being read; the core's struct table holds its columns
+ * and metadata. */
+struct text_reader {
+	struct table *tab;
+	struct input *in;
+	const char *name;       /* the table's, for messages */
+	enum table_format fmt;
+	size_t chunk_rows;
+	int ncol;               /* once the header is read */
+	char **null;            /* IPAC null value of each column, or NULL */
+	int nnull;
+
+	/* Text: unparsed data is buf[pos, len); buf[len] is kept free for a
+	 * terminating NUL.  nl is the offset of the next '\n' at or after pos
+	 * when known, else NONE. */
+	char *buf;
+	size_t cap, len, pos, nl;
+	/* The first '"' at or after qfrom, found by searching buf[qfrom,
+	 * qscan), or NONE when there is none there: one search serves many
+	 * quote-free lines.  qscan = 0 when unknown. */
+	size_t qt, qfrom, qscan;
+	int eof;
+	long line;              /* lines consumed before pos */
+	int consumed;           /* lines the last text_line() consumed */
+	char delim;
+	unsigned char cls[256];
+	int *ipac_pipe;         /* pipe offsets of the IPAC name line */
+	int ipac_npipe;
+	char *arena;            /* IPAC cells of the current chunk */
+	size_t arena_cap, arena_len;
+	char **fields;
+	int fields_cap;
+
+	/* The current chunk. */
+	const char **cells;
+	const char ***text;
+	const double **num;
+	long *line_of;
+};
+
+/* Whether buf[a, b) holds a '"' (b <= len). */
+static int quote_in(struct text_reader *t, size_t a, size_t b)
+{
+	if (t->qscan && t->qfrom <= a) {
+		if (t->qt != NONE && t->qt >= a)
+			return t->qt < b;
+		if (t->qt == NONE && b <= t->qscan)
+			return 0;
+	}
+	{
+		char *p = memchr(t->buf + a, '"', t->len - a);
+
+		t->qt = p ? (size_t)(p - t->buf) : NONE;
+		t->qfrom = a;
+		t->qscan = t->len;
+	}
+	return t->qt != NONE && t->qt < b;
+}
+
+/*
+ * Make the next complete line available: [*ls, *le) without its line end.
+ * A CSV row may span lines inside quotes; quotes says whether to look for
+ * them.  can_move says no cell points into the buffer yet, so it may be
+ * compacted or grown.  Returns 1 for a line, 0 at the end of input, 2 when
+ * the buffer is full and must be emptied first (only when !can_move),
+ * -1 on error.
+ */
+static int text_line(struct text_reader *t, char **ls, char **le, int quotes,
+		     int can_move, struct err *e)
+{
+	for (;;) {
+		size_t end = NONE;
+		int newlines = 1;
+
+		if (t->nl == NONE || t->nl < t->pos) {
+			char *p = memchr(t->buf + t->pos, '\n', t->len - t->pos);
+
+			t->nl = p ? (size_t)(p - t->buf) : NONE;
+		}
+		if (t->nl != NONE)
+			end = t->nl;
+		else if (t->eof)
+			end = t->len;
+		if (end != NONE && quotes && quote_in(t, t->pos, end)) {
+			/* A quoted cell may hold line ends: find the row's
+			 * end outside quotes.  A quote opens a cell only at
+			 * its start, as split_line() reads it. */
+			int inq = 0, fstart = 1, ws = t->delim == ' ';
+			size_t i;
+
+			newlines = 1;
+			for (i = t->pos; i < t->len; i++) {
+				char c = t->buf[i];
+
+				if (inq) {
+					if (c == '"') {
+						if (i + 1 < t->len && t->buf[i + 1] == '"')
+							i++;
+						else
+							inq = 0;
+					} else if (c == '\n') {
+						newlines++;
+					}
+					continue;
+				}
+				if (c == '\n')
+					break;
+				if (c == '"' && fstart)
+					inq = 1;
+				else if (c == t->delim || (ws && c == '\t'))
+					fstart = 1;
+				else if (c != ' ')
+					fstart = 0;
+				if (c == '"')
+					fstart = 0;
+			}
+			if (i < t->len) {
+				end = i;
+			} else if (t->eof) {
+				if (inq)
+					return err_set(e, EXIT_INPUT,
+						       "%s:%ld: unterminated quoted field",
+						       t->name, t->line + 1);
+				end = t->len;
+			} else {
+				end = NONE;
+			}
+			if (end != NONE && end > t->nl)
+				t->nl = NONE;
+		}
+		if (end != NONE) {
+			if (end == t->len && t->pos == t->len)
+				return 0;
+			*ls = t->buf + t->pos;
+			*le = t->buf + end;
+			if (*le > *ls && (*le)[-1] == '\r')
+				(*le)--;
+			t->pos = end < t->len ? end + 1 : end;
+			t->line += newlines;
+			t->consumed = newlines;
+			return 1;
+		}
+		/* Need more data. */
+		if (t->len + 1 >= t->cap) {
+			if (!can_move)
+				return 2;
+			if (t->pos > 0) {
+				memmove(t->buf, t->buf + t->pos, t->len - t->pos);
+				t->len -= t->pos;
+				t->pos = 0;
+				t->nl = NONE;
+				t->qscan = 0;
+			} else {
+				size_t cap = t->cap * 2;
+				char *b;
+
+				if (t->len >= TABLE_MAX_LINE)
+					return err_set(e, EXIT_INPUT,
+						       "%s:%ld: line longer than %u MiB",
+						       t->name, t->line + 1,
+						       TABLE_MAX_LINE >> 20);
+				if (cap > TABLE_MAX_LINE + 2)
+					cap = TABLE_MAX_LINE + 2;
+				b = realloc(t->buf, cap + PAD);
+				if (!b)
+					return table_oom(e);
+				memset(b + t->cap, 0, cap + PAD - t->cap);
+				t->buf = b;
+				t->cap = cap;
+			}
+			continue;
+		}
+		{
+			ssize_t r = input_read(t->in, t->buf + t->len,
+					       t->cap - 1 - t->len, e);
+
+			if (r < 0)
+				return -1;
+			if (r == 0)
+				t->eof = 1;
+			t->len += (size_t)r;
+		}
+	}
+}
+
+/* Give back the line text_line() just returned. */
+static void text_unread(struct text_reader *t, char *ls)
+{
+	t->pos = (size_t)(ls - t->buf);
+	t->line -= t->consumed;
+	t->nl = NONE;
+}
+
+#define BYTES(c) (0x0101010101010101ull * (uint64_t)(c))
+#define LOW7 BYTES(0x7f)
+
+/* High bit set in each byte of x that is zero: exact, no borrow across
+ * bytes (Hacker's Delight 6-1). */
+static inline uint64_t zero_bytes(uint64_t x)
+{
+	return ~(((x & LOW7) + LOW7) | x | LOW7);
+}
+
+/* High bit set in each byte of x that split_line() must look at: the
+ * delimiter (a blank for whitespace tables, which then also means tab),
+ * a quote, a control byte, DEL or a non-ASCII byte. */
+static inline uint64_t special_bytes(uint64_t x, uint64_t delim8)
+{
+	uint64_t ctl = ~((x & LOW7) + BYTES(0x60)) & ~x & BYTES(0x80);
+
+	return ctl | (x & BYTES(0x80)) | zero_bytes(x ^ delim8) |
+		zero_bytes(x ^ BYTES('"')) | zero_bytes(x ^ BYTES(0x7f));
+}
+
+/* Length of the valid UTF-8 sequence at p, or 0. */
+static int utf8_len(const unsigned char *p, const unsigned char *end)
+{
+	unsigned c = p[0];
+	int n, i;
+	unsigned min;
+	uint32_t cp;
+
+	if (c >= 0xc2 && c <= 0xdf)
+		n = 2, cp = c & 0x1f, min = 0x80;
+	else if (c >= 0xe0 && c <= 0xef)
+		n = 3, cp = c & 0x0f, min = 0x800;
+	else if (c >= 0xf0 && c <= 0xf4)
+		n = 4, cp = c & 0x07, min = 0x10000;
+	else
+		return 0;
+	if (end - p < n)
+		return 0;
+	for (i = 1; i < n; i++) {
+		if ((p[i] & 0xc0) != 0x80)
+			return 0;
+		cp = (cp << 6) | (p[i] & 0x3f);
+	}
+	if (cp < min || cp > 0x10ffff || (cp >= 0xd800 && cp <= 0xdfff))
+		return 0;
+	return n;
+}
+
+static int bad_byte(struct text_reader *t, long line, const char *s, const char *p,
+		    struct err *e)
+{
+	unsigned c = (unsigned char)*p;
+
+	if (c == '\r')
+		return err_set(e, EXIT_INPUT,
+			       "%s:%ld: stray carriage return (lines must end in LF or CRLF)",
+			       t->name, line);
+	if (c >= 0x80)
+		return err_set(e, EXIT_INPUT, "%s:%ld: invalid UTF-8 at byte %ld of the line",
+			       t->name, line, (long)(p - s) + 1);
+	return err_set(e, EXIT_INPUT, "%s:%ld: binary data: byte 0x%02x at byte %ld of the line",
+		       t->name, line, c, (long)(p - s) + 1);
+}
+
+static int grow_fields(struct text_reader *t, struct err *e)
+{
+	int cap = t->fields_cap ? 2 * t->fields_cap : 32;
+	char **n = realloc(t->fields, (size_t)cap * sizeof(*n));
+
+	if (!n)
+		return table_oom(e);
+	t->fields = n;
+	t->fields_cap = cap;
+	return 0;
+}
+
+static inline int push_field(struct text_reader *t, int *nf, char *f, struct err *e)
+{
+	if (*nf == t->fields_cap && grow_fields(t, e) < 0)
+		return -1;
+	t->fields[(*nf)++] = f;
+	return 0;
+}
+
+#ifdef __SSE2__
+/*
+ * split_line()'s fast path.
+ *
+ * CSV rows of numbers, 16 bytes at a time: while a block holds only
+ * printable ASCII and delimiters, each delimiter ends a field right
+ * where it stands, with no byte looked at twice.  A block with
+ * anything else in it (quote, tab, control, DEL, non-ASCII) goes to
+ * the byte loop below from the block's start; fs and nf are then
+ * what the byte loop would have at that point.  Blocks may read past
+ * the line end into the next line's text (bits beyond end are
+ * masked), never past the data in the buffer.
+ */
+static inline int split_blocks(struct text_reader *t, char **qp, char **fsp, char *end,
+				int *nf, struct err *e)
+{
+	char *q = *qp, *fs = *fsp;
+	const char *lim = t->buf + t->len;
+	const __m128i dl = _mm_set1_epi8(t->delim), qt = _mm_set1_epi8('"');
+	const __m128i del = _mm_set1_epi8(0x7f), sp = _mm_set1_epi8(0x20);
+
+	while (q < end && lim - q >= 16) {
+		__m128i x = _mm_loadu_si128((const __m128i *)q);
+		unsigned d = (unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(x, dl));
+		unsigned o = (unsigned)_mm_movemask_epi8(_mm_or_si128(
+			_mm_or_si128(_mm_cmpeq_epi8(x, qt), _mm_cmpeq_epi8(x, del)),
+			_mm_cmplt_epi8(x, sp)));
+		ptrdiff_t left = end - q;
+
+		if (left < 16) {
+			d &= (1u << left) - 1;
+			o &= (1u << left) - 1;
+		}
+		if (o)
+			break;
+		while (d) {
+			char *fe = q + __builtin_ctz(d);
+			char *next = fe + 1;
+
+			d &= d - 1;
+			while (fe > fs && fe[-1] == ' ')
+				fe--;
+			*fe = 0;
+			if (push_field(t, nf, fs, e) < 0)
+				return -1;
+			while (next < end && *next == ' ')
+				next++;
+			fs = next;
+		}
+		q = left < 16 ? end : q + 16;
+	}
+	*qp = q;
+	*fsp = fs;
+	return 0;
+}
+#endif
+
+/* A quoted cell of split_line() starting at *qp (its opening quote),
+ * unquoted in place and pushed, *qp moved past it and the delimiter after
+ * it.  Returns 0, 1 when it ends the line, or -1. */
+static int split_quoted(struct text_reader *t, char **qp, char *s, char *end, long line,
+			int *nf, struct err *e)
+{
+	int ws = t->delim == ' ';
+	char *q = *qp, *fs = q, *w = q++;
+
+	for (;;) {
+		if (q >= end)
+			return err_set(e, EXIT_INPUT, "%s:%ld: unterminated quoted field",
+				       t->name, line);
+		if (*q == '"') {
+			if (q + 1 < end && q[1] == '"') {
+				*w++ = '"';
+				q += 2;
+				continue;
+			}
+			q++;
+			break;
+		}
+		if (*q == 0)
+			return bad_byte(t, line, s, q, e);
+		*w++ = *q++;
+	}
+	*w = 0;
+	if (ws)
+		while (q < end && (*q == ' ' || *q == '\t'))
+			q++;
+	else
+		while (q < end && *q == ' ')
+			q++;
+	if (push_field(t, nf, fs, e) < 0)
+		return -1;
+	*qp = q;
+	if (q == end)
+		return 1;
+	if (!ws) {
+		if (*q != t->delim)
+			return err_set(e, EXIT_INPUT, "%s:%ld: text after a closing quote",
+				       t->name, line);
+		q++;
+		while (q < end && *q == ' ')
+			q++;
+	}
+	*qp = q;
+	return 0;
+}
+
+/*
+ * Split a CSV or whitespace line [s, end) in place into t->fields.  *end
+ * may be overwritten (it is the line end or the spare byte).  Quoted cells
+ * ("a, b", "say ""hi""") are unquoted in place.  Returns the field count
+ * or -1.
+ */
+static int split_line(struct text_reader *t, char *s, char *end, long line,
+		      struct err *e)
+{
+	const unsigned char *cls = t->cls;
+	int ws = t->delim == ' ';
+	int nf = 0;
+	char *q = s, *fs;
+	uint64_t delim8 = BYTES((unsigned char)t->delim);
+
+	while (q < end && (*q == ' ' || (ws && *q == '\t')))
+		q++;
+	fs = q;
+#ifdef __SSE2__
+	if (!ws && split_blocks(t, &q, &fs, end, &nf, e) < 0)
+		return -1;
+#endif
+	while (q < end) {
+		unsigned c = cls[(unsigned char)*q];
+
+		if (c == C_PLAIN) {
+			q++;
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+			/* Skip 8 ordinary bytes at a time; the next special one
+			 * (delimiter, quote, control, non-ASCII) is handled by
+			 * the byte loop. */
+			while (end - q >= 8) {
+				uint64_t x, m;
+
+				memcpy(&x, q, 8);
+				m = special_bytes(x, delim8);
+				if (m) {
+					q += __builtin_ctzll(m) >> 3;
+					break;
+				}
+				q += 8;
+			}
+#endif
+			continue;
+		}
+		if (c == C_DELIM) {
+			char *fe = q;
+
+			if (!ws)
+				while (fe > fs && fe[-1] == ' ')
+					fe--;
+			*fe = 0;
+			if (push_field(t, &nf, fs, e) < 0)
+				return -1;
+			q++;
+			if (ws)
+				while (q < end && (*q == ' ' || *q == '\t'))
+					q++;
+			else
+				while (q < end && *q == ' ')
+					q++;
+			fs = q;
+			if (ws && q == end)
+				goto done;
+			continue;
+		}
+		if (c == C_QUOTE) {
+			int r;
+
+			if (q != fs) {  /* a quote inside a bare cell is text */
+				q++;
+				continue;
+			}
+			r = split_quoted(t, &q, s, end, line, &nf, e);
+			if (r < 0)
+				return -1;
+			if (r > 0)
+				return nf;
+			fs = q;
+			continue;
+		}
+		if (c == C_HIGH) {
+			int n = utf8_len((const unsigned char *)q,
+					 (const unsigned char *)end);
+
+			if (!n)
+				return bad_byte(t, line, s, q, e);
+			q += n;
+			continue;
+		}
+		return bad_byte(t, line, s, q, e);
+	}
+	{
+		char *fe = end;
+
+		while (fe > fs && (fe[-1] == ' ' || (ws && fe[-1] == '\t')))
+			fe--;
+		*fe = 0;
+		if (!(ws && fs == end) && push_field(t, &nf, fs, e) < 0)
+			return -1;
+	}
+done:
+	return nf;
+}
+
+static void set_classes(struct text_reader *t, char delim)
+{
+	t->delim = delim;
+	memset(t->cls, C_PLAIN, sizeof(t->cls));
+	for (int c = 0; c < 32; c++)
+		t->cls[c] = C_BAD;
+	t->cls['\t'] = C_PLAIN;
+	t->cls['\r'] = C_CR;
+	t->cls[127] = C_BAD;
+	for (int c = 128; c < 256; c++)
+		t->cls[c] = C_HIGH;
+	t->cls['"'] = C_QUOTE;
+	if (delim == ' ') {
+		t->cls[' '] = C_DELIM;
+		t->cls['\t'] = C_DELIM;
+	} else {
+		t->cls[(unsigned char)delim] = C_DELIM;
+	}
+}
+
+static int is_blank(const char *s, const char *e)
+{
+	while (s < e && (*s == ' ' || *s == '\t'))
+		s++;
+	return s == e;
+}
+
+static const char *skip_blank(const char *s, const char *e)
+{
+	while (s < e && (*s == ' ' || *s == '\t'))
+		s++;
+	return s;
+}
+
+/* "\key=value" or "\key = 'value'"; "\ comment" and "\comment" are
+ * ignored. */
+static int meta_line(struct text_reader *t, const char *s, const char *e, struct err *ep)
+{
+	const char *eq;
+
+	s++;
+	eq = memchr(s, '=', (size_t)(e - s));
+	if (!eq || s == e || *s == ' ')
+		return 0;
+	return table_add_meta(t->tab, s, (size_t)(eq - s), eq + 1, (size_t)(e - eq - 1), ep);
+}
+
+static int check_text(struct text_reader *t, const char *s, const char *e, long line,
+		      struct err *ep)
+{
+	for (const char *p = s; p < e; p++) {
+		unsigned c = (unsigned char)*p;
+
+		if ((c < 32 && c != '\t') || c == 127)
+			return bad_byte(t, line, s, p, ep);
+		if (c >= 0x80) {
+			int n = utf8_len((const unsigned char *)p,
+					 (const unsigned char *)e);
+
+			if (!n)
+				return bad_byte(t, line, s, p, ep);
+			p += n - 1;
+		}
+	}
+	return 0;
+}
+
+/* IPAC "|a|b|c|" lines: the first gives names and pipe positions; the
+ * next up to three give types, units and null values. */
+static int ipac_header(struct text_reader *t, char *ls, char *le, struct err *e)
+{
+	int np = 0;
+	int which = 0;
+	char *s, *x;
+
+	for (char *p = ls; p < le; p++)
+		if (*p == '|')
+			np++;
+	t->ipac_pipe = malloc((size_t)np * sizeof(int));
+	if (!t->ipac_pipe)
+		return table_oom(e);
+	for (char *p = ls; p < le; p++)
+		if (*p == '|')
+			t->ipac_pipe[t->ipac_npipe++] = (int)(p - ls);
+	while (le > ls && (le[-1] == ' ' || le[-1] == '\t'))
+		le--;
+	if (np < 2 || le[-1] != '|')
+		return err_set(e, EXIT_INPUT, "%s:%ld: IPAC header needs '|name|name|' columns",
+			       t->name, t->line);
+	table_set_header_line(t->tab, t->line);
+	for (int i = 0; i + 1 < np; i++)
+		if (table_add_column(t->tab, ls + t->ipac_pipe[i] + 1,
+				     (size_t)(t->ipac_pipe[i + 1] - t->ipac_pipe[i] - 1), e) < 0)
+			return -1;
+	t->null = calloc((size_t)np, sizeof(*t->null));
+	if (!t->null)
+		return table_oom(e);
+	t->nnull = np;
+	/* Types, units, nulls. */
+	for (which = 1; which <= 3; which++) {
+		int r = text_line(t, &s, &x, 0, 1, e);
+
+		if (r < 0)
+			return -1;
+		if (r == 0)
+			break;
+		if (s == x || s[0] != '|') {
+			text_unread(t, s);
+			break;
+		}
+		if (check_text(t, s, x, t->line, e) < 0)
+			return -1;
+		/* Split by this line's own pipes: they should stand where the
+		 * name line's do, but nothing is gained by insisting. */
+		{
+			int k = 0;
+
+			for (char *p = s; p < x; p++)
+				k += *p == '|';
+			while (x > s && (x[-1] == ' ' || x[-1] == '\t'))
+				x--;
+			if (k != np || x[-1] != '|')
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: IPAC header line has %d pipes, the name line has %d",
+					       t->name, t->line, k, np);
+		}
+		s = memchr(s, '|', (size_t)(x - s)) + 1;
+		for (int i = 0; i + 1 < np; i++) {
+			const char *c = s, *b = memchr(s, '|', (size_t)(x - s));
+			size_t n = (size_t)(b - c);
+
+			s = (char *)b + 1;
+			table_trim(&c, &n);
+			if (which == 2 && n && table_set_unit(t->tab, i, c, n, e) < 0)
+				return -1;
+			if (which == 3 && n) {
+				t->null[i] = table_memdup0(c, n);
+				if (!t->null[i])
+					return table_oom(e);
+			}
+		}
+	}
+	return 0;
+}
+
+/* ---- ECSV: the YAML header, read as far as wfiscene needs it ---- */
+
+/* Find "key: value" pairs in a flow mapping "{a: b, c: 'd'}" and call
+ * fn for each. */
+static int flow_pairs(const char *s, const char *e,
+		      int (*fn)(void *, const char *, size_t, const char *, size_t, struct err *),
+		      void *ctx, struct err *ep)
+{
+	s = skip_blank(s, e);
+	if (s < e && *s == '{')
+		s++;
+	while (e > s && (e[-1] == ' ' || e[-1] == '}'))
+		e--;
+	while (s < e) {
+		const char *a = s, *colon = NULL;
+		char q = 0;
+
+		while (s < e) {
+			if (q) {
+				if (*s == q)
+					q = 0;
+			} else if (*s == '\'' || *s == '"') {
+				q = *s;
+			} else if (*s == ':' && !colon && s + 1 < e && s[1] == ' ') {
+				colon = s;
+			} else if (*s == ':' && !colon && s + 1 == e) {
+				colon = s;
+			} else if (*s == ',') {
+				break;
+			}
+			s++;
+		}
+		if (colon && fn(ctx, a, (size_t)(colon - a), colon + 1,
+				(size_t)(s - colon - 1), ep) < 0)
+			return -1;
+		if (s < e)
+			s++;
+	}
+	return 0;
+}
+
+struct ecsv_col {
+	struct text_reader *t;
+	char *name, *unit;
+};
+
+static int ecsv_meta_pair(void *ctx, const char *k, size_t kn, const char *v,
+			  size_t vn, struct err *e)
+{
+	struct text_reader *t = ctx;
+	const char *vv = v;
+	size_t n = vn;
+
+	table_trim(&vv, &n);
+	if (n == 0 || vv[0] == '{' || vv[0] == '[' || vv[0] == '!')
+		return 0;       /* nested: not a scalar */
+	return table_add_meta(t->tab, k, kn, v, vn, e);
+}
+
+static int ecsv_col_pair(void *ctx, const char *k, size_t kn, const char *v,
+			 size_t vn, struct err *e)
+{
+	struct ecsv_col *c = ctx;
+
+	table_unquote(&k, &kn);
+	table_unquote(&v, &vn);
+	if (kn == 4 && memcmp(k, "name", 4) == 0) {
+		free(c->name);
+		c->name = table_memdup0(v, vn);
+		if (!c->name)
+			return table_oom(e);
+	} else if (kn == 4 && memcmp(k, "unit", 4) == 0) {
+		free(c->unit);
+		c->unit = table_memdup0(v, vn);
+		if (!c->unit)
+			return table_oom(e);
+	}
+	return 0;
+}
+
+struct ecsv_state {
+	char *section;          /* current top-level key */
+	struct ecsv_col cur;
+	char **unit_name, **unit_val;
+	int nunit, unit_cap;
+};
+
+static int ecsv_flush_col(struct ecsv_state *st, struct err *e)
+{
+	if (st->cur.name) {
+		if (st->nunit == st->unit_cap) {
+			int cap = st->unit_cap ? 2 * st->unit_cap : 16;
+			char **a = realloc(st->unit_name, (size_t)cap * sizeof(*a));
+
+			if (!a)
+				return table_oom(e);
+			st->unit_name = a;
+			a = realloc(st->unit_val, (size_t)cap * sizeof(*a));
+			if (!a)
+				return table_oom(e);
+			st->unit_val = a;
+			st->unit_cap = cap;
+		}
+		st->unit_name[st->nunit] = st->cur.name;
+		st->unit_val[st->nunit] = st->cur.unit;
+		st->nunit++;
+	} else {
+		free(st->cur.unit);
+	}
+	st->cur.name = st->cur.unit = NULL;
+	return 0;
+}
+
+static int ecsv_yaml_line(struct text_reader *t, struct ecsv_state *st, const char *s,
+			  const char *e, struct err *ep)
+{
+	const char *p = s;
+	int indent;
+
+	while (p < e && *p == ' ')
+		p++;
+	indent = (int)(p - s);
+	if (p == e)
+		return 0;
+	if (indent == 0 && *p != '-') {
+		/* A top-level key: "delimiter: ','", "datatype:", "meta: ..." */
+		const char *colon = memchr(p, ':', (size_t)(e - p));
+		const char *v;
+		size_t kn, vn;
+
+		if (ecsv_flush_col(st, ep) < 0)
+			return -1;
+		if (!colon)
+			return 0;
+		kn = (size_t)(colon - p);
+		free(st->section);
+		st->section = table_memdup0(p, kn);
+		if (!st->section)
+			return table_oom(ep);
+		v = colon + 1;
+		vn = (size_t)(e - v);
+		table_trim(&v, &vn);
+		if (vn == 3 && (v[0] == '\'' || v[0] == '"') && v[2] == v[0])
+			v++, vn = 1;    /* ' ' must keep its blank */
+		else
+			table_unquote(&v, &vn);
+		if (strcmp(st->section, "delimiter") == 0) {
+			if (vn != 1 || (v[0] != ',' && v[0] != ' '))
+				return err_set(ep, EXIT_INPUT,
+					       "%s:%ld: ECSV delimiter must be ',' or ' '",
+					       t->name, t->line);
+			set_classes(t, v[0]);
+		} else if (strcmp(st->section, "meta") == 0) {
+			const char *w = v;
+			size_t wn = vn;
+
+			if (wn && w[0] == '!') { /* "!!omap" */
+				while (wn && *w != ' ')
+					w++, wn--;
+				table_trim(&w, &wn);
+			}
+			if (wn && w[0] == '{')
+				return flow_pairs(w, w + wn, ecsv_meta_pair, t, ep);
+		}
+		return 0;
+	}
+	if (!st->section)
+		return 0;
+	if (strcmp(st->section, "datatype") == 0) {
+		if (*p == '-') {
+			if (ecsv_flush_col(st, ep) < 0)
+				return -1;
+			p = skip_blank(p + 1, e);
+			if (p < e && *p == '{')
+				return flow_pairs(p, e, ecsv_col_pair, &st->cur, ep);
+		}
+		return flow_pairs(p, e, ecsv_col_pair, &st->cur, ep);
+	}
+	if (strcmp(st->section, "meta") == 0) {
+		if (*p == '-')
+			p = skip_blank(p + 1, e);
+		/* Only the first level of meta holds the scalars wfiscene
+		 * reads (type, filter, fluxunit); deeper ones are skipped. */
+		if (indent > 4)
+			return 0;
+		return flow_pairs(p, e, ecsv_meta_pair, t, ep);
+	}
+	return 0;
+}
+
+static int ecsv_header(struct text_reader *t, struct ecsv_state *st, struct err *e)
+{
+	char *s, *x;
+	int r, yaml = 0;
+
+	for (;;) {
+		r = text_line(t, &s, &x, 0, 1, e);
+		if (r <= 0)
+			return r;
+		if (check_text(t, s, x, t->line, e) < 0)
+			return -1;
+		if (s == x || s[0] != '#') {
+			text_unread(t, s);
+			return ecsv_flush_col(st, e) < 0 ? -1 : 1;
+		}
+		s++;
+		if (s < x && *s == ' ')
+			s++;
+		if (!yaml) {
+			if (x - s >= 3 && memcmp(s, "---", 3) == 0)
+				yaml = 1;
+			continue;
+		}
+		if (ecsv_yaml_line(t, st, s, x, e) < 0)
+			return -1;
+	}
+}
+
+/* Read the header of a text table.  Returns 0, or -1. */
+static int text_header(struct text_reader *t, struct err *e)
+{
+	struct ecsv_state st = { 0 };
+	char *s, *x;
+	int r, rc = -1;
+
+	if (t->fmt == TABLE_ECSV) {
+		set_classes(t, ' ');
+		r = ecsv_header(t, &st, e);
+		if (r < 0)
+			goto out;
+		if (r == 0) {
+			t->fmt = TABLE_EMPTY;
+			rc = 0;
+			goto out;
+		}
+	}
+	for (;;) {
+		r = text_line(t, &s, &x, 0, 1, e);
+		if (r < 0)
+			goto out;
+		if (r == 0) {
+			/* Nothing but comments: an empty catalog. */
+			if (t->fmt != TABLE_ECSV)
+				t->fmt = TABLE_EMPTY;
+			rc = 0;
+			goto out;
+		}
+		if (check_text(t, s, x, t->line, e) < 0)
+			goto out;
+		if (is_blank(s, x))
+			continue;
+		if (t->fmt == TABLE_ECSV)
+			break;
+		{
+			const char *p = skip_blank(s, x);
+
+			if (*p == '#')
+				continue;
+			if (*p == '\\') {
+				if (meta_line(t, p, x, e) < 0)
+					goto out;
+				continue;
+			}
+			if (*p == '|') {
+				t->fmt = TABLE_IPAC;
+				rc = ipac_header(t, s, x, e);
+				goto out;
+			}
+			if (memchr(s, ',', (size_t)(x - s))) {
+				t->fmt = TABLE_CSV;
+				set_classes(t, ',');
+			} else {
+				t->fmt = TABLE_WS;
+				set_classes(t, ' ');
+			}
+		}
+		break;
+	}
+	table_set_header_line(t->tab, t->line);
+	{
+		char save = *x;
+		int nf = split_line(t, s, x, t->line, e);
+
+		if (nf < 0)
+			goto out;
+		for (int i = 0; i < nf; i++)
+			if (table_add_column(t->tab, t->fields[i], strlen(t->fields[i]), e) < 0)
+				goto out;
+		(void)save;
+	}
+	for (int i = 0; i < st.nunit; i++)
+		for (int c = 0; c < table_ncol(t->tab); c++)
+			if (st.unit_val[i] && strcasecmp(st.unit_name[i], table_colname(t->tab, c)) == 0 &&
+			    table_set_unit(t->tab, c, st.unit_val[i], strlen(st.unit_val[i]), e) < 0)
+				goto out;
+	rc = 0;
+out:
+	for (int i = 0; i < st.nunit; i++) {
+		free(st.unit_name[i]);
+		free(st.unit_val[i]);
+	}
+	free(st.unit_name);
+	free(st.unit_val);
+	free(st.section);
+	free(st.cur.name);
+	free(st.cur.unit);
+	return rc;
+}
+
+/* Copy a cell into the arena; ipac_row() has made room. */
+static char *arena_put(struct text_reader *t, const char *s, size_t n)
+{
+	char *p = t->arena + t->arena_len;
+
+	memcpy(p, s, n);
+	p[n] = 0;
+	t->arena_len += n + 1;
+	return p;
+}
+
+static int ipac_row(struct text_reader *t, size_t row, char *s, char *x, struct err *e)
+{
+	long line = t->line;
+	int len = (int)(x - s);
+
+	size_t need = (size_t)len + (size_t)t->ncol + 1;
+
+	if (check_text(t, s, x, line, e) < 0)
+		return -1;
+	/* The cells are disjoint slices of the line, so the line's length
+	 * plus a NUL each is enough.  Cells of this chunk point into the
+	 * arena: it may only move before the chunk's first row. */
+	if (t->arena_len + need > t->arena_cap) {
+		char *p;
+
+		if (row > 0)
+			return 2;
+		p = realloc(t->arena, need + PAD);
+		if (!p)
+			return table_oom(e);
+		memset(p + t->arena_cap, 0, need + PAD - t->arena_cap);
+		t->arena = p;
+		t->arena_cap = need;
+	}
+	for (int i = 0; i < t->ncol; i++) {
+		int a = i == 0 ? 0 : t->ipac_pipe[i] + 1;
+		int b = t->ipac_pipe[i + 1] + 1;
+		const char *c;
+		size_t n;
+		char *cell;
+
+		if (a > len)
+			a = len;
+		if (b > len)
+			b = len;
+		c = s + a;
+		n = (size_t)(b - a);
+		table_trim(&c, &n);
+		if (t->null[i] && strlen(t->null[i]) == n && memcmp(t->null[i], c, n) == 0)
+			n = 0;
+		cell = arena_put(t, c, n);
+		t->text[i][row] = cell;
+	}
+	{
+		const char *rest = s + t->ipac_pipe[t->ipac_npipe - 1] + 1;
+
+		if (rest < x && !is_blank(rest, x))
+			return err_set(e, EXIT_INPUT,
+				       "%s:%ld: data beyond the last column (after byte %d)",
+				       t->name, line, t->ipac_pipe[t->ipac_npipe - 1] + 1);
+	}
+	return 0;
+}
+
+static long text_read(struct text_reader *t, struct table_chunk *c, struct err *e)
+{
+	size_t rows = 0;
+	int quotes = t->fmt != TABLE_IPAC;
+
+	if (t->fmt == TABLE_EMPTY)
+		return 0;
+	/* Move the unparsed rest to the front only when the free space at
+	 * the end runs low: moving it every chunk would copy the buffer
+	 * over and over. */
+	if (t->pos > 0 && (t->pos == t->len || t->cap - t->len < t->cap / 4)) {
+		memmove(t->buf, t->buf + t->pos, t->len - t->pos);
+		t->len -= t->pos;
+		t->pos = 0;
+		t->nl = NONE;
+		t->qscan = 0;
+	}
+	t->arena_len = 0;
+	while (rows < t->chunk_rows) {
+		char *s, *x;
+		int r = text_line(t, &s, &x, quotes, rows == 0, e);
+
+		if (r < 0)
+			return -1;
+		if (r == 0 || r == 2)
+			break;
+		/* Blank and comment lines; a quick test first, as nearly
+		 * every line starts with a digit or sign. */
+		if (s == x || *s == '#' || *s == ' ' || *s == '\t' ||
+		    (t->fmt == TABLE_IPAC && (*s == '\\' || *s == '|'))) {
+			const char *p = skip_blank(s, x);
+
+			if (p == x || *p == '#')
+				continue;
+			if (t->fmt == TABLE_IPAC && (*p == '\\' || *p == '|')) {
+				/* A header repeated by a chunked writer. */
+				continue;
+			}
+		}
+		if (t->fmt == TABLE_IPAC) {
+			r = ipac_row(t, rows, s, x, e);
+			if (r < 0)
+				return -1;
+			if (r == 2) {
+				text_unread(t, s);
+				break;
+			}
+		} else {
+			int nf = split_line(t, s, x, t->line - t->consumed + 1, e);
+
+			if (nf < 0)
+				return -1;
+			if (nf != t->ncol)
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: row has %d field%s, the header has %d",
+					       t->name, t->line - t->consumed + 1, nf,
+					       nf == 1 ? "" : "s", t->ncol);
+			for (int i = 0; i < nf; i++)
+				t->text[i][rows] = t->fields[i];
+		}
+		t->line_of[rows] = t->line - t->consumed + 1;
+		rows++;
+	}
+	c->n = rows;
+	c->padded = 1;
+	c->file = t->name;
+	c->line = t->line_of;
+	c->text = t->text;
+	c->num = t->num;
+	return (long)rows;
+}
+
+static int alloc_chunk(struct text_reader *t, struct err *e)
+{
+	size_t nc = (size_t)(t->ncol ? t->ncol : 1), n;
+
+	/* A very wide table is read in fewer rows per chunk, so the cell
+	 * pointers stay under TABLE_MAX_CELLS x 8 bytes. */
+	if (t->chunk_rows > TABLE_MAX_CELLS / nc)
+		t->chunk_rows = TABLE_MAX_CELLS / nc > 0 ? TABLE_MAX_CELLS / nc : 1;
+	n = t->chunk_rows;
+
+	t->cells = calloc(nc * n, sizeof(*t->cells));
+	t->text = calloc(nc, sizeof(*t->text));
+	t->num = calloc(nc, sizeof(*t->num));
+	t->line_of = calloc(n, sizeof(*t->line_of));
+	if (!t->cells || !t->text || !t->num || !t->line_of)
+		return table_oom(e);
+	for (size_t i = 0; i < (size_t)t->ncol; i++)
+		t->text[i] = t->cells + i * n;
+	if (t->fmt == TABLE_IPAC) {
+		/* IPAC cells are copied (a value may touch the next column's
+		 * slice): room for the whole text buffer is enough. */
+		t->arena_cap = t->cap + (size_t)t->ncol * 64;
+		t->arena = calloc(t->arena_cap + PAD, 1);
+		if (!t->arena)
+			return table_oom(e);
+	}
+	return 0;
+}
+
+static void text_close(void *rd)
+{
+	struct text_reader *t = rd;
+
+	if (!t)
+		return;
+	for (int i = 0; i < t->nnull; i++)
+		free(t->null[i]);
+	free(t->null);
+	free(t->buf);
+	free(t->ipac_pipe);
+	free(t->arena);
+	free(t->fields);
+	free(t->cells);
+	free(t->text);
+	free(t->num);
+	free(t->line_of);
+	free(t);
+}
+
+static long text_read_chunk(void *rd, struct table_chunk *c, struct err *e)
+{
+	return text_read(rd, c, e);
+}
+
+static const struct table_reader text_ops = { text_read_chunk, text_close };
+
+int table_text_open(struct table *tab, struct input *in, size_t chunk_rows,
+		    struct err *e)
+{
+	struct text_reader *t = calloc(1, sizeof(*t));
+	const void *pk;
+	ssize_t n;
+
+	if (!t)
+		return table_oom(e);
+	t->tab = tab;
+	t->in = in;
+	t->name = table_name(tab);
+	t->chunk_rows = chunk_rows;
+	t->nl = NONE;
+	table_set_reader(tab, &text_ops, t);
+	t->cap = TABLE_BUF;
+	t->buf = calloc(t->cap + PAD, 1);
+	if (!t->buf)
+		return table_oom(e);
+	n = input_peek(in, &pk, 3, e);
+	if (n < 0)
+		return -1;
+	/* A UTF-8 byte order mark is not part of the first column's name. */
+	if (n >= 3 && memcmp(pk, "\xef\xbb\xbf", 3) == 0) {
+		char bom[3];
+
+		if (input_read(in, bom, 3, e) != 3)
+			return -1;
+	}
+	n = input_peek(in, &pk, 7, e);
+	if (n < 0)
+		return -1;
+	t->fmt = n == 7 && memcmp(pk, "# %ECSV", 7) == 0 ? TABLE_ECSV : TABLE_CSV;
+	if (text_header(t, e) < 0)
+		return -1;
+	t->ncol = table_ncol(tab);
+	table_set_format(tab, t->fmt);
+	return alloc_chunk(t, e);
+}

@@ -62,7 +62,6 @@ static void engine_setting_strings(struct engine *g)
 		 o->noise & NOISE_POISSON ? "poisson," : "", o->noise & NOISE_READ ? "readnoise," : "",
 		 o->noise & NOISE_DARK ? "dark," : "", o->noise & NOISE_FLAT ? "flat," : "",
 		 o->noise & NOISE_COSMIC ? "cosmic," : "");
-	g->sersic_flux_now = o->sersic_flux ? o->sersic_flux : "total";
 }
 
 /* An engine for exposure x: its sky geometry, its SCAs' tile grids, the

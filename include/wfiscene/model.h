@@ -30,8 +30,9 @@
  *                           with x, y, sca, flux and mag set for that SCA:
  *                           validate the row's parameters and precompute
  *                           into src->aux
- *   footprint(state, src)   once per row and SCA, main thread: the pixels the
- *                           source may touch, so the host can bin it by tile
+ *   footprint(state, src)   once per row and SCA it lands on, main thread: the
+ *                           pixels the source may touch, so the host can bin
+ *                           it by tile
  *   render(state, t, ...)   once per (source, tile) pair, in worker threads
  *   thread_stop(state, t)   per thread started
  *   fini(state)             once

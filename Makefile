@@ -96,13 +96,16 @@ $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 $(B)/obj/data_tables.o: $(B)/data_tables.c
 	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
 
-# Plugins see nothing of the host but include/wfiscene/model.h.  A plugin
-# plugins/foo_bar.c becomes build/plugins/foo-bar.so, the model 'foo-bar'.
+# Plugins see nothing of the host but include/wfiscene/model.h, and
+# -Wl,-z,defs fails the link if one needs a symbol of the host (or any that
+# libc and libm do not define).  A plugin plugins/foo_bar.c becomes
+# build/plugins/foo-bar.so, the model 'foo-bar'.
 define plugin_rule
 $(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
 	@echo "  PLUGIN  $$@"
 	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra -Wno-unused-parameter -Iinclude \
-		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(PLUGIN_OPT) $(LDFLAGS) -o $$@ $$< -lm
+		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(PLUGIN_OPT) $(LDFLAGS) \
+		-Wl,-z,defs -o $$@ $$< -lm
 endef
 $(foreach p,$(basename $(notdir $(wildcard plugins/*.c))),$(eval $(call plugin_rule,$(p))))
 

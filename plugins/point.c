@@ -670,12 +670,58 @@ static struct poly *cell_add(struct point *p, const struct wfs_source *src)
 	return c;
 }
 
+/* The settings point reads, with their defaults: the one place they are
+ * written (init() parses the fallback of an unset key; --report lists the
+ * table).  psf-box-sigma's default is derived from the scene. */
+static const struct wfs_setting point_settings[] = {
+	{ "psf-interp", "core", "bilinear|core|bicubic",
+	  "Keys' cubic of the ePSF nowhere, within psf-core pixels, or everywhere" },
+	{ "psf-core", "4", "number >= 0", "half-width of the Keys' cubic core, pixels" },
+	{ "psf-wing", "8", "number >= 0",
+	  "half-width of bilinear interpolation beyond the core, pixels" },
+	{ "psf-box", "fixed", "fixed|adaptive",
+	  "the class's ePSF box, or per source the smallest whose left-out light is small" },
+	{ "psf-box-noise", "0.1", "number > 0",
+	  "psf-box=adaptive: left-out light as a fraction of the noise in the box" },
+	{ "psf-box-sigma", "(the scene's noise)", "number > 0",
+	  "psf-box=adaptive: noise per pixel, counts/s" },
+	{ "psf-blend", "core", "source|cell|core",
+	  "blend the ePSF nodes per source, per cell, or per cell but at the source in the core" },
+	{ "psf-cell", "512", "whole number 1 to 4096", "blend cell side, pixels" },
+	{ "psf-extent", "noise", "noise|stips",
+	  "draw each source out to where it sinks below the noise, or STIPS's boxes" },
+	{ "psf-extent-noise", "0.1", "number > 0",
+	  "psf-extent=noise: the drawing level as a fraction of the noise per pixel" },
+	{ "psf-extent-max", "8192", "number >= 1", "the largest drawing radius, pixels" },
+	{ "psf-extent-min", "(the class's box)", "number >= 1",
+	  "let a faint source's box shrink toward its drawing radius, down to this" },
+	{ "psf-halo-power", "3", "number >= 2.5", "power-law index of the far tail" },
+	{ "psf-halo-taper", "16", "number >= 0",
+	  "pixels over which the halo array hands over to the tail" },
+};
+#define NSETTINGS ((int)(sizeof(point_settings) / sizeof(point_settings[0])))
+
+/* The value of setting key: the scene's, else the declared default, else
+ * NULL (a default in parentheses is derived, not a value). */
+static const char *setting_value(const struct wfs_host *host, const char *key)
+{
+	const char *s = host->setting(host->ctx, key);
+
+	if (s && *s)
+		return s;
+	for (int k = 0; k < NSETTINGS; k++)
+		if (!strcmp(point_settings[k].key, key))
+			return point_settings[k].fallback[0] == '(' ? NULL
+			       : point_settings[k].fallback;
+	return NULL;
+}
+
 /* A setting that is one of a list of names: 0 and *out set, or an error
  * naming the key. */
 static int setting_choice(const struct wfs_host *host, const char *key,
 			  const char *const names[], int nnames, int *out)
 {
-	const char *s = host->setting(host->ctx, key);
+	const char *s = setting_value(host, key);
 
 	if (!s || !*s)
 		return 0;
@@ -694,7 +740,7 @@ static int setting_choice(const struct wfs_host *host, const char *key,
 static int setting_number(const struct wfs_host *host, const char *key, double lo,
 			  int strict, double *out)
 {
-	const char *s = host->setting(host->ctx, key);
+	const char *s = setting_value(host, key);
 	char *end;
 	double v;
 
@@ -737,7 +783,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	static const char *const blend[] = { "source", "cell", "core" };
 	static const char *const extent[] = { "noise", "stips" };
 	struct point *p = calloc(1, sizeof(*p));
-	double cell = 512;
+	double cell = 0;
 
 	if (!p)
 		return host->error(host->ctx, "out of memory");
@@ -753,11 +799,6 @@ static int point_init(const struct wfs_host *host, void **state)
 		p->core_rows = core_avx2;
 	}
 #endif
-	p->interp = INTERP_CORE;
-	p->core = 4.0;
-	p->wing = 8.0;
-	p->blend = BLEND_CORE;
-	p->box_noise = 0.1;
 	p->sigma = scene_sigma(host);
 	p->extent = EXTENT_NOISE;
 	p->extent_noise = 0.1;
@@ -792,7 +833,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	}
 	if (cell != floor(cell) || cell > 4096) {
 		host->error(host->ctx, "psf-cell: expected a whole number of pixels up to 4096, not '%s'",
-			    host->setting(host->ctx, "psf-cell"));
+			    setting_value(host, "psf-cell"));
 		goto fail;
 	}
 	p->cell = (int)cell;
@@ -1647,6 +1688,30 @@ static int point_render(void *state, void *tstate, void *thread,
 	return 0;
 }
 
+/*
+ * How far a source's light can reach, for the host's culling: the
+ * extra-bright class's half-width (STIPS's 176-pixel box), or with
+ * psf-extent=noise the radius where the source's halo sinks below the
+ * drawing level, when that is farther.  Called on the host's thread, as
+ * prepare() is, so the halo may be set up here.
+ */
+static int point_reach(void *state, const struct wfs_source *src, double *pixels)
+{
+	struct point *p = state;
+	const struct halo *h;
+	double r;
+
+	*pixels = 88;
+	if (p->extent == EXTENT_STIPS || !(src->flux > 0))
+		return 0;
+	if (!(h = halo_of(p, src)))
+		return -1;
+	r = halo_radius(h, p->extent_noise * p->sigma / src->flux, p->extent_max) + 1;
+	if (r > *pixels)
+		*pixels = r;
+	return 0;
+}
+
 static const struct wfs_model point_model = {
 	.abi = WFS_ABI_VERSION,
 	.size = sizeof(struct wfs_model),
@@ -1659,6 +1724,11 @@ static const struct wfs_model point_model = {
 	.prepare = point_prepare,
 	.footprint = point_footprint,
 	.render = point_render,
+	.column_size = sizeof(struct wfs_column),
+	.setting_size = sizeof(struct wfs_setting),
+	.settings = point_settings,
+	.nsettings = NSETTINGS,
+	.reach = point_reach,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

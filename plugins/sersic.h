@@ -1021,7 +1021,14 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 	sersic_axes(re, q, &ra, &rb);
 	double lnk = lng + log(ra) + log(rb);
 
-	const char *meaning = host->setting ? host->setting(host->ctx, "sersic-flux") : NULL;
+	/* What the flux column means is a fact of the catalog, in the source;
+	 * a host older than that field passed it as the setting sersic-flux. */
+	const char *meaning = NULL;
+	if (WFS_HAS(host->size, struct wfs_host, source_size) &&
+	    WFS_HAS(host->source_size, struct wfs_source, flux_meaning))
+		meaning = src->flux_meaning == WFS_FLUX_IE ? "ie" : "total";
+	else if (host->setting)
+		meaning = host->setting(host->ctx, "sersic-flux");
 	if (meaning && !strcmp(meaning, "ie")) {
 		/* flux column = I(r_e) = I0 e^-b: total = Ie e^b F_inf / I0. */
 		double ie = src->flux;
@@ -1094,6 +1101,40 @@ static int sersic_footprint_common(const struct wfs_host *host, const struct wfs
 	box->y1 = (int)y1;
 	return 0;
 }
+
+/* The reach (model.h) of a galaxy: the extent about its centre of the box
+ * footprint() gives it at the origin of the SCA src names, plus 2 pixels
+ * for the rounding of the box's edges.  prepare() is run on a copy, so src
+ * keeps its aux. */
+static int sersic_reach_common(const struct wfs_host *host, const struct wfs_source *src,
+			       double eps, int convolve, double *pixels)
+{
+	struct wfs_source at = *src;
+	struct wfs_box box;
+
+	at.x = at.y = 0;
+	if (sersic_prepare_common(host, &at, eps) < 0 ||
+	    sersic_footprint_common(host, &at, &box, convolve) < 0)
+		return -1;
+	*pixels = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1)) + 2;
+	return 0;
+}
+
+/* A number as text, for the defaults in a wfs_setting table. */
+#define SERSIC_STR_(x) #x
+#define SERSIC_STR(x) SERSIC_STR_(x)
+
+/* The ePSF core half-width of the convolution (the point model's psf-core
+ * setting, read by the galaxies too, with the same default). */
+#define SERSIC_PSF_CORE 4
+
+/* The settings both methods read; each adds its own in front. */
+#define SERSIC_SETTINGS \
+	{ "psf-core", SERSIC_STR(SERSIC_PSF_CORE), "number from 0 to 1000", \
+	  "half-width of the ePSF core drawn with Keys' cubic, pixels" }, \
+	{ "sersic-core", SERSIC_STR(SERSIC_CORE), "whole number from 0 to 16", \
+	  "half-width of the sub-sampled core, pixels" }, \
+	{ "sersic-convolve", "yes", "yes|no", "convolve with the ePSF" }
 
 /* Parse a number setting; fallback when unset; -1 with an error when bad. */
 static int sersic_setting_num(const struct wfs_host *host, const char *key, double lo,

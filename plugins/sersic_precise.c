@@ -143,7 +143,7 @@ static int precise_init(const struct wfs_host *host, void **state)
 	p->host = host;
 	if (sersic_setting_num(host, "sersic-tol", 1e-12, 1e-1, PRECISE_TOL, &p->tol) ||
 	    sersic_setting_num(host, "sersic-trunc", 1e-12, 0.5, PRECISE_TRUNC, &p->trunc) ||
-	    sersic_setting_num(host, "psf-core", 0, 1e3, 4.0, &p->psf_core) ||
+	    sersic_setting_num(host, "psf-core", 0, 1e3, SERSIC_PSF_CORE, &p->psf_core) ||
 	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
 		free(p);
@@ -184,6 +184,21 @@ static int precise_render(void *state, void *tstate, void *thread,
 	return sersic_render_common(p->host, thread, src, win, &m);
 }
 
+static int precise_reach(void *state, const struct wfs_source *src, double *pixels)
+{
+	struct precise *p = state;
+
+	return sersic_reach_common(p->host, src, p->trunc, p->convolve, pixels);
+}
+
+static const struct wfs_setting precise_settings[] = {
+	{ "sersic-tol", SERSIC_STR(PRECISE_TOL), "number from 1e-12 to 0.1",
+	  "relative tolerance of each pixel's integral" },
+	{ "sersic-trunc", SERSIC_STR(PRECISE_TRUNC), "number from 1e-12 to 0.5",
+	  "fraction of the light allowed beyond the truncation radius" },
+	SERSIC_SETTINGS,
+};
+
 static const struct wfs_model precise_model = {
 	.abi = WFS_ABI_VERSION,
 	.size = sizeof(struct wfs_model),
@@ -196,6 +211,11 @@ static const struct wfs_model precise_model = {
 	.prepare = precise_prepare,
 	.footprint = precise_footprint,
 	.render = precise_render,
+	.column_size = sizeof(struct wfs_column),
+	.setting_size = sizeof(struct wfs_setting),
+	.settings = precise_settings,
+	.nsettings = (int)(sizeof(precise_settings) / sizeof(precise_settings[0])),
+	.reach = precise_reach,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -63,7 +63,7 @@ static int quick_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
 	if (sersic_setting_num(host, "sersic-trunc", 1e-12, 0.5, QUICK_TRUNC, &p->trunc) ||
-	    sersic_setting_num(host, "psf-core", 0, 1e3, 4.0, &p->psf_core) ||
+	    sersic_setting_num(host, "psf-core", 0, 1e3, SERSIC_PSF_CORE, &p->psf_core) ||
 	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
 		free(p);
@@ -101,6 +101,19 @@ static int quick_render(void *state, void *tstate, void *thread,
 	return sersic_render_common(p->host, thread, src, win, &m);
 }
 
+static int quick_reach(void *state, const struct wfs_source *src, double *pixels)
+{
+	struct quick *p = state;
+
+	return sersic_reach_common(p->host, src, p->trunc, p->convolve, pixels);
+}
+
+static const struct wfs_setting quick_settings[] = {
+	{ "sersic-trunc", SERSIC_STR(QUICK_TRUNC), "number from 1e-12 to 0.5",
+	  "fraction of the light allowed beyond the truncation radius" },
+	SERSIC_SETTINGS,
+};
+
 static const struct wfs_model quick_model = {
 	.abi = WFS_ABI_VERSION,
 	.size = sizeof(struct wfs_model),
@@ -113,6 +126,11 @@ static const struct wfs_model quick_model = {
 	.prepare = quick_prepare,
 	.footprint = quick_footprint,
 	.render = quick_render,
+	.column_size = sizeof(struct wfs_column),
+	.setting_size = sizeof(struct wfs_setting),
+	.settings = quick_settings,
+	.nsettings = (int)(sizeof(quick_settings) / sizeof(quick_settings[0])),
+	.reach = quick_reach,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -120,7 +120,7 @@ struct engine {
 
 	char filter_name[16], exptime_str[32], seed_str[32];
 	char bkg_str[32], readnoise_str[32], noise_str[64], sigma_str[32];
-	const char *sersic_flux_now;    /* "total" or "ie" for the catalog being read */
+	int flux_meaning;               /* enum wfs_flux_meaning of the catalog being read */
 
 	struct type_cache types[PLUGIN_MAX];
 	int ntypes;

@@ -59,8 +59,6 @@ const char *host_setting(void *ctx, const char *key)
 		return g->exptime_str;
 	if (!strcmp(key, "seed"))
 		return g->seed_str;
-	if (!strcmp(key, "sersic-flux"))
-		return g->sersic_flux_now;
 	if (!strcmp(key, "sersic"))
 		return g->o->sersic;
 	if (!strcmp(key, "background"))
@@ -140,5 +138,6 @@ void host_init(struct engine *g)
 		.abi = WFS_ABI_VERSION, .size = sizeof(struct wfs_host), .ctx = g,
 		.error = host_error, .log = host_log, .setting = host_setting,
 		.epsf = host_epsf, .scratch = host_scratch, .convolve = host_convolve,
+		.source_size = sizeof(struct wfs_source),
 	};
 }

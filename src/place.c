@@ -19,14 +19,6 @@
 #include "engine.h"
 #include "err.h"
 
-/* Room beyond an SCA edge, in pixels, within which a point source fainter
- * than POINT_REACH_MAG may still throw light onto it: the 176-pixel
- * extra-bright box's half-width (psf-extent=noise draws such a star out to
- * well under 88 pixels for any noise of 0.01 counts/s or more).  A brighter
- * one's reach is its footprint's, as for any other model. */
-#define POINT_REACH 88.0
-#define POINT_REACH_MAG 20.0
-
 
 /*
  * A zeroed tile.  Tiles are mapped from the kernel directly: its pages come
@@ -65,17 +57,20 @@ static int grow(void **p, size_t *cap, size_t need, size_t size)
 	return 0;
 }
 
-/* The model drawing rows of type name ("sersic" picks the scene's method). */
+/* The model drawing rows of type name: the model of that name, or, when
+ * the scene has a setting of that name (--sersic, --set T=M), the model
+ * name-setting of that family (model.h, "Resolving a catalog type"). */
 static int resolve_type(struct engine *g, const char *name)
 {
+	const char *method;
 	char real[64];
 	int m;
 
 	for (int i = 0; i < g->ntypes; i++)
 		if (!strcmp(g->types[i].name, name))
 			return g->types[i].model;
-	if (!strcmp(name, "sersic"))
-		snprintf(real, sizeof(real), "sersic-%s", g->o->sersic);
+	if ((method = host_setting(g, name)) && *method)
+		snprintf(real, sizeof(real), "%s-%s", name, method);
 	else
 		snprintf(real, sizeof(real), "%s", name);
 	if ((m = plugins_get(&g->plugins, real, g->e)) < 0)
@@ -90,7 +85,8 @@ static int resolve_type(struct engine *g, const char *name)
 /* The chunk's column index of each column model m reads (-1 if absent). */
 static int model_columns(struct engine *g, const struct rows *r, int m)
 {
-	const struct wfs_model *md = g->plugins.p[m].m;
+	const struct plugin *pl = &g->plugins.p[m];
+	const struct wfs_model *md = pl->m;
 
 	if (g->colidx_rows[m] == r)
 		return 0;
@@ -98,11 +94,13 @@ static int model_columns(struct engine *g, const struct rows *r, int m)
 		return err_set(g->e, EXIT_PLUGIN, "model '%s' reads %d columns; at most %d",
 			       md->name, md->ncolumns, MAX_COLUMNS);
 	for (int c = 0; c < md->ncolumns; c++) {
-		g->colidx[m][c] = rows_column(r, md->columns[c].name);
-		if (g->colidx[m][c] < 0 && md->columns[c].required)
+		const struct wfs_column *col = plugin_column(pl, c);
+
+		g->colidx[m][c] = rows_column(r, col->name);
+		if (g->colidx[m][c] < 0 && col->required)
 			return err_set(g->e, EXIT_INPUT,
 				       "%s: column '%s', required by model '%s', is missing",
-				       r->file, md->columns[c].name, md->name);
+				       r->file, col->name, md->name);
 	}
 	g->colidx_rows[m] = r;
 	return 0;
@@ -147,14 +145,12 @@ static int psf_class_of(const struct engine *g, double mag)
 	return WFS_PSF_NORMAL;
 }
 
-/* Fill src for row i on SCA sca at pixel (x, y), load its ePSF class and let
- * the model check and prepare it.  Returns 0 or -1. */
-static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
+/* Fill src for row i on SCA sca at pixel (x, y): its flux there, checked,
+ * its magnitude and ePSF class, the catalog's facts.  Returns 0 or -1. */
+static int fill_source(struct engine *g, const struct rows *r, size_t i,
 		       const double *param, int sca, double x, double y,
 		       struct wfs_source *src)
 {
-	const struct wfs_model *md = g->plugins.p[m].m;
-
 	memset(src, 0, sizeof(*src));
 	src->x = x;
 	src->y = y;
@@ -164,6 +160,7 @@ static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 	src->psf_class = psf_class_of(g, src->mag);
 	src->id = r->id[i];
 	src->param = param;
+	src->flux_meaning = g->flux_meaning;
 	if (!isfinite(src->flux) || src->flux <= 0)
 		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g converts to %g counts/s "
 			       "on SCA %d: not a positive finite number", r->file,
@@ -176,20 +173,38 @@ static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 			       "float32 image", r->file, r->line[i], r->flux[i],
 			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
 			       g->o->bunit_counts ? "counts" : "counts/s", sca);
-	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
-		/* A refused row is bad input; a refusal without a message is
-		 * a broken plugin; a host service that failed under it (a
-		 * PSF file that cannot be read) keeps its own message and
-		 * status. */
-		if (g->e->code != EXIT_OK && g->e->code != EXIT_PLUGIN)
-			return -1;
-		if (g->e->code == EXIT_OK)
-			err_set(g->e, EXIT_PLUGIN, "prepare() failed" MODEL_SILENT);
-		else
-			g->e->code = EXIT_INPUT;
-		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
+	return 0;
+}
+
+/* A model's prepare() or reach() returned -1 for row i.  A refused row is
+ * bad input; a refusal without a message is a broken plugin (silent is the
+ * message then); a host service that failed under it (a PSF file that
+ * cannot be read) keeps its own message and status.  Returns -1. */
+static int row_refused(struct engine *g, const struct rows *r, size_t i,
+		       const struct wfs_model *md, const char *silent)
+{
+	if (g->e->code != EXIT_OK && g->e->code != EXIT_PLUGIN)
 		return -1;
-	}
+	if (g->e->code == EXIT_OK)
+		err_set(g->e, EXIT_PLUGIN, "%s", silent);
+	else
+		g->e->code = EXIT_INPUT;
+	err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
+	return -1;
+}
+
+/* Fill src for row i on SCA sca at pixel (x, y) and let the model check and
+ * prepare it.  Returns 0 or -1. */
+static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
+		       const double *param, int sca, double x, double y,
+		       struct wfs_source *src)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+
+	if (fill_source(g, r, i, param, sca, x, y, src) < 0)
+		return -1;
+	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0)
+		return row_refused(g, r, i, md, "prepare() failed" MODEL_SILENT);
 	return 0;
 }
 
@@ -334,19 +349,33 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	return 0;
 }
 
-/* How far (arcsec) beyond an SCA edge row i can still send light: its
- * footprint's extent for a provisional placement at the origin. */
+/*
+ * How far (arcsec) beyond an SCA edge row i can still send light, from the
+ * model's reach() (model.h), given the row as on the scene's first SCA at
+ * its centre.  A model without reach() (built against an older model.h)
+ * gets what older hosts did: one more prepare() and footprint(), at the
+ * origin of the first SCA, and the footprint's extent plus 2 pixels.
+ */
 static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 		     const double *param, double *reach)
 {
+	const struct plugin *pl = &g->plugins.p[m];
 	struct wfs_source src;
 	struct wfs_box box;
 	double ext;
 
-	if (!strcmp(g->plugins.p[m].name, "point") &&
-	    place_zeropoint(g, g->slot[0].sca) - 2.5 * log10(counts_on(g, r, i, g->slot[0].sca)) >
-	    POINT_REACH_MAG) {
-		*reach = POINT_REACH * WFS_PIXSCALE;
+	if (pl->reach) {
+		double centre = (WFS_NPIX - 1) / 2.0;
+
+		if (fill_source(g, r, i, param, g->slot[0].sca, centre, centre, &src) < 0)
+			return -1;
+		if (pl->reach(pl->state, &src, &ext) < 0)
+			return row_refused(g, r, i, pl->m, "reach() failed" MODEL_SILENT);
+		if (!(ext >= 0) || isinf(ext))
+			return err_set(g->e, EXIT_PLUGIN, "%s:%ld: model '%s': reach() gave %g "
+				       "pixels, not a finite number >= 0", r->file, r->line[i],
+				       pl->m->name, ext);
+		*reach = ext * WFS_PIXSCALE;
 		return 0;
 	}
 	if (make_source(g, r, i, m, param, g->slot[0].sca, 0, 0, &src) < 0 ||
@@ -458,19 +487,20 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
 		if (model_columns(g, r, m) < 0)
 			return -1;
 		for (int c = 0; c < md->ncolumns; c++) {
+			const struct wfs_column *col = plugin_column(&g->plugins.p[m], c);
 			double *v = &param[i * MAX_COLUMNS + c];
 
 			/* an empty cell is the fallback, but for a required
 			 * column (no number parses to NaN) */
 			if (g->colidx[m][c] < 0)
-				*v = md->columns[c].fallback;
-			else if (rows_number(r, g->colidx[m][c], i, md->columns[c].required ? NAN :
-					     md->columns[c].fallback, v, g->e) < 0)
+				*v = col->fallback;
+			else if (rows_number(r, g->colidx[m][c], i, col->required ? NAN :
+					     col->fallback, v, g->e) < 0)
 				return -1;
-			else if (md->columns[c].required && isnan(*v))
+			else if (col->required && isnan(*v))
 				return err_set(g->e, EXIT_INPUT, "%s:%ld: model '%s': column '%s': "
 					       "empty value", r->file, r->line[i], md->name,
-					       md->columns[c].name);
+					       col->name);
 			else if (g->colidx[m][c] == r->sky_angle_col && !isnan(r->ra[i]))
 				*v -= north_pa(g, r->ra[i], r->dec[i]);   /* romanisim's pa */
 		}
@@ -597,8 +627,9 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    !(g->listed = realloc(g->listed, g->cap_rows)))
 		return err_sys(g->e, "rows");
 	memset(g->listed, 0, r->n);
-	g->sersic_flux_now = g->o->sersic_flux ? g->o->sersic_flux
-			   : r->sersic_ie ? "ie" : "total";
+	/* a catalog fact, for models with a half-light radius */
+	g->flux_meaning = g->o->sersic_flux ? strcmp(g->o->sersic_flux, "ie") == 0
+			: r->sersic_ie;
 
 	/* Parameters of all rows are kept in one array, MAX_COLUMNS a row. */
 	if (!(param = malloc(r->n * MAX_COLUMNS * sizeof(double))) ||

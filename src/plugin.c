@@ -1,4 +1,5 @@
 /* plugin.c - loading model plugins; see plugin.h. */
+#include <dlfcn.h>
 #include <errno.h>
 #include <limits.h>
 #include <stdio.h>
@@ -161,8 +162,95 @@ static int refuse(struct plugin *pl, struct err *e, const char *fmt, const char 
 	snprintf(why, sizeof(why), fmt, detail, a, b);
 	if (pl->handle)
 		lt_dlclose(pl->handle);
+	if (pl->dl)
+		dlclose(pl->dl);
 	pl->handle = NULL;
+	pl->dl = NULL;
 	return err_set(e, EXIT_PLUGIN, "model '%s' (%s): %s", pl->name, pl->path, why);
+}
+
+/*
+ * Open pl->path with every symbol bound now.  libltdl's dlopen loader always
+ * asks for RTLD_LAZY (lt_dladvise offers global, local, resident, ext and
+ * preload, not immediate binding), and a lazily bound plugin with a symbol
+ * nothing defines would load fine and die at its first call, mid-render.
+ * So the shared object is first opened with dlopen(RTLD_NOW | RTLD_LOCAL),
+ * which binds every symbol or fails naming the missing one; libltdl then
+ * finds it loaded and bound.  (Reopening an object already loaded lazily
+ * with RTLD_NOW binds nothing more, so a .la, which names its object, is
+ * opened through libltdl once to learn the object's file, closed, and
+ * opened again in that order.)
+ */
+static int open_bound(struct plugin *pl, struct err *e)
+{
+	char object[1024];
+	size_t n = strlen(pl->path);
+	const char *why;
+
+	snprintf(object, sizeof(object), "%s", pl->path);
+	if (n > 3 && !strcmp(pl->path + n - 3, ".la")) {
+		lt_dlhandle h;
+		const lt_dlinfo *info;
+
+		lt_dlerror();
+		if (!(h = lt_dlopen(pl->path)))
+			return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
+				      lt_dlerror(), 0, 0);
+		info = lt_dlgetinfo(h);
+		snprintf(object, sizeof(object), "%s", info && info->filename ?
+			 info->filename : pl->path);
+		lt_dlclose(h);
+	}
+	dlerror();
+	if (!(pl->dl = dlopen(object, RTLD_NOW | RTLD_LOCAL))) {
+		why = dlerror();
+		if (why && strstr(why, "undefined symbol"))
+			return refuse(pl, e, "cannot load: %s: a plugin may use only the C "
+				      "library, libm and what struct wfs_host lends (link it "
+				      "with -Wl,-z,defs to find this when building it)", why, 0, 0);
+		return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
+			      why ? why : "unknown error", 0, 0);
+	}
+	lt_dlerror();
+	if (!(pl->handle = lt_dlopen(pl->path)))
+		return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
+			      lt_dlerror(), 0, 0);
+	return 0;
+}
+
+/* Read the descriptor's appended members (model.h), each only when the
+ * descriptor's size covers it, and check them. */
+static int read_appended(struct plugin *pl, struct err *e)
+{
+	const struct wfs_model *m = pl->m;
+	/* Neither struct has grown since its first edition: the host's are the
+	 * smallest a plugin may have. */
+	const size_t column1 = sizeof(struct wfs_column), setting1 = sizeof(struct wfs_setting);
+
+	pl->column_size = column1;
+	if (WFS_HAS(m->size, struct wfs_model, column_size) && m->column_size) {
+		if (m->column_size < column1)
+			return refuse(pl, e, "%sdescriptor's column_size %ld is below the %ld "
+				      "bytes of struct wfs_column", "", (long)m->column_size,
+				      (long)column1);
+		pl->column_size = m->column_size;
+	}
+	if (WFS_HAS(m->size, struct wfs_model, nsettings) && m->nsettings) {
+		pl->setting_size = m->setting_size ? m->setting_size : setting1;
+		if (m->nsettings < 0 || !m->settings || pl->setting_size < setting1)
+			return refuse(pl, e, "%sdescriptor's settings are inconsistent "
+				      "(%ld of %ld bytes)", "", (long)m->nsettings,
+				      (long)pl->setting_size);
+		pl->settings = m->settings;
+		pl->nsettings = m->nsettings;
+		for (int k = 0; k < pl->nsettings; k++)
+			if (!plugin_setting(pl, k)->key || !*plugin_setting(pl, k)->key)
+				return refuse(pl, e, "%ssetting %ld of the descriptor has no key",
+					      "", k + 1, 0);
+	}
+	if (WFS_HAS(m->size, struct wfs_model, reach))
+		pl->reach = m->reach;
+	return 0;
 }
 
 int plugins_get(struct plugins *ps, const char *name, struct err *e)
@@ -188,10 +276,8 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 			       "unknown source type '%s': no model plugin '%s.so' on the "
 			       "plugin path %s", name, name, ps->path);
 	ps->n++;        /* remembered, so a refused model is refused once */
-	lt_dlerror();
-	if (!(pl->handle = lt_dlopen(pl->path)))
-		return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
-			      lt_dlerror(), 0, 0);
+	if (open_bound(pl, e) < 0)
+		return -1;
 	entry = (wfs_model_entry_fn)(uintptr_t)lt_dlsym(pl->handle, WFS_MODEL_ENTRY);
 	if (!entry)
 		return refuse(pl, e, "no symbol '%s': not a wfiscene model plugin",
@@ -217,11 +303,13 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	if (m->ncolumns > PLUGIN_COLUMNS_MAX)
 		return refuse(pl, e, "%sdescriptor lists %ld columns; a model reads at most %ld",
 			      "", m->ncolumns, PLUGIN_COLUMNS_MAX);
+	pl->m = m;
+	if (read_appended(pl, e) < 0)
+		return -1;
 	for (int c = 0; c < m->ncolumns; c++)
-		if (!m->columns[c].name || !*m->columns[c].name)
+		if (!plugin_column(pl, c)->name || !*plugin_column(pl, c)->name)
 			return refuse(pl, e, "%scolumn %ld of the descriptor has no name", "",
 				      c + 1, 0);
-	pl->m = m;
 	if (m->init && m->init(ps->host, &pl->state) < 0) {
 		err_prefix(e, "model '%s' (%s): set-up failed", name, pl->path);
 		if (e->code == EXIT_OK)
@@ -242,6 +330,8 @@ void plugins_free(struct plugins *ps)
 			pl->m->fini(pl->state);
 		if (pl->handle)
 			lt_dlclose(pl->handle);
+		if (pl->dl)
+			dlclose(pl->dl);
 	}
 	if (ps->path)
 		lt_dlexit();

@@ -6,8 +6,13 @@
  * plugins that came with the running program (plugins/ beside it in a build
  * tree, or the plugin directory of its installation found relative to it),
  * then the plugin directory it was built for.  Loading happens in the main
- * thread, before workers use the model.  A model name is a word of
- * [a-z0-9_-], so it can never name a path.
+ * thread, before workers use the model, with every symbol of the plugin
+ * bound at once: an unresolved symbol refuses the plugin there.  A model
+ * name is a word of [a-z0-9_-], so it can never name a path.
+ *
+ * The descriptor's appended members (model.h) are read here, once, gated
+ * by its size; the rest of the host uses struct plugin's copies and
+ * plugin_column() and never looks past a plugin's size.
  */
 #ifndef WFS_PLUGIN_H
 #define WFS_PLUGIN_H
@@ -26,9 +31,30 @@ struct plugin {
 	char path[1024];
 	lt_dlhandle handle;
 	const struct wfs_model *m;
+	void *dl;               /* the RTLD_NOW handle that bound its symbols */
 	void *state;            /* from init() */
 	int ready;              /* init() succeeded */
+	/* the descriptor's appended members, or what their absence means */
+	size_t column_size;     /* stride of m->columns */
+	const struct wfs_setting *settings;
+	size_t setting_size;    /* stride of settings */
+	int nsettings;
+	int (*reach)(void *state, const struct wfs_source *src, double *pixels);
 };
+
+/* Column c of pl's model, through the plugin's own stride. */
+static inline const struct wfs_column *plugin_column(const struct plugin *pl, int c)
+{
+	return (const struct wfs_column *)(const void *)
+		((const char *)pl->m->columns + (size_t)c * pl->column_size);
+}
+
+/* Setting k of pl's model, likewise. */
+static inline const struct wfs_setting *plugin_setting(const struct plugin *pl, int k)
+{
+	return (const struct wfs_setting *)(const void *)
+		((const char *)pl->settings + (size_t)k * pl->setting_size);
+}
 
 struct plugins {
 	char *path;             /* the search path, colon-separated */

@@ -152,15 +152,35 @@ static void report_string(FILE *f, const char *s)
 	fputc('"', f);
 }
 
-/* "name": "value of --set key, or fallback", */
-static void report_setting(FILE *f, struct engine *g, const char *name, const char *key,
-			   const char *fallback)
+/*
+ * "model_settings": each model the run loaded, with the settings it declares
+ * (wfs_model.settings) and the value each had: the --set value, or the
+ * model's own default.  The host knows no model's settings itself.
+ */
+static void report_model_settings(FILE *f, struct engine *g)
 {
-	const char *v = host_setting(g, key);
+	int first = 1;
 
-	fprintf(f, "\"%s\": ", name);
-	report_string(f, v && *v ? v : fallback);
-	fputs(", ", f);
+	fputs("  \"model_settings\": {", f);
+	for (int m = 0; m < g->plugins.n; m++) {
+		const struct plugin *pl = &g->plugins.p[m];
+
+		if (!pl->ready)
+			continue;
+		fprintf(f, "%s\n    \"%s\": {", first ? "" : ",", pl->name);
+		first = 0;
+		for (int k = 0; k < pl->nsettings; k++) {
+			const struct wfs_setting *st = plugin_setting(pl, k);
+			const char *v = host_setting(g, st->key);
+
+			fprintf(f, "%s", k ? ", " : "");
+			report_string(f, st->key);
+			fputs(": ", f);
+			report_string(f, v && *v ? v : st->fallback ? st->fallback : "");
+		}
+		fputc('}', f);
+	}
+	fputs(first ? "}\n" : "\n  }\n", f);
 }
 
 /* "name": number, or null for NaN (JSON has no NaN); then sep. */
@@ -318,24 +338,19 @@ int report_write(struct engine *g)
 	fprintf(f, "\n  ]},\n  \"error_budget\": {\"largest_truncation_loss\": %.8f, "
 		"\"psf_grid\": \"%dx%d nodes, bilinear in position\", ",
 		worst_loss, g->user_grid ? g->user_grid->nx : 3, g->user_grid ? g->user_grid->ny : 3);
-	/* The point model's approximations as --set chose them (its defaults
+	/* the noise per pixel that models drawing down to a fraction of it
+	 * follow (point's psf-extent; the light left beyond is "requested"
+	 * less "placed" above), and the radius of the halo grids */
+	fputs("\"pixel_sigma\": ", f);
+	report_string(f, g->sigma_str);
+	fputs(", \"halo_radius_px\": ", f);
+	report_string(f, host_setting(g, "psf-halo-radius") ? host_setting(g, "psf-halo-radius")
+		      : "256");
+	fputs("},\n", f);
+	/* The models' approximations as --set chose them (their defaults
 	 * otherwise), so that a report says which evaluation made the image. */
-	report_setting(f, g, "interpolation", "psf-interp", "core");
-	report_setting(f, g, "core_halfwidth_px", "psf-core", "4");
-	report_setting(f, g, "wing_halfwidth_px", "psf-wing", "8");
-	report_setting(f, g, "box", "psf-box", "fixed");
-	report_setting(f, g, "box_noise_fraction", "psf-box-noise", "0.1");
-	report_setting(f, g, "blend", "psf-blend", "core");
-	/* how far a point source is drawn (psf-extent): to the radius where
-	 * it sinks below a fraction of this noise per pixel; the light left
-	 * beyond is "requested" less "placed" above */
-	report_setting(f, g, "extent", "psf-extent", "noise");
-	report_setting(f, g, "extent_noise_fraction", "psf-extent-noise", "0.1");
-	report_setting(f, g, "pixel_sigma", "pixel-sigma", "");
-	report_setting(f, g, "halo_radius_px", "psf-halo-radius", "256");
-	fprintf(f, "\"blend_cell_px\": ");
-	report_string(f, host_setting(g, "psf-cell") ? host_setting(g, "psf-cell") : "512");
-	fprintf(f, "}\n}\n");
+	report_model_settings(f, g);
+	fputs("}\n", f);
 	if (side_close(f, x->report, tmp, 1) < 0)
 		return err_sys(g->e, "%s", x->report);
 	return 0;

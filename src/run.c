@@ -65,7 +65,6 @@ static void engine_setting_strings(struct engine *g)
 		 o->noise & NOISE_POISSON ? "poisson," : "", o->noise & NOISE_READ ? "readnoise," : "",
 		 o->noise & NOISE_DARK ? "dark," : "", o->noise & NOISE_FLAT ? "flat," : "",
 		 o->noise & NOISE_COSMIC ? "cosmic," : "");
-	g->sersic_flux_now = o->sersic_flux ? o->sersic_flux : "total";
 	{
 		/* The noise of one pixel in counts/s, for models that draw
 		 * down to a fraction of it (point's psf-extent): the noise

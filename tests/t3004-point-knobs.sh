@@ -144,16 +144,20 @@ s = float(json.load(open(\"nom.json\"))[\"error_budget\"][\"pixel_sigma\"])
 assert abs(s - (0.81 + 144) ** 0.5) < 1, s
 " && ! test_cmp nom.fits def.fits >/dev/null
 '
-test_expect_success '--report names the point settings a run used' '
+test_expect_success '--report names the point settings a run used, as point declares them' '
 	run rep.fits --set psf-box=adaptive --set psf-box-sigma=0.1 --set psf-blend=cell \
 		--report r.json &&
 	"$PY" -c "
 import json
-b = json.load(open(\"r.json\"))[\"error_budget\"]
-assert b[\"interpolation\"] == \"core\" and b[\"core_halfwidth_px\"] == \"4\", b
-assert b[\"wing_halfwidth_px\"] == \"8\", b
-assert b[\"box\"] == \"adaptive\" and b[\"blend\"] == \"cell\", b
-assert b[\"blend_cell_px\"] == \"512\", b
+b = json.load(open(\"r.json\"))[\"model_settings\"][\"point\"]
+assert b[\"psf-interp\"] == \"core\" and b[\"psf-core\"] == \"4\", b
+assert b[\"psf-wing\"] == \"8\" and b[\"psf-box-noise\"] == \"0.1\", b
+assert b[\"psf-box\"] == \"adaptive\" and b[\"psf-blend\"] == \"cell\", b
+assert b[\"psf-box-sigma\"] == \"0.1\" and b[\"psf-cell\"] == \"512\", b
+assert list(b) == [\"psf-interp\", \"psf-core\", \"psf-wing\", \"psf-box\",
+                   \"psf-box-noise\", \"psf-box-sigma\", \"psf-blend\", \"psf-cell\",
+                   \"psf-extent\", \"psf-extent-noise\", \"psf-extent-max\",
+                   \"psf-extent-min\", \"psf-halo-power\", \"psf-halo-taper\"], b
 "
 '
 for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-box-noise=0 \

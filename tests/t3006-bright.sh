@@ -115,7 +115,8 @@ test_expect_success 'the report gives the noise the extent follows and the light
 import json
 r = json.load(open(\"clean.json\"))
 b = r[\"error_budget\"]
-assert b[\"extent\"] == \"noise\" and b[\"extent_noise_fraction\"] == \"0.1\", b
+m = r[\"model_settings\"][\"point\"]
+assert m[\"psf-extent\"] == \"noise\" and m[\"psf-extent-noise\"] == \"0.1\", m
 assert float(b[\"pixel_sigma\"]) > 0, b
 f = r[\"flux\"][0]
 assert 0.98 < f[\"placed\"] / f[\"requested\"] < 1, f

@@ -245,6 +245,19 @@ static int moffat_render(void *state, void *tstate, void *thread,
 	return 0;
 }
 
+/* How far the star's light goes (model.h, reach()): its truncation
+ * ellipse's larger half-width, plus the half pixel its edge pixels reach
+ * beyond it and a pixel of rounding.  prepare() works on a copy. */
+static int moffat_reach(void *state, const struct wfs_source *src, double *pixels)
+{
+	struct wfs_source at = *src;
+
+	if (moffat_prepare(state, &at) < 0)
+		return -1;
+	*pixels = fmax(at.aux[AUX_HX], at.aux[AUX_HY]) + 1.5;
+	return 0;
+}
+
 static const struct wfs_model moffat_model = {
 	.abi = WFS_ABI_VERSION,
 	.size = sizeof(struct wfs_model),
@@ -257,6 +270,8 @@ static const struct wfs_model moffat_model = {
 	.prepare = moffat_prepare,
 	.footprint = moffat_footprint,
 	.render = moffat_render,
+	.column_size = sizeof(struct wfs_column),
+	.reach = moffat_reach,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -10,21 +10,29 @@
  * A plugin is a shared object named after its model (point.so, sersic-quick.so,
  * moffat.so, ...), found on the plugin search path (--plugin-path,
  * $WFISCENE_PLUGIN_PATH, the installed plugin directory).  It MUST export
- * exactly one symbol, wfs_model_entry, and SHOULD hide every other symbol
- * (-fvisibility=hidden).  The host loads a plugin the first time a catalog row
- * names its model, before any worker thread starts.
+ * exactly one symbol, wfs_model_entry (declared below), and SHOULD hide
+ * every other symbol (-fvisibility=hidden).  It MUST NOT need any symbol of
+ * the host: link it with -Wl,-z,defs (or your linker's equivalent) so that
+ * one cannot creep in.  The host loads a plugin the first time a catalog row
+ * names its model, in the main thread, with every symbol bound at once
+ * (RTLD_NOW): a plugin with an unresolved symbol is refused then, with the
+ * symbol's name and exit status 3, never halfway through a run.
  *
  * Life of a model in one run:
  *
  *   entry(WFS_ABI_VERSION)  once, returns the static descriptor
  *   init(host, &state)      once, single-threaded: tables, plans, settings
+ *   reach(state, src)       once per sky row, main thread: how far from its
+ *                           position the row may throw light, so the host
+ *                           knows which SCAs it may land on
  *   thread_start(state, &t) once per worker thread that renders this model
  *   prepare(state, src)     once per row and SCA it lands on, main thread,
  *                           with x, y, sca, flux and mag set for that SCA:
  *                           validate the row's parameters and precompute
  *                           into src->aux
- *   footprint(state, src)   once per row and SCA, main thread: the pixels the
- *                           source may touch, so the host can bin it by tile
+ *   footprint(state, src)   once per row and SCA it lands on, main thread: the
+ *                           pixels the source may touch, so the host can bin
+ *                           it by tile
  *   render(state, t, ...)   once per (source, tile) pair, in worker threads
  *   thread_stop(state, t)   per thread started
  *   fini(state)             once
@@ -38,8 +46,54 @@
  * Units.  src->flux is the source's total flux in counts/s (e-/s) after all
  * unit conversions, and a plugin adds counts/s per pixel into the window.
  *
- * New fields are only ever appended to the structs below; the size fields
- * tell each side how much of the other's struct exists.
+ * How the ABI grows.  WFS_ABI_VERSION changes only when a field changes
+ * meaning; otherwise new fields are only ever appended, and each struct that
+ * crosses the ABI says how much of it the other side has:
+ *
+ *   struct wfs_model    the plugin's: its size field.
+ *   struct wfs_column   an array in the plugin: wfs_model.column_size is its
+ *                       stride (absent or 0: the first edition's 32 bytes on
+ *                       LP64), so a grown wfs_column keeps old plugins readable.
+ *   struct wfs_setting  an array in the plugin: wfs_model.setting_size.
+ *   struct wfs_host     the host's: its size field.
+ *   struct wfs_source   the host's, read and partly written by the plugin:
+ *                       wfs_host.source_size.  A plugin MUST NOT read an
+ *                       appended field the host does not have (WFS_HAS).
+ *   struct wfs_epsf     filled by the host in the plugin's memory: FROZEN.
+ *                       It never grows; a richer ePSF would come through a
+ *                       new service with a struct of its own carrying a size.
+ *   struct wfs_box, struct wfs_window
+ *                       FROZEN, like wfs_epsf.
+ *
+ * A member appended to a struct is present when the other side's size
+ * covers it: WFS_HAS(size, struct, member).  A plugin built against an
+ * older model.h keeps working with a newer host: the host reads only what
+ * the plugin's sizes say it has and falls back to the older behaviour for
+ * the rest (each appended member says what that is).
+ *
+ * Settings.  host->setting(key) answers these keys of the scene, as text:
+ *
+ *   filter       the filter name, e.g. "F158"
+ *   exptime      the exposure time in seconds, "%.17g"
+ *   seed         the exposure's random seed, an unsigned decimal integer
+ *   background   the background in counts/s/pixel, "%.17g" ("0" for none)
+ *   readnoise    the read noise in e-, "%.17g"; "0" when --noise leaves it out
+ *   noise        the --noise stages drawn, each followed by a comma:
+ *                "poisson,readnoise,dark,flat,cosmic," or a subset, "" for none
+ *   sersic       the method of the "sersic" family of models (see resolving
+ *                types below), "quick" or "precise"
+ *
+ * and every KEY of --set KEY=VALUE (the value as typed, the last one given
+ * winning); NULL for a key that is not set.  A model reads the keys it
+ * declares in wfs_model.settings, and SHOULD name them after itself
+ * ("psf-core", "sersic-trunc", "moffat-beta").
+ *
+ * Resolving a catalog type.  A row of type T is drawn by the model T, except
+ * when the scene has a setting T (an option of that name, or --set T=M):
+ * then by the model T-M, a family of methods drawing the same thing.  Today
+ * "sersic" (from --sersic, default quick) makes "sersic" rows
+ * "sersic-quick" or "sersic-precise"; --set moffat=fast would make "moffat"
+ * rows "moffat-fast".
  */
 #ifndef WFISCENE_MODEL_H
 #define WFISCENE_MODEL_H
@@ -55,6 +109,11 @@ extern "C" {
  * refused.  Bumped only when an existing field changes meaning. */
 #define WFS_ABI_VERSION 1
 
+/* Whether a struct of `size` bytes (the other side's size field) has
+ * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
+#define WFS_HAS(size, type, m) \
+	((size_t)(size) >= offsetof(type, m) + sizeof(((type *)0)->m))
+
 /* Number of per-source scratch values a model may fill in prepare(). */
 #define WFS_AUX 8
 
@@ -62,7 +121,13 @@ extern "C" {
  * magnitude against the scene's bright and extra-bright limits. */
 enum wfs_psf_class { WFS_PSF_NORMAL = 0, WFS_PSF_BRIGHT = 1, WFS_PSF_XBRIGHT = 2 };
 
-/* A rectangle of pixels, [x0, x1) x [y0, y1), 0-based. */
+/* What a row's flux column states, for a model with a half-light radius
+ * (wfs_source.flux_meaning).  A catalog fact: STIPS's internal catalogs,
+ * and --sersic-flux ie, give the surface brightness at the half-light
+ * radius, per square pixel, rather than the total. */
+enum wfs_flux_meaning { WFS_FLUX_TOTAL = 0, WFS_FLUX_IE = 1 };
+
+/* A rectangle of pixels, [x0, x1) x [y0, y1), 0-based.  Frozen. */
 struct wfs_box {
 	int x0, y0, x1, y1;
 };
@@ -72,6 +137,7 @@ struct wfs_box {
  * pixel (x, y) of the window is pix[(y - y0) * stride + (x - x0)].  The host
  * owns the memory.  A plugin MUST only add to pixels inside the window and
  * MUST NOT read pixels it did not write (they hold other sources' light).
+ * Frozen.
  */
 struct wfs_window {
 	double *pix;
@@ -93,6 +159,13 @@ struct wfs_source {
 	int psf_class;          /* enum wfs_psf_class chosen from mag */
 	long long id;           /* catalog id, or the row number */
 	double aux[WFS_AUX];    /* the model's own per-source values */
+
+	/* Appended; present when WFS_HAS(host->source_size, struct
+	 * wfs_source, ...) says so (older hosts: a total flux). */
+	int flux_meaning;       /* enum wfs_flux_meaning of the row's flux.
+	                           A model with a half-light radius turns
+	                           WFS_FLUX_IE into the total in prepare(),
+	                           rewriting flux; other models ignore it. */
 };
 
 /*
@@ -103,7 +176,8 @@ struct wfs_source {
  * flux that falls in a detector pixel centred at that offset, IPC included,
  * so samples `over` apart sum to the enclosed flux (about 0.99).  The ePSF at
  * the position is sum_k weight[k] * node[k][...]; a model SHOULD blend only
- * the samples it uses rather than whole arrays.
+ * the samples it uses rather than whole arrays.  The host fills it in the
+ * plugin's memory, so it is frozen: it never grows.
  */
 struct wfs_epsf {
 	int n;                  /* samples per side, odd */
@@ -133,8 +207,8 @@ struct wfs_host {
 	void (*log)(void *ctx, int level, const char *fmt, ...)
 		__attribute__((format(printf, 3, 4)));
 
-	/* A scene setting by its long option name without dashes ("filter",
-	 * "exptime", "sersic-flux", ...), or NULL when unset. */
+	/* A setting by its key: the scene's ("filter", "exptime", ...: see
+	 * Settings above) or a --set key, or NULL when unset. */
 	const char *(*setting)(void *ctx, const char *key);
 
 	/* The ePSF of SCA sca and size class cls at position (x, y).  Returns 0,
@@ -160,6 +234,11 @@ struct wfs_host {
 	 * reuses.  The result is the same for any thread.  Returns 0 or -1. */
 	int (*convolve)(void *ctx, void *thread, double *img, int nx, int ny,
 			const double *kernel, int kn);
+
+	/* Appended: sizeof(struct wfs_source) in the host, which tells which
+	 * appended fields of a source exist.  Absent in older hosts (check
+	 * WFS_HAS(host->size, struct wfs_host, source_size) first). */
+	uint32_t source_size;
 };
 
 /*
@@ -167,13 +246,30 @@ struct wfs_host {
  * name from any catalog format.  A required column missing from a catalog
  * that has a row of this model is an error naming the column, and so is an
  * empty cell of it (file, line, column): the model never sees one; an
- * empty or absent optional cell reads as fallback.
+ * empty or absent optional cell reads as fallback.  The plugin's array has
+ * the stride wfs_model.column_size.
  */
 struct wfs_column {
 	const char *name;
 	double fallback;
 	int required;
 	const char *doc;        /* one line for --help and the man page */
+};
+
+/*
+ * A setting a model reads through host->setting(), declared so that the
+ * host can say in --report (and a man page can list) which settings a run's
+ * models used, with which values.  The plugin's array has the stride
+ * wfs_model.setting_size.
+ */
+struct wfs_setting {
+	const char *key;        /* e.g. "psf-core" */
+	const char *fallback;   /* the value used when the key is unset, as text
+	                           ("4"), or a few words in parentheses when it
+	                           is derived ("(the scene's noise)") */
+	const char *format;     /* the values allowed: "number >= 0",
+	                           "bilinear|core|bicubic", ... */
+	const char *doc;        /* one line */
 };
 
 /*
@@ -216,18 +312,52 @@ struct wfs_model {
 	 * error recorded, which stops the run. */
 	int (*render)(void *state, void *tstate, void *thread,
 		      const struct wfs_source *src, const struct wfs_window *win);
-};
 
-/* The one symbol a plugin exports.  host_abi is the host's WFS_ABI_VERSION;
- * a plugin MAY return NULL when it cannot work with that host. */
-typedef const struct wfs_model *(*wfs_model_entry_fn)(uint32_t host_abi);
-#define WFS_MODEL_ENTRY "wfs_model_entry"
+	/* Appended members.  The host reads each only when `size` covers it;
+	 * for a shorter descriptor it does what the member's comment says. */
+
+	/* sizeof(struct wfs_column) in the plugin, the stride of columns.
+	 * Absent or 0: the first edition's struct. */
+	uint32_t column_size;
+	/* sizeof(struct wfs_setting) in the plugin, the stride of settings. */
+	uint32_t setting_size;
+	/* The settings the model reads, nsettings of them; MAY be NULL with
+	 * nsettings 0 (and absent: --report lists none for this model). */
+	const struct wfs_setting *settings;
+	int nsettings;
+
+	/* How far from its position, in pixels, the source of a row may throw
+	 * light on any SCA of the scene: the host uses it before any prepare()
+	 * to find the SCAs a sky row may land on, so that prepare() and
+	 * footprint() run once per row and SCA it lands on.  src is filled as
+	 * for prepare() for the scene's first SCA at its centre pixel, but the
+	 * position and SCA are only stand-ins: the answer MUST bound the
+	 * footprint's extent about (x, y) for any position on any SCA (light
+	 * farther out is lost near the SCA's edges).  It MUST NOT change src's
+	 * aux or keep state.  Returns 0 with *pixels set, or -1 with an error.
+	 * MAY be NULL (and absent): the host then calls prepare() and
+	 * footprint() once more per sky row, at (0, 0) of the first SCA, and
+	 * takes the footprint's extent plus 2 pixels, as hosts did before
+	 * reach() existed. */
+	int (*reach)(void *state, const struct wfs_source *src, double *pixels);
+};
 
 #if defined(__GNUC__)
 #define WFS_EXPORT __attribute__((visibility("default")))
 #else
 #define WFS_EXPORT
 #endif
+
+/* The one symbol a plugin exports, defined by the plugin as
+ *
+ *   WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)
+ *
+ * host_abi is the host's WFS_ABI_VERSION; a plugin MAY return NULL when it
+ * cannot work with that host.  The host calls it once, from the main
+ * thread, right after loading the plugin. */
+WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi);
+typedef const struct wfs_model *(*wfs_model_entry_fn)(uint32_t host_abi);
+#define WFS_MODEL_ENTRY "wfs_model_entry"
 
 #ifdef __cplusplus
 }

@@ -223,9 +223,14 @@ static void model_fini(struct model *md)
 		md->m->fini(md->state);
 }
 
+/* enum wfs_flux_meaning of the sources prepare() makes (a host that has
+ * the field, host.source_size set, passes it in the source) */
+static int flux_meaning;
+
 static int prepare(struct model *md, const struct gal *g, struct wfs_source *src, double *param)
 {
 	memset(src, 0, sizeof(*src));
+	src->flux_meaning = flux_meaning;
 	param[0] = g->n;
 	param[1] = g->re;
 	param[2] = g->phi;
@@ -1205,6 +1210,79 @@ static void test_ie(const struct wfs_model *m)
 	mock_set(&mock, "sersic-flux", "total");
 }
 
+/* A host with wfs_source.flux_meaning passes --sersic-flux as that field,
+ * which wins over a stale setting; a host without it (source_size 0, as
+ * the mock host's above) is read through the setting.  The same total
+ * either way. */
+static void test_flux_meaning(const struct wfs_model *m)
+{
+	struct model md;
+	struct wfs_source src;
+	double param[4], by_setting, by_field;
+	struct gal g = { 10, 10, 2.0, 2.5, 3, 0, 0.5 };
+
+	mock_set(&mock, "sersic-flux", "ie");
+	model_init(&md, m);
+	prepare(&md, &g, &src, param);
+	by_setting = src.flux;
+	mock_set(&mock, "sersic-flux", "total");
+	host.source_size = sizeof(struct wfs_source);
+	flux_meaning = WFS_FLUX_IE;
+	prepare(&md, &g, &src, param);
+	by_field = src.flux;
+	flux_meaning = WFS_FLUX_TOTAL;
+	prepare(&md, &g, &src, param);
+	ok(by_setting > 10 * g.flux && by_field == by_setting && src.flux == g.flux,
+	   "%s: flux_meaning in the source: ie gives the setting's total (%g, %g), "
+	   "total leaves the flux (%g)", m->name, by_field, by_setting, src.flux);
+	host.source_size = 0;
+	model_fini(&md);
+}
+
+/* reach() bounds the footprint's extent about the source, wherever the
+ * source is, and leaves src as it was. */
+static void test_reach(const struct wfs_model *m)
+{
+	static const struct gal gals[] = {
+		{ 0, 0, 100, 1, 0.5, 0, 1 }, { 0, 0, 100, 4, 12, 30, 0.3 },
+		{ 0, 0, 100, 0.5, 3, 80, 0.9 }, { 0, 0, 100, 10, 2, 10, 0.6 },
+	};
+	static const double at[][2] = { { 0, 0 }, { 2043.5, 2043.5 }, { 17.3, 4000.8 }, { -50.5, 9.2 } };
+	int bad = 0;
+
+	ok(WFS_HAS(m->size, struct wfs_model, reach) && m->reach, "%s: declares reach()", m->name);
+	if (!m->reach)
+		return;
+	for (size_t k = 0; k < sizeof(gals) / sizeof(gals[0]); k++) {
+		struct model md;
+		struct wfs_source src, copy;
+		struct wfs_box box;
+		double param[4], pixels = -1;
+
+		model_init(&md, m);
+		prepare(&md, &gals[k], &src, param);
+		copy = src;
+		if (m->reach(md.state, &src, &pixels) < 0 || memcmp(&copy, &src, sizeof(src)))
+			bad++;
+		for (size_t a = 0; a < sizeof(at) / sizeof(at[0]); a++) {
+			struct gal g = gals[k];
+
+			g.x = at[a][0];
+			g.y = at[a][1];
+			prepare(&md, &g, &src, param);
+			m->footprint(md.state, &src, &box);
+			if (box.x0 < g.x - pixels || box.x1 > g.x + pixels ||
+			    box.y0 < g.y - pixels || box.y1 > g.y + pixels) {
+				diag("n %g re %g at (%g, %g): box [%d, %d) x [%d, %d), reach %g",
+				     g.n, g.re, g.x, g.y, box.x0, box.x1, box.y0, box.y1, pixels);
+				bad++;
+			}
+		}
+		model_fini(&md);
+	}
+	ok(!bad, "%s: reach() bounds the footprint at any position, src untouched", m->name);
+}
+
 int main(int argc, char **argv)
 {
 	mock_init();
@@ -1249,6 +1327,8 @@ int main(int argc, char **argv)
 		mock_set(&mock, "sersic-trunc", k ? "1e-4" : "1e-3");
 		test_errors(ms[k]);
 		test_ie(ms[k]);
+		test_flux_meaning(ms[k]);
+		test_reach(ms[k]);
 		test_accuracy(ms[k], k);
 		if (k)
 			test_tolerance(ms[k]);

@@ -131,7 +131,7 @@ have_python() { "$PY" -c 'import numpy, astropy' 2>/dev/null; }
 # Skip the whole script cleanly.
 skip_all() { echo "1..0 # SKIP $*"; exit 0; }
 require_shared() { have_shared || skip_all "../shared is absent"; }
-require_python() { have_python || skip_all "python3 with numpy and astropy is absent"; }
+require_python() { have_python || skip_all "python3 with numpy and astropy is absent (Debian packages python3-numpy, python3-astropy)"; }
 
 test_done() {
 	echo "1..$test_count"

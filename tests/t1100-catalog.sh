@@ -56,7 +56,7 @@ t.write(\"ap.fits\"); t.write(\"ap.ecsv\"); t.write(\"ap.ipac\", format=\"ascii.
 		gzip -c ap.fits | run -o f4.fits
 	'
 else
-	test_skip 'astropy FITS, ECSV and IPAC tables' 'no python3 with astropy'
+	test_skip 'astropy FITS, ECSV and IPAC tables' 'no python3 with astropy (Debian package python3-astropy)'
 fi
 
 # Per-row units of a STIPS mixed catalog, converted as STIPS converts them

@@ -64,7 +64,7 @@ with fits.open(sys.argv[1], mode=\"update\") as h:
 		test_grep "cache" err
 	'
 else
-	test_skip 'a stale file is rebuilt' 'no python3 with astropy'
+	test_skip 'a stale file is rebuilt' 'no python3 with astropy (Debian package python3-astropy)'
 fi
 
 test_expect_success 'a truncated file is rebuilt' '

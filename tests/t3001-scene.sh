@@ -50,7 +50,7 @@ if [ -x /usr/bin/time ]; then
 		test "$(cat size)" -gt 200000000 && test "$(tail -n 1 rss)" -lt 80000
 	'
 else
-	test_skip '-o - of 3 SCAs runs in bounded memory' '/usr/bin/time is absent'
+	test_skip '-o - of 3 SCAs runs in bounded memory' '/usr/bin/time is absent (Debian package time)'
 fi
 test_expect_success 'one file per SCA with %d' '
 	run --sca 1,2 -o "sca%02d.fits" stars.csv && fitsinfo sca01.fits > i1 &&

@@ -315,7 +315,7 @@ if command -v parallel >/dev/null 2>&1; then
 		test_grep "give SCAs with -g" err
 	'
 else
-	test_skip 'GNU parallel recipe' 'parallel is not installed'
+	test_skip 'GNU parallel recipe' 'parallel is not installed (Debian package parallel)'
 fi
 
 # Slurm for real: a cluster that answers sinfo already, or else (as root,
@@ -411,7 +411,7 @@ if [ -n "$slurm" ]; then
 		test_grep "task 3: expR F158 SCAs 3,4" wfiscene-*_3.log
 	'
 else
-	test_skip 'Slurm for real' 'no Slurm cluster here and none could be started (as root, with slurmctld, slurmd and munge); the array task body ran with SLURM_ARRAY_TASK_ID set by the test instead'
+	test_skip 'Slurm for real' 'no Slurm cluster here and none could be started (as root, with slurmctld, slurmd and munge: Debian packages slurmctld, slurmd, slurm-client, munge); the array task body ran with SLURM_ARRAY_TASK_ID set by the test instead'
 fi
 stop_slurm
 

@@ -7,7 +7,8 @@
 #   make help       list the targets
 #
 # Knobs: CC, CFLAGS, LDFLAGS, PKG_CONFIG, PREFIX, DESTDIR, V=1 (show commands),
-# SANITIZE=1 (AddressSanitizer + UBSan), TESTS='tests/t1*.sh' (a subset).
+# SANITIZE=1 (AddressSanitizer + UBSan, in build-san), SANITIZE=thread
+# (ThreadSanitizer, in build-tsan), TESTS='tests/t1*.sh' (a subset).
 # Local overrides go in config.mak.
 
 -include config.mak
@@ -36,12 +37,22 @@ ifeq ($(SANITIZE),1)
   B := build-san
   CFLAGS += -O1 -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
   LDFLAGS += -fsanitize=address,undefined
+else ifeq ($(SANITIZE),thread)
+  # A race report makes the program exit 66 (TSAN_OPTIONS exitcode), so a
+  # test that sees one fails.
+  B := build-tsan
+  CFLAGS += -O1 -fsanitize=thread -fno-omit-frame-pointer
+  LDFLAGS += -fsanitize=thread
+else ifneq ($(SANITIZE),)
+  $(error SANITIZE=$(SANITIZE): use SANITIZE=1 (address, undefined) or SANITIZE=thread)
 endif
 
 PKG_CFLAGS := $(shell $(PKG_CONFIG) --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   := $(shell $(PKG_CONFIG) --libs $(PKGS) 2>/dev/null)
+# No string from outside ever becomes a printf format: the compiler checks.
+WARN_FLAGS := -Wall -Wextra -Wno-unused-parameter -Wformat -Wformat-nonliteral -Wformat-security
 ALL_CFLAGS  = -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE \
-	-Wall -Wextra -Wno-unused-parameter -pthread -Iinclude -Isrc -I$(B) \
+	$(WARN_FLAGS) -pthread -Iinclude -Isrc -I$(B) \
 	-DWFS_VERSION='"$(VERSION)"' -DWFS_BINDIR='"$(BINDIR)"' -DWFS_PLUGINDIR='"$(PLUGINDIR)"' \
 	$(PKG_CFLAGS) $(CFLAGS)
 ALL_LIBS    = $(PKG_LIBS) -lfftw3_threads -lltdl -lm -lpthread
@@ -102,7 +113,7 @@ $(B)/obj/data_tables.o: $(B)/data_tables.c
 define plugin_rule
 $(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
 	@echo "  PLUGIN  $$@"
-	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra -Wno-unused-parameter -Iinclude \
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) -Iinclude \
 		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(PLUGIN_OPT) $(LDFLAGS) -o $$@ $$< -lm
 endef
 $(foreach p,$(basename $(notdir $(wildcard plugins/*.c))),$(eval $(call plugin_rule,$(p))))
@@ -113,12 +124,12 @@ $(B)/tests/%: tests/unit/%.c tests/unit/tap.h $(B)/libwfs.a | $(B)/tests
 
 $(B)/contrib/%: contrib/%.c | $(B)/contrib
 	@echo "  CC      $@"
-	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra $(CFLAGS) $(LDFLAGS) -o $@ $< -lzstd -lm
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) $(CFLAGS) $(LDFLAGS) -o $@ $< -lzstd -lm
 
 # csv2fits writes FITS tables for the bench and so needs cfitsio.
 $(B)/contrib/csv2fits: contrib/csv2fits.c | $(B)/contrib
 	@echo "  CC      $@"
-	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra $(CFLAGS) \
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) $(CFLAGS) \
 		$$($(PKG_CONFIG) --cflags cfitsio) $(LDFLAGS) -o $@ $< \
 		$$($(PKG_CONFIG) --libs cfitsio) -lm
 
@@ -184,7 +195,7 @@ install: all
 
 ## clean: remove build outputs
 clean:
-	rm -rf build build-san
+	rm -rf build build-san build-tsan
 
 ## help: list the targets
 help:

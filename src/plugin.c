@@ -1,6 +1,7 @@
 /* plugin.c - loading model plugins; see plugin.h. */
 #include <errno.h>
 #include <limits.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -153,12 +154,18 @@ static int find_file(const char *path, const char *name, char *out, size_t cap)
 	return -1;
 }
 
-static int refuse(struct plugin *pl, struct err *e, const char *fmt, const char *detail,
-		  long a, long b)
+/* Unload a plugin that cannot be used and record why (a printf format and
+ * its arguments, checked by the compiler like any other). */
+static int refuse(struct plugin *pl, struct err *e, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+static int refuse(struct plugin *pl, struct err *e, const char *fmt, ...)
 {
 	char why[512];
+	va_list ap;
 
-	snprintf(why, sizeof(why), fmt, detail, a, b);
+	va_start(ap, fmt);
+	vsnprintf(why, sizeof(why), fmt, ap);
+	va_end(ap);
 	if (pl->handle)
 		lt_dlclose(pl->handle);
 	pl->handle = NULL;
@@ -191,36 +198,33 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	lt_dlerror();
 	if (!(pl->handle = lt_dlopen(pl->path)))
 		return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
-			      lt_dlerror(), 0, 0);
+			      lt_dlerror());
 	entry = (wfs_model_entry_fn)(uintptr_t)lt_dlsym(pl->handle, WFS_MODEL_ENTRY);
 	if (!entry)
 		return refuse(pl, e, "no symbol '%s': not a wfiscene model plugin",
-			      WFS_MODEL_ENTRY, 0, 0);
+			      WFS_MODEL_ENTRY);
 	if (!(m = entry(WFS_ABI_VERSION)))
-		return refuse(pl, e, "%sthe plugin declined this host's ABI version %ld",
-			      "", WFS_ABI_VERSION, 0);
+		return refuse(pl, e, "the plugin declined this host's ABI version %d",
+			      WFS_ABI_VERSION);
 	if (m->abi != WFS_ABI_VERSION)
-		return refuse(pl, e, "%splugin ABI version %ld, this wfiscene speaks "
-			      "version %ld: rebuild the plugin", "", (long)m->abi,
+		return refuse(pl, e, "plugin ABI version %ld, this wfiscene speaks "
+			      "version %d: rebuild the plugin", (long)m->abi,
 			      WFS_ABI_VERSION);
 	if (m->size < need)
-		return refuse(pl, e, "%sdescriptor of %ld bytes is too small (at least "
-			      "%ld): built against another model.h?", "", (long)m->size,
-			      (long)need);
+		return refuse(pl, e, "descriptor of %ld bytes is too small (at least "
+			      "%zu): built against another model.h?", (long)m->size, need);
 	if (!m->name || strcmp(m->name, name))
 		return refuse(pl, e, "descriptor names the model '%s', not the file's name",
-			      m->name ? m->name : "(null)", 0, 0);
+			      m->name ? m->name : "(null)");
 	if (!m->footprint || !m->render || (m->ncolumns > 0 && !m->columns) ||
 	    m->ncolumns < 0)
-		return refuse(pl, e, "%sdescriptor lacks footprint(), render() or its "
-			      "columns", "", 0, 0);
+		return refuse(pl, e, "descriptor lacks footprint(), render() or its columns");
 	if (m->ncolumns > PLUGIN_COLUMNS_MAX)
-		return refuse(pl, e, "%sdescriptor lists %ld columns; a model reads at most %ld",
-			      "", m->ncolumns, PLUGIN_COLUMNS_MAX);
+		return refuse(pl, e, "descriptor lists %d columns; a model reads at most %d",
+			      m->ncolumns, PLUGIN_COLUMNS_MAX);
 	for (int c = 0; c < m->ncolumns; c++)
 		if (!m->columns[c].name || !*m->columns[c].name)
-			return refuse(pl, e, "%scolumn %ld of the descriptor has no name", "",
-				      c + 1, 0);
+			return refuse(pl, e, "column %d of the descriptor has no name", c + 1);
 	pl->m = m;
 	if (m->init && m->init(ps->host, &pl->state) < 0) {
 		err_prefix(e, "model '%s' (%s): set-up failed", name, pl->path);

@@ -121,7 +121,10 @@ wfs_install() {
 		plugindir.stamp; do
 		[ ! -e "$BUILD/$_f" ] || cp -pR "$BUILD/$_f" "$_copy/" || return 1
 	done
-	case $BUILD in */build-san) set -- SANITIZE=1 "$@" ;; esac
+	case $BUILD in
+	*/build-san) set -- SANITIZE=1 "$@" ;;
+	*/build-tsan) set -- SANITIZE=thread "$@" ;;
+	esac
 	make -s -C "$TOP" B="$_copy" PREFIX="$_prefix" "$@" install
 }
 

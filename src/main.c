@@ -1,9 +1,9 @@
 /* main.c - the wfiscene command line: options, exit statuses, signals. */
 #include <errno.h>
-#include <getopt.h>
-#include <limits.h>
 #include <math.h>
 #include <signal.h>
+#include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,10 +16,134 @@
 #include "fitsout.h"
 #include "instrument.h"
 #include "noise.h"
+#include "options.h"
 #include "pool.h"
 #include "scene.h"
 
-static const char usage_text[] =
+#define STR_(x) #x
+#define STR(x) STR_(x)
+#define MAX_SETTINGS 64
+
+/* What the scene command's options fill in. */
+struct scene_cmd {
+	struct scene_opts o;
+	/* "key=value" for the models, from --set and its shortcuts, in the
+	 * order given; NULL-ended.  The strings the shortcuts allocate live as
+	 * long as the program (the struct is static, so LeakSanitizer sees
+	 * them reachable). */
+	const char *settings[MAX_SETTINGS + 1];
+	int nset;
+};
+
+#define OFF(f) offsetof(struct scene_cmd, f)
+
+static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
+	set_model_int, set_model_word, set_flux_unit, set_psf, set_background, set_noise,
+	set_seed, set_version;
+
+static const char *const refs[] = { "wfi01", "boresight", NULL };
+static const char *const bunits[] = { "counts/s", "counts", NULL };
+static const char *const units[] = { "counts", "abmag", "jy", NULL };
+static const char *const zps[] = { "rti", "stips", NULL };
+static const char *const methods[] = { "quick", "precise", NULL };
+static const char *const meanings[] = { "total", "ie", NULL };
+static const char *const yesno[] = { "yes", "no", NULL };
+static const char *const compressions[] = { "none", "rice", "gzip", NULL };
+
+static const struct opt scene_options[] = {
+	OPT_SECTION("Scene:"),
+	{ OPT("output", 'o', "FILE", NULL, "output FITS ('-' stdout; '%d' in FILE: one per SCA)",
+	  opt_string, OFF(o.output)) },
+	{ OPT("filter", 0, "F", NULL, "F062 F087 F106 F129 F158 F184 F213 F146 (required)",
+	  set_filter, OFF(o.filter)) },
+	{ OPT("sca", 0, "LIST", "1", "SCAs: 1, 1-18, 2,5,9, WFI05", set_sca, OFF(o.sca_mask)) },
+	{ OPT("ra", 0, "DEG", "0", "right ascension of the pointing", opt_double, OFF(o.ra)),
+	  .lo = -360, .hi = 720 },
+	{ OPT("dec", 0, "DEG", "0", "declination of the pointing", opt_double, OFF(o.dec)),
+	  .lo = -90, .hi = 90 },
+	{ OPT("pa", 0, "DEG", "0", "position angle of the detectors' +y axis", opt_double,
+	  OFF(o.pa)), .lo = -720, .hi = 720 },
+	{ OPT("pointing-ref", 0, "REF", "wfi01", "wfi01 (ra/dec is WFI01's centre) or boresight",
+	  opt_choice, OFF(o.boresight)), .words = refs },
+	{ OPT("exptime", 0, "S", "1", "exposure time in seconds", opt_double, OFF(o.exptime)),
+	  .lo = 1e-9, .hi = 1e12 },
+	{ OPT("bunit", 0, "UNIT", "counts/s", "counts/s or counts", opt_choice,
+	  OFF(o.bunit_counts)), .words = bunits },
+	{ OPT("placed", 0, "FILE", NULL, "write the sources placed on each SCA (CSV)",
+	  opt_string, OFF(o.placed)) },
+	{ OPT("report", 0, "FILE", NULL, "write a JSON report: timings, counts, flux, errors",
+	  opt_string, OFF(o.report)) },
+	{ OPT("pointings", 0, "FILE", NULL, "several exposures (ra dec pa [name [seed]] a line); "
+	  "-o, --placed and --report then need a %s for the name", opt_string,
+	  OFF(o.pointings)) },
+	{ OPT("compress", 0, "C", "none", "none, rice or gzip tile compression",
+	  opt_choice_word, OFF(o.compress)), .words = compressions },
+	{ OPT("rows", 0, "A-B", NULL, "draw and write only rows A to B of each SCA (a part "
+	  "for wfiscene merge)", set_rows, OFF(o.row_first)) },
+	OPT_SECTION("Sources:"),
+	{ OPT("flux-unit", 0, "U", "counts", "counts, abmag or jy: unit of 'flux' columns",
+	  set_flux_unit, OFF(o.flux_unit)), .words = units },
+	{ OPT("zeropoints", 0, "Z", "rti", "rti (per-SCA, 2024-03-01) or stips", opt_choice,
+	  OFF(o.zp_stips)), .words = zps },
+	{ OPT("psf", 0, "P", "builtin", "builtin or an STPSF gridded PSF file", set_psf,
+	  OFF(o.psf)) },
+	{ OPT("psf-cache", 0, "DIR", NULL, "where built PSF grids are kept", opt_string,
+	  OFF(o.psf_cache)) },
+	{ OPT("bright-limit", 0, "M", "14", "AB mag at or below which the 88-pixel box is used",
+	  opt_double, OFF(o.bright_limit)), .lo = -50, .hi = 100 },
+	{ OPT("xbright-limit", 0, "M", "3", "AB mag at or below which the 176-pixel box is used",
+	  opt_double, OFF(o.xbright_limit)), .lo = -50, .hi = 100 },
+	{ OPT("sersic", 0, "METHOD", "quick", "quick or precise for type 'sersic'",
+	  opt_choice_word, OFF(o.sersic)), .words = methods },
+	{ OPT("sersic-flux", 0, "MEANING", "total, or the catalog's",
+	  "total or ie: what a Sersic row's flux is",
+	  opt_choice_word, OFF(o.sersic_flux)), .words = meanings, .flags = OPT_SHOW_DEFAULT },
+	{ OPT("sersic-trunc", 0, "F", "1e-3 quick, 1e-4 precise",
+	  "light allowed beyond a galaxy's cut", set_model_number, 0), .lo = 1e-12, .hi = 0.5,
+	  .flags = OPT_SHOW_DEFAULT },
+	{ OPT("sersic-tol", 0, "T", "1e-5", "precise: relative tolerance per pixel",
+	  set_model_number, 0), .lo = 1e-12, .hi = 0.1, .flags = OPT_SHOW_DEFAULT },
+	{ OPT("sersic-core", 0, "K", "1", "half-width of the finely drawn galaxy core",
+	  set_model_int, 0), .lo = 0, .hi = 16, .flags = OPT_SHOW_DEFAULT },
+	{ OPT("sersic-convolve", 0, "Y", "yes", "yes or no: convolve galaxies with the PSF",
+	  set_model_word, 0), .words = yesno, .flags = OPT_SHOW_DEFAULT },
+	{ OPT("plugin-path", 0, "DIRS", NULL, "where to look for source-model plugins first",
+	  opt_string, OFF(o.plugin_path)) },
+	{ OPT("set", 0, "KEY=VALUE", NULL, "a setting for the source models (repeatable)",
+	  set_setting, 0) },
+	OPT_SECTION("Noise:"),
+	{ OPT("background", 0, "B", "none", "none, avg (STIPS paper Table 1) or counts/s/px",
+	  set_background, OFF(o.background)), .lo = 0, .hi = 1e12 },
+	{ OPT("noise", 0, "LIST", "none", "none, all, or poisson,readnoise,dark,flat,cosmic",
+	  set_noise, OFF(o.noise)) },
+	{ OPT("readnoise", 0, "E", STR(NOISE_READNOISE), "read noise in e-", opt_double,
+	  OFF(o.readnoise)), .lo = 0, .hi = 1e6 },
+	{ OPT("dark-current", 0, "R", STR(NOISE_DARK_CURRENT), "dark current in e-/s/pixel",
+	  opt_double, OFF(o.dark_current)), .lo = 0, .hi = 1e6 },
+	{ OPT("cosmic-rate", 0, "R", STR(NOISE_COSMIC_RATE), "hits/cm^2/s per population",
+	  opt_double, OFF(o.cosmic_rate)), .lo = 0, .hi = 1e6 },
+	{ OPT("cosmic-residual", 0, "F", STR(NOISE_COSMIC_RESIDUAL), "fraction of each hit kept",
+	  opt_double, OFF(o.cosmic_residual)), .lo = 0, .hi = 1 },
+	{ OPT("seed", 0, "N", "1234", "random seed", set_seed, OFF(o.seed)) },
+	OPT_SECTION("Running:"),
+	{ OPT("threads", 0, "N", "all cores", "worker threads", opt_int, OFF(o.threads)),
+	  .lo = 0, .hi = 1024, .flags = OPT_SHOW_DEFAULT },
+	{ OPT("tile", 0, "N", "256", "tile side in pixels", opt_int, OFF(o.tile)),
+	  .lo = 16, .hi = WFS_NPIX },
+	{ OPT("chunk", 0, "N", "65536", "catalog rows per chunk", opt_size, OFF(o.chunk)),
+	  .lo = 1, .hi = 1 << 24 },
+	{ OPT("quiet", 'q', NULL, NULL, "no messages but errors", opt_store_lo, OFF(o.verbose)),
+	  .lo = -1 },
+	{ OPT("verbose", 'v', NULL, NULL, "explain what happens (repeat for more)", opt_count,
+	  OFF(o.verbose)) },
+	{ OPT("help", 'h', NULL, NULL, "this text", opt_show_help, 0) },
+	{ OPT("version", 0, NULL, NULL, "print the version", set_version, 0) },
+	OPT_END
+};
+
+static const struct opt_cmd scene_cmd_line = {
+	.prog = "wfiscene",
+	.usage =
 "usage: wfiscene [options] [catalog ...]      simulate a Roman WFI exposure\n"
 "       wfiscene psf --filter F --sca LIST -o FILE   write a PSF grid\n"
 "       wfiscene preview IN.fits -o OUT.png          make a PNG preview\n"
@@ -27,167 +151,164 @@ static const char usage_text[] =
 "\n"
 "Reads source catalogs (CSV, whitespace, IPAC, ECSV or FITS tables, plain,\n"
 "gzip or zstd; '-' or none for stdin) and writes one FITS image per SCA.\n"
-"\n"
-"Scene:\n"
-"  -o FILE               output FITS ('-' stdout; '%d' in FILE: one per SCA)\n"
-"  --filter F            F062 F087 F106 F129 F158 F184 F213 F146 (required)\n"
-"  --sca LIST            SCAs: 1, 1-18, 2,5,9, WFI05 (default 1)\n"
-"  --ra DEG --dec DEG    pointing (default 0 0)\n"
-"  --pa DEG              position angle of the detectors' +y axis (default 0)\n"
-"  --pointing-ref REF    wfi01 (default: ra/dec is WFI01's centre) or boresight\n"
-"  --exptime S           exposure time in seconds (default 1)\n"
-"  --bunit UNIT          counts/s (default) or counts\n"
-"  --placed FILE         write the sources placed on each SCA (CSV)\n"
-"  --report FILE         write a JSON report: timings, counts, flux, errors\n"
-"  --pointings FILE      several exposures (ra dec pa [name [seed]] a line);\n"
-"                        -o, --placed and --report then need a %s for the name\n"
-"  --compress C          none (default), rice or gzip tile compression\n"
-"  --rows A-B            draw and write only rows A to B of each SCA (a part\n"
-"                        for wfiscene merge)\n"
-"Sources:\n"
-"  --flux-unit U         counts (default), abmag or jy: unit of 'flux' columns\n"
-"  --zeropoints Z        rti (per-SCA, 2024-03-01; default) or stips\n"
-"  --psf P               builtin (default) or an STPSF gridded PSF file\n"
-"  --psf-cache DIR       where built PSF grids are kept\n"
-"  --bright-limit M      AB mag at or below which the 88-pixel box is used (14)\n"
-"  --xbright-limit M     AB mag at or below which the 176-pixel box is used (3)\n"
-"  --sersic METHOD       quick (default) or precise for type 'sersic'\n"
-"  --sersic-flux MEANING total (default) or ie: what a Sersic row's flux is\n"
-"  --sersic-trunc F      light allowed beyond a galaxy's cut (1e-3 quick, 1e-4 precise)\n"
-"  --sersic-tol T        precise: relative tolerance per pixel (default 1e-5)\n"
-"  --sersic-core K       half-width of the finely drawn galaxy core (default 1)\n"
-"  --sersic-convolve Y   yes (default) or no: convolve galaxies with the PSF\n"
-"  --plugin-path DIRS    where to look for source-model plugins first\n"
-"  --set KEY=VALUE       a setting for the source models (repeatable)\n"
-"Noise:\n"
-"  --background B        none (default), avg (STIPS paper Table 1) or counts/s/px\n"
-"  --noise LIST          none (default), all, or poisson,readnoise,dark,flat,cosmic\n"
-"  --readnoise E         read noise in e- (default 12)\n"
-"  --dark-current R      dark current in e-/s/pixel (default 0.028)\n"
-"  --cosmic-rate R       hits/cm^2/s per population (default 5)\n"
-"  --cosmic-residual F   fraction of each hit kept (default 0.01)\n"
-"  --seed N              random seed (default 1234)\n"
-"Running:\n"
-"  --threads N           worker threads (default: all cores)\n"
-"  --tile N              tile side in pixels (default 256)\n"
-"  --chunk N             catalog rows per chunk (default 65536)\n"
-"  -q, --quiet           no messages but errors\n"
-"  -v, --verbose         explain what happens (repeat for more)\n"
-"  -h, --help            this text\n"
-"  --version             print the version\n"
+"\n",
+	.epilog =
 "\n"
 "Exit status: 0 ok, 1 usage or bad input, 2 system or I/O error, 3 model plugin\n"
-"error, 4 interrupted.  See wfiscene(1), wfiscene-catalog(5), wfiscene-model(7).\n";
-
-enum {
-	OPT_FILTER = 256, OPT_SCA, OPT_RA, OPT_DEC, OPT_PA, OPT_POINTREF, OPT_EXPTIME,
-	OPT_BUNIT, OPT_PLACED, OPT_COMPRESS, OPT_FLUXUNIT, OPT_ZP, OPT_PSF, OPT_PSFCACHE,
-	OPT_BRIGHT, OPT_XBRIGHT, OPT_SERSIC, OPT_SERSICFLUX, OPT_PLUGINPATH, OPT_BKG,
-	OPT_NOISE, OPT_READNOISE, OPT_DARK, OPT_CRRATE, OPT_CRRES, OPT_SEED, OPT_THREADS,
-	OPT_TILE, OPT_CHUNK, OPT_VERSION, OPT_REPORT, OPT_SET, OPT_POINTINGS,
-	OPT_SERSICTRUNC, OPT_SERSICTOL, OPT_SERSICCORE, OPT_SERSICCONV, OPT_ROWS,
+"error, 4 interrupted.  See wfiscene(1), wfiscene-catalog(5), wfiscene-model(7).\n",
+	.opts = scene_options,
 };
 
-static const struct option long_options[] = {
-	{ "output", required_argument, NULL, 'o' },
-	{ "filter", required_argument, NULL, OPT_FILTER },
-	{ "sca", required_argument, NULL, OPT_SCA },
-	{ "ra", required_argument, NULL, OPT_RA },
-	{ "dec", required_argument, NULL, OPT_DEC },
-	{ "pa", required_argument, NULL, OPT_PA },
-	{ "pointing-ref", required_argument, NULL, OPT_POINTREF },
-	{ "exptime", required_argument, NULL, OPT_EXPTIME },
-	{ "bunit", required_argument, NULL, OPT_BUNIT },
-	{ "placed", required_argument, NULL, OPT_PLACED },
-	{ "report", required_argument, NULL, OPT_REPORT },
-	{ "set", required_argument, NULL, OPT_SET },
-	{ "pointings", required_argument, NULL, OPT_POINTINGS },
-	{ "compress", required_argument, NULL, OPT_COMPRESS },
-	{ "rows", required_argument, NULL, OPT_ROWS },
-	{ "flux-unit", required_argument, NULL, OPT_FLUXUNIT },
-	{ "zeropoints", required_argument, NULL, OPT_ZP },
-	{ "psf", required_argument, NULL, OPT_PSF },
-	{ "psf-cache", required_argument, NULL, OPT_PSFCACHE },
-	{ "bright-limit", required_argument, NULL, OPT_BRIGHT },
-	{ "xbright-limit", required_argument, NULL, OPT_XBRIGHT },
-	{ "sersic", required_argument, NULL, OPT_SERSIC },
-	{ "sersic-flux", required_argument, NULL, OPT_SERSICFLUX },
-	{ "sersic-trunc", required_argument, NULL, OPT_SERSICTRUNC },
-	{ "sersic-tol", required_argument, NULL, OPT_SERSICTOL },
-	{ "sersic-core", required_argument, NULL, OPT_SERSICCORE },
-	{ "sersic-convolve", required_argument, NULL, OPT_SERSICCONV },
-	{ "plugin-path", required_argument, NULL, OPT_PLUGINPATH },
-	{ "background", required_argument, NULL, OPT_BKG },
-	{ "noise", required_argument, NULL, OPT_NOISE },
-	{ "readnoise", required_argument, NULL, OPT_READNOISE },
-	{ "dark-current", required_argument, NULL, OPT_DARK },
-	{ "cosmic-rate", required_argument, NULL, OPT_CRRATE },
-	{ "cosmic-residual", required_argument, NULL, OPT_CRRES },
-	{ "seed", required_argument, NULL, OPT_SEED },
-	{ "threads", required_argument, NULL, OPT_THREADS },
-	{ "tile", required_argument, NULL, OPT_TILE },
-	{ "chunk", required_argument, NULL, OPT_CHUNK },
-	{ "quiet", no_argument, NULL, 'q' },
-	{ "verbose", no_argument, NULL, 'v' },
-	{ "help", no_argument, NULL, 'h' },
-	{ "version", no_argument, NULL, OPT_VERSION },
-	{ NULL, 0, NULL, 0 },
-};
-
-static const char *option_name(int c)
+static int set_filter(const struct opt_arg *a, struct err *e)
 {
-	for (const struct option *o = long_options; o->name; o++)
-		if (o->val == c)
-			return o->name;
-	return "?";
+	if ((*(int *)a->field = filter_lookup(a->value)) < 0)
+		return err_set(e, EXIT_INPUT, "--filter: unknown filter '%s': use F062, "
+			       "F087, F106, F129, F158, F184, F213 or F146", a->value);
+	return 0;
 }
 
-/* A finite number in [lo, hi] for option c. */
-static int number(int c, const char *s, double lo, double hi, double *out, struct err *e)
+static int set_sca(const struct opt_arg *a, struct err *e)
 {
+	return sca_parse_list(a->value, a->field, e);
+}
+
+/* --rows A-B: FITS rows A to B (1-based, inclusive) of an SCA. */
+static int set_rows(const struct opt_arg *a, struct err *e)
+{
+	struct scene_opts *o = &((struct scene_cmd *)a->base)->o;
+	const char *s = a->value, *p;
 	char *end;
+	long lo, hi;
+
+	errno = 0;
+	lo = strtol(s, &end, 10);
+	if (end == s || *end != '-' || errno)
+		goto bad;
+	p = end + 1;
+	hi = strtol(p, &end, 10);
+	if (end == p || *end || errno)
+		goto bad;
+	if (lo < 1 || hi > WFS_NPIX || lo > hi)
+		return err_set(e, EXIT_INPUT, "--rows: %ld-%ld: want 1 <= A <= B <= %d",
+			       lo, hi, WFS_NPIX);
+	o->row_first = (int)lo;
+	o->row_last = (int)hi;
+	return 0;
+bad:
+	return err_set(e, EXIT_INPUT, "--rows: want A-B, two row numbers from 1 to %d, "
+		       "got '%s'", WFS_NPIX, s);
+}
+
+static int set_setting(const struct opt_arg *a, struct err *e)
+{
+	struct scene_cmd *c = a->base;
+	const char *eq = strchr(a->value, '=');
+
+	if (!eq || eq == a->value || c->nset == MAX_SETTINGS)
+		return err_set(e, EXIT_INPUT, "--set: expected KEY=VALUE (at most %d), "
+			       "got '%s'", MAX_SETTINGS, a->value);
+	c->settings[c->nset++] = a->value;
+	return 0;
+}
+
+/* Options that are shortcuts for --set NAME=VALUE: once the value is
+ * checked, it is stored as a setting under the option's name. */
+static int add_setting(const struct opt_arg *a, const char *value, struct err *e)
+{
+	struct scene_cmd *c = a->base;
+	size_t len = strlen(a->opt->name) + strlen(value) + 2;
+	char *kv;
+
+	if (c->nset == MAX_SETTINGS)
+		return err_set(e, EXIT_INPUT, "--%s: too many settings (at most %d)",
+			       a->opt->name, MAX_SETTINGS);
+	if (!(kv = malloc(len)))
+		return err_sys(e, "--%s", a->opt->name);
+	snprintf(kv, len, "%s=%s", a->opt->name, value);
+	c->settings[c->nset++] = kv;
+	return 0;
+}
+
+static int set_model_number(const struct opt_arg *a, struct err *e)
+{
 	double v;
 
-	errno = 0;
-	v = strtod(s, &end);
-	if (end == s || *end || errno == ERANGE || !isfinite(v))
-		return err_set(e, EXIT_INPUT, "--%s: not a number: '%s'", option_name(c), s);
-	if (v < lo || v > hi)
-		return err_set(e, EXIT_INPUT, "--%s: %s is out of range [%g, %g]",
-			       option_name(c), s, lo, hi);
-	*out = v;
-	return 0;
+	if (opt_parse_double(a, &v, e) < 0)
+		return -1;
+	return add_setting(a, a->value, e);
 }
 
-static int integer(int c, const char *s, long long lo, long long hi, long long *out,
-		   struct err *e)
+static int set_model_int(const struct opt_arg *a, struct err *e)
 {
-	char *end;
 	long long v;
 
-	errno = 0;
-	v = strtoll(s, &end, 10);
-	if (end == s || *end || errno == ERANGE)
-		return err_set(e, EXIT_INPUT, "--%s: not an integer: '%s'", option_name(c), s);
-	if (v < lo || v > hi)
-		return err_set(e, EXIT_INPUT, "--%s: %s is out of range [%lld, %lld]",
-			       option_name(c), s, lo, hi);
-	*out = v;
+	if (opt_parse_ll(a, &v, e) < 0)
+		return -1;
+	return add_setting(a, a->value, e);
+}
+
+/* The table's spelling of the word is stored ("YES" as "yes"). */
+static int set_model_word(const struct opt_arg *a, struct err *e)
+{
+	int k = opt_parse_choice(a, e);
+
+	if (k < 0)
+		return -1;
+	return add_setting(a, a->opt->words[k], e);
+}
+
+static int set_flux_unit(const struct opt_arg *a, struct err *e)
+{
+	static const int unit[] = { UNIT_COUNTS, UNIT_ABMAG, UNIT_JY };
+	int k = opt_parse_choice(a, e);
+
+	if (k < 0)
+		return -1;
+	*(int *)a->field = unit[k];
 	return 0;
 }
 
-/* One of the words in choices (NULL-terminated), case-insensitive. */
-static int choice(int c, const char *s, const char *const *choices, struct err *e)
+static int set_psf(const struct opt_arg *a, struct err *e)
 {
-	char list[256] = "";
+	*(const char **)a->field = strcasecmp(a->value, "builtin") ? a->value : "builtin";
+	return 0;
+}
 
-	for (int i = 0; choices[i]; i++)
-		if (!strcasecmp(s, choices[i]))
-			return i;
-	for (int i = 0; choices[i]; i++)
-		snprintf(list + strlen(list), sizeof(list) - strlen(list), "%s%s",
-			 i ? ", " : "", choices[i]);
-	return err_set(e, EXIT_INPUT, "--%s: '%s' is not one of %s", option_name(c), s, list);
+static int set_background(const struct opt_arg *a, struct err *e)
+{
+	struct scene_opts *o = &((struct scene_cmd *)a->base)->o;
+
+	o->background_arg = a->value;
+	if (!strcasecmp(a->value, "none"))
+		o->background = 0;
+	else if (!strcasecmp(a->value, "avg"))
+		o->background = NAN;    /* the filter's, once known */
+	else
+		return opt_parse_double(a, &o->background, e);
+	return 0;
+}
+
+static int set_noise(const struct opt_arg *a, struct err *e)
+{
+	return noise_parse(a->value, a->field, e);
+}
+
+static int set_seed(const struct opt_arg *a, struct err *e)
+{
+	char *end;
+
+	errno = 0;
+	*(uint64_t *)a->field = strtoull(a->value, &end, 10);
+	if (end == a->value || *end || errno || a->value[0] == '-')
+		return err_set(e, EXIT_INPUT, "--seed: not an integer from 0 to "
+			       "18446744073709551615: '%s'", a->value);
+	return 0;
+}
+
+static int set_version(const struct opt_arg *a, struct err *e)
+{
+	printf("wfiscene %s\n", WFS_VERSION);
+	return OPT_EXIT;
 }
 
 /* An output name may hold one %d (any width flags), for one file per SCA,
@@ -234,32 +355,6 @@ static int check_name(const char *what, const char *s, int pointings, int per_sc
 	return 0;
 }
 
-/* --rows A-B: FITS rows A to B (1-based, inclusive) of an SCA. */
-static int rows_parse(const char *s, int *first, int *last, struct err *e)
-{
-	const char *p;
-	char *end;
-	long a, b;
-
-	errno = 0;
-	a = strtol(s, &end, 10);
-	if (end == s || *end != '-' || errno)
-		goto bad;
-	p = end + 1;
-	b = strtol(p, &end, 10);
-	if (end == p || *end || errno)
-		goto bad;
-	if (a < 1 || b > WFS_NPIX || a > b)
-		return err_set(e, EXIT_INPUT, "--rows: %ld-%ld: want 1 <= A <= B <= %d",
-			       a, b, WFS_NPIX);
-	*first = (int)a;
-	*last = (int)b;
-	return 0;
-bad:
-	return err_set(e, EXIT_INPUT, "--rows: want A-B, two row numbers from 1 to %d, "
-		       "got '%s'", WFS_NPIX, s);
-}
-
 static void on_fatal_signal(int sig)
 {
 	static const char msg[] = "wfiscene: interrupted; partial output removed\n";
@@ -286,56 +381,50 @@ static void set_signals(void)
 	sigaction(SIGPIPE, &sa, NULL);
 }
 
-/* Options that are shortcuts for --set: store "key=value" in settings,
- * after the caller has checked the value. */
-static int add_setting(const char **settings, int *nset, int max, const char *key,
-		       const char *value, struct err *e)
-{
-	size_t len = strlen(key) + strlen(value) + 2;
-	char *kv;
-
-	if (*nset == max)
-		return err_set(e, EXIT_INPUT, "--%s: too many settings (at most %d)", key, max);
-	if (!(kv = malloc(len)))
-		return err_sys(e, "--%s", key);
-	snprintf(kv, len, "%s=%s", key, value);
-	settings[(*nset)++] = kv;
-	return 0;
-}
-
 static int fail(const struct err *e)
 {
-	fprintf(stderr, "wfiscene: %s\n", e->msg);
-	return e->code ? e->code : EXIT_SYSTEM;
+	return opt_fail(&scene_cmd_line, OPT_PARSE_FAIL, e);
+}
+
+/* What the options allow only together. */
+static int check_options(struct scene_opts *o, struct err *e)
+{
+	int pointings = o->pointings != NULL;
+
+	if (o->filter < 0)
+		return err_set(e, EXIT_INPUT, "--filter is required (F062, F087, F106, F129, "
+			       "F158, F184, F213 or F146)");
+	if (isnan(o->background))
+		o->background = filter_get(o->filter)->bkg_avg;
+	if (!o->output) {
+		if (isatty(1))
+			return err_set(e, EXIT_INPUT, "no output: give -o FILE (or -o - for "
+				       "stdout)");
+		o->output = "-";
+	}
+	if (check_name("-o", o->output, pointings, 1, e) < 0 ||
+	    (o->placed && check_name("--placed", o->placed, pointings, 0, e) < 0) ||
+	    (o->report && check_name("--report", o->report, pointings, 0, e) < 0))
+		return -1;
+	if (strcmp(o->compress, "none") && !strcmp(o->output, "-"))
+		return err_set(e, EXIT_INPUT, "--compress %s: stdout cannot be tile-compressed "
+			       "(it is written in one pass); write a file instead", o->compress);
+	if (o->row_first && strcmp(o->compress, "none"))
+		return err_set(e, EXIT_INPUT, "--rows with --compress %s: the parts of an image "
+			       "are joined uncompressed (compress the merged file, e.g. with "
+			       "fpack(1))", o->compress);
+	if (o->xbright_limit > o->bright_limit)
+		return err_set(e, EXIT_INPUT, "--xbright-limit %g is fainter than "
+			       "--bright-limit %g", o->xbright_limit, o->bright_limit);
+	return 0;
 }
 
 int main(int argc, char **argv)
 {
-	static const char *const refs[] = { "wfi01", "boresight", NULL };
-	static const char *const bunits[] = { "counts/s", "counts", NULL };
-	static const char *const units[] = { "counts", "abmag", "jy", NULL };
-	static const char *const zps[] = { "rti", "stips", NULL };
-	static const char *const methods[] = { "quick", "precise", NULL };
-	static const char *const meanings[] = { "total", "ie", NULL };
-	static const char *const yesno[] = { "yes", "no", NULL };
-	static const char *const compressions[] = { "none", "rice", "gzip", NULL };
-	struct scene_opts o = {
-		.filter = -1, .sca_mask = 1, .exptime = 1, .psf = "builtin", .seed = 1234,
-		.readnoise = NOISE_READNOISE, .dark_current = NOISE_DARK_CURRENT,
-		.cosmic_rate = NOISE_COSMIC_RATE, .cosmic_residual = NOISE_COSMIC_RESIDUAL,
-		.sersic = "quick", .bright_limit = 14, .xbright_limit = 3, .tile = 256,
-		.chunk = 65536, .flux_unit = UNIT_COUNTS,
-	};
-	struct err e = { 0 };
+	static struct scene_cmd cmd = { .o = { .filter = -1 } };
 	static char *stdin_only[] = { "-", NULL };
-	enum { MAX_SETTINGS = 64 };
-	/* Static: the strings add_setting allocates live as long as the
-	 * program and stay reachable (LeakSanitizer, make check SANITIZE=1,
-	 * reported them as leaks when this array was on the stack). */
-	static const char *settings[MAX_SETTINGS + 1];
-	int nset = 0;
-	long long n;
-	int c, k;
+	struct err e = { 0 };
+	int first;
 
 	if (argc > 1 && !strcmp(argv[1], "psf"))
 		return psf_main(argc - 1, argv + 1);
@@ -345,243 +434,18 @@ int main(int argc, char **argv)
 		return merge_main(argc - 1, argv + 1);
 	if (instrument_init(&e) < 0)
 		return fail(&e);
-
-	while ((c = getopt_long(argc, argv, "o:qvh", long_options, NULL)) != -1) {
-		switch (c) {
-		case 'o':
-			o.output = optarg;
-			break;
-		case OPT_FILTER:
-			if ((o.filter = filter_lookup(optarg)) < 0) {
-				err_set(&e, EXIT_INPUT, "--filter: unknown filter '%s': use F062, "
-					"F087, F106, F129, F158, F184, F213 or F146", optarg);
-				return fail(&e);
-			}
-			break;
-		case OPT_SCA:
-			if (sca_parse_list(optarg, &o.sca_mask, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_RA:
-			if (number(c, optarg, -360, 720, &o.ra, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_DEC:
-			if (number(c, optarg, -90, 90, &o.dec, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_PA:
-			if (number(c, optarg, -720, 720, &o.pa, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_POINTREF:
-			if ((k = choice(c, optarg, refs, &e)) < 0)
-				return fail(&e);
-			o.boresight = k == 1;
-			break;
-		case OPT_EXPTIME:
-			if (number(c, optarg, 1e-9, 1e12, &o.exptime, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_BUNIT:
-			if ((k = choice(c, optarg, bunits, &e)) < 0)
-				return fail(&e);
-			o.bunit_counts = k == 1;
-			break;
-		case OPT_PLACED:
-			o.placed = optarg;
-			break;
-		case OPT_REPORT:
-			o.report = optarg;
-			break;
-		case OPT_POINTINGS:
-			o.pointings = optarg;
-			break;
-		case OPT_SET: {
-			const char *eq = strchr(optarg, '=');
-
-			if (!eq || eq == optarg || nset == MAX_SETTINGS) {
-				err_set(&e, EXIT_INPUT, "--set: expected KEY=VALUE (at most %d), "
-					"got '%s'", MAX_SETTINGS, optarg);
-				return fail(&e);
-			}
-			settings[nset++] = optarg;
-			break;
-		}
-		case OPT_COMPRESS:
-			if ((k = choice(c, optarg, compressions, &e)) < 0)
-				return fail(&e);
-			o.compress = compressions[k];
-			break;
-		case OPT_ROWS:
-			if (rows_parse(optarg, &o.row_first, &o.row_last, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_FLUXUNIT:
-			if ((k = choice(c, optarg, units, &e)) < 0)
-				return fail(&e);
-			o.flux_unit = k == 0 ? UNIT_COUNTS : k == 1 ? UNIT_ABMAG : UNIT_JY;
-			break;
-		case OPT_ZP:
-			if ((k = choice(c, optarg, zps, &e)) < 0)
-				return fail(&e);
-			o.zp_stips = k == 1;
-			break;
-		case OPT_PSF:
-			o.psf = strcasecmp(optarg, "builtin") ? optarg : "builtin";
-			break;
-		case OPT_PSFCACHE:
-			o.psf_cache = optarg;
-			break;
-		case OPT_BRIGHT:
-			if (number(c, optarg, -50, 100, &o.bright_limit, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_XBRIGHT:
-			if (number(c, optarg, -50, 100, &o.xbright_limit, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_SERSIC:
-			if ((k = choice(c, optarg, methods, &e)) < 0)
-				return fail(&e);
-			o.sersic = methods[k];
-			break;
-		case OPT_SERSICFLUX:
-			if ((k = choice(c, optarg, meanings, &e)) < 0)
-				return fail(&e);
-			o.sersic_flux = meanings[k];
-			break;
-		case OPT_SERSICTRUNC:
-		case OPT_SERSICTOL:
-		case OPT_SERSICCORE:
-		case OPT_SERSICCONV: {
-			double v;
-			long long n;
-
-			if ((c == OPT_SERSICTRUNC && number(c, optarg, 1e-12, 0.5, &v, &e) < 0) ||
-			    (c == OPT_SERSICTOL && number(c, optarg, 1e-12, 0.1, &v, &e) < 0) ||
-			    (c == OPT_SERSICCORE && integer(c, optarg, 0, 16, &n, &e) < 0) ||
-			    (c == OPT_SERSICCONV && (k = choice(c, optarg, yesno, &e)) < 0) ||
-			    add_setting(settings, &nset, MAX_SETTINGS, option_name(c),
-					c == OPT_SERSICCONV ? yesno[k] : optarg, &e) < 0)
-				return fail(&e);
-			break;
-		}
-		case OPT_PLUGINPATH:
-			o.plugin_path = optarg;
-			break;
-		case OPT_BKG:
-			o.background_arg = optarg;
-			if (!strcasecmp(optarg, "none"))
-				o.background = 0;
-			else if (!strcasecmp(optarg, "avg"))
-				o.background = NAN;     /* the filter's, once known */
-			else if (number(c, optarg, 0, 1e12, &o.background, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_NOISE:
-			if (noise_parse(optarg, &o.noise, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_READNOISE:
-			if (number(c, optarg, 0, 1e6, &o.readnoise, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_DARK:
-			if (number(c, optarg, 0, 1e6, &o.dark_current, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_CRRATE:
-			if (number(c, optarg, 0, 1e6, &o.cosmic_rate, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_CRRES:
-			if (number(c, optarg, 0, 1, &o.cosmic_residual, &e) < 0)
-				return fail(&e);
-			break;
-		case OPT_SEED: {
-			char *end;
-
-			errno = 0;
-			o.seed = strtoull(optarg, &end, 10);
-			if (end == optarg || *end || errno || optarg[0] == '-') {
-				err_set(&e, EXIT_INPUT, "--seed: not an integer from 0 to "
-					"18446744073709551615: '%s'", optarg);
-				return fail(&e);
-			}
-			break;
-		}
-		case OPT_THREADS:
-			if (integer(c, optarg, 0, 1024, &n, &e) < 0)
-				return fail(&e);
-			o.threads = (int)n;
-			break;
-		case OPT_TILE:
-			if (integer(c, optarg, 16, WFS_NPIX, &n, &e) < 0)
-				return fail(&e);
-			o.tile = (int)n;
-			break;
-		case OPT_CHUNK:
-			if (integer(c, optarg, 1, 1 << 24, &n, &e) < 0)
-				return fail(&e);
-			o.chunk = (size_t)n;
-			break;
-		case 'q':
-			o.verbose = -1;
-			break;
-		case 'v':
-			o.verbose = o.verbose < 0 ? 1 : o.verbose + 1;
-			break;
-		case 'h':
-			fputs(usage_text, stdout);
-			return EXIT_OK;
-		case OPT_VERSION:
-			printf("wfiscene %s\n", WFS_VERSION);
-			return EXIT_OK;
-		default:
-			fputs(usage_text, stderr);
-			return EXIT_INPUT;
-		}
-	}
-	if (o.filter < 0) {
-		err_set(&e, EXIT_INPUT, "--filter is required (F062, F087, F106, F129, "
-			"F158, F184, F213 or F146)");
+	first = opt_parse(&scene_cmd_line, argc, argv, &cmd, &e);
+	if (first == OPT_PARSE_DONE)
+		return EXIT_OK;
+	if (first < 0)
+		return opt_fail(&scene_cmd_line, first, &e);
+	if (check_options(&cmd.o, &e) < 0)
 		return fail(&e);
-	}
-	if (isnan(o.background))
-		o.background = filter_get(o.filter)->bkg_avg;
-	if (!o.output) {
-		if (isatty(1)) {
-			err_set(&e, EXIT_INPUT, "no output: give -o FILE (or -o - for stdout)");
-			return fail(&e);
-		}
-		o.output = "-";
-	}
-	if (check_name("-o", o.output, o.pointings != NULL, 1, &e) < 0 ||
-	    (o.placed && check_name("--placed", o.placed, o.pointings != NULL, 0, &e) < 0) ||
-	    (o.report && check_name("--report", o.report, o.pointings != NULL, 0, &e) < 0))
-		return fail(&e);
-	if (o.compress && strcmp(o.compress, "none") && !strcmp(o.output, "-")) {
-		err_set(&e, EXIT_INPUT, "--compress %s: stdout cannot be tile-compressed "
-			"(it is written in one pass); write a file instead", o.compress);
-		return fail(&e);
-	}
-	if (o.row_first && o.compress && strcmp(o.compress, "none")) {
-		err_set(&e, EXIT_INPUT, "--rows with --compress %s: the parts of an image "
-			"are joined uncompressed (compress the merged file, e.g. with "
-			"fpack(1))", o.compress);
-		return fail(&e);
-	}
-	if (o.xbright_limit > o.bright_limit) {
-		err_set(&e, EXIT_INPUT, "--xbright-limit %g is fainter than --bright-limit %g",
-			o.xbright_limit, o.bright_limit);
-		return fail(&e);
-	}
-	o.settings = settings;
+	cmd.o.settings = cmd.settings;
 	set_signals();
-	if (scene_run(&o, optind < argc ? argv + optind : stdin_only, &e) < 0)
+	if (scene_run(&cmd.o, first < argc ? argv + first : stdin_only, &e) < 0)
 		return fail(&e);
-	if (!strcmp(o.output, "-") && (fflush(stdout) != 0 || ferror(stdout))) {
+	if (!strcmp(cmd.o.output, "-") && (fflush(stdout) != 0 || ferror(stdout))) {
 		err_sys(&e, "writing stdout");
 		return fail(&e);
 	}

@@ -27,7 +27,6 @@
  */
 #include <errno.h>
 #include <fcntl.h>
-#include <getopt.h>
 #include <limits.h>
 #include <signal.h>
 #include <stdint.h>
@@ -41,6 +40,7 @@
 #include "commands.h"
 #include "err.h"
 #include "fitsout.h"
+#include "options.h"
 #include "tempfile.h"
 #include "instrument.h"
 
@@ -57,7 +57,26 @@
 /* Larger data than any file system holds is a corrupt header. */
 #define MERGE_MAX_DATA (1ull << 60)
 
-static const char merge_usage[] =
+/* What merge's options fill in. */
+struct merge_cmd {
+	const char *output;
+	int verbose;            /* -1 quiet, 0 normal, 1 verbose */
+};
+
+static const struct opt merge_options[] = {
+	{ OPT("output", 'o', "FILE", NULL, "output file ('-' for stdout)", opt_string,
+	  offsetof(struct merge_cmd, output)) },
+	{ OPT("quiet", 'q', NULL, NULL, "no messages but errors", opt_store_lo,
+	  offsetof(struct merge_cmd, verbose)), .lo = -1 },
+	{ OPT("verbose", 'v', NULL, NULL, "say where each SCA comes from", opt_count,
+	  offsetof(struct merge_cmd, verbose)) },
+	{ OPT("help", 'h', NULL, NULL, "this text", opt_show_help, 0) },
+	OPT_END
+};
+
+static const struct opt_cmd merge_cmd_line = {
+	.prog = "wfiscene merge",
+	.usage =
 "usage: wfiscene merge [-q] [-v] -o OUT.fits IN.fits ...\n"
 "\n"
 "Assemble one exposure from the files of runs split by SCA (--sca 1-9 and\n"
@@ -67,13 +86,12 @@ static const char merge_usage[] =
 "parts of an SCA joined in row order).  The inputs' primary headers must\n"
 "agree on every keyword but DATE, no SCA may appear twice, and the row\n"
 "parts of an SCA must cover its rows once each.\n"
+"\n",
+	.epilog =
 "\n"
-"  -o, --output FILE     output file ('-' for stdout)\n"
-"  -q, --quiet           no messages but errors\n"
-"  -v, --verbose         say where each SCA comes from\n"
-"  -h, --help            this text\n"
-"\n"
-"Exit status: 0 ok, 1 usage or bad input, 2 I/O error, 4 interrupted.\n";
+"Exit status: 0 ok, 1 usage or bad input, 2 I/O error, 4 interrupted.\n",
+	.opts = merge_options,
+};
 
 /* One image HDU of an input. */
 struct merge_hdu {
@@ -964,51 +982,21 @@ fail:
 
 int merge_main(int argc, char **argv)
 {
-	static const struct option opts[] = {
-		{ "output", required_argument, NULL, 'o' },
-		{ "quiet", no_argument, NULL, 'q' },
-		{ "verbose", no_argument, NULL, 'v' },
-		{ "help", no_argument, NULL, 'h' },
-		{ NULL, 0, NULL, 0 },
-	};
+	struct merge_cmd c = { 0 };
 	struct err e = { 0 };
 	struct merge m = { .e = &e };
-	const char *output = NULL;
+	const char *output;
 	sigset_t block;
-	int c, status;
+	int first, status;
 
-	/* getopt's own messages would say "merge:"; ours name the command. */
-	opterr = 0;
-	while ((c = getopt_long(argc, argv, ":o:qvh", opts, NULL)) != -1) {
-		switch (c) {
-		case 'o':
-			output = optarg;
-			break;
-		case 'q':
-			m.verbose = -1;
-			break;
-		case 'v':
-			m.verbose = 1;
-			break;
-		case 'h':
-			fputs(merge_usage, stdout);
-			return EXIT_OK;
-		case ':':
-			fprintf(stderr, "wfiscene merge: %s needs a value\n",
-				argv[optind - 1]);
-			return EXIT_INPUT;
-		default:
-			if (optopt)
-				fprintf(stderr, "wfiscene merge: unknown option "
-					"'-%c'\n", optopt);
-			else
-				fprintf(stderr, "wfiscene merge: unknown option "
-					"'%s'\n", argv[optind - 1]);
-			fputs(merge_usage, stderr);
-			return EXIT_INPUT;
-		}
-	}
-	if (optind == argc) {
+	first = opt_parse(&merge_cmd_line, argc, argv, &c, &e);
+	if (first == OPT_PARSE_DONE)
+		return EXIT_OK;
+	if (first < 0)
+		return opt_fail(&merge_cmd_line, first, &e);
+	m.verbose = c.verbose;
+	output = c.output;
+	if (first == argc) {
 		fprintf(stderr, "wfiscene merge: no input files: give the "
 			"files of one exposure to merge\n");
 		return EXIT_INPUT;
@@ -1040,13 +1028,13 @@ int merge_main(int argc, char **argv)
 	sigaddset(&block, SIGPIPE);
 	sigprocmask(SIG_BLOCK, &block, NULL);
 
-	m.nin = argc - optind;
+	m.nin = argc - first;
 	m.in = calloc((size_t)m.nin, sizeof(*m.in));
 	if (!m.in) {
 		err_sys(&e, "merge");
 	} else {
 		for (int i = 0; i < m.nin; i++) {
-			m.in[i].path = argv[optind + i];
+			m.in[i].path = argv[first + i];
 			m.in[i].fd = -1;
 		}
 		merge_run(&m, output);

@@ -51,6 +51,7 @@
 
 #include "commands.h"
 #include "err.h"
+#include "options.h"
 #include "tempfile.h"
 
 #ifndef WFS_VERSION
@@ -104,27 +105,6 @@ struct preview_levels {
 	double sky, sigma, white;
 	double lo, hi;              /* what the stretch maps to 0 and 1 */
 };
-
-static void preview_usage(FILE *to)
-{
-	fputs("usage: wfiscene preview IN.fits [-o OUT.png] [--sca N|all] [--width PX]\n"
-	      "                        [--stretch asinh|linear] [--scale Q] [--min V] [--max V] [-v]\n"
-	      "       wfiscene preview --rgb R.fits G.fits B.fits -o OUT.png [options]\n"
-	      "\n"
-	      "  -o, --output FILE  PNG to write ('-' for stdout); default IN with .png\n"
-	      "  --sca N|all        one detector (EXTNAME WFInn) in its pixel frame, or all\n"
-	      "                     image HDUs placed by their WCS, north up, east left\n"
-	      "                     (default: the only image, else all)\n"
-	      "  --width PX         output width (default 1024, at most the detector width\n"
-	      "                     for one SCA, at most 8192)\n"
-	      "  --stretch S        asinh (default) or linear\n"
-	      "  --scale Q          asinh softening Q (default 8; larger shows fainter light)\n"
-	      "  --min V, --max V   levels mapped to black and white, in image units\n"
-	      "                     (default: sky - noise, and the 99.5th percentile\n"
-	      "                     but at least sky + 30 noise)\n"
-	      "  --rgb R G B        colour composite of three filters (Lupton et al. 2004)\n"
-	      "  -v, --verbose      print the levels used\n", to);
-}
 
 static int preview_parse_double(const char *opt, const char *s, double *out,
 				 struct err *e)
@@ -200,113 +180,129 @@ static int preview_default_output(struct preview_opts *o, struct err *e)
 	return 0;
 }
 
-/* Accepts "--opt value" and "--opt=value".  Returns the value or NULL
- * (with an error) when it is missing; advances *i past it. */
-static const char *preview_value(int argc, char **argv, int *i,
-				 const char *name, struct err *e)
-{
-	const char *a = argv[*i];
-	size_t n = strlen(name);
+#define STR_(x) #x
+#define STR(x) STR_(x)
+#define OFF(f) offsetof(struct preview_opts, f)
 
-	if (!strncmp(a, name, n) && a[n] == '=')
-		return a + n + 1;
-	if (*i + 1 >= argc) {
-		err_set(e, EXIT_INPUT, "%s needs a value", name);
-		return NULL;
-	}
-	return argv[++*i];
+static opt_set_fn set_sca, set_width, set_stretch, set_scale, set_level, set_rgb;
+
+static const struct opt preview_options[] = {
+	{ OPT("output", 'o', "FILE", "IN with .png", "PNG to write ('-' for stdout)",
+	  opt_string, OFF(out)), .flags = OPT_SHOW_DEFAULT },
+	{ OPT("sca", 0, "N|all", "the only image, else all", "one detector (EXTNAME WFInn) "
+	  "in its pixel frame, or all image HDUs placed by their WCS, north up, east "
+	  "left", set_sca, OFF(sca)), .flags = OPT_SHOW_DEFAULT },
+	{ OPT("width", 0, "PX", STR(PREVIEW_WIDTH), "output width, at most the detector "
+	  "width for one SCA, at most " STR(PREVIEW_MAX_SIDE), set_width, OFF(width)),
+	  .lo = 16, .hi = PREVIEW_MAX_SIDE, .flags = OPT_SHOW_DEFAULT },
+	{ OPT("stretch", 0, "S", "asinh", "asinh or linear", set_stretch, OFF(stretch)) },
+	{ OPT("scale", 0, "Q", STR(PREVIEW_Q), "asinh softening Q (larger shows fainter "
+	  "light)", set_scale, OFF(q)) },
+	{ OPT("min", 0, "V", "sky - noise", "level mapped to black, in image units",
+	  set_level, OFF(vmin)), .flags = OPT_SHOW_DEFAULT },
+	{ OPT("max", 0, "V", "the 99.5th percentile but at least sky + 30 noise",
+	  "level mapped to white, in image units", set_level, OFF(vmax)),
+	  .flags = OPT_SHOW_DEFAULT },
+	{ OPT("rgb", 0, "R G B", NULL, "colour composite of three filters (Lupton et al. "
+	  "2004)", set_rgb, OFF(in)), .nargs = 3 },
+	{ OPT("verbose", 'v', NULL, NULL, "print the levels used", opt_count, OFF(verbose)) },
+	{ OPT("help", 'h', NULL, NULL, "this text", opt_show_help, 0) },
+	OPT_END
+};
+
+static const struct opt_cmd preview_cmd_line = {
+	.prog = "wfiscene: preview",
+	.usage =
+"usage: wfiscene preview IN.fits [-o OUT.png] [--sca N|all] [--width PX]\n"
+"                        [--stretch asinh|linear] [--scale Q] [--min V] [--max V] [-v]\n"
+"       wfiscene preview --rgb R.fits G.fits B.fits -o OUT.png [options]\n"
+"\n",
+	.opts = preview_options,
+};
+
+static int set_sca(const struct opt_arg *a, struct err *e)
+{
+	return preview_parse_sca(a->value, a->field, e);
 }
 
-static int preview_is_opt(const char *a, const char *name)
+static int set_width(const struct opt_arg *a, struct err *e)
 {
-	size_t n = strlen(name);
-
-	return !strncmp(a, name, n) && (a[n] == 0 || a[n] == '=');
+	return preview_parse_int("--width", a->value, (long)a->opt->lo, (long)a->opt->hi,
+				 a->field, e);
 }
 
-/* Returns 0, 1 for --help (done), or -1 with an error. */
+static int set_stretch(const struct opt_arg *a, struct err *e)
+{
+	if (!strcmp(a->value, "asinh"))
+		*(int *)a->field = PREVIEW_ASINH;
+	else if (!strcmp(a->value, "linear"))
+		*(int *)a->field = PREVIEW_LINEAR;
+	else
+		return err_set(e, EXIT_INPUT, "--stretch: expected asinh or linear: '%s'",
+			       a->value);
+	return 0;
+}
+
+static int set_scale(const struct opt_arg *a, struct err *e)
+{
+	double *q = a->field;
+
+	if (preview_parse_double("--scale", a->value, q, e) < 0)
+		return -1;
+	if (!(*q > 0) || *q > 1e6)
+		return err_set(e, EXIT_INPUT, "--scale: Q must be above 0 (and sane): '%s'",
+			       a->value);
+	return 0;
+}
+
+/* --min and --max: the level, and that it was given. */
+static int set_level(const struct opt_arg *a, struct err *e)
+{
+	struct preview_opts *o = a->base;
+	int is_min = a->field == &o->vmin;
+
+	if (preview_parse_double(is_min ? "--min" : "--max", a->value, a->field, e) < 0)
+		return -1;
+	*(is_min ? &o->have_min : &o->have_max) = 1;
+	return 0;
+}
+
+static int set_rgb(const struct opt_arg *a, struct err *e)
+{
+	struct preview_opts *o = a->base;
+
+	if (a->nvalues < 3)
+		return err_set(e, EXIT_INPUT, "--rgb needs three FITS files: red, green, blue");
+	for (int k = 0; k < 3; k++)
+		o->in[k] = a->values[k];
+	o->nin = 3;
+	return 0;
+}
+
+/* Returns 0, 1 for --help (done), or -1 with an error (and the usage
+ * already printed after an error of the command line itself). */
 static int preview_parse(int argc, char **argv, struct preview_opts *o,
 			 struct err *e)
 {
-	const char *v;
-	int i, only_files = 0;
+	int first;
 
 	memset(o, 0, sizeof(*o));
-	o->stretch = PREVIEW_ASINH;
-	o->q = PREVIEW_Q;
-	for (i = 1; i < argc; i++) {
-		const char *a = argv[i];
-
-		if (only_files || a[0] != '-' || !strcmp(a, "-")) {
-			if (o->nin)
-				return err_set(e, EXIT_INPUT,
-					       o->nin == 3 ? "--rgb takes exactly three files: '%s'"
-							   : "one input file only: '%s'", a);
-			o->in[o->nin++] = a;
-		} else if (!strcmp(a, "--")) {
-			only_files = 1;
-		} else if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
-			preview_usage(stdout);
-			return 1;
-		} else if (!strcmp(a, "-v") || !strcmp(a, "--verbose")) {
-			o->verbose++;
-		} else if (!strcmp(a, "-o") || preview_is_opt(a, "--output")) {
-			if (!(v = preview_value(argc, argv, &i, a[1] == 'o' ? "-o" : "--output", e)))
-				return -1;
-			o->out = v;
-		} else if (preview_is_opt(a, "--sca")) {
-			if (!(v = preview_value(argc, argv, &i, "--sca", e)) ||
-			    preview_parse_sca(v, &o->sca, e) < 0)
-				return -1;
-		} else if (preview_is_opt(a, "--width")) {
-			if (!(v = preview_value(argc, argv, &i, "--width", e)) ||
-			    preview_parse_int("--width", v, 16, PREVIEW_MAX_SIDE, &o->width, e) < 0)
-				return -1;
-		} else if (preview_is_opt(a, "--stretch")) {
-			if (!(v = preview_value(argc, argv, &i, "--stretch", e)))
-				return -1;
-			if (!strcmp(v, "asinh"))
-				o->stretch = PREVIEW_ASINH;
-			else if (!strcmp(v, "linear"))
-				o->stretch = PREVIEW_LINEAR;
-			else
-				return err_set(e, EXIT_INPUT,
-					       "--stretch: expected asinh or linear: '%s'", v);
-		} else if (preview_is_opt(a, "--scale")) {
-			if (!(v = preview_value(argc, argv, &i, "--scale", e)) ||
-			    preview_parse_double("--scale", v, &o->q, e) < 0)
-				return -1;
-			if (!(o->q > 0) || o->q > 1e6)
-				return err_set(e, EXIT_INPUT,
-					       "--scale: Q must be above 0 (and sane): '%s'", v);
-		} else if (preview_is_opt(a, "--min")) {
-			if (!(v = preview_value(argc, argv, &i, "--min", e)) ||
-			    preview_parse_double("--min", v, &o->vmin, e) < 0)
-				return -1;
-			o->have_min = 1;
-		} else if (preview_is_opt(a, "--max")) {
-			if (!(v = preview_value(argc, argv, &i, "--max", e)) ||
-			    preview_parse_double("--max", v, &o->vmax, e) < 0)
-				return -1;
-			o->have_max = 1;
-		} else if (!strcmp(a, "--rgb")) {
-			int k;
-
-			if (o->nin)
-				return err_set(e, EXIT_INPUT,
-					       "--rgb takes the three files itself; '%s' is extra",
-					       o->in[0]);
-			for (k = 0; k < 3; k++) {
-				if (i + 1 >= argc || (argv[i + 1][0] == '-' && argv[i + 1][1]))
-					return err_set(e, EXIT_INPUT,
-						       "--rgb needs three FITS files: red, green, blue");
-				o->in[k] = argv[++i];
-			}
-			o->nin = 3;
-		} else {
-			return err_set(e, EXIT_INPUT, "unknown option '%s' (see --help)", a);
-		}
+	first = opt_parse(&preview_cmd_line, argc, argv, o, e);
+	if (first == OPT_PARSE_DONE)
+		return 1;
+	if (first == OPT_PARSE_USAGE) {
+		opt_fail(&preview_cmd_line, first, e);
+		return -2;
 	}
+	if (first < 0)
+		return -1;
+	if (first < argc && o->nin == 3)
+		return err_set(e, EXIT_INPUT, "--rgb takes the three files itself; '%s' is "
+			       "extra", argv[first]);
+	if (first + 1 < argc)
+		return err_set(e, EXIT_INPUT, "one input file only: '%s'", argv[first + 1]);
+	if (first < argc)
+		o->in[o->nin++] = argv[first];
 	if (!o->nin)
 		return err_set(e, EXIT_INPUT, "no input FITS file (see --help)");
 	if (o->have_min && o->have_max && !(o->vmax > o->vmin))
@@ -1455,6 +1451,8 @@ int preview_main(int argc, char **argv)
 	rc = preview_parse(argc, argv, &o, &e);
 	if (rc == 1)
 		return EXIT_OK;
+	if (rc == -2)
+		return e.code;
 	if (rc == 0)
 		rc = preview_run(&o, &e);
 	if (rc < 0) {

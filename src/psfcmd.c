@@ -3,7 +3,7 @@
  * gridded format, so that photutils' GriddedPSFModel, STIPS or a later
  * `wfiscene --psf FILE` can read them.
  */
-#include <getopt.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,32 +14,125 @@
 #include "err.h"
 #include "instrument.h"
 #include "optics.h"
+#include "options.h"
 #include "psf.h"
 
-static const char usage[] =
+#define STR_(x) #x
+#define STR(x) STR_(x)
+
+/* What the psf command's options fill in. */
+struct psf_cmd {
+	struct psf_build_opts bo;
+	const char *filter, *sca, *out;
+	int kind;               /* enum psf_kind */
+	int cls;                /* index into psf_class_n */
+	double jitter;          /* arcsec; -1: the default, through the cache */
+};
+
+#define OFF(f) offsetof(struct psf_cmd, f)
+
+static opt_set_fn set_count, set_kind, set_size, set_jitter, set_no_cache;
+
+static const struct opt psf_options[] = {
+	{ OPT("filter", 'f', "F", NULL, "F062 F087 F106 F129 F158 F184 F213 F146",
+	  opt_string, OFF(filter)) },
+	{ OPT("sca", 's', "LIST", NULL, "SCAs; with more than one, FILE gets _wfiNN before "
+	  "its .fits suffix, one file per SCA", opt_string, OFF(sca)) },
+	{ OPT("kind", 'k', "K", "epsf", "epsf (pixel and IPC kernels applied) or psf (the "
+	  "optical PSF)", set_kind, OFF(kind)) },
+	{ OPT("size", 0, "N", "177", "samples per side: 177, 353 or 705", set_size,
+	  OFF(cls)) },
+	{ OPT("grid", 0, "N", "3", "nodes per axis", set_count, OFF(bo.grid)),
+	  .flags = OPT_SHOW_DEFAULT },
+	{ OPT("nwave", 0, "N", "measured per filter", "wavelengths", set_count,
+	  OFF(bo.nwave)), .flags = OPT_SHOW_DEFAULT },
+	{ OPT("pupil-n", 0, "N", "256", "pupil samples across", set_count, OFF(bo.pupil_n)),
+	  .flags = OPT_SHOW_DEFAULT },
+	{ OPT("jitter", 0, "SIGMA", STR(OPTICS_JITTER), "Gaussian jitter per axis, arcsec; "
+	  "another value than the default bypasses the cache", set_jitter, OFF(jitter)),
+	  .flags = OPT_SHOW_DEFAULT },
+	{ OPT("threads", 'j', "N", "all cores", "threads for building", set_count,
+	  OFF(bo.threads)), .flags = OPT_SHOW_DEFAULT },
+	{ OPT("cache-dir", 0, "DIR", "$WFISCENE_CACHE, $XDG_CACHE_HOME/wfiscene, "
+	  "~/.cache/wfiscene", "PSF cache", opt_string, OFF(bo.cache_dir)),
+	  .flags = OPT_SHOW_DEFAULT },
+	{ OPT("no-cache", 0, NULL, NULL, "neither read nor write the cache", set_no_cache,
+	  OFF(bo.cache_dir)) },
+	{ OPT("output", 'o', "FILE", NULL, "output file", opt_string, OFF(out)) },
+	{ OPT("verbose", 'v', NULL, NULL, "say what is built or loaded, and how long it "
+	  "took", opt_count, OFF(bo.verbose)) },
+	{ OPT("help", 'h', NULL, NULL, "this text", opt_show_help, 0) },
+	OPT_END
+};
+
+static const struct opt_cmd psf_cmd_line = {
+	.prog = "wfiscene psf",
+	.usage =
 "usage: wfiscene psf --filter F --sca LIST [options] -o FILE\n"
 "\n"
 "Write the built-in PSF grid of each SCA in LIST (\"1\", \"1-18\", \"2,5\",\n"
 "\"WFI05\") for filter F as an STPSF-style gridded PSF FITS file.\n"
-"\n"
-"  -f, --filter F        F062 F087 F106 F129 F158 F184 F213 F146\n"
-"  -s, --sca LIST        SCAs; with more than one, FILE gets _wfiNN\n"
-"                        before its .fits suffix, one file per SCA\n"
-"  -k, --kind K          epsf (default: pixel and IPC kernels applied)\n"
-"                        or psf (the optical PSF)\n"
-"      --size N          samples per side: 177 (default), 353 or 705\n"
-"      --grid N          nodes per axis (default 3)\n"
-"      --nwave N         wavelengths (default: measured per filter)\n"
-"      --pupil-n N       pupil samples across (default 256)\n"
-"      --jitter SIGMA    Gaussian jitter per axis, arcsec (default 0.012;\n"
-"                        another value bypasses the cache)\n"
-"  -j, --threads N       threads for building (default: all cores)\n"
-"      --cache-dir DIR   PSF cache (default $WFISCENE_CACHE,\n"
-"                        $XDG_CACHE_HOME/wfiscene, ~/.cache/wfiscene)\n"
-"      --no-cache        neither read nor write the cache\n"
-"  -o, --output FILE     output file\n"
-"  -v, --verbose         say what is built or loaded, and how long it took\n"
-"  -h, --help            this text\n";
+"\n",
+	.opts = psf_options,
+};
+
+/* A count: an integer from 1 to 100000. */
+static int set_count(const struct opt_arg *a, struct err *e)
+{
+	char *end;
+	long v = strtol(a->value, &end, 10);
+
+	if (*end || end == a->value || v < 1 || v > 100000)
+		return err_set(e, EXIT_INPUT, "%s: not a positive integer: '%s'", a->given,
+			       a->value);
+	*(int *)a->field = (int)v;
+	return 0;
+}
+
+static int set_size(const struct opt_arg *a, struct err *e)
+{
+	int n, cls;
+
+	if (set_count(&(struct opt_arg){ .given = a->given, .value = a->value,
+					 .field = &n }, e) < 0)
+		return -1;
+	for (cls = 0; cls < 3 && psf_class_n[cls] != n; cls++)
+		;
+	if (cls == 3)
+		return err_set(e, EXIT_INPUT, "--size: want 177, 353 or 705, not '%s'",
+			       a->value);
+	*(int *)a->field = cls;
+	return 0;
+}
+
+static int set_kind(const struct opt_arg *a, struct err *e)
+{
+	if (!strcasecmp(a->value, "epsf"))
+		*(int *)a->field = PSF_EPSF;
+	else if (!strcasecmp(a->value, "psf"))
+		*(int *)a->field = PSF_OPTICAL;
+	else
+		return err_set(e, EXIT_INPUT, "--kind: want epsf or psf, not '%s'", a->value);
+	return 0;
+}
+
+static int set_jitter(const struct opt_arg *a, struct err *e)
+{
+	char *end;
+	double v = strtod(a->value, &end);
+
+	if (*end || end == a->value || !(v >= 0 && v < 1))
+		return err_set(e, EXIT_INPUT, "--jitter: want arcsec in [0, 1), not '%s'",
+			       a->value);
+	*(double *)a->field = v;
+	return 0;
+}
+
+static int set_no_cache(const struct opt_arg *a, struct err *e)
+{
+	*(const char **)a->field = "";
+	return 0;
+}
 
 /* FILE with "_wfiNN" before a trailing .fits (or appended). */
 static void sca_name(char *buf, size_t n, const char *file, int sca)
@@ -54,109 +147,28 @@ static void sca_name(char *buf, size_t n, const char *file, int sca)
 
 int psf_main(int argc, char **argv)
 {
-	enum { O_SIZE = 256, O_GRID, O_NWAVE, O_PUPIL, O_CACHE, O_NOCACHE,
-	       O_JITTER };
-	static const struct option opts[] = {
-		{ "filter", required_argument, NULL, 'f' },
-		{ "sca", required_argument, NULL, 's' },
-		{ "kind", required_argument, NULL, 'k' },
-		{ "size", required_argument, NULL, O_SIZE },
-		{ "grid", required_argument, NULL, O_GRID },
-		{ "nwave", required_argument, NULL, O_NWAVE },
-		{ "pupil-n", required_argument, NULL, O_PUPIL },
-		{ "threads", required_argument, NULL, 'j' },
-		{ "cache-dir", required_argument, NULL, O_CACHE },
-		{ "no-cache", no_argument, NULL, O_NOCACHE },
-		{ "jitter", required_argument, NULL, O_JITTER },
-		{ "output", required_argument, NULL, 'o' },
-		{ "verbose", no_argument, NULL, 'v' },
-		{ "help", no_argument, NULL, 'h' },
-		{ NULL, 0, NULL, 0 },
-	};
-	struct psf_build_opts bo = { 0 };
+	struct psf_cmd c = { .jitter = -1 };
+	struct psf_build_opts *bo = &c.bo;
 	struct err e = { 0 };
-	const char *filter_s = NULL, *sca_s = NULL, *out = NULL;
-	int kind = PSF_EPSF, cls = 0, c;
-	double jit = -1;
+	const char *out;
 	unsigned mask = 0;
-	char *end;
+	int first;
 
-	optind = 1;
-	opterr = 0;
-	while ((c = getopt_long(argc, argv, ":f:s:k:j:o:vh", opts, NULL)) != -1) {
-		long v = 0;
-
-		if (optarg && (c == 'j' || c == O_SIZE || c == O_GRID ||
-			       c == O_NWAVE || c == O_PUPIL)) {
-			v = strtol(optarg, &end, 10);
-			if (*end || end == optarg || v < 1 || v > 100000) {
-				fprintf(stderr, "wfiscene psf: %s: not a positive "
-					"integer: '%s'\n", argv[optind - 1], optarg);
-				return EXIT_INPUT;
-			}
-		}
-		switch (c) {
-		case 'f': filter_s = optarg; break;
-		case 's': sca_s = optarg; break;
-		case 'o': out = optarg; break;
-		case 'v': bo.verbose = 1; break;
-		case 'j': bo.threads = (int)v; break;
-		case O_GRID: bo.grid = (int)v; break;
-		case O_NWAVE: bo.nwave = (int)v; break;
-		case O_PUPIL: bo.pupil_n = (int)v; break;
-		case O_CACHE: bo.cache_dir = optarg; break;
-		case O_NOCACHE: bo.cache_dir = ""; break;
-		case O_JITTER:
-			jit = strtod(optarg, &end);
-			if (*end || end == optarg || !(jit >= 0 && jit < 1)) {
-				fprintf(stderr, "wfiscene psf: --jitter: want "
-					"arcsec in [0, 1), not '%s'\n", optarg);
-				return EXIT_INPUT;
-			}
-			break;
-		case 'k':
-			if (!strcasecmp(optarg, "epsf"))
-				kind = PSF_EPSF;
-			else if (!strcasecmp(optarg, "psf"))
-				kind = PSF_OPTICAL;
-			else {
-				fprintf(stderr, "wfiscene psf: --kind: want epsf "
-					"or psf, not '%s'\n", optarg);
-				return EXIT_INPUT;
-			}
-			break;
-		case O_SIZE:
-			for (cls = 0; cls < 3 && psf_class_n[cls] != v; cls++)
-				;
-			if (cls == 3) {
-				fprintf(stderr, "wfiscene psf: --size: want 177, "
-					"353 or 705, not '%s'\n", optarg);
-				return EXIT_INPUT;
-			}
-			break;
-		case 'h':
-			fputs(usage, stdout);
-			return EXIT_OK;
-		case ':':
-			fprintf(stderr, "wfiscene psf: %s needs a value\n",
-				argv[optind - 1]);
-			return EXIT_INPUT;
-		default:
-			fprintf(stderr, "wfiscene psf: unknown option '%s'\n%s",
-				argv[optind - 1], usage);
-			return EXIT_INPUT;
-		}
-	}
-	if (optind < argc) {
-		fprintf(stderr, "wfiscene psf: unexpected argument '%s'\n",
-			argv[optind]);
+	first = opt_parse(&psf_cmd_line, argc, argv, &c, &e);
+	if (first == OPT_PARSE_DONE)
+		return EXIT_OK;
+	if (first < 0)
+		return opt_fail(&psf_cmd_line, first, &e);
+	if (first < argc) {
+		fprintf(stderr, "wfiscene psf: unexpected argument '%s'\n", argv[first]);
 		return EXIT_INPUT;
 	}
-	if (!filter_s || !sca_s || !out) {
-		fprintf(stderr, "wfiscene psf: --filter, --sca and -o are "
-			"required\n%s", usage);
+	if (!c.filter || !c.sca || !c.out) {
+		fprintf(stderr, "wfiscene psf: --filter, --sca and -o are required\n");
+		opt_help(&psf_cmd_line, stderr);
 		return EXIT_INPUT;
 	}
+	out = c.out;
 	if (!strcmp(out, "-")) {
 		fprintf(stderr, "wfiscene psf: -o: a PSF grid is written to a "
 			"file (atomically), not to standard output\n");
@@ -164,13 +176,13 @@ int psf_main(int argc, char **argv)
 	}
 	if (instrument_init(&e))
 		goto fail;
-	int filter = filter_lookup(filter_s);
+	int filter = filter_lookup(c.filter);
 	if (filter < 0) {
 		fprintf(stderr, "wfiscene psf: --filter: unknown filter '%s' "
-			"(F062 F087 F106 F129 F158 F184 F213 F146)\n", filter_s);
+			"(F062 F087 F106 F129 F158 F184 F213 F146)\n", c.filter);
 		return EXIT_INPUT;
 	}
-	if (sca_parse_list(sca_s, &mask, &e)) {
+	if (sca_parse_list(c.sca, &mask, &e)) {
 		err_prefix(&e, "--sca");
 		goto fail;
 	}
@@ -187,18 +199,18 @@ int psf_main(int argc, char **argv)
 			sca_name(path, sizeof(path), out, s);
 		else
 			snprintf(path, sizeof(path), "%s", out);
-		if (jit >= 0 && jit != OPTICS_JITTER)
-			g = psf_build_uncached(filter, s, cls, kind, &bo, jit, &e);
+		if (c.jitter >= 0 && c.jitter != OPTICS_JITTER)
+			g = psf_build_uncached(filter, s, c.cls, c.kind, bo, c.jitter, &e);
 		else
-			g = psf_builtin(filter, s, cls, kind, &bo, &e);
+			g = psf_builtin(filter, s, c.cls, c.kind, bo, &e);
 		if (!g)
 			goto fail;
 		char c1[81], c2[81], c3[81];
 		snprintf(c1, sizeof(c1), "NWAVES  = %d / Number of wavelengths used "
-			 "in calculation", bo.nwave > 0 ? bo.nwave :
+			 "in calculation", bo->nwave > 0 ? bo->nwave :
 			 psf_default_nwave(filter));
 		snprintf(c2, sizeof(c2), "JITRSIGM= %g / Gaussian sigma for jitter, "
-			 "per axis [arcsec]", jit >= 0 ? jit : OPTICS_JITTER);
+			 "per axis [arcsec]", c.jitter >= 0 ? c.jitter : OPTICS_JITTER);
 		snprintf(c3, sizeof(c3), "SRCTEMP = %g / [K] Blackbody source for "
 			 "the wavelength weights", OPTICS_BB_TEMP);
 		const char *cards[] = {

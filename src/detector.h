@@ -1,0 +1,48 @@
+/*
+ * detector.h - the detector stage: what happens to the light the models
+ * drew, after rendering and before the image is written.
+ *
+ * write.c hands each strip of tiles of an SCA to detector_strip() once all
+ * catalog chunks are drawn.  How far the detector is simulated is the
+ * exposure's level; each level is a function of the drawn rates, the
+ * options, the SCA and the absolute pixel coordinates only (never of the
+ * tile size, tile order or thread count), so runs split by SCA or rows give
+ * the same bytes.
+ */
+#ifndef WFS_DETECTOR_H
+#define WFS_DETECTOR_H
+
+#include <stddef.h>
+
+#include "noise.h"
+
+struct exposure;
+struct pool;
+struct scene_opts;
+
+enum detector_level {
+	/* A rate image (or counts with --bunit counts): background, exposure
+	 * time and the --noise stages, tile by tile (noise.c). */
+	DETECTOR_SCENE = 0,
+};
+
+struct detector {
+	enum detector_level level;
+	struct noise_opts noise;        /* DETECTOR_SCENE */
+	int active;                     /* 0: the drawn image is written as is */
+};
+
+/* The detector stage of exposure x of a run with options o. */
+void detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x);
+
+/*
+ * Apply the stage to one strip of an SCA: tiles[0 .. ntx-1], each T x T
+ * doubles (row stride T) holding the drawn counts/s of pixels
+ * [tx T, tx T + T) x [y0, y0 + ny), clipped to the detector; every tile
+ * MUST be allocated.  The tiles run in parallel on pool.  Returns 0, or -1
+ * when a tile failed.
+ */
+int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
+		   double *const *tiles, int ntx, int T);
+
+#endif

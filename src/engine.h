@@ -1,0 +1,192 @@
+/*
+ * engine.h - the engine's private state, shared by the files of one run.
+ *
+ * scene.h is the engine's public face (scene_run); this header is what its
+ * files share.  One struct engine simulates one exposure; a run with
+ * --pointings has one engine per exposure, all fed the same chunks of rows.
+ * The files, in the order the data flows through them:
+ *
+ *   run.c        the run loop: exposures set up, catalogs read in chunks,
+ *                each chunk placed while the previous one renders
+ *   exposure.c   the exposures: one from the options, or --pointings
+ *   place.c      rows to placements: models, columns, fluxes, reach,
+ *                which SCAs a row may reach, pixels, binning by tile
+ *   host.c       the services the host lends to every model (struct wfs_host)
+ *   psfgrids.c   the ePSF grids the scene's models ask for
+ *   render.c     worker threads drawing whole tiles
+ *   detector.c   the detector stage after rendering (detector.h)
+ *   write.c      FITS header cards and the image written strip by strip
+ *   report.c     the --placed list and the --report JSON
+ */
+#ifndef WFS_ENGINE_H
+#define WFS_ENGINE_H
+
+#include <limits.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdint.h>
+#include <time.h>
+
+#include "exposure.h"
+#include "instrument.h"
+#include "plugin.h"
+#include "psf.h"
+#include "scene.h"
+#include "sky.h"
+#include "wfiscene/model.h"
+
+struct catalog;
+struct err;
+struct fftconv;
+struct fftconv_thread;
+struct pool;
+struct rows;
+
+#define MAX_COLUMNS PLUGIN_COLUMNS_MAX
+
+/* Said of a plugin callback that returned -1 without host->error(). */
+#define MODEL_SILENT ", with no message (the plugin must give one with host->error())"
+
+/* One requested SCA: its image as a grid of tiles, allocated on first touch. */
+struct slot {
+	int sca;
+	double **tile;          /* ntx * nty tiles, NULL until touched */
+};
+
+/* A source placed on one SCA. */
+struct placement {
+	struct wfs_source src;
+	struct wfs_box box;     /* footprint clipped to the detector */
+	int model;
+	int slot;
+	size_t param_off;       /* into batch.param */
+};
+
+/* The placements of one chunk, binned by tile. */
+struct batch {
+	struct placement *p;
+	size_t n, cap;
+	double *param;
+	size_t nparam, capparam;
+	uint32_t *count;        /* per global tile, then start offsets */
+	uint32_t *items;        /* placement indices grouped by tile */
+	size_t nitems, capitems;
+	uint32_t *active;       /* global tiles with placements */
+	size_t nactive;
+};
+
+/* Per worker thread: scratch memory, FFT buffers, models' thread state. */
+struct worker {
+	struct engine *g;
+	void *scratch;
+	size_t scratch_cap;
+	struct fftconv_thread *fft;
+	void *tstate[PLUGIN_MAX];
+	unsigned char started[PLUGIN_MAX];
+};
+
+/* A catalog's type string and the model that draws it. */
+struct type_cache {
+	char name[64];
+	int model;
+};
+
+struct engine {
+	const struct scene_opts *o;     /* what all exposures share */
+	const struct exposure *x;       /* this exposure */
+	struct err *e;
+	pthread_mutex_t err_mu;
+	pthread_t main_thread;          /* the one that may load PSF grids */
+	atomic_int failed;
+
+	struct sky sky;
+	int tile, ntx, nty, ntile;      /* tile side, tiles per axis, per SCA */
+	int ylo, yhi;                   /* the rows drawn and written, [ylo, yhi) */
+	int nslot;
+	struct slot slot[WFS_NSCA];
+	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
+
+	struct psf_grid *grid[WFS_NSCA][3];
+	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
+	struct psf_build_opts pbo;
+
+	struct plugins plugins;
+	struct wfs_host host;
+	struct fftconv *fft;
+	struct pool *pool;
+	struct worker *w;
+	int nworker;
+
+	char filter_name[16], exptime_str[32], seed_str[32];
+	char bkg_str[32], readnoise_str[32], noise_str[64];
+	const char *sersic_flux_now;    /* "total" or "ie" for the catalog being read */
+
+	struct type_cache types[PLUGIN_MAX];
+	int ntypes;
+	int colidx[PLUGIN_MAX][MAX_COLUMNS];
+	const struct rows *colidx_rows[PLUGIN_MAX];
+
+	/* per row of the chunk being placed; all share cap_rows */
+	double *fx, *fy, *px, *py, *reach;
+	uint32_t *cand;
+	uint32_t *mask;                 /* slots the row may reach */
+	size_t cap_rows;
+
+	struct batch b[2];              /* double buffer: see run_catalogs() */
+	const struct batch *rendering;
+
+	FILE *placed;
+	char placed_tmp[PATH_MAX];
+
+	unsigned long long rows_read, placements, culled, offdet;
+	unsigned long long tiles_drawn, tiles;  /* before noise, and in all */
+	unsigned long long per_model[PLUGIN_MAX];
+	double flux_requested[WFS_NSCA];        /* sum of placed sources' flux */
+	unsigned long long placed_on[WFS_NSCA];
+	double image_sum[WFS_NSCA];             /* drawn light, before noise */
+	double t_read, t_place, t_wait, t_noise, t_write, t_total;
+	double *t_render;                       /* per worker: busy seconds */
+	struct timespec t_start, t_progress;
+	int progress;                           /* stderr is a terminal */
+};
+
+/* run.c */
+double engine_clock(void);              /* monotonic seconds */
+void engine_progress(struct engine *g, const char *stage, int force);
+
+/* host.c: the struct wfs_host lent to plugins, and the services the engine
+ * itself uses (errors from any thread, -v logging, a setting's value). */
+void host_init(struct engine *g);
+int host_error(void *ctx, const char *fmt, ...);
+void host_log(void *ctx, int level, const char *fmt, ...);
+const char *host_setting(void *ctx, const char *key);
+
+/* psfgrids.c */
+const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls);
+int psfgrids_need(struct engine *g, int sca, int cls);
+int psfgrids_open_user(struct engine *g);
+void psfgrids_free(struct engine *g);
+
+/* place.c */
+double *tile_alloc(int T);
+void tile_free(double *p, int T);
+double place_zeropoint(const struct engine *g, int sca);
+int place_batch(struct engine *g, const struct rows *r, struct batch *b);
+int place_bin(struct engine *g, struct batch *b);
+
+/* render.c */
+void render_tile(void *arg, int wid, size_t task);
+int render_threads_init(struct engine *g);
+void render_threads_stop(struct engine *g);
+
+/* write.c */
+int write_exposure(struct engine *g);
+
+/* report.c */
+int side_check(const char *path, struct err *e);
+int placed_open(struct engine *g);
+int placed_close(struct engine *g, int keep);
+int report_write(struct engine *g);
+
+#endif

@@ -1,0 +1,207 @@
+/*
+ * exposure.c - the exposures of a run: one from the options, or one per
+ * line of a --pointings file, each with its pointing, seed and output names.
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "err.h"
+#include "detector.h"
+#include "exposure.h"
+#include "scene.h"
+
+static int is_number(const char *s, double *v)
+{
+	char *end;
+
+	*v = strtod(s, &end);
+	return end != s && !*end && isfinite(*v);
+}
+
+/*
+ * A pointings file: one exposure a line, "ra dec pa [name [seed]]", fields
+ * separated by blanks or commas; '#' starts a comment; a first line whose
+ * first field is not a number is a header.  Exposure k (from 1) is named
+ * k with three digits unless named, and has seed --seed + k - 1 unless given,
+ * so that a single run of that pointing with that seed gives the same image.
+ */
+static int read_pointings(const struct scene_opts *o, struct exposure **out, int *nout,
+			  struct err *e)
+{
+	FILE *f = fopen(o->pointings, "r");
+	char line[4096];
+	struct exposure *p = NULL;
+	int n = 0, lineno = 0, seen_data = 0;
+
+	if (!f)
+		return err_sys(e, "%s", o->pointings);
+	if (!(p = calloc(MAX_EXPOSURES, sizeof(*p)))) {
+		fclose(f);
+		return err_sys(e, "pointings");
+	}
+	while (fgets(line, sizeof(line), f)) {
+		char *field[6], *save = NULL, *tok, *hash = strchr(line, '#');
+		int nf = 0;
+		double v[3];
+
+		lineno++;
+		if (!strchr(line, '\n') && !feof(f)) {
+			err_set(e, EXIT_INPUT, "%s:%d: line too long", o->pointings, lineno);
+			goto fail;
+		}
+		if (hash)
+			*hash = 0;
+		for (tok = strtok_r(line, " \t\r\n,", &save); tok && nf < 6;
+		     tok = strtok_r(NULL, " \t\r\n,", &save))
+			field[nf++] = tok;
+		if (nf == 0)
+			continue;
+		if (!seen_data++ && !is_number(field[0], &v[0]))
+			continue;       /* a header line */
+		if (nf < 3 || nf > 5) {
+			err_set(e, EXIT_INPUT, "%s:%d: expected 'ra dec pa [name [seed]]', got %d "
+				"field%s", o->pointings, lineno, nf, nf == 1 ? "" : "s");
+			goto fail;
+		}
+		for (int k = 0; k < 3; k++)
+			if (!is_number(field[k], &v[k])) {
+				err_set(e, EXIT_INPUT, "%s:%d: %s: not a number: '%s'", o->pointings,
+					lineno, k == 0 ? "ra" : k == 1 ? "dec" : "pa", field[k]);
+				goto fail;
+			}
+		if (v[1] < -90 || v[1] > 90) {
+			err_set(e, EXIT_INPUT, "%s:%d: dec %g is outside [-90, 90]", o->pointings,
+				lineno, v[1]);
+			goto fail;
+		}
+		if (n == MAX_EXPOSURES) {
+			err_set(e, EXIT_INPUT, "%s:%d: more than %d pointings", o->pointings, lineno,
+				MAX_EXPOSURES);
+			goto fail;
+		}
+		p[n].ra = v[0];
+		p[n].dec = v[1];
+		p[n].pa = v[2];
+		p[n].seed = o->seed + n;
+		snprintf(p[n].name, sizeof(p[n].name), "%03d", n + 1);
+		if (nf >= 4) {
+			if (strlen(field[3]) >= sizeof(p[n].name) ||
+			    strspn(field[3], "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+				   "0123456789_.-") != strlen(field[3])) {
+				err_set(e, EXIT_INPUT, "%s:%d: name '%s': use letters, digits, '_', "
+					"'.' and '-' (at most 63)", o->pointings, lineno, field[3]);
+				goto fail;
+			}
+			strcpy(p[n].name, field[3]);
+			for (int k = 0; k < n; k++)
+				if (!strcmp(p[k].name, p[n].name)) {
+					err_set(e, EXIT_INPUT, "%s:%d: name '%s' is used twice",
+						o->pointings, lineno, p[n].name);
+					goto fail;
+				}
+		}
+		if (nf == 5) {
+			char *end;
+
+			errno = 0;
+			p[n].seed = strtoull(field[4], &end, 10);
+			if (*end || errno || field[4][0] == '-') {
+				err_set(e, EXIT_INPUT, "%s:%d: seed: not an integer: '%s'",
+					o->pointings, lineno, field[4]);
+				goto fail;
+			}
+		}
+		n++;
+	}
+	if (ferror(f)) {
+		err_sys(e, "%s", o->pointings);
+		goto fail;
+	}
+	if (n == 0) {
+		err_set(e, EXIT_INPUT, "%s: no pointings", o->pointings);
+		goto fail;
+	}
+	fclose(f);
+	*out = p;
+	*nout = n;
+	return 0;
+fail:
+	fclose(f);
+	free(p);
+	return -1;
+}
+
+/* tmpl with its "%s" replaced by name (a word of safe characters); NULL for
+ * a NULL tmpl, or when out of memory. */
+static char *expand_name(const char *tmpl, const char *name)
+{
+	const char *at;
+	size_t n;
+	char *out;
+
+	if (!tmpl)
+		return NULL;
+	if (!(at = strstr(tmpl, "%s")))
+		return strdup(tmpl);
+	n = strlen(tmpl) + strlen(name);
+	if (!(out = malloc(n + 1)))
+		return NULL;
+	snprintf(out, n + 1, "%.*s%s%s", (int)(at - tmpl), tmpl, name, at + 2);
+	return out;
+}
+
+
+int exposures_make(const struct scene_opts *o, struct exposure **out, int *n, struct err *e)
+{
+	struct exposure *x;
+
+	*n = 1;
+	if (o->pointings) {
+		if (read_pointings(o, &x, n, e) < 0)
+			return -1;
+	} else {
+		if (!(x = calloc(1, sizeof(*x))))
+			return err_sys(e, "memory");
+		x->ra = o->ra;
+		x->dec = o->dec;
+		x->pa = o->pa;
+		x->seed = o->seed;
+	}
+	for (int i = 0; i < *n; i++) {
+		x[i].index = i;
+		x[i].boresight = o->boresight;
+		x[i].date = NAN;
+		x[i].sca_mask = o->sca_mask;
+		x[i].level = DETECTOR_SCENE;
+		x[i].background = o->background;
+		x[i].output = o->output;
+		x[i].placed = o->placed;
+		x[i].report = o->report;
+		if (!o->pointings)
+			continue;
+		x[i].own_paths = 1;
+		x[i].output = expand_name(o->output, x[i].name);
+		x[i].placed = expand_name(o->placed, x[i].name);
+		x[i].report = expand_name(o->report, x[i].name);
+		if (!x[i].output || (o->placed && !x[i].placed) || (o->report && !x[i].report)) {
+			exposures_free(x, *n);
+			return err_sys(e, "memory");
+		}
+	}
+	*out = x;
+	return 0;
+}
+
+void exposures_free(struct exposure *x, int n)
+{
+	for (int i = 0; x && i < n; i++)
+		if (x[i].own_paths) {
+			free((char *)x[i].output);
+			free((char *)x[i].placed);
+			free((char *)x[i].report);
+		}
+	free(x);
+}

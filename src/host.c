@@ -1,0 +1,142 @@
+/*
+ * host.c - the plugin host: the services lent to every model through
+ * struct wfs_host (include/wfiscene/model.h).
+ *
+ * Errors from any thread (the first message wins the run's struct err under
+ * a lock), -v logging, settings by key (the scene's own, then --set), ePSF
+ * samples (grids loaded on the main thread only, see psfgrids.c), per-worker
+ * scratch memory and FFT convolution.  The engine uses host_error, host_log
+ * and host_setting itself too.
+ */
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "engine.h"
+#include "err.h"
+#include "fftconv.h"
+
+
+int host_error(void *ctx, const char *fmt, ...)
+{
+	struct engine *g = ctx;
+	char msg[1024];
+	va_list ap;
+
+	va_start(ap, fmt);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	va_end(ap);
+	pthread_mutex_lock(&g->err_mu);
+	err_set(g->e, EXIT_PLUGIN, "%s", msg);
+	pthread_mutex_unlock(&g->err_mu);
+	return -1;
+}
+
+void host_log(void *ctx, int level, const char *fmt, ...)
+{
+	struct engine *g = ctx;
+	va_list ap;
+
+	if (level > g->o->verbose)
+		return;
+	va_start(ap, fmt);
+	fputs("wfiscene: ", stderr);
+	vfprintf(stderr, fmt, ap);
+	fputc('\n', stderr);
+	va_end(ap);
+}
+
+const char *host_setting(void *ctx, const char *key)
+{
+	struct engine *g = ctx;
+
+	if (!strcmp(key, "filter"))
+		return g->filter_name;
+	if (!strcmp(key, "exptime"))
+		return g->exptime_str;
+	if (!strcmp(key, "seed"))
+		return g->seed_str;
+	if (!strcmp(key, "sersic-flux"))
+		return g->sersic_flux_now;
+	if (!strcmp(key, "sersic"))
+		return g->o->sersic;
+	if (!strcmp(key, "background"))
+		return g->bkg_str;
+	if (!strcmp(key, "readnoise"))
+		return g->readnoise_str;
+	if (!strcmp(key, "noise"))
+		return g->noise_str;
+	/* --set key=value: the last one given wins */
+	const char *hit = NULL;
+	size_t n = strlen(key);
+
+	for (const char *const *kv = g->o->settings; kv && *kv; kv++)
+		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
+			hit = *kv + n + 1;
+	return hit;
+}
+
+/* Grids are loaded (or built) the first time a model asks for one from the
+ * main thread, in prepare() or footprint(): a scene whose models never draw
+ * with the ePSF builds none.  Workers only read grids already loaded. */
+static int host_epsf(void *ctx, int sca, double x, double y, int cls,
+		     struct wfs_epsf *out)
+{
+	struct engine *g = ctx;
+	const struct psf_grid *grid;
+
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2)
+		return host_error(ctx, "no ePSF for SCA %d class %d", sca, cls);
+	if (!(grid = psfgrids_get(g, sca, cls))) {
+		if (!pthread_equal(pthread_self(), g->main_thread))
+			return host_error(ctx, "ePSF of SCA %d class %d asked for in render() "
+					  "but not in prepare() or footprint()", sca, cls);
+		if (psfgrids_need(g, sca, cls) < 0)
+			return -1;
+		grid = psfgrids_get(g, sca, cls);
+	}
+	psf_grid_at(grid, x, y, out);
+	return 0;
+}
+
+static void *host_scratch(void *thread, size_t bytes)
+{
+	struct worker *w = thread;
+
+	if (bytes > w->scratch_cap) {
+		size_t cap = bytes + bytes / 4 + 4096;
+
+		free(w->scratch);
+		w->scratch_cap = 0;
+		if (posix_memalign(&w->scratch, 64, cap))
+			return w->scratch = NULL;
+		w->scratch_cap = cap;
+	}
+	return w->scratch;
+}
+
+static int host_convolve(void *ctx, void *thread, double *img, int nx, int ny,
+			 const double *kernel, int kn)
+{
+	struct engine *g = ctx;
+	struct worker *w = thread;
+
+	if (!w->fft && !(w->fft = fftconv_thread_new()))
+		return host_error(ctx, "out of memory for FFT buffers");
+	if (fftconv_convolve(g->fft, w->fft, img, nx, ny, kernel, kn) < 0)
+		return host_error(ctx, "FFT convolution of a %d x %d image failed", nx, ny);
+	return 0;
+}
+
+
+void host_init(struct engine *g)
+{
+	g->host = (struct wfs_host){
+		.abi = WFS_ABI_VERSION, .size = sizeof(struct wfs_host), .ctx = g,
+		.error = host_error, .log = host_log, .setting = host_setting,
+		.epsf = host_epsf, .scratch = host_scratch, .convolve = host_convolve,
+	};
+}

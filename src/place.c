@@ -1,0 +1,601 @@
+/*
+ * place.c - rows to placements: the step between the catalog and rendering.
+ *
+ * For each chunk of rows: the model of each row's type and the columns it
+ * reads, each row's reach (how far beyond an SCA edge it may still throw
+ * light), which requested SCAs each sky row may reach (slot masks, so most
+ * rows far from every SCA cost no projection), the exact pixel on each SCA,
+ * the row's flux in counts/s there, the model's prepare() and footprint(),
+ * and finally the placements binned by the tiles their footprints touch,
+ * which is what render.c draws.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+
+#include "catalog.h"
+#include "engine.h"
+#include "err.h"
+
+/* Room beyond an SCA edge, in pixels, within which a point source may still
+ * throw light onto it: the 176-pixel extra-bright box's half-width. */
+#define POINT_REACH 88.0
+
+
+/*
+ * A zeroed tile.  Tiles are mapped from the kernel directly: its pages come
+ * zeroed and are only touched by the worker that first draws on them,
+ * whereas calloc() would zero them with memset in the main thread once
+ * glibc's mmap threshold has risen above a tile's size (it does after the
+ * first large free).  18 SCAs of 512-pixel tiles are 2.4 GB of doubles.
+ */
+double *tile_alloc(int T)
+{
+	void *p = mmap(NULL, (size_t)T * T * sizeof(double), PROT_READ | PROT_WRITE,
+		       MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+
+	return p == MAP_FAILED ? NULL : p;
+}
+
+void tile_free(double *p, int T)
+{
+	if (p)
+		munmap(p, (size_t)T * T * sizeof(double));
+}
+
+static int grow(void **p, size_t *cap, size_t need, size_t size)
+{
+	size_t n = *cap ? *cap : 256;
+	void *q;
+
+	if (need <= *cap)
+		return 0;
+	while (n < need)
+		n *= 2;
+	if (!(q = realloc(*p, n * size)))
+		return -1;
+	*p = q;
+	*cap = n;
+	return 0;
+}
+
+/* The model drawing rows of type name ("sersic" picks the scene's method). */
+static int resolve_type(struct engine *g, const char *name)
+{
+	char real[64];
+	int m;
+
+	for (int i = 0; i < g->ntypes; i++)
+		if (!strcmp(g->types[i].name, name))
+			return g->types[i].model;
+	if (!strcmp(name, "sersic"))
+		snprintf(real, sizeof(real), "sersic-%s", g->o->sersic);
+	else
+		snprintf(real, sizeof(real), "%s", name);
+	if ((m = plugins_get(&g->plugins, real, g->e)) < 0)
+		return -1;
+	if (g->ntypes < PLUGIN_MAX) {
+		snprintf(g->types[g->ntypes].name, sizeof(g->types[0].name), "%s", name);
+		g->types[g->ntypes++].model = m;
+	}
+	return m;
+}
+
+/* The chunk's column index of each column model m reads (-1 if absent). */
+static int model_columns(struct engine *g, const struct rows *r, int m)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+
+	if (g->colidx_rows[m] == r)
+		return 0;
+	if (md->ncolumns > MAX_COLUMNS)
+		return err_set(g->e, EXIT_PLUGIN, "model '%s' reads %d columns; at most %d",
+			       md->name, md->ncolumns, MAX_COLUMNS);
+	for (int c = 0; c < md->ncolumns; c++) {
+		g->colidx[m][c] = rows_column(r, md->columns[c].name);
+		if (g->colidx[m][c] < 0 && md->columns[c].required)
+			return err_set(g->e, EXIT_INPUT,
+				       "%s: column '%s', required by model '%s', is missing",
+				       r->file, md->columns[c].name, md->name);
+	}
+	g->colidx_rows[m] = r;
+	return 0;
+}
+
+double place_zeropoint(const struct engine *g, int sca)
+{
+	return g->o->zp_stips ? filter_stips_zp(g->o->filter)
+			      : filter_get(g->o->filter)->zp_ab[sca - 1];
+}
+
+/* The row's flux in counts/s on SCA sca. */
+static double counts_on(const struct engine *g, const struct rows *r, size_t i, int sca)
+{
+	double v = r->flux[i];
+
+	switch (r->unit[i]) {
+	case UNIT_COUNTS:
+		return v;
+	case UNIT_ABMAG:
+		return pow(10.0, -0.4 * (v - place_zeropoint(g, sca)));
+	default:
+		/* unit_to_counts() goes through the SCA's RTI zeropoint, as
+		 * 1 / PHOTFNU; STIPS's fixed zeropoint zs gives PHOTFNU's
+		 * ratio 10^(0.4 (zs - z_rti)) on top of it. */
+		if (g->o->zp_stips)
+			return v * unit_to_counts(g->o->filter, sca, r->unit[i]) *
+			       pow(10.0, 0.4 * (filter_stips_zp(g->o->filter) -
+						filter_get(g->o->filter)->zp_ab[sca - 1]));
+		return v * unit_to_counts(g->o->filter, sca, r->unit[i]);
+	}
+}
+
+/* Bright sources get the bigger ePSF boxes; a magnitude equal to a limit
+ * counts as the brighter class (STIPS drops such sources). */
+static int psf_class_of(const struct engine *g, double mag)
+{
+	if (mag <= g->o->xbright_limit)
+		return WFS_PSF_XBRIGHT;
+	if (mag <= g->o->bright_limit)
+		return WFS_PSF_BRIGHT;
+	return WFS_PSF_NORMAL;
+}
+
+/* Fill src for row i on SCA sca at pixel (x, y), load its ePSF class and let
+ * the model check and prepare it.  Returns 0 or -1. */
+static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
+		       const double *param, int sca, double x, double y,
+		       struct wfs_source *src)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+
+	memset(src, 0, sizeof(*src));
+	src->x = x;
+	src->y = y;
+	src->sca = sca;
+	src->flux = counts_on(g, r, i, sca);
+	src->mag = place_zeropoint(g, sca) - 2.5 * log10(src->flux);
+	src->psf_class = psf_class_of(g, src->mag);
+	src->id = r->id[i];
+	src->param = param;
+	if (!isfinite(src->flux) || src->flux <= 0)
+		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g converts to %g counts/s "
+			       "on SCA %d: not a positive finite number", r->file,
+			       r->line[i], r->flux[i], src->flux, sca);
+	/* The image is float32 (at most 3.4e38): one source may bring up to
+	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
+	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
+		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g gives %g %s on SCA %d, "
+			       "more than the 1e32 that one source may put in a "
+			       "float32 image", r->file, r->line[i], r->flux[i],
+			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
+			       g->o->bunit_counts ? "counts" : "counts/s", sca);
+	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0) {
+		/* A refused row is bad input; a refusal without a message is
+		 * a broken plugin; a host service that failed under it (a
+		 * PSF file that cannot be read) keeps its own message and
+		 * status. */
+		if (g->e->code != EXIT_OK && g->e->code != EXIT_PLUGIN)
+			return -1;
+		if (g->e->code == EXIT_OK)
+			err_set(g->e, EXIT_PLUGIN, "prepare() failed" MODEL_SILENT);
+		else
+			g->e->code = EXIT_INPUT;
+		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
+		return -1;
+	}
+	return 0;
+}
+
+static int footprint(struct engine *g, const struct rows *r, size_t i, int m,
+		     const struct wfs_source *src, struct wfs_box *box)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+
+	if (md->footprint(g->plugins.p[m].state, src, box) < 0) {
+		err_set(g->e, EXIT_PLUGIN, "footprint() failed" MODEL_SILENT);
+		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
+		return -1;
+	}
+	return 0;
+}
+
+static int add_placement(struct engine *g, struct batch *b, const struct rows *r,
+			 size_t i, int m, const double *param, int slot, double x,
+			 double y)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+	struct placement *p;
+	struct wfs_source src;
+	struct wfs_box box;
+
+	if (make_source(g, r, i, m, param, g->slot[slot].sca, x, y, &src) < 0 ||
+	    footprint(g, r, i, m, &src, &box) < 0)
+		return -1;
+	if (box.x0 < 0) box.x0 = 0;
+	if (box.y0 < 0) box.y0 = 0;
+	if (box.x1 > WFS_NPIX) box.x1 = WFS_NPIX;
+	if (box.y1 > WFS_NPIX) box.y1 = WFS_NPIX;
+	if (box.x0 >= box.x1 || box.y0 >= box.y1) {
+		g->offdet++;    /* all its light misses this SCA */
+		return 0;
+	}
+	g->placements++;
+	g->per_model[m]++;
+	g->flux_requested[src.sca - 1] += src.flux;
+	g->placed_on[src.sca - 1]++;
+	if (g->placed &&
+	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
+		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
+		return err_sys(g->e, "%s", g->o->placed);
+	/* With --rows, counted and listed as in a run of the whole SCA (the
+	 * part's header is that run's), but drawn only in the rows written:
+	 * the windows are cut there, and a model gives the same pixels for
+	 * any windows. */
+	if (box.y0 < g->ylo)
+		box.y0 = g->ylo;
+	if (box.y1 > g->yhi)
+		box.y1 = g->yhi;
+	if (box.y0 >= box.y1)
+		return 0;
+	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
+	    grow((void **)&b->param, &b->capparam, b->nparam + md->ncolumns + 1,
+		 sizeof(double)) < 0)
+		return err_sys(g->e, "placements");
+	p = &b->p[b->n++];
+	p->src = src;
+	p->box = box;
+	p->model = m;
+	p->slot = slot;
+	p->param_off = b->nparam;
+	memcpy(b->param + b->nparam, param, md->ncolumns * sizeof(double));
+	b->nparam += md->ncolumns;
+	return 0;
+}
+
+/* How far (arcsec) beyond an SCA edge row i can still send light: its
+ * footprint's extent for a provisional placement at the origin. */
+static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
+		     const double *param, double *reach)
+{
+	struct wfs_source src;
+	struct wfs_box box;
+	double ext;
+
+	if (!strcmp(g->plugins.p[m].name, "point")) {
+		*reach = POINT_REACH * WFS_PIXSCALE;
+		return 0;
+	}
+	if (make_source(g, r, i, m, param, g->slot[0].sca, 0, 0, &src) < 0 ||
+	    footprint(g, r, i, m, &src, &box) < 0)
+		return -1;
+	ext = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1));
+	*reach = (ext + 2) * WFS_PIXSCALE;
+	return 0;
+}
+
+/*
+ * Which requested SCAs each sky row may reach, as a bit mask per row (bit s
+ * for slot s), and the rows near none of them counted as culled.  A row is
+ * a candidate for slot s when its focal-plane position is within
+ * SKY_SCA_HALF + its reach + 2" of the SCA centre along both axes.  Rather
+ * than test every slot for every row, a per-axis table gives the slots
+ * whose window, widened by the largest reach in the chunk, covers a band of
+ * the focal plane; only those slots get the exact test.  The table is a
+ * superset by construction (a monotone bin index of a position inside a
+ * window lies within the window's bins, and the windows are widened by a
+ * margin for rounding), so the masks are exactly what testing every slot
+ * gives.
+ */
+#define SLOT_BINS 64
+
+static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
+{
+	uint32_t xm[SLOT_BINS], ym[SLOT_BINS];
+	/* widened a little, so that a row passing the exact test within an
+	 * ulp of a window's edge is still inside the window's bins */
+	double lim = (SKY_SCA_HALF + maxreach + 2.0) * (1 + 1e-9) + 1e-6;
+	double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY, wx, wy;
+
+	for (int s = 0; s < g->nslot; s++) {
+		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+
+		x0 = fmin(x0, ss->fx - lim);
+		x1 = fmax(x1, ss->fx + lim);
+		y0 = fmin(y0, ss->fy - lim);
+		y1 = fmax(y1, ss->fy + lim);
+	}
+	wx = (x1 - x0) / SLOT_BINS;
+	wy = (y1 - y0) / SLOT_BINS;
+	memset(xm, 0, sizeof(xm));
+	memset(ym, 0, sizeof(ym));
+	for (int s = 0; s < g->nslot; s++) {
+		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+		int a = (int)((ss->fx - lim - x0) / wx), b = (int)((ss->fx + lim - x0) / wx);
+		int c = (int)((ss->fy - lim - y0) / wy), d = (int)((ss->fy + lim - y0) / wy);
+
+		for (int k = a < 0 ? 0 : a; k <= b && k < SLOT_BINS; k++)
+			xm[k] |= 1u << s;
+		for (int k = c < 0 ? 0 : c; k <= d && k < SLOT_BINS; k++)
+			ym[k] |= 1u << s;
+	}
+	for (size_t i = 0; i < r->n; i++) {
+		double fx = g->fx[i], fy = g->fy[i], l;
+		uint32_t m = 0, c;
+
+		/* also false for NaN: x/y rows and rows far from the pointing */
+		if (fx >= x0 && fx < x1 && fy >= y0 && fy < y1) {
+			int bx = (int)((fx - x0) / wx), by = (int)((fy - y0) / wy);
+
+			c = xm[bx < SLOT_BINS ? bx : SLOT_BINS - 1] &
+			    ym[by < SLOT_BINS ? by : SLOT_BINS - 1];
+			l = SKY_SCA_HALF + g->reach[i] + 2.0;
+			while (c) {
+				int s = __builtin_ctz(c);
+				const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+
+				c &= c - 1;
+				if (fabs(fx - ss->fx) < l && fabs(fy - ss->fy) < l)
+					m |= 1u << s;
+			}
+		}
+		g->mask[i] = m;
+		g->culled += !isnan(r->ra[i]) && !m;
+	}
+}
+
+/* The model of each row (model[i]), the values of the columns it reads
+ * (param, MAX_COLUMNS a row), and each sky row's reach (g->reach); the
+ * count of x/y rows in *nxy and the largest reach in *maxreach. */
+static int read_models(struct engine *g, const struct rows *r, int *model, double *param,
+		       size_t *nxy, double *maxreach)
+{
+	const char *last_type = NULL;
+	int last_m = -1;
+
+	for (size_t i = 0; i < r->n; i++) {
+		int m;
+		const struct wfs_model *md;
+
+		/* Rows of one catalog mostly share one type string ("point"
+		 * when there is no type column). */
+		if (r->type[i] == last_type) {
+			m = last_m;
+		} else if ((m = resolve_type(g, r->type[i])) < 0) {
+			err_prefix(g->e, "%s:%ld", r->file, r->line[i]);
+			return -1;
+		}
+		last_type = r->type[i];
+		last_m = m;
+		md = g->plugins.p[m].m;
+		model[i] = m;
+		if (model_columns(g, r, m) < 0)
+			return -1;
+		for (int c = 0; c < md->ncolumns; c++) {
+			double *v = &param[i * MAX_COLUMNS + c];
+
+			/* an empty cell is the fallback, but for a required
+			 * column (no number parses to NaN) */
+			if (g->colidx[m][c] < 0)
+				*v = md->columns[c].fallback;
+			else if (rows_number(r, g->colidx[m][c], i, md->columns[c].required ? NAN :
+					     md->columns[c].fallback, v, g->e) < 0)
+				return -1;
+			else if (md->columns[c].required && isnan(*v))
+				return err_set(g->e, EXIT_INPUT, "%s:%ld: model '%s': column '%s': "
+					       "empty value", r->file, r->line[i], md->name,
+					       md->columns[c].name);
+		}
+		g->reach[i] = 0;
+		if (isnan(r->ra[i]))
+			(*nxy)++;
+		else if (row_reach(g, r, i, m, &param[i * MAX_COLUMNS], &g->reach[i]) < 0)
+			return -1;
+		else if (g->reach[i] > *maxreach)
+			*maxreach = g->reach[i];
+	}
+	return 0;
+}
+
+/*
+ * Sky to focal plane, for every sky row of the chunk: g->fx, g->fy in
+ * arcsec from the pointing's reference (NaN for x/y rows and for rows that
+ * cannot reach any requested SCA).
+ *
+ * Rows farther in declination from the pointing than any SCA's window
+ * reaches are on no SCA: a row near slot s lies within rho = |(fx, fy)| of
+ * the reference in the focal plane, i.e. at an angle atan(rho) <= rho,
+ * which is at least its declination offset.  Those rows skip the
+ * trigonometry of the projection.
+ */
+static void project_sky_to_focal(struct engine *g, const struct rows *r, double maxreach)
+{
+	double band = 0;
+
+	for (int s = 0; s < g->nslot; s++) {
+		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
+		double lim = SKY_SCA_HALF + maxreach + 2.0;
+
+		band = fmax(band, hypot(fabs(ss->fx) + lim, fabs(ss->fy) + lim));
+	}
+	band = band / 3600 * (1 + 1e-9) + 1e-9;
+	sky_to_focal(&g->sky, r->n, r->ra, r->dec, band, g->fx, g->fy);
+}
+
+/*
+ * Sky to pixels of one SCA: ra[k], dec[k] (degrees) to x[k], y[k], 0-based
+ * pixels of SCA sca (NaN when off the projection), for n points; the
+ * outputs may be the inputs.  The one place the engine turns sky positions
+ * into detector pixels.
+ */
+static int project_sky_to_pixel(struct engine *g, int sca, size_t n, const double *ra,
+				const double *dec, double *x, double *y)
+{
+	return sky_to_pixel(&g->sky, sca, n, ra, dec, x, y, g->e);
+}
+
+/* The placements of the chunk's rows on slot s, in catalog order: sky rows
+ * whose mask names s at their exact pixels, x/y rows of its SCA as given. */
+static int place_on_slot(struct engine *g, const struct rows *r, struct batch *b, int s,
+			 const int *model, const double *param, size_t nxy)
+{
+	size_t nc = 0, k = 0;
+
+	/* Sky rows whose reach touches this SCA, then their exact pixels. */
+	for (size_t i = 0; i < r->n; i++)
+		if (g->mask[i] >> s & 1)
+			g->cand[nc++] = i;
+	for (k = 0; k < nc; k++) {
+		g->px[k] = r->ra[g->cand[k]];
+		g->py[k] = r->dec[g->cand[k]];
+	}
+	if (project_sky_to_pixel(g, g->slot[s].sca, nc, g->px, g->py, g->px, g->py) < 0)
+		return -1;
+	if (!nxy) {
+		for (k = 0; k < nc; k++) {
+			size_t i = g->cand[k];
+
+			if (!isnan(g->px[k]) &&
+			    add_placement(g, b, r, i, model[i], &param[i * MAX_COLUMNS], s,
+					  g->px[k], g->py[k]) < 0)
+				return -1;
+		}
+		return 0;
+	}
+	/* Pixel rows for this SCA are merged in catalog order. */
+	k = 0;
+	for (size_t i = 0; i < r->n; i++) {
+		double x, y;
+
+		if (isnan(r->ra[i])) {
+			int sca = r->sca[i] ? r->sca[i] : g->slot[0].sca;
+
+			if (sca != g->slot[s].sca)
+				continue;
+			x = r->x[i];
+			y = r->y[i];
+		} else {
+			if (k >= nc || g->cand[k] != i)
+				continue;
+			x = g->px[k];
+			y = g->py[k];
+			k++;
+			if (isnan(x))
+				continue;
+		}
+		if (add_placement(g, b, r, i, model[i], &param[i * MAX_COLUMNS], s, x, y) < 0)
+			return -1;
+	}
+	return 0;
+}
+
+/* Turn one chunk of rows into the placements of batch b. */
+int place_batch(struct engine *g, const struct rows *r, struct batch *b)
+{
+	double *param = NULL, maxreach = 0;
+	size_t nxy = 0;
+	int *model = NULL, rc = -1;
+
+	b->n = b->nparam = 0;
+	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)
+		return err_sys(g->e, "rows");
+	/* all per-row arrays share cap_rows: grow them together */
+	if (!(g->fy = realloc(g->fy, g->cap_rows * sizeof(double))) ||
+	    !(g->px = realloc(g->px, g->cap_rows * sizeof(double))) ||
+	    !(g->py = realloc(g->py, g->cap_rows * sizeof(double))) ||
+	    !(g->reach = realloc(g->reach, g->cap_rows * sizeof(double))) ||
+	    !(g->cand = realloc(g->cand, g->cap_rows * sizeof(uint32_t))) ||
+	    !(g->mask = realloc(g->mask, g->cap_rows * sizeof(uint32_t))))
+		return err_sys(g->e, "rows");
+	g->sersic_flux_now = g->o->sersic_flux ? g->o->sersic_flux
+			   : r->sersic_ie ? "ie" : "total";
+
+	/* Parameters of all rows are kept in one array, MAX_COLUMNS a row. */
+	if (!(param = malloc(r->n * MAX_COLUMNS * sizeof(double))) ||
+	    !(model = malloc(r->n * sizeof(int)))) {
+		err_sys(g->e, "rows");
+		goto out;
+	}
+	if (read_models(g, r, model, param, &nxy, &maxreach) < 0)
+		goto out;
+	project_sky_to_focal(g, r, maxreach);
+	slot_masks(g, r, maxreach);
+	for (int s = 0; s < g->nslot; s++)
+		if (place_on_slot(g, r, b, s, model, param, nxy) < 0)
+			goto out;
+	for (size_t i = 0; i < b->n; i++)
+		b->p[i].src.param = b->param + b->p[i].param_off;
+	rc = 0;
+out:
+	free(param);
+	free(model);
+	return rc;
+}
+
+/* Bin the placements of b by the tiles their boxes touch, in placement
+ * order, and allocate the tiles they need. */
+
+int place_bin(struct engine *g, struct batch *b)
+{
+	size_t ntot = (size_t)g->nslot * g->ntile, total = 0;
+	int T = g->tile;
+
+	if (!b->count && !(b->count = calloc(ntot + 1, sizeof(*b->count))))
+		return err_sys(g->e, "tiles");
+	memset(b->count, 0, (ntot + 1) * sizeof(*b->count));
+	for (size_t i = 0; i < b->n; i++) {
+		const struct wfs_box *bx = &b->p[i].box;
+		size_t base = (size_t)b->p[i].slot * g->ntile;
+
+		for (int ty = bx->y0 / T; ty <= (bx->y1 - 1) / T; ty++)
+			for (int tx = bx->x0 / T; tx <= (bx->x1 - 1) / T; tx++) {
+				b->count[base + ty * g->ntx + tx]++;
+				total++;
+			}
+	}
+	if (total > UINT32_MAX)
+		return err_set(g->e, EXIT_SYSTEM, "too many placements in one chunk");
+	if (grow((void **)&b->items, &b->capitems, total + 1, sizeof(*b->items)) < 0)
+		return err_sys(g->e, "tiles");
+	if (!b->active && !(b->active = malloc(ntot * sizeof(*b->active))))
+		return err_sys(g->e, "tiles");
+	/* counts -> start offsets, and the list of active tiles */
+	b->nactive = 0;
+	uint32_t run = 0;
+	for (size_t t = 0; t < ntot; t++) {
+		uint32_t c = b->count[t];
+
+		b->count[t] = run;
+		if (c) {
+			struct slot *sl = &g->slot[t / g->ntile];
+			size_t lt = t % g->ntile;
+
+			b->active[b->nactive++] = t;
+			if (!sl->tile[lt] && !(sl->tile[lt] = tile_alloc(T)))
+				return err_sys(g->e, "tile memory");
+		}
+		run += c;
+	}
+	b->count[ntot] = run;
+	/* fill: count[t] advances to the end of tile t's range */
+	for (size_t i = 0; i < b->n; i++) {
+		const struct wfs_box *bx = &b->p[i].box;
+		size_t base = (size_t)b->p[i].slot * g->ntile;
+
+		for (int ty = bx->y0 / T; ty <= (bx->y1 - 1) / T; ty++)
+			for (int tx = bx->x0 / T; tx <= (bx->x1 - 1) / T; tx++)
+				b->items[b->count[base + ty * g->ntx + tx]++] = i;
+	}
+	/* shift back so count[t] is tile t's start again */
+	for (size_t t = ntot; t > 0; t--)
+		b->count[t] = b->count[t - 1];
+	b->count[0] = 0;
+	b->nitems = total;
+	return 0;
+}
+
+/* A model failed in a worker: the first failure names the model (and the
+ * source), later ones on other threads add nothing.  what is the message
+ * when the plugin recorded none, as it must. */

@@ -1,0 +1,97 @@
+/*
+ * psfgrids.c - the ePSF grids a scene needs, per SCA and brightness class.
+ *
+ * The built-in grids are built or read from the cache (psfbuild.c) the
+ * first time a model asks for one; a --psf FILE serves every SCA, a --psf
+ * FILE with %d one file per SCA.  Grids are loaded on the main thread only
+ * (in prepare() or footprint()); workers only read grids already loaded.
+ */
+#include <limits.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "engine.h"
+#include "err.h"
+#include "instrument.h"
+
+const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls)
+{
+	if (g->user_grid)
+		return g->user_grid;
+	return g->grid[sca - 1][cls];
+}
+
+/* A --psf file made for another filter or (with %d) another SCA than it
+ * serves is most likely a mistake, but not certainly one: say so. */
+static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
+			  const char *path, int sca)
+{
+	if (grid->filter >= 0 && grid->filter != g->o->filter)
+		host_log(g, 0, "warning: %s: PSF for filter %s, the scene's is %s",
+			 path, filter_get(grid->filter)->name, g->filter_name);
+	if (sca && grid->sca && grid->sca != sca)
+		host_log(g, 0, "warning: %s: PSF for SCA %d serves SCA %d", path,
+			 grid->sca, sca);
+}
+
+/* Make sure the ePSF grid of (sca, cls) is loaded.  Main thread only. */
+int psfgrids_need(struct engine *g, int sca, int cls)
+{
+	const struct scene_opts *o = g->o;
+	struct psf_grid *grid;
+
+	if (psfgrids_get(g, sca, cls))
+		return 0;
+	if (strcmp(o->psf, "builtin")) {
+		/* A user file: per SCA when the name holds %d, and then its one
+		 * size serves every brightness class. */
+		char path[PATH_MAX];
+
+		if (g->grid[sca - 1][0]) {
+			g->grid[sca - 1][cls] = g->grid[sca - 1][0];
+			return 0;
+		}
+		snprintf(path, sizeof(path), o->psf, sca);
+		if (!(grid = psf_grid_read(path, g->e)))
+			return -1;
+		psf_file_warn(g, grid, path, sca);
+		if (grid->kind == PSF_OPTICAL && psf_make_epsf(grid, g->e) < 0) {
+			psf_grid_free(grid);
+			return -1;
+		}
+		g->grid[sca - 1][0] = grid;
+		g->grid[sca - 1][cls] = grid;
+		return 0;
+	}
+	host_log(g, 1, "ePSF grid for %s SCA %d, %d samples: building or loading",
+		 g->filter_name, sca, psf_class_n[cls]);
+	if (!(grid = psf_builtin(o->filter, sca, cls, PSF_EPSF, &g->pbo, g->e)))
+		return -1;
+	g->grid[sca - 1][cls] = grid;
+	return 0;
+}
+
+
+/* --psf FILE without %d: one grid read up front for every SCA. */
+int psfgrids_open_user(struct engine *g)
+{
+	const struct scene_opts *o = g->o;
+
+	if (o->psf && strcmp(o->psf, "builtin") && !strstr(o->psf, "%")) {
+		if (!(g->user_grid = psf_grid_read(o->psf, g->e)))
+			return -1;
+		psf_file_warn(g, g->user_grid, o->psf, 0);
+		if (g->user_grid->kind == PSF_OPTICAL && psf_make_epsf(g->user_grid, g->e) < 0)
+			return -1;
+	}
+	return 0;
+}
+
+void psfgrids_free(struct engine *g)
+{
+	for (int s = 0; s < WFS_NSCA; s++)
+		for (int c = 0; c < 3; c++)
+			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
+				psf_grid_free(g->grid[s][c]);
+	psf_grid_free(g->user_grid);
+}

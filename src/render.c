@@ -1,0 +1,108 @@
+/*
+ * render.c - the workers: each draws whole tiles of one batch.
+ *
+ * place.c bins a chunk's placements by tile; each active tile is one task
+ * of the pool, drawn by one worker, its placements in catalog order, so a
+ * tile's pixels are the same sums in the same order whatever the number of
+ * threads.  A worker keeps its own scratch memory, FFT buffers and each
+ * model's per-thread state (thread_start() on its first source of that
+ * model, thread_stop() when the exposure ends).
+ */
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+
+#include "engine.h"
+#include "err.h"
+#include "fftconv.h"
+#include "pool.h"
+
+/* A model failed in a worker: the first failure names the model (and the
+ * source), later ones on other threads add nothing.  what is the message
+ * when the plugin recorded none, as it must. */
+static void model_failed(struct engine *g, const char *model, const char *what,
+			 const struct wfs_source *src)
+{
+	pthread_mutex_lock(&g->err_mu);
+	if (!atomic_exchange(&g->failed, 1)) {
+		err_set(g->e, EXIT_PLUGIN, "%s" MODEL_SILENT, what);
+		if (src)
+			err_prefix(g->e, "model '%s': source %lld on SCA %d", model,
+				   src->id, src->sca);
+		else
+			err_prefix(g->e, "model '%s'", model);
+	}
+	pthread_mutex_unlock(&g->err_mu);
+}
+
+/* Worker: render every placement of one active tile, in placement order. */
+void render_tile(void *arg, int wid, size_t task)
+{
+	struct engine *g = arg;
+	const struct batch *b = g->rendering;
+	struct worker *w = &g->w[wid];
+	size_t t = b->active[task], lt = t % g->ntile;
+	int T = g->tile, tx = lt % g->ntx, ty = lt / g->ntx;
+	int x0 = tx * T, y0 = ty * T;
+	double *tile = g->slot[t / g->ntile].tile[lt];
+
+	double t0 = engine_clock();
+
+	if (atomic_load(&g->failed))
+		return;
+	for (uint32_t k = b->count[t]; k < b->count[t + 1]; k++) {
+		const struct placement *p = &b->p[b->items[k]];
+		struct plugin *pl = &g->plugins.p[p->model];
+		struct wfs_window win;
+
+		if (!w->started[p->model]) {
+			if (pl->m->thread_start &&
+			    pl->m->thread_start(pl->state, &w->tstate[p->model]) < 0) {
+				model_failed(g, pl->name, "thread_start() failed", NULL);
+				return;
+			}
+			w->started[p->model] = 1;
+		}
+		win.x0 = p->box.x0 > x0 ? p->box.x0 : x0;
+		win.y0 = p->box.y0 > y0 ? p->box.y0 : y0;
+		win.nx = (p->box.x1 < x0 + T ? p->box.x1 : x0 + T) - win.x0;
+		win.ny = (p->box.y1 < y0 + T ? p->box.y1 : y0 + T) - win.y0;
+		win.stride = T;
+		win.pix = tile + (size_t)(win.y0 - y0) * T + (win.x0 - x0);
+		if (pl->m->render(pl->state, w->tstate[p->model], w, &p->src, &win) < 0) {
+			model_failed(g, pl->name, "render() failed", &p->src);
+			return;
+		}
+	}
+	g->t_render[wid] += engine_clock() - t0;
+}
+
+
+int render_threads_init(struct engine *g)
+{
+	g->nworker = pool_threads(g->pool);
+	if (!(g->w = calloc(g->nworker, sizeof(*g->w))) ||
+	    !(g->t_render = calloc(g->nworker, sizeof(*g->t_render))))
+		return err_sys(g->e, "threads");
+	for (int i = 0; i < g->nworker; i++)
+		g->w[i].g = g;
+	return 0;
+}
+
+/* The models' thread_stop() and the workers' memory.  The workers must be
+ * idle. */
+void render_threads_stop(struct engine *g)
+{
+	for (int i = 0; g->w && i < g->nworker; i++) {
+		for (int m = 0; m < g->plugins.n; m++)
+			if (g->w[i].started[m] && g->plugins.p[m].m->thread_stop)
+				g->plugins.p[m].m->thread_stop(g->plugins.p[m].state,
+							       g->w[i].tstate[m]);
+		free(g->w[i].scratch);
+		fftconv_thread_free(g->w[i].fft);
+	}
+	free(g->w);
+	free(g->t_render);
+	g->w = NULL;
+	g->t_render = NULL;
+}

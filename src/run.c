@@ -1,0 +1,316 @@
+/*
+ * run.c - the run loop: catalogs in, one FITS file (or one per SCA) out per
+ * exposure; see scene.h.
+ *
+ * scene_run() makes the exposures (exposure.c) and one engine per exposure,
+ * then run_catalogs() streams the catalogs through them: each chunk of rows
+ * is placed (place.c) by every engine and drawn (render.c) by the shared
+ * worker pool while the main thread reads and places the next chunk.  After
+ * the last chunk each exposure is written (write.c) with its side files
+ * (report.c).
+ */
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "catalog.h"
+#include "engine.h"
+#include "err.h"
+#include "fftconv.h"
+#include "noise.h"
+#include "pool.h"
+
+double engine_clock(void)
+{
+	struct timespec t;
+
+	clock_gettime(CLOCK_MONOTONIC, &t);
+	return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+/* A progress line on a terminal, at most a few times a second. */
+void engine_progress(struct engine *g, const char *stage, int force)
+{
+	double t = engine_clock(), since = t - (g->t_progress.tv_sec + 1e-9 * g->t_progress.tv_nsec);
+	double el = t - (g->t_start.tv_sec + 1e-9 * g->t_start.tv_nsec);
+
+	if (!g->progress || (!force && since < 0.25))
+		return;
+	clock_gettime(CLOCK_MONOTONIC, &g->t_progress);
+	fprintf(stderr, "\rwfiscene: %llu rows, %.0f rows/s, %.1f s, %-10s", g->rows_read,
+		el > 0 ? g->rows_read / el : 0.0, el, stage);
+	fflush(stderr);
+}
+
+/* The settings lent to models as text (host_setting), fixed for the run. */
+static void engine_setting_strings(struct engine *g)
+{
+	const struct scene_opts *o = g->o;
+
+	snprintf(g->filter_name, sizeof(g->filter_name), "%s", filter_get(o->filter)->name);
+	snprintf(g->exptime_str, sizeof(g->exptime_str), "%.17g", o->exptime);
+	snprintf(g->seed_str, sizeof(g->seed_str), "%llu", (unsigned long long)g->x->seed);
+	snprintf(g->bkg_str, sizeof(g->bkg_str), "%.17g", g->x->background);
+	snprintf(g->readnoise_str, sizeof(g->readnoise_str), "%.17g",
+		 o->noise & NOISE_READ ? o->readnoise : 0.0);
+	snprintf(g->noise_str, sizeof(g->noise_str), "%s%s%s%s%s",
+		 o->noise & NOISE_POISSON ? "poisson," : "", o->noise & NOISE_READ ? "readnoise," : "",
+		 o->noise & NOISE_DARK ? "dark," : "", o->noise & NOISE_FLAT ? "flat," : "",
+		 o->noise & NOISE_COSMIC ? "cosmic," : "");
+	g->sersic_flux_now = o->sersic_flux ? o->sersic_flux : "total";
+}
+
+/* An engine for exposure x: its sky geometry, its SCAs' tile grids, the
+ * plugins (loaded by each engine: a plugin's state may hold per-exposure
+ * values it read from host->setting), workers' state on the shared pool. */
+static int engine_init(struct engine *g, const struct scene_opts *o, const struct exposure *x,
+		       struct pool *pool, struct err *e)
+{
+	memset(g, 0, sizeof(*g));
+	g->o = o;
+	g->x = x;
+	g->e = e;
+	g->main_thread = pthread_self();
+	pthread_mutex_init(&g->err_mu, NULL);
+	engine_setting_strings(g);
+	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, x->sca_mask, e) < 0)
+		return -1;
+	g->tile = o->tile;
+	g->ntx = g->nty = (WFS_NPIX + g->tile - 1) / g->tile;
+	g->ntile = g->ntx * g->nty;
+	g->ylo = o->row_first ? o->row_first - 1 : 0;
+	g->yhi = o->row_first ? o->row_last : WFS_NPIX;
+	for (int s = 0; s <= WFS_NSCA; s++)
+		g->slot_of[s] = -1;
+	for (int s = 1; s <= WFS_NSCA; s++)
+		if (x->sca_mask & (1u << (s - 1))) {
+			struct slot *sl = &g->slot[g->nslot];
+
+			sl->sca = s;
+			if (!(sl->tile = calloc(g->ntile, sizeof(*sl->tile))))
+				return err_sys(e, "tiles");
+			g->slot_of[s] = g->nslot++;
+		}
+	g->pbo.cache_dir = o->psf_cache;
+	g->pbo.threads = o->threads;
+	g->pbo.verbose = o->verbose;
+	host_init(g);
+	if (plugins_init(&g->plugins, o->plugin_path, &g->host, e) < 0)
+		return -1;
+	if (!(g->fft = fftconv_new()))
+		return err_sys(e, "FFT set-up");
+	g->pool = pool;
+	if (render_threads_init(g) < 0)
+		return -1;
+	return psfgrids_open_user(g);
+}
+
+/* The pool is the caller's; the workers must be idle. */
+static void engine_free(struct engine *g)
+{
+	render_threads_stop(g);
+	plugins_free(&g->plugins);
+	fftconv_free(g->fft);
+	for (int s = 0; s < g->nslot; s++) {
+		for (int t = 0; t < g->ntile; t++)
+			tile_free(g->slot[s].tile[t], g->tile);
+		free(g->slot[s].tile);
+	}
+	psfgrids_free(g);
+	for (int i = 0; i < 2; i++) {
+		free(g->b[i].p);
+		free(g->b[i].param);
+		free(g->b[i].count);
+		free(g->b[i].items);
+		free(g->b[i].active);
+	}
+	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
+	sky_free(&g->sky);
+	pthread_mutex_destroy(&g->err_mu);
+}
+
+/*
+ * Stream the catalogs through the engines g[0 .. ng-1] (one per exposure).
+ *
+ * The main thread and the worker pool work as a two-stage pipeline, one
+ * chunk apart:
+ *
+ *   main thread:  read chunk k | place k for g[0] | place k for g[1] | ...
+ *   workers:      ... draw chunk k-1 of g[ng-1]   | draw k of g[0]  | ...
+ *
+ * For each chunk and each engine in turn, the main thread builds that
+ * engine's placements into batch b[cur] (place_batch: the models' prepare()
+ * and footprint(), and PSF grids loaded on first use, all on the main
+ * thread) while the pool still draws the batch started last, the
+ * "pending" one: the previous engine's for this chunk, or the last
+ * engine's for the previous chunk.  Only then does it wait for the pool
+ * (pool_wait), bin the new batch by tile and start it.  So reading and
+ * placing overlap with rendering, and the pool is never given two loops at
+ * once.
+ *
+ * Why two batches per engine: with one exposure the pending batch is the
+ * same engine's batch of the previous chunk, whose placements and tile
+ * lists must stay intact until pool_wait() returns.  The batches alternate
+ * (cur ^= 1 per chunk), so placing writes into the one not being drawn.
+ * (With several exposures the pending batch is another engine's, and the
+ * alternation costs nothing.)  The tiles themselves are
+ * shared by both batches; they are only written by workers, and a tile is
+ * drawn by one worker at a time because only one batch is drawn at a time.
+ * Tiles a batch needs are allocated in place_bin(), after the wait, so the
+ * pool never sees a tile array change under it.
+ *
+ * A failure in the main thread stops the run after the pending batch
+ * finishes (a worker may be writing into the tiles); a failure in a worker
+ * is seen at the next wait.
+ */
+static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
+			const struct scene_opts *o, struct err *e)
+{
+	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
+				   .chunk_rows = o->chunk };
+	struct engine *pending = NULL;  /* whose batch the pool is drawing */
+	int cur = 0, rc = -1;
+
+	for (char *const *cat = catalogs; *cat; cat++) {
+		struct catalog *c = catalog_open(*cat, &co, e);
+		struct rows rows;
+		long n = 0;
+
+		if (!c)
+			goto out;
+		/* Column indices belong to a catalog: the next one may order
+		 * its columns differently (rows lives at the same address). */
+		for (int i = 0; i < ng; i++)
+			memset(g[i]->colidx_rows, 0, sizeof(g[i]->colidx_rows));
+		for (;;) {
+			double ta = engine_clock(), tb;
+
+			if ((n = catalog_read(c, &rows, e)) <= 0)
+				break;
+			tb = engine_clock();
+			g[0]->t_read += tb - ta;
+			for (int i = 0; i < ng; i++) {
+				struct batch *b = &g[i]->b[cur];
+
+				g[i]->rows_read += n;
+				/* placed while the pool draws the pending batch */
+				if (place_batch(g[i], &rows, b) < 0) {
+					/* Never a silent end of the run. */
+					err_set(e, EXIT_SYSTEM, "placing the rows of %s failed", *cat);
+					break;
+				}
+				ta = engine_clock();
+				g[i]->t_place += ta - tb;
+				if (pending) {
+					pool_wait(g[i]->pool);
+					pending->t_wait += engine_clock() - ta;
+					if (atomic_load(&pending->failed)) {
+						err_set(e, EXIT_PLUGIN, "rendering failed");
+						pending = NULL;
+						break;
+					}
+					pending = NULL;
+				}
+				/* the pool is idle: bin, allocate tiles, start */
+				engine_progress(g[i], "rendering", 0);
+				if (place_bin(g[i], b) < 0)
+					break;
+				g[i]->rendering = b;
+				pool_start(g[i]->pool, render_tile, g[i], b->nactive);
+				pending = g[i];
+				tb = engine_clock();
+			}
+			if (e->code != EXIT_OK)
+				break;
+			cur ^= 1;
+		}
+		catalog_close(c);
+		if (n < 0 || e->code != EXIT_OK)
+			break;
+	}
+	rc = 0;
+out:
+	if (pending) {
+		double ta = engine_clock();
+
+		pool_wait(pending->pool);
+		pending->t_wait += engine_clock() - ta;
+	}
+	for (int i = 0; i < ng; i++)
+		if (atomic_load(&g[i]->failed) && e->code == EXIT_OK)
+			err_set(e, EXIT_PLUGIN, "rendering failed");
+	return rc < 0 || e->code != EXIT_OK ? -1 : 0;
+}
+
+/* Write one exposure's image, --placed list and report. */
+static int finish(struct engine *g, struct timespec t0)
+{
+	struct timespec t1;
+
+	if (write_exposure(g) < 0 || placed_close(g, 1) < 0)
+		return -1;
+	clock_gettime(CLOCK_MONOTONIC, &t1);
+	g->t_total = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
+	if (g->progress)
+		fputs("\r\033[K", stderr);
+	if (g->x->report && report_write(g) < 0)
+		return -1;
+	host_log(g, 1, "%s%s%llu rows read, %llu culled far from every SCA, %llu placements "
+		 "on %d SCA%s, %.3f s", g->o->pointings ? g->x->output : "",
+		 g->o->pointings ? ": " : "", g->rows_read, g->culled, g->placements, g->nslot,
+		 g->nslot == 1 ? "" : "s", g->t_total);
+	return 0;
+}
+
+int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
+{
+	struct exposure *x = NULL;
+	struct engine **g = NULL;
+	struct pool *pool = NULL;
+	struct timespec t0;
+	int n = 0, made = 0, rc = -1;
+
+	clock_gettime(CLOCK_MONOTONIC, &t0);
+	if (exposures_make(o, &x, &n, e) < 0)
+		return -1;
+	if (!(g = calloc(n, sizeof(*g))) ||
+	    !(pool = pool_new(o->threads > 0 ? o->threads : pool_cpus()))) {
+		err_sys(e, "memory");
+		goto out;
+	}
+	for (int i = 0; i < n; i++) {
+		if (!(g[i] = malloc(sizeof(*g[i])))) {
+			err_sys(e, "memory");
+			goto out;
+		}
+		made++;
+		if (engine_init(g[i], o, &x[i], pool, e) < 0)
+			goto out;
+		if ((x[i].placed && placed_open(g[i]) < 0) ||
+		    (x[i].report && side_check(x[i].report, e) < 0))
+			goto out;
+		g[i]->t_start = g[i]->t_progress = t0;
+		g[i]->progress = i == 0 && o->verbose >= 0 && isatty(2);
+	}
+	if (run_catalogs(g, n, catalogs, o, e) < 0)
+		goto out;
+	for (int i = 0; i < n; i++)
+		if (finish(g[i], t0) < 0)
+			goto out;
+	rc = 0;
+out:
+	for (int i = 0; i < made; i++) {
+		placed_close(g[i], 0);
+		engine_free(g[i]);
+		free(g[i]);
+	}
+	pool_free(pool);
+	exposures_free(x, n);
+	free(g);
+	return rc;
+}

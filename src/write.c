@@ -1,0 +1,264 @@
+/*
+ * write.c - writing an exposure: FITS header cards and the image, strip by
+ * strip.
+ *
+ * After the last chunk is drawn, each SCA's image is written one strip of
+ * tiles at a time: the strip's drawn light is summed for the report, the
+ * detector stage (detector.c: background, exposure time, noise) runs on
+ * its tiles in parallel, the tiles are converted to float32, checked for
+ * values a float cannot hold, written through fitsout.c and freed.  So an exposure never
+ * holds a second copy of its image.
+ */
+#include <math.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "engine.h"
+#include "err.h"
+#include "fitsout.h"
+#include "detector.h"
+#include "pool.h"
+
+static int add_card(char **cards, int *n, int *cap, const char *card)
+{
+	if (*n == *cap) {
+		char *more = realloc(*cards, (size_t)(*cap ? 2 * *cap : 64) * 80 + 1);
+
+		if (!more)
+			return -1;
+		*cards = more;
+		*cap = *cap ? 2 * *cap : 64;
+	}
+	memcpy(*cards + (size_t)*n * 80, card, 80);
+	(*n)++;
+	return 0;
+}
+
+static int primary_cards(struct engine *g, char **cards, int *n)
+{
+	const struct scene_opts *o = g->o;
+	const struct exposure *x = g->x;
+	char c[81], buf[64];
+	int cap = 0, bad = 0;
+	const char *epoch = getenv("SOURCE_DATE_EPOCH");
+	time_t now = epoch && *epoch ? (time_t)strtoll(epoch, NULL, 10) : time(NULL);
+	struct tm tm;
+
+	*cards = NULL;
+	*n = 0;
+#define CARD(fn, k, v, com) (fn(c, k, v, com), bad |= add_card(cards, n, &cap, c))
+	CARD(fits_card_str, "ORIGIN", "wfiscene", "Roman WFI scene simulator");
+	CARD(fits_card_str, "WFSVERS", WFS_VERSION, "wfiscene version");
+	gmtime_r(&now, &tm);
+	strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%S", &tm);
+	/* SOURCE_DATE_EPOCH pins the date, so two runs can give the same bytes */
+	CARD(fits_card_str, "DATE", buf, "file creation date (UTC)");
+	CARD(fits_card_str, "TELESCOP", "ROMAN", NULL);
+	CARD(fits_card_str, "INSTRUME", "WFI", NULL);
+	CARD(fits_card_str, "FILTER", g->filter_name, "optical element");
+	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
+	CARD(fits_card_dbl, "RA_TARG", g->sky.ra0, "pointing RA (deg)");
+	CARD(fits_card_dbl, "DEC_TARG", g->sky.dec0, "pointing Dec (deg)");
+	CARD(fits_card_dbl, "PA_APER", g->sky.pa0, "position angle of detector +y (deg E of N)");
+	CARD(fits_card_str, "POINTREF", x->boresight ? "BORESIGHT" : "WFI01",
+	     "what RA_TARG/DEC_TARG point at");
+	CARD(fits_card_int, "SEED", (long long)x->seed, "random seed");
+	CARD(fits_card_str, "PSFSRC", o->psf, "PSF source");
+	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
+	CARD(fits_card_str, "BKGRND", o->background_arg ? o->background_arg : "none",
+	     "background setting");
+	CARD(fits_card_dbl, "BKGRATE", x->background, "background (counts/s/pixel)");
+	snprintf(buf, sizeof(buf), "%s%s%s%s%s", o->noise & NOISE_POISSON ? "P" : "",
+		 o->noise & NOISE_READ ? "R" : "", o->noise & NOISE_DARK ? "D" : "",
+		 o->noise & NOISE_FLAT ? "F" : "", o->noise & NOISE_COSMIC ? "C" : "");
+	CARD(fits_card_str, "NOISE", buf[0] ? buf : "NONE",
+	     "P poisson R read D dark F flat C cosmic");
+	if (o->noise & NOISE_READ)
+		CARD(fits_card_dbl, "RDNOISE", o->readnoise, "read noise (e-)");
+	CARD(fits_card_str, "ZPTABLE", o->zp_stips ? "STIPS" : "RTI-20240301",
+	     "AB zeropoints used");
+	CARD(fits_card_dbl, "BRIGHTLM", o->bright_limit, "bright ePSF box limit (AB)");
+	CARD(fits_card_dbl, "XBRITELM", o->xbright_limit, "extra-bright box limit (AB)");
+#undef CARD
+	return bad ? -1 : 0;
+}
+
+static int image_cards(struct engine *g, int s, char **cards, int *n)
+{
+	const struct scene_opts *o = g->o;
+	char c[81], name[16], *wcs = NULL;
+	int nwcs = 0, cap = 0, bad = 0, sca = g->slot[s].sca;
+
+	*cards = NULL;
+	*n = 0;
+	if (sky_header(&g->sky, sca, g->ylo, &wcs, &nwcs, g->e) < 0)
+		return -1;
+	snprintf(name, sizeof(name), "WFI%02d", sca);
+#define CARD(fn, k, v, com) (fn(c, k, v, com), bad |= add_card(cards, n, &cap, c))
+	CARD(fits_card_str, "EXTNAME", name, "detector");
+	CARD(fits_card_str, "DETECTOR", name, NULL);
+	CARD(fits_card_str, "FILTER", g->filter_name, NULL);
+	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
+	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
+	CARD(fits_card_dbl, "PHOTZPAB", place_zeropoint(g, sca), "AB mag of 1 count/s");
+	CARD(fits_card_dbl, "PA_APER", g->sky.sca[sca - 1].pa, "position angle of +y (deg)");
+	CARD(fits_card_dbl, "RA_APER", g->sky.sca[sca - 1].ra, "detector centre RA");
+	CARD(fits_card_dbl, "DEC_APER", g->sky.sca[sca - 1].dec, "detector centre Dec");
+	CARD(fits_card_int, "NSOURCES", (long long)g->placed_on[sca - 1], "sources drawn on this SCA");
+	if (o->row_first) {
+		char rows[32];
+
+		snprintf(rows, sizeof(rows), "%d-%d", o->row_first, o->row_last);
+		CARD(fits_card_str, "ROWS", rows, "rows of the SCA in this part (--rows)");
+	}
+#undef CARD
+	for (int k = 0; k < nwcs; k++)
+		if (strncmp(wcs + 80 * k, "WCSAXES ", 8) && strncmp(wcs + 80 * k, "COMMENT", 7))
+			bad |= add_card(cards, n, &cap, wcs + 80 * k);
+	free(wcs);
+	return bad ? err_sys(g->e, "header") : 0;
+}
+
+/* The first pixel of a[0 .. n-1] that is not a finite float, or -1. */
+static ptrdiff_t first_nonfinite(const float *a, size_t n)
+{
+	for (size_t i = 0; i < n; i++)
+		if (!isfinite(a[i]))
+			return (ptrdiff_t)i;
+	return -1;
+}
+
+static int write_slot(struct engine *g, struct fitsout *f, int s, const struct detector *d,
+		      float *strip)
+{
+	int T = g->tile;
+	char *cards;
+	int ncards;
+
+	if (image_cards(g, s, &cards, &ncards) < 0)
+		return -1;
+	if (fitsout_image_begin(f, WFS_NPIX, g->yhi - g->ylo, cards, ncards, g->e) < 0) {
+		free(cards);
+		return -1;
+	}
+	free(cards);
+	/* The strips of tiles that hold the rows written, [ylo, yhi): all of
+	 * them but with --rows. */
+	for (int ty = g->ylo / T; ty * T < g->yhi; ty++) {
+		int y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
+		int ya = g->ylo > y0 ? g->ylo - y0 : 0;
+		int yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
+		double **row = &g->slot[s].tile[ty * g->ntx];
+		double t0;
+
+		for (int tx = 0; tx < g->ntx; tx++) {
+			int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
+
+			for (int y = ya; row[tx] && y < yb; y++)
+				for (int x = 0; x < nx; x++)
+					g->image_sum[g->slot[s].sca - 1] += row[tx][(size_t)y * T + x];
+		}
+		for (int tx = 0; tx < g->ntx; tx++)
+			g->tiles_drawn += row[tx] != NULL;
+		g->tiles += g->ntx;
+		t0 = engine_clock();
+		if (d->active) {
+			for (int tx = 0; tx < g->ntx; tx++)
+				if (!row[tx] && !(row[tx] = tile_alloc(T)))
+					return err_sys(g->e, "tile memory");
+			if (detector_strip(d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T) < 0)
+				return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
+		}
+		g->t_noise += engine_clock() - t0;
+		t0 = engine_clock();
+		for (int y = ya; y < yb; y++)
+			for (int tx = 0; tx < g->ntx; tx++) {
+				int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+				float *out = strip + (size_t)(y - ya) * WFS_NPIX + x0;
+
+				if (row[tx])
+					for (int x = 0; x < nx; x++)
+						out[x] = (float)row[tx][(size_t)y * T + x];
+				else
+					memset(out, 0, nx * sizeof(float));
+			}
+		/* make_source bounds each source, but many sources on one
+		 * pixel, or a model that draws more than its flux or NaN,
+		 * could still put an infinity or NaN in the file. */
+		{
+			ptrdiff_t k = first_nonfinite(strip, (size_t)(yb - ya) * WFS_NPIX);
+			int px = (int)(k % WFS_NPIX) + 1, py = y0 + ya + (int)(k / WFS_NPIX) + 1;
+
+			if (k >= 0 && isnan(strip[k]))
+				return err_set(g->e, EXIT_PLUGIN, "WFI%02d: pixel x=%d, y=%d "
+					       "(1-based) is NaN: a source model drew a value "
+					       "that is not a number", g->slot[s].sca, px, py);
+			if (k >= 0)
+				return err_set(g->e, EXIT_INPUT, "WFI%02d: pixel x=%d, y=%d "
+					       "(1-based) is beyond the largest 32-bit float "
+					       "(3.4e38): the sources there sum to more than "
+					       "the image can hold", g->slot[s].sca, px, py);
+		}
+		if (fitsout_image_rows(f, strip, yb - ya, g->e) < 0)
+			return -1;
+		for (int tx = 0; tx < g->ntx; tx++) {
+			tile_free(row[tx], T);
+			row[tx] = NULL;
+		}
+		g->t_write += engine_clock() - t0;
+		engine_progress(g, "writing", 0);
+	}
+	return fitsout_image_end(f, g->e);
+}
+
+int write_exposure(struct engine *g)
+{
+	const struct scene_opts *o = g->o;
+	const struct exposure *x = g->x;
+	struct detector d;
+	int per_sca = strstr(x->output, "%") != NULL;
+	float *strip = malloc((size_t)g->tile * WFS_NPIX * sizeof(float));
+	struct fitsout *f = NULL;
+	char *cards = NULL;
+	int ncards;
+
+	if (!strip)
+		return err_sys(g->e, "output buffer");
+	detector_init(&d, o, x);
+	if (primary_cards(g, &cards, &ncards) < 0) {
+		err_sys(g->e, "header");
+		goto fail;
+	}
+	for (int s = 0; s < g->nslot; s++) {
+		if (!f || per_sca) {
+			char path[PATH_MAX];
+
+			snprintf(path, sizeof(path), x->output, g->slot[s].sca);
+			if (!(f = fitsout_open(path, o->compress, g->e)) ||
+			    fitsout_primary(f, cards, ncards, g->e) < 0)
+				goto fail;
+		}
+		if (write_slot(g, f, s, &d, strip) < 0)
+			goto fail;
+		if (per_sca || s == g->nslot - 1) {
+			struct fitsout *done = f;
+
+			f = NULL;
+			if (fitsout_commit(done, g->e) < 0)
+				goto fail;
+		}
+	}
+	free(cards);
+	free(strip);
+	return 0;
+fail:
+	fitsout_abort(f);
+	free(cards);
+	free(strip);
+	return -1;
+}
+

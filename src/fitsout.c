@@ -75,12 +75,6 @@ struct fitsout {
 	size_t scratch_n;
 };
 
-/* Kept for main()'s handler until it calls tempfile.h's policy itself. */
-void fitsout_abort_all_signal(void)
-{
-	tempfile_remove_all();
-}
-
 /* ---- card formatting ---- */
 
 /* Start a blank 80-character card with the keyword and its value

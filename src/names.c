@@ -103,9 +103,12 @@ int name_check(const char *what, const char *tmpl, unsigned allow, unsigned need
 	if (nd && !(allow & NAME_SCA))
 		return err_set(e, EXIT_INPUT, "%s: '%s': one file covers every SCA; no '%%d'",
 			       what, tmpl);
-	if (ns && !(allow & NAME_EXPOSURE))
+	if (ns && !(allow & NAME_EXPOSURE) && (allow & NAME_NEEDS_POINTINGS))
 		return err_set(e, EXIT_INPUT, "%s: '%s': '%%s' stands for the exposure's name "
 			       "and needs --pointings", what, tmpl);
+	if (ns && !(allow & NAME_EXPOSURE))
+		return err_set(e, EXIT_INPUT, "%s: '%s': no exposure's name ('%%s') here; only "
+			       "%s may follow a '%%'", what, tmpl, field_help(allow));
 	if (!nd && (need & NAME_SCA))
 		return err_set(e, EXIT_INPUT, "%s: '%s' needs a '%%d' for the SCA", what, tmpl);
 	if (!ns && (need & NAME_EXPOSURE))

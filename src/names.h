@@ -25,6 +25,9 @@
 enum name_field {
 	NAME_SCA = 1,           /* %d */
 	NAME_EXPOSURE = 2,      /* %s */
+	/* not a field: %s is refused only because --pointings is absent
+	 * (the message says so) */
+	NAME_NEEDS_POINTINGS = 4,
 };
 
 /* The widest %d: "%099d" would only make unwieldy names. */

@@ -52,6 +52,7 @@
 #include "commands.h"
 #include "err.h"
 #include "options.h"
+#include "names.h"
 #include "tempfile.h"
 
 #ifndef WFS_VERSION
@@ -72,7 +73,7 @@ struct preview_opts {
 	const char *in[3];
 	int nin;                    /* 1, or 3 with --rgb */
 	const char *out;
-	char out_default[PATH_MAX];
+	char out_default[PATH_MAX];     /* IN with .png, or -o expanded */
 	int sca;                    /* 0 unset, -1 all, else EXTNAME WFInn */
 	int width;
 	int stretch;
@@ -313,6 +314,13 @@ static int preview_parse(int argc, char **argv, struct preview_opts *o,
 			return err_set(e, EXIT_INPUT, "--rgb needs -o OUT.png");
 		if (preview_default_output(o, e) < 0)
 			return -1;
+	} else {
+		/* one file: '%%' is its only escape (names.h) */
+		if (name_check("-o", o->out, 0, 0, e) < 0 ||
+		    name_expand(o->out_default, sizeof(o->out_default), "-o", o->out, 0, NULL,
+				e) < 0)
+			return -1;
+		o->out = o->out_default;
 	}
 	if (!strcmp(o->out, "-") && isatty(STDOUT_FILENO))
 		return err_set(e, EXIT_INPUT, "refusing to write a PNG to a terminal");
@@ -1239,14 +1247,11 @@ static int preview_png_save(struct preview_png *p, const struct preview_opts *o,
 		err_sys(e, "%s", o->out);
 		goto fail;
 	}
-	if (tmp[0] && rename(tmp, o->out) < 0) {
-		err_sys(e, "%s", o->out);
-		goto fail;
-	}
+	if (tmp[0] && tempfile_commit(tmp, o->out, e) < 0)
+		return -1;
 	return 0;
 fail:
-	if (tmp[0])
-		unlink(tmp);
+	tempfile_discard(tmp);
 	return -1;
 }
 

@@ -261,7 +261,7 @@ static int finish(struct engine *g, struct timespec t0)
 	if (g->x->report && report_write(g) < 0)
 		return -1;
 	host_log(g, 1, "%s%s%llu rows read, %llu culled far from every SCA, %llu placements "
-		 "on %d SCA%s, %.3f s", g->o->pointings ? g->x->output : "",
+		 "on %d SCA%s, %.3f s", g->o->pointings ? g->x->name : "",
 		 g->o->pointings ? ": " : "", g->rows_read, g->culled, g->placements, g->nslot,
 		 g->nslot == 1 ? "" : "s", g->t_total);
 	return 0;

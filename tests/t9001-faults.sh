@@ -63,6 +63,32 @@ test_expect_success 'SIGINT while reading keeps an existing output file' '
 	test $rc -eq 4 && cmp before.fits out.fits && test -z "$(ls -A | grep "^\.out")"
 '
 
+# The one signal policy is set before any subcommand runs: psf (building a
+# grid) and preview (waiting for the reader of its FIFO) are interrupted as
+# the scene is, and --placed's temporary goes with the rest.
+test_expect_success 'SIGTERM stops wfiscene psf and preview: exit 4, nothing left' '
+	d=$TRASH/sig-sub && mkdir "$d" && cd "$d" &&
+	{ "$WFS" psf --filter F158 --sca 3 --no-cache -o g.fits 2> err & } && pid=$! &&
+	{ wait_sigterm Cgt $pid; kill -TERM $pid; }; wait $pid; rc=$?
+	test $rc -eq 4 && test_grep "wfiscene psf: interrupted; partial output removed" err &&
+	test -z "$(ls -A | grep -v "^err$")" &&
+	"$WFS" --filter F129 --sca 1 --psf "$PSF" --rows 1-16 -o img.fits ../two.csv &&
+	mkfifo png &&
+	{ "$WFS" preview -o png img.fits 2> err & } && pid=$! &&
+	{ wait_sigterm Cgt $pid; kill -TERM $pid; }; wait $pid; rc=$?
+	test $rc -eq 4 && test_grep "wfiscene preview: interrupted" err
+'
+test_expect_success 'SIGINT while reading removes the --placed temporary' '
+	d=$TRASH/sig-placed && mkdir "$d" && cd "$d" && mkfifo in &&
+	{ "$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits --placed p.csv \
+		--report r.json < in 2> err & } &&
+	pid=$! && exec 3> in && printf "x,y,flux\n" >&3 &&
+	{ wait_sigterm Cgt $pid; sleep 0.2; ls -A > during; kill -INT $pid; }; wait $pid; rc=$?
+	exec 3>&-
+	test $rc -eq 4 && test_grep "^\.p\.csv\." during &&
+	test -z "$(ls -A | grep -v "^err$\|^in$\|^during$")"
+'
+
 # signal_writing SIG: 6 SCAs with noise take long enough to write that the
 # signal arrives once the temporary file exists.
 signal_writing() {

@@ -83,7 +83,8 @@ int main(void)
 	checks("out_%s.csv", NAME_EXPOSURE, NAME_EXPOSURE, NULL);
 	checks("out.csv", NAME_EXPOSURE, NAME_EXPOSURE, "needs a '%s'");
 	checks("out_%d.csv", NAME_EXPOSURE, 0, "one file covers every SCA");
-	checks("out_%s.csv", NAME_SCA, 0, "needs --pointings");
+	checks("out_%s.csv", NAME_SCA | NAME_NEEDS_POINTINGS, 0, "needs --pointings");
+	checks("psf_%s.fits", NAME_SCA, 0, "no exposure's name ('%s') here; only '%d'");
 	checks("out_%n.csv", NAME_SCA, 0, "only '%d' (the SCA) and '%%' (a '%') may follow");
 	checks("out_%n.csv", 0, 0, "only '%%' (a '%') may follow");
 	checks("psf_%d.fits", NAME_SCA, NAME_SCA, NULL);

@@ -76,7 +76,6 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	g->x = x;
 	g->e = e;
 	g->main_thread = pthread_self();
-	pthread_mutex_init(&g->err_mu, NULL);
 	engine_setting_strings(g);
 	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, x->sca_mask, e) < 0)
 		return -1;
@@ -131,7 +130,6 @@ static void engine_free(struct engine *g)
 	}
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
 	sky_free(&g->sky);
-	pthread_mutex_destroy(&g->err_mu);
 }
 
 /*
@@ -209,6 +207,7 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				if (pending) {
 					pool_wait(g[i]->pool);
 					pending->t_wait += engine_clock() - ta;
+					render_errors_collect(pending);
 					if (atomic_load(&pending->failed)) {
 						err_set(e, EXIT_PLUGIN, "rendering failed");
 						pending = NULL;
@@ -240,6 +239,7 @@ out:
 
 		pool_wait(pending->pool);
 		pending->t_wait += engine_clock() - ta;
+		render_errors_collect(pending);
 	}
 	for (int i = 0; i < ng; i++)
 		if (atomic_load(&g[i]->failed) && e->code == EXIT_OK)

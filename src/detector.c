@@ -1,8 +1,9 @@
 /*
  * detector.c - the detector stage after rendering; see detector.h.
  *
- * Today one level: the scene level of STIPS, a rate image with background,
- * exposure time, noise and detector residuals applied per tile by noise.c.
+ * The scene level of STIPS, a rate image with background, exposure time,
+ * noise and detector residuals applied per tile by noise.c; levels 1 and 2
+ * (the ramp) are written whole by levels.c from write.c.
  */
 #include <stdatomic.h>
 
@@ -12,9 +13,14 @@
 #include "pool.h"
 #include "scene.h"
 
-void detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x)
+int detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x,
+		  struct err *e)
 {
 	d->level = x->level;
+	if (d->level != DETECTOR_SCENE) {
+		d->active = 1;
+		return ramp_pattern_get(o->ma_table, &d->pattern, e);
+	}
 	d->noise = (struct noise_opts){
 		.stages = o->noise, .background = x->background, .exptime = o->exptime,
 		.readnoise = o->readnoise, .dark_current = o->dark_current,
@@ -24,6 +30,7 @@ void detector_init(struct detector *d, const struct scene_opts *o, const struct 
 	/* With no noise, no background and counts/s, the stage is the
 	 * identity and the tiles never drawn on are never allocated. */
 	d->active = o->noise || x->background != 0 || o->bunit_counts;
+	return 0;
 }
 
 struct strip_job {

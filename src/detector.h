@@ -15,7 +15,9 @@
 #include <stddef.h>
 
 #include "noise.h"
+#include "ramp.h"
 
+struct err;
 struct exposure;
 struct pool;
 struct scene_opts;
@@ -24,16 +26,24 @@ enum detector_level {
 	/* A rate image (or counts with --bunit counts): background, exposure
 	 * time and the --noise stages, tile by tile (noise.c). */
 	DETECTOR_SCENE = 0,
+	/* The detector read up the ramp (ramp.c, levels.c): the resultants of
+	 * the MA table as 16-bit DN (level 1), or their ramp fits (level 2).
+	 * The SCA is written by level_write_sca() instead of strip by strip
+	 * through detector_strip(). */
+	DETECTOR_L1 = 1,
+	DETECTOR_L2 = 2,
 };
 
 struct detector {
 	enum detector_level level;
 	struct noise_opts noise;        /* DETECTOR_SCENE */
 	int active;                     /* 0: the drawn image is written as is */
+	struct ramp_pattern pattern;    /* DETECTOR_L1, DETECTOR_L2 */
 };
 
 /* The detector stage of exposure x of a run with options o. */
-void detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x);
+int detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x,
+		  struct err *e);
 
 /*
  * Apply the stage to one strip of an SCA: tiles[0 .. ntx-1], each T x T

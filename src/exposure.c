@@ -175,7 +175,7 @@ int exposures_make(const struct scene_opts *o, struct exposure **out, int *n, st
 		x[i].boresight = o->boresight;
 		x[i].date = NAN;
 		x[i].sca_mask = o->sca_mask;
-		x[i].level = DETECTOR_SCENE;
+		x[i].level = o->level;
 		x[i].background = o->background;
 		x[i].output = o->output;
 		if (expand_side("--placed", o->placed, &x[i], &x[i].placed, e) < 0 ||

@@ -51,6 +51,16 @@ enum fitsout_state {
 	ST_EMPTY,               /* nothing written yet */
 	ST_READY,               /* primary written, between images */
 	ST_IMAGE,               /* inside an image: rows expected */
+	ST_GROUP,               /* inside a group of HDUs written by offset */
+};
+
+/* One HDU of a group (fitsout_group_begin). */
+struct group_hdu {
+	long long data_off;     /* file offset of its data */
+	long nx, ny, nz;
+	int bitpix;
+	long long rows;         /* rows written, all planes */
+	char name[72];
 };
 
 struct fitsout {
@@ -73,6 +83,12 @@ struct fitsout {
 	size_t len;
 	float *scratch;         /* row copy handed to cfitsio */
 	size_t scratch_n;
+
+	struct group_hdu *grp;  /* the HDUs of the current group */
+	int ngrp;
+	long long grp_end;      /* file offset after the group */
+	unsigned char *gbuf;    /* big-endian copy of a group write */
+	size_t gbuf_n;
 };
 
 /* ---- card formatting ---- */
@@ -440,6 +456,8 @@ static void fitsout_free(struct fitsout *f)
 	free(f->tmp);
 	free(f->buf);
 	free(f->scratch);
+	free(f->grp);
+	free(f->gbuf);
 	free(f);
 }
 
@@ -752,6 +770,187 @@ int fitsout_image_end(struct fitsout *f, struct err *e)
 	return wzeros(f, (size_t)((BLOCK - bytes % BLOCK) % BLOCK), e);
 }
 
+/* ---- groups: several HDUs laid out first, their data written by offset ---- */
+
+static int bytes_per(int bitpix)
+{
+	return bitpix == 16 ? 2 : 4;
+}
+
+static int group_pwrite(struct fitsout *f, const void *p, size_t n, long long off,
+			struct err *e)
+{
+	const unsigned char *q = p;
+
+	while (n > 0) {
+		ssize_t w = pwrite(f->fd, q, n, (off_t)off);
+
+		if (w < 0 && errno == EINTR)
+			continue;
+		if (w <= 0) {
+			if (w == 0)
+				errno = EIO;
+			f->failed = 1;
+			return err_sys(e, "%s: write error", f->name);
+		}
+		q += w;
+		n -= (size_t)w;
+		off += w;
+	}
+	return 0;
+}
+
+int fitsout_group_begin(struct fitsout *f, int nhdu, const struct fitsout_hdu *h,
+			struct err *e)
+{
+	long long off;
+
+	if (f->failed)
+		return err_set(e, EXIT_SYSTEM, "%s: earlier write failed", f->name);
+	if (f->state == ST_IMAGE || f->state == ST_GROUP)
+		return err_set(e, EXIT_SYSTEM, "%s: HDU %d ('%s') not ended",
+			       f->name, f->nhdu, f->hduname);
+	if (f->fz)
+		return err_set(e, EXIT_INPUT, "%s: the planes of --level 1 and 2 are "
+			       "written side by side, which tile compression cannot do: "
+			       "leave out --compress", f->name);
+	if (f->state == ST_EMPTY && fitsout_primary(f, NULL, 0, e))
+		return -1;
+	if (wflush(f, e))
+		return -1;
+	off = (long long)lseek(f->fd, 0, SEEK_CUR);
+	if (off < 0)
+		return err_set(e, EXIT_INPUT, "%s: the planes of --level 1 and 2 are "
+			       "written side by side and need a file that can seek "
+			       "(not a pipe or stdout)", f->name);
+	free(f->grp);
+	if (!(f->grp = calloc((size_t)nhdu, sizeof(*f->grp))))
+		return err_sys(e, "%s", f->name);
+	f->ngrp = nhdu;
+	for (int k = 0; k < nhdu; k++) {
+		char s[10 * CARD + 1];
+		int n = 0, nax = h[k].nz > 1 ? 3 : 2;
+		unsigned long long bytes;
+		struct group_hdu *g = &f->grp[k];
+
+		if (check_cards(f, h[k].cards, h[k].ncards, e))
+			return -1;
+		if (h[k].bitpix != 16 && h[k].bitpix != 32 && h[k].bitpix != -32)
+			return err_set(e, EXIT_SYSTEM, "%s: BITPIX %d", f->name, h[k].bitpix);
+		g->nx = h[k].nx;
+		g->ny = h[k].ny;
+		g->nz = h[k].nz > 1 ? h[k].nz : 1;
+		g->bitpix = h[k].bitpix;
+		snprintf(g->name, sizeof(g->name), "%s", h[k].name ? h[k].name : "");
+		fits_card_str(s + n++ * CARD, "XTENSION", "IMAGE", "image extension");
+		fits_card_int(s + n++ * CARD, "BITPIX", g->bitpix,
+			      g->bitpix == -32 ? "IEEE single precision" :
+			      g->bitpix == 16 ? "16-bit integers (unsigned with BZERO)" :
+			      "32-bit integers (unsigned with BZERO)");
+		fits_card_int(s + n++ * CARD, "NAXIS", nax, "number of axes");
+		fits_card_int(s + n++ * CARD, "NAXIS1", g->nx, "columns (x)");
+		fits_card_int(s + n++ * CARD, "NAXIS2", g->ny, "rows (y)");
+		if (nax == 3)
+			fits_card_int(s + n++ * CARD, "NAXIS3", g->nz, "planes");
+		fits_card_int(s + n++ * CARD, "PCOUNT", 0, "no parameters");
+		fits_card_int(s + n++ * CARD, "GCOUNT", 1, "one group");
+		if (g->bitpix == 16)
+			fits_card_int(s + n++ * CARD, "BZERO", 32768, "unsigned 16-bit");
+		else if (g->bitpix == 32)
+			fits_card_dbl(s + n++ * CARD, "BZERO", 2147483648.0, "unsigned 32-bit");
+		if (g->bitpix > 0)
+			fits_card_int(s + n++ * CARD, "BSCALE", 1, NULL);
+		if (lseek(f->fd, (off_t)off, SEEK_SET) < 0 ||
+		    write_header(f, s, n, h[k].cards, h[k].ncards, e) || wflush(f, e))
+			return f->failed ? -1 : err_sys(e, "%s: seek", f->name);
+		off += ((long long)(n + h[k].ncards + 1 + CARDS_PER_BLOCK - 1) /
+			CARDS_PER_BLOCK) * BLOCK;
+		g->data_off = off;
+		bytes = (unsigned long long)g->nx * g->ny * g->nz * bytes_per(g->bitpix);
+		off += (long long)((bytes + BLOCK - 1) / BLOCK * BLOCK);
+		f->nhdu++;
+	}
+	f->grp_end = off;
+	/* the data and its padding read as zeros until written */
+	if (ftruncate(f->fd, (off_t)off) && errno != EINVAL)
+		return err_sys(e, "%s: write error", f->name);
+	snprintf(f->hduname, sizeof(f->hduname), "%s", f->grp[0].name);
+	f->state = ST_GROUP;
+	return 0;
+}
+
+int fitsout_group_rows(struct fitsout *f, int k, int plane, long y0, int nrows,
+		       const void *data, struct err *e)
+{
+	struct group_hdu *g;
+	size_t n, bp;
+	long long off;
+
+	if (f->failed)
+		return err_set(e, EXIT_SYSTEM, "%s: earlier write failed", f->name);
+	if (f->state != ST_GROUP || k < 0 || k >= f->ngrp)
+		return err_set(e, EXIT_SYSTEM, "%s: group rows outside a group", f->name);
+	g = &f->grp[k];
+	if (plane < 0 || plane >= g->nz || y0 < 0 || nrows < 0 || y0 + nrows > g->ny)
+		return err_set(e, EXIT_SYSTEM, "%s: '%s': rows %ld-%ld of plane %d "
+			       "out of range", f->name, g->name, y0, y0 + nrows, plane);
+	bp = (size_t)bytes_per(g->bitpix);
+	n = (size_t)nrows * (size_t)g->nx;
+	if (f->gbuf_n < n * bp) {
+		free(f->gbuf);
+		if (!(f->gbuf = malloc(n * bp))) {
+			f->gbuf_n = 0;
+			return err_sys(e, "%s", f->name);
+		}
+		f->gbuf_n = n * bp;
+	}
+	if (bp == 2) {
+		const uint16_t *v = data;
+
+		/* unsigned stored as signed with BZERO 32768: flip the top bit */
+		for (size_t i = 0; i < n; i++) {
+			uint16_t u = (uint16_t)(v[i] ^ 0x8000u);
+
+			f->gbuf[2 * i] = (unsigned char)(u >> 8);
+			f->gbuf[2 * i + 1] = (unsigned char)u;
+		}
+	} else {
+		const uint32_t *v = data;
+		uint32_t flip = g->bitpix == 32 ? 0x80000000u : 0;
+
+		for (size_t i = 0; i < n; i++) {
+			uint32_t u = v[i] ^ flip;
+
+			f->gbuf[4 * i] = (unsigned char)(u >> 24);
+			f->gbuf[4 * i + 1] = (unsigned char)(u >> 16);
+			f->gbuf[4 * i + 2] = (unsigned char)(u >> 8);
+			f->gbuf[4 * i + 3] = (unsigned char)u;
+		}
+	}
+	off = g->data_off + (((long long)plane * g->ny + y0) * g->nx) * (long long)bp;
+	if (group_pwrite(f, f->gbuf, n * bp, off, e))
+		return -1;
+	g->rows += nrows;
+	return 0;
+}
+
+int fitsout_group_end(struct fitsout *f, struct err *e)
+{
+	if (f->failed)
+		return err_set(e, EXIT_SYSTEM, "%s: earlier write failed", f->name);
+	if (f->state != ST_GROUP)
+		return err_set(e, EXIT_SYSTEM, "%s: no group to end", f->name);
+	for (int k = 0; k < f->ngrp; k++)
+		if (f->grp[k].rows != (long long)f->grp[k].ny * f->grp[k].nz)
+			return err_set(e, EXIT_SYSTEM, "%s: '%s': %lld of %lld rows written",
+				       f->name, f->grp[k].name, f->grp[k].rows,
+				       (long long)f->grp[k].ny * f->grp[k].nz);
+	if (lseek(f->fd, (off_t)f->grp_end, SEEK_SET) < 0)
+		return err_sys(e, "%s: seek", f->name);
+	f->state = ST_READY;
+	return 0;
+}
+
 /* Make a rename durable: fsync the directory that holds the new entry.
  * Some file systems cannot fsync a directory (EINVAL); that is no error. */
 static int sync_dir(struct fitsout *f, struct err *e)
@@ -790,7 +989,7 @@ int fitsout_commit(struct fitsout *f, struct err *e)
 		err_set(e, EXIT_SYSTEM, "%s: earlier write failed", f->name);
 		goto fail;
 	}
-	if (f->state == ST_IMAGE) {
+	if (f->state == ST_IMAGE || f->state == ST_GROUP) {
 		err_set(e, EXIT_SYSTEM, "%s: '%s' not finished: %ld of %ld rows",
 			f->name, f->hduname, f->rows, f->ny);
 		goto fail;

@@ -36,6 +36,30 @@ int fitsout_image_rows(struct fitsout *f, const float *rows, int nrows,
 		       struct err *e);
 int fitsout_image_end(struct fitsout *f, struct err *e);
 
+/*
+ * A group of image HDUs whose data are written side by side, by file
+ * offset, in any order (the planes of a level-1 cube, the five images of
+ * level 2, one strip of rows at a time): fitsout_group_begin() writes every
+ * header and reserves the data; fitsout_group_rows() writes nrows rows of
+ * plane `plane` of HDU k from row y0, native values: uint16_t for bitpix
+ * 16 (stored with BZERO 32768), uint32_t for 32 (BZERO 2^31), float for
+ * -32; fitsout_group_end() checks every row was written.  Needs a file
+ * that can seek and no compression (a clear error otherwise).
+ */
+struct fitsout_hdu {
+	const char *name;       /* for messages; EXTNAME goes in cards */
+	const char *cards;
+	int ncards;
+	int bitpix;             /* 16, 32 or -32 */
+	long nx, ny, nz;        /* nz > 1: a cube (NAXIS3) */
+};
+
+int fitsout_group_begin(struct fitsout *f, int nhdu, const struct fitsout_hdu *h,
+			struct err *e);
+int fitsout_group_rows(struct fitsout *f, int k, int plane, long y0, int nrows,
+		       const void *data, struct err *e);
+int fitsout_group_end(struct fitsout *f, struct err *e);
+
 /* Finish: flush, fsync, close, rename to the requested name.  After a
  * failure the temporary file is removed.  Frees f either way. */
 int fitsout_commit(struct fitsout *f, struct err *e);

@@ -13,6 +13,7 @@
 #include "commands.h"
 #include "err.h"
 #include "instrument.h"
+#include "levels.h"
 #include "names.h"
 #include "noise.h"
 #include "options.h"
@@ -39,7 +40,7 @@ struct scene_cmd {
 
 static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
 	set_model_int, set_model_word, set_flux_unit, set_psf, set_background, set_noise,
-	set_seed, set_version;
+	set_seed, set_version, set_exptime, set_level;
 
 static const char *const refs[] = { "wfi01", "boresight", NULL };
 static const char *const bunits[] = { "counts/s", "counts", NULL };
@@ -65,7 +66,7 @@ static const struct opt scene_options[] = {
 	  OFF(o.pa)), .lo = -720, .hi = 720 },
 	{ OPT("pointing-ref", 0, "REF", "wfi01", "wfi01 (ra/dec is WFI01's centre) or boresight",
 	  opt_choice, OFF(o.boresight)), .words = refs },
-	{ OPT("exptime", 0, "S", "1", "exposure time in seconds", opt_double, OFF(o.exptime)),
+	{ OPT("exptime", 0, "S", "1", "exposure time in seconds", set_exptime, OFF(o.exptime)),
 	  .lo = 1e-9, .hi = 1e12 },
 	{ OPT("bunit", 0, "UNIT", "counts/s", "counts/s or counts", opt_choice,
 	  OFF(o.bunit_counts)), .words = bunits },
@@ -125,6 +126,11 @@ static const struct opt scene_options[] = {
 	{ OPT("cosmic-residual", 0, "F", STR(NOISE_COSMIC_RESIDUAL), "fraction of each hit kept",
 	  opt_double, OFF(o.cosmic_residual)), .lo = 0, .hi = 1 },
 	{ OPT("seed", 0, "N", "1234", "random seed", set_seed, OFF(o.seed)) },
+	OPT_SECTION("Detector levels:"),
+	{ OPT("level", 0, "L", "scene", "scene (rates), 1 (resultants in DN) or 2 (ramp fits)",
+	  set_level, OFF(o.level)) },
+	{ OPT("ma-table", 0, "N", "4", "MultiAccum table of levels 1 and 2 (3-17, 109, 110)",
+	  opt_int, OFF(o.ma_table)), .lo = 1, .hi = 999 },
 	OPT_SECTION("Running:"),
 	{ OPT("threads", 0, "N", "all cores", "worker threads", opt_int, OFF(o.threads)),
 	  .lo = 0, .hi = 1024, .flags = OPT_SHOW_DEFAULT },
@@ -288,6 +294,21 @@ static int set_background(const struct opt_arg *a, struct err *e)
 	return 0;
 }
 
+/* As opt_double, remembering whether the value came from the command line
+ * (the defaults are applied with the table's own string). */
+static int set_exptime(const struct opt_arg *a, struct err *e)
+{
+	struct scene_cmd *c = a->base;
+
+	c->o.exptime_given = a->value != a->opt->def;
+	return opt_double(a, e);
+}
+
+static int set_level(const struct opt_arg *a, struct err *e)
+{
+	return level_parse(a->value, a->field, e);
+}
+
 static int set_noise(const struct opt_arg *a, struct err *e)
 {
 	return noise_parse(a->value, a->field, e);
@@ -357,6 +378,33 @@ static int check_options(struct scene_opts *o, struct err *e)
 		return err_set(e, EXIT_INPUT, "--rows with --compress %s: the parts of an image "
 			       "are joined uncompressed (compress the merged file, e.g. with "
 			       "fpack(1))", o->compress);
+	if (o->level != LEVEL_SCENE) {
+		struct ramp_pattern p;
+		const char *lv = o->level == LEVEL_1 ? "1" : "2";
+
+		if (ramp_pattern_get(o->ma_table, &p, e) < 0)
+			return -1;
+		if (o->exptime_given && fabs(o->exptime - p.exptime) > 1e-3)
+			return err_set(e, EXIT_INPUT, "--exptime %g with --level %s: MA table %d "
+				       "lasts %.3f s (its last read); leave --exptime out or "
+				       "choose another --ma-table", o->exptime, lv, o->ma_table,
+				       p.exptime);
+		o->exptime = p.exptime;
+		if (o->noise)
+			return err_set(e, EXIT_INPUT, "--noise with --level %s: levels 1 and 2 "
+				       "simulate the detector's noise themselves (see wfiscene(1), "
+				       "DETECTOR LEVELS)", lv);
+		if (o->bunit_counts)
+			return err_set(e, EXIT_INPUT, "--bunit counts with --level %s: level 1 "
+				       "is in DN and level 2 in counts/s", lv);
+		if (strcmp(o->compress, "none"))
+			return err_set(e, EXIT_INPUT, "--compress %s with --level %s: the planes "
+				       "are written side by side, uncompressed (compress the file "
+				       "afterwards, e.g. with fpack(1))", o->compress, lv);
+		if (!strcmp(o->output, "-"))
+			return err_set(e, EXIT_INPUT, "-o - with --level %s: the planes are "
+				       "written side by side and need a file, not stdout", lv);
+	}
 	if (o->xbright_limit > o->bright_limit)
 		return err_set(e, EXIT_INPUT, "--xbright-limit %g is fainter than "
 			       "--bright-limit %g", o->xbright_limit, o->bright_limit);

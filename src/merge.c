@@ -101,6 +101,8 @@ struct merge_hdu {
 	off_t offset;           /* where its header starts */
 	off_t length;           /* header and data blocks */
 	int sca;                /* from EXTNAME = 'WFInn' */
+	int kind;               /* 0 'WFInn', 1 .. 4 the level-2 planes
+	                           'WFInn_ERR', _DQ, _VAR_POISSON, _VAR_RNOISE */
 	int compressed;         /* a binary table with ZIMAGE = T */
 	char cmptype[72];       /* ZCMPTYPE of a compressed HDU */
 	/* A part of --rows A-B (ROWS = 'A-B'): rows A to B of the SCA; 0 0
@@ -459,10 +461,14 @@ static int merge_rows(struct merge *m, const char *what, struct merge_hdu *h,
 	    merge_int(m, what, cards, ncards, "NAXIS1", &nx) ||
 	    merge_int(m, what, cards, ncards, "NAXIS2", &ny))
 		return -1;
-	if (bitpix != -32 || naxis != 2 || nx != WFS_NPIX || ny != b - a + 1)
+	/* float32, or the 32-bit DQ of level 2; a level-1 cube has planes
+	 * that cannot be joined by appending rows */
+	if ((bitpix != -32 && bitpix != 32) || naxis != 2 || nx != WFS_NPIX ||
+	    ny != b - a + 1)
 		return err_set(m->e, EXIT_INPUT, "%s: rows %s: a %lld x %lld image of "
-			       "BITPIX %lld, not %d x %d float32", what, value, nx, ny,
-			       bitpix, WFS_NPIX, b - a + 1);
+			       "BITPIX %lld with NAXIS %lld, not %d x %d float32 (the "
+			       "row parts of a --level 1 cube cannot be merged)", what,
+			       value, nx, ny, bitpix, naxis, WFS_NPIX, b - a + 1);
 	h->row_first = a;
 	h->row_last = b;
 	return 0;
@@ -495,6 +501,22 @@ static int merge_scan_extension(struct merge *m, int i, int number, off_t at,
 		err_set(m->e, EXIT_INPUT, "%s: EXTNAME '%s' is not an SCA image "
 			"(WFI01 to WFI%02d)", what, value, WFS_NSCA);
 		goto fail;
+	}
+	{
+		static const char *const suffix[] = { "", "_ERR", "_DQ", "_VAR_POISSON",
+						      "_VAR_RNOISE" };
+		int kind = -1;
+
+		for (int s = 0; s < 5; s++)
+			if (!strcmp(value + 5, suffix[s]))
+				kind = s;
+		if (kind < 0) {
+			err_set(m->e, EXIT_INPUT, "%s: EXTNAME '%s' is not an SCA image "
+				"(WFI01 to WFI%02d, with _ERR, _DQ, _VAR_POISSON or "
+				"_VAR_RNOISE at --level 2)", what, value, WFS_NSCA);
+			goto fail;
+		}
+		h.kind = kind;
 	}
 	snprintf(what, sizeof(what), "%s: %s", in->path, value);
 	h.sca = sca;
@@ -592,6 +614,8 @@ static int merge_by_sca(const void *a, const void *b)
 
 	if (x->sca != y->sca)
 		return (x->sca > y->sca) - (x->sca < y->sca);
+	if (x->kind != y->kind)
+		return (x->kind > y->kind) - (x->kind < y->kind);
 	if (x->row_first != y->row_first)
 		return (x->row_first > y->row_first) - (x->row_first < y->row_first);
 	/* Equal starts: keep the order of the inputs, for the messages. */
@@ -647,7 +671,8 @@ static int merge_check_hdus(struct merge *m)
 {
 	for (int k = 0; k < m->nhdu; k++) {
 		const struct merge_hdu *h = &m->hdu[k], *first = &m->hdu[0];
-		const struct merge_hdu *prev = k > 0 && m->hdu[k - 1].sca == h->sca ?
+		const struct merge_hdu *prev = k > 0 && m->hdu[k - 1].sca == h->sca &&
+					       m->hdu[k - 1].kind == h->kind ?
 					       &m->hdu[k - 1] : NULL;
 		const char *path = m->in[h->input].path;
 
@@ -688,8 +713,8 @@ static int merge_check_hdus(struct merge *m)
 				       prev->row_last, path, h->row_first, h->row_last);
 		if (prev && merge_same_part(m, prev, h))
 			return -1;
-		if ((k + 1 == m->nhdu || m->hdu[k + 1].sca != h->sca) &&
-		    h->row_last != WFS_NPIX)
+		if ((k + 1 == m->nhdu || m->hdu[k + 1].sca != h->sca ||
+		     m->hdu[k + 1].kind != h->kind) && h->row_last != WFS_NPIX)
 			return err_set(m->e, EXIT_INPUT, "WFI%02d: rows %d-%d are in no "
 				       "input (the last part, in %s, has rows %d-%d)",
 				       h->sca, h->row_last + 1, WFS_NPIX, path,
@@ -882,7 +907,8 @@ static int merge_join_rows(struct merge *m, struct merge_out *o, int k)
 	if (merge_out_write(o, header, (nh + MERGE_CARDS_PER_BLOCK - 1) /
 			    MERGE_CARDS_PER_BLOCK * MERGE_BLOCK, m->e))
 		goto done;
-	for (int j = k; j < m->nhdu && m->hdu[j].sca == first->sca; j++) {
+	for (int j = k; j < m->nhdu && m->hdu[j].sca == first->sca &&
+			m->hdu[j].kind == first->kind; j++) {
 		const struct merge_hdu *h = &m->hdu[j];
 		size_t n = (size_t)(h->row_last - h->row_first + 1) * WFS_NPIX * 4;
 

@@ -245,11 +245,16 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	/* With --rows, counted and listed as in a run of the whole SCA (the
 	 * part's header is that run's), but drawn only in the rows written:
 	 * the windows are cut there, and a model gives the same pixels for
-	 * any windows. */
-	if (box.y0 < g->ylo)
-		box.y0 = g->ylo;
-	if (box.y1 > g->yhi)
-		box.y1 = g->yhi;
+	 * any windows.  The detector levels also need the row on either side
+	 * of the part, whose light IPC brings into it. */
+	{
+		int margin = g->o->level ? 1 : 0;
+
+		if (box.y0 < g->ylo - margin)
+			box.y0 = g->ylo - margin;
+		if (box.y1 > g->yhi + margin)
+			box.y1 = g->yhi + margin;
+	}
 	if (box.y0 >= box.y1)
 		return 0;
 	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||

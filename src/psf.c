@@ -291,6 +291,8 @@ struct psf_grid *psf_grid_read(const char *path, struct err *e)
 	if (!fits_read_key(f, TSTRING, "WFSKIND", str, NULL, &st) &&
 	    !strcasecmp(str, "EPSF"))
 		g->kind = PSF_EPSF;
+	else if (!st && !strcasecmp(str, "EPSFNOIPC"))
+		g->kind = PSF_EPSF_NOIPC;
 	st = 0;
 	snprintf(g->origin, sizeof(g->origin), "%s", path);
 	fits_close_file(f, &st);
@@ -396,9 +398,11 @@ int psf_grid_write(const char *path, const struct psf_grid *g,
 	}
 	fits_write_key_lng(f, "NUM_PSFS", nplane,
 			   "The total number of fiducial PSFs", &st);
-	fits_write_key_str(f, "WFSKIND", g->kind == PSF_EPSF ? "EPSF" : "PSF",
+	fits_write_key_str(f, "WFSKIND", g->kind == PSF_EPSF ? "EPSF" :
+			   g->kind == PSF_EPSF_NOIPC ? "EPSFNOIPC" : "PSF",
 			   g->kind == PSF_EPSF ? "ePSF: pixel and IPC kernels "
-			   "applied" : "optical PSF", &st);
+			   "applied" : g->kind == PSF_EPSF_NOIPC ? "ePSF: pixel "
+			   "kernel applied, no IPC" : "optical PSF", &st);
 	fits_write_key_str(f, "ORIGIN", "wfiscene", NULL, &st);
 	for (const char *const *c = extra_cards; c && *c; c++)
 		fits_write_record(f, *c, &st);
@@ -477,12 +481,20 @@ static const double psf_ipc[3][3] = {
 
 int psf_make_epsf(struct psf_grid *g, struct err *e)
 {
+	return psf_make_epsf_kind(g, PSF_EPSF, e);
+}
+
+int psf_make_epsf_kind(struct psf_grid *g, int kind, struct err *e)
+{
 	int n = g->n, s = g->over;
 	size_t np = (size_t)n * n;
 	float *a, *b;
 
-	if (g->kind == PSF_EPSF)
+	if (g->kind == kind)
 		return 0;
+	if (g->kind != PSF_OPTICAL)
+		return err_set(e, EXIT_INPUT, "%s: an ePSF grid cannot be made "
+			       "into another kind of ePSF", g->origin);
 	if (g->over != 4)
 		return err_set(e, EXIT_INPUT, "%s: the ePSF kernel needs 4 "
 			       "samples per pixel, not %d", g->origin, g->over);
@@ -496,6 +508,11 @@ int psf_make_epsf(struct psf_grid *g, struct err *e)
 		/* rows (along x), then columns (along y) */
 		epsf4_pass(p, a, n, n, 1);
 		epsf4_pass(a, b, n, 1, n);
+		if (kind == PSF_EPSF_NOIPC) {
+			for (size_t i = 0; i < np; i++)
+				p[i] = b[i];
+			continue;
+		}
 		/* IPC at detector-pixel spacing: sample (y, x) receives
 		 * ipc[a][b] of the charge of the sample s*a, s*b away on
 		 * the other side, i.e. out(y, x) = sum in(y - s a, x - s b)
@@ -521,7 +538,7 @@ int psf_make_epsf(struct psf_grid *g, struct err *e)
 	}
 	free(a);
 	free(b);
-	g->kind = PSF_EPSF;
+	g->kind = kind;
 	return 0;
 }
 

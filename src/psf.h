@@ -16,7 +16,9 @@
 struct err;
 struct wfs_epsf;
 
-enum psf_kind { PSF_OPTICAL = 0, PSF_EPSF = 1 };
+/* PSF_EPSF_NOIPC: the ePSF without the IPC kernel, for the up-the-ramp
+ * levels, whose detector applies IPC itself to the collected charge. */
+enum psf_kind { PSF_OPTICAL = 0, PSF_EPSF = 1, PSF_EPSF_NOIPC = 2 };
 
 /* Samples per side of each size class (44, 88 and 176 pixel boxes at 4x). */
 #define PSF_OVER 4
@@ -57,6 +59,9 @@ int psf_grid_write(const char *path, const struct psf_grid *g,
  * detector-pixel spacing (sum 0.9946), as STIPS does but over the whole array
  * (no unconvolved border).  Only for over == 4. */
 int psf_make_epsf(struct psf_grid *g, struct err *e);
+
+/* The same for kind PSF_EPSF or PSF_EPSF_NOIPC (pixel box only). */
+int psf_make_epsf_kind(struct psf_grid *g, int kind, struct err *e);
 
 /* The interpolation nodes and weights for position (x, y), clamped to the
  * node range.  Fills out (see wfiscene/model.h). */

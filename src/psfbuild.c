@@ -241,7 +241,7 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 	g->kind = PSF_OPTICAL;
 	g->pixscale = WFS_PIXSCALE / PSF_OVER;
 	snprintf(g->origin, sizeof(g->origin), "builtin");
-	if (kind == PSF_EPSF && psf_make_epsf(g, e))
+	if (kind != PSF_OPTICAL && psf_make_epsf_kind(g, kind, e))
 		goto fail;
 	free(zern);
 	free(img);
@@ -285,7 +285,8 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 	cache_dir(o->cache_dir, dir, sizeof(dir));
 	if (dir[0]) {
 		snprintf(path, sizeof(path), "%s/psf-%s-sca%02d-%d-%s-%016llx.fits",
-			 dir, fname, sca, n, kind == PSF_EPSF ? "epsf" : "psf",
+			 dir, fname, sca, n, kind == PSF_EPSF ? "epsf" :
+			 kind == PSF_EPSF_NOIPC ? "epsf-noipc" : "psf",
 			 (unsigned long long)key);
 		double t0 = now();
 		if ((g = cache_load(path, key, n, kind, grid))) {

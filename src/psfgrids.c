@@ -56,7 +56,8 @@ int psfgrids_need(struct engine *g, int sca, int cls)
 		    !(grid = psf_grid_read(path, g->e)))
 			return -1;
 		psf_file_warn(g, grid, path, sca);
-		if (grid->kind == PSF_OPTICAL && psf_make_epsf(grid, g->e) < 0) {
+		if (grid->kind == PSF_OPTICAL &&
+		    psf_make_epsf_kind(grid, o->level ? PSF_EPSF_NOIPC : PSF_EPSF, g->e) < 0) {
 			psf_grid_free(grid);
 			return -1;
 		}
@@ -66,7 +67,9 @@ int psfgrids_need(struct engine *g, int sca, int cls)
 	}
 	host_log(g, 1, "ePSF grid for %s SCA %d, %d samples: building or loading",
 		 g->filter_name, sca, psf_class_n[cls]);
-	if (!(grid = psf_builtin(o->filter, sca, cls, PSF_EPSF, &g->pbo, g->e)))
+	/* levels 1 and 2 apply IPC to the charge themselves (levels.c) */
+	if (!(grid = psf_builtin(o->filter, sca, cls, o->level ? PSF_EPSF_NOIPC : PSF_EPSF,
+				 &g->pbo, g->e)))
 		return -1;
 	g->grid[sca - 1][cls] = grid;
 	return 0;
@@ -85,7 +88,9 @@ int psfgrids_open_user(struct engine *g)
 		    !(g->user_grid = psf_grid_read(path, g->e)))
 			return -1;
 		psf_file_warn(g, g->user_grid, path, 0);
-		if (g->user_grid->kind == PSF_OPTICAL && psf_make_epsf(g->user_grid, g->e) < 0)
+		if (g->user_grid->kind == PSF_OPTICAL &&
+		    psf_make_epsf_kind(g->user_grid, o->level ? PSF_EPSF_NOIPC : PSF_EPSF,
+				       g->e) < 0)
 			return -1;
 	}
 	return 0;

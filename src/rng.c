@@ -552,6 +552,7 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 	struct ptrs_cols q;
 	uint16_t pend[FILL_MAX], next[FILL_MAX];
 	struct rng_poisson other = { .mu = -1 };
+	int repeats = 0;
 	double cache[3] = { -1, 0, 0 };
 	size_t np = 0, nptrs = 0;
 
@@ -583,13 +584,19 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 			struct rng_cell c;
 
 			/* The set-up (an exp below 10) is kept while the
-			 * mean repeats, as on a flat sky. */
+			 * mean repeats, as on a flat sky, and tabulated
+			 * when it has repeated twice. */
 			if (!(m > 0)) {
 				out[i] = 0;
 				continue;
 			}
-			if (m != other.mu)
+			if (m != other.mu) {
 				rng_poisson_setup(&other, m);
+				repeats = 0;
+			} else if (++repeats == 2) {
+				/* a flat sky: the table gives the same counts */
+				rng_poisson_tabulate(&other);
+			}
 			rng_cell_preload(&c, g, cell0 + (uint32_t)i, w[i]);
 			out[i] = rng_poisson_draw(&other, &c);
 			continue;

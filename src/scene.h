@@ -48,6 +48,9 @@ struct scene_opts {
 	int flux_unit;                  /* enum flux_unit default */
 	int zp_stips;                   /* STIPS's fixed zeropoints */
 	const char *const *settings;    /* "key=value" for models (--set), NULL-ended */
+	int level;                      /* enum detector_level: --level */
+	int ma_table;                   /* --ma-table: read pattern of levels 1, 2 */
+	int exptime_given;              /* --exptime was on the command line */
 };
 
 /* Simulate the scene from the catalogs (NULL-terminated; "-" is stdin).

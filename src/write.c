@@ -22,6 +22,7 @@
 #include "fitsout.h"
 #include "names.h"
 #include "detector.h"
+#include "levels.h"
 #include "pool.h"
 
 static int add_card(char **cards, int *n, int *cap, const char *card)
@@ -69,7 +70,13 @@ static int primary_cards(struct engine *g, char **cards, int *n)
 	     "what RA_TARG/DEC_TARG point at");
 	CARD(fits_card_int, "SEED", (long long)x->seed, "random seed");
 	CARD(fits_card_str, "PSFSRC", o->psf, "PSF source");
-	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
+	CARD(fits_card_str, "BUNIT", o->level == DETECTOR_L1 ? "DN" : o->bunit_counts ?
+	     "counts" : "counts/s", NULL);
+	if (o->level) {
+		CARD(fits_card_str, "LEVEL", o->level == DETECTOR_L1 ? "1" : "2",
+		     "detector level (--level)");
+		CARD(fits_card_int, "MATABLE", o->ma_table, "MultiAccum table (--ma-table)");
+	}
 	CARD(fits_card_str, "BKGRND", o->background_arg ? o->background_arg : "none",
 	     "background setting");
 	CARD(fits_card_dbl, "BKGRATE", x->background, "background (counts/s/pixel)");
@@ -216,6 +223,105 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, const struct d
 	return fitsout_image_end(f, g->e);
 }
 
+/* The rendered rate of science row y of the slot, for levels.c. */
+struct level_rows {
+	struct engine *g;
+	int s;
+};
+
+static int level_rate_row(void *arg, int y, double *out, struct err *e)
+{
+	struct level_rows *r = arg;
+	struct engine *g = r->g;
+	int T = g->tile, ty = y / T;
+	double *const *row = &g->slot[r->s].tile[ty * g->ntx];
+
+	(void)e;
+	for (int tx = 0; tx < g->ntx; tx++) {
+		int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+
+		if (row[tx])
+			memcpy(out + x0, row[tx] + (size_t)(y - ty * T) * T, nx * sizeof(double));
+		else
+			memset(out + x0, 0, nx * sizeof(double));
+	}
+	for (int x = 0; x < WFS_NPIX; x++)
+		if (!isfinite(out[x]))
+			return err_set(g->e, isnan(out[x]) ? EXIT_PLUGIN : EXIT_INPUT,
+				       "WFI%02d: pixel x=%d, y=%d (1-based) is %s", g->slot[r->s].sca,
+				       x + 1, y + 1, isnan(out[x]) ? "NaN: a source model drew a "
+				       "value that is not a number" : "infinite");
+	return 0;
+}
+
+/* Levels 1 and 2: the whole SCA through levels.c, which reads the rendered
+ * tiles row by row (with a row on either side, for IPC), then the tiles go. */
+static int write_slot_level(struct engine *g, struct fitsout *f, int s, const struct detector *d)
+{
+	const struct exposure *x = g->x;
+	int sca = g->slot[s].sca, T = g->tile, rc;
+	struct ramp_det det;
+	struct level_rows rows = { g, s };
+	struct level_sca L = {
+		.level = d->level, .pat = &d->pattern, .det = &det,
+		.key = { .seed = x->seed, .filter = g->o->filter, .sca = sca },
+		.ylo = g->ylo, .yhi = g->yhi, .strip = T, .background = x->background,
+		.rate_row = level_rate_row, .arg = &rows, .pool = g->pool,
+	};
+	char *cards;
+	int ncards;
+
+	if (ramp_det_get(sca, &det, g->e) < 0)
+		return -1;
+	/* the knobs of the approximations (wfiscene(1), DETECTOR LEVELS) */
+	{
+		static const char *const keys[2] = { "ramp-split-exact", "ramp-jump-threshold" };
+
+		for (int k = 0; k < 2; k++) {
+			const char *v = host_setting(g, keys[k]);
+			char *end;
+			double val;
+
+			if (!v)
+				continue;
+			val = strtod(v, &end);
+			if (end == v || *end || !isfinite(val) || val < (k ? 0.5 : 0) || val > 1e9)
+				return err_set(g->e, EXIT_INPUT, "--set %s=%s: expected a number "
+					       "from %g to 1e9", keys[k], v, k ? 0.5 : 0.0);
+			if (k)
+				det.jump_threshold = val;
+			else
+				L.key.split_exact_max = val > 0 ? val : -1;
+		}
+	}
+	if (image_cards(g, s, &cards, &ncards) < 0)
+		return -1;
+	L.cards = cards;
+	L.ncards = ncards;
+	for (int k = 0; k < g->ntx * g->nty; k++) {
+		double *t = g->slot[s].tile[k];
+		int tx = k % g->ntx, ty = k / g->ntx;
+		int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
+		int ny = ty * T + T > WFS_NPIX ? WFS_NPIX - ty * T : T;
+
+		g->tiles_drawn += t != NULL;
+		for (int y = 0; t && y < ny; y++)
+			if (ty * T + y >= g->ylo && ty * T + y < g->yhi)
+				for (int xx = 0; xx < nx; xx++)
+					g->image_sum[sca - 1] += t[(size_t)y * T + xx];
+	}
+	g->tiles += g->ntx * g->nty;
+	rc = level_write_sca(&L, f, g->e);
+	free(cards);
+	g->t_noise += L.t_ramp;
+	g->t_write += L.t_write;
+	for (int k = 0; k < g->ntx * g->nty; k++) {
+		tile_free(g->slot[s].tile[k], T);
+		g->slot[s].tile[k] = NULL;
+	}
+	return rc;
+}
+
 int write_exposure(struct engine *g)
 {
 	const struct scene_opts *o = g->o;
@@ -229,7 +335,8 @@ int write_exposure(struct engine *g)
 
 	if (!strip)
 		return err_sys(g->e, "output buffer");
-	detector_init(&d, o, x);
+	if (detector_init(&d, o, x, g->e) < 0)
+		goto fail;
 	if (primary_cards(g, &cards, &ncards) < 0) {
 		err_sys(g->e, "header");
 		goto fail;
@@ -244,7 +351,8 @@ int write_exposure(struct engine *g)
 			    fitsout_primary(f, cards, ncards, g->e) < 0)
 				goto fail;
 		}
-		if (write_slot(g, f, s, &d, strip) < 0)
+		if ((d.level == DETECTOR_SCENE ? write_slot(g, f, s, &d, strip) :
+		     write_slot_level(g, f, s, &d)) < 0)
 			goto fail;
 		if (per_sca || s == g->nslot - 1) {
 			struct fitsout *done = f;

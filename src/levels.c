@@ -1,0 +1,338 @@
+/* levels.c - an SCA at detector level 1 or 2, strip by strip; see levels.h. */
+#include <math.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "err.h"
+#include "fitsout.h"
+#include "instrument.h"
+#include "levels.h"
+#include "pool.h"
+
+#define FRAME 4096              /* the array with its reference border */
+#define BORDER 4
+
+int level_parse(const char *s, int *level, struct err *e)
+{
+	if (!strcmp(s, "scene"))
+		*level = LEVEL_SCENE;
+	else if (!strcmp(s, "1") || !strcmp(s, "l1"))
+		*level = LEVEL_1;
+	else if (!strcmp(s, "2") || !strcmp(s, "l2"))
+		*level = LEVEL_2;
+	else
+		return err_set(e, EXIT_INPUT, "--level: expected scene, 1 or 2, not '%s'", s);
+	return 0;
+}
+
+static double now(void)
+{
+	struct timespec ts;
+
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* The state of one strip, shared by its row tasks. */
+struct strip {
+	struct level_sca *L;
+	struct ramp_fit_plan *fp;
+	int fy0, ny;            /* frame rows [fy0, fy0 + ny) */
+	const double *const *light;     /* science row sy at light[sy - sy0 + 1] */
+	int sy0;
+	/* per worker */
+	double **scr, **rate;
+	uint16_t **dnrow;
+	/* out */
+	uint16_t *l1;           /* [nres][ny][FRAME] */
+	float *rt, *er, *vp, *vr;       /* [ny][WFS_NPIX] */
+	uint32_t *dq;
+};
+
+static void strip_row(void *arg, int wid, size_t task)
+{
+	struct strip *s = arg;
+	struct level_sca *L = s->L;
+	const struct ramp_pattern *p = L->pat;
+	int fy = s->fy0 + (int)task, sy = fy - BORDER;
+	int light = sy >= 0 && sy < WFS_NPIX;
+	double *rate = s->rate[wid], *scr = s->scr[wid];
+	uint32_t cell0 = (uint32_t)fy * FRAME;
+	uint16_t *out;
+	size_t plane;
+
+	if (light) {
+		const double *const *l = s->light + (sy - s->sy0 + 1);
+
+		ramp_ipc_row(L->det, sy > 0 ? l[-1] : NULL, l[0],
+			     sy + 1 < WFS_NPIX ? l[1] : NULL, WFS_NPIX, rate);
+	}
+	if (L->level == LEVEL_1) {
+		plane = (size_t)s->ny * FRAME;
+		out = s->l1 + task * FRAME;
+	} else {
+		plane = FRAME;
+		out = s->dnrow[wid];
+	}
+	/* the reference columns, the science columns, the reference columns */
+	ramp_level1_row(p, L->det, &L->key, cell0, BORDER, NULL, 0, out, plane, scr);
+	ramp_level1_row(p, L->det, &L->key, cell0 + BORDER, WFS_NPIX, rate, light,
+			out + BORDER, plane, scr);
+	ramp_level1_row(p, L->det, &L->key, cell0 + BORDER + WFS_NPIX, BORDER, NULL, 0,
+			out + BORDER + WFS_NPIX, plane, scr);
+	if (L->level == LEVEL_2) {
+		size_t o = task * WFS_NPIX;
+
+		for (int x = 0; x < WFS_NPIX; x++) {
+			struct ramp_fit f;
+			int dnu;
+
+			ramp_fit_pixel(s->fp, out + BORDER + x, FRAME, &f);
+			dnu = !!(f.dq & RAMP_DO_NOT_USE);
+			/* the pipeline's dark step: the mean dark current out */
+			s->rt[o + x] = dnu ? 0 : (float)(f.rate - L->det->dark);
+			s->er[o + x] = (float)sqrt(f.var_poisson + f.var_rnoise);
+			s->vp[o + x] = (float)f.var_poisson;
+			s->vr[o + x] = (float)f.var_rnoise;
+			s->dq[o + x] = f.dq;
+		}
+	}
+}
+
+/* Append card c (80 characters) to the list. */
+static int push(char **cards, int *n, const char *c)
+{
+	char *more = realloc(*cards, (size_t)(*n + 1) * 80 + 1);
+
+	if (!more)
+		return -1;
+	*cards = more;
+	memcpy(more + (size_t)*n * 80, c, 80);
+	(*n)++;
+	return 0;
+}
+
+/* The cards of one HDU: the SCA's without EXTNAME, BUNIT and EXPTIME,
+ * CRPIXn moved by (dx, dy), then ours. */
+static int hdu_cards(const struct level_sca *L, const char *extname, const char *bunit,
+		     double dx, double dy, char **cards, int *n)
+{
+	const struct ramp_pattern *p = L->pat;
+	char c[81], key[16], val[32];
+	int bad = 0;
+
+	*cards = NULL;
+	*n = 0;
+	fits_card_str(c, "EXTNAME", extname, NULL);
+	bad |= push(cards, n, c);
+	if (bunit) {
+		fits_card_str(c, "BUNIT", bunit, NULL);
+		bad |= push(cards, n, c);
+	}
+	fits_card_dbl(c, "EXPTIME", p->exptime, "exposure time: last read (s)");
+	bad |= push(cards, n, c);
+	for (int i = 0; i < L->ncards; i++) {
+		const char *in = L->cards + (size_t)i * 80;
+
+		if (!strncmp(in, "EXTNAME ", 8) || !strncmp(in, "BUNIT   ", 8) ||
+		    !strncmp(in, "EXPTIME ", 8))
+			continue;
+		if ((!strncmp(in, "CRPIX1  =", 9) && dx) || (!strncmp(in, "CRPIX2  =", 9) && dy)) {
+			char k[9];
+
+			memcpy(k, in, 8);
+			k[8] = 0;
+			for (int j = 7; j >= 0 && k[j] == ' '; j--)
+				k[j] = 0;
+			fits_card_dbl(c, k, strtod(in + 10, NULL) + (in[5] == '1' ? dx : dy),
+				      "reference pixel (moved by the reference border)");
+			bad |= push(cards, n, c);
+			continue;
+		}
+		bad |= push(cards, n, in);
+	}
+	fits_card_str(c, "LEVEL", L->level == LEVEL_1 ? "1" : "2",
+		      "1: resultants, 2: ramp fit (wfiscene --level)");
+	bad |= push(cards, n, c);
+	fits_card_int(c, "MATABLE", p->table, "MultiAccum table");
+	bad |= push(cards, n, c);
+	fits_card_int(c, "NRESULT", p->nres, "resultants");
+	bad |= push(cards, n, c);
+	fits_card_dbl(c, "READTIME", p->read_time, "time between reads (s)");
+	bad |= push(cards, n, c);
+	fits_card_dbl(c, "GAIN", L->det->gain, "e-/DN");
+	bad |= push(cards, n, c);
+	for (int i = 0; i < p->nres; i++) {
+		snprintf(key, sizeof(key), "MAREAD%d", i + 1);
+		snprintf(val, sizeof(val), "%d-%d", p->first[i], p->last[i]);
+		fits_card_str(c, key, val, "reads averaged into this resultant");
+		bad |= push(cards, n, c);
+	}
+	fits_card_dbl(c, "RDNOISE", L->det->read_noise, "read noise per read (e-)");
+	bad |= push(cards, n, c);
+	fits_card_dbl(c, "DARKCURR", L->det->dark, "dark current (e-/s)");
+	bad |= push(cards, n, c);
+	fits_card_dbl(c, "SATURATE", L->det->saturation, "saturation (DN, pedestal included)");
+	bad |= push(cards, n, c);
+	fits_card_dbl(c, "NLBETA", L->det->beta, "measured = true + NLBETA true^2 (e-)");
+	bad |= push(cards, n, c);
+	fits_card_dbl(c, "PEDESTAL", L->det->pedestal, "reset level (e-)");
+	bad |= push(cards, n, c);
+	if (L->level == LEVEL_2) {
+		fits_card_str(c, "RAMPFIT", "OPTIMAL",
+			      "Casertano et al. 2022 weights, jumps split");
+		bad |= push(cards, n, c);
+		fits_card_dbl(c, "JUMPTHR", L->det->jump_threshold, "jump threshold (sigma)");
+		bad |= push(cards, n, c);
+	}
+	if (bad) {
+		free(*cards);
+		*cards = NULL;
+		return -1;
+	}
+	return 0;
+}
+
+int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
+{
+	const struct ramp_pattern *p = L->pat;
+	int nthr = pool_threads(L->pool), sca = L->key.sca, nh, r = -1;
+	int flo = L->ylo == 0 ? 0 : L->ylo + BORDER;
+	int fhi = L->yhi == WFS_NPIX ? FRAME : L->yhi + BORDER;
+	int S = L->strip > 0 ? L->strip : 64;
+	struct ramp_fit_plan fp = { 0 };
+	struct fitsout_hdu h[5];
+	char *cards[5] = { 0 }, name[5][24];
+	int ncards[5];
+	struct strip s = { .L = L, .fp = &fp };
+	double *lightbuf = NULL;
+	const double **light = NULL;
+	size_t area;
+
+	if (L->level == LEVEL_1) {
+		snprintf(name[0], sizeof(name[0]), "WFI%02d", sca);
+		if (hdu_cards(L, name[0], "DN", BORDER, L->ylo == 0 ? BORDER : 0,
+			      &cards[0], &ncards[0]) < 0)
+			goto nomem;
+		h[0] = (struct fitsout_hdu){ name[0], cards[0], ncards[0], 16, FRAME,
+					     fhi - flo, p->nres };
+		nh = 1;
+	} else {
+		static const char *const suffix[5] = { "", "_ERR", "_DQ", "_VAR_POISSON",
+						       "_VAR_RNOISE" };
+		static const char *const unit[5] = { "counts/s", "counts/s", NULL,
+						     "(counts/s)^2", "(counts/s)^2" };
+
+		for (int k = 0; k < 5; k++) {
+			snprintf(name[k], sizeof(name[k]), "WFI%02d%s", sca, suffix[k]);
+			if (hdu_cards(L, name[k], unit[k], 0, 0, &cards[k], &ncards[k]) < 0)
+				goto nomem;
+			h[k] = (struct fitsout_hdu){ name[k], cards[k], ncards[k],
+						     k == 2 ? 32 : -32, WFS_NPIX,
+						     L->yhi - L->ylo, 1 };
+		}
+		nh = 5;
+		if (ramp_fit_plan_init(&fp, p, L->det) < 0)
+			goto nomem;
+	}
+	if (fitsout_group_begin(f, nh, h, e) < 0)
+		goto done;
+
+	area = (size_t)S * WFS_NPIX;
+	s.scr = calloc((size_t)nthr, sizeof(*s.scr));
+	s.rate = calloc((size_t)nthr, sizeof(*s.rate));
+	s.dnrow = calloc((size_t)nthr, sizeof(*s.dnrow));
+	lightbuf = malloc((size_t)(S + 2) * WFS_NPIX * sizeof(double));
+	light = calloc((size_t)S + 2, sizeof(*light));
+	if (!s.scr || !s.rate || !s.dnrow || !lightbuf || !light)
+		goto nomem;
+	for (int w = 0; w < nthr; w++)
+		if (!(s.scr[w] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
+		    !(s.rate[w] = calloc(WFS_NPIX, sizeof(double))) ||
+		    !(s.dnrow[w] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))))
+			goto nomem;
+		else
+			ramp_scratch_init(s.scr[w]);
+	if (L->level == LEVEL_1) {
+		if (!(s.l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
+			goto nomem;
+	} else if (!(s.rt = malloc(area * sizeof(float))) ||
+		   !(s.er = malloc(area * sizeof(float))) ||
+		   !(s.vp = malloc(area * sizeof(float))) ||
+		   !(s.vr = malloc(area * sizeof(float))) ||
+		   !(s.dq = malloc(area * sizeof(uint32_t)))) {
+		goto nomem;
+	}
+	s.light = light;
+	for (int fy0 = flo; fy0 < fhi; fy0 += S) {
+		int ny = fhi - fy0 < S ? fhi - fy0 : S;
+		double t0 = now();
+
+		/* the science rows of the strip and one on either side, for IPC */
+		s.fy0 = fy0;
+		s.ny = ny;
+		s.sy0 = fy0 - BORDER;
+		for (int k = 0; k < ny + 2; k++) {
+			int sy = s.sy0 - 1 + k;
+			double *row = lightbuf + (size_t)k * WFS_NPIX;
+
+			light[k] = NULL;
+			if (sy < 0 || sy >= WFS_NPIX)
+				continue;
+			if (L->rate_row(L->arg, sy, row, e) < 0)
+				goto done;
+			for (int x = 0; x < WFS_NPIX; x++)
+				row[x] += L->background;
+			light[k] = row;
+		}
+		pool_run(L->pool, strip_row, &s, (size_t)ny);
+		L->t_ramp += now() - t0;
+		t0 = now();
+		if (L->level == LEVEL_1) {
+			for (int g = 0; g < p->nres; g++)
+				if (fitsout_group_rows(f, 0, g, fy0 - flo, ny,
+						       s.l1 + (size_t)g * ny * FRAME, e) < 0)
+					goto done;
+		} else {
+			/* science rows only: the reference rows have no fit */
+			int a = fy0 < BORDER ? BORDER - fy0 : 0;
+			int b = fy0 + ny > BORDER + WFS_NPIX ? BORDER + WFS_NPIX - fy0 : ny;
+			long y0 = fy0 + a - BORDER - L->ylo;
+			size_t o = (size_t)a * WFS_NPIX;
+			const void *plane[5] = { s.rt + o, s.er + o, s.dq + o, s.vp + o, s.vr + o };
+
+			for (int k = 0; k < 5 && b > a; k++)
+				if (fitsout_group_rows(f, k, 0, y0, b - a, plane[k], e) < 0)
+					goto done;
+		}
+		L->t_write += now() - t0;
+	}
+	r = fitsout_group_end(f, e);
+	goto done;
+nomem:
+	err_sys(e, "detector level %d: memory", L->level);
+done:
+	for (int w = 0; s.scr && w < nthr; w++) {
+		free(s.scr[w]);
+		free(s.rate[w]);
+		free(s.dnrow[w]);
+	}
+	free(s.scr);
+	free(s.rate);
+	free(s.dnrow);
+	free(s.l1);
+	free(s.rt);
+	free(s.er);
+	free(s.vp);
+	free(s.vr);
+	free(s.dq);
+	free(lightbuf);
+	free(light);
+	for (int k = 0; k < 5; k++)
+		free(cards[k]);
+	ramp_fit_plan_free(&fp);
+	return r;
+}

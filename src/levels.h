@@ -1,0 +1,58 @@
+/*
+ * levels.h - writing an SCA at detector level 1 (resultants) or 2 (ramp
+ * fits) from its rendered rates, strip by strip.
+ *
+ * The rendered image of an SCA (counts/s, i.e. e-/s) plus the background
+ * is the light; the detector's IPC kernel acts on it once (the ePSF of
+ * these levels has no IPC: PSF_EPSF_NOIPC), then ramp.c reads it up the
+ * ramp.  Each strip of rows is computed by the pool, row by row, and its
+ * planes written at their places in the file (fitsout groups), so memory
+ * holds one strip of resultants whatever their number, and the bytes do
+ * not depend on the threads, the strip height or --rows.
+ *
+ * Level 1: HDU WFInn, a cube of nres planes of 4096 x rows 16-bit DN (the
+ * 4-pixel reference border included; with --rows, the rows of the part,
+ * with the bottom or top border rows when the part reaches it).
+ * Level 2: HDUs WFInn (rate, counts/s, the dark current subtracted),
+ * WFInn_ERR, WFInn_DQ (32-bit, romancal's bits), WFInn_VAR_POISSON and
+ * WFInn_VAR_RNOISE ((counts/s)^2), 4088 x rows.
+ */
+#ifndef WFS_LEVELS_H
+#define WFS_LEVELS_H
+
+#include "ramp.h"
+
+struct err;
+struct fitsout;
+struct pool;
+
+enum level { LEVEL_SCENE = 0, LEVEL_1 = 1, LEVEL_2 = 2 };
+
+/* Parse a --level value: "scene", "1" or "2" (also "l1", "l2"). */
+int level_parse(const char *s, int *level, struct err *e);
+
+struct level_sca {
+	int level;              /* LEVEL_1 or LEVEL_2 */
+	const struct ramp_pattern *pat;
+	const struct ramp_det *det;     /* this SCA's constants */
+	struct ramp_key key;    /* seed, filter, SCA */
+	int ylo, yhi;           /* science rows [ylo, yhi) of 0 .. 4088 */
+	int strip;              /* rows per strip, > 0 */
+	double background;      /* counts/s/pixel added to the rendered light */
+	/* The rendered rate of science row y (0 .. 4087) into out[0 .. 4087];
+	 * called on the calling thread only.  0 or -1 (message in e). */
+	int (*rate_row)(void *arg, int y, double *out, struct err *e);
+	void *arg;
+	/* The SCA's header cards (its EXTNAME is replaced; CRPIXn moved by
+	 * the reference border at level 1). */
+	const char *cards;
+	int ncards;
+	struct pool *pool;
+	/* out: CPU-independent wall seconds spent, for --report */
+	double t_ramp, t_write;
+};
+
+/* Write the HDUs of the SCA into f.  0 or -1 with a message. */
+int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e);
+
+#endif

@@ -1,0 +1,845 @@
+/*
+ * ramp.c - level-1 resultants and level-2 ramp fits; see ramp.h.
+ *
+ * Level 1, per pixel.  The charge collected since the reset, S(t), grows by
+ * Poisson arrivals of rate r = light + dark; read k happens at t_k = k dt
+ * (dt the read time) and measures
+ *
+ *   m_k = NL(P + S(t_k)) + n_k,    NL(x) = x + beta x^2, clipped at the
+ *                                  saturation level,
+ *
+ * with P = pedestal + reset noise (once per pixel), n_k read noise.  A
+ * resultant is the mean of the m_k of its reads, rounded to DN.
+ *
+ * Reads are not drawn one by one.  For a group of N consecutive reads
+ * starting from charge S0, let d_1 .. d_N be the arrivals in each read's
+ * interval; the group needs
+ *
+ *   D = sum d_j                        (the charge at its last read)
+ *   W = sum_j (N - j + 1) d_j          (sum over reads of the charge)
+ *
+ * D is one Poisson draw of mean r N dt: exact.  Given D the arrivals are
+ * placed independently and uniformly among the N intervals (the multinomial
+ * split of a Poisson sum), so W is D plus a sum of D independent uniforms
+ * on {0 .. N-1}: for D <= split_exact_max (default 4) it is drawn that way,
+ * exactly; above, by the normal of the same mean D (N + 1) / 2 and variance
+ * D (N^2 - 1) / 12, rounded (the Irwin-Hall sum is symmetric, and its excess
+ * kurtosis -1.2 / D (N^2 + 1) / (N^2 - 1) is below 0.25 there; the read
+ * noise, sqrt(D) times larger than a discreteness step, hides the rest).
+ * Then the mean of the reads of the charge is S0 + W / N exactly.
+ *
+ * Non-linearity of a mean: mean NL(x_k) = NL(mean x) + beta var_k(x); var_k
+ * is replaced by its expectation (D / N)^2 (N^2 - 1) / 12 (a term of at most
+ * ~50 e- at 1e5 e-).  A group that reaches saturation is evaluated read by
+ * read along the straight line from S0 to S0 + D.  Read noise of the mean is
+ * sigma / sqrt(N) z.  The sum is clipped at the saturation level (reads at
+ * saturation read exactly the saturation level) and rounded to DN.
+ *
+ * Cosmic rays: two populations of rate R hits/cm^2/s each over pixels of
+ * area A, so a pixel is hit Poisson(2 R A T) times in the exposure T; each
+ * hit lands at a uniformly chosen read and brings Poisson(E) electrons of
+ * its population into that pixel (the charge the scene's --noise cosmic
+ * spreads over 3x3 stays in the pixel here).
+ *
+ * The random numbers: Philox keyed by the seed, counted by the absolute
+ * pixel (y * 4096 + x) in a domain that names the purpose, the group, the
+ * filter and the SCA (purpose in bits 0-7, filter 8-15, SCA 16-23, group
+ * 24-31), so a pixel's resultants never depend on who computes them.
+ *
+ * Level 2 follows Casertano et al. (2022, "Up-the-ramp fitting for unevenly
+ * averaged resultants"; romancal's ramp fitting): see ramp_fit_pixel().
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "data.h"
+#include "err.h"
+#include "ramp.h"
+#include "rng.h"
+
+enum {
+	DOM_RESET = 0x41,
+	DOM_CR = 0x42,
+	DOM_CR_DETAIL = 0x43,
+	DOM_POIS = 0x44,
+	DOM_SPLIT = 0x45,
+	DOM_SPLIT_N = 0x46,
+	DOM_READ = 0x47,
+	DOM_GAP = 0x48,
+};
+
+#define RATE_MAX 1e12           /* e-/s: beyond this a pixel is as saturated */
+#define CR_MAX 1024             /* hits remembered per row call */
+
+static uint32_t domain(const struct ramp_key *k, int purpose, int group)
+{
+	return (uint32_t)purpose | (uint32_t)(k->filter & 0xff) << 8 |
+	       (uint32_t)(k->sca & 0xff) << 16 | (uint32_t)(group & 0xff) << 24;
+}
+
+/* ---- tables ---- */
+
+int ramp_pattern_finish(struct ramp_pattern *p)
+{
+	int prev = 0;
+
+	if (p->nres < 1 || p->nres > RAMP_MAX_RES || !(p->read_time > 0))
+		return -1;
+	for (int i = 0; i < p->nres; i++) {
+		int a = p->first[i], b = p->last[i], n = b - a + 1;
+		double sum = 0, tau = 0;
+
+		if (a <= prev || b < a)
+			return -1;
+		prev = b;
+		p->nread[i] = n;
+		for (int k = a; k <= b; k++)
+			sum += k;
+		p->tbar[i] = p->read_time * sum / n;
+		/* tau = (1/N^2) sum_{k,l} min(t_k, t_l): the k-th of the
+		 * sorted reads is the smaller of 2 (N - k) + 1 pairs. */
+		for (int k = 0; k < n; k++)
+			tau += (2.0 * (n - 1 - k) + 1) * (a + k);
+		p->tau[i] = p->read_time * tau / ((double)n * n);
+	}
+	p->exptime = p->last[p->nres - 1] * p->read_time;
+	return 0;
+}
+
+int ramp_pattern_get(int table, struct ramp_pattern *p, struct err *e)
+{
+	struct tsv t;
+	char list[256] = "";
+	size_t len = 0;
+
+	memset(p, 0, sizeof(*p));
+	if (tsv_parse(&t, "ma_tables.tsv") < 0)
+		return err_set(e, EXIT_SYSTEM, "ma_tables.tsv: table missing from the build");
+	for (int r = 1; r < t.nrow; r++) {
+		int n = atoi(t.cell[r][0]);
+		const char *s = t.cell[r][4];
+
+		if (len < sizeof(list) - 8)
+			len += (size_t)snprintf(list + len, sizeof(list) - len, "%s%d",
+						r > 1 ? ", " : "", n);
+		if (n != table || p->nres)
+			continue;
+		p->table = n;
+		p->read_time = 3.16247;
+		while (*s && p->nres < RAMP_MAX_RES) {
+			char *end;
+
+			p->first[p->nres] = (int)strtol(s, &end, 10);
+			p->last[p->nres] = *end == '-' ? (int)strtol(end + 1, &end, 10)
+						       : p->first[p->nres];
+			p->nres++;
+			s = *end == ';' ? end + 1 : end;
+			if (*end && *end != ';')
+				break;
+		}
+	}
+	tsv_free(&t);
+	if (!p->nres)
+		return err_set(e, EXIT_INPUT, "--ma-table: no MultiAccum table %d "
+			       "(there are %s)", table, list);
+	{
+		struct ramp_det d;
+
+		if (ramp_det_get(1, &d, NULL) == 0)
+			p->read_time = d.read_time;
+	}
+	if (ramp_pattern_finish(p) < 0)
+		return err_set(e, EXIT_SYSTEM, "ma_tables.tsv: table %d: bad read pattern", table);
+	return 0;
+}
+
+int ramp_det_finish(struct ramp_det *d)
+{
+	double m;
+
+	if (!(d->gain > 0) || !(d->saturation > 0) || !(d->read_time > 0) ||
+	    !(d->beta <= 0) || d->read_noise < 0 || d->dark < 0 || d->pedestal < 0 ||
+	    d->reset_noise < 0 || !(d->jump_threshold > 0))
+		return -1;
+	m = d->sat_e = d->saturation * d->gain;
+	/* NL rises up to x = -1 / (2 beta); saturation must come before. */
+	if (d->beta < 0 && 1 + 4 * d->beta * m <= 0)
+		return -1;
+	d->sat_true = 2 * m / (1 + sqrt(1 + 4 * d->beta * m));
+	return 0;
+}
+
+int ramp_det_get(int sca, struct ramp_det *d, struct err *e)
+{
+	struct tsv t;
+	char name[16];
+	int have = 0;
+
+	memset(d, 0, sizeof(*d));
+	snprintf(name, sizeof(name), "WFI%02d", sca);
+	if (tsv_parse(&t, "detector.tsv") < 0)
+		return e ? err_set(e, EXIT_SYSTEM, "detector.tsv: table missing from the build") : -1;
+	for (int r = 1; r < t.nrow; r++) {
+		const char *kind = t.cell[r][0], *key = t.cell[r][1];
+		double v = strtod(t.cell[r][2], NULL);
+		static const struct {
+			const char *key;
+			size_t off;
+		} c[] = {
+			{ "read_time", offsetof(struct ramp_det, read_time) },
+			{ "gain", offsetof(struct ramp_det, gain) },
+			{ "saturation", offsetof(struct ramp_det, saturation) },
+			{ "nonlinearity_beta", offsetof(struct ramp_det, beta) },
+			{ "pedestal", offsetof(struct ramp_det, pedestal) },
+			{ "reset_noise", offsetof(struct ramp_det, reset_noise) },
+			{ "cosmic_rate", offsetof(struct ramp_det, cosmic_rate) },
+			{ "cosmic_e_low", offsetof(struct ramp_det, cosmic_e[0]) },
+			{ "cosmic_e_high", offsetof(struct ramp_det, cosmic_e[1]) },
+			{ "pixel_area", offsetof(struct ramp_det, pixel_area) },
+			{ "jump_threshold", offsetof(struct ramp_det, jump_threshold) },
+		};
+
+		if (!strcmp(kind, "const")) {
+			for (size_t i = 0; i < sizeof(c) / sizeof(c[0]); i++)
+				if (!strcmp(key, c[i].key)) {
+					*(double *)((char *)d + c[i].off) = v;
+					have++;
+				}
+		} else if (!strcmp(kind, "ipc")) {
+			int dx = atoi(key), dy = atoi(strchr(key, ',') ? strchr(key, ',') + 1 : "9");
+
+			if (dx >= -1 && dx <= 1 && dy >= -1 && dy <= 1) {
+				d->ipc[dy + 1][dx + 1] = v;
+				have++;
+			}
+		} else if (!strcmp(key, name) && !strcmp(kind, "readnoise")) {
+			d->read_noise = v;
+			have++;
+		} else if (!strcmp(key, name) && !strcmp(kind, "dark")) {
+			d->dark = v;
+			have++;
+		}
+	}
+	tsv_free(&t);
+	if (have != 11 + 9 + 2 || ramp_det_finish(d) < 0)
+		return e ? err_set(e, EXIT_SYSTEM, "detector.tsv: incomplete or bad for WFI%02d", sca) : -1;
+	return 0;
+}
+
+double ramp_nl(const struct ramp_det *d, double s)
+{
+	if (!(s < d->sat_true))
+		return d->sat_e;
+	return s + d->beta * s * s;
+}
+
+double ramp_nl_inverse(const struct ramp_det *d, double m)
+{
+	double disc = 1 + 4 * d->beta * m;
+
+	/* the smaller root of beta s^2 + s - m = 0, in the form that does
+	 * not cancel; beyond the top of the parabola, its top */
+	if (disc < 0)
+		return -1 / (2 * d->beta);
+	return 2 * m / (1 + sqrt(disc));
+}
+
+/* ---- level 1 ---- */
+
+/*
+ * Poisson counts of a row, one Philox call per pixel (draw 0 of its cell).
+ * Means below POIS_INV use inversion, the smallest k with u < F(k), which
+ * depends on u and the mean alone; the distribution function is tabulated
+ * once a mean repeats (a flat sky: one table per group, kept across rows in
+ * the caller's scratch) and searched by bisection, or else built on the way
+ * (Devroye's sequential search).  Larger means go to rng_poisson (PTRS) on
+ * the same cell.  So a count never depends on the pixels beside it.
+ */
+#define POIS_INV 32.0
+#define POIS_TAB 128            /* F(k) for k < 128: 1 - F < 1e-30 at 32 */
+
+struct pois_tab {
+	double mu;              /* the mean tabulated, or -1 */
+	int n;
+	double cdf[POIS_TAB];
+};
+
+static double pois_search(double mu, double u)
+{
+	double pk = exp(-mu), f = pk;
+	int k = 0;
+
+	while (u >= f && k < 400) {
+		k++;
+		pk *= mu / k;
+		f += pk;
+	}
+	return k;
+}
+
+static void pois_tabulate(struct pois_tab *t, double mu)
+{
+	double pk = exp(-mu), f = pk;
+
+	t->mu = mu;
+	t->cdf[0] = f;
+	for (t->n = 1; t->n < POIS_TAB; t->n++) {
+		pk *= mu / t->n;
+		f += pk;
+		t->cdf[t->n] = f;
+	}
+}
+
+static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
+		     double *out, struct pois_tab *t)
+{
+	uint32_t w[256][4];
+	double prev = -1;
+
+	for (int i0 = 0; i0 < n; i0 += 256) {
+		int m = n - i0 < 256 ? n - i0 : 256;
+
+		rng_bits_n(g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
+		for (int j = 0; j < m; j++) {
+			int i = i0 + j;
+			double v = mu[i];
+
+			if (!(v > 0)) {
+				out[i] = 0;
+			} else if (v < POIS_INV) {
+				double u = rng_u01(w[j][0], w[j][1]);
+
+				if (v != t->mu && v == prev)
+					pois_tabulate(t, v);
+				if (v == t->mu && u < t->cdf[POIS_TAB - 1]) {
+					int k = 0;
+
+					/* the count of F(k) <= u, i.e. the smallest
+					 * k with u < F(k), by bisection without
+					 * branches to mispredict */
+					for (int step = POIS_TAB / 2; step; step >>= 1)
+						k += (t->cdf[k + step - 1] <= u) * step;
+					out[i] = k;
+				} else {
+					out[i] = pois_search(v, u);
+				}
+			} else {
+				struct rng_cell c;
+
+				rng_cell_preload(&c, g, cell0 + (uint32_t)i, w[j]);
+				out[i] = rng_poisson(v, &c);
+			}
+			prev = v;
+		}
+	}
+}
+
+struct cr_hit {
+	int pix, read;
+	double e;
+};
+
+/* The cosmic-ray hits of the row, in pixel order. */
+static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
+		   const struct ramp_key *k, uint32_t cell0, int n, struct cr_hit *h)
+{
+	double lambda = 2 * d->cosmic_rate * d->pixel_area * p->exptime;
+	int last = p->last[p->nres - 1], nh = 0;
+	uint64_t thr;
+	struct rng g, gd;
+	uint32_t w[64][4];
+
+	if (!(lambda > 0))
+		return 0;
+	/* u < exp(-lambda) (no hit) exactly when its 53-bit integer is below
+	 * ceil(exp(-lambda) 2^53) */
+	thr = (uint64_t)ceil(exp(-lambda) * 0x1p53);
+	rng_init(&g, k->seed, domain(k, DOM_CR, 0));
+	rng_init(&gd, k->seed, domain(k, DOM_CR_DETAIL, 0));
+	for (int i0 = 0; i0 < n; i0 += 64) {
+		int m = n - i0 < 64 ? n - i0 : 64;
+
+		rng_bits_n(&g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
+		for (int i = 0; i < m; i++) {
+			uint64_t b = ((uint64_t)w[i][0] << 32 | w[i][1]) >> 11;
+			double u, pk, f;
+			int hits = 0;
+			struct rng_cell c;
+
+			if (b < thr)
+				continue;
+			/* the count by inversion, from the u that said "some" */
+			u = b * 0x1p-53;
+			pk = f = exp(-lambda);
+			while (u >= f && hits < 100) {
+				hits++;
+				pk *= lambda / hits;
+				f += pk;
+			}
+			rng_cell_init(&c, &gd, cell0 + (uint32_t)(i0 + i), 0);
+			for (int j = 0; j < hits && nh < CR_MAX; j++) {
+				int pop = rng_cell_u01(&c) < 0.5;
+
+				h[nh].pix = i0 + i;
+				h[nh].read = 1 + (int)(rng_cell_u01(&c) * last);
+				h[nh].e = rng_poisson(d->cosmic_e[pop], &c);
+				nh++;
+			}
+		}
+	}
+	return nh;
+}
+
+/* The tables at the start of the scratch, in doubles. */
+#define RAMP_TABS ((RAMP_MAX_RES + 1) * 132)
+_Static_assert(sizeof(struct pois_tab) <= 132 * sizeof(double), "scratch tables");
+
+void ramp_scratch_init(double *scratch)
+{
+	struct pois_tab *t = (struct pois_tab *)scratch;
+
+	for (int i = 0; i <= RAMP_MAX_RES; i++)
+		t[i].mu = -1;
+}
+
+void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
+		     const struct ramp_key *k, uint32_t cell0, int n,
+		     const double *rate, int light, uint16_t *out, size_t plane,
+		     double *scratch)
+{
+	struct pois_tab *tabs = (struct pois_tab *)scratch;
+	double *r = scratch + RAMP_TABS, *S = r + n, *P = S + n, *mu = P + n, *D = mu + n;
+	double *zs = D + n, *zr = zs + n;
+	/* 0: the default 4; below 0: never exact (the normal for every split) */
+	double dt = p->read_time, exact_max = k->split_exact_max > 0 ? k->split_exact_max :
+					      k->split_exact_max < 0 ? 0 : 4;
+	double inv_g = 1 / d->gain, dnmax = 65535;
+	struct cr_hit hits[CR_MAX];
+	int nh = 0, prev = 0;
+	struct rng g;
+
+	for (int i = 0; i < n; i++) {
+		double v = light ? rate[i] : 0;
+
+		v = isfinite(v) ? (v > 0 ? v : 0) : (v > 0 ? RATE_MAX : 0);
+		r[i] = (v < RATE_MAX ? v : RATE_MAX) + (light ? d->dark : 0);
+		S[i] = 0;
+	}
+	rng_init(&g, k->seed, domain(k, DOM_RESET, 0));
+	rng_normal_fill(&g, cell0, (size_t)n, P);
+	for (int i = 0; i < n; i++)
+		P[i] = d->pedestal + d->reset_noise * P[i];
+	if (light)
+		nh = cr_hits(p, d, k, cell0, n, hits);
+
+	for (int gi = 0; gi < p->nres; gi++) {
+		int a = p->first[gi], b = p->last[gi], N = b - a + 1, gap = a - prev - 1;
+		double sn = d->read_noise / sqrt(N), kvar = (N * (double)N - 1) / 12;
+		int any = 0;
+
+		if (gap > 0 && light) {
+			for (int i = 0; i < n; i++)
+				mu[i] = r[i] * gap * dt;
+			rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
+			pois_row(&g, cell0, n, mu, mu, &tabs[RAMP_MAX_RES]);
+			for (int i = 0; i < n; i++)
+				S[i] += mu[i];
+		}
+		for (int h = 0; h < nh; h++)
+			if (hits[h].read > prev && hits[h].read < a)
+				S[hits[h].pix] += hits[h].e;
+		if (light) {
+			for (int i = 0; i < n; i++)
+				any |= (mu[i] = r[i] * N * dt) > 0;
+			rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
+			if (any)
+				pois_row(&g, cell0, n, mu, D, &tabs[gi]);
+			else
+				memset(D, 0, (size_t)n * sizeof(*D));
+		} else {
+			memset(D, 0, (size_t)n * sizeof(*D));
+		}
+		/* W, the sum over the reads of the arrivals so far, into mu */
+		if (N == 1) {
+			memcpy(mu, D, (size_t)n * sizeof(*D));
+		} else {
+			struct rng gs;
+
+			rng_init(&g, k->seed, domain(k, DOM_SPLIT_N, gi));
+			rng_init(&gs, k->seed, domain(k, DOM_SPLIT, gi));
+			if (light)
+				rng_normal_fill(&g, cell0, (size_t)n, zs);
+			for (int i = 0; i < n; i++) {
+				double Di = D[i], w;
+
+				if (Di == 0) {
+					w = 0;
+				} else if (Di <= exact_max) {
+					uint32_t bits[4];
+
+					w = Di;
+					for (int j = 0; j < (int)Di; j++) {
+						if (!(j & 3))
+							rng_bits(&gs, cell0 + (uint32_t)i, (uint32_t)(j >> 2), bits);
+						/* slot 0 .. N-1 from 32 bits: the arrival
+						 * in read a + s counts in N - 1 - s more */
+						w += N - 1 - (int)(((uint64_t)bits[j & 3] * (uint64_t)N) >> 32);
+					}
+				} else {
+					w = nearbyint(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs[i]);
+					if (w < Di)
+						w = Di;
+					if (w > Di * N)
+						w = Di * N;
+				}
+				mu[i] = w;
+			}
+		}
+		for (int h = 0; h < nh; h++)
+			if (hits[h].read >= a && hits[h].read <= b) {
+				mu[hits[h].pix] += hits[h].e * (b - hits[h].read + 1);
+				D[hits[h].pix] += hits[h].e;
+			}
+		rng_init(&g, k->seed, domain(k, DOM_READ, gi));
+		rng_normal_fill(&g, cell0, (size_t)n, zr);
+		for (int i = 0; i < n; i++) {
+			double s0 = P[i] + S[i], send = s0 + D[i], m, v;
+
+			if (send < d->sat_true) {
+				double step = D[i] / N;
+
+				m = ramp_nl(d, s0 + mu[i] / N) + d->beta * step * step * kvar;
+				v = m + sn * zr[i];
+			} else {
+				/* reads at saturation read the level exactly; the
+				 * read noise is that of the others */
+				int nfree = 0;
+
+				m = 0;
+				for (int j = 1; j <= N; j++) {
+					double x = s0 + D[i] * j / N;
+
+					m += ramp_nl(d, x);
+					nfree += x < d->sat_true;
+				}
+				v = (m + d->read_noise * sqrt((double)nfree) * zr[i]) / N;
+			}
+			if (v > d->sat_e)
+				v = d->sat_e;
+			v = nearbyint(v * inv_g);
+			out[(size_t)gi * plane + (size_t)i] =
+				(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
+			S[i] += D[i];
+		}
+		prev = b;
+	}
+}
+
+void ramp_ipc_row(const struct ramp_det *d, const double *above, const double *row,
+		  const double *below, int n, double *out)
+{
+	const double *rows[3] = { above, row, below };
+
+	for (int x = 0; x < n; x++) {
+		double v = 0;
+
+		/* charge of pixel (x, y) is shared: pixel (x + dx, y + dy)
+		 * receives ipc[dy][dx] of it; so out(x) gathers from x - dx */
+		for (int dy = -1; dy <= 1; dy++) {
+			const double *rr = rows[1 - dy];
+
+			if (!rr)
+				continue;
+			for (int dx = -1; dx <= 1; dx++) {
+				int xx = x - dx;
+
+				if (xx >= 0 && xx < n)
+					v += d->ipc[dy + 1][dx + 1] * rr[xx];
+			}
+		}
+		out[x] = v;
+	}
+}
+
+/* ---- level 2 ---- */
+
+static const double cas_power[6] = { 0, 0.4, 1, 3, 6, 10 };
+
+/* Fixsen et al. (2000) / Casertano et al. (2022): the weighting power for a
+ * ramp of signal-to-noise snr. */
+static int power_index(double sig, double var)
+{
+	/* snr = sig / sqrt(var) against the edges, squared */
+	static const double edge2[5] = { 25, 100, 400, 2500, 10000 };
+	double s2 = sig * sig;
+	int i = 0;
+
+	while (i < 5 && !(s2 < edge2[i] * var))
+		i++;
+	return i;
+}
+
+/* Optimal weights W[a..b) of the slope over resultants a .. b-1 with power
+ * index pi; returns the read-noise and Poisson (per unit rate) variances. */
+static void seg_weights(const struct ramp_pattern *p, const double *var_read,
+			int a, int b, int pi, double *W, double *vr, double *vp)
+{
+	double P = cas_power[pi], tmid = (p->tbar[a] + p->tbar[b - 1]) / 2;
+	double F0 = 0, F1 = 0, F2 = 0, Dt, run = 0;
+
+	for (int i = a; i < b; i++) {
+		double N = p->nread[i], dtm = fabs(p->tbar[i] - tmid);
+		double w = (1 + P) * N / (1 + P * N) * (P ? pow(dtm, P) : 1);
+
+		W[i] = w;
+		F0 += w;
+		F1 += w * p->tbar[i];
+		F2 += w * p->tbar[i] * p->tbar[i];
+	}
+	Dt = F2 * F0 - F1 * F1;
+	*vr = *vp = 0;
+	for (int i = a; i < b; i++) {
+		W[i] *= (F0 * p->tbar[i] - F1) / Dt;
+		*vr += W[i] * W[i] * var_read[i];
+		/* Cov(R_i, R_j) = rate tbar_i for i < j; Var(R_i) = rate tau_i */
+		*vp += W[i] * W[i] * p->tau[i] + 2 * W[i] * run;
+		run += W[i] * p->tbar[i];
+	}
+}
+
+int ramp_fit_plan_init(struct ramp_fit_plan *fp, const struct ramp_pattern *p,
+		       const struct ramp_det *d)
+{
+	memset(fp, 0, sizeof(*fp));
+	fp->p = *p;
+	fp->d = *d;
+	fp->nres = p->nres;
+	for (int i = 0; i < p->nres; i++)
+		fp->var_read[i] = d->read_noise * d->read_noise / p->nread[i] +
+				  d->gain * d->gain / 12;
+	if (p->nres >= 2)
+		for (int pi = 0; pi < 6; pi++)
+			seg_weights(p, fp->var_read, 0, p->nres, pi, fp->w[pi],
+				    &fp->vr[pi], &fp->vp[pi]);
+	/* the difference of resultants i and i + 1: its time, its read
+	 * variance and its Poisson variance per unit rate */
+	for (int i = 0; i + 1 < p->nres; i++) {
+		fp->dtbar[i] = p->tbar[i + 1] - p->tbar[i];
+		fp->vdiff[i] = fp->var_read[i] + fp->var_read[i + 1];
+		fp->cdiff[i] = p->tau[i + 1] + p->tau[i] - 2 * p->tbar[i];
+	}
+	fp->jump2 = d->jump_threshold * d->jump_threshold;
+	/* resultants are 16-bit: their linearised charge is a table */
+	if (!(fp->nlinv = malloc(65536 * sizeof(double))))
+		return -1;
+	for (int v = 0; v < 65536; v++)
+		fp->nlinv[v] = ramp_nl_inverse(d, v * d->gain);
+	return 0;
+}
+
+void ramp_fit_plan_free(struct ramp_fit_plan *fp)
+{
+	free(fp->nlinv);
+	fp->nlinv = NULL;
+}
+
+struct seg {
+	int a, b;
+	double f, vr, vp;
+};
+
+static void fit_seg(const struct ramp_fit_plan *fp, const double *s, struct seg *sg)
+{
+	const struct ramp_pattern *p = &fp->p;
+	int a = sg->a, b = sg->b, pi;
+	double sig = s[b - 1] - s[a], Wl[RAMP_MAX_RES];
+	const double *W;
+
+	/* the signal-to-noise of the piece: its rise over its noise */
+	if (sig < 0)
+		sig = 0;
+	pi = power_index(sig, sig + fp->var_read[a] + fp->var_read[b - 1]);
+	if (a == 0 && b == fp->nres) {
+		W = fp->w[pi];
+		sg->vr = fp->vr[pi];
+		sg->vp = fp->vp[pi];
+	} else {
+		seg_weights(p, fp->var_read, a, b, pi, Wl, &sg->vr, &sg->vp);
+		W = Wl;
+	}
+	sg->f = 0;
+	for (int i = a; i < b; i++)
+		sg->f += W[i] * s[i];
+}
+
+/* The rate of the pieces combined with inverse-variance weights, the
+ * Poisson part of each variance at the combined rate (two passes, so the
+ * weights do not follow a piece's own noise). */
+static double combine(const struct seg *sg, int nseg, double *vr, double *vp)
+{
+	double f = 0;
+
+	if (nseg == 1) {
+		*vr = sg[0].vr;
+		*vp = sg[0].vp * (sg[0].f > 0 ? sg[0].f : 0);
+		return sg[0].f;
+	}
+	for (int pass = 0; pass < 2; pass++) {
+		double fr = pass && f > 0 ? f : 0, sw = 0, sf = 0, svr = 0, svp = 0;
+
+		for (int j = 0; j < nseg; j++) {
+			double w;
+
+			if (sg[j].b - sg[j].a < 2)
+				continue;
+			w = 1 / (sg[j].vr + fr * sg[j].vp);
+			sw += w;
+			sf += w * sg[j].f;
+			svr += w * w * sg[j].vr;
+			svp += w * w * sg[j].vp;
+		}
+		if (sw == 0)
+			return NAN;
+		f = sf / sw;
+		*vr = svr / (sw * sw);
+		*vp = svp / (sw * sw) * (f > 0 ? f : 0);
+	}
+	return f;
+}
+
+/*
+ * The fit of one pixel.
+ *
+ * Saturation: a resultant at the saturation level is saturated, and so are
+ * those after it.  The resultant just before the first saturated one may
+ * hold reads that saturated (its mean is then below the level): it is
+ * dropped too when its last read, projected along the ramp from the clean
+ * resultants before it, reaches the saturation level.
+ *
+ * Jumps: with the rate f of the current pieces, the difference of
+ * resultants i and i + 1 should be f (tbar_i+1 - tbar_i) with variance
+ * var_read_i + var_read_i+1 + f (tau_i+1 + tau_i - 2 tbar_i); the
+ * difference most above that, when beyond jump_threshold sigma, splits its
+ * piece there, and the pieces are fitted again until none is left.  Only
+ * rises count: a cosmic ray adds charge, and while the jumps are still in
+ * the fit the rate f is too high, so the clean differences fall below it
+ * (a two-sided test then splits clean differences first).
+ */
+void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
+		    size_t stride, struct ramp_fit *out)
+{
+	const struct ramp_pattern *p = &fp->p;
+	const struct ramp_det *d = &fp->d;
+	double s[RAMP_MAX_RES], dt = p->read_time, sat_dn = floor(d->saturation);
+	struct seg sg[RAMP_MAX_RES];
+	int n = p->nres, nuse = n, nseg = 1;
+
+	memset(out, 0, sizeof(*out));
+	if (n < 2) {
+		out->dq = RAMP_DO_NOT_USE;
+		return;
+	}
+	for (int i = 0; i < n; i++) {
+		double v = dn[(size_t)i * stride];
+
+		if (v >= sat_dn && nuse == n)
+			nuse = i;
+		s[i] = fp->nlinv[dn[(size_t)i * stride]];
+	}
+	if (nuse < n) {
+		int i = nuse - 1;
+
+		out->dq |= RAMP_SATURATED;
+		if (i >= 0) {
+			double f, from, tfrom, xlast = p->last[i] * dt;
+
+			if (i >= 2) {
+				f = (s[i - 1] - s[i - 2]) / (p->tbar[i - 1] - p->tbar[i - 2]);
+				from = s[i - 1];
+				tfrom = p->tbar[i - 1];
+			} else if (i == 1) {
+				f = (s[0] - d->pedestal) / p->tbar[0];
+				from = s[0];
+				tfrom = p->tbar[0];
+			} else {
+				f = (s[0] - d->pedestal) / p->tbar[0];
+				from = s[0];
+				tfrom = p->tbar[0];
+			}
+			if (from + f * (xlast - tfrom) >= d->sat_true)
+				nuse = i;
+		}
+	}
+	out->nuse = nuse;
+	if (nuse == 0) {
+		out->dq |= RAMP_DO_NOT_USE;
+		return;
+	}
+	if (nuse == 1) {
+		/* one resultant: the rate above the nominal reset level */
+		double t = p->tbar[0];
+
+		out->rate = (s[0] - d->pedestal) / t;
+		out->var_rnoise = (fp->var_read[0] + d->reset_noise * d->reset_noise) / (t * t);
+		out->var_poisson = (out->rate > 0 ? out->rate : 0) * p->tau[0] / (t * t);
+		return;
+	}
+	sg[0].a = 0;
+	sg[0].b = nuse;
+	fit_seg(fp, s, &sg[0]);
+	for (int iter = 0; iter < n; iter++) {
+		double vr, vp, f = combine(sg, nseg, &vr, &vp), best = 0;
+		int bi = -1, bj = -1;
+
+		if (!isfinite(f))
+			break;
+		if (f < 0)
+			f = 0;
+		/* z^2 = r^2 / var > threshold^2 for a rise r > 0, tested
+		 * without a root or a division, which most pixels never
+		 * need */
+		for (int j = 0; j < nseg; j++)
+			for (int i = sg[j].a; i < sg[j].b - 1; i++) {
+				double r = s[i + 1] - s[i] - f * fp->dtbar[i];
+				double var = fp->vdiff[i] + f * fp->cdiff[i];
+
+				if (r > 0 && r * r > fp->jump2 * var) {
+					double z = r / sqrt(var);
+
+					if (z > best) {
+						best = z;
+						bi = i;
+						bj = j;
+					}
+				}
+			}
+		if (bi < 0)
+			break;
+		/* split piece bj after resultant bi */
+		memmove(&sg[bj + 2], &sg[bj + 1], (size_t)(nseg - bj - 1) * sizeof(*sg));
+		sg[bj + 1].a = bi + 1;
+		sg[bj + 1].b = sg[bj].b;
+		sg[bj].b = bi + 1;
+		nseg++;
+		out->njump++;
+		out->dq |= RAMP_JUMP_DET;
+		for (int j = bj; j <= bj + 1; j++)
+			if (sg[j].b - sg[j].a >= 2)
+				fit_seg(fp, s, &sg[j]);
+	}
+	out->rate = combine(sg, nseg, &out->var_rnoise, &out->var_poisson);
+	if (!isfinite(out->rate)) {
+		if (sg[0].a == 0 && sg[0].b == 1) {
+			double t = p->tbar[0];
+
+			out->rate = (s[0] - d->pedestal) / t;
+			out->var_rnoise = (fp->var_read[0] + d->reset_noise * d->reset_noise) / (t * t);
+			out->var_poisson = (out->rate > 0 ? out->rate : 0) * p->tau[0] / (t * t);
+		} else {
+			out->rate = out->var_rnoise = out->var_poisson = 0;
+			out->dq |= RAMP_DO_NOT_USE;
+		}
+	}
+}

@@ -1,0 +1,114 @@
+#!/bin/sh
+# Detector levels 1 and 2 through the command line: the file layout, the
+# rate of a flat sky against its ERR, saturation flags, the same bytes for
+# any threads and tiles and for runs split by rows (merged), and the
+# options that do not go with the levels refused.
+. "$(dirname "$0")/lib.sh"
+require_python
+
+run() { "$WFS" --filter F129 --ra 0 --dec 0 --background 0.54 "$@"; }
+
+printf 'ra,dec,flux\n' > none.csv
+# a star bright enough to saturate its core in the first resultants, on
+# WFI01's centre (--pointing-ref wfi01 puts ra 0 dec 0 there)
+printf 'ra,dec,flux\n0,0,5e7\n' > bright.csv
+
+cat > l2stats.py <<\PYEOF
+import sys
+import numpy as np
+from astropy.io import fits
+h = fits.open(sys.argv[1])
+names = [x.name for x in h[1:]]
+assert names == ["WFI01", "WFI01_ERR", "WFI01_DQ", "WFI01_VAR_POISSON", "WFI01_VAR_RNOISE"], names
+r, e, q = (np.asarray(h[k].data, dtype=np.float64) for k in (1, 2, 3))
+vp, vr = (np.asarray(h[k].data, dtype=np.float64) for k in (4, 5))
+assert h[3].data.dtype.kind == "u", h[3].data.dtype
+assert np.allclose(e * e, vp + vr, rtol=1e-5)
+m = q == 0
+med = np.median(r[m])
+sig = 1.4826 * np.median(np.abs(r[m] - med))
+print("%.6f %.6f %.6f %.6f" % (med, sig, np.sqrt(np.mean(e[m] ** 2)), np.mean(q == 4)))
+PYEOF
+
+within() { awk -v g="$1" -v w="$2" -v t="$3" 'BEGIN { d = g - w; if (d < 0) d = -d; exit !(d <= t) }'; }
+
+test_expect_success 'level 2 of a flat sky: the sky rate, its scatter as ERR, few jumps' '
+	run --level 2 -o l2.fits none.csv &&
+	$PY l2stats.py l2.fits > s && read med sig err jump < s && say "$med $sig $err $jump" &&
+	within "$med" 0.54 0.0054 &&
+	within "$(awk -v a="$sig" -v b="$err" "BEGIN { print a / b }")" 1 0.1 &&
+	within "$jump" 0.0014 0.0007
+'
+
+test_expect_success 'level 2 split by rows and merged is the whole run, byte for byte' '
+	run --level 2 --rows 1-2044 -o p1.fits none.csv &&
+	run --level 2 --rows 2045-4088 --threads 1 --tile 128 -o p2.fits none.csv &&
+	"$WFS" merge -o merged.fits p2.fits p1.fits &&
+	test_cmp l2.fits merged.fits
+'
+
+test_expect_success 'level 1: a 16-bit cube with the reference border, the same for any threads and tiles' '
+	run --level 1 --rows 1-100 --threads 1 --tile 64 -o a.fits none.csv &&
+	run --level 1 --rows 1-100 --threads 2 --tile 256 -o b.fits none.csv &&
+	test_cmp a.fits b.fits &&
+	$PY -c "
+from astropy.io import fits
+import numpy as np
+h = fits.open(\"a.fits\")[1]
+assert h.name == \"WFI01\" and h.data.shape == (9, 104, 4096), h.data.shape
+assert h.header[\"BITPIX\"] == 16 and h.header[\"BZERO\"] == 32768
+assert h.header[\"MATABLE\"] == 4 and h.header[\"GAIN\"] == 2 and h.header[\"READTIME\"] == 3.16247
+assert h.header[\"MAREAD4\"] == \"5-9\" and abs(h.header[\"EXPTIME\"] - 139.149) < 1e-3
+d = h.data.astype(float)
+# reference rows: the pedestal of 10000 e- seen through the non-linearity,
+# (10000 - 6e-7 10000^2) / 2 = 4970 DN
+ref = d[:, :4, :]
+sci = d[:, 10:, 10:4000]    # science: the sky (and dark) ramps up
+assert abs(ref.mean() - 4970) < 1, ref.mean()
+# per pixel, without the few that a cosmic ray hit (5 robust sigmas)
+rise = (sci[8] - sci[0]).ravel()
+med = np.median(rise)
+sig = 1.4826 * np.median(np.abs(rise - med))
+rise = rise[np.abs(rise - med) < 5 * sig].mean()
+want = (0.54 + 0.049) * (44 - 1) * 3.16247 / 2 * (1 - 2 * 6e-7 * 10000)
+assert abs(rise / want - 1) < 0.02, (rise, want)
+"
+'
+
+test_expect_success 'a saturating star: DQ SATURATED, and a rate from the reads before' '
+	run --level 2 --rows 2000-2090 -o sat.fits bright.csv &&
+	$PY -c "
+from astropy.io import fits
+import numpy as np
+h = fits.open(\"sat.fits\")
+q = h[\"WFI01_DQ\"].data
+assert (q & 2).sum() > 10, (q & 2).sum()
+r = h[\"WFI01\"].data
+assert np.isfinite(r).all() and r.max() > 1e4, r.max()
+"
+'
+
+test_expect_success 'options that do not go with the levels are refused' '
+	test_must_fail --status 1 run --level 2 --exptime 100 -o bad.fits none.csv 2> err &&
+	test_grep "MA table 4 lasts 139.149 s" err && ! test -e bad.fits &&
+	run --level 2 --exptime 139.149 --rows 1-8 -o ok.fits none.csv &&
+	test_must_fail --status 1 run --level 1 --noise all -o bad.fits none.csv 2> err &&
+	test_grep "simulate the detector" err && ! test -e bad.fits &&
+	test_must_fail --status 1 run --level 1 -o - none.csv > /dev/null 2> err &&
+	test_grep "need a file" err &&
+	test_must_fail --status 1 run --level 2 --compress rice -o bad.fits none.csv 2> err &&
+	test_grep "uncompressed" err && ! test -e bad.fits &&
+	test_must_fail --status 1 run --level 2 --ma-table 2 -o bad.fits none.csv 2> err &&
+	test_grep "no MultiAccum table 2 (there are 3, 4" err && ! test -e bad.fits &&
+	test_must_fail --status 1 run --level 3 -o bad.fits none.csv 2> err &&
+	test_grep "expected scene, 1 or 2" err && ! test -e bad.fits &&
+	test_must_fail --status 1 run --level 1 --bunit counts -o bad.fits none.csv 2> err &&
+	test_grep "DN" err && ! test -e bad.fits
+'
+
+test_expect_success 'merge refuses the row parts of a level-1 cube' '
+	run --level 1 --rows 1-8 -o c1.fits none.csv &&
+	test_must_fail --status 1 "$WFS" merge -o m.fits c1.fits 2> err &&
+	test_grep "level 1 cube" err
+'
+test_done

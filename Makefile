@@ -2,11 +2,13 @@
 #
 #   make            build build/wfiscene and the model plugins
 #   make check      install missing packages (as root), build, run the tests
+#                   (as anyone else: what the installed packages allow)
 #   make demo       install missing packages, build, simulate a globular cluster
 #   make help       list the targets
 #
 # Knobs: CC, CFLAGS, LDFLAGS, PKG_CONFIG, PREFIX, DESTDIR, V=1 (show commands),
-# SANITIZE=1 (AddressSanitizer + UBSan), TESTS='tests/t1*.sh' (a subset).
+# SANITIZE=1 (AddressSanitizer + UBSan, in build-san), SANITIZE=thread
+# (ThreadSanitizer, in build-tsan), TESTS='tests/t1*.sh' (a subset).
 # Local overrides go in config.mak.
 
 -include config.mak
@@ -35,12 +37,22 @@ ifeq ($(SANITIZE),1)
   B := build-san
   CFLAGS += -O1 -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
   LDFLAGS += -fsanitize=address,undefined
+else ifeq ($(SANITIZE),thread)
+  # A race report makes the program exit 66 (TSAN_OPTIONS exitcode), so a
+  # test that sees one fails.
+  B := build-tsan
+  CFLAGS += -O1 -fsanitize=thread -fno-omit-frame-pointer
+  LDFLAGS += -fsanitize=thread
+else ifneq ($(SANITIZE),)
+  $(error SANITIZE=$(SANITIZE): use SANITIZE=1 (address, undefined) or SANITIZE=thread)
 endif
 
 PKG_CFLAGS := $(shell $(PKG_CONFIG) --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   := $(shell $(PKG_CONFIG) --libs $(PKGS) 2>/dev/null)
+# No string from outside ever becomes a printf format: the compiler checks.
+WARN_FLAGS := -Wall -Wextra -Wno-unused-parameter -Wformat -Wformat-nonliteral -Wformat-security
 ALL_CFLAGS  = -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE \
-	-Wall -Wextra -Wno-unused-parameter -pthread -Iinclude -Isrc -I$(B) \
+	$(WARN_FLAGS) -pthread -Iinclude -Isrc -I$(B) \
 	-DWFS_VERSION='"$(VERSION)"' -DWFS_BINDIR='"$(BINDIR)"' -DWFS_PLUGINDIR='"$(PLUGINDIR)"' \
 	$(PKG_CFLAGS) $(CFLAGS)
 ALL_LIBS    = $(PKG_LIBS) -lfftw3_threads -lltdl -lm -lpthread
@@ -103,7 +115,7 @@ $(B)/obj/data_tables.o: $(B)/data_tables.c
 define plugin_rule
 $(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
 	@echo "  PLUGIN  $$@"
-	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra -Wno-unused-parameter -Iinclude \
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) -Iinclude \
 		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(PLUGIN_OPT) $(LDFLAGS) \
 		-Wl,-z,defs -o $$@ $$< -lm
 endef
@@ -115,12 +127,12 @@ $(B)/tests/%: tests/unit/%.c tests/unit/tap.h $(B)/libwfs.a | $(B)/tests
 
 $(B)/contrib/%: contrib/%.c | $(B)/contrib
 	@echo "  CC      $@"
-	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra $(CFLAGS) $(LDFLAGS) -o $@ $< -lzstd -lm
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) $(CFLAGS) $(LDFLAGS) -o $@ $< -lzstd -lm
 
 # csv2fits writes FITS tables for the bench and so needs cfitsio.
 $(B)/contrib/csv2fits: contrib/csv2fits.c | $(B)/contrib
 	@echo "  CC      $@"
-	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE -Wall -Wextra $(CFLAGS) \
+	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) $(CFLAGS) \
 		$$($(PKG_CONFIG) --cflags cfitsio) $(LDFLAGS) -o $@ $< \
 		$$($(PKG_CONFIG) --libs cfitsio) -lm
 
@@ -131,11 +143,14 @@ $(B)/obj $(B)/plugins $(B)/tests $(B)/contrib:
 deps:
 	$(Q)sh contrib/install-deps.sh
 
-## check: run the whole test suite (installs missing packages first)
+## check: run the whole test suite (installs missing packages first as root; as
+##   anyone else it runs what it can, and every skip names its reason and package)
 check: deps
+	$(Q)command -v prove > /dev/null 2>&1 || \
+		{ echo "make check: prove is not installed (Debian package perl)" >&2; exit 1; }
 	$(Q)$(MAKE) --no-print-directory all unit
-	$(Q)rc=0; WFS_BUILD=$(B) prove -j2 $(UNIT_BIN) || rc=1; \
-	  WFS_BUILD=$(B) prove -j2 --exec sh $(TESTS) :: || rc=1; exit $$rc
+	$(Q)rc=0; WFS_BUILD=$(B) prove -j2 --directives $(UNIT_BIN) || rc=1; \
+	  WFS_BUILD=$(B) prove -j2 --directives --exec sh $(TESTS) :: || rc=1; exit $$rc
 
 ## unit: build the C unit tests
 unit: $(UNIT_BIN)
@@ -163,9 +178,11 @@ fuzz: $(B)/data_tables.c
 	$(B)/catalog_fuzz -max_len=16384 -max_total_time=$(FUZZ_SECONDS) \
 		-artifact_prefix=$(B)/ $(B)/fuzz-corpus tests/fuzz/corpus
 
-## lint-man: check the man pages with mandoc
+## lint-man: check the man pages with mandoc -Tlint (any message, style included, fails)
 lint-man:
-	$(Q)mandoc -Tlint -W warning man/* || true
+	$(Q)command -v mandoc >/dev/null 2>&1 || \
+		{ echo "lint-man: mandoc is not installed (Debian package mandoc)" >&2; exit 1; }
+	$(Q)mandoc -Tlint -W style man/*
 
 ## install: install the program, plugins, header, pkg-config file, man pages
 install: all
@@ -181,7 +198,7 @@ install: all
 
 ## clean: remove build outputs
 clean:
-	rm -rf build build-san
+	rm -rf build build-san build-tsan
 
 ## help: list the targets
 help:

@@ -1573,7 +1573,11 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 
 /* Built twice, for AVX2 and for any x86-64, and chosen at load time: the
  * core's sums run 8 floats wide where the processor allows. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+/* Not under the sanitizers: the clones' resolver runs while the plugin is
+ * being relocated, before the instrumentation it calls can be reached (a
+ * ThreadSanitizer build jumped to a bad address in dlopen). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+	!defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
 __attribute__((target_clones("avx2,fma", "default")))
 #endif
 static int fine_render(struct point *p, const struct wfs_source *src,

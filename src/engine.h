@@ -28,6 +28,7 @@
 #include <stdint.h>
 #include <time.h>
 
+#include "err.h"
 #include "exposure.h"
 #include "instrument.h"
 #include "plugin.h"
@@ -37,7 +38,6 @@
 #include "wfiscene/model.h"
 
 struct catalog;
-struct err;
 struct fftconv;
 struct fftconv_thread;
 struct pool;
@@ -79,6 +79,11 @@ struct batch {
 /* Per worker thread: scratch memory, FFT buffers, models' thread state. */
 struct worker {
 	struct engine *g;
+	/* The worker's own error record, written only by its thread while
+	 * the pool runs and read by the main thread after pool_wait()
+	 * (render_errors_collect); err_task is the tile it failed on. */
+	struct err err;
+	size_t err_task;
 	void *scratch;
 	size_t scratch_cap;
 	struct fftconv_thread *fft;
@@ -95,8 +100,7 @@ struct type_cache {
 struct engine {
 	const struct scene_opts *o;     /* what all exposures share */
 	const struct exposure *x;       /* this exposure */
-	struct err *e;
-	pthread_mutex_t err_mu;
+	struct err *e;                  /* the main thread's only (workers: struct worker) */
 	pthread_t main_thread;          /* the one that may load PSF grids */
 	atomic_int failed;
 
@@ -161,8 +165,11 @@ double engine_clock(void);              /* monotonic seconds */
 void engine_progress(struct engine *g, const char *stage, int force);
 
 /* host.c: the struct wfs_host lent to plugins, and the services the engine
- * itself uses (errors from any thread, -v logging, a setting's value). */
+ * itself uses (errors from any thread, -v logging, a setting's value).
+ * host_worker() says which worker the calling thread is drawing for (NULL:
+ * the main thread), so that host_error() writes that worker's record. */
 void host_init(struct engine *g);
+void host_worker(struct worker *w);
 int host_error(void *ctx, const char *fmt, ...);
 void host_log(void *ctx, int level, const char *fmt, ...);
 const char *host_setting(void *ctx, const char *key);
@@ -182,6 +189,10 @@ int place_bin(struct engine *g, struct batch *b);
 
 /* render.c */
 void render_tile(void *arg, int wid, size_t task);
+/* After pool_wait(): the workers' errors into g->e (the failure on the
+ * lowest tile, unless the main thread recorded one first), records
+ * cleared.  Main thread only. */
+void render_errors_collect(struct engine *g);
 int render_threads_init(struct engine *g);
 void render_threads_stop(struct engine *g);
 

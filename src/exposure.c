@@ -14,6 +14,7 @@
 #include "detector.h"
 #include "exposure.h"
 #include "instrument.h"
+#include "names.h"
 #include "scene.h"
 #include "sky.h"
 
@@ -179,23 +180,21 @@ static int exposure_background(struct exposure *x, const struct scene_opts *o, s
 				   o->zodi_norm, o->allow_sun, ra, dec, bra, bdec, e);
 }
 
-/* tmpl with its "%s" replaced by name (a word of safe characters); NULL for
- * a NULL tmpl, or when out of memory. */
-static char *expand_name(const char *tmpl, const char *name)
+/* *out: template tmpl of option what expanded for exposure x (names.h), or
+ * NULL for a NULL tmpl.  Returns 0 or -1 with the message in e. */
+static int expand_side(const char *what, const char *tmpl, const struct exposure *x,
+		       char **out, struct err *e)
 {
-	const char *at;
-	size_t n;
-	char *out;
+	char buf[PATH_MAX];
 
+	*out = NULL;
 	if (!tmpl)
-		return NULL;
-	if (!(at = strstr(tmpl, "%s")))
-		return strdup(tmpl);
-	n = strlen(tmpl) + strlen(name);
-	if (!(out = malloc(n + 1)))
-		return NULL;
-	snprintf(out, n + 1, "%.*s%s%s", (int)(at - tmpl), tmpl, name, at + 2);
-	return out;
+		return 0;
+	if (name_expand(buf, sizeof(buf), what, tmpl, 0, x->name[0] ? x->name : NULL, e) < 0)
+		return -1;
+	if (!(*out = strdup(buf)))
+		return err_sys(e, "%s", what);
+	return 0;
 }
 
 
@@ -229,17 +228,10 @@ int exposures_make(const struct scene_opts *o, struct exposure **out, int *n, st
 			return -1;
 		}
 		x[i].output = o->output;
-		x[i].placed = o->placed;
-		x[i].report = o->report;
-		if (!o->pointings)
-			continue;
-		x[i].own_paths = 1;
-		x[i].output = expand_name(o->output, x[i].name);
-		x[i].placed = expand_name(o->placed, x[i].name);
-		x[i].report = expand_name(o->report, x[i].name);
-		if (!x[i].output || (o->placed && !x[i].placed) || (o->report && !x[i].report)) {
+		if (expand_side("--placed", o->placed, &x[i], &x[i].placed, e) < 0 ||
+		    expand_side("--report", o->report, &x[i], &x[i].report, e) < 0) {
 			exposures_free(x, *n);
-			return err_sys(e, "memory");
+			return -1;
 		}
 	}
 	*out = x;
@@ -248,11 +240,9 @@ int exposures_make(const struct scene_opts *o, struct exposure **out, int *n, st
 
 void exposures_free(struct exposure *x, int n)
 {
-	for (int i = 0; x && i < n; i++)
-		if (x[i].own_paths) {
-			free((char *)x[i].output);
-			free((char *)x[i].placed);
-			free((char *)x[i].report);
-		}
+	for (int i = 0; x && i < n; i++) {
+		free(x[i].placed);
+		free(x[i].report);
+	}
 	free(x);
 }

@@ -32,10 +32,11 @@ struct exposure {
 	double background;      /* counts/s/pixel: the number, or avg's filter-wide one */
 	struct bkg_exposure bkg;/* the background of each SCA and its parts */
 	uint64_t seed;
-	/* Output paths with a --pointings "%s" replaced by the name; owned by
-	 * the exposure when they differ from the options' strings. */
-	const char *output, *placed, *report;
-	int own_paths;
+	/* -o as given (a names.h template: %d the SCA, %s the name, %%),
+	 * expanded per SCA by the writer; --placed and --report expanded (%s
+	 * the name, %% a '%'), owned by the exposure, NULL when not asked for. */
+	const char *output;
+	char *placed, *report;
 };
 
 /* The exposures of a run: one from the options, or one per line of

@@ -26,7 +26,6 @@
 #include <fcntl.h>
 #include <limits.h>
 #include <math.h>
-#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -70,7 +69,6 @@ struct fitsout {
 	char *tmp;              /* temporary name, NULL when streaming */
 	int fd;                 /* our writer; -1 when cfitsio writes */
 	int close_fd;           /* fd is ours to close (not stdout) */
-	int slot;               /* signal-registry slot, -1 if none */
 	int failed;             /* a write failed: everything after fails */
 	enum fitsout_state state;
 	int nhdu;               /* HDUs begun so far */
@@ -92,54 +90,6 @@ struct fitsout {
 	unsigned char *gbuf;    /* big-endian copy of a group write */
 	size_t gbuf_n;
 };
-
-/*
- * The registry of live temporary names.  This is the one piece of mutable
- * global state in the program, and it is here because a fatal-signal
- * handler has no context argument: fitsout_abort_all_signal() must find the
- * temporary files of every open writer without one.  Slot states are
- * lock-free atomics so the handler may read them (C11 7.14.1.1 allows
- * lock-free atomic objects in handlers); names are written before a slot is
- * published and never touched while it is live.
- */
-#define LIVE_MAX 64
-enum { SLOT_FREE, SLOT_BUSY, SLOT_LIVE };
-#if ATOMIC_INT_LOCK_FREE != 2
-#error "fitsout's signal registry needs lock-free atomic int"
-#endif
-static struct {
-	atomic_int state;
-	char name[PATH_MAX];
-} live_tmp[LIVE_MAX];
-
-static int live_add(const char *name)
-{
-	for (int i = 0; i < LIVE_MAX; i++) {
-		int expect = SLOT_FREE;
-		if (atomic_compare_exchange_strong(&live_tmp[i].state, &expect,
-						   SLOT_BUSY)) {
-			snprintf(live_tmp[i].name, sizeof(live_tmp[i].name),
-				 "%s", name);
-			atomic_store(&live_tmp[i].state, SLOT_LIVE);
-			return i;
-		}
-	}
-	return -1;
-}
-
-static void live_remove(int slot)
-{
-	if (slot >= 0)
-		atomic_store(&live_tmp[slot].state, SLOT_FREE);
-}
-
-void fitsout_abort_all_signal(void)
-{
-	/* Only unlink(2) and atomic loads: both async-signal-safe. */
-	for (int i = 0; i < LIVE_MAX; i++)
-		if (atomic_load(&live_tmp[i].state) == SLOT_LIVE)
-			unlink(live_tmp[i].name);
-}
 
 /* ---- card formatting ---- */
 
@@ -556,7 +506,6 @@ struct fitsout *fitsout_open(const char *path, const char *compress,
 		return NULL;
 	}
 	f->fd = -1;
-	f->slot = -1;
 	f->ctype = ctype;
 	f->name = f->path;
 
@@ -598,14 +547,6 @@ struct fitsout *fitsout_open(const char *path, const char *compress,
 		int fd = make_temp(f, e);
 		if (fd < 0)
 			goto fail;
-		f->slot = live_add(f->tmp);
-		if (f->slot < 0) {
-			close(fd);
-			unlink(f->tmp);
-			err_set(e, EXIT_SYSTEM, "%s: too many output files open "
-				"at once (at most %d)", path, LIVE_MAX);
-			goto fail;
-		}
 		if (ctype) {
 			/* The O_EXCL file reserved the name and proved the
 			 * directory writable; cfitsio wants to create the file
@@ -1089,15 +1030,8 @@ int fitsout_commit(struct fitsout *f, struct err *e)
 			goto fail;
 		}
 		f->fd = -1;
-		if (rename(f->tmp, f->path)) {
-			err_sys(e, "%s: renaming '%s'", f->path, f->tmp);
+		if (tempfile_commit(f->tmp, f->path, e) < 0)
 			goto fail;
-		}
-		/* Unregister only after the rename: a signal in between
-		 * unlinks a name that no longer exists, which is harmless;
-		 * the other order could leave the temporary file behind. */
-		live_remove(f->slot);
-		f->slot = -1;
 		free(f->tmp);
 		f->tmp = NULL;
 		if (sync_dir(f, e)) {
@@ -1134,7 +1068,6 @@ void fitsout_abort(struct fitsout *f)
 	if (f->close_fd && f->fd >= 0)
 		close(f->fd);
 	if (f->tmp)
-		unlink(f->tmp);
-	live_remove(f->slot);
+		tempfile_discard(f->tmp);
 	fitsout_free(f);
 }

@@ -67,10 +67,6 @@ int fitsout_commit(struct fitsout *f, struct err *e);
 /* Give up: close and remove the temporary file.  Frees f.  NULL is a no-op. */
 void fitsout_abort(struct fitsout *f);
 
-/* Remove every temporary file still open (for a fatal signal handler:
- * async-signal-safe, uses only unlink). */
-void fitsout_abort_all_signal(void);
-
 /* Format one card "KEY     = value / comment" padded to 80 characters into
  * buf (81 bytes).  Helpers for building card strings. */
 void fits_card_str(char *buf, const char *key, const char *value,

@@ -2,8 +2,9 @@
  * host.c - the plugin host: the services lent to every model through
  * struct wfs_host (include/wfiscene/model.h).
  *
- * Errors from any thread (the first message wins the run's struct err under
- * a lock), -v logging, settings by key (the scene's own, then --set), ePSF
+ * Errors from any thread (a worker's go to its own record, merged by the
+ * main thread after the pool waits; the main thread's to the run's), -v
+ * logging, settings by key (the scene's own, then --set), ePSF
  * samples (grids loaded on the main thread only, see psfgrids.c), per-worker
  * scratch memory and FFT convolution.  The engine uses host_error, host_log
  * and host_setting itself too.
@@ -20,18 +21,30 @@
 #include "fftconv.h"
 
 
+/*
+ * The worker the calling thread draws for.  Thread-local because
+ * host->error() has no thread argument (model.h): a model calls it with the
+ * host's ctx from render() on any worker.  Set by render_tile() around its
+ * work, NULL on the main thread.
+ */
+static _Thread_local struct worker *current_worker;
+
+void host_worker(struct worker *w)
+{
+	current_worker = w;
+}
+
 int host_error(void *ctx, const char *fmt, ...)
 {
 	struct engine *g = ctx;
+	struct worker *w = current_worker;
 	char msg[1024];
 	va_list ap;
 
 	va_start(ap, fmt);
 	vsnprintf(msg, sizeof(msg), fmt, ap);
 	va_end(ap);
-	pthread_mutex_lock(&g->err_mu);
-	err_set(g->e, EXIT_PLUGIN, "%s", msg);
-	pthread_mutex_unlock(&g->err_mu);
+	err_set(w && w->g == g ? &w->err : g->e, EXIT_PLUGIN, "%s", msg);
 	return -1;
 }
 

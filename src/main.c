@@ -1,7 +1,6 @@
 /* main.c - the wfiscene command line: options, exit statuses, signals. */
 #include <errno.h>
 #include <math.h>
-#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -15,13 +14,14 @@
 #include "commands.h"
 #include "date.h"
 #include "err.h"
-#include "fitsout.h"
 #include "instrument.h"
 #include "levels.h"
+#include "names.h"
 #include "noise.h"
 #include "options.h"
 #include "pool.h"
 #include "scene.h"
+#include "tempfile.h"
 
 #define STR_(x) #x
 #define STR(x) STR_(x)
@@ -359,74 +359,22 @@ static int set_version(const struct opt_arg *a, struct err *e)
 	return OPT_EXIT;
 }
 
-/* An output name may hold one %d (any width flags), for one file per SCA,
- * and with --pointings must hold one %s, for the exposure's name.  what
- * names the option for messages. */
-static int check_name(const char *what, const char *s, int pointings, int per_sca,
-		      struct err *e)
+/* The names the options give (names.h): -o may hold %d, one file per SCA;
+ * with --pointings -o, --placed and --report must hold %s, the exposure's
+ * name; --psf may hold %d, one grid per SCA.  No other escape is read. */
+static int check_names(const struct scene_opts *o, struct err *e)
 {
-	int nd = 0, ns = 0;
+	unsigned expo = o->pointings ? NAME_EXPOSURE : NAME_NEEDS_POINTINGS;
+	unsigned need = o->pointings ? NAME_EXPOSURE : 0;
 
-	for (const char *p = s; *p; p++) {
-		if (*p != '%')
-			continue;
-		if (p[1] == '%') {
-			p++;
-			continue;
-		}
-		p++;
-		if (*p == 's') {
-			ns++;
-			continue;
-		}
-		while (*p == '0' || (*p >= '1' && *p <= '9'))
-			p++;
-		if (*p != 'd')
-			return err_set(e, EXIT_INPUT, "%s: '%s': only '%%d' (the SCA) and, with "
-				       "--pointings, '%%s' (the exposure) may appear", what, s);
-		nd++;
-	}
-	if (nd && !per_sca)
-		return err_set(e, EXIT_INPUT, "%s: '%s': one file covers every SCA; no '%%d'",
-			       what, s);
-	if (nd > 1 || ns > 1)
-		return err_set(e, EXIT_INPUT, "%s: '%s': only one '%%d' and one '%%s' may "
-			       "appear in a name", what, s);
-	if (ns && !pointings)
-		return err_set(e, EXIT_INPUT, "%s: '%s': '%%s' stands for the exposure's name "
-			       "and needs --pointings", what, s);
-	if (!ns && pointings)
-		return err_set(e, EXIT_INPUT, "%s: '%s' needs a '%%s' for the exposure's name "
-			       "with --pointings", what, s);
-	if (!strcmp(s, "-") && pointings)
-		return err_set(e, EXIT_INPUT, "%s: stdout holds one exposure, not several", what);
+	if (o->pointings && !strcmp(o->output, "-"))
+		return err_set(e, EXIT_INPUT, "-o: stdout holds one exposure, not several");
+	if (name_check("-o", o->output, NAME_SCA | expo, need, e) < 0 ||
+	    (o->placed && name_check("--placed", o->placed, expo, need, e) < 0) ||
+	    (o->report && name_check("--report", o->report, expo, need, e) < 0) ||
+	    (strcmp(o->psf, "builtin") && name_check("--psf", o->psf, NAME_SCA, 0, e) < 0))
+		return -1;
 	return 0;
-}
-
-static void on_fatal_signal(int sig)
-{
-	static const char msg[] = "wfiscene: interrupted; partial output removed\n";
-
-	fitsout_abort_all_signal();
-	scene_remove_temporaries();
-	if (write(2, msg, sizeof(msg) - 1) < 0)
-		_exit(EXIT_SIGNAL);
-	_exit(EXIT_SIGNAL);
-}
-
-static void set_signals(void)
-{
-	struct sigaction sa;
-
-	memset(&sa, 0, sizeof(sa));
-	sa.sa_handler = on_fatal_signal;
-	sigemptyset(&sa.sa_mask);
-	sigaction(SIGINT, &sa, NULL);
-	sigaction(SIGTERM, &sa, NULL);
-	sigaction(SIGHUP, &sa, NULL);
-	/* A closed pipe is an I/O error that a write reports, not a death. */
-	sa.sa_handler = SIG_IGN;
-	sigaction(SIGPIPE, &sa, NULL);
 }
 
 static int fail(const struct err *e)
@@ -437,8 +385,6 @@ static int fail(const struct err *e)
 /* What the options allow only together. */
 static int check_options(struct scene_opts *o, struct err *e)
 {
-	int pointings = o->pointings != NULL;
-
 	if (o->filter < 0)
 		return err_set(e, EXIT_INPUT, "--filter is required (F062, F087, F106, F129, "
 			       "F158, F184, F213 or F146)");
@@ -453,9 +399,7 @@ static int check_options(struct scene_opts *o, struct err *e)
 				       "stdout)");
 		o->output = "-";
 	}
-	if (check_name("-o", o->output, pointings, 1, e) < 0 ||
-	    (o->placed && check_name("--placed", o->placed, pointings, 0, e) < 0) ||
-	    (o->report && check_name("--report", o->report, pointings, 0, e) < 0))
+	if (check_names(o, e) < 0)
 		return -1;
 	if (strcmp(o->compress, "none") && !strcmp(o->output, "-"))
 		return err_set(e, EXIT_INPUT, "--compress %s: stdout cannot be tile-compressed "
@@ -504,6 +448,17 @@ int main(int argc, char **argv)
 	struct err e = { 0 };
 	int first;
 
+	/* One signal policy for every subcommand, before any of them can make
+	 * a file: a fatal signal removes the temporaries and exits 4. */
+	if (argc > 1 && (!strcmp(argv[1], "psf") || !strcmp(argv[1], "preview") ||
+			 !strcmp(argv[1], "merge"))) {
+		char prog[32];
+
+		snprintf(prog, sizeof(prog), "wfiscene %s", argv[1]);
+		tempfile_signals(prog);
+	} else {
+		tempfile_signals("wfiscene");
+	}
 	if (argc > 1 && !strcmp(argv[1], "psf"))
 		return psf_main(argc - 1, argv + 1);
 	if (argc > 1 && !strcmp(argv[1], "preview"))
@@ -520,7 +475,6 @@ int main(int argc, char **argv)
 	if (check_options(&cmd.o, &e) < 0)
 		return fail(&e);
 	cmd.o.settings = cmd.settings;
-	set_signals();
 	if (scene_run(&cmd.o, first < argc ? argv + first : stdin_only, &e) < 0)
 		return fail(&e);
 	if (!strcmp(cmd.o.output, "-") && (fflush(stdout) != 0 || ferror(stdout))) {

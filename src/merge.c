@@ -23,12 +23,13 @@
  * under ".NAME.XXXXXX" next to NAME, flushed, fsync'ed and renamed, so NAME
  * only ever holds a complete file; "-" streams to stdout.  The raw copy has
  * its own small writer because fitsout.h builds headers from cards and
- * converts floats, where merge must pass blocks through untouched.
+ * converts floats, where merge must pass blocks through untouched.  The
+ * temporary is in tempfile.h's registry: SIGINT, SIGTERM or SIGHUP remove it
+ * and exit 4 under the one signal policy main() set.
  */
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
-#include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -40,6 +41,7 @@
 #include "commands.h"
 #include "err.h"
 #include "fitsout.h"
+#include "names.h"
 #include "options.h"
 #include "tempfile.h"
 #include "instrument.h"
@@ -47,8 +49,7 @@
 #define MERGE_CARD 80
 #define MERGE_BLOCK 2880
 #define MERGE_CARDS_PER_BLOCK (MERGE_BLOCK / MERGE_CARD)
-/* Copy buffer: few enough syscalls per 64 MB image, and the unit at which
- * an interrupt is noticed (a few milliseconds of copying). */
+/* Copy buffer: few enough syscalls per 64 MB image. */
 #define MERGE_BUF_SIZE (1u << 20)
 /* A header longer than this is not one of ours (wfiscene's have about 40
  * cards); the limit keeps a stray binary file from being read to its end
@@ -137,7 +138,6 @@ struct merge {
 	struct merge_hdu *hdu;
 	int nhdu, cap;
 	unsigned char *buf;     /* MERGE_BUF_SIZE bytes */
-	sigset_t stop;          /* the signals that interrupt a merge */
 	int verbose;            /* -1 quiet, 0 normal, 1 verbose */
 	struct err *e;
 };
@@ -810,7 +810,7 @@ static void merge_out_abort(struct merge_out *o)
 	o->close_fd = 0;
 	o->fd = -1;
 	if (o->tmp)
-		unlink(o->tmp);
+		tempfile_discard(o->tmp);
 	free(o->tmp);
 	o->tmp = NULL;
 }
@@ -833,10 +833,8 @@ static int merge_out_commit(struct merge_out *o, struct err *e)
 	}
 	if (!o->tmp)
 		return 0;
-	if (rename(o->tmp, o->path)) {
-		err_sys(e, "%s: renaming '%s'", o->path, o->tmp);
+	if (tempfile_commit(o->tmp, o->path, e) < 0)
 		goto fail;
-	}
 	free(o->tmp);
 	o->tmp = NULL;
 	return merge_sync_dir(o->path, e);
@@ -846,21 +844,6 @@ fail:
 }
 
 /* ---- copying ---- */
-
-/* SIGINT, SIGTERM or SIGHUP arrived (they are blocked while merging). */
-static int merge_interrupted(const struct merge *m)
-{
-	static const int signals[] = { SIGINT, SIGTERM, SIGHUP };
-	sigset_t pending;
-
-	if (sigpending(&pending))
-		return 0;
-	for (size_t k = 0; k < sizeof(signals) / sizeof(signals[0]); k++)
-		if (sigismember(&pending, signals[k]) &&
-		    sigismember(&m->stop, signals[k]))
-			return 1;
-	return 0;
-}
 
 /* Copy length bytes from offset of input i to the output as they are. */
 static int merge_copy(struct merge *m, struct merge_out *o, int i, off_t offset,
@@ -884,9 +867,6 @@ static int merge_copy(struct merge *m, struct merge_out *o, int i, off_t offset,
 			return -1;
 		offset += r;
 		length -= r;
-		if (merge_interrupted(m))
-			return err_set(m->e, EXIT_SIGNAL, "interrupted; partial "
-				       "output removed");
 	}
 	return 0;
 }
@@ -986,10 +966,6 @@ static int merge_run(struct merge *m, const char *output)
 				goto fail;
 		}
 	}
-	if (merge_interrupted(m)) {
-		err_set(m->e, EXIT_SIGNAL, "interrupted; partial output removed");
-		goto fail;
-	}
 	if (merge_out_commit(&o, m->e))
 		return -1;
 	if (m->verbose > 0) {
@@ -1012,7 +988,7 @@ int merge_main(int argc, char **argv)
 	struct err e = { 0 };
 	struct merge m = { .e = &e };
 	const char *output;
-	sigset_t block;
+	char name[PATH_MAX];
 	int first, status;
 
 	first = opt_parse(&merge_cmd_line, argc, argv, &c, &e);
@@ -1035,24 +1011,13 @@ int merge_main(int argc, char **argv)
 		}
 		output = "-";
 	}
-
-	/*
-	 * An interrupt must not leave the temporary file behind, and a
-	 * handler could only find it through a global.  So the signals are
-	 * blocked instead and the copy loop asks sigpending() after every
-	 * buffer: an interrupted merge removes its file and exits 4, within
-	 * milliseconds.  SIGPIPE is blocked too, so that a closed pipe is a
-	 * write error (EPIPE) with a message.  The mask is left as it is on
-	 * return: main returns at once, and a signal still pending then
-	 * came too late to matter.
-	 */
-	sigemptyset(&m.stop);
-	sigaddset(&m.stop, SIGINT);
-	sigaddset(&m.stop, SIGTERM);
-	sigaddset(&m.stop, SIGHUP);
-	block = m.stop;
-	sigaddset(&block, SIGPIPE);
-	sigprocmask(SIG_BLOCK, &block, NULL);
+	/* one file: '%%' is its only escape (names.h) */
+	if (name_check("-o", output, 0, 0, &e) < 0 ||
+	    name_expand(name, sizeof(name), "-o", output, 0, NULL, &e) < 0) {
+		fprintf(stderr, "wfiscene merge: %s\n", e.msg);
+		return e.code;
+	}
+	output = name;
 
 	m.nin = argc - first;
 	m.in = calloc((size_t)m.nin, sizeof(*m.in));

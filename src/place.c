@@ -57,6 +57,18 @@ static int grow(void **p, size_t *cap, size_t need, size_t size)
 	return 0;
 }
 
+/* *p resized to bytes; on failure -1 and *p left as it was (never
+ * p = realloc(p, ...), which loses the block when realloc fails). */
+static int resize(void **p, size_t bytes)
+{
+	void *q = realloc(*p, bytes);
+
+	if (!q)
+		return -1;
+	*p = q;
+	return 0;
+}
+
 /* The model drawing rows of type name: the model of that name, or, when
  * the scene has a setting of that name (--sersic, --set T=M), the model
  * name-setting of that family (model.h, "Resolving a catalog type"). */
@@ -617,14 +629,15 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	b->n = b->nparam = 0;
 	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)
 		return err_sys(g->e, "rows");
-	/* all per-row arrays share cap_rows: grow them together */
-	if (!(g->fy = realloc(g->fy, g->cap_rows * sizeof(double))) ||
-	    !(g->px = realloc(g->px, g->cap_rows * sizeof(double))) ||
-	    !(g->py = realloc(g->py, g->cap_rows * sizeof(double))) ||
-	    !(g->reach = realloc(g->reach, g->cap_rows * sizeof(double))) ||
-	    !(g->cand = realloc(g->cand, g->cap_rows * sizeof(uint32_t))) ||
-	    !(g->mask = realloc(g->mask, g->cap_rows * sizeof(uint32_t))) ||
-	    !(g->listed = realloc(g->listed, g->cap_rows)))
+	/* all per-row arrays share cap_rows: grow them together (a failed
+	 * one keeps its block, which engine_free() releases) */
+	if (resize((void **)&g->fy, g->cap_rows * sizeof(double)) < 0 ||
+	    resize((void **)&g->px, g->cap_rows * sizeof(double)) < 0 ||
+	    resize((void **)&g->py, g->cap_rows * sizeof(double)) < 0 ||
+	    resize((void **)&g->reach, g->cap_rows * sizeof(double)) < 0 ||
+	    resize((void **)&g->cand, g->cap_rows * sizeof(uint32_t)) < 0 ||
+	    resize((void **)&g->mask, g->cap_rows * sizeof(uint32_t)) < 0 ||
+	    resize((void **)&g->listed, g->cap_rows) < 0)
 		return err_sys(g->e, "rows");
 	memset(g->listed, 0, r->n);
 	/* a catalog fact, for models with a half-light radius */

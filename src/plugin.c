@@ -2,6 +2,7 @@
 #include <dlfcn.h>
 #include <errno.h>
 #include <limits.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -154,12 +155,18 @@ static int find_file(const char *path, const char *name, char *out, size_t cap)
 	return -1;
 }
 
-static int refuse(struct plugin *pl, struct err *e, const char *fmt, const char *detail,
-		  long a, long b)
+/* Unload a plugin that cannot be used and record why (a printf format and
+ * its arguments, checked by the compiler like any other). */
+static int refuse(struct plugin *pl, struct err *e, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+static int refuse(struct plugin *pl, struct err *e, const char *fmt, ...)
 {
 	char why[512];
+	va_list ap;
 
-	snprintf(why, sizeof(why), fmt, detail, a, b);
+	va_start(ap, fmt);
+	vsnprintf(why, sizeof(why), fmt, ap);
+	va_end(ap);
 	if (pl->handle)
 		lt_dlclose(pl->handle);
 	if (pl->dl)
@@ -195,7 +202,7 @@ static int open_bound(struct plugin *pl, struct err *e)
 		lt_dlerror();
 		if (!(h = lt_dlopen(pl->path)))
 			return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
-				      lt_dlerror(), 0, 0);
+				      lt_dlerror());
 		info = lt_dlgetinfo(h);
 		snprintf(object, sizeof(object), "%s", info && info->filename ?
 			 info->filename : pl->path);
@@ -207,14 +214,14 @@ static int open_bound(struct plugin *pl, struct err *e)
 		if (why && strstr(why, "undefined symbol"))
 			return refuse(pl, e, "cannot load: %s: a plugin may use only the C "
 				      "library, libm and what struct wfs_host lends (link it "
-				      "with -Wl,-z,defs to find this when building it)", why, 0, 0);
+				      "with -Wl,-z,defs to find this when building it)", why);
 		return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
-			      why ? why : "unknown error", 0, 0);
+			      why ? why : "unknown error");
 	}
 	lt_dlerror();
 	if (!(pl->handle = lt_dlopen(pl->path)))
 		return refuse(pl, e, "cannot load: %s (ldd(1) shows missing libraries)",
-			      lt_dlerror(), 0, 0);
+			      lt_dlerror());
 	return 0;
 }
 
@@ -230,23 +237,23 @@ static int read_appended(struct plugin *pl, struct err *e)
 	pl->column_size = column1;
 	if (WFS_HAS(m->size, struct wfs_model, column_size) && m->column_size) {
 		if (m->column_size < column1)
-			return refuse(pl, e, "%sdescriptor's column_size %ld is below the %ld "
-				      "bytes of struct wfs_column", "", (long)m->column_size,
+			return refuse(pl, e, "descriptor's column_size %ld is below the %ld "
+				      "bytes of struct wfs_column", (long)m->column_size,
 				      (long)column1);
 		pl->column_size = m->column_size;
 	}
 	if (WFS_HAS(m->size, struct wfs_model, nsettings) && m->nsettings) {
 		pl->setting_size = m->setting_size ? m->setting_size : setting1;
 		if (m->nsettings < 0 || !m->settings || pl->setting_size < setting1)
-			return refuse(pl, e, "%sdescriptor's settings are inconsistent "
-				      "(%ld of %ld bytes)", "", (long)m->nsettings,
+			return refuse(pl, e, "descriptor's settings are inconsistent "
+				      "(%ld of %ld bytes)", (long)m->nsettings,
 				      (long)pl->setting_size);
 		pl->settings = m->settings;
 		pl->nsettings = m->nsettings;
 		for (int k = 0; k < pl->nsettings; k++)
 			if (!plugin_setting(pl, k)->key || !*plugin_setting(pl, k)->key)
-				return refuse(pl, e, "%ssetting %ld of the descriptor has no key",
-					      "", k + 1, 0);
+				return refuse(pl, e, "setting %d of the descriptor has no key",
+					      k + 1);
 	}
 	if (WFS_HAS(m->size, struct wfs_model, reach))
 		pl->reach = m->reach;
@@ -281,35 +288,32 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	entry = (wfs_model_entry_fn)(uintptr_t)lt_dlsym(pl->handle, WFS_MODEL_ENTRY);
 	if (!entry)
 		return refuse(pl, e, "no symbol '%s': not a wfiscene model plugin",
-			      WFS_MODEL_ENTRY, 0, 0);
+			      WFS_MODEL_ENTRY);
 	if (!(m = entry(WFS_ABI_VERSION)))
-		return refuse(pl, e, "%sthe plugin declined this host's ABI version %ld",
-			      "", WFS_ABI_VERSION, 0);
+		return refuse(pl, e, "the plugin declined this host's ABI version %d",
+			      WFS_ABI_VERSION);
 	if (m->abi != WFS_ABI_VERSION)
-		return refuse(pl, e, "%splugin ABI version %ld, this wfiscene speaks "
-			      "version %ld: rebuild the plugin", "", (long)m->abi,
+		return refuse(pl, e, "plugin ABI version %ld, this wfiscene speaks "
+			      "version %d: rebuild the plugin", (long)m->abi,
 			      WFS_ABI_VERSION);
 	if (m->size < need)
-		return refuse(pl, e, "%sdescriptor of %ld bytes is too small (at least "
-			      "%ld): built against another model.h?", "", (long)m->size,
-			      (long)need);
+		return refuse(pl, e, "descriptor of %ld bytes is too small (at least "
+			      "%zu): built against another model.h?", (long)m->size, need);
 	if (!m->name || strcmp(m->name, name))
 		return refuse(pl, e, "descriptor names the model '%s', not the file's name",
-			      m->name ? m->name : "(null)", 0, 0);
+			      m->name ? m->name : "(null)");
 	if (!m->footprint || !m->render || (m->ncolumns > 0 && !m->columns) ||
 	    m->ncolumns < 0)
-		return refuse(pl, e, "%sdescriptor lacks footprint(), render() or its "
-			      "columns", "", 0, 0);
+		return refuse(pl, e, "descriptor lacks footprint(), render() or its columns");
 	if (m->ncolumns > PLUGIN_COLUMNS_MAX)
-		return refuse(pl, e, "%sdescriptor lists %ld columns; a model reads at most %ld",
-			      "", m->ncolumns, PLUGIN_COLUMNS_MAX);
+		return refuse(pl, e, "descriptor lists %d columns; a model reads at most %d",
+			      m->ncolumns, PLUGIN_COLUMNS_MAX);
 	pl->m = m;
 	if (read_appended(pl, e) < 0)
 		return -1;
 	for (int c = 0; c < m->ncolumns; c++)
 		if (!plugin_column(pl, c)->name || !*plugin_column(pl, c)->name)
-			return refuse(pl, e, "%scolumn %ld of the descriptor has no name", "",
-				      c + 1, 0);
+			return refuse(pl, e, "column %d of the descriptor has no name", c + 1);
 	if (m->init && m->init(ps->host, &pl->state) < 0) {
 		err_prefix(e, "model '%s' (%s): set-up failed", name, pl->path);
 		if (e->code == EXIT_OK)

@@ -49,6 +49,7 @@
 
 #include "commands.h"
 #include "err.h"
+#include "names.h"
 #include "options.h"
 #include "preview.h"
 
@@ -260,6 +261,13 @@ static int preview_parse(int argc, char **argv, struct preview_opts *o,
 			return err_set(e, EXIT_INPUT, "--rgb needs -o OUT.png");
 		if (preview_default_output(o, e) < 0)
 			return -1;
+	} else {
+		/* one file: '%%' is its only escape (names.h) */
+		if (name_check("-o", o->out, 0, 0, e) < 0 ||
+		    name_expand(o->out_default, sizeof(o->out_default), "-o", o->out, 0, NULL,
+				e) < 0)
+			return -1;
+		o->out = o->out_default;
 	}
 	if (!strcmp(o->out, "-") && isatty(STDOUT_FILENO))
 		return err_set(e, EXIT_INPUT, "refusing to write a PNG to a terminal");

@@ -382,14 +382,11 @@ int preview_png_save(struct preview_png *p, const struct preview_opts *o,
 		err_sys(e, "%s", o->out);
 		goto fail;
 	}
-	if (tmp[0] && rename(tmp, o->out) < 0) {
-		err_sys(e, "%s", o->out);
-		goto fail;
-	}
+	if (tmp[0] && tempfile_commit(tmp, o->out, e) < 0)
+		return -1;
 	return 0;
 fail:
-	if (tmp[0])
-		unlink(tmp);
+	tempfile_discard(tmp);
 	return -1;
 }
 

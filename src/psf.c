@@ -17,6 +17,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "psf.h"
+#include "tempfile.h"
 #include "wfiscene/model.h"
 
 /* STPSF counts detector pixels in the 4096-pixel frame that includes the
@@ -332,13 +333,12 @@ static const char *filter_name(int filter)
 int psf_grid_write(const char *path, const struct psf_grid *g,
 		   const char *const *extra_cards, struct err *e)
 {
-	char tmp[4096], fname[4200], key[FLEN_KEYWORD], val[FLEN_VALUE];
-	const char *slash = strrchr(path, '/');
+	char key[FLEN_KEYWORD], val[FLEN_VALUE], *tmp;
+	size_t tn = TEMPFILE_SIZE(path);
 	fitsfile *f = NULL;
 	int st = 0, fd, nplane = g->nx * g->ny;
 	size_t np = (size_t)g->n * g->n;
 	long nax[3] = { g->n, g->n, nplane };
-
 	struct stat sb;
 
 	/* Renaming over a device, FIFO or socket (/dev/null, /dev/stdout)
@@ -347,18 +347,25 @@ int psf_grid_write(const char *path, const struct psf_grid *g,
 		return err_set(e, EXIT_INPUT, "%s: not a regular file; the grid "
 			       "is written under a temporary name and renamed "
 			       "over it", path);
-	if (slash)
-		snprintf(tmp, sizeof(tmp), "%.*s/.%s.XXXXXX",
-			 (int)(slash - path), path, slash + 1);
-	else
-		snprintf(tmp, sizeof(tmp), ".%s.XXXXXX", path);
-	if ((fd = mkstemp(tmp)) < 0)
+	if (!(tmp = malloc(tn)))
 		return err_sys(e, "%s", path);
+	/* The shared temporary: mode 0666 less the umask, as any new file
+	 * gets (a cache shared on a cluster is read by other users), and
+	 * registered, so that a fatal signal removes it.  It proved the name
+	 * free and the directory writable; cfitsio creates the file itself
+	 * (fits_create_diskfile takes the name literally: no "[ext]" or "!"
+	 * parsing of user paths) with the same mode. */
+	if ((fd = tempfile_beside(path, tmp, tn, e)) < 0) {
+		free(tmp);
+		return -1;
+	}
 	close(fd);
-	/* cfitsio will not create over an existing file without "!" */
-	snprintf(fname, sizeof(fname), "!%s", tmp);
-	if (fits_create_file(&f, fname, &st) ||
-	    fits_create_img(f, FLOAT_IMG, 3, nax, &st))
+	unlink(tmp);
+	if (fits_create_diskfile(&f, tmp, &st)) {
+		f = NULL;
+		goto fitsfail;
+	}
+	if (fits_create_img(f, FLOAT_IMG, 3, nax, &st))
 		goto fitsfail;
 
 	fits_write_key_str(f, "INSTRUME", "WFI", "Instrument name", &st);
@@ -379,12 +386,12 @@ int psf_grid_write(const char *path, const struct psf_grid *g,
 	 * its position in the 4096-pixel frame as "(y, x)". */
 	for (int k = 0; k < nplane; k++) {
 		int ix = k / g->ny, iy = k % g->ny;
+		char com[FLEN_COMMENT];
 
 		snprintf(key, sizeof(key), "DET_YX%d", k);
 		snprintf(val, sizeof(val), "(%.1f, %.1f)",
 			 g->ys[iy] + PSF_FRAME_OFFSET,
 			 g->xs[ix] + PSF_FRAME_OFFSET);
-		char com[FLEN_COMMENT];
 		snprintf(com, sizeof(com), "The #%d PSF's (y,x) detector pixel "
 			 "position", k);
 		fits_write_key_str(f, key, val, com, &st);
@@ -408,28 +415,31 @@ int psf_grid_write(const char *path, const struct psf_grid *g,
 		fits_write_img(f, TFLOAT, first, (LONGLONG)np,
 			       g->data + (size_t)(iy * g->nx + ix) * np, &st);
 	}
-	if (st || fits_write_chksum(f, &st) || fits_close_file(f, &st)) {
+	if (st || fits_write_chksum(f, &st))
+		goto fitsfail;
+	/* cfitsio releases the file even when closing fails */
+	if (fits_close_file(f, &st)) {
 		f = NULL;
 		goto fitsfail;
 	}
 	f = NULL;
 	/* Make the bytes durable before the name appears. */
-	if ((fd = open(tmp, O_RDONLY)) >= 0) {
+	if ((fd = open(tmp, O_RDONLY | O_CLOEXEC)) >= 0) {
 		fsync(fd);
 		close(fd);
 	}
-	if (rename(tmp, path)) {
-		err_sys(e, "%s", path);
-		unlink(tmp);
-		return -1;
-	}
-	return 0;
+	st = tempfile_commit(tmp, path, e);
+	free(tmp);
+	return st;
 fitsfail:
 	err_fits(e, st, "%s", path);
-	st = 0;
-	if (f)
+	if (f) {
+		st = 0;
 		fits_close_file(f, &st);
-	unlink(tmp);
+		fits_clear_errmsg();
+	}
+	tempfile_discard(tmp);
+	free(tmp);
 	return -1;
 }
 

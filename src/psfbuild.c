@@ -117,7 +117,9 @@ static void cache_dir(const char *opt, char *buf, size_t n)
 	}
 }
 
-/* mkdir -p; 0 when the directory exists afterwards. */
+/* mkdir -p, mode 0777 less the umask as mkdir(1) makes them (a cache
+ * shared on a cluster may be group-writable); 0 when the directory exists
+ * afterwards. */
 static int make_dirs(const char *path)
 {
 	char tmp[4096];
@@ -129,11 +131,11 @@ static int make_dirs(const char *path)
 	for (char *p = tmp + 1; *p; p++)
 		if (*p == '/') {
 			*p = 0;
-			if (mkdir(tmp, 0755) && errno != EEXIST)
+			if (mkdir(tmp, 0777) && errno != EEXIST)
 				return -1;
 			*p = '/';
 		}
-	if (mkdir(tmp, 0755) && errno != EEXIST)
+	if (mkdir(tmp, 0777) && errno != EEXIST)
 		return -1;
 	return 0;
 }

@@ -13,6 +13,7 @@
 #include "commands.h"
 #include "err.h"
 #include "instrument.h"
+#include "names.h"
 #include "optics.h"
 #include "options.h"
 #include "psf.h"
@@ -138,15 +139,18 @@ static int set_no_cache(const struct opt_arg *a, struct err *e)
 	return 0;
 }
 
-/* FILE with "_wfiNN" before a trailing .fits (or appended). */
-static void sca_name(char *buf, size_t n, const char *file, int sca)
+/* FILE with "_wfiNN" before a trailing .fits (or appended); -1 when that
+ * does not fit in n bytes. */
+static int sca_name(char *buf, size_t n, const char *file, int sca)
 {
 	size_t len = strlen(file);
+	int r;
 
 	if (len > 5 && !strcasecmp(file + len - 5, ".fits"))
-		snprintf(buf, n, "%.*s_wfi%02d.fits", (int)(len - 5), file, sca);
+		r = snprintf(buf, n, "%.*s_wfi%02d.fits", (int)(len - 5), file, sca);
 	else
-		snprintf(buf, n, "%s_wfi%02d", file, sca);
+		r = snprintf(buf, n, "%s_wfi%02d", file, sca);
+	return r < 0 || (size_t)r >= n ? -1 : 0;
 }
 
 int psf_main(int argc, char **argv)
@@ -178,6 +182,9 @@ int psf_main(int argc, char **argv)
 			"file (atomically), not to standard output\n");
 		return EXIT_INPUT;
 	}
+	/* '%d' (the SCA) and '%%' are the escapes of -o (names.h) */
+	if (name_check("-o", out, NAME_SCA, 0, &e) < 0)
+		goto fail;
 	if (instrument_init(&e))
 		goto fail;
 	int filter = filter_lookup(c.filter);
@@ -199,14 +206,21 @@ int psf_main(int argc, char **argv)
 
 		if (!((mask >> (s - 1)) & 1))
 			continue;
-		if (nsca > 1)
-			sca_name(path, sizeof(path), out, s);
-		else
-			snprintf(path, sizeof(path), "%s", out);
+		if (name_expand(path, sizeof(path), "-o", out, s, NULL, &e) < 0)
+			goto fail;
+		if (nsca > 1 && !(name_fields(out) & NAME_SCA)) {
+			char base[sizeof(path)];
+
+			memcpy(base, path, sizeof(base));
+			if (sca_name(path, sizeof(path), base, s) < 0) {
+				err_set(&e, EXIT_INPUT, "-o: '%s': the name is too long", out);
+				goto fail;
+			}
+		}
 		if (c.halo && (c.kind == PSF_OPTICAL || (c.jitter >= 0 && c.jitter != OPTICS_JITTER))) {
-			fprintf(stderr, "wfiscene psf: --halo is the built-in ePSF: no "
-				"--kind psf or --jitter with it\n");
-			return EXIT_INPUT;
+			err_set(&e, EXIT_INPUT, "--halo is the built-in ePSF: no --kind psf or "
+				"--jitter with it");
+			goto fail;
 		}
 		if (c.halo)
 			g = psf_builtin_halo(filter, s, c.halo, bo->grid, c.kind, bo, &e);

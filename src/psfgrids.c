@@ -14,6 +14,7 @@
 #include "engine.h"
 #include "err.h"
 #include "instrument.h"
+#include "names.h"
 
 const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls)
 {
@@ -81,8 +82,8 @@ int psfgrids_need(struct engine *g, int sca, int cls)
 			g->grid[sca - 1][cls] = g->grid[sca - 1][0];
 			return 0;
 		}
-		snprintf(path, sizeof(path), o->psf, sca);
-		if (!(grid = psf_grid_read(path, g->e)))
+		if (name_expand(path, sizeof(path), "--psf", o->psf, sca, NULL, g->e) < 0 ||
+		    !(grid = psf_grid_read(path, g->e)))
 			return -1;
 		psf_file_warn(g, grid, path, sca);
 		if (grid->kind == PSF_OPTICAL &&
@@ -110,10 +111,13 @@ int psfgrids_open_user(struct engine *g)
 {
 	const struct scene_opts *o = g->o;
 
-	if (o->psf && strcmp(o->psf, "builtin") && !strstr(o->psf, "%")) {
-		if (!(g->user_grid = psf_grid_read(o->psf, g->e)))
+	if (o->psf && strcmp(o->psf, "builtin") && !(name_fields(o->psf) & NAME_SCA)) {
+		char path[PATH_MAX];
+
+		if (name_expand(path, sizeof(path), "--psf", o->psf, 0, NULL, g->e) < 0 ||
+		    !(g->user_grid = psf_grid_read(path, g->e)))
 			return -1;
-		psf_file_warn(g, g->user_grid, o->psf, 0);
+		psf_file_warn(g, g->user_grid, path, 0);
 		if (g->user_grid->kind == PSF_OPTICAL &&
 		    psf_make_epsf_kind(g->user_grid, o->level ? PSF_EPSF_NOIPC : PSF_EPSF,
 				       g->e) < 0)

@@ -17,22 +17,35 @@
 #include "fftconv.h"
 #include "pool.h"
 
-/* A model failed in a worker: the first failure names the model (and the
- * source), later ones on other threads add nothing.  what is the message
- * when the plugin recorded none, as it must. */
-static void model_failed(struct engine *g, const char *model, const char *what,
+/* A model failed in worker w on tile task: its record names the model (and
+ * the source) after the plugin's message; what is the message when the
+ * plugin recorded none, as it must.  The other workers stop at their next
+ * tile. */
+static void model_failed(struct worker *w, size_t task, const char *model, const char *what,
 			 const struct wfs_source *src)
 {
-	pthread_mutex_lock(&g->err_mu);
-	if (!atomic_exchange(&g->failed, 1)) {
-		err_set(g->e, EXIT_PLUGIN, "%s" MODEL_SILENT, what);
-		if (src)
-			err_prefix(g->e, "model '%s': source %lld on SCA %d", model,
-				   src->id, src->sca);
-		else
-			err_prefix(g->e, "model '%s'", model);
-	}
-	pthread_mutex_unlock(&g->err_mu);
+	err_set(&w->err, EXIT_PLUGIN, "%s" MODEL_SILENT, what);
+	if (src)
+		err_prefix(&w->err, "model '%s': source %lld on SCA %d", model, src->id,
+			   src->sca);
+	else
+		err_prefix(&w->err, "model '%s'", model);
+	w->err_task = task;
+	atomic_store(&w->g->failed, 1);
+}
+
+void render_errors_collect(struct engine *g)
+{
+	struct worker *first = NULL;
+
+	for (int i = 0; g->w && i < g->nworker; i++)
+		if (g->w[i].err.code != EXIT_OK &&
+		    (!first || g->w[i].err_task < first->err_task))
+			first = &g->w[i];
+	if (first && g->e->code == EXIT_OK)
+		err_set(g->e, first->err.code, "%s", first->err.msg);
+	for (int i = 0; g->w && i < g->nworker; i++)
+		err_clear(&g->w[i].err);
 }
 
 /* Worker: render every placement of one active tile, in placement order. */
@@ -50,6 +63,7 @@ void render_tile(void *arg, int wid, size_t task)
 
 	if (atomic_load(&g->failed))
 		return;
+	host_worker(w);
 	for (uint32_t k = b->count[t]; k < b->count[t + 1]; k++) {
 		const struct placement *p = &b->p[b->items[k]];
 		struct plugin *pl = &g->plugins.p[p->model];
@@ -58,7 +72,8 @@ void render_tile(void *arg, int wid, size_t task)
 		if (!w->started[p->model]) {
 			if (pl->m->thread_start &&
 			    pl->m->thread_start(pl->state, &w->tstate[p->model]) < 0) {
-				model_failed(g, pl->name, "thread_start() failed", NULL);
+				model_failed(w, task, pl->name, "thread_start() failed", NULL);
+				host_worker(NULL);
 				return;
 			}
 			w->started[p->model] = 1;
@@ -70,10 +85,12 @@ void render_tile(void *arg, int wid, size_t task)
 		win.stride = T;
 		win.pix = tile + (size_t)(win.y0 - y0) * T + (win.x0 - x0);
 		if (pl->m->render(pl->state, w->tstate[p->model], w, &p->src, &win) < 0) {
-			model_failed(g, pl->name, "render() failed", &p->src);
+			model_failed(w, task, pl->name, "render() failed", &p->src);
+			host_worker(NULL);
 			return;
 		}
 	}
+	host_worker(NULL);
 	g->t_render[wid] += engine_clock() - t0;
 }
 

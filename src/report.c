@@ -5,8 +5,8 @@
  *
  * Both are written to a temporary file renamed into place at the end (or
  * in place when the path is a device or FIFO), so a failed run leaves
- * neither behind; the --placed temporaries are known to the fatal-signal
- * handler through scene_remove_temporaries().
+ * neither behind; their temporaries are in tempfile.h's registry, which the
+ * fatal-signal policy empties.
  */
 #include <errno.h>
 #include <fcntl.h>
@@ -24,10 +24,6 @@
 #include "fftconv.h"
 #include "tempfile.h"
 
-/* Names of the --placed temporary files (one per exposure), for the signal
- * handler: the one piece of global state, because a handler has no context. */
-static char placed_tmp_signal[MAX_EXPOSURES][PATH_MAX];
-
 int side_check(const char *path, struct err *e)
 {
 	const char *slash = strrchr(path, '/');
@@ -44,24 +40,23 @@ int side_check(const char *path, struct err *e)
 	return 0;
 }
 
-/* Finish a side file opened by side_open: flush, fsync and rename a
- * temporary file (keep) or remove it; a file written in place is only
- * flushed.  Closes f.  Returns 0 or -1 (errno set). */
-static int side_close(FILE *f, const char *path, const char *tmp, int keep)
+/* Finish a side file: flush, fsync and rename its temporary (keep) or
+ * remove it; a file written in place (tmp "") is only flushed.  Closes f.
+ * Returns 0, or -1 with the error in e (only when keep). */
+static int side_close(FILE *f, const char *path, char *tmp, int keep, struct err *e)
 {
 	int bad = fflush(f) != 0 || ferror(f);
 
 	if (!bad && tmp[0] && keep)
 		bad = fsync(fileno(f)) != 0;
 	bad |= fclose(f) != 0;
-	if (!tmp[0])
-		return bad ? -1 : 0;
-	if (keep && !bad && rename(tmp, path) == 0)
-		return 0;
-	int saved = errno;
-	unlink(tmp);
-	errno = saved;
-	return keep ? -1 : 0;
+	if (bad && keep)
+		err_sys(e, "%s", path);
+	if (bad || !keep) {
+		tempfile_discard(tmp);
+		return bad && keep ? -1 : 0;
+	}
+	return tmp[0] ? tempfile_commit(tmp, path, e) : 0;
 }
 
 /* --set placed=romanisim: the --placed list in romanisim's convention
@@ -87,20 +82,16 @@ int placed_open(struct engine *g)
 
 	if ((fd = tempfile_open_output(path, g->placed_tmp, sizeof(g->placed_tmp), g->e)) < 0)
 		return -1;
-	memcpy(placed_tmp_signal[g->x->index], g->placed_tmp, sizeof(placed_tmp_signal[0]));
 	if (!(g->placed = fdopen(fd, "w"))) {
+		err_sys(g->e, "%s", path);
 		close(fd);
-		if (g->placed_tmp[0])
-			unlink(g->placed_tmp);
-		placed_tmp_signal[g->x->index][0] = 0;
-		return err_sys(g->e, "%s", path);
+		tempfile_discard(g->placed_tmp);
+		return -1;
 	}
 	if ((g->placed_roman = placed_convention_roman(g)) < 0) {
 		fclose(g->placed);
 		g->placed = NULL;
-		if (g->placed_tmp[0])
-			unlink(g->placed_tmp);
-		placed_tmp_signal[g->x->index][0] = 0;
+		tempfile_discard(g->placed_tmp);
 		return -1;
 	}
 	if (g->placed_roman)
@@ -128,10 +119,9 @@ int placed_close(struct engine *g, int keep)
 
 	if (!g->placed)
 		return 0;
-	r = side_close(g->placed, g->x->placed, g->placed_tmp, keep);
+	r = side_close(g->placed, g->x->placed, g->placed_tmp, keep, g->e);
 	g->placed = NULL;
-	placed_tmp_signal[g->x->index][0] = 0;
-	return keep && r < 0 ? err_sys(g->e, "%s", g->x->placed) : 0;
+	return r;
 }
 
 /* A JSON string: quotes, backslashes and control bytes escaped (--set
@@ -243,10 +233,10 @@ int report_write(struct engine *g)
 	if ((fd = tempfile_open_output(x->report, tmp, sizeof(tmp), g->e)) < 0)
 		return -1;
 	if (!(f = fdopen(fd, "w"))) {
+		err_sys(g->e, "%s", x->report);
 		close(fd);
-		if (tmp[0])
-			unlink(tmp);
-		return err_sys(g->e, "%s", x->report);
+		tempfile_discard(tmp);
+		return -1;
 	}
 	for (int i = 0; i < g->nworker; i++)
 		render += g->t_render[i];
@@ -351,15 +341,6 @@ int report_write(struct engine *g)
 	 * otherwise), so that a report says which evaluation made the image. */
 	report_model_settings(f, g);
 	fputs("}\n", f);
-	if (side_close(f, x->report, tmp, 1) < 0)
-		return err_sys(g->e, "%s", x->report);
-	return 0;
-}
-
-void scene_remove_temporaries(void)
-{
-	for (int i = 0; i < MAX_EXPOSURES; i++)
-		if (placed_tmp_signal[i][0])
-			unlink(placed_tmp_signal[i]);
+	return side_close(f, x->report, tmp, 1, g->e);
 }
 

@@ -98,7 +98,6 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	g->x = x;
 	g->e = e;
 	g->main_thread = pthread_self();
-	pthread_mutex_init(&g->err_mu, NULL);
 	engine_setting_strings(g);
 	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, o->geometry, x->sca_mask, e) < 0)
 		return -1;
@@ -154,7 +153,6 @@ static void engine_free(struct engine *g)
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
 	free(g->listed);
 	sky_free(&g->sky);
-	pthread_mutex_destroy(&g->err_mu);
 }
 
 /*
@@ -275,6 +273,7 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				if (pending) {
 					pool_wait(g[i]->pool);
 					pending->t_wait += engine_clock() - ta;
+					render_errors_collect(pending);
 					if (atomic_load(&pending->failed)) {
 						err_set(e, EXIT_PLUGIN, "rendering failed");
 						pending = NULL;
@@ -326,6 +325,7 @@ out:
 
 		pool_wait(pending->pool);
 		pending->t_wait += engine_clock() - ta;
+		render_errors_collect(pending);
 	}
 	for (int i = 0; i < ng; i++)
 		if (atomic_load(&g[i]->failed) && e->code == EXIT_OK)
@@ -347,7 +347,7 @@ static int finish(struct engine *g, struct timespec t0)
 	if (g->x->report && report_write(g) < 0)
 		return -1;
 	host_log(g, 1, "%s%s%llu rows read, %llu culled far from every SCA, %llu placements "
-		 "on %d SCA%s, %.3f s", g->o->pointings ? g->x->output : "",
+		 "on %d SCA%s, %.3f s", g->o->pointings ? g->x->name : "",
 		 g->o->pointings ? ": " : "", g->rows_read, g->culled, g->placements, g->nslot,
 		 g->nslot == 1 ? "" : "s", g->t_total);
 	return 0;

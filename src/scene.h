@@ -65,8 +65,4 @@ struct scene_opts {
  * Returns 0, or -1 with the message and exit status in e. */
 int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e);
 
-/* Remove the temporary --placed file (async-signal-safe, for a fatal
- * signal handler; fitsout_abort_all_signal() removes the FITS ones). */
-void scene_remove_temporaries(void);
-
 #endif

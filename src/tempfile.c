@@ -1,8 +1,13 @@
 /*
- * tempfile.c - the temporary file beside an output; see tempfile.h.
+ * tempfile.c - the temporary file beside an output, the registry of those
+ * that exist and the fatal-signal policy; see tempfile.h.
  */
 #include <errno.h>
 #include <fcntl.h>
+#include <limits.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
@@ -11,6 +16,117 @@
 #include <unistd.h>
 
 #include "tempfile.h"
+
+/*
+ * The registry.  This is the program's one piece of mutable global state,
+ * and it is global because a signal handler has no context argument: it
+ * must find every writer's temporaries without one.  The handler reads only
+ * lock-free atomic slot states (C11 7.14.1.1 allows them in a handler) and
+ * the names of live slots; a name is written while its slot is reserved and
+ * not live, under the mutex that also serialises the lookups of forget, so
+ * the threads that create and retire temporaries never race on a name.
+ */
+#if ATOMIC_INT_LOCK_FREE != 2
+#error "the temporary-file registry needs lock-free atomic int"
+#endif
+enum { SLOT_FREE, SLOT_LIVE };
+static struct {
+	atomic_int state;
+	char name[PATH_MAX];
+} live[TEMPFILE_MAX];
+static pthread_mutex_t live_mu = PTHREAD_MUTEX_INITIALIZER;
+static char signal_msg[128] = "wfiscene: interrupted; partial output removed\n";
+static size_t signal_len;
+
+/* Register name; 0, or -1 when the registry is full or the name too long. */
+static int live_add(const char *name)
+{
+	int r = -1;
+
+	if (strlen(name) >= sizeof(live[0].name))
+		return -1;
+	pthread_mutex_lock(&live_mu);
+	for (int i = 0; i < TEMPFILE_MAX; i++)
+		if (atomic_load(&live[i].state) == SLOT_FREE) {
+			strcpy(live[i].name, name);
+			atomic_store(&live[i].state, SLOT_LIVE);
+			r = 0;
+			break;
+		}
+	pthread_mutex_unlock(&live_mu);
+	return r;
+}
+
+static void live_forget(const char *name)
+{
+	pthread_mutex_lock(&live_mu);
+	for (int i = 0; i < TEMPFILE_MAX; i++)
+		if (atomic_load(&live[i].state) == SLOT_LIVE && !strcmp(live[i].name, name)) {
+			atomic_store(&live[i].state, SLOT_FREE);
+			break;
+		}
+	pthread_mutex_unlock(&live_mu);
+}
+
+void tempfile_remove_all(void)
+{
+	for (int i = 0; i < TEMPFILE_MAX; i++)
+		if (atomic_load(&live[i].state) == SLOT_LIVE)
+			unlink(live[i].name);
+}
+
+static void on_fatal_signal(int sig)
+{
+	tempfile_remove_all();
+	if (write(STDERR_FILENO, signal_msg, signal_len) < 0)
+		_exit(EXIT_SIGNAL);
+	_exit(EXIT_SIGNAL);
+}
+
+void tempfile_signals(const char *prog)
+{
+	struct sigaction sa;
+
+	snprintf(signal_msg, sizeof(signal_msg), "%.63s: interrupted; partial output removed\n",
+		 prog);
+	signal_len = strlen(signal_msg);
+	memset(&sa, 0, sizeof(sa));
+	sa.sa_handler = on_fatal_signal;
+	sigemptyset(&sa.sa_mask);
+	/* one fatal signal at a time: a second waits for the first's _exit */
+	sigaddset(&sa.sa_mask, SIGINT);
+	sigaddset(&sa.sa_mask, SIGTERM);
+	sigaddset(&sa.sa_mask, SIGHUP);
+	sigaction(SIGINT, &sa, NULL);
+	sigaction(SIGTERM, &sa, NULL);
+	sigaction(SIGHUP, &sa, NULL);
+	sa.sa_handler = SIG_IGN;
+	sigaction(SIGPIPE, &sa, NULL);
+}
+
+int tempfile_commit(char *tmp, const char *path, struct err *e)
+{
+	if (rename(tmp, path)) {
+		err_sys(e, "%s: renaming '%s'", path, tmp);
+		tempfile_discard(tmp);
+		return -1;
+	}
+	live_forget(tmp);
+	tmp[0] = 0;
+	return 0;
+}
+
+void tempfile_discard(char *tmp)
+{
+	int saved = errno;
+
+	if (!tmp[0])
+		return;
+	unlink(tmp);
+	live_forget(tmp);
+	tmp[0] = 0;
+	errno = saved;
+}
 
 int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e)
 {
@@ -46,8 +162,16 @@ int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e)
 		suffix[6] = 0;
 		snprintf(tmp, cap, "%.*s.%s.%s", (int)(base - path), path, base, suffix);
 		fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-		if (fd >= 0)
-			return fd;
+		if (fd >= 0) {
+			if (live_add(tmp) == 0)
+				return fd;
+			close(fd);
+			unlink(tmp);
+			err_set(e, EXIT_SYSTEM, "%s: more than %d temporary files at once",
+				path, TEMPFILE_MAX);
+			tmp[0] = 0;
+			return -1;
+		}
 		if (errno != EEXIST)
 			break;
 	}

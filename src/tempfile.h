@@ -1,10 +1,19 @@
 /*
- * tempfile.h - the temporary file beside an output.
+ * tempfile.h - the temporary file beside an output, and what a fatal signal
+ * does with it.
  *
- * Every output wfiscene writes (FITS images, merged files, --placed and
- * --report) is written under a hidden name beside it, ".NAME.XXXXXX", and
- * renamed over NAME when complete, so a failed run never leaves a
- * half-written file under the requested name.
+ * Every file wfiscene writes (FITS images, merged files, --placed and
+ * --report, PNG previews, PSF grids and the PSF cache) is written under a
+ * hidden name beside it, ".NAME.XXXXXX", and renamed over NAME when
+ * complete, so a failed run never leaves a half-written file under the
+ * requested name.
+ *
+ * One registry holds the temporaries that exist, and one signal policy,
+ * set by main() before any subcommand runs (tempfile_signals), removes them
+ * all on SIGINT, SIGTERM or SIGHUP and exits 4 (EXIT_SIGNAL), wherever the
+ * program is: reading, drawing, writing or merging.  A temporary is
+ * registered by tempfile_beside() as it is created and leaves the registry
+ * through tempfile_commit() (renamed) or tempfile_discard() (removed).
  */
 #ifndef WFS_TEMPFILE_H
 #define WFS_TEMPFILE_H
@@ -17,14 +26,46 @@
 /* Bytes a temporary name for path needs, with its NUL. */
 #define TEMPFILE_SIZE(path) (strlen(path) + 9)
 
+/* The most temporaries that can exist at once (an exposure's images are
+ * written one after another; --pointings allows 64 exposures, each with a
+ * --placed file open through the run). */
+#define TEMPFILE_MAX 256
+
 /*
  * Create ".BASE.XXXXXX" in path's directory with O_EXCL and mode 0666 less
- * the umask, as any new file gets (mkstemp would make it 0600), and put its
- * name in tmp (cap bytes).  Returns the descriptor, or -1 with tmp "" and
- * "path: cannot create temporary file 'NAME': reason" recorded (exit 2; a
- * path ending in '/' is exit 1).
+ * the umask, as any new file gets (mkstemp would make it 0600), put its
+ * name in tmp (cap bytes) and register it.  Returns the descriptor, or -1
+ * with tmp "" and "path: cannot create temporary file 'NAME': reason"
+ * recorded (exit 2; a path ending in '/' is exit 1).
  */
 int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e);
+
+/*
+ * Rename the temporary tmp over path and leave the registry (after the
+ * rename: a signal in between removes a name that no longer exists, which
+ * is harmless, where the other order could leave the temporary behind).
+ * The file must be complete and closed.  On failure the temporary is
+ * removed, "path: renaming 'tmp': reason" recorded (exit 2) and -1
+ * returned.  tmp is "" afterwards either way.
+ */
+int tempfile_commit(char *tmp, const char *path, struct err *e);
+
+/* Remove the temporary tmp and leave the registry; tmp becomes "".  A tmp
+ * of "" (an output written in place) is left alone.  Keeps errno. */
+void tempfile_discard(char *tmp);
+
+/*
+ * The signal policy of every subcommand: SIGINT, SIGTERM and SIGHUP remove
+ * every registered temporary, print "PROG: interrupted; partial output
+ * removed" and exit 4; SIGPIPE is ignored (a closed pipe is a write error,
+ * EPIPE, that the writer reports).  prog is copied (up to 63 bytes).
+ */
+void tempfile_signals(const char *prog);
+
+/* Remove every registered temporary.  Async-signal-safe (atomic loads and
+ * unlink(2) only): for the handler above, and for a caller that is about to
+ * _exit. */
+void tempfile_remove_all(void);
 
 /*
  * Open an output for writing.  A new name or an existing regular file gets

@@ -22,6 +22,7 @@
 #include "engine.h"
 #include "err.h"
 #include "fitsout.h"
+#include "names.h"
 #include "detector.h"
 #include "levels.h"
 #include "pool.h"
@@ -353,7 +354,7 @@ int write_exposure(struct engine *g)
 	const struct scene_opts *o = g->o;
 	const struct exposure *x = g->x;
 	struct detector d;
-	int per_sca = strstr(x->output, "%") != NULL;
+	int per_sca = (name_fields(x->output) & NAME_SCA) != 0;
 	float *strip = malloc((size_t)g->tile * WFS_NPIX * sizeof(float));
 	struct fitsout *f = NULL;
 	char *cards = NULL;
@@ -372,8 +373,9 @@ int write_exposure(struct engine *g)
 		if (!f || per_sca) {
 			char path[PATH_MAX];
 
-			snprintf(path, sizeof(path), x->output, g->slot[s].sca);
-			if (!(f = fitsout_open(path, o->compress, g->e)) ||
+			if (name_expand(path, sizeof(path), "-o", x->output, g->slot[s].sca,
+					x->name[0] ? x->name : NULL, g->e) < 0 ||
+			    !(f = fitsout_open(path, o->compress, g->e)) ||
 			    fitsout_primary(f, cards, ncards, g->e) < 0)
 				goto fail;
 		}

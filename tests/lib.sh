@@ -121,7 +121,10 @@ wfs_install() {
 		plugindir.stamp; do
 		[ ! -e "$BUILD/$_f" ] || cp -pR "$BUILD/$_f" "$_copy/" || return 1
 	done
-	case $BUILD in */build-san) set -- SANITIZE=1 "$@" ;; esac
+	case $BUILD in
+	*/build-san) set -- SANITIZE=1 "$@" ;;
+	*/build-tsan) set -- SANITIZE=thread "$@" ;;
+	esac
 	make -s -C "$TOP" B="$_copy" PREFIX="$_prefix" "$@" install
 }
 
@@ -131,7 +134,7 @@ have_python() { "$PY" -c 'import numpy, astropy' 2>/dev/null; }
 # Skip the whole script cleanly.
 skip_all() { echo "1..0 # SKIP $*"; exit 0; }
 require_shared() { have_shared || skip_all "../shared is absent"; }
-require_python() { have_python || skip_all "python3 with numpy and astropy is absent"; }
+require_python() { have_python || skip_all "python3 with numpy and astropy is absent (Debian packages python3-numpy, python3-astropy)"; }
 
 test_done() {
 	echo "1..$test_count"

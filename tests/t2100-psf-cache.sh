@@ -35,6 +35,18 @@ test_expect_success 'a scene run with -q says nothing about the cache; -v does' 
 	test_grep "PSF F129 SCA01 177: cache" err
 '
 
+# A cache shared on a cluster is read by other users: its files and
+# directories get the usual mode, 0666 (0777) less the umask, not mkstemp's
+# 0600; and no temporary is left beside them.
+test_expect_success 'cache files and directories get 0666/0777 less the umask' '
+	( umask 002 && WFISCENE_CACHE=$TRASH/cache-mode/sub $WFS psf $cheap -o m.fits ) &&
+	f=$(find "$TRASH/cache-mode" -type f) && test -n "$f" &&
+	test "$(stat -c %a $f)" = 664 && test "$(stat -c %a "$TRASH/cache-mode/sub")" = 775 &&
+	test "$(stat -c %a m.fits)" = 664 &&
+	test -z "$(find "$TRASH/cache-mode" -name ".*")" &&
+	( umask 077 && $WFS psf $cheap -o m2.fits ) && test "$(stat -c %a m2.fits)" = 600
+'
+
 test_expect_success 'other settings are other keys' '
 	WFISCENE_CACHE=$C $WFS psf $cheap --kind psf -o p.fits 2>err &&
 	test "$(nfiles $C)" = 2
@@ -64,7 +76,7 @@ with fits.open(sys.argv[1], mode=\"update\") as h:
 		test_grep "cache" err
 	'
 else
-	test_skip 'a stale file is rebuilt' 'no python3 with astropy'
+	test_skip 'a stale file is rebuilt' 'no python3 with astropy (Debian package python3-astropy)'
 fi
 
 test_expect_success 'a truncated file is rebuilt' '

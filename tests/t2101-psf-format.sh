@@ -145,11 +145,19 @@ test_expect_success 'the STPSF sample of STIPS reads as a 3x3 grid' '
 	"$PY" -c "
 from astropy.io import fits
 h = fits.getheader(\"$SHARED/stips-psf/psf_WFI_2.0.0_F129_wfi01.fits\")
-assert h[\"NUM_PSFS\"] == 9" &&
-	if [ -x $BUILD/tests/psf_grid ]; then $BUILD/tests/psf_grid >out 2>&1 || { cat out; false; }; fi
+assert h[\"NUM_PSFS\"] == 9"
+'
+if [ -x "$BUILD/tests/psf_grid" ]; then
+test_expect_success 'psf_grid reads the STPSF sample: shape, nodes, sums, ePSF' '
+	WFS_SHARED=$SHARED "$BUILD/tests/psf_grid" > out 2>&1 &&
+	! grep -e "^not ok" -e "# skip" out || { cat out; false; }
 '
 else
+test_skip 'psf_grid reads the STPSF sample' "$BUILD/tests/psf_grid is not built (make unit)"
+fi
+else
 test_skip 'the STPSF sample of STIPS reads as a 3x3 grid' '../shared is absent'
+test_skip 'psf_grid reads the STPSF sample' '../shared is absent'
 fi
 
 test_done

@@ -65,6 +65,6 @@ if command -v script > /dev/null; then
 		cmp m2.fits m3.fits
 	'
 else
-	test_skip 'progress on a terminal' 'script(1) is absent'
+	test_skip 'progress on a terminal' 'script(1) is absent (Debian package bsdutils)'
 fi
 test_done

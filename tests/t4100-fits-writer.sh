@@ -40,7 +40,7 @@ if [ -x /usr/bin/time ]; then
 		test "$(tail -n 1 rss)" -lt 30000
 	'
 else
-	test_skip 'stdout streams in bounded memory' '/usr/bin/time is absent'
+	test_skip 'stdout streams in bounded memory' '/usr/bin/time is absent (Debian package time)'
 fi
 
 test_expect_success 'compression to stdout is refused with a clear message' '
@@ -111,7 +111,7 @@ assert np.all(r[p == 0] == 0)   # SUBTRACTIVE_DITHER_2 keeps zeros
 "
 	'
 else
-	test_skip 'astropy verification' 'python3 with astropy is absent'
+	test_skip 'astropy verification' 'python3 with astropy is absent (Debian package python3-astropy)'
 fi
 
 test_done

@@ -27,7 +27,7 @@ if [ -x /usr/bin/time ]; then
 		awk "{ exit !(\$1 + \$2 < 0.8) }" cpu
 	'
 else
-	test_skip '10^5 stars take well under a second of CPU' '/usr/bin/time is absent'
+	test_skip '10^5 stars take well under a second of CPU' '/usr/bin/time is absent (Debian package time)'
 fi
 test_expect_success '-h prints the usage on stdout' '
 	"$KING" -h > h && test_grep "^usage: king" h && test_grep "\-z" h
@@ -77,7 +77,7 @@ if have_python; then
 		EOT
 	'
 else
-	test_skip 'King profile and luminosity function' 'python3 with numpy is absent'
+	test_skip 'King profile and luminosity function' 'python3 with numpy is absent (Debian package python3-numpy)'
 fi
 
 test_done

@@ -8,7 +8,7 @@
 
 require_python
 "$PY" -c 'import sep, photutils.psf, scipy' 2>/dev/null ||
-	skip_all "python3 with sep, photutils and scipy is absent"
+	skip_all "python3 with sep, photutils and scipy is absent (Debian packages python3-sep, python3-photutils, python3-scipy)"
 
 test_expect_success 'the 200-star scene is drawn and measured' '
 	"$PY" "$TOP/tests/validate/photometry.py" --n 200 --seed 1 --wfs "$WFS" \

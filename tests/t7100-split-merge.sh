@@ -287,14 +287,14 @@ else
 	test_skip 'disk full in the middle of a merge' 'cannot build tests/shim/enospc.c'
 fi
 
-# SIGTERM is blocked while merging and looked for after every buffer:
-# wait until the mask is set (else the default action would kill it
-# first), then signal it while it waits for a reader of its FIFO.
+# SIGTERM is caught by the one signal policy: wait until the handler is
+# set (else the default action would kill it first), then signal it while
+# it waits for a reader of its FIFO.
 if [ -r /proc/self/status ]; then
 	test_expect_success 'SIGTERM stops a merge with status 4' '
 		mkfifo pipe &&
 		{ "$WFS" merge -o pipe p12.fits p34.fits 2>err & } && pid=$! &&
-		{ wait_sigterm Blk $pid; kill -TERM $pid; } && cat pipe > got && { wait $pid; rc=$?; } ; test $rc = 4 &&
+		{ wait_sigterm Cgt $pid; kill -TERM $pid; } && cat pipe > got && { wait $pid; rc=$?; } ; test $rc = 4 &&
 		test_grep "wfiscene merge: interrupted; partial output removed" err &&
 		test $(wc -c < got) -lt 10000000
 	'
@@ -315,7 +315,7 @@ if command -v parallel >/dev/null 2>&1; then
 		test_grep "give SCAs with -g" err
 	'
 else
-	test_skip 'GNU parallel recipe' 'parallel is not installed'
+	test_skip 'GNU parallel recipe' 'parallel is not installed (Debian package parallel)'
 fi
 
 # Slurm for real: a cluster that answers sinfo already, or else (as root,
@@ -411,7 +411,7 @@ if [ -n "$slurm" ]; then
 		test_grep "task 3: expR F158 SCAs 3,4" wfiscene-*_3.log
 	'
 else
-	test_skip 'Slurm for real' 'no Slurm cluster here and none could be started (as root, with slurmctld, slurmd and munge); the array task body ran with SLURM_ARRAY_TASK_ID set by the test instead'
+	test_skip 'Slurm for real' 'no Slurm cluster here and none could be started (as root, with slurmctld, slurmd and munge: Debian packages slurmctld, slurmd, slurm-client, munge); the array task body ran with SLURM_ARRAY_TASK_ID set by the test instead'
 fi
 stop_slurm
 

@@ -245,7 +245,7 @@ Table({'ra': [270.0] * n, 'dec': [-30.0] * n, 'flux': [1.0] * n}).write('$G/long
 		"
 	done
 else
-	test_skip 'FITS tables with wrong column types' 'no python3 with astropy'
+	test_skip 'FITS tables with wrong column types' 'no python3 with astropy (Debian package python3-astropy)'
 fi
 
 test_done

@@ -63,6 +63,32 @@ test_expect_success 'SIGINT while reading keeps an existing output file' '
 	test $rc -eq 4 && cmp before.fits out.fits && test -z "$(ls -A | grep "^\.out")"
 '
 
+# The one signal policy is set before any subcommand runs: psf (building a
+# grid) and preview (waiting for the reader of its FIFO) are interrupted as
+# the scene is, and --placed's temporary goes with the rest.
+test_expect_success 'SIGTERM stops wfiscene psf and preview: exit 4, nothing left' '
+	d=$TRASH/sig-sub && mkdir "$d" && cd "$d" &&
+	{ "$WFS" psf --filter F158 --sca 3 --no-cache -o g.fits 2> err & } && pid=$! &&
+	{ wait_sigterm Cgt $pid; kill -TERM $pid; }; wait $pid; rc=$?
+	test $rc -eq 4 && test_grep "wfiscene psf: interrupted; partial output removed" err &&
+	test -z "$(ls -A | grep -v "^err$")" &&
+	"$WFS" --filter F129 --sca 1 --psf "$PSF" --rows 1-16 -o img.fits ../two.csv &&
+	mkfifo png &&
+	{ "$WFS" preview -o png img.fits 2> err & } && pid=$! &&
+	{ wait_sigterm Cgt $pid; kill -TERM $pid; }; wait $pid; rc=$?
+	test $rc -eq 4 && test_grep "wfiscene preview: interrupted" err
+'
+test_expect_success 'SIGINT while reading removes the --placed temporary' '
+	d=$TRASH/sig-placed && mkdir "$d" && cd "$d" && mkfifo in &&
+	{ "$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits --placed p.csv \
+		--report r.json < in 2> err & } &&
+	pid=$! && exec 3> in && printf "x,y,flux\n" >&3 &&
+	{ wait_sigterm Cgt $pid; sleep 0.2; ls -A > during; kill -INT $pid; }; wait $pid; rc=$?
+	exec 3>&-
+	test $rc -eq 4 && test_grep "^\.p\.csv\." during &&
+	test -z "$(ls -A | grep -v "^err$\|^in$\|^during$")"
+'
+
 # signal_writing SIG: 6 SCAs with noise take long enough to write that the
 # signal arrives once the temporary file exists.
 signal_writing() {
@@ -153,18 +179,31 @@ test_expect_success 'a broken pipe on stdout: exit 2 and a message' '
 '
 
 # Permissions do not stop root; run those cases as nobody when we are root.
+# nobody runs a copy of the program and its plugins in the scratch directory:
+# the checkout may lie under a directory only its owner can enter (root's
+# home is one), where nobody reaches neither.
 as_user=
-if [ "$(id -u)" = 0 ]; then
-	if command -v setpriv > /dev/null &&
-		setpriv --reuid=nobody --regid=nogroup --clear-groups "$WFS" --version > /dev/null 2>&1; then
-		as_user="setpriv --reuid=nobody --regid=nogroup --clear-groups"
+wfs_user=$WFS
+why_not='root without setpriv (Debian package util-linux)'
+if [ "$(id -u)" = 0 ] && command -v setpriv > /dev/null; then
+	mkdir -p "$TRASH/nobody" && cp "$WFS" "$TRASH/nobody/" &&
+		cp -R "$BUILD/plugins" "$TRASH/nobody/" && chmod -R a+rX "$TRASH/nobody" &&
 		chmod 755 "$TRASH"
+	# Through sh: setpriv's own exec of a program nobody cannot reach
+	# was seen to succeed; what matters is what nobody can open.
+	if setpriv --reuid=nobody --regid=nogroup --clear-groups sh -c \
+		'test -r "$1/plugins/point.so" && "$1/wfiscene" --version' sh "$TRASH/nobody" \
+		> /dev/null 2>&1; then
+		as_user="setpriv --reuid=nobody --regid=nogroup --clear-groups env WFISCENE_PLUGIN_PATH=$TRASH/nobody/plugins"
+		wfs_user=$TRASH/nobody/wfiscene
+	else
+		why_not="nobody cannot reach the scratch directory $TRASH (is TMPDIR private?)"
 	fi
 fi
 if [ "$(id -u)" != 0 ] || [ -n "$as_user" ]; then
 	test_expect_success 'unwritable output directory: exit 2, the cause, nothing left' '
 		d=$TRASH/ro && mkdir "$d" && cp two.csv "$d" && chmod 555 "$d" && cd "$d" &&
-		test_must_fail --status 2 $as_user "$WFS" --filter F129 --psf "$PSF" \
+		test_must_fail --status 2 $as_user "$wfs_user" --filter F129 --psf "$PSF" \
 			-o out.fits two.csv 2> "$TRASH/err" &&
 		test_grep "out.fits: cannot create temporary file .*Permission denied" "$TRASH/err" &&
 		test "$(ls -A)" = two.csv
@@ -176,18 +215,18 @@ if [ "$(id -u)" != 0 ] || [ -n "$as_user" ]; then
 		c=$TRASH/cache-000 && mkdir -p "$c" && chmod 755 "$TRASH" &&
 		WFISCENE_CACHE=$c "$WFS" psf $cheap -o "$TRASH/ref.fits" && chmod 000 "$c" &&
 		chmod 777 "$TRASH" &&
-		WFISCENE_CACHE=$c $as_user "$WFS" psf $cheap -o "$TRASH/u1.fits" 2> err &&
+		WFISCENE_CACHE=$c $as_user "$wfs_user" psf $cheap -o "$TRASH/u1.fits" 2> err &&
 		samedata "$TRASH/ref.fits" "$TRASH/u1.fits"
 	'
 	test_expect_success 'a PSF cache file that cannot be read: rebuilt, same grid' '
 		c=$TRASH/cache-file && mkdir -p "$c" && chmod 777 "$c" &&
 		WFISCENE_CACHE=$c "$WFS" psf $cheap -o "$TRASH/r2.fits" &&
 		chmod 000 "$c"/*.fits && chmod 777 "$TRASH" &&
-		WFISCENE_CACHE=$c $as_user "$WFS" psf $cheap -v -o "$TRASH/u2.fits" 2> err &&
+		WFISCENE_CACHE=$c $as_user "$wfs_user" psf $cheap -v -o "$TRASH/u2.fits" 2> err &&
 		test_grep "built" err && samedata "$TRASH/r2.fits" "$TRASH/u2.fits"
 	'
 else
-	test_skip 'unwritable output directory and unreadable cache' 'root without setpriv'
+	test_skip 'unwritable output directory and unreadable cache' "$why_not"
 fi
 
 test_expect_success 'PSF cache path is a regular file: still works, same grid' '

@@ -5,9 +5,10 @@
 # out: under valgrind they take a minute (make check SANITIZE=1 covers them).
 . "$(dirname "$0")/lib.sh"
 
-command -v valgrind > /dev/null || skip_all "valgrind is absent"
+command -v valgrind > /dev/null || skip_all "valgrind is absent (Debian package valgrind)"
 # A sanitizer build cannot run under valgrind.
 if nm "$WFS" 2>/dev/null | grep -q __asan_init; then skip_all "$WFS is an ASan build"; fi
+if nm "$WFS" 2>/dev/null | grep -q __tsan_init; then skip_all "$WFS is a ThreadSanitizer build"; fi
 
 VG="valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite,possible"
 

@@ -8,10 +8,10 @@
 
 secs=${WFS_FUZZ_SECONDS:-20}
 [ "$secs" != 0 ] || skip_all "WFS_FUZZ_SECONDS=0"
-command -v clang > /dev/null || skip_all "clang is absent"
+command -v clang > /dev/null || skip_all "clang is absent (Debian packages clang, libclang-rt-dev)"
 printf '#include <stdint.h>\n#include <stddef.h>\nint LLVMFuzzerTestOneInput(const uint8_t *d, size_t n) { (void)d; (void)n; return 0; }\n' > probe.c
 clang -fsanitize=fuzzer,address,undefined -o probe probe.c > /dev/null 2>&1 &&
-	./probe -runs=1 > /dev/null 2>&1 || skip_all "clang cannot build libFuzzer programs here"
+	./probe -runs=1 > /dev/null 2>&1 || skip_all "clang cannot build libFuzzer programs here (Debian package libclang-rt-dev)"
 
 # cfitsio sizes allocations from header values and checks for NULL; on
 # damaged headers it can ask for petabytes (see t8001's

@@ -22,6 +22,7 @@
 
 #include "err.h"
 #include "fitsout.h"
+#include "tempfile.h"
 #include "tap.h"
 
 #define NX1 37
@@ -431,24 +432,31 @@ static void test_abort(const char *dir)
 	   "ending early: %s", e.msg);
 	fitsout_abort(f);
 
-	/* The signal path: a handler removes every live temporary file. */
+	/* The signal path: the one policy (tempfile_signals) removes every
+	 * live temporary file and exits 4. */
 	fflush(stdout);
 	if (fork() == 0) {
 		struct err ce = { 0 };
 		struct fitsout *a, *b;
 		char p2[4096];
 		snprintf(p2, sizeof(p2), "%s/second.fits", dir);
+		tempfile_signals("fitsout test");
 		a = fitsout_open(path, NULL, &ce);
 		b = fitsout_open(p2, "gzip", &ce);
 		fitsout_primary(a, NULL, 0, &ce);
 		fitsout_primary(b, NULL, 0, &ce);
-		fitsout_abort_all_signal();
-		_exit(a && b && !ce.code ? 0 : 1);
+		if (!a || !b || ce.code || count_entries(dir, &hidden) != 2 || hidden != 2)
+			_exit(1);
+		if (!freopen("/dev/null", "w", stderr))
+			_exit(1);
+		raise(SIGTERM);
+		_exit(1);
 	}
 	wait(&n);
-	ok(WIFEXITED(n) && WEXITSTATUS(n) == 0 &&
+	ok(WIFEXITED(n) && WEXITSTATUS(n) == EXIT_SIGNAL &&
 	   count_entries(dir, &hidden) == 0,
-	   "fitsout_abort_all_signal removes the temporary files");
+	   "SIGTERM removes both temporary files and exits 4 (status %d)",
+	   WIFEXITED(n) ? WEXITSTATUS(n) : -1);
 }
 
 static void test_compress(const char *dir)

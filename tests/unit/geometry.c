@@ -144,15 +144,20 @@ static double sky_area(struct geom_sca *g, double x, double y)
 /* The SIP polynomial NAME_p_q of header cards, read once into c[p][q]. */
 static void sip_read(const char *cards, int n, const char *name, double c[8][8])
 {
-	char fmt[32];
+	size_t len = strlen(name);
 
 	memset(c, 0, 64 * sizeof(double));
-	snprintf(fmt, sizeof(fmt), "%s_%%d_%%d =", name);
 	for (int k = 0; k < n; k++) {
+		const char *card = cards + 80 * k;
 		int p, q;
 
-		if (sscanf(cards + 80 * k, fmt, &p, &q) == 2 && p < 8 && q < 8)
-			c[p][q] = atof(strchr(cards + 80 * k, '=') + 1);
+		/* NAME_p_q = value, the name matched by hand (no format built
+		 * from a string) */
+		if (strncmp(card, name, len) || card[len] != '_')
+			continue;
+		if (sscanf(card + len, "_%d_%d =", &p, &q) == 2 && p >= 0 && q >= 0 &&
+		    p < 8 && q < 8)
+			c[p][q] = atof(strchr(card, '=') + 1);
 	}
 }
 

@@ -2,7 +2,8 @@
  * tap.h - a few macros for C unit tests that print TAP, run by prove.
  *
  *   ok(cond, "what holds");
- *   is_near(got, want, tol, "what");   relative or absolute tolerance
+ *   is_near(got, want, tol, "what");   |got - want| <= tol (absolute)
+ *   is_rel(got, want, rtol, "what");   |got - want| <= rtol |want| (relative)
  *   skip_all("why");                   plan 0 and stop
  *   return done_testing();
  */
@@ -42,6 +43,15 @@ static inline int tap_ok(int pass, const char *file, int line, const char *fmt, 
 	double g_ = (got), w_ = (want), t_ = (tol); \
 	if (!ok(isfinite(g_) && fabs(g_ - w_) <= t_, __VA_ARGS__)) \
 		printf("#   got %.10g, want %.10g, tolerance %.3g\n", g_, w_, t_); \
+} while (0)
+
+/* |got - want| <= rtol |want|: a relative tolerance (want 0 then asks for
+ * exactly 0); prints both and the relative error on failure. */
+#define is_rel(got, want, rtol, ...) do { \
+	double g_ = (got), w_ = (want), t_ = (rtol); \
+	if (!ok(isfinite(g_) && isfinite(w_) && fabs(g_ - w_) <= t_ * fabs(w_), __VA_ARGS__)) \
+		printf("#   got %.10g, want %.10g, relative error %.3g, tolerance %.3g\n", \
+		       g_, w_, w_ != 0 ? fabs(g_ - w_) / fabs(w_) : INFINITY, t_); \
 } while (0)
 
 #define diag(...) do { printf("# "); printf(__VA_ARGS__); printf("\n"); } while (0)

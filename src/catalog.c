@@ -931,6 +931,20 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 					return -1;
 				c->re_text[i] = NULL;
 				c->re_num[i] = v / WFS_PIXSCALE;
+				/* romanisim's radius is the circularised one,
+				 * sqrt(a b) (GalSim's shear keeps the area), where
+				 * re is along the major axis: re = hlr / sqrt(ba).
+				 * A ba out of (0, 1] is left for the model to
+				 * refuse. */
+				if (c->c_ba >= 0 && (!ch.text[c->c_ba][i] ||
+						     !is_empty(ch.text[c->c_ba][i]))) {
+					double ba;
+
+					if (cell_number(&ch, c->c_ba, i, "ba", &ba, e) < 0)
+						return -1;
+					if (ba > 0 && ba <= 1)
+						c->re_num[i] /= sqrt(ba);
+				}
 			}
 		}
 

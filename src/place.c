@@ -284,8 +284,10 @@ static int placed_roman_row(struct engine *g, const struct rows *r, size_t i,
 		       !strcmp(md->name + 6, g->o->sersic[0] == 'p' ? "-precise" : "-quick")
 		       ? "SER" : md->name;
 		n = param_named(md, param, "n", -1);
-		hlr = param_named(md, param, "re", 0) * WFS_PIXSCALE;
 		ba = param_named(md, param, "ratio", 1);
+		/* romanisim's half_light_radius is the circularised one,
+		 * sqrt(a b), where re is along the major axis a */
+		hlr = param_named(md, param, "re", 0) * WFS_PIXSCALE * sqrt(ba > 0 ? ba : 1);
 		pa = param_named(md, param, "phi", 0);
 		if (!isnan(r->ra[i]))
 			pa += north_pa(g, r->ra[i], r->dec[i]);

@@ -1034,8 +1034,19 @@ static void test_psf(const struct wfs_model *m)
 		 * galaxy's ePSF is (by default it reads the nearest sample
 		 * beyond 8 pixels) */
 		mock_set(&mock, "psf-wing", "44");
+		/* STIPS's boxes: the star's box holds its whole flux, as the
+		 * galaxy's ePSF box does (psf-extent=noise would also need the
+		 * scene's noise, which this mock host has not) */
+		mock_set(&mock, "psf-extent", "stips");
 		model_init(&pmd, pm);
 		mock_set(&mock, "psf-wing", NULL);
+		mock_set(&mock, "psf-extent", NULL);
+		if (!pmd.state) {
+			ok(0, "point model set up for case %zu", i);
+			free(img);
+			free(pimg);
+			continue;
+		}
 		memset(&ps, 0, sizeof(ps));
 		ps.x = pt->x;
 		ps.y = pt->y;

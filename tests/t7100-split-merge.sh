@@ -289,14 +289,15 @@ fi
 
 # SIGTERM is caught by the one signal policy: wait until the handler is
 # set (else the default action would kill it first), then signal it while
-# it waits for a reader of its FIFO.
+# it waits for a reader of its FIFO.  Nothing reads the FIFO afterwards: a
+# merge stopped before it opened the FIFO never writes to it, and a reader
+# would wait for ever.
 if [ -r /proc/self/status ]; then
 	test_expect_success 'SIGTERM stops a merge with status 4' '
 		mkfifo pipe &&
 		{ "$WFS" merge -o pipe p12.fits p34.fits 2>err & } && pid=$! &&
-		{ wait_sigterm Cgt $pid; kill -TERM $pid; } && cat pipe > got && { wait $pid; rc=$?; } ; test $rc = 4 &&
-		test_grep "wfiscene merge: interrupted; partial output removed" err &&
-		test $(wc -c < got) -lt 10000000
+		{ wait_sigterm Cgt $pid; kill -TERM $pid; } && { wait $pid; rc=$?; } ; test $rc = 4 &&
+		test_grep "wfiscene merge: interrupted; partial output removed" err
 	'
 else
 	test_skip 'SIGTERM stops a merge' 'no /proc'

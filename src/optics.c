@@ -317,6 +317,32 @@ double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
 	return hit / 64.0;
 }
 
+/* The clear fraction of the parallelogram cell b (d, 0), b (0, d) about
+ * (x, y) of the Zernike plane, b = { b11, b12, b21, b22 }, the mask seen at
+ * (x, -y) when flip: optics_pupil_cover() for a pupil sampled through the
+ * linear map b (8 x 8 sub-samples across the cell's edges). */
+static double cover_affine(const struct optics_pupil *p, double x, double y,
+			   const double b[4], double d, int flip)
+{
+	double fy = flip ? -1 : 1;
+	double c = clearance(p, x, fy * y);
+	/* half the cell's longer diagonal */
+	double reach = 0.5 * d * fmax(hypot(b[0] + b[1], b[2] + b[3]),
+				      hypot(b[0] - b[1], b[2] - b[3]));
+	if (c > 1.01 * reach)
+		return 1;
+	if (c < -1.01 * reach)
+		return 0;
+	int hit = 0;
+	for (int j = 0; j < 8; j++)
+		for (int i = 0; i < 8; i++) {
+			double u = (i - 3.5) * d / 8, v = (j - 3.5) * d / 8;
+			hit += clearance(p, x + b[0] * u + b[1] * v,
+					 fy * (y + b[2] * u + b[3] * v)) >= 0;
+		}
+	return hit / 64.0;
+}
+
 /*
  * Field interpolation as STPSF does it (scipy griddata 'linear' over the
  * five field points): the Delaunay triangles of centre + four corners are
@@ -701,6 +727,43 @@ static void basis_task(struct job *j, int blk, int tid)
 	}
 }
 
+/* The pupil of position pos at the current wavelength seen through its
+ * Jacobian (optics.h): sample s of the transform's grid holds the pupil and
+ * the Zernike phase at r = B s, B = A^-T, into b1 (p rows of nfft). */
+static void skewed_pupil(struct job *j, int pos, fftw_complex *b1)
+{
+	const struct optics_psf_req *r = j->r;
+	const double *a = r->jac + 4 * (size_t)pos;
+	int p = j->mp.p, nfft = j->nfft;
+	double dx = j->lam * 1e-6 / (nfft * r->scale * ARCSEC);
+	double det = a[0] * a[3] - a[1] * a[2];
+	double b[4] = { a[3] / det, -a[2] / det, -a[1] / det, a[0] / det };
+	const double *z = r->zern ? r->zern + ((size_t)pos * r->nwave + j->k) *
+			  OPTICS_NZ : NULL;
+	double k2pi = 2 * M_PI / (j->lam * 1000);      /* rad per nm */
+
+	for (int row = 0; row < p; row++) {
+		double sy = (row - (p - 1) / 2.0) * dx;
+		for (int col = 0; col < p; col++) {
+			double sx = (col - (p - 1) / 2.0) * dx;
+			double x = b[0] * sx + b[1] * sy, y = b[2] * sx + b[3] * sy;
+			double am = cover_affine(r->pupil, x, y, b, dx, r->flip_y);
+			double ph = 0, zv[OPTICS_NZ];
+
+			if (am <= 0)
+				continue;
+			/* poppy's ZernikeWFE is zero beyond its radius */
+			if (z && hypot(x, y) <= OPTICS_ZRADIUS) {
+				zernike_eval(j->zt, x / OPTICS_ZRADIUS,
+					     y / OPTICS_ZRADIUS, zv);
+				for (int q = 0; q < OPTICS_NZ; q++)
+					ph += z[q] * zv[q];
+			}
+			b1[(size_t)row * nfft + col] = am * cexp(I * k2pi * ph);
+		}
+	}
+}
+
 /* One position at the current wavelength: field, two pruned FFT passes,
  * intensity normalised in the box, added with the wavelength's weight. */
 static void position_task(struct job *j, int pos, int tid)
@@ -713,7 +776,9 @@ static void position_task(struct job *j, int pos, int tid)
 	double k2pi = 2 * M_PI / (j->lam * 1000);      /* rad per nm */
 
 	memset(b1, 0, (size_t)p * nfft * sizeof(fftw_complex));
-	for (int i = 0; i < j->mp.nlit; i++) {
+	if (r->jac) {
+		skewed_pupil(j, pos, b1);
+	} else for (int i = 0; i < j->mp.nlit; i++) {
 		double ph = 0;
 		if (z)
 			for (int q = 0; q < OPTICS_NZ; q++)
@@ -760,8 +825,11 @@ static void position_task(struct job *j, int pos, int tid)
  * Gaussian's transfer function exp(-2 pi^2 sigma^2 f^2) (f in cycles per
  * sample).  This is the exact convolution for a band-limited image,
  * which a 4x-sampled PSF nearly is; a sampled kernel would not be at
- * sigma ~ 0.4 samples.  Normalised to sum 1 afterwards. */
-static int jitter(double *img, int n, double sigma, struct err *e)
+ * sigma ~ 0.4 samples.  Normalised to sum 1 afterwards.  With cov =
+ * { cxx, cxy, cyy } (samples^2) the Gaussian of that covariance instead:
+ * exp(-2 pi^2 f^T C f). */
+static int jitter(double *img, int n, double sigma, const double *cov,
+		  struct err *e)
 {
 	int nc = n / 2 + 1;
 	fftw_complex *spec = fftw_malloc(sizeof(fftw_complex) * n * nc);
@@ -783,8 +851,13 @@ static int jitter(double *img, int n, double sigma, struct err *e)
 		double fy = (y <= n / 2 ? y : y - n) / (double)n;
 		for (int x = 0; x < nc; x++) {
 			double fx = x / (double)n;
-			spec[y * nc + x] *= exp(-2 * M_PI * M_PI * sigma * sigma *
-						(fx * fx + fy * fy));
+			if (cov)
+				spec[y * nc + x] *= exp(-2 * M_PI * M_PI *
+							(cov[0] * fx * fx + 2 * cov[1] * fx * fy +
+							 cov[2] * fy * fy));
+			else
+				spec[y * nc + x] *= exp(-2 * M_PI * M_PI * sigma * sigma *
+							(fx * fx + fy * fy));
 		}
 	}
 	fftw_execute(bw);
@@ -830,8 +903,21 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 	double span = fmin(2 * r->pupil->half, 2 * r->pupil->rmax);
 	int need = (int)ceil(pupil_n * lmax * 1e-6 / (span * dth));
 	j.nfft = good_size(need > 2 * r->n ? need : 2 * r->n);
-	/* pupil samples per side at the shortest wavelength */
-	j.pmax = (int)ceil(2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
+	/* pupil samples per side at the shortest wavelength; a Jacobian
+	 * stretches the pupil's extent in the transform's frame by up to the
+	 * largest singular value of A */
+	double stretch = 1;
+	for (int pos = 0; r->jac && pos < r->npos; pos++) {
+		const double *a = r->jac + 4 * (size_t)pos;
+		double det = a[0] * a[3] - a[1] * a[2];
+		double t = a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3];
+		if (!(fabs(det) > 1e-3 && t < 16))
+			return err_set(e, EXIT_INPUT, "optics_psf: singular or "
+				       "extreme Jacobian at position %d", pos);
+		double smax = sqrt(0.5 * (t + sqrt(fmax(t * t - 4 * det * det, 0))));
+		stretch = fmax(stretch, smax * 1.0001);
+	}
+	j.pmax = (int)ceil(stretch * 2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
 			   (lmin * 1e-6 / (j.nfft * dth))) + 2;
 	if (j.pmax > j.nfft)
 		return err_set(e, EXIT_INPUT, "optics_psf: pupil does not fit "
@@ -862,7 +948,8 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 
 	for (int k = 0; k < r->nwave; k++) {
 		double dx = r->lam[k] * 1e-6 / (j.nfft * dth);
-		int p = (int)ceil(2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) / dx) + 2;
+		int p = (int)ceil(stretch * 2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
+				  dx) + 2;
 
 		if (p > j.pmax)
 			p = j.pmax;
@@ -870,13 +957,16 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 		j.wt = r->wt[k];
 		j.k = k;
 		j.mp.p = p;
-		par_for(&j, nth, p, pupil_row);
+		/* the shared pupil; with a Jacobian each position makes its own */
 		j.mp.nlit = 0;
-		for (int i = 0; i < p * p; i++)
-			if (j.mp.amp[i] > 0)
-				j.mp.idx[j.mp.nlit++] = i;
-		if (r->zern)
-			par_for(&j, nth, (j.mp.nlit + 4095) / 4096, basis_task);
+		if (!r->jac) {
+			par_for(&j, nth, p, pupil_row);
+			for (int i = 0; i < p * p; i++)
+				if (j.mp.amp[i] > 0)
+					j.mp.idx[j.mp.nlit++] = i;
+			if (r->zern)
+				par_for(&j, nth, (j.mp.nlit + 4095) / 4096, basis_task);
+		}
 		/* plans for this pupil size: p rows, then n columns, each a
 		 * length-nfft transform of a contiguous line */
 		pthread_mutex_lock(&plan_lock);
@@ -901,7 +991,19 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 	}
 	for (int pos = 0; pos < r->npos; pos++) {
 		double *img = j.acc + (size_t)pos * r->n * r->n;
-		if (r->jitter > 0 && jitter(img, r->n, r->jitter / r->scale, e))
+		double cov[3], *c = NULL;
+		if (r->jac) {
+			/* sigma^2 A^-1 A^-T in samples */
+			const double *a = r->jac + 4 * (size_t)pos;
+			double det = a[0] * a[3] - a[1] * a[2], k = r->jitter / r->scale;
+			double m11 = a[3] / det, m12 = -a[1] / det;
+			double m21 = -a[2] / det, m22 = a[0] / det;
+			cov[0] = k * k * (m11 * m11 + m12 * m12);
+			cov[1] = k * k * (m11 * m21 + m12 * m22);
+			cov[2] = k * k * (m21 * m21 + m22 * m22);
+			c = cov;
+		}
+		if (r->jitter > 0 && jitter(img, r->n, r->jitter / r->scale, c, e))
 			goto done;
 		memcpy(out + (size_t)pos * r->n * r->n, img,
 		       sizeof(double) * r->n * r->n);

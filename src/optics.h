@@ -98,6 +98,13 @@ double optics_lam_max(const struct optics *o, int filter);
  * FFTW-friendly size with at least pupil_n samples across the 2 half
  * wide array at the longest wavelength and at least 2 n samples of field.
  * Only the pupil rows and the output columns are transformed.
+ *
+ * With a Jacobian A per position the same transform samples the PSF on the
+ * skewed grid: the field at sky offset scale A u is the transform at u of
+ * the pupil seen at B s, B = A^-T (r . A u = (A^T r) . u), so each
+ * position rasterises its own pupil at B s and the jitter becomes the
+ * Gaussian of covariance sigma^2 A^-1 A^-T in samples.  Exact, at the cost
+ * of rasterising the pupil and its Zernikes per position.
  */
 struct optics_psf_req {
 	const struct optics_pupil *pupil;
@@ -111,6 +118,14 @@ struct optics_psf_req {
 	const double *zern;
 	double jitter;          /* arcsec, 0 for none */
 	int threads;            /* 0: all cores */
+	/* NULL: the samples are a square grid of `scale` on the sky, aligned
+	 * with the optical model's axes (STIPS's 0.11" pixels).  Else, for
+	 * each position p, jac[4 p .. 4 p + 3] = { a11, a12, a21, a22 }: one
+	 * sample step along x is the sky offset scale (a11, a21), one along y
+	 * scale (a12, a22) (the detector's local Jacobian over its nominal
+	 * pixel scale; optics_psf then samples |det A| I(scale A (i, j)),
+	 * the PSF seen through that pixel grid). */
+	const double *jac;
 };
 int optics_psf(const struct optics_psf_req *r, double *out, struct err *e);
 

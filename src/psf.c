@@ -55,6 +55,7 @@ void psf_grid_free(struct psf_grid *g)
 	free(g->xs);
 	free(g->ys);
 	free(g->data);
+	free(g->jac);
 	free(g);
 }
 
@@ -150,16 +151,13 @@ static int read_sampling(fitsfile *f, double *pixscale, int *over,
 	return 0;
 }
 
-struct psf_grid *psf_grid_read(const char *path, struct err *e)
+/* Open a PSF file and check it is a cube of square, odd-sided planes:
+ * its plane side and count.  The file, or NULL with e set. */
+static fitsfile *open_cube(const char *path, long *side, int *nplane, struct err *e)
 {
 	fitsfile *f = NULL;
-	struct psf_grid *g = NULL;
-	float *buf = NULL;
-	double *px = NULL, *py = NULL, *xs = NULL, *ys = NULL;
-	int st = 0, naxis = 0, nplane, nxs = 0, nys = 0, over = 0;
+	int st = 0, naxis = 0;
 	long nax[3] = { 0, 0, 1 };
-	double pixscale = 0;
-	char str[FLEN_VALUE], key[FLEN_KEYWORD];
 
 	/* a plain file name that cannot be read: the system's reason, rather
 	 * than cfitsio's "could not open the named file" (names with cfitsio's
@@ -190,87 +188,84 @@ struct psf_grid *psf_grid_read(const char *path, struct err *e)
 			"with an odd side", path, nax[0], nax[1]);
 		goto fail;
 	}
-	nplane = naxis == 3 ? (int)nax[2] : 1;
-	if (nplane < 1 || nplane > 10000) {
-		err_set(e, EXIT_INPUT, "%s: %d PSF planes", path, nplane);
+	*nplane = naxis == 3 ? (int)nax[2] : 1;
+	if (*nplane < 1 || *nplane > 10000) {
+		err_set(e, EXIT_INPUT, "%s: %d PSF planes", path, *nplane);
 		goto fail;
 	}
-	if (read_sampling(f, &pixscale, &over, path, e))
-		goto fail;
+	*side = nax[0];
+	return f;
+fail:
+	st = 0;
+	fits_close_file(f, &st);
+	return NULL;
+}
 
-	px = malloc(nplane * sizeof(*px));
-	py = malloc(nplane * sizeof(*py));
-	xs = malloc(nplane * sizeof(*xs));
-	ys = malloc(nplane * sizeof(*ys));
-	if (!px || !py || !xs || !ys) {
-		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
-		goto fail;
-	}
+/* The science-frame position (px, py) of each of nplane planes from its
+ * DET_YX keyword, and the grid's distinct x and y (xs, ys, ascending, nxs
+ * and nys of them), which must make a full grid.  0 or -1. */
+static int read_positions(fitsfile *f, const char *path, int nplane, double *px,
+			  double *py, double *xs, int *nxs, double *ys, int *nys,
+			  struct err *e)
+{
+	char str[FLEN_VALUE], key[FLEN_KEYWORD];
+	int st;
+
 	for (int k = 0; k < nplane; k++) {
 		snprintf(key, sizeof(key), "DET_YX%d", k);
 		st = 0;
 		if (fits_read_key(f, TSTRING, key, str, NULL, &st)) {
-			if (nplane > 1) {
-				err_set(e, EXIT_INPUT, "%s: no %s for plane %d",
-					path, key, k);
-				goto fail;
-			}
+			if (nplane > 1)
+				return err_set(e, EXIT_INPUT, "%s: no %s for plane %d",
+					       path, key, k);
 			/* a lone PSF without a position: the SCA centre */
 			py[k] = px[k] = 2044 + PSF_FRAME_OFFSET;
 		} else if (parse_yx(str, &py[k], &px[k])) {
-			err_set(e, EXIT_INPUT, "%s: %s: not a '(y, x)' position: "
-				"'%s'", path, key, str);
-			goto fail;
+			return err_set(e, EXIT_INPUT, "%s: %s: not a '(y, x)' position: "
+				       "'%s'", path, key, str);
 		}
 		px[k] -= PSF_FRAME_OFFSET;
 		py[k] -= PSF_FRAME_OFFSET;
-		add_node(xs, &nxs, px[k]);
-		add_node(ys, &nys, py[k]);
+		add_node(xs, nxs, px[k]);
+		add_node(ys, nys, py[k]);
 	}
-	st = 0;
-	if (nxs * nys != nplane) {
-		err_set(e, EXIT_INPUT, "%s: the %d DET_YX positions do not form "
-			"a grid (%d x positions, %d y positions)", path, nplane,
-			nxs, nys);
-		goto fail;
-	}
-	if (!(g = psf_grid_new((int)nax[0], over, nxs, nys))) {
-		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
-		goto fail;
-	}
-	memcpy(g->xs, xs, nxs * sizeof(*xs));
-	memcpy(g->ys, ys, nys * sizeof(*ys));
-	g->pixscale = pixscale;
+	if (*nxs * *nys != nplane)
+		return err_set(e, EXIT_INPUT, "%s: the %d DET_YX positions do not form "
+			       "a grid (%d x positions, %d y positions)", path, nplane,
+			       *nxs, *nys);
+	return 0;
+}
 
+/* Read the planes into g, each at its own node (px, py) whatever order the
+ * file uses (STPSF writes x-major; photutils-sorted files are y-major);
+ * NaNs become 0.  0 or -1. */
+static int read_planes(fitsfile *f, const char *path, struct psf_grid *g, int nplane,
+		       const double *px, const double *py, struct err *e)
+{
 	size_t np = (size_t)g->n * g->n;
-	if (!(buf = malloc(np * nplane * sizeof(*buf)))) {
+	float *buf = malloc(np * nplane * sizeof(*buf));
+	unsigned char *seen = calloc(nplane, 1);
+	int st = 0, anynul = 0, rc = -1;
+
+	if (!buf || !seen) {
 		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
-		goto fail;
+		goto done;
 	}
-	int anynul = 0;
 	if (fits_read_img(f, TFLOAT, 1, (LONGLONG)(np * nplane), NULL, buf,
 			  &anynul, &st)) {
 		err_fits(e, st, "%s", path);
-		goto fail;
-	}
-	/* Place each plane at its own node, whatever order the file uses
-	 * (STPSF writes x-major; photutils-sorted files are y-major). */
-	unsigned char *seen = calloc(nplane, 1);
-	if (!seen) {
-		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
-		goto fail;
+		goto done;
 	}
 	for (int k = 0; k < nplane; k++) {
-		int ix = find_node(g->xs, nxs, px[k]);
-		int iy = find_node(g->ys, nys, py[k]);
-		int slot = iy * nxs + ix;
+		int ix = find_node(g->xs, g->nx, px[k]);
+		int iy = find_node(g->ys, g->ny, py[k]);
+		int slot = iy * g->nx + ix;
 
 		if (seen[slot]) {
-			free(seen);
 			err_set(e, EXIT_INPUT, "%s: two planes at (y, x) = "
 				"(%g, %g)", path, py[k] + PSF_FRAME_OFFSET,
 				px[k] + PSF_FRAME_OFFSET);
-			goto fail;
+			goto done;
 		}
 		seen[slot] = 1;
 		for (size_t i = 0; i < np; i++) {
@@ -278,9 +273,50 @@ struct psf_grid *psf_grid_read(const char *path, struct err *e)
 			g->data[slot * np + i] = isfinite(v) ? v : 0.0f;
 		}
 	}
+	rc = 0;
+done:
+	free(buf);
 	free(seen);
+	return rc;
+}
 
-	st = 0;
+/* The pixel grid (write_pixgrid): PIXGRID = 'SIAF' with every plane's
+ * JXX..JYY makes a SIAF grid; anything else, or a plane without them, a
+ * square one.  Plane k sits at node (px[k], py[k]). */
+static void read_pixgrid(fitsfile *f, struct psf_grid *g, int nplane,
+			 const double *px, const double *py)
+{
+	static const char *const jn[4] = { "JXX", "JXY", "JYX", "JYY" };
+	char str[FLEN_VALUE], key[FLEN_KEYWORD];
+	int st = 0;
+
+	if (fits_read_key(f, TSTRING, "PIXGRID", str, NULL, &st) ||
+	    strcasecmp(str, "SIAF") || !(g->jac = malloc(sizeof(double) * 4 * nplane)))
+		return;
+	for (int k = 0; k < nplane; k++) {
+		int slot = find_node(g->ys, g->ny, py[k]) * g->nx +
+			   find_node(g->xs, g->nx, px[k]);
+
+		for (int q = 0; q < 4; q++) {
+			snprintf(key, sizeof(key), "%s%d", jn[q], k);
+			if (fits_read_key(f, TDOUBLE, key, &g->jac[4 * slot + q], NULL,
+					  &st)) {
+				free(g->jac);
+				g->jac = NULL;
+				return;
+			}
+		}
+	}
+	g->pixgrid = PSF_PIX_SIAF;
+}
+
+/* What the header says of the grid: detector, filter, kind, pixel grid. */
+static void read_labels(fitsfile *f, struct psf_grid *g, int nplane,
+			const double *px, const double *py)
+{
+	char str[FLEN_VALUE];
+	int st = 0;
+
 	if (!fits_read_key(f, TSTRING, "DETECTOR", str, NULL, &st))
 		g->sca = parse_detector(str);
 	st = 0;
@@ -293,10 +329,44 @@ struct psf_grid *psf_grid_read(const char *path, struct err *e)
 		g->kind = PSF_EPSF;
 	else if (!st && !strcasecmp(str, "EPSFNOIPC"))
 		g->kind = PSF_EPSF_NOIPC;
-	st = 0;
+	read_pixgrid(f, g, nplane, px, py);
+}
+
+struct psf_grid *psf_grid_read(const char *path, struct err *e)
+{
+	fitsfile *f;
+	struct psf_grid *g = NULL;
+	double *px = NULL, *py = NULL, *xs = NULL, *ys = NULL;
+	int st = 0, nplane = 0, nxs = 0, nys = 0, over = 0;
+	long side = 0;
+	double pixscale = 0;
+
+	if (!(f = open_cube(path, &side, &nplane, e)))
+		return NULL;
+	if (read_sampling(f, &pixscale, &over, path, e))
+		goto fail;
+	px = malloc(nplane * sizeof(*px));
+	py = malloc(nplane * sizeof(*py));
+	xs = malloc(nplane * sizeof(*xs));
+	ys = malloc(nplane * sizeof(*ys));
+	if (!px || !py || !xs || !ys) {
+		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
+		goto fail;
+	}
+	if (read_positions(f, path, nplane, px, py, xs, &nxs, ys, &nys, e))
+		goto fail;
+	if (!(g = psf_grid_new((int)side, over, nxs, nys))) {
+		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
+		goto fail;
+	}
+	memcpy(g->xs, xs, nxs * sizeof(*xs));
+	memcpy(g->ys, ys, nys * sizeof(*ys));
+	g->pixscale = pixscale;
+	if (read_planes(f, path, g, nplane, px, py, e))
+		goto fail;
+	read_labels(f, g, nplane, px, py);
 	snprintf(g->origin, sizeof(g->origin), "%s", path);
 	fits_close_file(f, &st);
-	free(buf);
 	free(px);
 	free(py);
 	free(xs);
@@ -304,10 +374,8 @@ struct psf_grid *psf_grid_read(const char *path, struct err *e)
 	return g;
 fail:
 	st = 0;
-	if (f)
-		fits_close_file(f, &st);
+	fits_close_file(f, &st);
 	psf_grid_free(g);
-	free(buf);
 	free(px);
 	free(py);
 	free(xs);
@@ -328,6 +396,47 @@ static const char *filter_name(int filter)
 	if (!fi || !fi->name)
 		return "UNKNOWN";
 	return fi->name;
+}
+
+/* The pixel grid the samples are on (psf.h): PIXGRID, and for the SIAF's
+ * per plane k its node's Jacobian JXXk JXYk JYXk JYYk and the scales
+ * along the pixel axes, SCLXk SCLYk (up to 9999 planes). */
+static void write_pixgrid(fitsfile *f, const struct psf_grid *g, int *st)
+{
+	int nplane = g->nx * g->ny;
+	static const char *const jn[4] = { "JXX", "JXY", "JYX", "JYY" };
+	static const char *const jc[4] = {
+		"[arcsec/px] d x_idl / d x at this node",
+		"[arcsec/px] d x_idl / d y at this node",
+		"[arcsec/px] d y_idl / d x at this node",
+		"[arcsec/px] d y_idl / d y at this node" };
+
+	if (!g->jac || nplane > 9999) {
+		fits_write_key_str(f, "PIXGRID", "SQUARE", "samples: 1/OVERSAMP of a "
+				   "square 0.11\" pixel (stips)", st);
+		return;
+	}
+	fits_write_key_str(f, "PIXGRID", "SIAF", "samples: 1/OVERSAMP of the SCA's "
+			   "own pixel (SIAF)", st);
+	fits_write_comment(f, "The PSF is sampled on the detector's local pixel grid at "
+			   "each node: sample (i, j) looks at the SIAF ideal-frame offset "
+			   "J (i, j) / OVERSAMP, J = (JXX JXY; JYX JYY) of its plane.", st);
+	for (int k = 0; k < nplane; k++) {
+		int ix = k / g->ny, iy = k % g->ny;
+		const double *j = g->jac + 4 * (size_t)(iy * g->nx + ix);
+		char key[FLEN_KEYWORD];
+
+		for (int q = 0; q < 4; q++) {
+			snprintf(key, sizeof(key), "%s%d", jn[q], k);
+			fits_write_key_dbl(f, key, j[q], 12, jc[q], st);
+		}
+		snprintf(key, sizeof(key), "SCLX%d", k);
+		fits_write_key_dbl(f, key, hypot(j[0], j[2]), 8,
+				   "[arcsec] on the sky of one pixel step along x", st);
+		snprintf(key, sizeof(key), "SCLY%d", k);
+		fits_write_key_dbl(f, key, hypot(j[1], j[3]), 8,
+				   "[arcsec] on the sky of one pixel step along y", st);
+	}
 }
 
 int psf_grid_write(const char *path, const struct psf_grid *g,
@@ -404,6 +513,7 @@ int psf_grid_write(const char *path, const struct psf_grid *g,
 			   "applied" : g->kind == PSF_EPSF_NOIPC ? "ePSF: pixel "
 			   "kernel applied, no IPC" : "optical PSF", &st);
 	fits_write_key_str(f, "ORIGIN", "wfiscene", NULL, &st);
+	write_pixgrid(f, g, &st);
 	for (const char *const *c = extra_cards; c && *c; c++)
 		fits_write_record(f, *c, &st);
 	if (st)

@@ -36,7 +36,17 @@ struct psf_grid {
 	int filter;             /* enum wfs_filter, -1 if unknown */
 	int kind;               /* enum psf_kind */
 	char origin[256];       /* "builtin" or the file it came from */
+	/* The pixel grid the samples are on: PSF_PIX_SQUARE, STIPS's square
+	 * 0.11" pixels aligned with the optics (jac NULL), or PSF_PIX_SIAF,
+	 * the SCA's own pixels: jac[4 k .. 4 k + 3] = d(x_idl, y_idl) /
+	 * d(x, y) in arcsec per pixel at node k (k = iy * nx + ix), the SIAF's
+	 * local Jacobian (geometry.h); sample (i, j) of node k looks at the
+	 * ideal-frame offset jac (i, j) / over arcsec. */
+	int pixgrid;
+	double *jac;
 };
+
+enum psf_pixgrid { PSF_PIX_SQUARE = 0, PSF_PIX_SIAF = 1 };
 
 struct psf_grid *psf_grid_new(int n, int over, int nx, int ny);
 void psf_grid_free(struct psf_grid *g);
@@ -84,6 +94,7 @@ struct psf_build_opts {
 	int pupil_n;            /* pupil samples across; 0 for the default */
 	int grid;               /* nodes per axis; 0 for 3 */
 	int threads;            /* for building; 0 for all cores */
+	int pixgrid;            /* enum psf_pixgrid; 0 (square) by default */
 	int verbose;
 	int built, loaded;      /* out: grids built and loaded from the cache */
 };

@@ -28,6 +28,7 @@
 
 #include "data.h"
 #include "err.h"
+#include "geometry.h"
 #include "instrument.h"
 #include "optics.h"
 #include "psf.h"
@@ -83,7 +84,7 @@ static const char *const table_names[] = {
 };
 
 static uint64_t cache_key(int filter, int sca, int n, int over, int kind, int nwave,
-			  int pupil_n, int grid)
+			  int pupil_n, int grid, const double *jac)
 {
 	char buf[512];
 	uint64_t h = 0xcbf29ce484222325ULL;
@@ -96,7 +97,14 @@ static uint64_t cache_key(int filter, int sca, int n, int over, int kind, int nw
 		 "T%.1f|ps%.6f", PSF_CODE_VERSION, filter, sca, n, over,
 		 kind, nwave, pupil_n, grid, OPTICS_JITTER, OPTICS_BB_TEMP,
 		 WFS_PIXSCALE / over);
-	return fnv(h, buf, strlen(buf));
+	h = fnv(h, buf, strlen(buf));
+	/* the SCA's own pixels: the Jacobian of every node (stips' square
+	 * grid adds nothing, so its keys are those of before) */
+	for (int k = 0; jac && k < 4 * grid * grid; k++) {
+		snprintf(buf, sizeof(buf), "|J%.12g", jac[k]);
+		h = fnv(h, buf, strlen(buf));
+	}
+	return h;
 }
 
 /* The cache directory into buf, or "" when disabled. */
@@ -142,7 +150,7 @@ static int make_dirs(const char *path)
 
 /* Load a cache file if it is whole and holds what key names. */
 static struct psf_grid *cache_load(const char *path, uint64_t key, int n,
-				   int over, int kind, int grid)
+				   int over, int kind, int grid, int siaf)
 {
 	fitsfile *f = NULL;
 	int st = 0, dataok = 0, hduok = 0;
@@ -166,7 +174,7 @@ static struct psf_grid *cache_load(const char *path, uint64_t key, int n,
 	if (!(g = psf_grid_read(path, &e)))
 		return NULL;
 	if (g->n != n || g->over != over || g->kind != kind || g->nx != grid ||
-	    g->ny != grid) {
+	    g->ny != grid || (g->pixgrid == PSF_PIX_SIAF) != siaf) {
 		psf_grid_free(g);
 		return NULL;
 	}
@@ -181,14 +189,56 @@ static double now(void)
 	return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-/* Compute a grid. */
+/* STPSF's nodes, round(linspace(0, 4095, grid)) in the 4096 frame, into
+ * pos (0-based science pixels). */
+static void node_positions(int grid, double *pos)
+{
+	for (int i = 0; i < grid; i++) {
+		double v = grid > 1 ? round(4095.0 * i / (grid - 1)) : 2048;
+		pos[i] = v - 4;
+	}
+}
+
+/* The SIAF's Jacobian d(x_idl, y_idl) / d(x, y), arcsec per pixel, at
+ * every node of a grid x grid grid of SCA sca (node k = iy * grid + ix);
+ * a new array, or NULL with e set. */
+static double *node_jacobians(int sca, int grid, struct err *e)
+{
+	double *pos = malloc(sizeof(double) * grid), *jac = NULL;
+	const struct geom_aperture *ap;
+
+	if (!pos || !(jac = malloc(sizeof(double) * 4 * grid * grid))) {
+		free(pos);
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		return NULL;
+	}
+	if (geom_init(e) < 0 || !(ap = geom_aperture(sca))) {
+		if (!e->code)
+			err_set(e, EXIT_INPUT, "no SCA %d", sca);
+		free(pos);
+		free(jac);
+		return NULL;
+	}
+	node_positions(grid, pos);
+	for (int iy = 0; iy < grid; iy++)
+		for (int ix = 0; ix < grid; ix++) {
+			double xi, yi;
+			geom_sci_to_idl(ap, pos[ix] + 1 - ap->xref, pos[iy] + 1 - ap->yref,
+					&xi, &yi, jac + 4 * (iy * grid + ix));
+		}
+	free(pos);
+	return jac;
+}
+
+/* Compute a grid: on STIPS's square pixels, or when jac (node_jacobians)
+ * is given on the SCA's own. */
 static struct psf_grid *build(const struct optics *o, int filter, int sca,
 			      int n, int over, int kind, int nwave, int pupil_n, int grid,
-			      double jit, int threads, struct err *e)
+			      double jit, int threads, const double *jac, struct err *e)
 {
 	const struct filter_info *fi = filter_get(filter);
 	double lam[64], wt[64];
-	double *zern = NULL, *img = NULL;
+	double *zern = NULL, *img = NULL, *rel = NULL;
 	struct psf_grid *g = NULL;
 	int npos = grid * grid;
 
@@ -202,10 +252,20 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 		err_set(e, EXIT_SYSTEM, "out of memory");
 		goto fail;
 	}
-	/* STPSF's nodes: round(linspace(0, 4095, grid)) in the 4096 frame */
-	for (int i = 0; i < grid; i++) {
-		double v = grid > 1 ? round(4095.0 * i / (grid - 1)) : 2048;
-		g->xs[i] = g->ys[i] = v - 4;
+	node_positions(grid, g->xs);
+	memcpy(g->ys, g->xs, sizeof(double) * grid);
+	if (jac) {
+		/* the grid keeps the Jacobians; the optics take them over the
+		 * nominal scale of a sample */
+		if (!(g->jac = malloc(sizeof(double) * 4 * npos)) ||
+		    !(rel = malloc(sizeof(double) * 4 * npos))) {
+			err_set(e, EXIT_SYSTEM, "out of memory");
+			goto fail;
+		}
+		memcpy(g->jac, jac, sizeof(double) * 4 * npos);
+		for (int i = 0; i < 4 * npos; i++)
+			rel[i] = jac[i] / WFS_PIXSCALE;
+		g->pixgrid = PSF_PIX_SIAF;
 	}
 	for (int iy = 0; iy < grid; iy++)
 		for (int ix = 0; ix < grid; ix++) {
@@ -228,6 +288,7 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 		.zern = zern,
 		.jitter = jit,
 		.threads = threads,
+		.jac = rel,
 	};
 	if (!r.pupil) {
 		err_set(e, EXIT_INPUT, "no SCA %d", sca);
@@ -246,11 +307,13 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 		goto fail;
 	free(zern);
 	free(img);
+	free(rel);
 	return g;
 fail:
 	psf_grid_free(g);
 	free(zern);
 	free(img);
+	free(rel);
 	return NULL;
 }
 
@@ -300,17 +363,23 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 	}
 	int nwave = o->nwave > 0 ? o->nwave : psf_default_nwave(filter);
 	int pupil_n = o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N;
-	uint64_t key = cache_key(filter, sca, n, over, kind, nwave, pupil_n, grid);
+	double *jac = NULL;
+
+	if (o->pixgrid == PSF_PIX_SIAF && !(jac = node_jacobians(sca, grid, e)))
+		return NULL;
+	uint64_t key = cache_key(filter, sca, n, over, kind, nwave, pupil_n, grid, jac);
 	const char *fname = filter_get(filter)->name;
 
 	cache_dir(o->cache_dir, dir, sizeof(dir));
 	if (dir[0]) {
-		snprintf(path, sizeof(path), "%s/psf-%s-sca%02d-%d-%s-%016llx.fits",
+		/* the SIAF's grids under a name of their own beside stips' */
+		snprintf(path, sizeof(path), "%s/psf-%s-sca%02d-%d-%s%s-%016llx.fits",
 			 dir, fname, sca, n, kind == PSF_EPSF ? "epsf" :
 			 kind == PSF_EPSF_NOIPC ? "epsf-noipc" : "psf",
-			 (unsigned long long)key);
+			 jac ? "-siaf" : "", (unsigned long long)key);
 		double t0 = now();
-		if ((g = cache_load(path, key, n, over, kind, grid))) {
+		if ((g = cache_load(path, key, n, over, kind, grid, jac != NULL))) {
+			free(jac);
 			o->loaded++;
 			snprintf(g->origin, sizeof(g->origin), "builtin");
 			if (o->verbose > 0)
@@ -321,8 +390,10 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 		}
 	}
 	double t0 = now();
-	if (!(g = build(optics_tables, filter, sca, n, over, kind, nwave, pupil_n,
-			grid, OPTICS_JITTER, o->threads, e))) {
+	g = build(optics_tables, filter, sca, n, over, kind, nwave, pupil_n,
+		  grid, OPTICS_JITTER, o->threads, jac, e);
+	free(jac);
+	if (!g) {
 		err_prefix(e, "PSF %s SCA%02d", fname, sca);
 		return NULL;
 	}
@@ -379,10 +450,16 @@ struct psf_grid *psf_build_uncached(int filter, int sca, int cls, int kind,
 		err_set(e, optics_err.code, "%s", optics_err.msg);
 		return NULL;
 	}
-	return build(optics_tables, filter, sca, psf_class_n[cls], PSF_OVER, kind,
-		     o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
-		     o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
-		     o->grid > 0 ? o->grid : 3, jitter, o->threads, e);
+	int grid = o->grid > 0 ? o->grid : 3;
+	double *jac = NULL;
+	if (o->pixgrid == PSF_PIX_SIAF && !(jac = node_jacobians(sca, grid, e)))
+		return NULL;
+	struct psf_grid *g = build(optics_tables, filter, sca, psf_class_n[cls], PSF_OVER,
+				   kind, o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
+				   o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
+				   grid, jitter, o->threads, jac, e);
+	free(jac);
+	return g;
 }
 
 struct psf_grid *psf_build_one(int filter, int sca, int n, int over, int kind,
@@ -401,8 +478,14 @@ struct psf_grid *psf_build_one(int filter, int sca, int n, int over, int kind,
 		err_set(e, optics_err.code, "%s", optics_err.msg);
 		return NULL;
 	}
-	return build(optics_tables, filter, sca, n, over, kind,
-		     o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
-		     o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
-		     o->grid > 0 ? o->grid : 1, OPTICS_JITTER, o->threads, e);
+	int grid = o->grid > 0 ? o->grid : 1;
+	double *jac = NULL;
+	if (o->pixgrid == PSF_PIX_SIAF && !(jac = node_jacobians(sca, grid, e)))
+		return NULL;
+	struct psf_grid *g = build(optics_tables, filter, sca, n, over, kind,
+				   o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
+				   o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
+				   grid, OPTICS_JITTER, o->threads, jac, e);
+	free(jac);
+	return g;
 }

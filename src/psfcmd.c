@@ -12,6 +12,7 @@
 
 #include "commands.h"
 #include "err.h"
+#include "geometry.h"
 #include "instrument.h"
 #include "names.h"
 #include "optics.h"
@@ -29,9 +30,13 @@ struct psf_cmd {
 	int cls;                /* index into psf_class_n */
 	double jitter;          /* arcsec; -1: the default, through the cache */
 	int halo;               /* --halo R: the halo of +-R pixels, 0 for none */
+	int geometry;           /* enum wfs_geometry */
 };
 
 #define OFF(f) offsetof(struct psf_cmd, f)
+
+/* in the order of enum wfs_geometry */
+static const char *const geometries[] = { "siaf", "stips", NULL };
 
 static opt_set_fn set_count, set_kind, set_size, set_jitter, set_no_cache;
 
@@ -47,6 +52,9 @@ static const struct opt psf_options[] = {
 	{ OPT("halo", 0, "R", NULL, "the halo instead (the far wing of bright stars): "
 	  "2 samples per pixel over +-R pixels (32 to " STR(PSF_HALO_MAX) "), one node "
 	  "unless --grid", opt_int, OFF(halo)), .lo = 32, .hi = PSF_HALO_MAX },
+	{ OPT("geometry", 'G', "G", "siaf", "the pixels the PSF is sampled on: siaf (each "
+	  "SCA's own, through the SIAF's local Jacobian at each node) or stips (0.11\" "
+	  "square)", opt_choice, OFF(geometry)), .words = geometries },
 	{ OPT("grid", 0, "N", "3", "nodes per axis", set_count, OFF(bo.grid)),
 	  .flags = OPT_SHOW_DEFAULT },
 	{ OPT("nwave", 0, "N", "measured per filter", "wavelengths", set_count,
@@ -197,6 +205,7 @@ int psf_main(int argc, char **argv)
 		err_prefix(&e, "--sca");
 		goto fail;
 	}
+	bo->pixgrid = c.geometry == GEOM_SIAF ? PSF_PIX_SIAF : PSF_PIX_SQUARE;
 	int nsca = 0;
 	for (int s = 0; s < WFS_NSCA; s++)
 		nsca += (mask >> s) & 1;
@@ -230,7 +239,7 @@ int psf_main(int argc, char **argv)
 			g = psf_builtin(filter, s, c.cls, c.kind, bo, &e);
 		if (!g)
 			goto fail;
-		char c1[81], c2[81], c3[81];
+		char c1[81], c2[81], c3[81], c4[81];
 		snprintf(c1, sizeof(c1), "NWAVES  = %d / Number of wavelengths used "
 			 "in calculation", bo->nwave > 0 ? bo->nwave :
 			 psf_default_nwave(filter));
@@ -238,8 +247,11 @@ int psf_main(int argc, char **argv)
 			 "per axis [arcsec]", c.jitter >= 0 ? c.jitter : OPTICS_JITTER);
 		snprintf(c3, sizeof(c3), "SRCTEMP = %g / [K] Blackbody source for "
 			 "the wavelength weights", OPTICS_BB_TEMP);
+		snprintf(c4, sizeof(c4), "GEOMETRY= '%s' / %s", geom_name(c.geometry),
+			 c.geometry == GEOM_SIAF ? "sampled on the SCA's own pixels (SIAF)" :
+			 "sampled on 0.11\" square pixels (STIPS)");
 		const char *cards[] = {
-			c1, c2, c3,
+			c1, c2, c3, c4,
 			"COMMENT Built-in Roman WFI PSF of wfiscene: Cycle-9 pupil and",
 			"COMMENT Zernikes; planes in STPSF order, positions in DET_YX*",
 			"COMMENT (4096-pixel frame); see wfiscene(1), wfiscene psf.",

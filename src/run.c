@@ -120,6 +120,8 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	g->pbo.cache_dir = o->psf_cache;
 	g->pbo.threads = o->threads;
 	g->pbo.verbose = o->verbose;
+	/* the SIAF's PSFs are sampled on each SCA's own pixels (psf.h) */
+	g->pbo.pixgrid = o->geometry == GEOM_SIAF ? PSF_PIX_SIAF : PSF_PIX_SQUARE;
 	host_init(g);
 	if (plugins_init(&g->plugins, o->plugin_path, &g->host, e) < 0)
 		return -1;

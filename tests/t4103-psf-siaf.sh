@@ -1,0 +1,42 @@
+#!/bin/sh
+# The built-in PSF on each SCA's own pixels (the SIAF geometry): every grid
+# node's optical PSF seen through the SIAF's local Jacobian there, checked
+# by tests/psfgrid_check.py against the SIAF XML itself: the corner plane's
+# shape is the square-pixel plane's under A = J / 0.11" (to 2e-3; the pixels
+# there are 0.1101 x 0.1074"), the JXX..JYY keywords are the SIAF's J, and a
+# star drawn at that corner of SCA 1 changes its widths along x and y as the
+# local scales predict.  --geometry stips keeps the square grid.
+. "$(dirname "$0")/lib.sh"
+require_python
+require_shared
+SIAF=$SHARED/roman/roman_siaf.xml
+
+test_expect_success 'wfiscene psf: the optical PSF on the SCA'"'"'s pixels, keywords say so' '
+	"$WFS" psf --filter F158 --sca 1 --kind psf -o si.fits &&
+	"$WFS" psf --filter F158 --sca 1 --kind psf --geometry stips -o st.fits &&
+	"$PY" "$TOP/tests/psfgrid_check.py" optical "$SIAF" 1 si.fits st.fits &&
+	"$PY" -c "
+from astropy.io import fits
+assert fits.getheader(\"si.fits\")[\"GEOMETRY\"] == \"siaf\"
+assert fits.getheader(\"st.fits\")[\"GEOMETRY\"] == \"stips\"
+"
+'
+test_expect_success 'a star at the corner of SCA 1: widths along x and y follow the SIAF scales' '
+	printf "id,x,y,sca,flux\n1,20.3,20.7,1,100\n" > star.csv &&
+	"$WFS" --filter F158 --sca 1 --set psf-extent=stips -o a.fits star.csv &&
+	"$WFS" --filter F158 --sca 1 --set psf-extent=stips --geometry stips -o b.fits star.csv &&
+	"$PY" "$TOP/tests/psfgrid_check.py" star "$SIAF" 1 20.3 20.7 si.fits st.fits a.fits b.fits
+'
+test_expect_success 'the grid written by wfiscene psf, read with --psf, draws the same star' '
+	"$WFS" --filter F158 --sca 1 --set psf-extent=stips --psf si.fits -o c.fits star.csv &&
+	"$PY" -c "
+from astropy.io import fits; import numpy as np
+a, c = fits.getdata(\"a.fits\", 1), fits.getdata(\"c.fits\", 1)
+assert a.max() > 10 and np.array_equal(a, c), np.abs(a - c).max()
+"
+'
+test_expect_success 'an unknown --geometry of wfiscene psf is a usage error' '
+	test_must_fail "$WFS" psf --filter F158 --sca 1 --geometry square -o x.fits 2> err &&
+	grep "siaf" err && test ! -e x.fits
+'
+test_done

@@ -2,6 +2,7 @@
  * psf_grid.c - the gridded PSF format: reading the STPSF sample that STIPS
  * ships, writing and reading back, the ePSF kernels and the interpolation.
  */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -67,8 +68,29 @@ int main(void)
 		ok(!memcmp(r->data, g->data, 9 * 21 * 21 * sizeof(float)),
 		   "planes land on their own nodes");
 		is_near(r->pixscale, 0.0275, 1e-12, "PIXELSCL");
+		ok(r->pixgrid == PSF_PIX_SQUARE && !r->jac, "a square pixel grid");
 		psf_grid_free(r);
 	}
+	unlink(fits);
+
+	/* The SIAF pixel grid: each node's Jacobian survives, on its node. */
+	g->pixgrid = PSF_PIX_SIAF;
+	g->jac = malloc(sizeof(double) * 36);
+	for (int k = 0; k < 36; k++)
+		g->jac[k] = 0.11 + 1e-4 * k - (k % 4 == 1 || k % 4 == 2 ? 0.11 : 0);
+	ok(psf_grid_write(fits, g, NULL, &e) == 0, "write SIAF grid: %s", e.msg);
+	r = psf_grid_read(fits, &e);
+	ok(r && r->pixgrid == PSF_PIX_SIAF && r->jac, "read back as a SIAF grid");
+	if (r && r->jac) {
+		double m = 0;
+		for (int k = 0; k < 36; k++)
+			m = fmax(m, fabs(r->jac[k] - g->jac[k]));
+		is_near(m, 0, 1e-15, "every node's Jacobian on its node");
+	}
+	psf_grid_free(r);
+	free(g->jac);
+	g->jac = NULL;
+	g->pixgrid = PSF_PIX_SQUARE;
 	unlink(fits);
 	rmdir(out);
 

@@ -4,7 +4,8 @@
  * patterns (peak, first dark ring, encircled energy) to 1e-3; the Noll
  * Zernikes are the textbook polynomials; the Zernikes interpolated in
  * field and wavelength as data/zernike.tsv and STPSF say; the wavelength
- * weights.
+ * weights; the PSF on a skewed pixel grid (the Airy pattern through a
+ * Jacobian, the jitter's covariance, the identity Jacobian).
  */
 #include <math.h>
 #include <stdio.h>
@@ -113,6 +114,108 @@ static void airy_case(double eps)
 		"eps %.2f: every sample to 1e-3 of the peak", eps);
 	free(img);
 	free(ref);
+}
+
+/*
+ * The PSF seen through a non-square pixel grid (optics.h, jac): an
+ * aberration-free annulus seen through A = [[1.02, 0.15], [-0.05, 0.93]]
+ * (stretched, skewed and turned far beyond any SIAF Jacobian) must be the
+ * Airy pattern at the sky offsets scale A u of its samples, to 1e-3 of the
+ * peak; and the jitter, isotropic on the sky, adds the covariance
+ * sigma^2 A^-1 A^-T in samples (measured as the difference of the
+ * images' second moments, to 2 %).
+ */
+static void skewed_case(void)
+{
+	struct err e = { 0 };
+	struct optics_pupil pup;
+	const int n = 95, h = 47;
+	const double scale = 0.0275, lam = 1.2, eps = 0.3;
+	const double a[4] = { 1.02, 0.15, -0.05, 0.93 };
+	double dth = scale * ARCSEC, wt = 1;
+	double d = 3 * first_zero(eps) * lam * 1e-6 / (M_PI * 4 * dth);
+	double *img = malloc(sizeof(double) * n * n), *jit = malloc(sizeof(double) * n * n);
+	double *ref = malloc(sizeof(double) * n * n), sref = 0, maxd = 0;
+
+	optics_pupil_annulus(&pup, d / 2, eps * d / 2);
+	struct optics_psf_req r = {
+		.pupil = &pup, .n = n, .scale = scale, .pupil_n = 512,
+		.nwave = 1, .lam = &lam, .wt = &wt, .npos = 1, .threads = 2, .jac = a,
+	};
+	ok(optics_psf(&r, img, &e) == 0, "skewed: optics_psf: %s", e.msg);
+	for (int y = 0; y < n; y++)
+		for (int x = 0; x < n; x++) {
+			double u = x - h, v = y - h;
+			double th = hypot(a[0] * u + a[1] * v, a[2] * u + a[3] * v) * dth;
+			double amp = airy_amp(M_PI * d * th / (lam * 1e-6), eps);
+			ref[y * n + x] = amp * amp;
+			sref += amp * amp;
+		}
+	for (int i = 0; i < n * n; i++)
+		maxd = fmax(maxd, fabs(img[i] - ref[i] / sref));
+	diag("skewed annulus: max |diff| %.2e of the peak", maxd / (ref[h * n + h] / sref));
+	is_near(maxd / (ref[h * n + h] / sref), 0, 1e-3,
+		"skewed grid: every sample the Airy pattern at scale A u, to 1e-3 of the peak");
+
+	/* jitter of 2 samples' worth on the sky */
+	r.jitter = 2 * scale;
+	ok(optics_psf(&r, jit, &e) == 0, "skewed with jitter: %s", e.msg);
+	double m0[3] = { 0 }, m1[3] = { 0 };
+	for (int y = 0; y < n; y++)
+		for (int x = 0; x < n; x++) {
+			double u = x - h, v = y - h;
+			m0[0] += img[y * n + x] * u * u;
+			m0[1] += img[y * n + x] * u * v;
+			m0[2] += img[y * n + x] * v * v;
+			m1[0] += jit[y * n + x] * u * u;
+			m1[1] += jit[y * n + x] * u * v;
+			m1[2] += jit[y * n + x] * v * v;
+		}
+	double det = a[0] * a[3] - a[1] * a[2], s2 = 4;
+	double i11 = a[3] / det, i12 = -a[1] / det, i21 = -a[2] / det, i22 = a[0] / det;
+	double want[3] = { s2 * (i11 * i11 + i12 * i12), s2 * (i11 * i21 + i12 * i22),
+			   s2 * (i21 * i21 + i22 * i22) };
+	diag("jitter covariance: %.4f %.4f %.4f, want %.4f %.4f %.4f", m1[0] - m0[0],
+	     m1[1] - m0[1], m1[2] - m0[2], want[0], want[1], want[2]);
+	for (int k = 0; k < 3; k++)
+		is_near(m1[k] - m0[k], want[k], 0.02 * want[0],
+			"jitter adds sigma^2 A^-1 A^-T, entry %d", k);
+	free(img);
+	free(jit);
+	free(ref);
+}
+
+/*
+ * The identity Jacobian must give the square grid's PSF (the SCA 1 pupil,
+ * its Zernikes and the jitter), to rounding.
+ */
+static void identity_case(const struct optics *o)
+{
+	struct err e = { 0 };
+	const int n = 45;
+	double lam[2], wt[2], zern[2 * OPTICS_NZ], eye[4] = { 1, 0, 0, 1 };
+	double *sq = malloc(sizeof(double) * n * n), *id = malloc(sizeof(double) * n * n);
+	double maxd = 0, pk = 0;
+
+	optics_weights(o, F158, 1, 2, lam, wt, &e);
+	for (int k = 0; k < 2; k++)
+		optics_zernike(o, 1, 100, 3900, lam[k], zern + k * OPTICS_NZ);
+	struct optics_psf_req r = {
+		.pupil = optics_pupil(o, 1, 0), .flip_y = 1, .n = n, .scale = 0.0275,
+		.pupil_n = 128, .nwave = 2, .lam = lam, .wt = wt, .npos = 1,
+		.zern = zern, .jitter = 0.012, .threads = 2,
+	};
+	ok(optics_psf(&r, sq, &e) == 0, "square grid: %s", e.msg);
+	r.jac = eye;
+	ok(optics_psf(&r, id, &e) == 0, "identity Jacobian: %s", e.msg);
+	for (int i = 0; i < n * n; i++) {
+		maxd = fmax(maxd, fabs(sq[i] - id[i]));
+		pk = fmax(pk, sq[i]);
+	}
+	is_near(maxd / pk, 0, 1e-9, "the identity Jacobian is the square grid, to 1e-9 "
+		"of the peak (%.1e)", maxd / pk);
+	free(sq);
+	free(id);
 }
 
 /*
@@ -280,6 +383,7 @@ int main(void)
 
 	airy_case(0);
 	airy_case(0.3);
+	skewed_case();
 
 	if (instrument_init(&e) < 0)
 		return printf("# %s\n", e.msg), 1;
@@ -305,6 +409,7 @@ int main(void)
 	   p ? p->rmax : 0);
 	zernike_interp(o, 1);
 	zernike_interp(o, 11);
+	identity_case(o);
 	ok(optics_pupil_cover(p, 0, 0, 0.005) == 0 &&
 	   optics_pupil_cover(p, 0, 0.8, 0.005) == 1,
 	   "centre obscured, mid-pupil between struts clear");

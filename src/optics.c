@@ -87,9 +87,14 @@ static int load_pupils(struct optics *o, struct err *e)
 		for (int s = 0; s < WFS_NSCA; s++) {
 			struct optics_pupil *p = &o->pupil[w][s];
 			p->rmax = 0;
-			for (int k = 0; k < OPTICS_NANG; k++)
+			p->rout_min = INFINITY;
+			p->rin_max = 0;
+			for (int k = 0; k < OPTICS_NANG; k++) {
 				if (p->rout[k] > p->rmax)
 					p->rmax = p->rout[k];
+				p->rout_min = fmin(p->rout_min, p->rout[k]);
+				p->rin_max = fmax(p->rin_max, p->rin[k]);
+			}
 			if (p->rmax <= 0)
 				return err_set(e, EXIT_SYSTEM, "broken build: "
 					       "pupil_edge.tsv lacks SCA %d", s + 1);
@@ -261,7 +266,8 @@ void optics_pupil_annulus(struct optics_pupil *p, double r_out, double r_in)
 		p->rout[k] = r_out;
 		p->rin[k] = r_in;
 	}
-	p->rmax = r_out;
+	p->rmax = p->rout_min = r_out;
+	p->rin_max = r_in;
 	p->half = 1e9;
 }
 
@@ -272,9 +278,30 @@ void optics_pupil_annulus(struct optics_pupil *p, double r_out, double r_in)
  * so it is within a few percent of it); for the struts and the clipping
  * square it is the exact perpendicular distance.
  */
+static inline double min2(double a, double b) { return a < b ? a : b; }
+static inline double max2(double a, double b) { return a > b ? a : b; }
+
 static double clearance(const struct optics_pupil *p, double x, double y)
 {
 	double r = hypot(x, y);
+	double d = min2(p->half - fabs(x), p->half - fabs(y));
+
+	for (int i = 0; i < p->nstrut; i++) {
+		const struct optics_strut *s = &p->strut[i];
+		double u = (x - s->x0) * s->c + (y - s->y0) * s->sn;
+		double v = -(x - s->x0) * s->sn + (y - s->y0) * s->c;
+		/* distance out of the strip: the largest violation of its four
+		 * half-planes (negative inside) */
+		double out = max2(max2(s->smin - u, u - s->smax),
+				  max2(s->lo_a + s->lo_b * u - v,
+				       v - s->hi_a - s->hi_b * u));
+		d = min2(d, out);
+	}
+	/* The rim and the obscuration (an interpolation in angle) cannot be
+	 * the minimum when the extreme radii already leave more room than d
+	 * (by far more than rounding, so the minimum is the same number). */
+	if (d < min2(p->rout_min - r, r - p->rin_max) - 1e-9)
+		return d;
 	double a = (atan2(y, x) + M_PI) * (OPTICS_NANG / (2 * M_PI));
 	int k0 = (int)a;
 	double f = a - k0;
@@ -282,22 +309,8 @@ static double clearance(const struct optics_pupil *p, double x, double y)
 	int k1 = (k0 + 1) % OPTICS_NANG;
 	double ro = p->rout[k0] + f * (p->rout[k1] - p->rout[k0]);
 	double ri = p->rin[k0] + f * (p->rin[k1] - p->rin[k0]);
-	double d = fmin(ro - r, r - ri);
 
-	d = fmin(d, p->half - fabs(x));
-	d = fmin(d, p->half - fabs(y));
-	for (int i = 0; i < p->nstrut; i++) {
-		const struct optics_strut *s = &p->strut[i];
-		double u = (x - s->x0) * s->c + (y - s->y0) * s->sn;
-		double v = -(x - s->x0) * s->sn + (y - s->y0) * s->c;
-		/* distance out of the strip: the largest violation of its four
-		 * half-planes (negative inside) */
-		double out = fmax(fmax(s->smin - u, u - s->smax),
-				  fmax(s->lo_a + s->lo_b * u - v,
-				       v - s->hi_a - s->hi_b * u));
-		d = fmin(d, out);
-	}
-	return d;
+	return min2(d, min2(ro - r, r - ri));
 }
 
 double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
@@ -741,12 +754,25 @@ static void skewed_pupil(struct job *j, int pos, fftw_complex *b1)
 	const double *z = r->zern ? r->zern + ((size_t)pos * r->nwave + j->k) *
 			  OPTICS_NZ : NULL;
 	double k2pi = 2 * M_PI / (j->lam * 1000);      /* rad per nm */
+	/* cells wholly beyond the rim or inside the obscuration are dark:
+	 * the radius alone tells, without the cover's angle and struts */
+	double reach = 0.5 * dx * fmax(hypot(b[0] + b[1], b[2] + b[3]),
+				       hypot(b[0] - b[1], b[2] - b[3]));
+	double rin = INFINITY;
+	for (int k = 0; k < OPTICS_NANG; k++)
+		rin = fmin(rin, r->pupil->rin[k]);
+	double out2 = pow(r->pupil->rmax + 1.01 * reach, 2);
+	double in2 = rin > 1.01 * reach ? pow(rin - 1.01 * reach, 2) : -1;
 
 	for (int row = 0; row < p; row++) {
 		double sy = (row - (p - 1) / 2.0) * dx;
 		for (int col = 0; col < p; col++) {
 			double sx = (col - (p - 1) / 2.0) * dx;
 			double x = b[0] * sx + b[1] * sy, y = b[2] * sx + b[3] * sy;
+			double r2 = x * x + y * y;
+
+			if (r2 > out2 || r2 < in2)
+				continue;
 			double am = cover_affine(r->pupil, x, y, b, dx, r->flip_y);
 			double ph = 0, zv[OPTICS_NZ];
 

@@ -40,6 +40,7 @@ struct optics_strut {
 struct optics_pupil {
 	double rout[OPTICS_NANG], rin[OPTICS_NANG];
 	double rmax;            /* largest rim radius */
+	double rout_min, rin_max;       /* smallest rim, largest obscuration radius */
 	double half;            /* half-width of the clipping square */
 	int nstrut;
 	struct optics_strut strut[OPTICS_MAXSTRUT];

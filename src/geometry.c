@@ -466,6 +466,77 @@ void geom_jacobian(const struct geom_sca *g, double x, double y, double j[4])
 	geom_sci_to_idl(g->ap, x + 1 - g->ap->xref, y + 1 - g->ap->yref, &xi, &yi, j);
 }
 
+void geom_sky_jacobian(struct geom_sca *g, double x, double y, double k[4])
+{
+	double ra, dec;
+
+	geom_pix_to_sky(g, x, y, &ra, &dec);
+	double ca = cos(ra * D2R), sa = sin(ra * D2R), cd = cos(dec * D2R), sd = sin(dec * D2R);
+	double east[3] = { -sa, ca, 0 }, north[3] = { -sd * ca, -sd * sa, cd };
+
+	if (g->kind == GEOM_STIPS) {
+		/* the gnomonic offsets of the four neighbours about (ra, dec) */
+		double h[4][2] = { { 1, 0 }, { -1, 0 }, { 0, 1 }, { 0, -1 } }, t[4][2];
+		for (int n = 0; n < 4; n++) {
+			double r2, d2, v[3];
+			geom_pix_to_sky(g, x + h[n][0], y + h[n][1], &r2, &d2);
+			v[0] = cos(d2 * D2R) * cos(r2 * D2R);
+			v[1] = cos(d2 * D2R) * sin(r2 * D2R);
+			v[2] = sin(d2 * D2R);
+			double w = v[0] * cd * ca + v[1] * cd * sa + v[2] * sd;
+			t[n][0] = dot(v, east) / w / AS2R;
+			t[n][1] = dot(v, north) / w / AS2R;
+		}
+		k[0] = (t[0][0] - t[1][0]) / 2;
+		k[1] = (t[2][0] - t[3][0]) / 2;
+		k[2] = (t[0][1] - t[1][1]) / 2;
+		k[3] = (t[2][1] - t[3][1]) / 2;
+		return;
+	}
+	/* s = u + xi ex + yi ey (radians), the sky direction s / |s|: its
+	 * derivative along a tangent unit vector t is t . ds / |s| */
+	double xi, yi, j[4], s[3];
+
+	geom_sci_to_idl(g->ap, x + 1 - g->ap->xref, y + 1 - g->ap->yref, &xi, &yi, j);
+	for (int c = 0; c < 3; c++)
+		s[c] = g->u[c] + xi * AS2R * g->ex[c] + yi * AS2R * g->ey[c];
+	double len = sqrt(dot(s, s));
+	for (int c = 0; c < 2; c++) {
+		double ds[3];
+		for (int q = 0; q < 3; q++)
+			ds[q] = j[c] * g->ex[q] + j[2 + c] * g->ey[q];  /* arcsec */
+		k[c] = dot(ds, east) / len;
+		k[2 + c] = dot(ds, north) / len;
+	}
+}
+
+void geom_sky_ellipse(struct geom_sca *g, double x, double y, double a, double q,
+		      double pa, double *re, double *ratio, double *phi)
+{
+	double k[4], vE = sin(pa * D2R), vN = cos(pa * D2R), b = q * a;
+
+	geom_sky_jacobian(g, x, y, k);
+	/* the sky's shape matrix a^2 v v' + b^2 w w' (w = v turned 90 deg) */
+	double s11 = a * a * vE * vE + b * b * vN * vN;
+	double s12 = (a * a - b * b) * vE * vN;
+	double s22 = a * a * vN * vN + b * b * vE * vE;
+	/* in pixels: K^-1 S K^-T */
+	double det = k[0] * k[3] - k[1] * k[2];
+	double i11 = k[3] / det, i12 = -k[1] / det, i21 = -k[2] / det, i22 = k[0] / det;
+	double t11 = i11 * s11 + i12 * s12, t12 = i11 * s12 + i12 * s22;
+	double t21 = i21 * s11 + i22 * s12, t22 = i21 * s12 + i22 * s22;
+	double p11 = t11 * i11 + t12 * i12, p12 = t11 * i21 + t12 * i22;
+	double p22 = t21 * i21 + t22 * i22;
+	/* its eigenvalues (semi-axes squared) and the major axis' direction */
+	double m = 0.5 * (p11 + p22), dd = hypot(0.5 * (p11 - p22), p12);
+	double l1 = m + dd, l2 = fmax(m - dd, 0);
+	double th = 0.5 * atan2(2 * p12, p11 - p22);   /* from +x toward +y */
+
+	*re = sqrt(l1);
+	*ratio = l1 > 0 ? sqrt(l2 / l1) : 1;
+	*phi = th / D2R - 90;
+}
+
 double geom_area(const struct geom_sca *g, double x, double y)
 {
 	double j[4];

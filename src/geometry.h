@@ -104,6 +104,25 @@ void geom_pix_to_sky(struct geom_sca *g, double x, double y, double *ra,
  * has the sky's scale to 2e-6 over an SCA; stips: 0.11 on the diagonal). */
 void geom_jacobian(const struct geom_sca *g, double x, double y, double j[4]);
 
+/* The local Jacobian of pixel -> sky at 0-based pixel (x, y): k = {
+ * dE/dx, dE/dy, dN/dx, dN/dy } in arcsec per pixel, E and N the offsets
+ * east and north in the plane tangent to the sky there.  Exact for siaf
+ * (the SIAF's derivatives carried through the attitude); central
+ * differences of one pixel for stips and --into WCSs. */
+void geom_sky_jacobian(struct geom_sca *g, double x, double y, double k[4]);
+
+/*
+ * An elliptical source given on the sky, major semi-axis a (arcsec), axis
+ * ratio q and major axis at position angle pa (degrees east of north), as
+ * drawn in the pixels at (x, y): the ellipse mapped through the inverse of
+ * geom_sky_jacobian() (an elliptical profile stays one under a linear map,
+ * so this is exact to the local linearity of the mapping).  Out: the major
+ * semi-axis in pixels, the axis ratio, and phi in the "phi" column's sense
+ * (degrees, 0 along +y, increasing toward -x).
+ */
+void geom_sky_ellipse(struct geom_sca *g, double x, double y, double a, double q,
+		      double pa, double *re, double *ratio, double *phi);
+
 /* The solid angle of pixel (x, y) over that of a nominal 0.11" square
  * pixel (1 everywhere for stips). */
 double geom_area(const struct geom_sca *g, double x, double y);

@@ -300,6 +300,37 @@ static int placed_roman_row(struct engine *g, const struct rows *r, size_t i,
 		       n, hlr, pa, ba, maggies) < 0 ? -1 : 0;
 }
 
+/*
+ * A galaxy given on the sky (romanisim's pa; re from half_light_radius at
+ * 0.11" a pixel) on an SCA of the SIAF geometry: its re, ratio and phi
+ * turned into that SCA's own pixels at (x, y) through the local Jacobian
+ * (geom_sky_ellipse), into out.  0 when the row is not such a galaxy (its
+ * pa turned into phi by north_pa alone is then exact or what it asks).
+ */
+static int sky_shape(struct engine *g, const struct rows *r, size_t i, int m,
+		     const double *param, int sca, double x, double y, double *out)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+	struct geom_sca *geo = &g->sky.sca[sca - 1].geo;
+	int cre = -1, cq = -1, cphi = -1;
+
+	if (r->sky_angle_col < 0 || isnan(r->ra[i]) || geo->kind != GEOM_SIAF)
+		return 0;
+	for (int c = 0; c < md->ncolumns; c++) {
+		const char *n = md->columns[c].name;
+		cre = strcasecmp(n, "re") ? cre : c;
+		cq = strcasecmp(n, "ratio") ? cq : c;
+		cphi = strcasecmp(n, "phi") ? cphi : c;
+	}
+	if (cre < 0 || cq < 0 || cphi < 0 || g->colidx[m][cphi] != r->sky_angle_col)
+		return 0;
+	memcpy(out, param, md->ncolumns * sizeof(double));
+	geom_sky_ellipse(geo, x, y, param[cre] * WFS_PIXSCALE, param[cq],
+			 param[cphi] + north_pa(g, r->ra[i], r->dec[i]),
+			 &out[cre], &out[cq], &out[cphi]);
+	return 1;
+}
+
 static int add_placement(struct engine *g, struct batch *b, const struct rows *r,
 			 size_t i, int m, const double *param, int slot, double x,
 			 double y)
@@ -308,6 +339,10 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	struct placement *p;
 	struct wfs_source src;
 	struct wfs_box box;
+	double shaped[MAX_COLUMNS];
+
+	if (sky_shape(g, r, i, m, param, g->slot[slot].sca, x, y, shaped))
+		param = shaped;
 
 	if (make_source(g, r, i, m, param, g->slot[slot].sca, x, y, &src) < 0 ||
 	    footprint(g, r, i, m, &src, &box) < 0)

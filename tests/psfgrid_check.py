@@ -12,6 +12,9 @@ least-squares elliptical Gaussian, which is affine-covariant.
         keywords JXX0..JYY0 match the SIAF's J at that node to 1e-9 "/px, and
         the SIAF plane's Gaussian covariance is A^-1 S A^-T of the STIPS
         plane's to 2e-3 (relative, per entry of the widths).
+    psfgrid_check.py galaxy IMG STAR RA DEC PA BA HLR
+        a galaxy of a romanisim catalog (n = 1) drawn in the SIAF geometry,
+        and a star at the same place: see galaxy().
     psfgrid_check.py star SIAF.xml SCA X Y OPT_SIAF OPT_STIPS IMG_SIAF IMG_STIPS
         a star drawn at 1-based (X, Y) in both geometries: the widths along
         x and y of its pixel-integrated Gaussian fit change as predicted: the
@@ -134,5 +137,85 @@ def star(args):
     assert abs(ratio[1] / ratio[0] - 1) > 3 * err, ratio
 
 
+def local_jacobian(w, x, y):
+    """Pixel -> sky (east, north arcsec) at 0-based (x, y), from an astropy
+    WCS by central differences of a tenth of a pixel, in the plane tangent
+    to the sky at (x, y)."""
+    ra0, dec0 = w.all_pix2world([[x, y]], 0)[0]
+    a0, d0 = np.radians(ra0), np.radians(dec0)
+    east = np.array([-np.sin(a0), np.cos(a0), 0])
+    north = np.array([-np.sin(d0) * np.cos(a0), -np.sin(d0) * np.sin(a0), np.cos(d0)])
+    c = np.array([np.cos(d0) * np.cos(a0), np.cos(d0) * np.sin(a0), np.sin(d0)])
+    h = 0.1
+    pts = w.all_pix2world([[x + h, y], [x - h, y], [x, y + h], [x, y - h]], 0)
+    t = []
+    for ra, dec in np.radians(pts):
+        v = np.array([np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)])
+        t.append(np.array([v @ east, v @ north]) / (v @ c) * 180 / np.pi * 3600)
+    return np.column_stack([(t[0] - t[1]) / (2 * h), (t[2] - t[3]) / (2 * h)])
+
+
+def moments(d, cx, cy, r):
+    y, x = np.mgrid[:d.shape[0], :d.shape[1]].astype(float)
+    m = (x - cx) ** 2 + (y - cy) ** 2 <= r * r
+    f = np.where(m, d, 0)
+    s = f.sum()
+    mx, my = (f * x).sum() / s, (f * y).sum() / s
+    dx, dy = x - mx, y - my
+    return np.array([[(f * dx * dx).sum(), (f * dx * dy).sum()],
+                     [(f * dx * dy).sum(), (f * dy * dy).sum()]]) / s
+
+
+def shape(M):
+    """Axis ratio and orientation (degrees from +x toward +y) of a
+    symmetric 2 x 2 matrix's ellipse."""
+    l, v = np.linalg.eigh(M)
+    return np.sqrt(l[0] / l[1]), np.degrees(np.arctan2(v[1, 1], v[0, 1])) % 180
+
+
+def galaxy(args):
+    """A galaxy given on the sky (a romanisim catalog: pa, ba) drawn in
+    the SIAF geometry: the covariance of its image less that of a star at
+    the same place (unweighted moments add under convolution) has the axis
+    ratio and orientation of the sky ellipse mapped into pixels through the
+    local Jacobian of the image's own WCS (astropy, SIP)."""
+    from astropy.wcs import WCS
+    img, star, ra, dec, pa, ba, hlr = args[0], args[1], *map(float, args[2:7])
+    w = WCS(fits.getheader(img, 1))
+    x, y = w.all_world2pix([[ra, dec]], 0)[0]
+    K = jacobian_sky = local_jacobian(w, x, y)
+    v = np.array([np.sin(np.radians(pa)), np.cos(np.radians(pa))])
+    u = np.array([-v[1], v[0]])
+    S = np.outer(v, v) + ba * ba * np.outer(u, u)
+    Ki = np.linalg.inv(jacobian_sky)
+    P = Ki @ S @ Ki.T
+    q_want, th_want = shape(P)
+    dg = fits.getdata(img, 1).astype(float)
+    ds = fits.getdata(star, 1).astype(float)
+    ix, iy = int(round(x)), int(round(y))
+    cut = (slice(iy - 150, iy + 151), slice(ix - 150, ix + 151))
+    M = moments(dg[cut], 150 + x - ix, 150 + y - iy, 150) - \
+        moments(ds[cut], 150 + x - ix, 150 + y - iy, 150)
+    q, th = shape(M)
+    # an exponential disc (n = 1, b_1 = 1.67835) of half-light semi-axis a
+    # has <x^2> = 3 (a / b_1)^2 along it: the size in pixels
+    a_pix = np.sqrt(np.linalg.eigvalsh(M)[1] / 3) * 1.67835
+    # romanisim's half_light_radius is the circularised sqrt(a b)
+    a_want = np.sqrt(np.linalg.eigvalsh(P)[1]) * hlr / np.sqrt(ba)
+    skew = np.degrees(np.arccos(K[:, 0] @ K[:, 1] / np.linalg.norm(K[:, 0]) /
+                                np.linalg.norm(K[:, 1])))
+    dth = (th - th_want + 90) % 180 - 90
+    print("# galaxy at (%.1f, %.1f), pixel axes %.3f deg apart: axis ratio %.5f "
+          "(want %.5f), orientation %.4f deg (want %.4f, off %.4f)" %
+          (x, y, skew, q, q_want, th, th_want, dth))
+    print("# major half-light semi-axis %.4f px (want %.4f)" % (a_pix, a_want))
+    # square 0.11" pixels turned by the position angle of +y alone would be
+    # 5 % off in axis ratio and size and 0.09 deg in orientation here; the
+    # residual size is the profile's truncation and the moments' aperture
+    assert abs(q / q_want - 1) < 3e-3, (q, q_want)
+    assert abs(a_pix / a_want - 1) < 1.5e-2, (a_pix, a_want)
+    assert abs(dth) < 0.02, dth
+
+
 if __name__ == "__main__":
-    {"optical": optical, "star": star}[sys.argv[1]](sys.argv[2:])
+    {"optical": optical, "star": star, "galaxy": galaxy}[sys.argv[1]](sys.argv[2:])

@@ -8,10 +8,8 @@
 require_python
 
 # STIPS's geometry: square pixels, so that an angle on the sky and one on
-# the detector are the same angle.  (In the SIAF geometry the pixels are
-# not square and a galaxy is drawn in pixels, so pa turned into phi by the
-# position angle of +y alone leaves the galaxy's axes off by up to the
-# pixels' skew; that conversion is not yet exact, see wfiscene-catalog(5).)
+# the detector are the same angle.  (In the SIAF geometry a galaxy takes
+# the shape of the local pixels, see wfiscene-catalog(5); t4103 checks it.)
 POINT="--geometry stips --filter F158 --ra 270 --dec 66 --pa 20"
 
 cat > rom.ecsv <<'EOF'

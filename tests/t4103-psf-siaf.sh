@@ -5,7 +5,10 @@
 # shape is the square-pixel plane's under A = J / 0.11" (to 2e-3; the pixels
 # there are 0.1101 x 0.1074"), the JXX..JYY keywords are the SIAF's J, and a
 # star drawn at that corner of SCA 1 changes its widths along x and y as the
-# local scales predict.  --geometry stips keeps the square grid.
+# local scales predict.  --geometry stips keeps the square grid.  A galaxy
+# of a romanisim catalog (pa on the sky, ba, half_light_radius in arcsec)
+# drawn in the SIAF geometry has the axis ratio, orientation and size of
+# its sky ellipse mapped through the local Jacobian of the image's own WCS.
 . "$(dirname "$0")/lib.sh"
 require_python
 require_shared
@@ -34,6 +37,27 @@ from astropy.io import fits; import numpy as np
 a, c = fits.getdata(\"a.fits\", 1), fits.getdata(\"c.fits\", 1)
 assert a.max() > 10 and np.array_equal(a, c), np.abs(a - c).max()
 "
+'
+test_expect_success 'a galaxy given on the sky (romanisim pa, ba) takes the shape of SCA 9'"'"'s pixels' '
+	: > empty.csv &&
+	"$WFS" --filter F158 --sca 9 -o e9.fits empty.csv &&
+	"$PY" - <<-\EOT &&
+	from astropy.io import fits
+	from astropy.wcs import WCS
+	w = WCS(fits.getheader("e9.fits", 1))
+	ra, dec = w.all_pix2world([[2044, 2044]], 0)[0]
+	head = "# %ECSV 1.0\n# ---\n# datatype:\n" + "".join(
+	    "# - {name: %s, datatype: %s}\n" % (c, "string" if c == "type" else "float64")
+	    for c in "ra dec type n half_light_radius pa ba F158".split()) + \
+	    "# schema: astropy-2.0\nra dec type n half_light_radius pa ba F158\n"
+	for name, row in (("gal", "SER 1.0 1.0 30.0 0.3"), ("star9", "PSF -1.0 0.0 0.0 1.0")):
+	    open(name + ".ecsv", "w").write(head + "%.10f %.10f %s 1e-7\n" % (ra, dec, row))
+	open("radec", "w").write("%.10f %.10f\n" % (ra, dec))
+	EOT
+	"$WFS" --filter F158 --sca 9 --set psf-extent=stips -o gal.fits gal.ecsv &&
+	"$WFS" --filter F158 --sca 9 --set psf-extent=stips -o star9.fits star9.ecsv &&
+	read ra dec < radec &&
+	"$PY" "$TOP/tests/psfgrid_check.py" galaxy gal.fits star9.fits $ra $dec 30 0.3 1.0
 '
 test_expect_success 'an unknown --geometry of wfiscene psf is a usage error' '
 	test_must_fail "$WFS" psf --filter F158 --sca 1 --geometry square -o x.fits 2> err &&

@@ -18,6 +18,8 @@
  *   41 x 41 grid plus 2000 random points within 0.005 px of the exact
  *   mapping in both directions, its inverse evaluated from the AP/BP cards
  *   of the header within 0.005 px too; a --rows part's header likewise.
+ * - the sky Jacobian against differences of pixel -> sky, and a sky
+ *   ellipse mapped into pixels and back;
  * t4102-siaf.sh checks the mapping against an independent Python
  * implementation and astropy's reading of the header.
  */
@@ -25,6 +27,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include <wcslib/wcs.h>
 #include <wcslib/wcshdr.h>
@@ -383,6 +386,95 @@ static void stips_area(void)
 	sky_free(&sky);
 }
 
+/* The sky Jacobian (geom_sky_jacobian) against central differences of
+ * pixel -> sky on the tangent plane, and geom_sky_ellipse: the pixel
+ * ellipse it returns, mapped back to the sky through that Jacobian, is the
+ * sky ellipse (a, q, pa); in stips' square pixels re = a / 0.11" and
+ * q stays; and its cost. */
+static void sky_shapes(int kind)
+{
+	struct err e = { 0 };
+	struct sky sky;
+	double worst_j = 0, worst_a = 0, worst_q = 0, worst_pa = 0;
+	const char *name = kind == GEOM_SIAF ? "siaf" : "stips";
+
+	if (!ok(sky_init(&sky, 150, -60, 70, 0, kind, (1u << WFS_NSCA) - 1, &e) == 0,
+		"%s: sky_init: %s", name, e.msg))
+		return;
+	srand(7);
+	for (int n = 0; n < 400; n++) {
+		struct geom_sca *g = &sky.sca[n % WFS_NSCA].geo;
+		double x = urand(0, 4087), y = urand(0, 4087), k[4], f[4], ra, dec;
+		double a = urand(0.05, 5), q = urand(0.05, 1), pa = urand(-180, 360);
+		double re, ratio, phi;
+
+		geom_sky_jacobian(g, x, y, k);
+		geom_pix_to_sky(g, x, y, &ra, &dec);
+		/* central differences of 0.5 px in the gnomonic plane at (ra, dec) */
+		double c[3], e_[3] = { -sin(ra * D2R), cos(ra * D2R), 0 };
+		double n_[3] = { -sin(dec * D2R) * cos(ra * D2R), -sin(dec * D2R) * sin(ra * D2R),
+				 cos(dec * D2R) };
+		unitv(ra, dec, c);
+		for (int t = 0; t < 2; t++) {
+			double p[2][2], v[3];
+			for (int sg = 0; sg < 2; sg++) {
+				double r2, d2, h = sg ? -0.5 : 0.5;
+				geom_pix_to_sky(g, x + (t ? 0 : h), y + (t ? h : 0), &r2, &d2);
+				unitv(r2, d2, v);
+				double w = v[0] * c[0] + v[1] * c[1] + v[2] * c[2];
+				p[sg][0] = (v[0] * e_[0] + v[1] * e_[1] + v[2] * e_[2]) / w / AS2R;
+				p[sg][1] = (v[0] * n_[0] + v[1] * n_[1] + v[2] * n_[2]) / w / AS2R;
+			}
+			f[t] = p[0][0] - p[1][0];
+			f[2 + t] = p[0][1] - p[1][1];
+		}
+		for (int i = 0; i < 4; i++)
+			worst_j = fmax(worst_j, fabs(k[i] - f[i]) / 0.11);
+		geom_sky_ellipse(g, x, y, a, q, pa, &re, &ratio, &phi);
+		/* the major axis in pixels, (-sin phi, cos phi) re, back on the sky */
+		double px = -sin(phi * D2R) * re, py = cos(phi * D2R) * re;
+		double E = k[0] * px + k[1] * py, N = k[2] * px + k[3] * py;
+		double qx = -cos(phi * D2R) * re * ratio, qy = -sin(phi * D2R) * re * ratio;
+		double E2 = k[0] * qx + k[1] * qy, N2 = k[2] * qx + k[3] * qy;
+		/* the sky ellipse's shape matrix from the two conjugate
+		 * semi-diameters, compared with a^2 v v' + b^2 w w' */
+		double s11 = E * E + E2 * E2, s12 = E * N + E2 * N2, s22 = N * N + N2 * N2;
+		double vE = sin(pa * D2R), vN = cos(pa * D2R), b = q * a;
+		double t11 = a * a * vE * vE + b * b * vN * vN, t12 = (a * a - b * b) * vE * vN;
+		double t22 = a * a * vN * vN + b * b * vE * vE;
+		worst_a = fmax(worst_a, fmax(fabs(s11 - t11), fmax(fabs(s12 - t12),
+					     fabs(s22 - t22))) / (a * a));
+		if (kind == GEOM_STIPS) {
+			worst_q = fmax(worst_q, fabs(ratio - q));
+			worst_pa = fmax(worst_pa, fabs(re * 0.11 - a) / a);
+		}
+	}
+	diag("%s: sky Jacobian %.1e of 0.11\" from differences; ellipse back on the sky "
+	     "%.1e of a^2", name, worst_j, worst_a);
+	ok(worst_j < 1e-7, "%s: the sky Jacobian is the derivative of pixel -> sky", name);
+	ok(worst_a < 1e-9, "%s: the pixel ellipse is the sky ellipse through it", name);
+	if (kind == GEOM_STIPS)
+		/* the TAN projection about the SCA's centre scales by up to
+		 * 1 / cos^2 of the 0.06 deg to its corner, 1e-6 */
+		ok(worst_q < 1e-5 && worst_pa < 1e-5, "stips: square 0.11\" pixels keep q "
+		   "(%.1e) and re = a / 0.11 (%.1e) to the projection's 1e-6", worst_q,
+		   worst_pa);
+	if (kind == GEOM_SIAF) {
+		struct timespec t0, t1;
+		double re, ratio, phi, sum = 0;
+		clock_gettime(CLOCK_MONOTONIC, &t0);
+		for (int n = 0; n < 100000; n++) {
+			geom_sky_ellipse(&sky.sca[n % WFS_NSCA].geo, n % 4088, (n * 7) % 4088,
+					 1, 0.5, n % 360, &re, &ratio, &phi);
+			sum += re;
+		}
+		clock_gettime(CLOCK_MONOTONIC, &t1);
+		diag("geom_sky_ellipse: %.0f ns a call (%g)", ((t1.tv_sec - t0.tv_sec) * 1e9 +
+		     (t1.tv_nsec - t0.tv_nsec)) / 1e5, sum > 0 ? 1.0 : 0.0);
+	}
+	sky_free(&sky);
+}
+
 int main(void)
 {
 	struct err e = { 0 };
@@ -398,5 +490,7 @@ int main(void)
 	pointing(300, -89.95, 300, 1, 4);
 	pointing(0.05, 0, 10, 0, 5);
 	stips_area();
+	sky_shapes(GEOM_SIAF);
+	sky_shapes(GEOM_STIPS);
 	return done_testing();
 }

@@ -901,6 +901,42 @@ static int jitter(double *img, int n, double sigma, const double *cov,
 	return 0;
 }
 
+/* The largest singular value of the positions' Jacobians (at least 1):
+ * how much wider than the pupil its raster must be in the transform's
+ * frame.  -1 for a singular or extreme Jacobian. */
+static double pupil_stretch(const struct optics_psf_req *r, struct err *e)
+{
+	double stretch = 1;
+
+	for (int pos = 0; r->jac && pos < r->npos; pos++) {
+		const double *a = r->jac + 4 * (size_t)pos;
+		double det = a[0] * a[3] - a[1] * a[2];
+		double t = a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3];
+		if (!(fabs(det) > 1e-3 && t < 16))
+			return err_set(e, EXIT_INPUT, "optics_psf: singular or "
+				       "extreme Jacobian at position %d", pos);
+		double smax = sqrt(0.5 * (t + sqrt(fmax(t * t - 4 * det * det, 0))));
+		stretch = fmax(stretch, smax * 1.0001);
+	}
+	return stretch;
+}
+
+/* The jitter's covariance in samples at position pos, sigma^2 A^-1 A^-T,
+ * into cov (returned); NULL for the square grid (isotropic). */
+static const double *jitter_cov(const struct optics_psf_req *r, int pos, double cov[3])
+{
+	if (!r->jac)
+		return NULL;
+	const double *a = r->jac + 4 * (size_t)pos;
+	double det = a[0] * a[3] - a[1] * a[2], k = r->jitter / r->scale;
+	double m11 = a[3] / det, m12 = -a[1] / det, m21 = -a[2] / det, m22 = a[0] / det;
+
+	cov[0] = k * k * (m11 * m11 + m12 * m12);
+	cov[1] = k * k * (m11 * m21 + m12 * m22);
+	cov[2] = k * k * (m21 * m21 + m22 * m22);
+	return cov;
+}
+
 int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 {
 	struct job j;
@@ -932,17 +968,9 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 	/* pupil samples per side at the shortest wavelength; a Jacobian
 	 * stretches the pupil's extent in the transform's frame by up to the
 	 * largest singular value of A */
-	double stretch = 1;
-	for (int pos = 0; r->jac && pos < r->npos; pos++) {
-		const double *a = r->jac + 4 * (size_t)pos;
-		double det = a[0] * a[3] - a[1] * a[2];
-		double t = a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3];
-		if (!(fabs(det) > 1e-3 && t < 16))
-			return err_set(e, EXIT_INPUT, "optics_psf: singular or "
-				       "extreme Jacobian at position %d", pos);
-		double smax = sqrt(0.5 * (t + sqrt(fmax(t * t - 4 * det * det, 0))));
-		stretch = fmax(stretch, smax * 1.0001);
-	}
+	double stretch = pupil_stretch(r, e);
+	if (stretch < 0)
+		return -1;
 	j.pmax = (int)ceil(stretch * 2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
 			   (lmin * 1e-6 / (j.nfft * dth))) + 2;
 	if (j.pmax > j.nfft)
@@ -1016,20 +1044,10 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 		j.rows = j.cols = NULL;
 	}
 	for (int pos = 0; pos < r->npos; pos++) {
-		double *img = j.acc + (size_t)pos * r->n * r->n;
-		double cov[3], *c = NULL;
-		if (r->jac) {
-			/* sigma^2 A^-1 A^-T in samples */
-			const double *a = r->jac + 4 * (size_t)pos;
-			double det = a[0] * a[3] - a[1] * a[2], k = r->jitter / r->scale;
-			double m11 = a[3] / det, m12 = -a[1] / det;
-			double m21 = -a[2] / det, m22 = a[0] / det;
-			cov[0] = k * k * (m11 * m11 + m12 * m12);
-			cov[1] = k * k * (m11 * m21 + m12 * m22);
-			cov[2] = k * k * (m21 * m21 + m22 * m22);
-			c = cov;
-		}
-		if (r->jitter > 0 && jitter(img, r->n, r->jitter / r->scale, c, e))
+		double *img = j.acc + (size_t)pos * r->n * r->n, cov[3];
+
+		if (r->jitter > 0 && jitter(img, r->n, r->jitter / r->scale,
+					    jitter_cov(r, pos, cov), e))
 			goto done;
 		memcpy(out + (size_t)pos * r->n * r->n, img,
 		       sizeof(double) * r->n * r->n);

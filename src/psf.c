@@ -281,8 +281,9 @@ done:
 }
 
 /* The pixel grid (write_pixgrid): PIXGRID = 'SIAF' with every plane's
- * JXX..JYY makes a SIAF grid; anything else, or a plane without them, a
- * square one.  Plane k sits at node (px[k], py[k]). */
+ * JXX..JYY makes a SIAF grid; another PIXGRID, or a plane without them, a
+ * square one; no PIXGRID, PSF_PIX_UNSAID.  Plane k sits at node
+ * (px[k], py[k]). */
 static void read_pixgrid(fitsfile *f, struct psf_grid *g, int nplane,
 			 const double *px, const double *py)
 {
@@ -290,8 +291,11 @@ static void read_pixgrid(fitsfile *f, struct psf_grid *g, int nplane,
 	char str[FLEN_VALUE], key[FLEN_KEYWORD];
 	int st = 0;
 
-	if (fits_read_key(f, TSTRING, "PIXGRID", str, NULL, &st) ||
-	    strcasecmp(str, "SIAF") || !(g->jac = malloc(sizeof(double) * 4 * nplane)))
+	g->pixgrid = PSF_PIX_UNSAID;
+	if (fits_read_key(f, TSTRING, "PIXGRID", str, NULL, &st))
+		return;
+	g->pixgrid = PSF_PIX_SQUARE;
+	if (strcasecmp(str, "SIAF") || !(g->jac = malloc(sizeof(double) * 4 * nplane)))
 		return;
 	for (int k = 0; k < nplane; k++) {
 		int slot = find_node(g->ys, g->ny, py[k]) * g->nx +

@@ -46,7 +46,9 @@ struct psf_grid {
 	double *jac;
 };
 
-enum psf_pixgrid { PSF_PIX_SQUARE = 0, PSF_PIX_SIAF = 1 };
+/* PSF_PIX_UNSAID: a file without PIXGRID (STPSF's, STIPS's), taken as
+ * square. */
+enum psf_pixgrid { PSF_PIX_UNSAID = -1, PSF_PIX_SQUARE = 0, PSF_PIX_SIAF = 1 };
 
 struct psf_grid *psf_grid_new(int n, int over, int nx, int ny);
 void psf_grid_free(struct psf_grid *g);

@@ -34,6 +34,12 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 	if (sca && grid->sca && grid->sca != sca)
 		host_log(g, 0, "warning: %s: PSF for SCA %d serves SCA %d", path,
 			 grid->sca, sca);
+	/* a grid says which pixels it is sampled on (PIXGRID) */
+	if (grid->pixgrid != PSF_PIX_UNSAID &&
+	    (grid->pixgrid == PSF_PIX_SIAF) != (g->o->geometry == GEOM_SIAF))
+		host_log(g, 0, "warning: %s: PSF sampled on %s pixels, the scene's "
+			 "geometry is %s", path, grid->pixgrid == PSF_PIX_SIAF ?
+			 "the SIAF's" : "square 0.11\"", geom_name(g->o->geometry));
 }
 
 /* The halo's default radius (psf-halo-radius), pixels */

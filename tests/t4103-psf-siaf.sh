@@ -30,13 +30,17 @@ test_expect_success 'a star at the corner of SCA 1: widths along x and y follow 
 	"$WFS" --filter F158 --sca 1 --set psf-extent=stips --geometry stips -o b.fits star.csv &&
 	"$PY" "$TOP/tests/psfgrid_check.py" star "$SIAF" 1 20.3 20.7 si.fits st.fits a.fits b.fits
 '
-test_expect_success 'the grid written by wfiscene psf, read with --psf, draws the same star' '
+test_expect_success 'the grid written by wfiscene psf, read with --psf, draws the same star; a mismatch warns' '
 	"$WFS" --filter F158 --sca 1 --set psf-extent=stips --psf si.fits -o c.fits star.csv &&
 	"$PY" -c "
 from astropy.io import fits; import numpy as np
 a, c = fits.getdata(\"a.fits\", 1), fits.getdata(\"c.fits\", 1)
 assert a.max() > 10 and np.array_equal(a, c), np.abs(a - c).max()
-"
+" &&
+	"$WFS" --filter F158 --sca 1 --psf si.fits --geometry stips -o d.fits star.csv 2> err &&
+	grep "si.fits: PSF sampled on the SIAF.s pixels, the scene.s geometry is stips" err &&
+	"$WFS" --filter F158 --sca 1 --psf st.fits -o d.fits star.csv 2> err &&
+	grep "st.fits: PSF sampled on square 0.11\" pixels, the scene.s geometry is siaf" err
 '
 test_expect_success 'a galaxy given on the sky (romanisim pa, ba) takes the shape of SCA 9'"'"'s pixels' '
 	: > empty.csv &&

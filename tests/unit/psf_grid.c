@@ -68,7 +68,7 @@ int main(void)
 		ok(!memcmp(r->data, g->data, 9 * 21 * 21 * sizeof(float)),
 		   "planes land on their own nodes");
 		is_near(r->pixscale, 0.0275, 1e-12, "PIXELSCL");
-		ok(r->pixgrid == PSF_PIX_SQUARE && !r->jac, "a square pixel grid");
+		ok(r->pixgrid == PSF_PIX_SQUARE && !r->jac, "a square pixel grid, said so");
 		psf_grid_free(r);
 	}
 	unlink(fits);

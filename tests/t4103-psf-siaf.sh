@@ -26,30 +26,30 @@ assert fits.getheader(\"st.fits\")[\"GEOMETRY\"] == \"stips\"
 '
 test_expect_success 'a star at the corner of SCA 1: widths along x and y follow the SIAF scales' '
 	printf "id,x,y,sca,flux\n1,20.3,20.7,1,100\n" > star.csv &&
-	"$WFS" --filter F158 --sca 1 --set psf-extent=stips -o a.fits star.csv &&
-	"$WFS" --filter F158 --sca 1 --set psf-extent=stips --geometry stips -o b.fits star.csv &&
+	"$WFS" --filter F158 --sca 1 --rows 1-60 --set psf-extent=stips -o a.fits star.csv &&
+	"$WFS" --filter F158 --sca 1 --rows 1-60 --set psf-extent=stips --geometry stips -o b.fits star.csv &&
 	"$PY" "$TOP/tests/psfgrid_check.py" star "$SIAF" 1 20.3 20.7 si.fits st.fits a.fits b.fits
 '
 test_expect_success 'the grid written by wfiscene psf, read with --psf, draws the same star; a mismatch warns' '
-	"$WFS" --filter F158 --sca 1 --set psf-extent=stips --psf si.fits -o c.fits star.csv &&
+	"$WFS" --filter F158 --sca 1 --rows 1-60 --set psf-extent=stips --psf si.fits -o c.fits star.csv &&
 	"$PY" -c "
 from astropy.io import fits; import numpy as np
 a, c = fits.getdata(\"a.fits\", 1), fits.getdata(\"c.fits\", 1)
 assert a.max() > 10 and np.array_equal(a, c), np.abs(a - c).max()
 " &&
-	"$WFS" --filter F158 --sca 1 --psf si.fits --geometry stips -o d.fits star.csv 2> err &&
+	"$WFS" --filter F158 --sca 1 --rows 1-60 --psf si.fits --geometry stips -o d.fits star.csv 2> err &&
 	grep "si.fits: PSF sampled on the SIAF.s pixels, the scene.s geometry is stips" err &&
-	"$WFS" --filter F158 --sca 1 --psf st.fits -o d.fits star.csv 2> err &&
+	"$WFS" --filter F158 --sca 1 --rows 1-60 --psf st.fits -o d.fits star.csv 2> err &&
 	grep "st.fits: PSF sampled on square 0.11\" pixels, the scene.s geometry is siaf" err
 '
 test_expect_success 'a galaxy given on the sky (romanisim pa, ba) takes the shape of SCA 9'"'"'s pixels' '
 	: > empty.csv &&
-	"$WFS" --filter F158 --sca 9 -o e9.fits empty.csv &&
+	"$WFS" --filter F158 --sca 9 --rows 2045-2045 -o e9.fits empty.csv &&
 	"$PY" - <<-\EOT &&
 	from astropy.io import fits
 	from astropy.wcs import WCS
 	w = WCS(fits.getheader("e9.fits", 1))
-	ra, dec = w.all_pix2world([[2044, 2044]], 0)[0]
+	ra, dec = w.all_pix2world([[2044, 0]], 0)[0]   # row 2045 of the SCA
 	head = "# %ECSV 1.0\n# ---\n# datatype:\n" + "".join(
 	    "# - {name: %s, datatype: %s}\n" % (c, "string" if c == "type" else "float64")
 	    for c in "ra dec type n half_light_radius pa ba F158".split()) + \
@@ -58,8 +58,8 @@ test_expect_success 'a galaxy given on the sky (romanisim pa, ba) takes the shap
 	    open(name + ".ecsv", "w").write(head + "%.10f %.10f %s 1e-7\n" % (ra, dec, row))
 	open("radec", "w").write("%.10f %.10f\n" % (ra, dec))
 	EOT
-	"$WFS" --filter F158 --sca 9 --set psf-extent=stips -o gal.fits gal.ecsv &&
-	"$WFS" --filter F158 --sca 9 --set psf-extent=stips -o star9.fits star9.ecsv &&
+	"$WFS" --filter F158 --sca 9 --set psf-extent=stips --rows 1845-2245 -o gal.fits gal.ecsv &&
+	"$WFS" --filter F158 --sca 9 --set psf-extent=stips --rows 1845-2245 -o star9.fits star9.ecsv &&
 	read ra dec < radec &&
 	"$PY" "$TOP/tests/psfgrid_check.py" galaxy gal.fits star9.fits $ra $dec 30 0.3 1.0
 '

@@ -5,9 +5,10 @@
  *
  * Cache files are named after what they hold and a 64-bit key over every
  * input that changes the result (the optics tables' checksums, filter,
- * SCA, size, sampling, wavelengths, pupil sampling, grid, kind, and the
- * code: a version and a checksum of its sources), so a stale file is
- * simply never looked up.  A file
+ * SCA, size, sampling, wavelengths, pupil sampling, grid, kind, the
+ * code: a version and a checksum of its sources, and for a grid on an
+ * SCA's own pixels every node's Jacobian), so a stale file is simply
+ * never looked up; those grids are named ...-siaf-KEY.fits.  A file
  * is written under a temporary name and renamed, so concurrent runs see
  * either no file or a whole one; two runs that both miss both build and
  * the second rename wins with identical content.  A file that fails its

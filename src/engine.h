@@ -136,7 +136,10 @@ struct engine {
 	uint32_t *cand;
 	uint32_t *mask;                 /* slots the row may reach */
 	unsigned char *listed;          /* row already in a romanisim --placed */
+	double *mra, *mdec;             /* rows moved to the exposure's date */
 	size_t cap_rows;
+	struct rows *moved;             /* the chunk with mra, mdec (place.c) */
+	double observer[3];             /* Roman at the date (motion.h) */
 
 	struct batch b[2];              /* double buffer: see run_catalogs() */
 	const struct batch *rendering;

@@ -128,6 +128,8 @@ static const struct opt scene_options[] = {
 	  set_background, OFF(o.background)), .lo = 0, .hi = 1e12 },
 	{ OPT("date", 0, "D", NULL, "UTC date of the exposure: 2027-05-15[T06:30[:12.5]] or an "
 	  "MJD", set_date, OFF(o.date)) },
+	{ OPT("epoch", 0, "YEAR", "2016.0", "Julian year of the catalogs' positions, for "
+	  "pmra, pmdec and parallax", opt_double, OFF(o.epoch)), .lo = 1000, .hi = 3000 },
 	{ OPT("zodi", 0, "N", "project", "project or etc: the zodiacal light scale of "
 	  "--background sky", opt_choice, OFF(o.zodi_norm)), .words = norms },
 	{ OPT("allow-sun-angle", 0, NULL, NULL, "simulate pointings Roman cannot take (the Sun "

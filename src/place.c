@@ -18,6 +18,7 @@
 #include "catalog.h"
 #include "engine.h"
 #include "err.h"
+#include "motion.h"
 
 
 /*
@@ -621,6 +622,30 @@ static int place_on_slot(struct engine *g, const struct rows *r, struct batch *b
 	return 0;
 }
 
+/*
+ * The chunk as seen at the exposure's date: its sky rows moved by their
+ * proper motion and parallax (motion.h) into g->mra, g->mdec, and a copy of
+ * r pointing at them (kept in the engine, so that its address, which
+ * caches the models' column indices, is the same for every chunk).  An
+ * exposure without a date sees the catalog's positions.
+ */
+static const struct rows *moved_rows(struct engine *g, const struct rows *r)
+{
+	if (!g->moved) {
+		if (!(g->moved = malloc(sizeof(*g->moved)))) {
+			err_sys(g->e, "rows");
+			return NULL;
+		}
+		motion_observer(g->x->date, g->observer);
+	}
+	motion_apply(g->x->date, g->observer, r->n, r->ra, r->dec, r->pmra, r->pmdec,
+		     r->parallax, r->epoch, g->mra, g->mdec);
+	*g->moved = *r;
+	g->moved->ra = g->mra;
+	g->moved->dec = g->mdec;
+	return g->moved;
+}
+
 /* Turn one chunk of rows into the placements of batch b. */
 int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 {
@@ -639,8 +664,12 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    resize((void **)&g->reach, g->cap_rows * sizeof(double)) < 0 ||
 	    resize((void **)&g->cand, g->cap_rows * sizeof(uint32_t)) < 0 ||
 	    resize((void **)&g->mask, g->cap_rows * sizeof(uint32_t)) < 0 ||
-	    resize((void **)&g->listed, g->cap_rows) < 0)
+	    resize((void **)&g->listed, g->cap_rows) < 0 ||
+	    resize((void **)&g->mra, g->cap_rows * sizeof(double)) < 0 ||
+	    resize((void **)&g->mdec, g->cap_rows * sizeof(double)) < 0)
 		return err_sys(g->e, "rows");
+	if (r->pmra && !isnan(g->x->date) && (r = moved_rows(g, r)) == NULL)
+		return -1;
 	memset(g->listed, 0, r->n);
 	/* a catalog fact, for models with a half-light radius */
 	g->flux_meaning = g->o->sersic_flux ? strcmp(g->o->sersic_flux, "ie") == 0

@@ -152,6 +152,7 @@ static void engine_free(struct engine *g)
 	}
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
 	free(g->listed);
+	free(g->mra); free(g->mdec); free(g->moved);
 	sky_free(&g->sky);
 }
 
@@ -231,7 +232,8 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			const struct scene_opts *o, struct err *e)
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
-				   .chunk_rows = o->chunk, .settings = o->settings };
+				   .chunk_rows = o->chunk, .settings = o->settings,
+				   .epoch = o->epoch };
 	struct engine *pending = NULL;  /* whose batch the pool is drawing */
 	struct tree_disc *disc = NULL;
 	int cur = 0, rc = -1;

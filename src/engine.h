@@ -123,7 +123,7 @@ struct engine {
 	int nworker;
 
 	char filter_name[16], exptime_str[32], seed_str[32];
-	char bkg_str[32], readnoise_str[32], noise_str[64], sigma_str[32];
+	char bkg_str[32], readnoise_str[32], noise_str[64], sigma_str[32], mjd_str[32];
 	int flux_meaning;               /* enum wfs_flux_meaning of the catalog being read */
 
 	struct type_cache types[PLUGIN_MAX];

@@ -41,14 +41,10 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 	FILE *f = fopen(o->pointings, "r");
 	char line[4096];
 	struct exposure *p = NULL;
-	int n = 0, lineno = 0, seen_data = 0;
+	int n = 0, cap = 0, lineno = 0, seen_data = 0;
 
 	if (!f)
 		return err_sys(e, "%s", o->pointings);
-	if (!(p = calloc(MAX_EXPOSURES, sizeof(*p)))) {
-		fclose(f);
-		return err_sys(e, "pointings");
-	}
 	while (fgets(line, sizeof(line), f)) {
 		char *field[7], *save = NULL, *tok, *hash = strchr(line, '#');
 		int nf = 0;
@@ -89,6 +85,17 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 				MAX_EXPOSURES);
 			goto fail;
 		}
+		if (n == cap) {
+			struct exposure *q;
+
+			cap = cap ? 2 * cap : 64;
+			if (!(q = realloc(p, cap * sizeof(*p)))) {
+				err_sys(e, "pointings");
+				goto fail;
+			}
+			p = q;
+		}
+		memset(&p[n], 0, sizeof(p[n]));
 		p[n].ra = v[0];
 		p[n].dec = v[1];
 		p[n].pa = v[2];

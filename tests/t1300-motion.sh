@@ -23,7 +23,7 @@ for k in range(40):
     print(\"%d,%.9f,%.9f,21,%.3f,%.3f,%.3f,%s\" % (k + 1, ra, dec, rng.uniform(-300, 300),
           rng.uniform(-300, 300), rng.uniform(0, 60), ep))
 " > stars.csv &&
-	printf "ra dec pa name seed date\n268 -29 0 spring - 2027-03-20T06:00\n268 -29 0 autumn - 61670.25\n" > pointings.txt
+	printf "name,date,ra,dec,pa\nspring,2027-03-20T06:00,268,-29,0\nautumn,61670.25,268,-29,0\n" > pointings.txt
 '
 test_expect_success 'each exposure places the stars at its date' '
 	run --pointings pointings.txt -o "img_%s.fits" --placed "placed_%s.csv" stars.csv &&
@@ -116,5 +116,13 @@ test_expect_success 'bad motion values are refused with their place' '
 	test_must_fail --status 1 run -o bad.fits bad3.csv 2> err &&
 	test_grep "need .ra. and .dec." err &&
 	! test -e bad.fits
+'
+test_expect_success 'a pointings header names its columns in any order' '
+	printf "date name pa dec ra\n61670.25 x 0 -29 268\n" > named.txt &&
+	run --pointings named.txt -o "n_%s.fits" --placed "n_%s.csv" stars.csv &&
+	cmp n_x.csv placed_autumn.csv &&
+	printf "date name pa dec ra\n61670.25 x 0 -29 268 7\n" > long.txt &&
+	test_must_fail --status 1 run --pointings long.txt -o "s_%s.fits" stars.csv 2> err &&
+	test_grep "long.txt:2: the header names 5 columns, this line has more" err
 '
 test_done

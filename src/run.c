@@ -359,17 +359,20 @@ static int finish(struct engine *g, struct timespec t0)
 /*
  * The memory one exposure holds while it is drawn: its tiles, 4088 columns
  * of doubles for each row drawn on each SCA requested (a crowded field
- * touches every tile), and its PSF grids, which each exposure loads for
- * itself (SERIES_GRID_BYTES per SCA: the three ePSF classes and the halo).
+ * touches every tile), and SERIES_SCA_BYTES more per SCA for its PSF
+ * grids, which each exposure loads for itself, its placements and its
+ * writer.  Measured: a series of 10^6 stars on SCA 1 peaks at 1846 MB with
+ * 10 exposures at once and 581 MB with 3, 181 MB an exposure, of which
+ * 128 MiB are tiles (BENCHMARKS.md).
  */
-#define SERIES_GRID_BYTES (24.0 * 1024 * 1024)
+#define SERIES_SCA_BYTES (56.0 * 1024 * 1024)
 
 static double exposure_bytes(const struct scene_opts *o, const struct exposure *x)
 {
 	int nsca = __builtin_popcount(x->sca_mask);
 	double rows = o->row_first ? o->row_last - o->row_first + 1 : WFS_NPIX;
 
-	return nsca * (rows * WFS_NPIX * sizeof(double) + SERIES_GRID_BYTES);
+	return nsca * (rows * WFS_NPIX * sizeof(double) + SERIES_SCA_BYTES);
 }
 
 /*

@@ -6,8 +6,8 @@
 . "$(dirname "$0")/lib.sh"
 require_python
 
-# 16 rows of SCA 1: 16 x 4088 x 8 bytes of tiles and 24 MB of grids, about
-# 24.5 MB an exposure.
+# 16 rows of SCA 1: 16 x 4088 x 8 bytes of tiles and 56 MB for grids and
+# the rest, about 56.5 MB an exposure.
 run() { "$WFS" --filter F158 --sca 1 --ra 268 --dec -29 --rows 2040-2055 "$@"; }
 
 test_expect_success 'a lensed star, moving stars and seven dated exposures' '
@@ -27,7 +27,7 @@ test_expect_success 'with memory for all seven: one pass' '
 	! grep -q "passes" err
 '
 test_expect_success 'with memory for two: four passes, said with -v' '
-	run --memory 50 -v --pointings dates.txt -o "few_%s.fits" --placed "few_%s.csv" \
+	run --memory 120 -v --pointings dates.txt -o "few_%s.fits" --placed "few_%s.csv" \
 		stars.csv 2> err &&
 	test_grep "7 exposures in 4 passes over the catalogs, at most 2 at a time" err
 '
@@ -38,7 +38,7 @@ test_expect_success '... and the same bytes in every file' '
 	! cmp all_d0.csv all_d3.csv
 '
 test_expect_success 'stdin cannot be read in passes' '
-	test_must_fail --status 1 run --memory 50 --pointings dates.txt -o "in_%s.fits" \
+	test_must_fail --status 1 run --memory 120 --pointings dates.txt -o "in_%s.fits" \
 		- < stars.csv 2> err &&
 	test_grep "7 exposures need 4 passes over the catalogs" err &&
 	test_grep "stdin can be read once" err &&

@@ -57,4 +57,35 @@ fa, fb = a[\"flux\"][a[\"model\"] == \"microlens\"][0], b[\"flux\"][b[\"model\"]
 assert abs(fa / fb / (A / B) - 1) < 1e-5, (fa / fb, A / B)
 "
 '
+# drawn_by: a model that only changes the source, drawn by point
+bdrawn() {
+	name=$1
+	shift
+	${CC:-cc} -std=c11 -Wall -Wextra -Wno-unused-parameter -shared -fPIC \
+		-fvisibility=hidden -I"$TOP/include" -Wl,-z,defs -DDRAWN_NAME="\"$name\"" "$@" \
+		-o "plugins/$name.so" "$TOP/tests/plugins/drawn.c" -lm
+}
+test_expect_success 'a model drawn by point: its flux and position, point'"'"'s pixels' '
+	bdrawn drawn &&
+	printf "x,y,flux,type,dx\n2000.3,2050.6,500,drawn,3.5\n" > d.csv &&
+	printf "x,y,flux,type\n2003.8,2050.6,1000,point\n" > p.csv &&
+	run -o d.fits --placed d-placed.csv d.csv && run -o p.fits p.csv &&
+	"$PY" -c "
+from astropy.io import fits
+a, b = fits.getdata(\"d.fits\", 1), fits.getdata(\"p.fits\", 1)
+assert (a == b).all() and a.sum() > 0
+" &&
+	grep -q "^1,1,2003.8000,2050.6000,1000,.*,drawn$" d-placed.csv
+'
+test_expect_success 'a model drawn by itself, or by a model drawn by another, is refused' '
+	bdrawn selfish -DDRAWN_BY="\"selfish\"" &&
+	printf "x,y,flux,type\n2000,2050,500,selfish\n" > s.csv &&
+	test_must_fail --status 3 run -o s.fits s.csv 2> err &&
+	test_grep "model .selfish.*drawn_by names the model itself" err &&
+	bdrawn chain -DDRAWN_BY="\"microlens\"" &&
+	printf "x,y,flux,type\n2000,2050,500,chain\n" > c.csv &&
+	test_must_fail --status 3 run -o c.fits c.csv 2> err &&
+	test_grep "model .chain.*drawn_by names .microlens., which is drawn by another model" err &&
+	! test -e s.fits && ! test -e c.fits
+'
 test_done

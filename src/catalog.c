@@ -530,6 +530,26 @@ static int roman_plan(struct catalog *c, const char *lc, const char *where,
 	return 0;
 }
 
+/* The columns with numeric meanings are not FITS string columns, and
+ * motion columns go with sky positions.  where: ":LINE" of the header. */
+static int plan_numbers(struct catalog *c, const char *where, struct err *e)
+{
+	if (c->roman && (want_number(c, c->c_hlr, e) || want_number(c, c->c_pa, e) ||
+			 want_number(c, c->c_ba, e)))
+		return -1;
+	if (want_number(c, c->c_ra, e) || want_number(c, c->c_dec, e) ||
+	    want_number(c, c->c_x, e) || want_number(c, c->c_y, e) ||
+	    want_number(c, c->c_sca, e) || want_number(c, c->c_flux, e) ||
+	    want_number(c, c->c_mag, e) || want_number(c, c->c_pmra, e) ||
+	    want_number(c, c->c_pmdec, e) || want_number(c, c->c_plx, e) ||
+	    want_number(c, c->c_epoch, e))
+		return -1;
+	if (c->motion && !c->sky)
+		return err_set(e, EXIT_INPUT, "%s%s: proper motion or parallax columns need "
+			       "'ra' and 'dec' positions, not 'x' and 'y'", table_name(c->t), where);
+	return 0;
+}
+
 /* Decide what the columns mean.  The header is known; no row is read. */
 static int catalog_plan(struct catalog *c, struct err *e)
 {
@@ -666,20 +686,7 @@ static int catalog_plan(struct catalog *c, struct err *e)
 				       "%s: column '%s': unknown unit '%s' (want counts/s, mag(AB), Jy or maggies)",
 				       name, table_colname(t, c->c_flux), cu);
 	}
-	if (c->roman && (want_number(c, c->c_hlr, e) || want_number(c, c->c_pa, e) ||
-			 want_number(c, c->c_ba, e)))
-		return -1;
-	if (want_number(c, c->c_ra, e) || want_number(c, c->c_dec, e) ||
-	    want_number(c, c->c_x, e) || want_number(c, c->c_y, e) ||
-	    want_number(c, c->c_sca, e) || want_number(c, c->c_flux, e) ||
-	    want_number(c, c->c_mag, e) || want_number(c, c->c_pmra, e) ||
-	    want_number(c, c->c_pmdec, e) || want_number(c, c->c_plx, e) ||
-	    want_number(c, c->c_epoch, e))
-		return -1;
-	if (c->motion && !c->sky)
-		return err_set(e, EXIT_INPUT, "%s%s: proper motion or parallax columns need "
-			       "'ra' and 'dec' positions, not 'x' and 'y'", name, where);
-	return 0;
+	return plan_numbers(c, where, e);
 }
 
 struct catalog *catalog_open(const char *path, const struct catalog_opts *o,

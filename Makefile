@@ -155,6 +155,10 @@ check: deps
 ## unit: build the C unit tests
 unit: $(UNIT_BIN)
 
+## demo-bulge: a season of a small bulge field with a microlensing event, its light curve measured back
+demo-bulge: all
+	$(Q)WFS_BUILD=$(B) sh contrib/demo-bulge/run.sh
+
 ## demo: simulate a crowded globular cluster on several SCAs
 demo: deps
 	$(Q)$(MAKE) --no-print-directory all
@@ -204,7 +208,7 @@ clean:
 help:
 	@sed -n 's/^## //p' $(MAKEFILE_LIST)
 
-.PHONY: all deps check unit demo bench fuzz lint-man install clean help validate FORCE
+.PHONY: all deps check unit demo demo-bulge bench fuzz lint-man install clean help validate FORCE
 
 ## validate: the paper's 1000-star photometry test and the load tests (slow; installs python3-matplotlib for the plot)
 validate:

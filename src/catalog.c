@@ -17,6 +17,7 @@
 #include "catalog.h"
 #include "err.h"
 #include "instrument.h"
+#include "motion.h"
 #include "table.h"
 #include "tree.h"
 
@@ -67,6 +68,11 @@ struct catalog {
 	unsigned char *unit;
 	const char **type;
 	long long *id;
+	/* proper motion and parallax (motion.h): the columns, or -1, and
+	 * their values; motion is 1 when any of the three columns exists */
+	int motion;
+	int c_pmra, c_pmdec, c_plx, c_epoch;
+	double *pmra, *pmdec, *plx, *epoch;
 };
 
 /* Exact powers of ten: every one up to 1e22 is a double without rounding. */
@@ -345,8 +351,13 @@ static int alloc_rows(struct catalog *c, struct err *e)
 	c->id = malloc(n * sizeof(long long));
 	c->re_num = malloc(n * sizeof(double));
 	c->re_text = malloc(n * sizeof(char *));
+	c->pmra = malloc(n * sizeof(double));
+	c->pmdec = malloc(n * sizeof(double));
+	c->plx = malloc(n * sizeof(double));
+	c->epoch = malloc(n * sizeof(double));
 	if (!c->ra || !c->dec || !c->x || !c->y || !c->flux || !c->sca ||
-	    !c->unit || !c->type || !c->id || !c->re_num || !c->re_text)
+	    !c->unit || !c->type || !c->id || !c->re_num || !c->re_text ||
+	    !c->pmra || !c->pmdec || !c->plx || !c->epoch)
 		return err_set(e, EXIT_SYSTEM, "out of memory");
 	return 0;
 }
@@ -519,6 +530,26 @@ static int roman_plan(struct catalog *c, const char *lc, const char *where,
 	return 0;
 }
 
+/* The columns with numeric meanings are not FITS string columns, and
+ * motion columns go with sky positions.  where: ":LINE" of the header. */
+static int plan_numbers(struct catalog *c, const char *where, struct err *e)
+{
+	if (c->roman && (want_number(c, c->c_hlr, e) || want_number(c, c->c_pa, e) ||
+			 want_number(c, c->c_ba, e)))
+		return -1;
+	if (want_number(c, c->c_ra, e) || want_number(c, c->c_dec, e) ||
+	    want_number(c, c->c_x, e) || want_number(c, c->c_y, e) ||
+	    want_number(c, c->c_sca, e) || want_number(c, c->c_flux, e) ||
+	    want_number(c, c->c_mag, e) || want_number(c, c->c_pmra, e) ||
+	    want_number(c, c->c_pmdec, e) || want_number(c, c->c_plx, e) ||
+	    want_number(c, c->c_epoch, e))
+		return -1;
+	if (c->motion && !c->sky)
+		return err_set(e, EXIT_INPUT, "%s%s: proper motion or parallax columns need "
+			       "'ra' and 'dec' positions, not 'x' and 'y'", table_name(c->t), where);
+	return 0;
+}
+
 /* Decide what the columns mean.  The header is known; no row is read. */
 static int catalog_plan(struct catalog *c, struct err *e)
 {
@@ -543,6 +574,11 @@ static int catalog_plan(struct catalog *c, struct err *e)
 	c->c_units = col_of(t, "units");
 	c->c_type = col_of(t, "type");
 	c->c_id = col_of(t, "id");
+	c->c_pmra = col_of(t, "pmra");
+	c->c_pmdec = col_of(t, "pmdec");
+	c->c_plx = col_of(t, "parallax");
+	c->c_epoch = col_of(t, "epoch");
+	c->motion = c->c_pmra >= 0 || c->c_pmdec >= 0 || c->c_plx >= 0;
 	for (n = 0; fname[n] && n + 1 < sizeof(lc); n++)
 		lc[n] = (char)tolower((unsigned char)fname[n]);
 	lc[n] = 0;
@@ -650,15 +686,7 @@ static int catalog_plan(struct catalog *c, struct err *e)
 				       "%s: column '%s': unknown unit '%s' (want counts/s, mag(AB), Jy or maggies)",
 				       name, table_colname(t, c->c_flux), cu);
 	}
-	if (c->roman && (want_number(c, c->c_hlr, e) || want_number(c, c->c_pa, e) ||
-			 want_number(c, c->c_ba, e)))
-		return -1;
-	if (want_number(c, c->c_ra, e) || want_number(c, c->c_dec, e) ||
-	    want_number(c, c->c_x, e) || want_number(c, c->c_y, e) ||
-	    want_number(c, c->c_sca, e) || want_number(c, c->c_flux, e) ||
-	    want_number(c, c->c_mag, e))
-		return -1;
-	return 0;
+	return plan_numbers(c, where, e);
 }
 
 struct catalog *catalog_open(const char *path, const struct catalog_opts *o,
@@ -802,12 +830,232 @@ static void lower_trim(char **s)
 	*s = p;
 }
 
+/* Row i's position: ra, dec, or pixel x, y (1-based in the file) and sca. */
+static int read_position(struct catalog *c, const struct table_chunk *ch, size_t i,
+			 struct err *e)
+{
+	double v;
+
+	if (c->sky) {
+		if (cell_number(ch, c->c_ra, i, "ra", &v, e) < 0)
+			return -1;
+		c->ra[i] = v;
+		if (cell_number(ch, c->c_dec, i, "dec", &v, e) < 0)
+			return -1;
+		if (v < -90 || v > 90)
+			return err_set(e, EXIT_INPUT,
+				       "%s:%ld: column 'dec': out of range [-90, 90]: '%.40s'",
+				       ch->file, ch->line[i], table_text(ch, c->c_dec, i));
+		c->dec[i] = v;
+		c->x[i] = c->y[i] = NAN;
+		c->sca[i] = 0;
+		return 0;
+	}
+	c->ra[i] = c->dec[i] = NAN;
+	if (cell_number(ch, c->c_x, i, "x", &v, e) < 0)
+		return -1;
+	c->x[i] = v - 1;
+	if (cell_number(ch, c->c_y, i, "y", &v, e) < 0)
+		return -1;
+	c->y[i] = v - 1;
+	c->sca[i] = 0;
+	if (c->c_sca >= 0) {
+		long long s;
+
+		if (integer_value(ch, c->c_sca, i, "sca", &s, e) < 0)
+			return -1;
+		if (s < 1 || s > WFS_NSCA)
+			return err_set(e, EXIT_INPUT,
+				       "%s:%ld: column 'sca': not an SCA (1 to %d): '%.40s'",
+				       ch->file, ch->line[i], WFS_NSCA, table_text(ch, c->c_sca, i));
+		c->sca[i] = (int)s;
+	}
+	return 0;
+}
+
+/* Row i's flux and its unit (maggies and nanomaggies become AB mag). */
+static int read_flux(struct catalog *c, const struct table_chunk *ch, size_t i,
+		     struct err *e)
+{
+	const char *fn = ch->file;
+	double f;
+	int u;
+
+	if (c->c_flux >= 0) {
+		const char *cn = table_colname(c->t, c->c_flux);
+
+		if (cell_number(ch, c->c_flux, i, cn, &f, e) < 0)
+			return -1;
+		u = c->flux_unit;
+		if (c->c_units >= 0 && c->stips != STIPS_INTERNAL) {
+			u = row_unit(ch, c->c_units, i, u, e);
+			if (u < 0)
+				return -1;
+		}
+		if (u == UNIT_MAGGIES || u == UNIT_NMGY) {
+			if (!(f > 0))
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: column '%s': flux must be positive: '%.40s'",
+					       fn, ch->line[i], cn, table_text(ch, c->c_flux, i));
+			f = (u == UNIT_NMGY ? 22.5 : 0.0) - 2.5 * log10(f);
+			u = UNIT_ABMAG;
+		}
+		if (u == UNIT_ABMAG) {
+			if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: column '%s': magnitude out of range [%g, %g]: '%.40s'",
+					       fn, ch->line[i], cn, CATALOG_MAG_MIN,
+					       CATALOG_MAG_MAX, table_text(ch, c->c_flux, i));
+		} else if (!(f > 0)) {
+			return err_set(e, EXIT_INPUT,
+				       "%s:%ld: column '%s': flux must be positive: '%.40s'",
+				       fn, ch->line[i], cn, table_text(ch, c->c_flux, i));
+		}
+	} else {
+		if (cell_number(ch, c->c_mag, i, "mag", &f, e) < 0)
+			return -1;
+		if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)
+			return err_set(e, EXIT_INPUT,
+				       "%s:%ld: column 'mag': magnitude out of range [%g, %g]: '%.40s'",
+				       fn, ch->line[i], CATALOG_MAG_MIN, CATALOG_MAG_MAX,
+				       table_text(ch, c->c_mag, i));
+		u = UNIT_ABMAG;
+	}
+	c->flux[i] = f;
+	c->unit[i] = (unsigned char)u;
+	return 0;
+}
+
+/* Row i's model name, lower-case ("point" by default). */
+static void read_type(struct catalog *c, const struct table_chunk *ch, size_t i)
+{
+	if (c->c_type >= 0 && c->stips != STIPS_GENERIC) {
+		/* Cells live in the table's own buffers, which are
+		 * writable: lower-case them in place. */
+		char *s = (char *)table_text(ch, c->c_type, i);
+
+		lower_trim(&s);
+		c->type[i] = *s ? s : "point";
+		if (c->roman && !strcmp(s, "psf"))
+			c->type[i] = "point";
+		else if (c->roman && !strcmp(s, "ser"))
+			c->type[i] = "sersic";
+	} else {
+		c->type[i] = "point";
+	}
+}
+
+/* Row i's "re" (pixels) from romanisim's half_light_radius (arcsec). */
+static int read_roman_re(struct catalog *c, const struct table_chunk *ch, size_t i,
+			 struct err *e)
+{
+	const char *h = ch->text[c->c_hlr][i];
+	double v;
+
+	if (h && is_empty(h)) {
+		c->re_text[i] = "";
+		return 0;
+	}
+	if (cell_number(ch, c->c_hlr, i, "half_light_radius", &v, e) < 0)
+		return -1;
+	c->re_text[i] = NULL;
+	c->re_num[i] = v / WFS_PIXSCALE;
+	/* romanisim's radius is the circularised one, sqrt(a b) (GalSim's
+	 * shear keeps the area), where re is along the major axis: re = hlr /
+	 * sqrt(ba).  A ba out of (0, 1] is left for the model to refuse. */
+	if (c->c_ba >= 0 && (!ch->text[c->c_ba][i] || !is_empty(ch->text[c->c_ba][i]))) {
+		double ba;
+
+		if (cell_number(ch, c->c_ba, i, "ba", &ba, e) < 0)
+			return -1;
+		if (ba > 0 && ba <= 1)
+			c->re_num[i] /= sqrt(ba);
+	}
+	return 0;
+}
+
+/* Optional numeric cell (col, i) into *out, fallback when the column is
+ * absent or the cell empty, refused outside [lo, hi]. */
+static int optional_number(const struct table_chunk *ch, int col, size_t i, const char *name,
+			   double fallback, double lo, double hi, double *out, struct err *e)
+{
+	*out = fallback;
+	if (col < 0 || (ch->text[col][i] && is_empty(ch->text[col][i])))
+		return 0;
+	if (cell_number(ch, col, i, name, out, e) < 0)
+		return -1;
+	if (*out < lo || *out > hi)
+		return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': out of range [%g, %g]: '%.40s'",
+			       ch->file, ch->line[i], name, lo, hi, table_text(ch, col, i));
+	return 0;
+}
+
+/* Row i's proper motion, parallax and epoch (empty cells: 0, --epoch). */
+static int read_motion(struct catalog *c, const struct table_chunk *ch, size_t i,
+		       struct err *e)
+{
+	double ep = c->o.epoch ? c->o.epoch : MOTION_EPOCH_DEFAULT;
+
+	if (optional_number(ch, c->c_pmra, i, "pmra", 0, -MOTION_PM_MAX, MOTION_PM_MAX,
+			    &c->pmra[i], e) < 0 ||
+	    optional_number(ch, c->c_pmdec, i, "pmdec", 0, -MOTION_PM_MAX, MOTION_PM_MAX,
+			    &c->pmdec[i], e) < 0 ||
+	    optional_number(ch, c->c_plx, i, "parallax", 0, -MOTION_PLX_MAX, MOTION_PLX_MAX,
+			    &c->plx[i], e) < 0 ||
+	    optional_number(ch, c->c_epoch, i, "epoch", ep, MOTION_EPOCH_MIN, MOTION_EPOCH_MAX,
+			    &c->epoch[i], e) < 0)
+		return -1;
+	return 0;
+}
+
+/* Hand the chunk's n rows to r. */
+static void rows_fill(struct catalog *c, struct rows *r, const struct table_chunk *ch,
+		      long n)
+{
+	r->n = (size_t)n;
+	r->file = ch->file;
+	r->line = ch->line;
+	r->ra = c->ra;
+	r->dec = c->dec;
+	r->x = c->x;
+	r->y = c->y;
+	r->sca = c->sca;
+	r->flux = c->flux;
+	r->unit = c->unit;
+	r->type = c->type;
+	r->id = c->id;
+	if (c->motion) {
+		r->pmra = c->pmra;
+		r->pmdec = c->pmdec;
+		r->parallax = c->plx;
+		r->epoch = c->epoch;
+	}
+	r->sersic_ie = c->stips == STIPS_INTERNAL || c->stips == STIPS_MIXED ||
+		c->stips == STIPS_MULTI;
+	r->ncol = c->ncol_table;
+	r->colname = c->colname;
+	r->text = ch->text;
+	r->num = ch->num;
+	r->roman = c->roman;
+	r->sky_angle_col = c->roman ? c->c_pa : -1;
+	if (c->roman && c->c_hlr >= 0) {
+		/* the chunk's columns and "re" after them */
+		memcpy(c->text_ext, ch->text, (size_t)c->ncol_table * sizeof(char **));
+		memcpy(c->num_ext, ch->num, (size_t)c->ncol_table * sizeof(double *));
+		c->text_ext[c->ncol_table] = c->re_text;
+		c->num_ext[c->ncol_table] = c->re_num;
+		r->text = c->text_ext;
+		r->num = c->num_ext;
+		r->ncol++;
+	}
+	c->ch = *ch;
+	r->chunk = &c->ch;
+}
+
 long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 {
 	struct table_chunk ch;
 	long n;
-	size_t i;
-	const char *fn;
 
 	memset(r, 0, sizeof(*r));
 	r->sky_angle_col = -1;
@@ -823,172 +1071,23 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 		r->file = c->t ? table_name(c->t) : c->dir ? c->dir : "";
 		return n;
 	}
-	fn = ch.file;
-	for (i = 0; i < (size_t)n; i++) {
-		double v, f;
-		int u;
-
-		if (c->sky) {
-			if (cell_number(&ch, c->c_ra, i, "ra", &v, e) < 0)
-				return -1;
-			c->ra[i] = v;
-			if (cell_number(&ch, c->c_dec, i, "dec", &v, e) < 0)
-				return -1;
-			if (v < -90 || v > 90)
-				return err_set(e, EXIT_INPUT,
-					       "%s:%ld: column 'dec': out of range [-90, 90]: '%.40s'",
-					       fn, ch.line[i], table_text(&ch, c->c_dec, i));
-			c->dec[i] = v;
-			c->x[i] = c->y[i] = NAN;
-			c->sca[i] = 0;
-		} else {
-			c->ra[i] = c->dec[i] = NAN;
-			if (cell_number(&ch, c->c_x, i, "x", &v, e) < 0)
-				return -1;
-			c->x[i] = v - 1;
-			if (cell_number(&ch, c->c_y, i, "y", &v, e) < 0)
-				return -1;
-			c->y[i] = v - 1;
-			c->sca[i] = 0;
-			if (c->c_sca >= 0) {
-				long long s;
-
-				if (integer_value(&ch, c->c_sca, i, "sca", &s, e) < 0)
-					return -1;
-				if (s < 1 || s > WFS_NSCA)
-					return err_set(e, EXIT_INPUT,
-						       "%s:%ld: column 'sca': not an SCA (1 to %d): '%.40s'",
-						       fn, ch.line[i], WFS_NSCA, table_text(&ch, c->c_sca, i));
-				c->sca[i] = (int)s;
-			}
-		}
-
-		if (c->c_flux >= 0) {
-			const char *cn = table_colname(c->t, c->c_flux);
-
-			if (cell_number(&ch, c->c_flux, i, cn, &f, e) < 0)
-				return -1;
-			u = c->flux_unit;
-			if (c->c_units >= 0 && c->stips != STIPS_INTERNAL) {
-				u = row_unit(&ch, c->c_units, i, u, e);
-				if (u < 0)
-					return -1;
-			}
-			if (u == UNIT_MAGGIES || u == UNIT_NMGY) {
-				if (!(f > 0))
-					return err_set(e, EXIT_INPUT,
-						       "%s:%ld: column '%s': flux must be positive: '%.40s'",
-						       fn, ch.line[i], cn, table_text(&ch, c->c_flux, i));
-				f = (u == UNIT_NMGY ? 22.5 : 0.0) - 2.5 * log10(f);
-				u = UNIT_ABMAG;
-			}
-			if (u == UNIT_ABMAG) {
-				if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)
-					return err_set(e, EXIT_INPUT,
-						       "%s:%ld: column '%s': magnitude out of range [%g, %g]: '%.40s'",
-						       fn, ch.line[i], cn, CATALOG_MAG_MIN,
-						       CATALOG_MAG_MAX, table_text(&ch, c->c_flux, i));
-			} else if (!(f > 0)) {
-				return err_set(e, EXIT_INPUT,
-					       "%s:%ld: column '%s': flux must be positive: '%.40s'",
-					       fn, ch.line[i], cn, table_text(&ch, c->c_flux, i));
-			}
-		} else {
-			if (cell_number(&ch, c->c_mag, i, "mag", &f, e) < 0)
-				return -1;
-			if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)
-				return err_set(e, EXIT_INPUT,
-					       "%s:%ld: column 'mag': magnitude out of range [%g, %g]: '%.40s'",
-					       fn, ch.line[i], CATALOG_MAG_MIN, CATALOG_MAG_MAX,
-					       table_text(&ch, c->c_mag, i));
-			u = UNIT_ABMAG;
-		}
-		c->flux[i] = f;
-		c->unit[i] = (unsigned char)u;
-
-		if (c->c_type >= 0 && c->stips != STIPS_GENERIC) {
-			/* Cells live in the table's own buffers, which
-			 * are writable: lower-case them in place. */
-			char *s = (char *)table_text(&ch, c->c_type, i);
-
-			lower_trim(&s);
-			c->type[i] = *s ? s : "point";
-			if (c->roman && !strcmp(s, "psf"))
-				c->type[i] = "point";
-			else if (c->roman && !strcmp(s, "ser"))
-				c->type[i] = "sersic";
-		} else {
-			c->type[i] = "point";
-		}
-
-		if (c->roman && c->c_hlr >= 0) {
-			const char *h = ch.text[c->c_hlr][i];
-
-			if (h && is_empty(h)) {
-				c->re_text[i] = "";
-			} else {
-				if (cell_number(&ch, c->c_hlr, i, "half_light_radius", &v, e) < 0)
-					return -1;
-				c->re_text[i] = NULL;
-				c->re_num[i] = v / WFS_PIXSCALE;
-				/* romanisim's radius is the circularised one,
-				 * sqrt(a b) (GalSim's shear keeps the area), where
-				 * re is along the major axis: re = hlr / sqrt(ba).
-				 * A ba out of (0, 1] is left for the model to
-				 * refuse. */
-				if (c->c_ba >= 0 && (!ch.text[c->c_ba][i] ||
-						     !is_empty(ch.text[c->c_ba][i]))) {
-					double ba;
-
-					if (cell_number(&ch, c->c_ba, i, "ba", &ba, e) < 0)
-						return -1;
-					if (ba > 0 && ba <= 1)
-						c->re_num[i] /= sqrt(ba);
-				}
-			}
-		}
-
+	for (size_t i = 0; i < (size_t)n; i++) {
+		if (read_position(c, &ch, i, e) < 0 || read_flux(c, &ch, i, e) < 0)
+			return -1;
+		read_type(c, &ch, i);
+		if (c->roman && c->c_hlr >= 0 && read_roman_re(c, &ch, i, e) < 0)
+			return -1;
 		if (c->c_id >= 0 && (!ch.text[c->c_id][i] || !is_empty(ch.text[c->c_id][i]))) {
 			if (integer_value(&ch, c->c_id, i, "id", &c->id[i], e) < 0)
 				return -1;
 		} else {
 			c->id[i] = (long long)(c->nrows + i + 1);
 		}
+		if (c->motion && read_motion(c, &ch, i, e) < 0)
+			return -1;
 	}
 	c->nrows += (unsigned long long)n;
-
-	r->n = (size_t)n;
-	r->file = fn;
-	r->line = ch.line;
-	r->ra = c->ra;
-	r->dec = c->dec;
-	r->x = c->x;
-	r->y = c->y;
-	r->sca = c->sca;
-	r->flux = c->flux;
-	r->unit = c->unit;
-	r->type = c->type;
-	r->id = c->id;
-	r->sersic_ie = c->stips == STIPS_INTERNAL || c->stips == STIPS_MIXED ||
-		c->stips == STIPS_MULTI;
-	r->ncol = c->ncol_table;
-	r->colname = c->colname;
-	r->text = ch.text;
-	r->num = ch.num;
-	r->roman = c->roman;
-	r->sky_angle_col = c->roman ? c->c_pa : -1;
-	if (c->roman && c->c_hlr >= 0) {
-		/* the chunk's columns and "re" after them */
-		memcpy(c->text_ext, ch.text, (size_t)c->ncol_table * sizeof(char **));
-		memcpy(c->num_ext, ch.num, (size_t)c->ncol_table * sizeof(double *));
-		c->text_ext[c->ncol_table] = c->re_text;
-		c->num_ext[c->ncol_table] = c->re_num;
-		r->text = c->text_ext;
-		r->num = c->num_ext;
-		r->ncol++;
-	}
-	c->ch = ch;
-	r->chunk = &c->ch;
+	rows_fill(c, r, &ch, n);
 	return n;
 }
 
@@ -1035,5 +1134,9 @@ void catalog_close(struct catalog *c)
 	free(c->num_ext);
 	free(c->re_num);
 	free(c->re_text);
+	free(c->pmra);
+	free(c->pmdec);
+	free(c->plx);
+	free(c->epoch);
 	free(c);
 }

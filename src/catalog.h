@@ -45,6 +45,8 @@ struct catalog_opts {
 	const struct tree_disc *disc;
 	int ndisc;              /* 0: every file of a tree is read */
 	const char *const *settings;    /* "key=value", NULL-ended, or NULL */
+	double epoch;           /* Julian epoch of positions without an 'epoch'
+	                           cell; 0 for MOTION_EPOCH_DEFAULT */
 };
 
 /*
@@ -63,6 +65,11 @@ struct rows {
 	unsigned char *unit;    /* enum flux_unit of each row */
 	const char **type;      /* model name, lower-case; "point" by default */
 	long long *id;          /* the id column, else the 1-based row number */
+	/* Proper motion (mas/yr; pmra includes cos dec), parallax (mas) and
+	 * the Julian epoch of ra, dec (motion.h): all NULL when the catalog
+	 * has none of the pmra, pmdec, parallax columns, else all set (empty
+	 * cells 0, the epoch catalog_opts.epoch). */
+	double *pmra, *pmdec, *parallax, *epoch;
 	int sersic_ie;          /* 1 when this catalog's Sersic fluxes are the
 	                           surface brightness at re (STIPS internal) */
 	int sky_angle_col;      /* column whose angles are position angles on

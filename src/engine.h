@@ -123,7 +123,7 @@ struct engine {
 	int nworker;
 
 	char filter_name[16], exptime_str[32], seed_str[32];
-	char bkg_str[32], readnoise_str[32], noise_str[64], sigma_str[32];
+	char bkg_str[32], readnoise_str[32], noise_str[64], sigma_str[32], mjd_str[32];
 	int flux_meaning;               /* enum wfs_flux_meaning of the catalog being read */
 
 	struct type_cache types[PLUGIN_MAX];
@@ -136,7 +136,10 @@ struct engine {
 	uint32_t *cand;
 	uint32_t *mask;                 /* slots the row may reach */
 	unsigned char *listed;          /* row already in a romanisim --placed */
+	double *mra, *mdec;             /* rows moved to the exposure's date */
 	size_t cap_rows;
+	struct rows *moved;             /* the chunk with mra, mdec (place.c) */
+	double observer[3];             /* Roman at the date (motion.h) */
 
 	struct batch b[2];              /* double buffer: see run_catalogs() */
 	const struct batch *rendering;

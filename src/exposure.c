@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "date.h"
 #include "err.h"
@@ -27,9 +28,65 @@ static int is_number(const char *s, double *v)
 }
 
 /*
+ * A header line of a pointings file that names its columns: each field one
+ * of ra, dec, pa, name, seed, date (any case), each at most once, ra, dec
+ * and pa among them, in another order than "ra dec pa name seed date".
+ * role[k] is then field k's place in that order and the return 1; 0 for a
+ * header in that order or of other words, read by position as before
+ * headers could name columns.
+ */
+static int pointings_header(char **field, int nf, int *role)
+{
+	static const char *const names[6] = { "ra", "dec", "pa", "name", "seed", "date" };
+	unsigned seen = 0;
+
+	for (int k = 0; k < nf; k++) {
+		role[k] = -1;
+		for (int r = 0; r < 6; r++)
+			if (!strcasecmp(field[k], names[r]) && !(seen >> r & 1)) {
+				role[k] = r;
+				seen |= 1u << r;
+			}
+		if (role[k] < 0)
+			return 0;
+	}
+	if ((seen & 7) != 7)
+		return 0;
+	/* the usual order ("ra dec pa name"): read by position, as before,
+	 * so that lines may go on past the header's last name */
+	for (int k = 0; k < nf; k++)
+		if (role[k] != k)
+			return 1;
+	return 0;
+}
+
+/* Data fields in the order of a naming header (role), into std: "ra dec
+ * pa name seed date" with "-" for the columns the header or the line leaves
+ * out (a line may stop early, as in files whose header only described
+ * them).  Returns the number of std fields, or -1 when the line has more
+ * fields than the header names. */
+static int pointings_reorder(char **field, int nf, const int *role, int nrole, char **std)
+{
+	static char dash[] = "-";
+	int n = 3;
+
+	if (nf > nrole)
+		return -1;
+	for (int r = 0; r < 6; r++)
+		std[r] = dash;
+	for (int k = 0; k < nf; k++) {
+		std[role[k]] = field[k];
+		if (role[k] + 1 > n)
+			n = role[k] + 1;
+	}
+	return n;
+}
+
+/*
  * A pointings file: one exposure a line, "ra dec pa [name [seed [date]]]",
  * fields separated by blanks or commas; '#' starts a comment; a first line
- * whose first field is not a number is a header.  Exposure k (from 1) is
+ * whose first field is not a number is a header, which may name the columns
+ * in any order (pointings_header).  Exposure k (from 1) is
  * named k with three digits unless named, and has seed --seed + k - 1 unless
  * given, so that a single run of that pointing with that seed gives the same
  * image; a '-' for the name or the seed keeps that default.  The date (as
@@ -41,14 +98,10 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 	FILE *f = fopen(o->pointings, "r");
 	char line[4096];
 	struct exposure *p = NULL;
-	int n = 0, lineno = 0, seen_data = 0;
+	int n = 0, cap = 0, lineno = 0, seen_data = 0, role[7], nrole = 0;
 
 	if (!f)
 		return err_sys(e, "%s", o->pointings);
-	if (!(p = calloc(MAX_EXPOSURES, sizeof(*p)))) {
-		fclose(f);
-		return err_sys(e, "pointings");
-	}
 	while (fgets(line, sizeof(line), f)) {
 		char *field[7], *save = NULL, *tok, *hash = strchr(line, '#');
 		int nf = 0;
@@ -66,8 +119,24 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 			field[nf++] = tok;
 		if (nf == 0)
 			continue;
-		if (!seen_data++ && !is_number(field[0], &v[0]))
-			continue;       /* a header line */
+		if (!seen_data++ && !is_number(field[0], &v[0])) {
+			/* a header line, which may name the columns */
+			if (tok || !pointings_header(field, nf, role))
+				nrole = 0;
+			else
+				nrole = nf;
+			continue;
+		}
+		if (nrole) {
+			char *std[6];
+
+			if ((nf = pointings_reorder(field, tok ? 7 : nf, role, nrole, std)) < 0) {
+				err_set(e, EXIT_INPUT, "%s:%d: the header names %d columns, this "
+					"line has more fields", o->pointings, lineno, nrole);
+				goto fail;
+			}
+			memcpy(field, std, sizeof(std));
+		}
 		if (nf < 3 || nf > 6) {
 			err_set(e, EXIT_INPUT, "%s:%d: expected 'ra dec pa [name [seed [date]]]', "
 				"got %d field%s", o->pointings, lineno, nf, nf == 1 ? "" : "s");
@@ -89,6 +158,17 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 				MAX_EXPOSURES);
 			goto fail;
 		}
+		if (n == cap) {
+			struct exposure *q;
+
+			cap = cap ? 2 * cap : 64;
+			if (!(q = realloc(p, cap * sizeof(*p)))) {
+				err_sys(e, "pointings");
+				goto fail;
+			}
+			p = q;
+		}
+		memset(&p[n], 0, sizeof(p[n]));
 		p[n].ra = v[0];
 		p[n].dec = v[1];
 		p[n].pa = v[2];
@@ -122,7 +202,7 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 				goto fail;
 			}
 		}
-		if (nf == 6) {
+		if (nf == 6 && strcmp(field[5], "-")) {
 			char what[PATH_MAX + 32];
 
 			snprintf(what, sizeof(what), "%s:%d: date", o->pointings, lineno);

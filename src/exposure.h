@@ -18,8 +18,9 @@
 struct err;
 struct scene_opts;
 
-/* At most this many exposures in one run (--pointings lines). */
-#define MAX_EXPOSURES 64
+/* At most this many exposures in one run (--pointings lines); they are
+ * drawn as many at a time as --memory holds (run.c). */
+#define MAX_EXPOSURES 100000
 
 struct exposure {
 	char name[64];          /* --pointings name ("001", ...), "" for one exposure */

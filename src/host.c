@@ -82,6 +82,8 @@ const char *host_setting(void *ctx, const char *key)
 		return g->noise_str;
 	if (!strcmp(key, "pixel-sigma"))
 		return g->sigma_str;
+	if (!strcmp(key, "mjd"))
+		return isnan(g->x->date) ? NULL : g->mjd_str;
 	/* --set key=value: the last one given wins */
 	const char *hit = NULL;
 	size_t n = strlen(key);

@@ -87,6 +87,9 @@ static const struct opt scene_options[] = {
 	  "line); "
 	  "-o, --placed and --report then need a %s for the name", opt_string,
 	  OFF(o.pointings)) },
+	{ OPT("memory", 0, "MB", "half the RAM", "memory for the exposures of --pointings drawn "
+	  "at once; the rest in later passes over the catalogs", opt_double, OFF(o.memory_mb)),
+	  .lo = 1, .hi = 1e9, .flags = OPT_SHOW_DEFAULT },
 	{ OPT("compress", 0, "C", "none", "none, rice or gzip tile compression",
 	  opt_choice_word, OFF(o.compress)), .words = compressions },
 	{ OPT("rows", 0, "A-B", NULL, "draw and write only rows A to B of each SCA (a part "
@@ -128,6 +131,8 @@ static const struct opt scene_options[] = {
 	  set_background, OFF(o.background)), .lo = 0, .hi = 1e12 },
 	{ OPT("date", 0, "D", NULL, "UTC date of the exposure: 2027-05-15[T06:30[:12.5]] or an "
 	  "MJD", set_date, OFF(o.date)) },
+	{ OPT("epoch", 0, "YEAR", "2016.0", "Julian year of the catalogs' positions, for "
+	  "pmra, pmdec and parallax", opt_double, OFF(o.epoch)), .lo = 1000, .hi = 3000 },
 	{ OPT("zodi", 0, "N", "project", "project or etc: the zodiacal light scale of "
 	  "--background sky", opt_choice, OFF(o.zodi_norm)), .words = norms },
 	{ OPT("allow-sun-angle", 0, NULL, NULL, "simulate pointings Roman cannot take (the Sun "

@@ -18,6 +18,7 @@
 #include "catalog.h"
 #include "engine.h"
 #include "err.h"
+#include "motion.h"
 
 
 /*
@@ -157,8 +158,32 @@ static int psf_class_of(const struct engine *g, double mag)
 	return WFS_PSF_NORMAL;
 }
 
+/* src's flux checked: positive, finite, and within what a float32 image
+ * holds.  model names the model that set the flux, NULL for the catalog. */
+static int flux_check(struct engine *g, const struct rows *r, size_t i,
+		      const struct wfs_source *src, const char *model)
+{
+	const char *what = model ? "becomes, by its model," : "converts to";
+
+	if (!isfinite(src->flux) || src->flux <= 0)
+		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g %s %g counts/s "
+			       "on SCA %d: not a positive finite number", r->file,
+			       r->line[i], r->flux[i], what, src->flux, src->sca);
+	/* The image is float32 (at most 3.4e38): one source may bring up to
+	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
+	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
+		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g %s %g %s on SCA %d, "
+			       "more than the 1e32 that one source may put in a "
+			       "float32 image", r->file, r->line[i], r->flux[i],
+			       model ? what : "gives",
+			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
+			       g->o->bunit_counts ? "counts" : "counts/s", src->sca);
+	return 0;
+}
+
 /* Fill src for row i on SCA sca at pixel (x, y): its flux there, checked,
- * its magnitude and ePSF class, the catalog's facts.  Returns 0 or -1. */
+ * its magnitude and ePSF class, the catalog's facts, the exposure's date.
+ * Returns 0 or -1. */
 static int fill_source(struct engine *g, const struct rows *r, size_t i,
 		       const double *param, int sca, double x, double y,
 		       struct wfs_source *src)
@@ -173,19 +198,8 @@ static int fill_source(struct engine *g, const struct rows *r, size_t i,
 	src->id = r->id[i];
 	src->param = param;
 	src->flux_meaning = g->flux_meaning;
-	if (!isfinite(src->flux) || src->flux <= 0)
-		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g converts to %g counts/s "
-			       "on SCA %d: not a positive finite number", r->file,
-			       r->line[i], r->flux[i], src->flux, sca);
-	/* The image is float32 (at most 3.4e38): one source may bring up to
-	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
-	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
-		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g gives %g %s on SCA %d, "
-			       "more than the 1e32 that one source may put in a "
-			       "float32 image", r->file, r->line[i], r->flux[i],
-			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
-			       g->o->bunit_counts ? "counts" : "counts/s", sca);
-	return 0;
+	src->mjd = g->x->date;
+	return flux_check(g, r, i, src, NULL);
 }
 
 /* A model's prepare() or reach() returned -1 for row i.  A refused row is
@@ -205,25 +219,62 @@ static int row_refused(struct engine *g, const struct rows *r, size_t i,
 	return -1;
 }
 
-/* Fill src for row i on SCA sca at pixel (x, y) and let the model check and
- * prepare it.  Returns 0 or -1. */
+/* The model that draws the sources of row model m: m, or its drawn_by. */
+static inline int drawer_of(const struct engine *g, int m)
+{
+	int d = g->plugins.p[m].drawer;
+
+	return d >= 0 ? d : m;
+}
+
+/*
+ * Fill src for row i on SCA sca at pixel (x, y); for a model drawn by
+ * another (model.h, drawn_by), let it decide the source (its flux and
+ * position at the exposure's date) and hand src the drawing model's
+ * columns, which follow the model's own in param.  Returns 0 or -1.
+ */
+static int source_at(struct engine *g, const struct rows *r, size_t i, int m,
+		     const double *param, int sca, double x, double y,
+		     struct wfs_source *src)
+{
+	const struct plugin *pl = &g->plugins.p[m];
+
+	if (fill_source(g, r, i, param, sca, x, y, src) < 0)
+		return -1;
+	if (pl->drawer < 0)
+		return 0;
+	if (pl->m->prepare && pl->m->prepare(pl->state, src) < 0)
+		return row_refused(g, r, i, pl->m, "prepare() failed" MODEL_SILENT);
+	if (flux_check(g, r, i, src, pl->m->name) < 0)
+		return -1;
+	if (!isfinite(src->x) || !isfinite(src->y))
+		return err_set(g->e, EXIT_PLUGIN, "%s:%ld: model '%s' moved the source to "
+			       "(%g, %g)", r->file, r->line[i], pl->m->name, src->x, src->y);
+	src->mag = place_zeropoint(g, sca) - 2.5 * log10(src->flux);
+	src->psf_class = psf_class_of(g, src->mag);
+	src->param = param + pl->m->ncolumns;
+	return 0;
+}
+
+/* source_at(), then the drawing model checks and prepares it.  Returns 0
+ * or -1. */
 static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
 		       const double *param, int sca, double x, double y,
 		       struct wfs_source *src)
 {
-	const struct wfs_model *md = g->plugins.p[m].m;
+	const struct plugin *dp = &g->plugins.p[drawer_of(g, m)];
 
-	if (fill_source(g, r, i, param, sca, x, y, src) < 0)
+	if (source_at(g, r, i, m, param, sca, x, y, src) < 0)
 		return -1;
-	if (md->prepare && md->prepare(g->plugins.p[m].state, src) < 0)
-		return row_refused(g, r, i, md, "prepare() failed" MODEL_SILENT);
+	if (dp->m->prepare && dp->m->prepare(dp->state, src) < 0)
+		return row_refused(g, r, i, dp->m, "prepare() failed" MODEL_SILENT);
 	return 0;
 }
 
 static int footprint(struct engine *g, const struct rows *r, size_t i, int m,
 		     const struct wfs_source *src, struct wfs_box *box)
 {
-	const struct wfs_model *md = g->plugins.p[m].m;
+	const struct wfs_model *md = g->plugins.p[drawer_of(g, m)].m;
 
 	if (md->footprint(g->plugins.p[m].state, src, box) < 0) {
 		err_set(g->e, EXIT_PLUGIN, "footprint() failed" MODEL_SILENT);
@@ -383,6 +434,8 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	}
 	if (box.y0 >= box.y1)
 		return 0;
+	/* drawn by the drawing model, with its columns (src.param) */
+	md = g->plugins.p[drawer_of(g, m)].m;
 	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
 	    grow((void **)&b->param, &b->capparam, b->nparam + md->ncolumns + 1,
 		 sizeof(double)) < 0)
@@ -390,10 +443,10 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	p = &b->p[b->n++];
 	p->src = src;
 	p->box = box;
-	p->model = m;
+	p->model = drawer_of(g, m);
 	p->slot = slot;
 	p->param_off = b->nparam;
-	memcpy(b->param + b->nparam, param, md->ncolumns * sizeof(double));
+	memcpy(b->param + b->nparam, src.param, md->ncolumns * sizeof(double));
 	b->nparam += md->ncolumns;
 	return 0;
 }
@@ -408,7 +461,7 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 		     const double *param, double *reach)
 {
-	const struct plugin *pl = &g->plugins.p[m];
+	const struct plugin *pl = &g->plugins.p[drawer_of(g, m)];
 	struct wfs_source src;
 	struct wfs_box box;
 	double ext;
@@ -416,7 +469,7 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 	if (pl->reach) {
 		double centre = (WFS_NPIX - 1) / 2.0;
 
-		if (fill_source(g, r, i, param, g->slot[0].sca, centre, centre, &src) < 0)
+		if (source_at(g, r, i, m, param, g->slot[0].sca, centre, centre, &src) < 0)
 			return -1;
 		if (pl->reach(pl->state, &src, &ext) < 0)
 			return row_refused(g, r, i, pl->m, "reach() failed" MODEL_SILENT);
@@ -508,6 +561,32 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 #undef LIM
 }
 
+/* The values of the columns model m reads for row i, into v. */
+static int read_params(struct engine *g, const struct rows *r, size_t i, int m, double *v)
+{
+	const struct wfs_model *md = g->plugins.p[m].m;
+
+	if (model_columns(g, r, m) < 0)
+		return -1;
+	for (int c = 0; c < md->ncolumns; c++) {
+		const struct wfs_column *col = plugin_column(&g->plugins.p[m], c);
+
+		/* an empty cell is the fallback, but for a required column
+		 * (no number parses to NaN) */
+		if (g->colidx[m][c] < 0)
+			v[c] = col->fallback;
+		else if (rows_number(r, g->colidx[m][c], i, col->required ? NAN :
+				     col->fallback, &v[c], g->e) < 0)
+			return -1;
+		else if (col->required && isnan(v[c]))
+			return err_set(g->e, EXIT_INPUT, "%s:%ld: model '%s': column '%s': "
+				       "empty value", r->file, r->line[i], md->name, col->name);
+		else if (g->colidx[m][c] == r->sky_angle_col && !isnan(r->ra[i]))
+			v[c] -= north_pa(g, r->ra[i], r->dec[i]);   /* romanisim's pa */
+	}
+	return 0;
+}
+
 /* The model of each row (model[i]), the values of the columns it reads
  * (param, MAX_COLUMNS a row), and each sky row's reach (g->reach); the
  * count of x/y rows in *nxy and the largest reach in *maxreach. */
@@ -519,7 +598,6 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
 
 	for (size_t i = 0; i < r->n; i++) {
 		int m;
-		const struct wfs_model *md;
 
 		/* Rows of one catalog mostly share one type string ("point"
 		 * when there is no type column). */
@@ -531,28 +609,13 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
 		}
 		last_type = r->type[i];
 		last_m = m;
-		md = g->plugins.p[m].m;
 		model[i] = m;
-		if (model_columns(g, r, m) < 0)
+		if (read_params(g, r, i, m, &param[i * MAX_COLUMNS]) < 0)
 			return -1;
-		for (int c = 0; c < md->ncolumns; c++) {
-			const struct wfs_column *col = plugin_column(&g->plugins.p[m], c);
-			double *v = &param[i * MAX_COLUMNS + c];
-
-			/* an empty cell is the fallback, but for a required
-			 * column (no number parses to NaN) */
-			if (g->colidx[m][c] < 0)
-				*v = col->fallback;
-			else if (rows_number(r, g->colidx[m][c], i, col->required ? NAN :
-					     col->fallback, v, g->e) < 0)
-				return -1;
-			else if (col->required && isnan(*v))
-				return err_set(g->e, EXIT_INPUT, "%s:%ld: model '%s': column '%s': "
-					       "empty value", r->file, r->line[i], md->name,
-					       col->name);
-			else if (g->colidx[m][c] == r->sky_angle_col && !isnan(r->ra[i]))
-				*v -= north_pa(g, r->ra[i], r->dec[i]);   /* romanisim's pa */
-		}
+		if (g->plugins.p[m].drawer >= 0 &&
+		    read_params(g, r, i, g->plugins.p[m].drawer,
+				&param[i * MAX_COLUMNS + g->plugins.p[m].m->ncolumns]) < 0)
+			return -1;
 		g->reach[i] = 0;
 		if (isnan(r->ra[i]))
 			(*nxy)++;
@@ -656,6 +719,30 @@ static int place_on_slot(struct engine *g, const struct rows *r, struct batch *b
 	return 0;
 }
 
+/*
+ * The chunk as seen at the exposure's date: its sky rows moved by their
+ * proper motion and parallax (motion.h) into g->mra, g->mdec, and a copy of
+ * r pointing at them (kept in the engine, so that its address, which
+ * caches the models' column indices, is the same for every chunk).  An
+ * exposure without a date sees the catalog's positions.
+ */
+static const struct rows *moved_rows(struct engine *g, const struct rows *r)
+{
+	if (!g->moved) {
+		if (!(g->moved = malloc(sizeof(*g->moved)))) {
+			err_sys(g->e, "rows");
+			return NULL;
+		}
+		motion_observer(g->x->date, g->observer);
+	}
+	motion_apply(g->x->date, g->observer, r->n, r->ra, r->dec, r->pmra, r->pmdec,
+		     r->parallax, r->epoch, g->mra, g->mdec);
+	*g->moved = *r;
+	g->moved->ra = g->mra;
+	g->moved->dec = g->mdec;
+	return g->moved;
+}
+
 /* Turn one chunk of rows into the placements of batch b. */
 int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 {
@@ -674,8 +761,12 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    resize((void **)&g->reach, g->cap_rows * sizeof(double)) < 0 ||
 	    resize((void **)&g->cand, g->cap_rows * sizeof(uint32_t)) < 0 ||
 	    resize((void **)&g->mask, g->cap_rows * sizeof(uint32_t)) < 0 ||
-	    resize((void **)&g->listed, g->cap_rows) < 0)
+	    resize((void **)&g->listed, g->cap_rows) < 0 ||
+	    resize((void **)&g->mra, g->cap_rows * sizeof(double)) < 0 ||
+	    resize((void **)&g->mdec, g->cap_rows * sizeof(double)) < 0)
 		return err_sys(g->e, "rows");
+	if (r->pmra && !isnan(g->x->date) && (r = moved_rows(g, r)) == NULL)
+		return -1;
 	memset(g->listed, 0, r->n);
 	/* a catalog fact, for models with a half-light radius */
 	g->flux_meaning = g->o->sersic_flux ? strcmp(g->o->sersic_flux, "ie") == 0

@@ -260,11 +260,36 @@ static int read_appended(struct plugin *pl, struct err *e)
 	return 0;
 }
 
+/* The model that draws pl's sources (model.h, drawn_by): loaded, not
+ * itself drawn by another, and the two models' columns within the limit. */
+static int load_drawer(struct plugins *ps, struct plugin *pl, const char *name,
+		       struct err *e)
+{
+	int d;
+
+	if (!strcmp(name, pl->name))
+		return refuse(pl, e, "drawn_by names the model itself");
+	if ((d = plugins_get(ps, name, e)) < 0) {
+		err_prefix(e, "model '%s' is drawn by '%s'", pl->name, name);
+		e->code = EXIT_PLUGIN;
+		return -1;
+	}
+	if (ps->p[d].drawer >= 0)
+		return refuse(pl, e, "drawn_by names '%s', which is drawn by another model", name);
+	if (pl->m->ncolumns + ps->p[d].m->ncolumns > PLUGIN_COLUMNS_MAX)
+		return refuse(pl, e, "its columns and those of '%s' are more than %d", name,
+			      PLUGIN_COLUMNS_MAX);
+	pl->drawer = d;
+	return 0;
+}
+
 int plugins_get(struct plugins *ps, const char *name, struct err *e)
 {
 	struct plugin *pl;
 	wfs_model_entry_fn entry;
 	const struct wfs_model *m;
+	const char *drawn_by;
+	int idx;
 	size_t need = offsetof(struct wfs_model, render) + sizeof(m->render);
 
 	for (int i = 0; i < ps->n; i++)
@@ -277,12 +302,13 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 			       PLUGIN_MAX);
 	pl = &ps->p[ps->n];
 	memset(pl, 0, sizeof(*pl));
+	pl->drawer = -1;
 	snprintf(pl->name, sizeof(pl->name), "%s", name);
 	if (find_file(ps->path, name, pl->path, sizeof(pl->path)) < 0)
 		return err_set(e, EXIT_INPUT,
 			       "unknown source type '%s': no model plugin '%s.so' on the "
 			       "plugin path %s", name, name, ps->path);
-	ps->n++;        /* remembered, so a refused model is refused once */
+	idx = ps->n++;  /* remembered, so a refused model is refused once */
 	if (open_bound(pl, e) < 0)
 		return -1;
 	entry = (wfs_model_entry_fn)(uintptr_t)lt_dlsym(pl->handle, WFS_MODEL_ENTRY);
@@ -302,14 +328,17 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	if (!m->name || strcmp(m->name, name))
 		return refuse(pl, e, "descriptor names the model '%s', not the file's name",
 			      m->name ? m->name : "(null)");
-	if (!m->footprint || !m->render || (m->ncolumns > 0 && !m->columns) ||
-	    m->ncolumns < 0)
+	drawn_by = WFS_HAS(m->size, struct wfs_model, drawn_by) ? m->drawn_by : NULL;
+	if ((!drawn_by && (!m->footprint || !m->render)) ||
+	    (m->ncolumns > 0 && !m->columns) || m->ncolumns < 0)
 		return refuse(pl, e, "descriptor lacks footprint(), render() or its columns");
 	if (m->ncolumns > PLUGIN_COLUMNS_MAX)
 		return refuse(pl, e, "descriptor lists %d columns; a model reads at most %d",
 			      m->ncolumns, PLUGIN_COLUMNS_MAX);
 	pl->m = m;
 	if (read_appended(pl, e) < 0)
+		return -1;
+	if (drawn_by && load_drawer(ps, pl, drawn_by, e) < 0)
 		return -1;
 	for (int c = 0; c < m->ncolumns; c++)
 		if (!plugin_column(pl, c)->name || !*plugin_column(pl, c)->name)
@@ -322,7 +351,7 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 		return -1;
 	}
 	pl->ready = 1;
-	return ps->n - 1;
+	return idx;
 }
 
 void plugins_free(struct plugins *ps)

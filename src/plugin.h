@@ -40,6 +40,7 @@ struct plugin {
 	size_t setting_size;    /* stride of settings */
 	int nsettings;
 	int (*reach)(void *state, const struct wfs_source *src, double *pixels);
+	int drawer;             /* index of the drawn_by model, or -1 */
 };
 
 /* Column c of pl's model, through the plugin's own stride. */

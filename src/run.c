@@ -57,6 +57,7 @@ static void engine_setting_strings(struct engine *g)
 	snprintf(g->filter_name, sizeof(g->filter_name), "%s", filter_get(o->filter)->name);
 	snprintf(g->exptime_str, sizeof(g->exptime_str), "%.17g", o->exptime);
 	snprintf(g->seed_str, sizeof(g->seed_str), "%llu", (unsigned long long)g->x->seed);
+	snprintf(g->mjd_str, sizeof(g->mjd_str), "%.17g", g->x->date);
 	/* the least of the 18 SCAs' backgrounds: the same for runs split by SCA */
 	snprintf(g->bkg_str, sizeof(g->bkg_str), "%.17g", g->x->bkg.least);
 	snprintf(g->readnoise_str, sizeof(g->readnoise_str), "%.17g",
@@ -154,6 +155,7 @@ static void engine_free(struct engine *g)
 	}
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
 	free(g->listed);
+	free(g->mra); free(g->mdec); free(g->moved);
 	sky_free(&g->sky);
 }
 
@@ -233,7 +235,8 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			const struct scene_opts *o, struct err *e)
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
-				   .chunk_rows = o->chunk, .settings = o->settings };
+				   .chunk_rows = o->chunk, .settings = o->settings,
+				   .epoch = o->epoch };
 	struct engine *pending = NULL;  /* whose batch the pool is drawing */
 	struct tree_disc *disc = NULL;
 	int cur = 0, rc = -1;
@@ -355,34 +358,59 @@ static int finish(struct engine *g, struct timespec t0)
 	return 0;
 }
 
-int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
-{
-	struct exposure *x = NULL;
-	struct engine **g = NULL;
-	struct pool *pool = NULL;
-	struct into *into = NULL;
-	struct timespec t0;
-	int n = 0, made = 0, rc = -1;
+/*
+ * The memory one exposure holds while it is drawn: its tiles, 4088 columns
+ * of doubles for each row drawn on each SCA requested (a crowded field
+ * touches every tile), and SERIES_SCA_BYTES more per SCA for its PSF
+ * grids, which each exposure loads for itself, its placements and its
+ * writer.  Measured: a series of 10^6 stars on SCA 1 peaks at 1846 MB with
+ * 10 exposures at once and 581 MB with 3, 181 MB an exposure, of which
+ * 128 MiB are tiles (BENCHMARKS.md).
+ */
+#define SERIES_SCA_BYTES (56.0 * 1024 * 1024)
 
-	clock_gettime(CLOCK_MONOTONIC, &t0);
-	if (o->into && (o->pointings || o->row_first || !strcmp(o->output, "-") ||
-			strstr(o->output, "%d")))
-		return err_set(e, EXIT_INPUT, "--into: one output file, without "
-			       "--pointings, --rows, '-' or '%%d'");
-	if (o->into && !(into = into_open(o->into, o->sca_mask, e)))
-		return -1;
-	if (exposures_make(o, &x, &n, e) < 0) {
-		into_free(into);
-		return -1;
+static double exposure_bytes(const struct scene_opts *o, const struct exposure *x)
+{
+	int nsca = __builtin_popcount(x->sca_mask);
+	double rows = o->row_first ? o->row_last - o->row_first + 1 : WFS_NPIX;
+
+	return nsca * (rows * WFS_NPIX * sizeof(double) + SERIES_SCA_BYTES);
+}
+
+/*
+ * How many exposures are drawn at once: as many as the memory budget
+ * (--memory, by default half the machine's physical memory) holds at
+ * exposure_bytes() each, at least one.  The others wait for later passes
+ * over the catalogs, so a series of hundreds of exposures of one field
+ * needs the memory of a few and reads the catalogs once per pass.
+ */
+static int series_per_pass(const struct scene_opts *o, const struct exposure *x, int n)
+{
+	double budget = o->memory_mb > 0 ? o->memory_mb * 1024.0 * 1024.0 : 0;
+	double each = exposure_bytes(o, &x[0]), k;
+
+	if (!(budget > 0)) {
+		long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+
+		budget = pages > 0 && size > 0 ? 0.5 * pages * (double)size : 4e9;
 	}
-	/* With --into, the image says where the SCAs look (into.h). */
-	if (into)
-		into_pointing(into, &x[0].ra, &x[0].dec, &x[0].pa, &x[0].boresight);
-	if (!(g = calloc(n, sizeof(*g))) ||
-	    !(pool = pool_new(o->threads > 0 ? o->threads : pool_cpus()))) {
-		err_sys(e, "memory");
-		goto out;
-	}
+	for (int i = 1; i < n; i++)
+		each = fmax(each, exposure_bytes(o, &x[i]));
+	k = floor(budget / each);
+	return k < 1 ? 1 : k >= n ? n : (int)k;
+}
+
+/* Exposures x[first .. first+n-1] drawn in one pass over the catalogs: an
+ * engine each, the catalogs streamed through them, each written. */
+static int run_pass(const struct scene_opts *o, char *const *catalogs, struct exposure *x,
+		    int n, struct pool *pool, struct into *into, struct timespec t0,
+		    struct err *e)
+{
+	struct engine **g = calloc(n, sizeof(*g));
+	int made = 0, rc = -1;
+
+	if (!g)
+		return err_sys(e, "memory");
 	for (int i = 0; i < n; i++) {
 		if (!(g[i] = malloc(sizeof(*g[i])))) {
 			err_sys(e, "memory");
@@ -403,18 +431,68 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	for (int i = 0; i < n; i++)
 		if (finish(g[i], t0) < 0)
 			goto out;
-	if (into && into_compose(into, x[0].output, e) < 0)
-		goto out;
 	rc = 0;
 out:
-	into_free(into);
 	for (int i = 0; i < made; i++) {
 		placed_close(g[i], 0);
 		engine_free(g[i]);
 		free(g[i]);
 	}
+	free(g);
+	return rc;
+}
+
+int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
+{
+	struct exposure *x = NULL;
+	struct pool *pool = NULL;
+	struct into *into = NULL;
+	struct timespec t0;
+	int n = 0, per, rc = -1;
+
+	clock_gettime(CLOCK_MONOTONIC, &t0);
+	if (o->into && (o->pointings || o->row_first || !strcmp(o->output, "-") ||
+			strstr(o->output, "%d")))
+		return err_set(e, EXIT_INPUT, "--into: one output file, without "
+			       "--pointings, --rows, '-' or '%%d'");
+	if (o->into && !(into = into_open(o->into, o->sca_mask, e)))
+		return -1;
+	if (exposures_make(o, &x, &n, e) < 0) {
+		into_free(into);
+		return -1;
+	}
+	/* With --into, the image says where the SCAs look (into.h). */
+	if (into)
+		into_pointing(into, &x[0].ra, &x[0].dec, &x[0].pa, &x[0].boresight);
+	per = series_per_pass(o, x, n);
+	if (per < n) {
+		for (char *const *cat = catalogs; *cat; cat++)
+			if (!strcmp(*cat, "-")) {
+				err_set(e, EXIT_INPUT, "--pointings: %d exposures need %d passes "
+					"over the catalogs (%d at a time, %.0f MB each), and stdin "
+					"can be read once: give the catalog as a file, or more "
+					"--memory", n, (n + per - 1) / per, per,
+					exposure_bytes(o, &x[0]) / 1048576.0);
+				goto out;
+			}
+		if (o->verbose >= 1)
+			fprintf(stderr, "wfiscene: %d exposures in %d passes over the catalogs, "
+				"at most %d at a time (%.0f MB each)\n", n, (n + per - 1) / per,
+				per, exposure_bytes(o, &x[0]) / 1048576.0);
+	}
+	if (!(pool = pool_new(o->threads > 0 ? o->threads : pool_cpus()))) {
+		err_sys(e, "memory");
+		goto out;
+	}
+	for (int i = 0; i < n; i += per)
+		if (run_pass(o, catalogs, x + i, n - i < per ? n - i : per, pool, into, t0, e) < 0)
+			goto out;
+	if (into && into_compose(into, x[0].output, e) < 0)
+		goto out;
+	rc = 0;
+out:
+	into_free(into);
 	pool_free(pool);
 	exposures_free(x, n);
-	free(g);
 	return rc;
 }

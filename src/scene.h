@@ -36,6 +36,11 @@ struct scene_opts {
 	int zodi_norm;                  /* enum bkg_norm */
 	int allow_sun;                  /* --allow-sun-angle */
 	double date;                    /* MJD (UTC) of --date; NaN for none */
+	double memory_mb;               /* --memory: the budget for exposures
+	                                   drawn at once (run.c); 0: half the
+	                                   physical memory */
+	double epoch;                   /* --epoch: Julian year of catalog
+	                                   positions without an epoch column */
 	unsigned noise;                 /* enum noise_stage bits */
 	double readnoise, dark_current, cosmic_rate, cosmic_residual;
 	const char *output;             /* "-", a path, or a path with %d */

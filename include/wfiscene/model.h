@@ -82,11 +82,21 @@
  *                "poisson,readnoise,dark,flat,cosmic," or a subset, "" for none
  *   sersic       the method of the "sersic" family of models (see resolving
  *                types below), "quick" or "precise"
+ *   mjd          the exposure's date as an MJD, "%.17g"; NULL when the run
+ *                has no date (hosts before edition 3: always NULL)
  *
  * and every KEY of --set KEY=VALUE (the value as typed, the last one given
  * winning); NULL for a key that is not set.  A model reads the keys it
  * declares in wfs_model.settings, and SHOULD name them after itself
  * ("psf-core", "sersic-trunc", "moffat-beta").
+ *
+ * Time.  An exposure may have a date (wfiscene --date, or a date column of
+ * --pointings): src->mjd gives it to a model (edition 3 on, see
+ * WFS_ABI_EDITION), and setting "mjd" gives it as text.  A model whose
+ * light changes with time (a variable star, a microlensing event) computes
+ * its source for that date in prepare(): its flux, or its position.  Such a
+ * model usually draws like another one, a point source: it then names that
+ * model in wfs_model.drawn_by and does not draw at all (see drawn_by).
  *
  * Resolving a catalog type.  A row of type T is drawn by the model T, except
  * when the scene has a setting T (an option of that name, or --set T=M):
@@ -108,6 +118,14 @@ extern "C" {
 /* The ABI major version.  A plugin whose descriptor carries another value is
  * refused.  Bumped only when an existing field changes meaning. */
 #define WFS_ABI_VERSION 1
+
+/* The edition of this header, raised whenever members are appended (the
+ * version above stays): 1 the first; 2 reach(), settings, column_size,
+ * setting_size, wfs_host.source_size, wfs_source.flux_meaning; 3 the
+ * exposure's time, wfs_source.mjd and wfs_model.drawn_by.  A plugin MAY test
+ * it at compile time to keep one source for several editions; at run time
+ * the sizes decide (WFS_HAS), never the edition. */
+#define WFS_ABI_EDITION 3
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -166,6 +184,12 @@ struct wfs_source {
 	                           A model with a half-light radius turns
 	                           WFS_FLUX_IE into the total in prepare(),
 	                           rewriting flux; other models ignore it. */
+
+	/* Edition 3; present when WFS_HAS(host->source_size, struct
+	 * wfs_source, mjd) (older hosts: no date, as for NaN). */
+	double mjd;             /* the exposure's date, a Modified Julian Date
+	                           (UTC, leap seconds ignored) of its start;
+	                           NaN when the exposure has none */
 };
 
 /*
@@ -340,6 +364,22 @@ struct wfs_model {
 	 * takes the footprint's extent plus 2 pixels, as hosts did before
 	 * reach() existed. */
 	int (*reach)(void *state, const struct wfs_source *src, double *pixels);
+
+	/* Edition 3.  The name of the model that draws this model's sources,
+	 * or NULL (and absent): the model draws them itself.  A model that
+	 * only decides a source's flux or position, for instance at the
+	 * exposure's date, names the model that draws such a source ("point")
+	 * and MAY leave footprint() and render() NULL.  The host loads that
+	 * model too (it MUST NOT itself name one) and, for each row and SCA:
+	 * fills src as for any model, with this model's columns in param;
+	 * calls this model's prepare(), which MAY rewrite flux (> 0), x and y
+	 * (mag and psf_class are then worked out again from the flux); then
+	 * hands src, with param now the drawing model's columns (read from the
+	 * catalog after this model's), to the drawing model's prepare(),
+	 * footprint() and render(), and reach() where this model's prepare()
+	 * ran first on a copy.  The two models' columns together are at most
+	 * 32, the most one model may read. */
+	const char *drawn_by;
 };
 
 #if defined(__GNUC__)

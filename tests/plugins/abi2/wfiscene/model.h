@@ -1,0 +1,366 @@
+/*
+ * wfiscene/model.h - the source-model plugin ABI of wfiscene.
+ *
+ * This header is the whole contract between wfiscene (the host) and a source
+ * model (a plugin).  It is the only header a plugin includes, and a plugin
+ * calls no symbol of the host: everything it may use arrives through
+ * struct wfs_host.  The key words MUST, MUST NOT, SHOULD and MAY are used as
+ * in RFC 2119.
+ *
+ * A plugin is a shared object named after its model (point.so, sersic-quick.so,
+ * moffat.so, ...), found on the plugin search path (--plugin-path,
+ * $WFISCENE_PLUGIN_PATH, the installed plugin directory).  It MUST export
+ * exactly one symbol, wfs_model_entry (declared below), and SHOULD hide
+ * every other symbol (-fvisibility=hidden).  It MUST NOT need any symbol of
+ * the host: link it with -Wl,-z,defs (or your linker's equivalent) so that
+ * one cannot creep in.  The host loads a plugin the first time a catalog row
+ * names its model, in the main thread, with every symbol bound at once
+ * (RTLD_NOW): a plugin with an unresolved symbol is refused then, with the
+ * symbol's name and exit status 3, never halfway through a run.
+ *
+ * Life of a model in one run:
+ *
+ *   entry(WFS_ABI_VERSION)  once, returns the static descriptor
+ *   init(host, &state)      once, single-threaded: tables, plans, settings
+ *   reach(state, src)       once per sky row, main thread: how far from its
+ *                           position the row may throw light, so the host
+ *                           knows which SCAs it may land on
+ *   thread_start(state, &t) once per worker thread that renders this model
+ *   prepare(state, src)     once per row and SCA it lands on, main thread,
+ *                           with x, y, sca, flux and mag set for that SCA:
+ *                           validate the row's parameters and precompute
+ *                           into src->aux
+ *   footprint(state, src)   once per row and SCA it lands on, main thread: the
+ *                           pixels the source may touch, so the host can bin
+ *                           it by tile
+ *   render(state, t, ...)   once per (source, tile) pair, in worker threads
+ *   thread_stop(state, t)   per thread started
+ *   fini(state)             once
+ *
+ * Coordinates.  Pixel coordinates are 0-based science-frame pixels of one
+ * SCA (4088 x 4088): pixel (i, j) covers [i - 0.5, i + 0.5) x [j - 0.5, j + 0.5)
+ * and its centre is at (i, j).  x runs along FITS NAXIS1 (columns), y along
+ * NAXIS2 (rows).  FITS and catalog pixel positions are 1-based; the host
+ * converts before a plugin sees them.
+ *
+ * Units.  src->flux is the source's total flux in counts/s (e-/s) after all
+ * unit conversions, and a plugin adds counts/s per pixel into the window.
+ *
+ * How the ABI grows.  WFS_ABI_VERSION changes only when a field changes
+ * meaning; otherwise new fields are only ever appended, and each struct that
+ * crosses the ABI says how much of it the other side has:
+ *
+ *   struct wfs_model    the plugin's: its size field.
+ *   struct wfs_column   an array in the plugin: wfs_model.column_size is its
+ *                       stride (absent or 0: the first edition's 32 bytes on
+ *                       LP64), so a grown wfs_column keeps old plugins readable.
+ *   struct wfs_setting  an array in the plugin: wfs_model.setting_size.
+ *   struct wfs_host     the host's: its size field.
+ *   struct wfs_source   the host's, read and partly written by the plugin:
+ *                       wfs_host.source_size.  A plugin MUST NOT read an
+ *                       appended field the host does not have (WFS_HAS).
+ *   struct wfs_epsf     filled by the host in the plugin's memory: FROZEN.
+ *                       It never grows; a richer ePSF would come through a
+ *                       new service with a struct of its own carrying a size.
+ *   struct wfs_box, struct wfs_window
+ *                       FROZEN, like wfs_epsf.
+ *
+ * A member appended to a struct is present when the other side's size
+ * covers it: WFS_HAS(size, struct, member).  A plugin built against an
+ * older model.h keeps working with a newer host: the host reads only what
+ * the plugin's sizes say it has and falls back to the older behaviour for
+ * the rest (each appended member says what that is).
+ *
+ * Settings.  host->setting(key) answers these keys of the scene, as text:
+ *
+ *   filter       the filter name, e.g. "F158"
+ *   exptime      the exposure time in seconds, "%.17g"
+ *   seed         the exposure's random seed, an unsigned decimal integer
+ *   background   the background in counts/s/pixel, "%.17g" ("0" for none)
+ *   readnoise    the read noise in e-, "%.17g"; "0" when --noise leaves it out
+ *   noise        the --noise stages drawn, each followed by a comma:
+ *                "poisson,readnoise,dark,flat,cosmic," or a subset, "" for none
+ *   sersic       the method of the "sersic" family of models (see resolving
+ *                types below), "quick" or "precise"
+ *
+ * and every KEY of --set KEY=VALUE (the value as typed, the last one given
+ * winning); NULL for a key that is not set.  A model reads the keys it
+ * declares in wfs_model.settings, and SHOULD name them after itself
+ * ("psf-core", "sersic-trunc", "moffat-beta").
+ *
+ * Resolving a catalog type.  A row of type T is drawn by the model T, except
+ * when the scene has a setting T (an option of that name, or --set T=M):
+ * then by the model T-M, a family of methods drawing the same thing.  Today
+ * "sersic" (from --sersic, default quick) makes "sersic" rows
+ * "sersic-quick" or "sersic-precise"; --set moffat=fast would make "moffat"
+ * rows "moffat-fast".
+ */
+#ifndef WFISCENE_MODEL_H
+#define WFISCENE_MODEL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The ABI major version.  A plugin whose descriptor carries another value is
+ * refused.  Bumped only when an existing field changes meaning. */
+#define WFS_ABI_VERSION 1
+
+/* Whether a struct of `size` bytes (the other side's size field) has
+ * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
+#define WFS_HAS(size, type, m) \
+	((size_t)(size) >= offsetof(type, m) + sizeof(((type *)0)->m))
+
+/* Number of per-source scratch values a model may fill in prepare(). */
+#define WFS_AUX 8
+
+/* The ePSF size classes: the 44, 88 and 176 pixel boxes of STIPS, chosen by
+ * magnitude against the scene's bright and extra-bright limits. */
+enum wfs_psf_class { WFS_PSF_NORMAL = 0, WFS_PSF_BRIGHT = 1, WFS_PSF_XBRIGHT = 2 };
+
+/* What a row's flux column states, for a model with a half-light radius
+ * (wfs_source.flux_meaning).  A catalog fact: STIPS's internal catalogs,
+ * and --sersic-flux ie, give the surface brightness at the half-light
+ * radius, per square pixel, rather than the total. */
+enum wfs_flux_meaning { WFS_FLUX_TOTAL = 0, WFS_FLUX_IE = 1 };
+
+/* A rectangle of pixels, [x0, x1) x [y0, y1), 0-based.  Frozen. */
+struct wfs_box {
+	int x0, y0, x1, y1;
+};
+
+/*
+ * A window of a tile that render() adds into.  pix points at pixel (x0, y0);
+ * pixel (x, y) of the window is pix[(y - y0) * stride + (x - x0)].  The host
+ * owns the memory.  A plugin MUST only add to pixels inside the window and
+ * MUST NOT read pixels it did not write (they hold other sources' light).
+ * Frozen.
+ */
+struct wfs_window {
+	double *pix;
+	ptrdiff_t stride;
+	int x0, y0, nx, ny;
+};
+
+/*
+ * One source placed on one SCA.  The host fills every field but aux; param
+ * holds the model's columns (see wfs_column) in the order the model declared
+ * them, already parsed as numbers, with the fallback for empty optional cells.
+ */
+struct wfs_source {
+	double x, y;            /* position, 0-based pixels on this SCA */
+	double flux;            /* total flux, counts/s; prepare() MAY rewrite */
+	double mag;             /* AB magnitude of flux on this SCA */
+	const double *param;    /* model columns, ncolumns values */
+	int sca;                /* 1..18 */
+	int psf_class;          /* enum wfs_psf_class chosen from mag */
+	long long id;           /* catalog id, or the row number */
+	double aux[WFS_AUX];    /* the model's own per-source values */
+
+	/* Appended; present when WFS_HAS(host->source_size, struct
+	 * wfs_source, ...) says so (older hosts: a total flux). */
+	int flux_meaning;       /* enum wfs_flux_meaning of the row's flux.
+	                           A model with a half-light radius turns
+	                           WFS_FLUX_IE into the total in prepare(),
+	                           rewriting flux; other models ignore it. */
+};
+
+/*
+ * The effective PSF near a position: four grid nodes and their bilinear
+ * weights (they sum to 1).  Each node is an n x n array of floats, row-major
+ * (row = y), sampled `over` times per detector pixel, with the source centre
+ * at sample (centre, centre).  A sample's value is the fraction of the total
+ * flux that falls in a detector pixel centred at that offset, IPC included,
+ * so samples `over` apart sum to the enclosed flux (about 0.99).  The ePSF at
+ * the position is sum_k weight[k] * node[k][...]; a model SHOULD blend only
+ * the samples it uses rather than whole arrays.  The host fills it in the
+ * plugin's memory, so it is frozen: it never grows.
+ */
+struct wfs_epsf {
+	int n;                  /* samples per side, odd */
+	int over;               /* samples per detector pixel */
+	int centre;             /* index of the centre sample, (n - 1) / 2 */
+	const float *node[4];
+	double weight[4];
+};
+
+/*
+ * Services the host lends a plugin.  ctx is the host's; pass it back as the
+ * first argument.  thread is the host's per-worker handle passed to render().
+ */
+struct wfs_host {
+	uint32_t abi;           /* WFS_ABI_VERSION of the host */
+	uint32_t size;          /* sizeof(struct wfs_host) in the host */
+	void *ctx;
+
+	/* Record an error message (printf format, no trailing newline) and
+	 * return -1, so a callback can `return host->error(host->ctx, ...)`.
+	 * The host adds the place (file, line, model) in front. */
+	int (*error)(void *ctx, const char *fmt, ...)
+		__attribute__((format(printf, 2, 3)));
+
+	/* A message for people on stderr at verbosity level (0 normal, 1 -v,
+	 * 2 -vv).  Not for use in render(). */
+	void (*log)(void *ctx, int level, const char *fmt, ...)
+		__attribute__((format(printf, 3, 4)));
+
+	/* A setting by its key: the scene's ("filter", "exptime", ...: see
+	 * Settings above) or a --set key, or NULL when unset. */
+	const char *(*setting)(void *ctx, const char *key);
+
+	/* The ePSF of SCA sca and size class cls at position (x, y).  Returns 0,
+	 * or -1 with an error recorded.  The arrays stay valid and unchanged
+	 * until fini().  The host loads (or builds) a grid the first time it is
+	 * asked for from prepare() or footprint(), which run in the main
+	 * thread; render() may then ask for it from any thread.  A model that
+	 * draws with the ePSF MUST therefore ask for its source's SCA and class
+	 * in prepare() or footprint() first; a model that never asks costs no
+	 * PSF at all. */
+	int (*epsf)(void *ctx, int sca, double x, double y, int cls,
+		    struct wfs_epsf *out);
+
+	/* Per-thread scratch memory of at least `bytes` bytes, aligned for
+	 * doubles and SIMD, reused between calls: each call MAY return the
+	 * memory of the previous one (its contents are then undefined), so ask
+	 * once for everything one render() needs.  NULL when out of memory. */
+	void *(*scratch)(void *thread, size_t bytes);
+
+	/* Convolve an nx x ny image (row-major, in place) with an odd kn x kn
+	 * kernel whose centre is at (kn - 1) / 2, treating everything outside the
+	 * image as zero, through FFTW with plans the host makes once per size and
+	 * reuses.  The result is the same for any thread.  Returns 0 or -1. */
+	int (*convolve)(void *ctx, void *thread, double *img, int nx, int ny,
+			const double *kernel, int kn);
+
+	/* Appended: sizeof(struct wfs_source) in the host, which tells which
+	 * appended fields of a source exist.  Absent in older hosts (check
+	 * WFS_HAS(host->size, struct wfs_host, source_size) first). */
+	uint32_t source_size;
+};
+
+/*
+ * A catalog column a model reads.  The host reads it case-insensitively by
+ * name from any catalog format.  A required column missing from a catalog
+ * that has a row of this model is an error naming the column, and so is an
+ * empty cell of it (file, line, column): the model never sees one; an
+ * empty or absent optional cell reads as fallback.  The plugin's array has
+ * the stride wfs_model.column_size.
+ */
+struct wfs_column {
+	const char *name;
+	double fallback;
+	int required;
+	const char *doc;        /* one line for --help and the man page */
+};
+
+/*
+ * A setting a model reads through host->setting(), declared so that the
+ * host can say in --report (and a man page can list) which settings a run's
+ * models used, with which values.  The plugin's array has the stride
+ * wfs_model.setting_size.
+ */
+struct wfs_setting {
+	const char *key;        /* e.g. "psf-core" */
+	const char *fallback;   /* the value used when the key is unset, as text
+	                           ("4"), or a few words in parentheses when it
+	                           is derived ("(the scene's noise)") */
+	const char *format;     /* the values allowed: "number >= 0",
+	                           "bilinear|core|bicubic", ... */
+	const char *doc;        /* one line */
+};
+
+/*
+ * The descriptor a plugin's entry returns.  All strings and arrays are static
+ * and stay valid while the plugin is loaded.
+ */
+struct wfs_model {
+	uint32_t abi;           /* MUST be WFS_ABI_VERSION */
+	uint32_t size;          /* MUST be sizeof(struct wfs_model) */
+	const char *name;       /* the `type` value the model draws, e.g. "point" */
+	const char *summary;    /* one line */
+	const struct wfs_column *columns;
+	int ncolumns;
+
+	/* Set up for one scene.  Returns 0 and sets *state (MAY be NULL), or
+	 * -1 with an error recorded. */
+	int (*init)(const struct wfs_host *host, void **state);
+	/* Release what init made.  MAY be NULL. */
+	void (*fini)(void *state);
+
+	/* Per-thread state for render(), or NULL.  MAY be NULL. */
+	int (*thread_start)(void *state, void **tstate);
+	void (*thread_stop)(void *state, void *tstate);
+
+	/* Check one row and precompute what render needs into src->aux.
+	 * Returns 0, or -1 with an error saying which parameter is wrong and
+	 * why (the host names the file and line).  MAY be NULL. */
+	int (*prepare)(void *state, struct wfs_source *src);
+
+	/* The pixels the source may touch on its SCA (before clipping to the
+	 * detector; the host clips).  Returns 0, or -1 with an error. */
+	int (*footprint)(void *state, const struct wfs_source *src,
+			 struct wfs_box *box);
+
+	/* Add the source into the part of it that falls in win.  Called for
+	 * every tile the footprint touches, possibly from several threads at
+	 * once for different tiles, so it MUST be thread-safe and MUST give the
+	 * same pixel values whichever tiles the source is split across.  It
+	 * MUST NOT allocate memory: use host->scratch.  Returns 0, or -1 with an
+	 * error recorded, which stops the run. */
+	int (*render)(void *state, void *tstate, void *thread,
+		      const struct wfs_source *src, const struct wfs_window *win);
+
+	/* Appended members.  The host reads each only when `size` covers it;
+	 * for a shorter descriptor it does what the member's comment says. */
+
+	/* sizeof(struct wfs_column) in the plugin, the stride of columns.
+	 * Absent or 0: the first edition's struct. */
+	uint32_t column_size;
+	/* sizeof(struct wfs_setting) in the plugin, the stride of settings. */
+	uint32_t setting_size;
+	/* The settings the model reads, nsettings of them; MAY be NULL with
+	 * nsettings 0 (and absent: --report lists none for this model). */
+	const struct wfs_setting *settings;
+	int nsettings;
+
+	/* How far from its position, in pixels, the source of a row may throw
+	 * light on any SCA of the scene: the host uses it before any prepare()
+	 * to find the SCAs a sky row may land on, so that prepare() and
+	 * footprint() run once per row and SCA it lands on.  src is filled as
+	 * for prepare() for the scene's first SCA at its centre pixel, but the
+	 * position and SCA are only stand-ins: the answer MUST bound the
+	 * footprint's extent about (x, y) for any position on any SCA (light
+	 * farther out is lost near the SCA's edges).  It MUST NOT change src's
+	 * aux or keep state.  Returns 0 with *pixels set, or -1 with an error.
+	 * MAY be NULL (and absent): the host then calls prepare() and
+	 * footprint() once more per sky row, at (0, 0) of the first SCA, and
+	 * takes the footprint's extent plus 2 pixels, as hosts did before
+	 * reach() existed. */
+	int (*reach)(void *state, const struct wfs_source *src, double *pixels);
+};
+
+#if defined(__GNUC__)
+#define WFS_EXPORT __attribute__((visibility("default")))
+#else
+#define WFS_EXPORT
+#endif
+
+/* The one symbol a plugin exports, defined by the plugin as
+ *
+ *   WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)
+ *
+ * host_abi is the host's WFS_ABI_VERSION; a plugin MAY return NULL when it
+ * cannot work with that host.  The host calls it once, from the main
+ * thread, right after loading the plugin. */
+WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi);
+typedef const struct wfs_model *(*wfs_model_entry_fn)(uint32_t host_abi);
+#define WFS_MODEL_ENTRY "wfs_model_entry"
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -11,6 +11,7 @@
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
+#include <time.h>
 
 #include "engine.h"
 #include "err.h"
@@ -48,6 +49,18 @@ void render_errors_collect(struct engine *g)
 		err_clear(&g->w[i].err);
 }
 
+/* The calling thread's CPU seconds: the render stage's cost in --report,
+ * which a shared machine's load does not inflate as it does the wall
+ * clock (a worker waiting for a core is busy by the wall clock). */
+static double thread_cpu(void)
+{
+	struct timespec t;
+
+	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) < 0)
+		return 0;
+	return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
 /* Worker: render every placement of one active tile, in placement order. */
 void render_tile(void *arg, int wid, size_t task)
 {
@@ -59,7 +72,7 @@ void render_tile(void *arg, int wid, size_t task)
 	int x0 = tx * T, y0 = ty * T;
 	double *tile = g->slot[t / g->ntile].tile[lt];
 
-	double t0 = engine_clock();
+	double t0 = engine_clock(), c0 = thread_cpu();
 
 	if (atomic_load(&g->failed))
 		return;
@@ -92,6 +105,7 @@ void render_tile(void *arg, int wid, size_t task)
 	}
 	host_worker(NULL);
 	g->t_render[wid] += engine_clock() - t0;
+	g->t_render_cpu[wid] += thread_cpu() - c0;
 }
 
 
@@ -99,7 +113,8 @@ int render_threads_init(struct engine *g)
 {
 	g->nworker = pool_threads(g->pool);
 	if (!(g->w = calloc(g->nworker, sizeof(*g->w))) ||
-	    !(g->t_render = calloc(g->nworker, sizeof(*g->t_render))))
+	    !(g->t_render = calloc(g->nworker, sizeof(*g->t_render))) ||
+	    !(g->t_render_cpu = calloc(g->nworker, sizeof(*g->t_render_cpu))))
 		return err_sys(g->e, "threads");
 	for (int i = 0; i < g->nworker; i++)
 		g->w[i].g = g;
@@ -120,6 +135,8 @@ void render_threads_stop(struct engine *g)
 	}
 	free(g->w);
 	free(g->t_render);
+	free(g->t_render_cpu);
 	g->w = NULL;
 	g->t_render = NULL;
+	g->t_render_cpu = NULL;
 }

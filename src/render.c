@@ -49,6 +49,9 @@ void render_errors_collect(struct engine *g)
 		err_clear(&g->w[i].err);
 }
 
+/* Placements prefetched ahead of the one drawn. */
+#define RENDER_AHEAD 4
+
 /* The calling thread's CPU seconds: the render stage's cost in --report,
  * which a shared machine's load does not inflate as it does the wall
  * clock (a worker waiting for a core is busy by the wall clock). */
@@ -81,6 +84,16 @@ void render_tile(void *arg, int wid, size_t task)
 		const struct placement *p = &b->p[b->items[k]];
 		struct plugin *pl = &g->plugins.p[p->model];
 		struct wfs_window win;
+
+		/* A tile's placements are scattered over the chunk's array
+		 * (catalog order): fetch a few ahead, a placement is three
+		 * cache lines. */
+		if (k + RENDER_AHEAD < b->count[t + 1]) {
+			const char *q = (const char *)&b->p[b->items[k + RENDER_AHEAD]];
+
+			for (size_t c = 0; c < sizeof(*p); c += 64)
+				__builtin_prefetch(q + c);
+		}
 
 		if (!w->started[p->model]) {
 			if (pl->m->thread_start &&

@@ -170,6 +170,11 @@ bench:
 	$(Q)$(MAKE) --no-print-directory all unit
 	$(Q)WFS_BUILD=$(B) sh contrib/bench.sh
 
+## bench-render: the engine's render stage against the float stamp-add floor alone
+bench-render:
+	$(Q)$(MAKE) --no-print-directory all
+	$(Q)WFS_BUILD=$(B) BENCH_RENDER_ONLY=1 sh contrib/bench.sh
+
 ## fuzz: build the catalog fuzzer (libFuzzer) and run it for FUZZ_SECONDS (60)
 FUZZ_SECONDS ?= 60
 fuzz: $(B)/data_tables.c
@@ -208,7 +213,7 @@ clean:
 help:
 	@sed -n 's/^## //p' $(MAKEFILE_LIST)
 
-.PHONY: all deps check unit demo demo-bulge bench fuzz lint-man install clean help validate FORCE
+.PHONY: all deps check unit demo demo-bulge bench bench-render fuzz lint-man install clean help validate FORCE
 
 ## validate: the paper's 1000-star photometry test and the load tests (slow; installs python3-matplotlib for the plot)
 validate:

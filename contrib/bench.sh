@@ -4,6 +4,7 @@
 # scratch files in build/bench/.  Never part of make check.
 #
 #   BENCH_QUICK=1 make bench     smaller catalogs, for a quick look
+#   make bench-render            the render stage against the float floor alone
 set -e
 B=${WFS_BUILD:-build}
 W=$B/bench
@@ -40,13 +41,55 @@ for k in sys.argv[2:]:
 print(r)" "$@"
 }
 
+cpu=$(sed -n 's/^model name[[:space:]]*: *//p' /proc/cpuinfo 2>/dev/null | head -n 1)
+flags=$(grep -m 1 '^flags' /proc/cpuinfo 2>/dev/null | grep -o -w -e avx2 -e fma -e avx512f | tr '\n' ' ')
 echo "# wfiscene benchmarks, $(date -u +%Y-%m-%d), $(nproc) cores, $(uname -m)"
+echo
+echo "CPU: ${cpu:-unknown} (${flags% }); L2 per core: $(cat /sys/devices/system/cpu/cpu0/cache/index2/size 2>/dev/null || echo '?');"
+echo "load at the start: $(cut -d ' ' -f 1-3 /proc/loadavg 2>/dev/null).  Absolute figures hold for this"
+echo "machine only; the ratios are taken in one run, interleaved."
 echo
 echo "Commands are shown with each table; catalogs come from build/contrib/starfield."
 
 # Warm the PSF cache so that PSF building is not timed here.
 : > "$W/empty.csv"
 "$WFS" --filter F129 --sca 1-18 --compress gzip -o "$W/warm.fits" "$W/empty.csv"
+
+echo
+echo "## The render stage in the engine against a float stamp-add floor"
+echo
+echo "Faint stars (AB 20-27) on SCA 1, one worker; the engine's render CPU from"
+echo "--report (render_cpu: the worker's thread CPU time in render(), tile"
+echo "handling and first touch of the tiles included), per star:"
+echo "\`starfield -n N -x -s 1 > one.csv; wfiscene --filter F129 --flux-unit abmag --threads 1 --report r.json -o out.fits one.csv\`,"
+echo "against contrib/bench/floor.c's stamp-float loop (a 44x44 float stamp added"
+echo "into a float image, binned by 256-pixel tile, thread CPU, best of 3) run"
+echo "between the engine's runs: floor, engine, floor, engine, floor, engine."
+echo "Main thread: read+parse and project+place (prepare() and footprint() run"
+echo "there) CPU per star is the process's user+system less render_cpu."
+echo
+echo "| pair | floor ns/star | engine render ns/star | × float floor | main thread + rest ns/star | engine system s |"
+echo "|---|---|---|---|---|---|"
+cc -O3 -march=native -std=c11 -Iinclude -o "$W/floor" contrib/bench/floor.c -lm -ldl
+"$GEN" -n $big -x -s 1 > "$W/one.csv"
+"$WFS" --filter F129 --flux-unit abmag --threads 1 -o "$W/o.fits" "$W/one.csv"   # warm
+ratios=
+for pair in 1 2 3; do
+	fl=$("$W/floor" - $big | awk '$1 == "stamp-float" { print $2 }')
+	"$WFS" --filter F129 --flux-unit abmag --threads 1 --report "$W/rf.json" -o "$W/o.fits" "$W/one.csv" ||
+		exit 1
+	set -- $(json "$W/rf.json" seconds render_cpu) $(json "$W/rf.json" seconds cpu_user) \
+		$(json "$W/rf.json" seconds cpu_system)
+	r=$(awk -v n=$big -v fl=$fl -v rc=$1 -v u=$2 -v sy=$3 -v p=$pair 'BEGIN {
+		printf "| %d | %.0f | %.0f | %.2f | %.0f | %.2f |\n", p, fl, 1e9 * rc / n, 1e9 * rc / n / fl,
+			1e9 * (u + sy - rc) / n, sy }')
+	echo "$r"
+	ratios="$ratios $(echo "$r" | cut -d '|' -f 5)"
+done
+echo
+echo "Median ratio, engine render / float floor: $(printf '%s\n' $ratios | sort -n | sed -n 2p)"
+rm -f "$W/one.csv"
+[ "${BENCH_RENDER_ONLY:-0}" = 1 ] && exit 0
 
 echo
 echo "## Faint stars (AB 20-27), end to end"

@@ -159,6 +159,7 @@ struct engine {
 	double image_sum[WFS_NSCA];             /* drawn light, before noise */
 	double t_read, t_place, t_wait, t_noise, t_write, t_total;
 	double *t_render;                       /* per worker: busy seconds */
+	double *t_render_cpu;                   /* per worker: CPU seconds drawing */
 	struct timespec t_start, t_progress;
 	int progress;                           /* stderr is a terminal */
 };

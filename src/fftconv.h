@@ -63,8 +63,12 @@ void fftconv_thread_free(struct fftconv_thread *t);
 int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 		     double *img, int nx, int ny, const double *kernel, int kn);
 
-/* The FFT size fftconv uses for a linear convolution of length n: the
- * smallest 2^a 3^b 5^c 7^d >= n.  Exposed for tests and cost models. */
+/* The smallest 2^a 3^b 5^c 7^d >= n.  Exposed for tests and cost models. */
 int fftconv_good_size(int n);
+
+/* The FFT size fftconv uses for a linear convolution of length n: the
+ * smallest of 2^k, 5/4 2^k, 3/2 2^k, 7/4 2^k not below n (the 7-smooth
+ * size up to 16), so that few sizes are planned. */
+int fftconv_size(int n);
 
 #endif

@@ -19,6 +19,7 @@
 #include "engine.h"
 #include "err.h"
 #include "motion.h"
+#include "pool.h"
 
 
 /*
@@ -30,16 +31,12 @@
  */
 double *tile_alloc(int T)
 {
-	void *p = mmap(NULL, (size_t)T * T * sizeof(double), PROT_READ | PROT_WRITE,
-		       MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-
-	return p == MAP_FAILED ? NULL : p;
+	return pool_zalloc((size_t)T * T * sizeof(double));     /* huge pages: pool.h */
 }
 
 void tile_free(double *p, int T)
 {
-	if (p)
-		munmap(p, (size_t)T * T * sizeof(double));
+	pool_zfree(p, (size_t)T * T * sizeof(double));
 }
 
 static int grow(void **p, size_t *cap, size_t need, size_t size)

@@ -1,7 +1,9 @@
 /* pool.c - worker threads for parallel loops; see pool.h. */
 #include <pthread.h>
 #include <stdatomic.h>
+#include <stdint.h>
 #include <stdlib.h>
+#include <sys/mman.h>
 #include <unistd.h>
 
 #include "pool.h"
@@ -141,4 +143,74 @@ void pool_free(struct pool *p)
 	pthread_cond_destroy(&p->go);
 	pthread_cond_destroy(&p->done);
 	free(p);
+}
+
+/* Tiles: see pool.h.  cur/left: the rest of the current 2 MiB block, which
+ * smaller tiles are carved from in turn (each freed alone: munmap of part of
+ * a huge page splits it). */
+#define HUGE_BYTES ((size_t)2 << 20)
+
+static pthread_mutex_t zmu = PTHREAD_MUTEX_INITIALIZER;
+static char *zcur;
+static size_t zleft;
+
+static void *map(size_t bytes)
+{
+	void *p = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+
+	return p == MAP_FAILED ? NULL : p;
+}
+
+/* bytes (a multiple of 2 MiB) at a 2 MiB boundary, marked for huge pages */
+static void *map_huge(size_t bytes)
+{
+	char *p = map(bytes + HUGE_BYTES), *a;
+	size_t head;
+
+	if (!p)
+		return NULL;
+	a = (char *)(((uintptr_t)p + HUGE_BYTES - 1) & ~(uintptr_t)(HUGE_BYTES - 1));
+	head = (size_t)(a - p);
+	if (head)
+		munmap(p, head);
+	munmap(a + bytes, HUGE_BYTES - head);
+#ifdef MADV_HUGEPAGE
+	madvise(a, bytes, MADV_HUGEPAGE);      /* advice: refused, plain pages */
+#endif
+	return a;
+}
+
+void *pool_zalloc(size_t bytes)
+{
+	static int plain = -1;
+	void *p;
+
+	if (plain < 0) {
+		const char *s = getenv("WFISCENE_NO_HUGEPAGE");
+
+		plain = s && *s && *s != '0';
+	}
+	if (plain || !bytes || (bytes % HUGE_BYTES && HUGE_BYTES % bytes) ||
+	    bytes % (size_t)sysconf(_SC_PAGESIZE))
+		return map(bytes);
+	if (bytes >= HUGE_BYTES)
+		return map_huge(bytes);
+	pthread_mutex_lock(&zmu);
+	if (zleft < bytes) {
+		zcur = map_huge(HUGE_BYTES);
+		zleft = zcur ? HUGE_BYTES : 0;
+	}
+	p = zcur;
+	if (p) {
+		zcur += bytes;
+		zleft -= bytes;
+	}
+	pthread_mutex_unlock(&zmu);
+	return p;
+}
+
+void pool_zfree(void *p, size_t bytes)
+{
+	if (p)
+		munmap(p, bytes);
 }

@@ -11,6 +11,7 @@
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
+#include <time.h>
 
 #include "engine.h"
 #include "err.h"
@@ -48,6 +49,21 @@ void render_errors_collect(struct engine *g)
 		err_clear(&g->w[i].err);
 }
 
+/* Placements prefetched ahead of the one drawn. */
+#define RENDER_AHEAD 4
+
+/* The calling thread's CPU seconds: the render stage's cost in --report,
+ * which a shared machine's load does not inflate as it does the wall
+ * clock (a worker waiting for a core is busy by the wall clock). */
+static double thread_cpu(void)
+{
+	struct timespec t;
+
+	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) < 0)
+		return 0;
+	return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
 /* Worker: render every placement of one active tile, in placement order. */
 void render_tile(void *arg, int wid, size_t task)
 {
@@ -59,7 +75,7 @@ void render_tile(void *arg, int wid, size_t task)
 	int x0 = tx * T, y0 = ty * T;
 	double *tile = g->slot[t / g->ntile].tile[lt];
 
-	double t0 = engine_clock();
+	double t0 = engine_clock(), c0 = thread_cpu();
 
 	if (atomic_load(&g->failed))
 		return;
@@ -68,6 +84,16 @@ void render_tile(void *arg, int wid, size_t task)
 		const struct placement *p = &b->p[b->items[k]];
 		struct plugin *pl = &g->plugins.p[p->model];
 		struct wfs_window win;
+
+		/* A tile's placements are scattered over the chunk's array
+		 * (catalog order): fetch a few ahead, a placement is three
+		 * cache lines. */
+		if (k + RENDER_AHEAD < b->count[t + 1]) {
+			const char *q = (const char *)&b->p[b->items[k + RENDER_AHEAD]];
+
+			for (size_t c = 0; c < sizeof(*p); c += 64)
+				__builtin_prefetch(q + c);
+		}
 
 		if (!w->started[p->model]) {
 			if (pl->m->thread_start &&
@@ -92,6 +118,7 @@ void render_tile(void *arg, int wid, size_t task)
 	}
 	host_worker(NULL);
 	g->t_render[wid] += engine_clock() - t0;
+	g->t_render_cpu[wid] += thread_cpu() - c0;
 }
 
 
@@ -99,7 +126,8 @@ int render_threads_init(struct engine *g)
 {
 	g->nworker = pool_threads(g->pool);
 	if (!(g->w = calloc(g->nworker, sizeof(*g->w))) ||
-	    !(g->t_render = calloc(g->nworker, sizeof(*g->t_render))))
+	    !(g->t_render = calloc(g->nworker, sizeof(*g->t_render))) ||
+	    !(g->t_render_cpu = calloc(g->nworker, sizeof(*g->t_render_cpu))))
 		return err_sys(g->e, "threads");
 	for (int i = 0; i < g->nworker; i++)
 		g->w[i].g = g;
@@ -120,6 +148,8 @@ void render_threads_stop(struct engine *g)
 	}
 	free(g->w);
 	free(g->t_render);
+	free(g->t_render_cpu);
 	g->w = NULL;
 	g->t_render = NULL;
+	g->t_render_cpu = NULL;
 }

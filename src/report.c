@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -226,7 +227,8 @@ int report_write(struct engine *g)
 	const struct scene_opts *o = g->o;
 	const struct exposure *x = g->x;
 	char tmp[PATH_MAX];
-	double render = 0, worst_loss = 0;
+	double render = 0, render_cpu = 0, worst_loss = 0;
+	struct rusage ru;
 	FILE *f;
 	int fd, first;
 
@@ -238,8 +240,11 @@ int report_write(struct engine *g)
 		tempfile_discard(tmp);
 		return -1;
 	}
-	for (int i = 0; i < g->nworker; i++)
+	for (int i = 0; i < g->nworker; i++) {
 		render += g->t_render[i];
+		render_cpu += g->t_render_cpu[i];
+	}
+	getrusage(RUSAGE_SELF, &ru);
 	fprintf(f, "{\n  \"wfiscene\": \"%s\",\n", WFS_VERSION);
 	fprintf(f, "  \"settings\": {\"filter\": \"%s\", \"scas\": [", g->filter_name);
 	for (int s = 0; s < g->nslot; s++)
@@ -257,8 +262,11 @@ int report_write(struct engine *g)
 	report_background(f, g);
 	fprintf(f, "  \"seconds\": {\"total\": %.6f, \"read_parse\": %.6f, "
 		"\"project_place\": %.6f, \"render_busy\": %.6f, \"render_wait\": %.6f, "
-		"\"noise\": %.6f, \"write\": %.6f},\n", g->t_total, g->t_read, g->t_place,
-		render, g->t_wait, g->t_noise, g->t_write);
+		"\"noise\": %.6f, \"write\": %.6f, \"render_cpu\": %.6f, \"cpu_user\": %.6f, "
+		"\"cpu_system\": %.6f},\n", g->t_total, g->t_read, g->t_place,
+		render, g->t_wait, g->t_noise, g->t_write, render_cpu,
+		ru.ru_utime.tv_sec + 1e-6 * ru.ru_utime.tv_usec,
+		ru.ru_stime.tv_sec + 1e-6 * ru.ru_stime.tv_usec);
 	fprintf(f, "  \"rows\": {\"read\": %llu, \"culled_far\": %llu, "
 		"\"off_detector\": %llu, \"placements\": %llu, \"by_model\": {",
 		g->rows_read, g->culled, g->offdet, g->placements);

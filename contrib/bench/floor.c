@@ -11,6 +11,9 @@
  *
  *   stamp      adding one precomputed 44 x 44 float stamp into the double
  *              tiles, clipped to each tile: the floor of issue 8
+ *   stamp-float  the same stamp into float tiles (a float image): the
+ *              floor of issue 18, which the engine's render stage is
+ *              measured against (POINT_SO "-" prints the floors alone)
  *   polyphase  the same with a polyphase bilinear interpolation (4 streams
  *              of one array, weights per star): the floor of an
  *              interpolating renderer
@@ -284,6 +287,7 @@ int main(int argc, char **argv)
 	static float stamp[2 * HALF * 2 * HALF];
 	float *poly;
 	double *img;
+	float *imgf;
 	struct star *st, *rs;
 	long n;
 	void *so;
@@ -334,9 +338,10 @@ int main(int argc, char **argv)
 				for (int x = s, b = 1; x < N; x += OVER, b++)
 					poly[((r * OVER + s) * 48 + a) * 48 + b] = node[4][y * N + x];
 	img = calloc((size_t)NT * NT * TILE * TILE, sizeof(double));
+	imgf = calloc((size_t)NT * NT * TILE * TILE, sizeof(float));
 	st = malloc(sizeof(*st) * n);
 	rs = malloc(sizeof(*rs) * n);
-	if (!poly || !img || !st || !rs)
+	if (!poly || !img || !imgf || !st || !rs)
 		return 2;
 	for (long i = 0; i < n; i++) {
 		double u = uniform(), a = pow(10, 0.3 * 20), b = pow(10, 0.3 * 27);
@@ -377,6 +382,37 @@ int main(int argc, char **argv)
 	}
 	stamp_ns = best / n * 1e9;
 	printf("stamp %.1f 1.00\n", stamp_ns);
+	/* the same into float tiles */
+	best = 1e30;
+	for (int r = 0; r < ROUNDS; r++) {
+		double t = cpu_now();
+
+		for (long i = 0; i < n; i++) {
+			const struct star *s = &st[i];
+			int ox = (int)floor(s->x - HALF) + 1, oy = (int)floor(s->y - HALF) + 1;
+			float f = (float)s->flux;
+
+			FOR_WINDOWS(s, {
+				float *ftile = imgf + (tile - img);
+
+				for (int y = y0; y < y1; y++) {
+					float *restrict row = ftile + (size_t)(y - ty * TILE) * TILE - tx * TILE;
+					const float *restrict sp = stamp + (y - oy) * 2 * HALF - ox;
+
+					for (int x = x0; x < x1; x++)
+						row[x] += f * sp[x];
+				}
+			});
+		}
+		t = cpu_now() - t;
+		best = t < best ? t : best;
+	}
+	printf("stamp-float %.1f %.2f\n", best / n * 1e9, best / n * 1e9 / stamp_ns);
+	if (!strcmp(argv[1], "-")) {
+		for (size_t i = 0; i < (size_t)NT * NT * TILE * TILE; i += 4096)
+			sink += img[i] + imgf[i];
+		return sink == 12345.678;
+	}
 	/* polyphase bilinear from one array: weights per star, 4 streams */
 	best = 1e30;
 	for (int r = 0; r < ROUNDS; r++) {

@@ -180,6 +180,7 @@ struct point {
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
 	double (*core_rows)(const struct core_args *, float *);
 	struct poly slot[POLY_SLOTS];
+	_Atomic uint64_t keys[POLY_SLOTS]; /* slot[i]'s key once published (point_poly.c) */
 };
 
 /* floor(x) and ceil(x) for |x| < 2^62, without a library call (the

@@ -5,8 +5,20 @@
  * odd key.  Made in prepare(), on the host's thread, and kept until fini;
  * with each copy its summed-area tables (the box sums of the flux factor)
  * and its enclosed light (psf-box=adaptive).
+ *
+ * The table is an open-addressed hash of POLY_SLOTS slots, never removed
+ * from, and read by render() on the workers while the host's prepare()
+ * adds to it for the next chunk of rows.  So a slot is published as in a
+ * single-writer lock-free map: the host fills p->slot[i] while it is
+ * still unseen, then stores its key into p->keys[i] with release order;
+ * every probe loads p->keys[i] with acquire order and reads the slot only
+ * after seeing its key there, so it sees the slot whole.  (A probe for a
+ * key added in an earlier chunk never passes a slot being filled, as that
+ * slot was empty when the key went in; the ordering makes the table safe
+ * for any probe, an absent key's included, without relying on that.)
  */
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -21,15 +33,43 @@ static size_t poly_hash(uint64_t key)
 	return (size_t)(h >> 20) & (POLY_SLOTS - 1);
 }
 
+/* The published key of slot i (0: empty). */
+static inline uint64_t slot_key(const struct point *p, size_t i)
+{
+	return atomic_load_explicit(&p->keys[i], memory_order_acquire);
+}
+
+/* The slot under key, or where it would go: *empty set to the first empty
+ * slot on key's path (POLY_SLOTS when the table is full). */
+static struct poly *poly_probe(struct point *p, uint64_t key, size_t *empty)
+{
+	size_t i = poly_hash(key);
+
+	for (size_t k = 0; k < POLY_SLOTS; k++, i = (i + 1) & (POLY_SLOTS - 1)) {
+		uint64_t s = slot_key(p, i);
+
+		if (s == key)
+			return &p->slot[i];
+		if (!s) {
+			*empty = i;
+			return NULL;
+		}
+	}
+	*empty = POLY_SLOTS;
+	return NULL;
+}
+
 const struct poly *poly_find(const struct point *p, uint64_t key)
 {
-	for (size_t i = poly_hash(key), k = 0; k < POLY_SLOTS; k++, i = (i + 1) & (POLY_SLOTS - 1)) {
-		if (p->slot[i].key == key)
-			return &p->slot[i];
-		if (!p->slot[i].key)
-			return NULL;
-	}
-	return NULL;
+	size_t empty;
+
+	return poly_probe((struct point *)p, key, &empty);
+}
+
+/* Make slot i, filled, visible to every probe. */
+static void poly_publish(struct point *p, size_t i)
+{
+	atomic_store_explicit(&p->keys[i], p->slot[i].key, memory_order_release);
 }
 
 /* ee[h]: the fraction of the flux in the (2h - 1)^2 pixels about a source
@@ -82,21 +122,20 @@ static void sat_table(struct poly *q, double *row)
 	}
 }
 
-/* The polyphase copy of an n x n ePSF array under key, made the first time.
- * Main thread only (prepare).  NULL with an error recorded when it fails. */
-struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
+/* The polyphase copy of an n x n ePSF array under key, filled into an empty
+ * slot but not published (poly_publish).  Main thread only (prepare), and
+ * nothing else may be added before it is published.  NULL with an error
+ * recorded when it fails. */
+static struct poly *poly_make(struct point *p, uint64_t key, const float *node, int n, int over)
 {
 	int m = (n + over - 1) / over + 2 * PAD + 1;
-	size_t i = poly_hash(key), k;
+	size_t i;
 	struct poly q = { .key = key, .n = n, .over = over, .centre = (n - 1) / 2, .m = m };
 	double *row;
 
-	for (k = 0; k < POLY_SLOTS && p->slot[i].key; k++) {
-		if (p->slot[i].key == key)
-			return &p->slot[i];
-		i = (i + 1) & (POLY_SLOTS - 1);
-	}
-	if (k == POLY_SLOTS) {
+	if (poly_probe(p, key, &i))
+		return NULL;    /* not reached: the callers look first */
+	if (i == POLY_SLOTS) {
 		p->host->error(p->host->ctx, "too many ePSF nodes and cells (%d)", POLY_SLOTS);
 		return NULL;
 	}
@@ -128,6 +167,22 @@ struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, i
 	return &p->slot[i];
 }
 
+/* The polyphase copy of an n x n ePSF array under key, made and published
+ * the first time.  Main thread only (prepare).  NULL with an error recorded
+ * when it fails. */
+struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
+{
+	size_t i;
+	struct poly *q = poly_probe(p, key, &i);
+
+	if (q)
+		return q;
+	if (!(q = poly_make(p, key, node, n, over)))
+		return NULL;
+	poly_publish(p, (size_t)(q - p->slot));
+	return q;
+}
+
 /* The key of the blended cell holding (x, y): odd, so never a node's. */
 uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 {
@@ -147,6 +202,8 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
 	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
 	struct poly *c = (struct poly *)poly_find(p, key);
+	const float *cnode[4];
+	const struct poly *cpoly[4];
 	float *mix;
 	size_t nn;
 
@@ -167,20 +224,28 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 				v += e.weight[k] * e.node[k][i];
 		mix[i] = (float)v;
 	}
-	c = poly_add(p, key, mix, e.n, e.over);
+	/* what the cell is blended from, for the core's correction
+	 * (psf-blend=core): the nodes' own polyphase copies too, made
+	 * first, so that the cell is published whole */
+	for (int k = 0; k < 4; k++) {
+		cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
+		cpoly[k] = NULL;
+		if (p->blend == BLEND_CORE && cnode[k] &&
+		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over))) {
+			free(mix);
+			return NULL;
+		}
+	}
+	c = poly_make(p, key, mix, e.n, e.over);
 	free(mix);
 	if (!c)
 		return NULL;
-	/* what the cell was blended from, for the core's correction
-	 * (psf-blend=core): the nodes' own polyphase copies too */
 	for (int k = 0; k < 4; k++) {
-		c->cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
-		c->cweight[k] = e.weight[k] != 0 ? e.weight[k] : 0;
-		c->cpoly[k] = NULL;
-		if (p->blend == BLEND_CORE && c->cnode[k] &&
-		    !(c->cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over)))
-			return NULL;
+		c->cnode[k] = cnode[k];
+		c->cweight[k] = cnode[k] ? e.weight[k] : 0;
+		c->cpoly[k] = cpoly[k];
 	}
+	poly_publish(p, (size_t)(c - p->slot));
 	return c;
 }
 

@@ -119,6 +119,9 @@ static const struct wfs_setting point_settings[] = {
 	{ "psf-halo-power", "3", "number >= 2.5", "power-law index of the far tail" },
 	{ "psf-halo-taper", "16", "number >= 0",
 	  "pixels over which the halo array hands over to the tail" },
+	{ "psf-halo-far", "spikes", "spikes|disc",
+	  "beyond where the halo away from its spikes sinks below the drawing level, "
+	  "draw only the spikes, or the whole disc" },
 };
 #define NSETTINGS ((int)(sizeof(point_settings) / sizeof(point_settings[0])))
 
@@ -203,6 +206,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	static const char *const box[] = { "fixed", "adaptive" };
 	static const char *const blend[] = { "source", "cell", "core" };
 	static const char *const extent[] = { "noise", "stips" };
+	static const char *const far[] = { "spikes", "disc" };
 	struct point *p = calloc(1, sizeof(*p));
 	double cell = 0;
 
@@ -230,7 +234,8 @@ static int point_init(const struct wfs_host *host, void **state)
 	    setting_number(host, "psf-extent-max", 1, 0, &p->extent_max) < 0 ||
 	    setting_number(host, "psf-extent-min", 1, 0, &p->extent_min) < 0 ||
 	    setting_number(host, "psf-halo-power", 2.5, 0, &p->halo_power) < 0 ||
-	    setting_number(host, "psf-halo-taper", 0, 0, &p->halo_taper) < 0)
+	    setting_number(host, "psf-halo-taper", 0, 0, &p->halo_taper) < 0 ||
+	    setting_choice(host, "psf-halo-far", far, 2, &p->halo_far) < 0)
 		goto fail;
 	if (p->extent == EXTENT_NOISE && p->adaptive) {
 		host->error(host->ctx, "psf-box=adaptive goes with psf-extent=stips; "

@@ -100,6 +100,7 @@ struct draw {
 
 enum { INTERP_BILINEAR, INTERP_CORE, INTERP_BICUBIC };
 enum { EXTENT_NOISE, EXTENT_STIPS };
+enum { HALO_FAR_SPIKES, HALO_FAR_DISC };
 /* aux[0] holds the box's half-width plus HALO_PACK times the halo's radius
  * (both whole numbers of pixels) */
 #define HALO_PACK 65536.0
@@ -173,6 +174,7 @@ struct point {
 				 * (negative: the class's box) */
 	double halo_power;      /* psf-halo-power: the tail's power */
 	double halo_taper;      /* psf-halo-taper: pixels */
+	int halo_far;           /* psf-halo-far: HALO_FAR_SPIKES or HALO_FAR_DISC */
 	struct halo halo[19];   /* per SCA, set up in prepare() */
 	double cfac[19][3];     /* per SCA and class: the core's scale, 0 unset */
 	double requested, left; /* flux of the sources prepared, and left out */
@@ -229,6 +231,10 @@ static inline double box_half_of(const struct wfs_source *src)
 {
 	return src->aux[0] - HALO_PACK * halo_radius_of(src);
 }
+
+/* psf-halo-far=spikes: beyond the radius where the halo away from its
+ * spikes sinks below the level, only the spikes' strips are drawn */
+#define psf_spikes(p) ((p)->halo_far == HALO_FAR_SPIKES)
 
 /* point_kernels.c: set p's inner loops, the AVX2 ones where the processor
  * has AVX2 and FMA and WFISCENE_NO_SIMD is unset (the plain loops give the

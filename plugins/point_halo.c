@@ -96,7 +96,75 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	p->npoint++;
 	p->nhalo += r > 0;
 	p->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, half - 0.5));
+	/* beyond the base radius, the light away from the spikes */
+	if (r > 0 && psf_spikes(p))
+		p->left += fabs(fl) * halo_base_between(h, halo_base_radius(h, p->extent_noise *
+								    p->sigma / fl, r), r);
 	return 0;
+}
+
+/* Whether the pixel at (dx, dy), in the tail, is drawn beyond the base
+ * radius: when it or one of its four neighbours reaches lev (in the
+ * model's units), so that every drawn pixel beside an undrawn one is
+ * below lev (no edge above the level). */
+static inline int spike_drawn(const struct halo *h, double dx, double dy, double lev, double *v)
+{
+	*v = halo_value(h, dx, dy);
+	return *v >= lev || halo_value(h, dx - 1, dy) >= lev || halo_value(h, dx + 1, dy) >= lev ||
+	       halo_value(h, dx, dy - 1) >= lev || halo_value(h, dx, dy + 1) >= lev;
+}
+
+/*
+ * Beyond the base radius rb (halo_base_radius) up to r, only the spikes
+ * rise above the level: the pixels of the window in their strips (two
+ * pixels wider than the spike part of the tail, so that the neighbours of
+ * every pixel above lev are in them), each row's strips merged so that no
+ * pixel is drawn twice, and of those the pixels spike_drawn() keeps.
+ */
+static void spike_render(const struct halo *h, double flux, double x, double y, double rb,
+			 double r, double lev, const struct wfs_window *win)
+{
+	double w = halo_spike_width(h) + 2, rb2 = rb * rb, r2 = r * r;
+	double lo[HALO_MAXSPK], hi[HALO_MAXSPK];
+
+	for (int j = 0; j < win->ny; j++) {
+		double dy = win->y0 + j - y, dy2 = dy * dy;
+		double *row = win->pix + (ptrdiff_t)j * win->stride;
+		int ns = 0;
+
+		if (dy2 > r2)
+			continue;
+		/* the strips on this row, in window columns, sorted by start */
+		for (int k = 0; k < h->nspk; k++) {
+			double a, b;
+			int at;
+
+			if (!halo_spike_span(h, k, dy, w, &a, &b))
+				continue;
+			a = fmax(ceil(x + a) - win->x0, 0);
+			b = fmin(floor(x + b) - win->x0, win->nx - 1);
+			if (a > b)
+				continue;
+			for (at = ns; at > 0 && lo[at - 1] > a; at--) {
+				lo[at] = lo[at - 1];
+				hi[at] = hi[at - 1];
+			}
+			lo[at] = a;
+			hi[at] = b;
+			ns++;
+		}
+		for (int k = 0, next = 0; k < ns; k++) {
+			int i = (int)lo[k] > next ? (int)lo[k] : next;
+
+			for (; i <= (int)hi[k]; i++) {
+				double dx = win->x0 + i - x, d2 = dx * dx + dy2, v;
+
+				if (d2 > rb2 && d2 <= r2 && spike_drawn(h, dx, dy, lev, &v))
+					row[i] += flux * v;
+			}
+			next = i > next ? i : next;
+		}
+	}
 }
 
 /*
@@ -183,7 +251,14 @@ int noise_render(struct point *p, const struct wfs_source *src, const struct wfs
 		if (epsf_render(p, &fs, &sub) < 0)
 			return -1;
 	}
-	if (r > 0)
-		halo_render(&p->halo[src->sca], src->flux, src->x, src->y, r, box, win);
+	if (r > 0) {
+		const struct halo *h = &p->halo[src->sca];
+		double lev = p->extent_noise * p->sigma / src->flux;
+		double rb = psf_spikes(p) ? halo_base_radius(h, lev, r) : r;
+
+		halo_render(h, src->flux, src->x, src->y, rb < r ? rb : r, box, win);
+		if (rb < r)
+			spike_render(h, src->flux, src->x, src->y, rb, r, lev, win);
+	}
 	return 0;
 }

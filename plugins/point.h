@@ -177,6 +177,7 @@ struct point {
 	int halo_far;           /* psf-halo-far: HALO_FAR_SPIKES or HALO_FAR_DISC */
 	struct halo halo[19];   /* per SCA, set up in prepare() */
 	double cfac[19][3];     /* per SCA and class: the core's scale, 0 unset */
+	int chalf[19][3];       /* and the box's half-width (core_scale) */
 	double requested, left; /* flux of the sources prepared, and left out */
 	long long nhalo, npoint; /* sources drawn with a halo, and all */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);

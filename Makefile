@@ -59,7 +59,11 @@ ALL_LIBS    = $(PKG_LIBS) -lfftw3_threads -lltdl -lm -lpthread
 
 LIB_SRC  := $(filter-out src/main.c,$(wildcard src/*.c))
 LIB_OBJ  := $(patsubst src/%.c,$(B)/obj/%.o,$(LIB_SRC)) $(B)/obj/data_tables.o
-PLUGINS  := $(patsubst plugins/%.c,$(B)/plugins/%.so,$(subst _,-,$(wildcard plugins/*.c)))
+# plugins/foo.c with plugins/foo_*.c is one plugin (see plugin_rule below)
+plugin_units = $(filter-out $(1).c,$(wildcard $(1)_*.c))
+PLUGIN_UNITS := $(foreach f,$(wildcard plugins/*.c),$(call plugin_units,$(basename $(f))))
+PLUGIN_MAIN  := $(filter-out $(PLUGIN_UNITS),$(wildcard plugins/*.c))
+PLUGINS  := $(patsubst plugins/%.c,$(B)/plugins/%.so,$(subst _,-,$(PLUGIN_MAIN)))
 UNIT_SRC := $(wildcard tests/unit/*.c)
 UNIT_BIN := $(patsubst tests/unit/%.c,$(B)/tests/%,$(UNIT_SRC))
 TOOL_SRC := $(wildcard contrib/*.c)
@@ -111,15 +115,18 @@ $(B)/obj/data_tables.o: $(B)/data_tables.c
 # Plugins see nothing of the host but include/wfiscene/model.h, and
 # -Wl,-z,defs fails the link if one needs a symbol of the host (or any that
 # libc and libm do not define).  A plugin plugins/foo_bar.c becomes
-# build/plugins/foo-bar.so, the model 'foo-bar'.
+# build/plugins/foo-bar.so, the model 'foo-bar'; but a plugin of several
+# files is plugins/foo.c with its units plugins/foo_*.c beside it (point.so
+# is plugins/point.c and plugins/point_*.c), linked into one foo.so.
 define plugin_rule
-$(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
+$(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c $(call plugin_units,plugins/$(1)) \
+		include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
 	@echo "  PLUGIN  $$@"
 	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) -Iinclude \
 		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(PLUGIN_OPT) $(LDFLAGS) \
-		-Wl,-z,defs -o $$@ $$< -lm
+		-Wl,-z,defs -o $$@ plugins/$(1).c $(call plugin_units,plugins/$(1)) -lm
 endef
-$(foreach p,$(basename $(notdir $(wildcard plugins/*.c))),$(eval $(call plugin_rule,$(p))))
+$(foreach p,$(basename $(notdir $(PLUGIN_MAIN))),$(eval $(call plugin_rule,$(p))))
 
 $(B)/tests/%: tests/unit/%.c tests/unit/tap.h $(B)/libwfs.a | $(B)/tests
 	@echo "  CC      $@"

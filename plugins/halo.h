@@ -35,6 +35,7 @@
 #define HALO_NT 1024            /* direction bins of the tail */
 #define HALO_BAND 0.6           /* inner edge of the band A(t) is measured in, / R */
 #define HALO_SW 8               /* half-width of a spike, bins, at most */
+#define HALO_MAXSPK 128         /* spikes kept apart; more: none kept apart */
 
 struct halo {
 	const float *a;
@@ -56,6 +57,13 @@ struct halo {
 	double B[HALO_NT + 1], S[HALO_NT + 1], cen[HALO_NT];
 	double rb, bmax, smax;
 	double envend;          /* the tail's largest value at d = nenv */
+	/* the spikes' directions (cos, sin), and what the tail is away from
+	 * them: its largest amplitude (nmax) and its integral over the turn
+	 * (btot), so that beyond halo_base_radius() only the spikes rise
+	 * above a level (halo_spike_span) */
+	int nspk;
+	double spk[HALO_MAXSPK][2];
+	double nmax, btot;
 };
 
 static inline double halo_bilinear(const struct halo *h, double u, double v)
@@ -270,6 +278,26 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 				h->cen[b] = k;
 		}
 	}
+	/* the spikes' directions: bin c is at angle 2 pi c / NT - pi (see
+	 * halo_bin); and the tail away from them: the whole of A in a bin of
+	 * no spike (and the next, which the interpolation reads), B in one */
+	h->nspk = 0;
+	h->nmax = h->btot = 0;
+	for (int k = 0; k < HALO_NT; k++) {
+		double a = h->cen[k] < 0 ? fmax(h->A[k], h->A[k + 1]) : fmax(h->B[k], h->B[k + 1]);
+		double phi = 2 * M_PI * k / HALO_NT - M_PI;
+
+		h->nmax = a > h->nmax ? a : h->nmax;
+		h->btot += (h->cen[k] < 0 ? h->A[k] : h->B[k]) * (2 * M_PI / HALO_NT);
+		if (h->cen[k] != k)
+			continue;
+		if (h->nspk == HALO_MAXSPK) {
+			h->nspk = -1;   /* too many to keep apart */
+			break;
+		}
+		h->spk[h->nspk][0] = cos(phi);
+		h->spk[h->nspk++][1] = sin(phi);
+	}
 	/* the envelope, from every sample (any phase) and the tail */
 	h->nenv = (int)ceil(R) + 1;
 	if (!(h->env = calloc(h->nenv, sizeof(double))) ||
@@ -367,6 +395,74 @@ static inline double halo_radius(const struct halo *h, double level, double cap)
 	/* a pixel at distance d reads samples up to half a pixel nearer */
 	lo++;
 	return lo < cap ? lo : cap;
+}
+
+/*
+ * The radius beyond which the model stays below level away from the
+ * spikes' strips (halo_spike_span), two pixels on, and never inside the
+ * array's disc plus two pixels (in the tail, where the strips are known):
+ * the disc of this radius and the strips beyond it hold every pixel above
+ * level and its neighbours.  With no spikes kept apart, cap.
+ */
+static inline double halo_base_radius(const struct halo *h, double level, double cap)
+{
+	double r;
+
+	if (h->nspk < 0 || !(level > 0))
+		return cap;
+	r = pow(h->nmax / level, 1 / h->alpha);
+	r = (r > h->R ? r : h->R) + 2;
+	return r < cap ? r : cap;
+}
+
+/* Half the width of a spike's strip in pixels: the tail's spike part is
+ * nought beyond HALO_SW bins at rb, narrowed by rb / d, i.e. beyond
+ * HALO_SW 2 pi rb / NT pixels of the spike's axis. */
+static inline double halo_spike_width(const struct halo *h)
+{
+	return HALO_SW * 2 * M_PI * h->rb / HALO_NT;
+}
+
+/*
+ * The offsets dx in [*lo, *hi] at row offset dy within w of spike k's axis
+ * and ahead of the source along it.  Returns 0 when there are none.
+ */
+static inline int halo_spike_span(const struct halo *h, int k, double dy, double w, double *lo,
+				  double *hi)
+{
+	double c = h->spk[k][0], s = h->spk[k][1];
+
+	*lo = -HUGE_VAL;
+	*hi = HUGE_VAL;
+	/* across the axis: |c dy - s dx| < w */
+	if (fabs(s) > 1e-12) {
+		double a = (c * dy - w) / s, b = (c * dy + w) / s;
+
+		*lo = a < b ? a : b;
+		*hi = a < b ? b : a;
+	} else if (fabs(c * dy) >= w)
+		return 0;
+	/* along it: c dx + s dy > 0 */
+	if (fabs(c) > 1e-12) {
+		double t = -s * dy / c;
+
+		if (c > 0 && t > *lo)
+			*lo = t;
+		if (c < 0 && t < *hi)
+			*hi = t;
+	} else if (s * dy <= 0)
+		return 0;
+	return *lo < *hi;
+}
+
+/* The model's light beyond radius rb away from the spikes' strips, up to
+ * radius r (the light a source drawn in the disc of rb and the strips
+ * beyond leaves out, besides halo_beyond(r)). */
+static inline double halo_base_between(const struct halo *h, double rb, double r)
+{
+	if (!(r > rb) || rb < h->R)
+		return 0;
+	return h->btot * (pow(rb, 2 - h->alpha) - pow(r, 2 - h->alpha)) / (h->alpha - 2);
 }
 
 /* The model's light beyond distance r (a source centred on a pixel). */

@@ -157,7 +157,8 @@ assert b[\"psf-box-sigma\"] == \"0.1\" and b[\"psf-cell\"] == \"512\", b
 assert list(b) == [\"psf-interp\", \"psf-core\", \"psf-wing\", \"psf-box\",
                    \"psf-box-noise\", \"psf-box-sigma\", \"psf-blend\", \"psf-cell\",
                    \"psf-extent\", \"psf-extent-noise\", \"psf-extent-max\",
-                   \"psf-extent-min\", \"psf-halo-power\", \"psf-halo-taper\"], b
+                   \"psf-extent-min\", \"psf-halo-power\", \"psf-halo-taper\",
+                   \"psf-halo-far\"], b
 "
 '
 for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-box-noise=0 \

@@ -123,7 +123,7 @@ assert 0.98 < f[\"placed\"] / f[\"requested\"] < 1, f
 "
 '
 for kv in psf-extent=box psf-extent-noise=0 psf-extent-max=x psf-halo-power=2 \
-	psf-halo-radius=8 psf-halo-taper=x; do
+	psf-halo-radius=8 psf-halo-taper=x psf-halo-far=x; do
 	key=${kv%%=*}
 	test_expect_success "--set $kv is refused, naming $key" "
 		test_must_fail \"\$WFS\" --filter F158 --flux-unit abmag --set $kv \

@@ -1,0 +1,262 @@
+/*
+ * point.h - what the units of the point model (point.so) share: the
+ * polyphase arrays, the zones and geometry of a source's pixels, the
+ * arguments of the inner loops, the model's state, and the functions one
+ * unit offers the others.  Internal to the plugin (built with hidden
+ * visibility: nothing here leaves point.so).
+ *
+ *   point.c          the model: settings, init/fini, and the five callbacks
+ *   point_poly.c     polyphase copies of ePSF nodes and blended cells
+ *   point_epsf.c     a source's ePSF box: its plan, flux factor and drawing
+ *   point_kernels.c  the inner loops (plain and AVX2, the same bits)
+ *   point_halo.c     psf-extent=noise: the halo beyond the box
+ */
+#ifndef WFS_POINT_H
+#define WFS_POINT_H
+
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "wfiscene/model.h"
+#include "halo.h"
+
+/* Polyphase copies of the ePSF nodes, found by the node's address (the
+ * host's arrays stay put until fini), and of blended cells, found by an odd
+ * key (node addresses are even).  Open addressing, never removed. */
+#define POLY_SLOTS 8192
+#define MAX_ROW 1024            /* widest window row of the general path */
+/* Planes carry PAD zero samples on each side, so that the Keys taps (one
+ * sample before, two after) of any pixel inside the box stay inside the
+ * plane and read zeros beyond the ePSF, and no pixel needs a range test. */
+#define PAD 2
+
+/* Eight floats, loaded and stored unaligned: the row sums below are written
+ * with GCC's vector extension so that a 44-pixel row is 6 steps with no
+ * alignment prologue or scalar tail (rows are summed to a multiple of 8;
+ * the planes carry VSLACK floats so the last step can read on). */
+typedef float v8f __attribute__((vector_size(32), aligned(4), may_alias));
+#define VSLACK 8
+
+typedef float v4f __attribute__((vector_size(16), aligned(4), may_alias));
+typedef double v4d __attribute__((vector_size(32), aligned(8), may_alias));
+#define SPLAT4(f) ((v4d){ (f), (f), (f), (f) })
+#define TO_V4D(p) __builtin_convertvector(*(const v4f *)(p), v4d)
+#define SPLAT(f) ((v8f){ (f), (f), (f), (f), (f), (f), (f), (f) })
+
+struct poly {
+	uint64_t key;
+	int n, over, centre, m; /* m = samples per phase plane side, padded */
+	float *plane;           /* over * over planes of m x m */
+	/* per plane, its summed-area table: (m + 1) x (m + 1), entry (r, c)
+	 * the sum of the plane's rows < r and columns < c, summed in double
+	 * and kept in float (a rectangle's sum to ~1e-8 of the flux) */
+	float *sat;
+	int nee;                /* centre / over */
+	double *ee;             /* ee[h], h = 1..nee: see ee_table() */
+	/* a blended cell: the nodes and weights it was blended from, and
+	 * (psf-blend=core) the nodes' own polyphase copies */
+	const float *cnode[4];
+	double cweight[4];
+	const struct poly *cpoly[4];
+};
+
+/* Pixels [x0, x1) x [y0, y1), 0-based; empty when x0 >= x1 or y0 >= y1. */
+struct zone {
+	long x0, x1, y0, y1;
+};
+
+/* Where a source's pixels read an array (every array of a size class has
+ * the same layout).  Tap a (sample offsets -1, 0, 1, 2 from the sample
+ * below the pixel's) of pixel i is sample o (i + mx[a]) + rx[a]: plane
+ * column i + mx[a] + PAD of x phase rx[a]; likewise in y. */
+struct geom {
+	int o;
+	long mx[4], rx[4], my[4], ry[4];
+	double bx[2], by[2];    /* bilinear weights of taps 1 and 2 */
+	double kx[4], ky[4];    /* Keys' weights of taps 0..3 */
+	int an, bn;             /* the nearest sample's taps (1 or 2) */
+	/* tap (a, b) of pixel (i, j): plane + tx[a] + ty[b] + j m + i, and
+	 * its summed-area table: sat + sx[a] + sy[b] + j (m + 1) + i */
+	ptrdiff_t tx[4], ty[4], sx[4], sy[4];
+	ptrdiff_t m;
+};
+
+/* How one source is drawn: the arrays it reads with their weights times the
+ * flux, psf-blend=core's correction arrays, and its zones. */
+struct draw {
+	int nn, ncor, keys;
+	int cell;               /* one blended cell (psf-blend=cell or core) */
+	const struct poly *pl[4];
+	double wn[4];
+	const struct poly *cp[8];
+	double cw[8];
+	struct geom g;
+	struct zone box;        /* every pixel it lights */
+	struct zone core;       /* Keys' cubic (or psf-blend=core's bilinear
+				 * correction), not scaled by f */
+	struct zone wing;       /* bilinear; beyond it the nearest sample */
+};
+
+enum { INTERP_BILINEAR, INTERP_CORE, INTERP_BICUBIC };
+enum { EXTENT_NOISE, EXTENT_STIPS };
+enum { HALO_FAR_SPIKES, HALO_FAR_DISC };
+/* aux[0] holds the box's half-width plus HALO_PACK times the halo's radius
+ * (both whole numbers of pixels) */
+#define HALO_PACK 65536.0
+#define WFS_PSF_HALO 3          /* the host's class of the halo array */
+enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
+
+/* One array, the whole window, straight into the tile: for each row j and
+ * pixel i < nx,
+ *
+ *   pix[j stride + i] += wn sn[j m + i]
+ *
+ * but on the wing rows jw <= j < jw + nw, over wa <= i < wb,
+ *
+ *   w0 s0[j m + i] + w1 s1[..] + w2 s2[..] + w3 s3[..]
+ *
+ * (the last three products fused: fmaf)
+ * and on the core rows jc <= j < jc + nc, over ka <= i < kb, kv[] replaces
+ * the sum; in float.  Two builds with the same operations per pixel in the
+ * same order, so the same bits: 8 pixels at a time with AVX2 (reading on
+ * into the planes' slack and into kv's margins, the lanes outside a run
+ * masked), and one by one.  The float sums are converted and added in
+ * registers. */
+#define KV_ROWS 48              /* core rows and columns the fast path takes: */
+#define KV_COLS 48              /* the 44-pixel box, so psf-interp=bicubic too */
+#define KV_PITCH (KV_COLS + 16) /* a core row of kv: 8 floats margin, then column ka */
+
+struct rows_args {
+	const float *s[4];      /* the bilinear streams at the window's first pixel */
+	const float *sn;        /* the nearest sample's stream */
+	ptrdiff_t m;            /* floats from one plane row to the next */
+	float w[4], wn;         /* their weights: flux f bilinear weight; flux f */
+	int jw, nw, wa, wb;     /* the wing square, window coordinates */
+	int jc, nc, ka, kb;     /* the core, window coordinates */
+	const float *kv;        /* pixel i of row jc + c: kv[c KV_PITCH + 8 + i - ka] */
+};
+
+/* The core: for rows c < nc and pixels i < nk (8 at a time; kv gets a
+ * multiple of 8), each lane
+ *
+ *   v = sum over b of ky[b] (kx[0] t[b][0] + kx[1] t[b][1] + ...)   Keys
+ *   v = bw[0] t[1][1] + bw[1] t[1][2] + bw[2] t[2][1] + bw[3] t[2][2] bilinear
+ *   kv = v + sum over k of cw[k] ct[k]         psf-blend=core's correction
+ *
+ * every product but the first of a sum fused (fmaf), in this order, so
+ * that the AVX2 build and the plain one give the same bits; and K, the sum
+ * of kv over the core, in double (lanes l and l + 4 to accumulator l). */
+struct core_args {
+	/* tap (a, b) of core row c, pixel i: base + ty[b] + tx[a] + c m + i;
+	 * the correction's array k, bilinear tap (a, b): cbase[k] + ty[b + 1]
+	 * + tx[a + 1] + c m + i */
+	const float *base, *cbase[8];
+	ptrdiff_t tx[4], ty[4], m;
+	int ncor, keys, nc, nk;
+	float kx[4], ky[4], bw[4], cw[32];
+};
+
+struct point {
+	const struct wfs_host *host;
+	int interp;             /* psf-interp */
+	double core;            /* half-width of the cubic core, pixels */
+	double wing;            /* half-width of the bilinear square, pixels */
+	int adaptive;           /* psf-box=adaptive */
+	double box_noise;       /* psf-box-noise: fraction of the box's noise */
+	double sigma;           /* noise per pixel, counts/s (psf-box-sigma) */
+	int blend;              /* psf-blend */
+	int cell;               /* psf-cell: side of a blended cell, pixels */
+	int extent;             /* psf-extent: EXTENT_NOISE or EXTENT_STIPS */
+	double extent_noise;    /* psf-extent-noise: fraction of sigma */
+	double extent_max;      /* psf-extent-max: largest radius, pixels */
+	double extent_min;      /* psf-extent-min: smallest box half-width, pixels
+				 * (negative: the class's box) */
+	double halo_power;      /* psf-halo-power: the tail's power */
+	double halo_taper;      /* psf-halo-taper: pixels */
+	int halo_far;           /* psf-halo-far: HALO_FAR_SPIKES or HALO_FAR_DISC */
+	struct halo halo[19];   /* per SCA, set up in prepare() */
+	double cfac[19][3];     /* per SCA and class: the core's scale, 0 unset */
+	int chalf[19][3];       /* and the box's half-width (core_scale) */
+	double requested, left; /* flux of the sources prepared, and left out */
+	long long nhalo, npoint; /* sources drawn with a halo, and all */
+	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
+	double (*core_rows)(const struct core_args *, float *);
+	struct poly slot[POLY_SLOTS];
+	_Atomic uint64_t keys[POLY_SLOTS]; /* slot[i]'s key once published (point_poly.c) */
+};
+
+/* floor(x) and ceil(x) for |x| < 2^62, without a library call (the
+ * plugin's baseline build has no rounding instruction) */
+static inline long lfloor(double x)
+{
+	long i = (long)x;
+
+	return i - (x < i);
+}
+
+static inline long lceil(double x)
+{
+	long i = (long)x;
+
+	return i + (x > i);
+}
+
+/* The pixels within h of (x, y) along both axes: |i - x| < h, |j - y| < h. */
+static inline struct zone square(double x, double y, double h)
+{
+	return (struct zone){ lfloor(x - h) + 1, lceil(x + h), lfloor(y - h) + 1, lceil(y + h) };
+}
+
+static inline struct zone meet(struct zone a, struct zone b)
+{
+	a.x0 = a.x0 > b.x0 ? a.x0 : b.x0;
+	a.x1 = a.x1 < b.x1 ? a.x1 : b.x1;
+	a.y0 = a.y0 > b.y0 ? a.y0 : b.y0;
+	a.y1 = a.y1 < b.y1 ? a.y1 : b.y1;
+	return a;
+}
+
+static inline int zone_empty(struct zone z)
+{
+	return z.x0 >= z.x1 || z.y0 >= z.y1;
+}
+
+/* The source's halo radius (0: none) and its box's half-width from aux[0]. */
+static inline double halo_radius_of(const struct wfs_source *src)
+{
+	return floor(src->aux[0] / HALO_PACK);
+}
+
+static inline double box_half_of(const struct wfs_source *src)
+{
+	return src->aux[0] - HALO_PACK * halo_radius_of(src);
+}
+
+/* psf-halo-far=spikes: beyond the radius where the halo away from its
+ * spikes sinks below the level, only the spikes' strips are drawn */
+#define psf_spikes(p) ((p)->halo_far == HALO_FAR_SPIKES)
+
+/* point_kernels.c: set p's inner loops, the AVX2 ones where the processor
+ * has AVX2 and FMA and WFISCENE_NO_SIMD is unset (the plain loops give the
+ * same bits; the variable is for testing that they do). */
+void kernels_choose(struct point *p);
+
+/* point_poly.c */
+const struct poly *poly_find(const struct point *p, uint64_t key);
+struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over);
+uint64_t cell_key(const struct point *p, const struct wfs_source *src);
+struct poly *cell_add(struct point *p, const struct wfs_source *src);
+void poly_free_all(struct point *p);
+
+/* point_epsf.c: prepare() and render() of a source's ePSF box; a box of
+ * half-width at most cap (0: the class's) */
+int epsf_prepare(struct point *p, struct wfs_source *src, double cap);
+int epsf_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
+
+/* point_halo.c: psf-extent=noise */
+const struct halo *halo_of(struct point *p, const struct wfs_source *src);
+int noise_prepare(struct point *p, struct wfs_source *src);
+int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
+
+#endif

@@ -1,0 +1,589 @@
+/*
+ * point_epsf.c - a source drawn in its ePSF box (point.c's opening comment
+ * has the method): prepare() picks the arrays the source reads, its box
+ * and zones, and what its flux factor needs; render() draws a window of
+ * the box with the kernels of point_kernels.c.
+ */
+#include <math.h>
+#include <stdlib.h>
+
+#include "point.h"
+
+/* The arrays a source reads and their weights times its flux: the four
+ * nodes of its position (blend = BLEND_SOURCE), or its cell's blend.
+ * Returns how many, or -1. */
+static int source_polys(const struct point *p, const struct wfs_source *src, int blend,
+			const struct poly *pl[4], double wn[4])
+{
+	struct wfs_epsf e;
+	int nn = 0;
+
+	if (blend != BLEND_SOURCE) {
+		if (!(pl[0] = poly_find(p, cell_key(p, src))))
+			return p->host->error(p->host->ctx, "ePSF cell not prepared");
+		wn[0] = src->flux;
+		return 1;
+	}
+	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+		return -1;
+	for (int k = 0; k < 4; k++)
+		if (e.weight[k] != 0) {
+			if (!(pl[nn] = poly_find(p, (uint64_t)(uintptr_t)e.node[k])))
+				return p->host->error(p->host->ctx, "ePSF node not prepared");
+			wn[nn++] = e.weight[k] * src->flux;
+		}
+	return nn;
+}
+
+/* psf-blend=core: the arrays and weights (times the flux) whose sum is the
+ * source's own blend less its cell's, so that cell + this is the blend at
+ * the source: the source's nodes with their weights and the cell's with
+ * minus theirs, a node in both once (the usual case: the same four).
+ * Returns how many (up to 8), or -1. */
+static int core_correction(const struct point *p, const struct wfs_source *src,
+			   const struct poly *cell, const struct poly *cp[8], double cw[8])
+{
+	int n = source_polys(p, src, BLEND_SOURCE, cp, cw);
+
+	if (n < 0)
+		return -1;
+	for (int j = 0; j < 4; j++) {
+		uint64_t key = (uint64_t)(uintptr_t)cell->cnode[j];
+		int k;
+
+		if (!cell->cnode[j])
+			continue;
+		for (k = 0; k < n && cp[k]->key != key; k++)
+			;
+		if (k == n) {
+			if (!(cp[n] = poly_find(p, key)))
+				return p->host->error(p->host->ctx, "ePSF node not prepared");
+			cw[n++] = 0;
+		}
+		cw[k] -= cell->cweight[j] * src->flux;
+	}
+	return n;
+}
+
+/* The blend a source gets: psf-blend=core draws the 44-pixel class only;
+ * the bright classes' boxes (88 and 176 pixels) are blended per source, as
+ * their cells would be 4 and 16 times larger (0.6 and 2.3 MB each) for a few
+ * sources. */
+static int source_blend(const struct point *p, const struct wfs_source *src)
+{
+	return p->blend == BLEND_CORE && src->psf_class != WFS_PSF_NORMAL ? BLEND_SOURCE : p->blend;
+}
+
+/* Keys' cubic convolution weights for taps -1, 0, 1, 2 at phase t in [0, 1). */
+static void keys_weights(double t, double w[4])
+{
+	double t2 = t * t, t3 = t2 * t;
+
+	w[0] = -0.5 * t3 + t2 - 0.5 * t;
+	w[1] = 1.5 * t3 - 2.5 * t2 + 1.0;
+	w[2] = -1.5 * t3 + 2.0 * t2 + 0.5 * t;
+	w[3] = 0.5 * t3 - 0.5 * t2;
+}
+
+/* floor(a / b) for b > 0 and any sign of a */
+static long floordiv(long a, long b)
+{
+	return a >= 0 ? a / b : -((-a + b - 1) / b);
+}
+
+static void geom_of(const struct poly *q, double x, double y, struct geom *g)
+{
+	/* sample index of pixel i: centre + o i + base, plus the phase f */
+	int o = q->over;
+	double tx = -o * x, ty = -o * y;
+	long basex = lfloor(tx), basey = lfloor(ty);
+	double fx = tx - basex, fy = ty - basey;
+	long sx = q->centre + basex - 1, sy = q->centre + basey - 1;
+	long mx0 = floordiv(sx, o), rx0 = sx - o * mx0, my0 = floordiv(sy, o), ry0 = sy - o * my0;
+	ptrdiff_t m = q->m, w = m + 1;
+
+	g->o = o;
+	g->m = m;
+	g->bx[0] = 1 - fx;
+	g->bx[1] = fx;
+	g->by[0] = 1 - fy;
+	g->by[1] = fy;
+	keys_weights(fx, g->kx);
+	keys_weights(fy, g->ky);
+	g->an = fx < 0.5 ? 1 : 2;
+	g->bn = fy < 0.5 ? 1 : 2;
+	/* tap a is sample sx + a: the next phase, or the next plane column
+	 * after the last phase */
+	for (int a = 0; a < 4; a++) {
+		long rx = rx0 + a, mx = mx0, ry = ry0 + a, my = my0;
+
+		for (; rx >= o; rx -= o)
+			mx++;
+		for (; ry >= o; ry -= o)
+			my++;
+		g->rx[a] = rx;
+		g->mx[a] = mx;
+		g->ry[a] = ry;
+		g->my[a] = my;
+		/* plane (ry o + rx) of m x m, row my + PAD, column mx + PAD */
+		g->tx[a] = rx * m * m + mx + PAD;
+		g->ty[a] = (ry * o * m + my + PAD) * m;
+		g->sx[a] = rx * w * w + mx + PAD;
+		g->sy[a] = (ry * o * w + my + PAD) * w;
+	}
+}
+
+/* Tap (a, b) of q's pixel (i, j). */
+static inline const float *tap_at(const struct poly *q, const struct geom *g, int a, int b,
+				  long i, long j)
+{
+	return q->plane + g->tx[a] + g->ty[b] + j * g->m + i;
+}
+
+/* The corners of zone z in a summed-area table (every zone lies in the
+ * source's box, and every tap of the box inside its plane). */
+struct corners {
+	ptrdiff_t c00, c01, c10, c11;
+};
+
+static inline struct corners corners_of(const struct geom *g, struct zone z)
+{
+	ptrdiff_t w = g->m + 1;
+
+	return (struct corners){ z.y0 * w + z.x0, z.y0 * w + z.x1, z.y1 * w + z.x0, z.y1 * w + z.x1 };
+}
+
+/* The sum of tap (a, b) of q over the pixels of a zone. */
+static inline double tap_sum(const struct poly *q, const struct geom *g, int a, int b,
+			     struct corners k)
+{
+	const float *s = q->sat + g->sx[a] + g->sy[b];
+
+	return ((double)s[k.c11] - s[k.c01]) - ((double)s[k.c10] - s[k.c00]);
+}
+
+/* Bilinear interpolation's and Keys' sums of q over the pixels of z. */
+static double bil_sum(const struct poly *q, const struct geom *g, struct zone z)
+{
+	struct corners k = corners_of(g, z);
+
+	if (zone_empty(z))
+		return 0;
+	return g->by[0] * (g->bx[0] * tap_sum(q, g, 1, 1, k) + g->bx[1] * tap_sum(q, g, 2, 1, k)) +
+	       g->by[1] * (g->bx[0] * tap_sum(q, g, 1, 2, k) + g->bx[1] * tap_sum(q, g, 2, 2, k));
+}
+
+static double keys_sum(const struct poly *q, const struct geom *g, struct zone z)
+{
+	struct corners k = corners_of(g, z);
+	double s = 0;
+
+	for (int b = 0; b < 4 && !zone_empty(z); b++) {
+		double t = 0;
+
+		for (int a = 0; a < 4; a++)
+			t += g->kx[a] * tap_sum(q, g, a, b, k);
+		s += g->ky[b] * t;
+	}
+	return s;
+}
+
+/* The zones of a draw whose arrays are set: box of half-width half, core,
+ * wing square. */
+static void zones(const struct point *p, const struct wfs_source *src, int blend, double half,
+		  struct draw *d)
+{
+	double r = p->core;
+
+	geom_of(d->pl[0], src->x, src->y, &d->g);
+	d->cell = blend != BLEND_SOURCE;
+	d->box = square(src->x, src->y, half);
+	d->keys = p->interp != INTERP_BILINEAR;
+	if (p->interp == INTERP_BILINEAR && blend != BLEND_CORE)
+		r = 0;
+	/* the cubic's taps must stay inside the array (bicubic everywhere
+	 * reads the planes' zero padding at the box's edge instead) */
+	if (p->interp == INTERP_BICUBIC)
+		d->core = d->box;
+	else if (r > 0 && r * d->g.o + 2 < d->pl[0]->centre)
+		d->core = meet(square(src->x, src->y, r), d->box);
+	else
+		d->core = (struct zone){ 0, 0, 0, 0 };
+	/* the nearest sample beyond the wing square (which holds the core):
+	 * one array of the faint class only; bright sources are bilinear to
+	 * the box's edge */
+	if (d->cell && src->psf_class == WFS_PSF_NORMAL && p->wing < half && 2 * half <= KV_COLS &&
+	    p->interp != INTERP_BICUBIC)
+		d->wing = meet(square(src->x, src->y,
+				      zone_empty(d->core) || p->wing > r ? p->wing : r), d->box);
+	else
+		d->wing = d->box;
+}
+
+/* render_one() draws it: one blended cell and a core that fits its buffer */
+static int one_array(const struct draw *d)
+{
+	return d->cell && d->core.x1 - d->core.x0 <= KV_COLS && d->core.y1 - d->core.y0 <= KV_ROWS;
+}
+
+/* psf-blend=core's correction from the cell's own node copies and the
+ * source's node weights w (aux[4..7], in the cell's node order). */
+static void cell_correction(const struct poly *cell, double flux, const double w[4],
+			    struct draw *d)
+{
+	d->ncor = 0;
+	for (int k = 0; k < 4; k++)
+		if (cell->cpoly[k]) {
+			d->cp[d->ncor] = cell->cpoly[k];
+			d->cw[d->ncor++] = flux * w[k] - flux * cell->cweight[k];
+		}
+}
+
+/* How src is drawn in render(), its box and what prepare() found in aux:
+ * which arrays, and the zones.  Returns 0 or -1. */
+static int plan(const struct point *p, const struct wfs_source *src, struct draw *d)
+{
+	int blend = source_blend(p, src);
+
+	d->ncor = 0;
+	if (blend != BLEND_SOURCE && !isnan(src->aux[4])) {
+		/* the cell found by prepare(), and its nodes are the source's */
+		d->nn = 1;
+		d->pl[0] = &p->slot[(size_t)src->aux[3]];
+		d->wn[0] = src->flux;
+		if (blend == BLEND_CORE)
+			cell_correction(d->pl[0], src->flux, src->aux + 4, d);
+	} else {
+		if ((d->nn = source_polys(p, src, blend, d->pl, d->wn)) < 0)
+			return -1;
+		if (blend == BLEND_CORE &&
+		    (d->ncor = core_correction(p, src, d->pl[0], d->cp, d->cw)) < 0)
+			return -1;
+	}
+	zones(p, src, blend, src->aux[0], d);
+	return 0;
+}
+
+/*
+ * The factor on everything outside the core.  With T the bilinear sum of
+ * the source's blend over the box (its enclosed fraction times the flux),
+ * K what the core draws and U what the rest draws before scaling,
+ *
+ *   f = (T - K) / U
+ *
+ * makes the total T.  One array (psf-blend=cell or core, render_one): U is
+ * the array's bilinear sum over the wing square less the core plus its
+ * nearest samples beyond; render_one() sums K from the core it draws.
+ * Several arrays: U is their bilinear sum outside the core, and K the
+ * core's Keys sum, both from the tables here.  Where less than 1% of the
+ * light lies outside the core (an adaptive box barely wider than the core,
+ * or the cubic everywhere) f is 1: the kernels' totals then agree to ~1e-4.
+ */
+static double flux_factor(double t, double k, double u)
+{
+	return u > 0.01 * fabs(t) && isfinite(t - k) ? (t - k) / u : 1;
+}
+
+/*
+ * prepare(): the arrays the source reads (polyphase copies of its grid
+ * nodes and of its cell's blend, made once and kept), its box and what its
+ * flux factor needs, in aux:
+ *
+ *   aux[0]     the box's half-width, pixels
+ *   aux[1..2]  T and U (render_one), or f and 0 (several arrays)
+ *   aux[3]     the slot of the source's cell
+ *   aux[4..7]  the source's weights of its cell's nodes (psf-blend=core),
+ *              or NaN when render() must look the arrays up itself
+ */
+int epsf_prepare(struct point *p, struct wfs_source *src, double cap)
+{
+	struct wfs_epsf e;
+	struct draw d;
+	const struct poly *node[4];
+	double w[4], half, t = 0;
+	struct poly *cell = NULL;
+	int nn = 0, blend = source_blend(p, src), same = blend == BLEND_CORE;
+
+	if (blend != BLEND_SOURCE && !(cell = cell_add(p, src)))
+		return -1;
+	src->aux[4] = src->aux[5] = src->aux[6] = src->aux[7] = 0;
+	if (blend != BLEND_CELL) {
+		/* the source's nodes: the cell's copies when the cell was
+		 * blended from them (their weights go to aux[4..7] in the
+		 * cell's order), else copies made here */
+		if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+			return -1;
+		for (int k = 0; k < 4; k++) {
+			const struct poly *q = NULL;
+
+			if (e.weight[k] == 0)
+				continue;
+			for (int j = 0; cell && j < 4 && !q; j++)
+				if (cell->cnode[j] == e.node[k] && cell->cpoly[j]) {
+					q = cell->cpoly[j];
+					src->aux[4 + j] += e.weight[k];
+				}
+			if (!q) {
+				same = 0;
+				if (!(q = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over)))
+					return -1;
+			}
+			node[nn] = q;
+			w[nn++] = e.weight[k];
+		}
+	}
+	if (!same)
+		src->aux[4] = NAN;
+	/* the arrays render() reads */
+	d.nn = 0;
+	if (cell) {
+		src->aux[3] = (double)(cell - p->slot);
+		d.pl[d.nn] = cell;
+		d.wn[d.nn++] = src->flux;
+	} else
+		for (int k = 0; k < nn; k++) {
+			d.pl[d.nn] = node[k];
+			d.wn[d.nn++] = w[k] * src->flux;
+		}
+	if (d.nn == 0)
+		return p->host->error(p->host->ctx, "no ePSF node with a weight");
+	half = (double)d.pl[0]->centre / d.pl[0]->over;
+	if (p->adaptive) {
+		/* the smallest half-width whose left-out light is below
+		 * box_noise times the noise summed over the box, for the
+		 * blend at the source (at the cell's, psf-blend=cell) */
+		int h, H = d.pl[0]->nee;
+
+		for (h = 1; h < H; h++) {
+			double out = 0;
+
+			if (blend == BLEND_CELL)
+				out = src->flux * (cell->ee[H] - cell->ee[h]);
+			for (int k = 0; k < nn; k++)
+				out += w[k] * src->flux * (node[k]->ee[H] - node[k]->ee[h]);
+			if (fabs(out) <= p->box_noise * p->sigma * 2 * h)
+				break;
+		}
+		if (h < half)
+			half = h;
+	}
+	if (cap > 0 && cap < half)
+		half = cap;
+	src->aux[0] = half;
+	zones(p, src, blend, half, &d);
+	/* T: the bilinear sum over the box of the blend at the source (of
+	 * the cell's, psf-blend=cell) */
+	if (blend == BLEND_CELL)
+		t = src->flux * bil_sum(cell, &d.g, d.box);
+	for (int k = 0; k < nn; k++)
+		t += w[k] * src->flux * bil_sum(node[k], &d.g, d.box);
+	if (one_array(&d)) {
+		const struct geom *g = &d.g;
+
+		src->aux[1] = t;
+		src->aux[2] = src->flux * (tap_sum(cell, g, g->an, g->bn, corners_of(g, d.box)) -
+					   (zone_empty(d.wing) ? 0 :
+					    tap_sum(cell, g, g->an, g->bn, corners_of(g, d.wing))) +
+					   bil_sum(cell, g, d.wing) - bil_sum(cell, g, d.core));
+	} else {
+		double k = 0, u = t;
+
+		for (int i = 0; i < d.nn; i++) {
+			double b = bil_sum(d.pl[i], &d.g, d.core);
+
+			u -= d.wn[i] * b;
+			k += d.wn[i] * (d.keys ? keys_sum(d.pl[i], &d.g, d.core) : b);
+		}
+		src->aux[1] = flux_factor(t, k, u);
+		src->aux[2] = 0;
+	}
+	return 0;
+}
+
+/* One array (psf-blend=cell or core) whose core fits the kv buffer: the
+ * core's pixels first (Keys' cubic of the array, or bilinear, plus
+ * psf-blend=core's correction), in float, 8 columns at a time over the
+ * core's columns, and all its rows, inside the window or not, so that their
+ * sum K, and with prepare()'s T and U the flux factor, is the same in every
+ * window of the source; then the whole window in one call. */
+static inline __attribute__((always_inline)) int render_one(const struct point *p,
+							    const struct draw *d, double t,
+							    double u, const struct wfs_window *win)
+{
+	const struct poly *q = d->pl[0];
+	const struct geom *g = &d->g;
+	long X = win->x0, Y = win->y0;
+	ptrdiff_t m = q->m;
+	double fl = d->wn[0];
+	int empty = zone_empty(d->core);
+	int ka = empty ? 0 : (int)(d->core.x0 - X), kb = empty ? 0 : (int)(d->core.x1 - X);
+	int jc = empty ? 0 : (int)(d->core.y0 - Y), nc = empty ? 0 : (int)(d->core.y1 - d->core.y0);
+	float kvb[KV_ROWS * KV_PITCH + 8];
+	double k = 0, f;
+	struct rows_args ra = {
+		{ tap_at(q, g, 1, 1, X, Y), tap_at(q, g, 2, 1, X, Y),
+		  tap_at(q, g, 1, 2, X, Y), tap_at(q, g, 2, 2, X, Y) },
+		tap_at(q, g, g->an, g->bn, X, Y), m, { 0 }, 0,
+		(int)(d->wing.y0 - Y), (int)(d->wing.y1 - d->wing.y0),
+		(int)(d->wing.x0 - X), (int)(d->wing.x1 - X),
+		jc, nc, ka, kb, kvb
+	};
+
+	if (nc > 0) {
+		struct core_args ca = { .ncor = d->ncor, .keys = d->keys, .nc = nc,
+					.nk = kb - ka, .m = m };
+		ptrdiff_t at = (ptrdiff_t)d->core.y0 * m + d->core.x0;
+
+		ca.base = q->plane + at;
+		for (int a = 0; a < 4; a++) {
+			ca.tx[a] = g->tx[a];
+			ca.ty[a] = g->ty[a];
+			ca.kx[a] = (float)g->kx[a];
+			ca.ky[a] = (float)(g->ky[a] * fl);
+			ca.bw[a] = (float)(fl * g->by[a >> 1] * g->bx[a & 1]);
+		}
+		for (int c = 0; c < d->ncor; c++) {
+			ca.cbase[c] = d->cp[c]->plane + at;
+			for (int t = 0; t < 4; t++)
+				ca.cw[4 * c + t] = (float)(d->cw[c] * g->by[t >> 1] * g->bx[t & 1]);
+		}
+		k = p->core_rows(&ca, kvb);
+	}
+	f = flux_factor(t, k, u);
+	for (int a = 0; a < 4; a++)
+		ra.w[a] = (float)(f * fl * g->by[a >> 1] * g->bx[a & 1]);
+	ra.wn = (float)(f * fl);
+	p->sum_rows(win->pix, win->stride, win->nx, win->ny, &ra);
+	return 0;
+}
+
+/* Several arrays (psf-blend=source, and the bright classes under the
+ * default), or a cell's blend with a core too wide for render_one (the
+ * cubic everywhere in a bright box under psf-blend=cell): row by row, the
+ * bilinear sum of every array's 4 streams times f into a float row, then
+ * Keys' cubic over the core's columns, in double, from the same samples.
+ * No psf-blend=core correction comes here (a faint box's core always fits
+ * render_one), and a core here is always cubic (a bilinear one is only
+ * psf-blend=core's). */
+static inline __attribute__((always_inline)) int render_many(const struct draw *d, double f,
+		       const struct wfs_window *win)
+{
+	const struct geom *g = &d->g;
+	int nn = d->nn;
+	long X = win->x0, Y = win->y0;
+	float wt[16];
+	const float *tap0[64];  /* [array][y tap][x tap] at the window's first pixel */
+	float acc[MAX_ROW + 8];
+	double dv[MAX_ROW + 4], tv[MAX_ROW + 4];
+	int core = !zone_empty(d->core);
+	ptrdiff_t m = d->pl[0]->m;
+
+	for (int k = 0; k < nn; k++)
+		for (int b = 0; b < 2; b++)
+			for (int a = 0; a < 2; a++)
+				wt[(k * 2 + b) * 2 + a] = (float)(f * d->wn[k] * g->by[b] * g->bx[a]);
+	for (int k = 0; k < nn; k++)
+		for (int b = 0; b < 4; b++)
+			for (int a = 0; a < 4; a++)
+				tap0[(k * 4 + b) * 4 + a] = tap_at(d->pl[k], g, a, b, X, Y);
+	for (int j = 0; j < win->ny; j++) {
+		double *row = win->pix + (ptrdiff_t)j * win->stride;
+		ptrdiff_t step = (ptrdiff_t)j * m;
+		long jj = Y + j;
+		/* the core's columns on this row, [ca, cb) of the window */
+		long ca = 0, cb = 0;
+
+		if (core && jj >= d->core.y0 && jj < d->core.y1) {
+			ca = d->core.x0 - X < 0 ? 0 : d->core.x0 - X;
+			cb = d->core.x1 - X > win->nx ? win->nx : d->core.x1 - X;
+		}
+		for (int i0 = 0; i0 < win->nx; i0 += MAX_ROW) {
+			int len = win->nx - i0 < MAX_ROW ? win->nx - i0 : MAX_ROW;
+			long ia = ca - i0, ib = cb - i0;
+
+			if (ia < 0)
+				ia = 0;
+			if (ib > len)
+				ib = len;
+			for (int k = 0; k < nn; k++) {
+				const float *const *t = tap0 + 16 * k;
+				const float *s0 = t[5] + step + i0, *s1 = t[6] + step + i0;
+				const float *s2 = t[9] + step + i0, *s3 = t[10] + step + i0;
+				v8f w0 = SPLAT(wt[4 * k]), w1 = SPLAT(wt[4 * k + 1]);
+				v8f w2 = SPLAT(wt[4 * k + 2]), w3 = SPLAT(wt[4 * k + 3]);
+
+				for (int i = 0; i < len; i += 8) {
+					v8f v = { 0 };
+
+					if (k > 0)
+						v = *(const v8f *)(acc + i);
+					v += w0 * *(const v8f *)(s0 + i);
+					v += w1 * *(const v8f *)(s1 + i);
+					v += w2 * *(const v8f *)(s2 + i);
+					v += w3 * *(const v8f *)(s3 + i);
+					*(v8f *)(acc + i) = v;
+				}
+			}
+			/* the core: Keys' cubic from the same samples, 4 pixels
+			 * at a time, past the run's end into the planes' slack;
+			 * only the run is kept */
+			if (ia < ib) {
+				int cn = (int)(ib - ia);
+
+				for (int i = 0; i < cn; i += 4)
+					*(v4d *)(dv + i) = (v4d){ 0 };
+				for (int k = 0; k < nn; k++) {
+					for (int i = 0; i < cn; i += 4)
+						*(v4d *)(tv + i) = (v4d){ 0 };
+					for (int b = 0; b < 4; b++) {
+						const float *const *t = tap0 + (k * 4 + b) * 4;
+						const float *t0 = t[0] + step + i0 + ia, *t1 = t[1] + step + i0 + ia;
+						const float *t2 = t[2] + step + i0 + ia, *t3 = t[3] + step + i0 + ia;
+						v4d c0 = SPLAT4(g->kx[0]), c1 = SPLAT4(g->kx[1]);
+						v4d c2 = SPLAT4(g->kx[2]), c3 = SPLAT4(g->kx[3]);
+						v4d cb4 = SPLAT4(g->ky[b]);
+
+						for (int i = 0; i < cn; i += 4)
+							*(v4d *)(tv + i) += cb4 * (c0 * TO_V4D(t0 + i) + c1 * TO_V4D(t1 + i) +
+										   c2 * TO_V4D(t2 + i) + c3 * TO_V4D(t3 + i));
+					}
+					for (int i = 0; i < cn; i += 4)
+						*(v4d *)(dv + i) += SPLAT4(d->wn[k]) * *(v4d *)(tv + i);
+				}
+				for (int i = 0; i < cn; i++)
+					acc[ia + i] = (float)dv[i];
+			}
+			for (int i = 0; i < len; i++)
+				row[i0 + i] += acc[i];
+		}
+	}
+	return 0;
+}
+
+/* Built twice, for AVX2 and for any x86-64, and chosen at load time: the
+ * core's sums run 8 floats wide where the processor allows. */
+/* Not under the sanitizers: the clones' resolver runs while the plugin is
+ * being relocated, before the instrumentation it calls can be reached (a
+ * ThreadSanitizer build jumped to a bad address in dlopen). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+	!defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+__attribute__((target_clones("avx2,fma", "default")))
+#endif
+int epsf_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win)
+{
+	struct draw d;
+	const struct geom *g = &d.g;
+	int m;
+
+	if (plan(p, src, &d) < 0)
+		return -1;
+	m = d.pl[0]->m;
+	if (win->x0 + g->mx[0] + PAD < 0 || win->x0 + win->nx + g->mx[3] + PAD > m ||
+	    win->y0 + g->my[0] + PAD < 0 || win->y0 + win->ny + g->my[3] + PAD > m)
+		return p->host->error(p->host->ctx, "window outside the source's box");
+	if (one_array(&d))
+		return render_one(p, &d, src->aux[1], src->aux[2], win);
+	if (d.ncor || (!zone_empty(d.core) && !d.keys))
+		return p->host->error(p->host->ctx, "no drawing for this blend and core");
+	return render_many(&d, src->aux[1], win);
+}

@@ -1,0 +1,274 @@
+/*
+ * point_halo.c - psf-extent=noise: each source drawn out to where its
+ * model sinks below psf-extent-noise of the noise per pixel, its ePSF box
+ * (point_epsf.c) scaled to the halo's light in it and the halo model of
+ * halo.h drawn over the rest of that disc.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "point.h"
+
+/* The halo of SCA sca, set up on first use (main thread). */
+const struct halo *halo_of(struct point *p, const struct wfs_source *src)
+{
+	struct halo *h = &p->halo[src->sca];
+	struct wfs_epsf e;
+
+	if (h->env)
+		return h;
+	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, WFS_PSF_HALO, &e) < 0)
+		return NULL;
+	if (halo_setup(h, e.node[0], e.n, e.over, p->halo_power, p->halo_taper) < 0) {
+		p->host->error(p->host->ctx, "halo of SCA %d: %d samples at %d per pixel are "
+			       "too few (or out of memory)", src->sca, e.n, e.over);
+		return NULL;
+	}
+	return h;
+}
+
+/*
+ * The core's scale for SCA sca and the source's class: the halo's light in
+ * the class's box over the core's own (the cores are normalised within
+ * their boxes, so they hold the light beyond them too), both for a source
+ * on a pixel centre, from the first node of the source's position.  The
+ * box is the class's less one pixel all round: the grids' outermost
+ * samples stand about 20% below their neighbours (a 10.5 mag star on a
+ * whole pixel in F129 drew its box's last column 3.5 sigma below the
+ * halo beside it, a seam the demo's image showed), so the halo draws
+ * that ring.
+ */
+static double core_scale(struct point *p, const struct wfs_source *src, const struct halo *h)
+{
+	double *c = &p->cfac[src->sca][src->psf_class];
+	struct wfs_epsf e;
+
+	if (*c > 0)
+		return *c;
+	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+		return -1;
+	double fine = 0, far = 0;
+	int half = e.centre / e.over - 1;
+
+	p->chalf[src->sca][src->psf_class] = half;
+
+	for (int j = -half; j <= half; j++)
+		for (int i = -half; i <= half; i++) {
+			if (abs(i) == half || abs(j) == half)
+				continue;       /* the box: |i - x| < half */
+			fine += e.node[0][(size_t)(e.centre + e.over * j) * e.n + e.centre + e.over * i];
+			far += h->s * h->a[(size_t)(h->c + h->over * j) * h->n + h->c + h->over * i];
+		}
+	*c = fine > 0 && far > 0 ? far / fine : 1;
+	return *c;
+}
+
+/*
+ * prepare(), psf-extent=noise: the radius r beyond which the source's model
+ * stays below psf-extent-noise of the noise per pixel (the halo's
+ * envelope, spikes included); the core's box is the class's, or the
+ * square of half-width r when that is smaller; the halo draws the disc of
+ * radius r outside the box.  The core is scaled to the halo's light in its
+ * box (core_scale).
+ */
+int noise_prepare(struct point *p, struct wfs_source *src)
+{
+	const struct halo *h;
+	struct wfs_source fs;
+	double r, half, c, cap, fl = src->flux;
+
+	if (!(h = halo_of(p, src)) || (c = core_scale(p, src, h)) < 0)
+		return -1;
+	r = fl > 0 ? halo_radius(h, p->extent_noise * p->sigma / fl, p->extent_max) : 1;
+	if (r < 1)
+		r = 1;
+	fs = *src;
+	fs.flux = c * fl;
+	/* the box: core_scale's unless psf-extent-min lets it shrink toward r */
+	cap = p->chalf[src->sca][src->psf_class];
+	if (p->extent_min > 0 && fmax(r, p->extent_min) < cap)
+		cap = fmax(r, p->extent_min);
+	if (epsf_prepare(p, &fs, cap) < 0)
+		return -1;
+	memcpy(src->aux, fs.aux, sizeof(src->aux));
+	half = fs.aux[0];
+	/* no halo when the box holds everything above the level; the core's
+	 * own values at the box's edge may stand a few per cent above the
+	 * halo's (it is sampled twice as finely), so the halo takes over
+	 * once the envelope there reaches half the level */
+	if (r <= half && fl * halo_envelope(h, half - 1) < 0.5 * p->extent_noise * p->sigma)
+		r = 0;
+	else if (r <= half)
+		r = half + 1;
+	src->aux[0] = half + HALO_PACK * r;
+	p->requested += fabs(fl);
+	p->npoint++;
+	p->nhalo += r > 0;
+	p->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, half - 0.5));
+	/* beyond the base radius, the light away from the spikes */
+	if (r > 0 && psf_spikes(p))
+		p->left += fabs(fl) * halo_base_between(h, halo_base_radius(h, p->extent_noise *
+								    p->sigma / fl, r), r);
+	return 0;
+}
+
+/* Whether the pixel at (dx, dy), in the tail, is drawn beyond the base
+ * radius: when it or one of its four neighbours reaches lev (in the
+ * model's units), so that every drawn pixel beside an undrawn one is
+ * below lev (no edge above the level). */
+static inline int spike_drawn(const struct halo *h, double dx, double dy, double lev, double *v)
+{
+	*v = halo_value(h, dx, dy);
+	return *v >= lev || halo_value(h, dx - 1, dy) >= lev || halo_value(h, dx + 1, dy) >= lev ||
+	       halo_value(h, dx, dy - 1) >= lev || halo_value(h, dx, dy + 1) >= lev;
+}
+
+/*
+ * Beyond the base radius rb (halo_base_radius) up to r, only the spikes
+ * rise above the level: the pixels of the window in their strips (two
+ * pixels wider than the spike part of the tail, so that the neighbours of
+ * every pixel above lev are in them), each row's strips merged so that no
+ * pixel is drawn twice, and of those the pixels spike_drawn() keeps.
+ */
+static void spike_render(const struct halo *h, double flux, double x, double y, double rb,
+			 double r, double lev, const struct wfs_window *win)
+{
+	double w = halo_spike_width(h) + 2, rb2 = rb * rb, r2 = r * r;
+	double lo[HALO_MAXSPK], hi[HALO_MAXSPK];
+
+	for (int j = 0; j < win->ny; j++) {
+		double dy = win->y0 + j - y, dy2 = dy * dy;
+		double *row = win->pix + (ptrdiff_t)j * win->stride;
+		int ns = 0;
+
+		if (dy2 > r2)
+			continue;
+		/* the strips on this row, in window columns, sorted by start */
+		for (int k = 0; k < h->nspk; k++) {
+			double a, b;
+			int at;
+
+			if (!halo_spike_span(h, k, dy, w, &a, &b))
+				continue;
+			a = fmax(ceil(x + a) - win->x0, 0);
+			b = fmin(floor(x + b) - win->x0, win->nx - 1);
+			if (a > b)
+				continue;
+			for (at = ns; at > 0 && lo[at - 1] > a; at--) {
+				lo[at] = lo[at - 1];
+				hi[at] = hi[at - 1];
+			}
+			lo[at] = a;
+			hi[at] = b;
+			ns++;
+		}
+		for (int k = 0, next = 0; k < ns; k++) {
+			int i = (int)lo[k] > next ? (int)lo[k] : next;
+
+			for (; i <= (int)hi[k]; i++) {
+				double dx = win->x0 + i - x, d2 = dx * dx + dy2, v;
+
+				if (d2 > rb2 && d2 <= r2 && spike_drawn(h, dx, dy, lev, &v))
+					row[i] += flux * v;
+			}
+			next = i > next ? i : next;
+		}
+	}
+}
+
+/*
+ * The halo of a source: every pixel of the window within radius r of it and
+ * outside its box (the zone box), flux times the halo model.  Inside the
+ * array's disc less the taper, the bilinear read with one set of weights
+ * for the source (its pixels share one sub-sample phase); elsewhere
+ * halo_value().
+ */
+static void halo_render(const struct halo *h, double flux, double x, double y, double r,
+			struct zone box, const struct wfs_window *win)
+{
+	double ux = h->c + h->over * (win->x0 - x), uy = h->c + h->over * (win->y0 - y);
+	long iu = (long)floor(ux), iv = (long)floor(uy);
+	double fu = ux - iu, fv = uy - iv;
+	double w00 = flux * h->s * (1 - fu) * (1 - fv), w10 = flux * h->s * fu * (1 - fv);
+	double w01 = flux * h->s * (1 - fu) * fv, w11 = flux * h->s * fu * fv;
+	double rin = h->R - h->taper, rin2 = rin * rin, r2 = r * r, R2 = h->R * h->R;
+	long n = h->n, o = h->over;
+
+	for (int j = 0; j < win->ny; j++) {
+		double dy = win->y0 + j - y, dy2 = dy * dy;
+		double *row = win->pix + (ptrdiff_t)j * win->stride;
+		long jj = win->y0 + j;
+		int inbox = jj >= box.y0 && jj < box.y1;
+		double span, lo, hi;
+
+		if (dy2 > r2)
+			continue;
+		span = sqrt(r2 - dy2);
+		lo = ceil(x - span) - win->x0;
+		hi = floor(x + span) - win->x0;
+		if (lo < 0)
+			lo = 0;
+		if (hi > win->nx - 1)
+			hi = win->nx - 1;
+		for (int i = (int)lo; i <= (int)hi; i++) {
+			long ii = win->x0 + i;
+			double dx = ii - x, d2 = dx * dx + dy2;
+
+			if (inbox && ii >= box.x0 && ii < box.x1) {
+				i = (int)(box.x1 - win->x0) - 1;
+				continue;
+			}
+			if (d2 < rin2) {
+				const float *q = h->a + (iv + o * j) * n + iu + o * i;
+
+				row[i] += w00 * q[0] + w10 * q[1] + w01 * q[n] + w11 * q[n + 1];
+			} else if (d2 >= R2)
+				row[i] += flux * halo_tail(h, dx, dy);
+			else
+				row[i] += flux * halo_value(h, dx, dy);
+		}
+	}
+}
+
+/* render(), psf-extent=noise: the window's part of the box, its flux scaled
+ * as prepare() found (core_scale), then the halo over the rest of the disc.
+ * Built twice, for AVX2 and for any x86-64, and chosen at load time, as
+ * point_render was before the split (without, a 2-mag star's render took
+ * 1.3 times as long); not under the sanitizers (see epsf_render). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+	!defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+__attribute__((target_clones("avx2,fma", "default")))
+#endif
+int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win)
+{
+	struct wfs_source fs = *src;
+	struct wfs_window sub;
+	struct zone box, w;
+	double r = halo_radius_of(src), half = box_half_of(src);
+
+	fs.aux[0] = half;
+	fs.flux = src->flux * p->cfac[src->sca][src->psf_class];
+	box = square(src->x, src->y, half);
+	w = meet(box, (struct zone){ win->x0, win->x0 + win->nx, win->y0, win->y0 + win->ny });
+	if (!zone_empty(w)) {
+		sub.pix = win->pix + (w.y0 - win->y0) * win->stride + (w.x0 - win->x0);
+		sub.stride = win->stride;
+		sub.x0 = (int)w.x0;
+		sub.y0 = (int)w.y0;
+		sub.nx = (int)(w.x1 - w.x0);
+		sub.ny = (int)(w.y1 - w.y0);
+		if (epsf_render(p, &fs, &sub) < 0)
+			return -1;
+	}
+	if (r > 0) {
+		const struct halo *h = &p->halo[src->sca];
+		double lev = p->extent_noise * p->sigma / src->flux;
+		double rb = psf_spikes(p) ? halo_base_radius(h, lev, r) : r;
+
+		halo_render(h, src->flux, src->x, src->y, rb < r ? rb : r, box, win);
+		if (rb < r)
+			spike_render(h, src->flux, src->x, src->y, rb, r, lev, win);
+	}
+	return 0;
+}

@@ -1,0 +1,259 @@
+/*
+ * point_poly.c - the polyphase copies of the ePSF arrays a source reads:
+ * the host's grid nodes, found by the node's address, and the blends of
+ * the four nodes at a cell's centre (psf-blend=cell and core), found by an
+ * odd key.  Made in prepare(), on the host's thread, and kept until fini;
+ * with each copy its summed-area tables (the box sums of the flux factor)
+ * and its enclosed light (psf-box=adaptive).
+ *
+ * The table is an open-addressed hash of POLY_SLOTS slots, never removed
+ * from, and read by render() on the workers while the host's prepare()
+ * adds to it for the next chunk of rows.  So a slot is published as in a
+ * single-writer lock-free map: the host fills p->slot[i] while it is
+ * still unseen, then stores its key into p->keys[i] with release order;
+ * every probe loads p->keys[i] with acquire order and reads the slot only
+ * after seeing its key there, so it sees the slot whole.  (A probe for a
+ * key added in an earlier chunk never passes a slot being filled, as that
+ * slot was empty when the key went in; the ordering makes the table safe
+ * for any probe, an absent key's included, without relying on that.)
+ */
+#include <math.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "point.h"
+
+static size_t poly_hash(uint64_t key)
+{
+	uint64_t h = key;
+
+	h ^= h >> 17;
+	h *= 0x9e3779b97f4a7c15ULL;
+	return (size_t)(h >> 20) & (POLY_SLOTS - 1);
+}
+
+/* The published key of slot i (0: empty). */
+static inline uint64_t slot_key(const struct point *p, size_t i)
+{
+	return atomic_load_explicit(&p->keys[i], memory_order_acquire);
+}
+
+/* The slot under key, or where it would go: *empty set to the first empty
+ * slot on key's path (POLY_SLOTS when the table is full). */
+static struct poly *poly_probe(struct point *p, uint64_t key, size_t *empty)
+{
+	size_t i = poly_hash(key);
+
+	for (size_t k = 0; k < POLY_SLOTS; k++, i = (i + 1) & (POLY_SLOTS - 1)) {
+		uint64_t s = slot_key(p, i);
+
+		if (s == key)
+			return &p->slot[i];
+		if (!s) {
+			*empty = i;
+			return NULL;
+		}
+	}
+	*empty = POLY_SLOTS;
+	return NULL;
+}
+
+const struct poly *poly_find(const struct point *p, uint64_t key)
+{
+	size_t empty;
+
+	return poly_probe((struct point *)p, key, &empty);
+}
+
+/* Make slot i, filled, visible to every probe. */
+static void poly_publish(struct point *p, size_t i)
+{
+	atomic_store_explicit(&p->keys[i], p->slot[i].key, memory_order_release);
+}
+
+/* ee[h]: the fraction of the flux in the (2h - 1)^2 pixels about a source
+ * on a pixel centre.  Any box of pixels with |i - x| < h and |j - y| < h
+ * covers at least the area [-(h - 1/2), h - 1/2]^2 about the source, which
+ * is what these pixels cover, so flux * (ee[nee] - ee[h]) bounds the light
+ * a box of half-width h leaves out compared with the full box. */
+static void ee_table(struct poly *q, const float *node)
+{
+	int n = q->n, o = q->over, c = q->centre;
+
+	q->ee[0] = 0;
+	for (int h = 1; h <= q->nee; h++) {
+		double s = 0;
+		int r = h - 1;
+
+		for (int d = -r; d <= r; d++) {
+			s += node[(size_t)(c - o * r) * n + c + o * d];
+			if (r > 0)
+				s += node[(size_t)(c + o * r) * n + c + o * d];
+		}
+		for (int d = -r + 1; d <= r - 1; d++)
+			s += node[(size_t)(c + o * d) * n + c - o * r] +
+			     node[(size_t)(c + o * d) * n + c + o * r];
+		q->ee[h] = q->ee[h - 1] + s;
+	}
+}
+
+/* The summed-area tables of q's planes; row is m + 1 doubles of scratch. */
+static void sat_table(struct poly *q, double *row)
+{
+	int m = q->m, w = m + 1;
+
+	for (int k = 0; k < q->over * q->over; k++) {
+		const float *pl = q->plane + (size_t)k * m * m;
+		float *s = q->sat + (size_t)k * w * w;
+
+		for (int c = 0; c < w; c++)
+			row[c] = s[c] = 0;
+		for (int r = 0; r < m; r++) {
+			double run = 0;
+
+			s[(size_t)(r + 1) * w] = 0;
+			for (int c = 0; c < m; c++) {
+				run += pl[(size_t)r * m + c];
+				row[c + 1] += run;
+				s[(size_t)(r + 1) * w + c + 1] = (float)row[c + 1];
+			}
+		}
+	}
+}
+
+/* The polyphase copy of an n x n ePSF array under key, filled into an empty
+ * slot but not published (poly_publish).  Main thread only (prepare), and
+ * nothing else may be added before it is published.  NULL with an error
+ * recorded when it fails. */
+static struct poly *poly_make(struct point *p, uint64_t key, const float *node, int n, int over)
+{
+	int m = (n + over - 1) / over + 2 * PAD + 1;
+	size_t i;
+	struct poly q = { .key = key, .n = n, .over = over, .centre = (n - 1) / 2, .m = m };
+	double *row;
+
+	if (poly_probe(p, key, &i))
+		return NULL;    /* not reached: the callers look first */
+	if (i == POLY_SLOTS) {
+		p->host->error(p->host->ctx, "too many ePSF nodes and cells (%d)", POLY_SLOTS);
+		return NULL;
+	}
+	q.nee = q.centre / over;
+	q.plane = calloc((size_t)over * over * m * m + VSLACK, sizeof(float));
+	q.sat = malloc((size_t)over * over * (m + 1) * (m + 1) * sizeof(float));
+	q.ee = calloc((size_t)q.nee + 1, sizeof(double));
+	row = malloc((size_t)(m + 1) * sizeof(double));
+	if (!q.plane || !q.sat || !q.ee || !row) {
+		free(q.plane);
+		free(q.sat);
+		free(q.ee);
+		free(row);
+		p->host->error(p->host->ctx, "out of memory");
+		return NULL;
+	}
+	for (int r = 0; r < over; r++)
+		for (int s = 0; s < over; s++) {
+			float *pl = q.plane + (size_t)(r * over + s) * m * m;
+
+			for (int y = r, a = PAD; y < n; y += over, a++)
+				for (int x = s, b = PAD; x < n; x += over, b++)
+					pl[a * m + b] = node[(size_t)y * n + x];
+		}
+	ee_table(&q, node);
+	sat_table(&q, row);
+	free(row);
+	p->slot[i] = q;
+	return &p->slot[i];
+}
+
+/* The polyphase copy of an n x n ePSF array under key, made and published
+ * the first time.  Main thread only (prepare).  NULL with an error recorded
+ * when it fails. */
+struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
+{
+	size_t i;
+	struct poly *q = poly_probe(p, key, &i);
+
+	if (q)
+		return q;
+	if (!(q = poly_make(p, key, node, n, over)))
+		return NULL;
+	poly_publish(p, (size_t)(q - p->slot));
+	return q;
+}
+
+/* The key of the blended cell holding (x, y): odd, so never a node's. */
+uint64_t cell_key(const struct point *p, const struct wfs_source *src)
+{
+	uint64_t cx = (uint64_t)(int64_t)floor(src->x / p->cell) & 0xffff;
+	uint64_t cy = (uint64_t)(int64_t)floor(src->y / p->cell) & 0xffff;
+
+	return 1 | (uint64_t)src->sca << 1 | (uint64_t)src->psf_class << 8 | cx << 16 | cy << 32;
+}
+
+/* psf-blend=cell: the ePSF blended once at the centre of the source's cell
+ * (bilinear in position, as the host's weights say), so a source reads one
+ * array instead of four.  NULL with an error recorded when it fails. */
+struct poly *cell_add(struct point *p, const struct wfs_source *src)
+{
+	uint64_t key = cell_key(p, src);
+	struct wfs_epsf e;
+	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
+	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
+	struct poly *c = (struct poly *)poly_find(p, key);
+	const float *cnode[4];
+	const struct poly *cpoly[4];
+	float *mix;
+	size_t nn;
+
+	if (c)
+		return c;
+	if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
+		return NULL;
+	nn = (size_t)e.n * e.n;
+	if (!(mix = malloc(nn * sizeof(float)))) {
+		p->host->error(p->host->ctx, "out of memory");
+		return NULL;
+	}
+	for (size_t i = 0; i < nn; i++) {
+		double v = 0;
+
+		for (int k = 0; k < 4; k++)
+			if (e.weight[k] != 0)
+				v += e.weight[k] * e.node[k][i];
+		mix[i] = (float)v;
+	}
+	/* what the cell is blended from, for the core's correction
+	 * (psf-blend=core): the nodes' own polyphase copies too, made
+	 * first, so that the cell is published whole */
+	for (int k = 0; k < 4; k++) {
+		cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
+		cpoly[k] = NULL;
+		if (p->blend == BLEND_CORE && cnode[k] &&
+		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over))) {
+			free(mix);
+			return NULL;
+		}
+	}
+	c = poly_make(p, key, mix, e.n, e.over);
+	free(mix);
+	if (!c)
+		return NULL;
+	for (int k = 0; k < 4; k++) {
+		c->cnode[k] = cnode[k];
+		c->cweight[k] = cnode[k] ? e.weight[k] : 0;
+		c->cpoly[k] = cpoly[k];
+	}
+	poly_publish(p, (size_t)(c - p->slot));
+	return c;
+}
+
+void poly_free_all(struct point *p)
+{
+	for (int i = 0; i < POLY_SLOTS; i++) {
+		free(p->slot[i].plane);
+		free(p->slot[i].sat);
+		free(p->slot[i].ee);
+	}
+}

@@ -8,6 +8,7 @@
 
 #include "err.h"
 #include "fitsout.h"
+#include "geometry.h"
 #include "instrument.h"
 #include "levels.h"
 #include "pool.h"
@@ -208,7 +209,7 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 	char *cards[5] = { 0 }, name[5][24];
 	int ncards[5];
 	struct strip s = { .L = L, .fp = &fp };
-	double *lightbuf = NULL;
+	double *lightbuf = NULL, *pixarea = NULL;
 	const double **light = NULL;
 	size_t area;
 
@@ -247,7 +248,8 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 	s.dnrow = calloc((size_t)nthr, sizeof(*s.dnrow));
 	lightbuf = malloc((size_t)(S + 2) * WFS_NPIX * sizeof(double));
 	light = calloc((size_t)S + 2, sizeof(*light));
-	if (!s.scr || !s.rate || !s.dnrow || !lightbuf || !light)
+	pixarea = malloc(WFS_NPIX * sizeof(double));
+	if (!s.scr || !s.rate || !s.dnrow || !lightbuf || !light || !pixarea)
 		goto nomem;
 	for (int w = 0; w < nthr; w++)
 		if (!(s.scr[w] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
@@ -284,8 +286,18 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 				continue;
 			if (L->rate_row(L->arg, sy, row, e) < 0)
 				goto done;
-			for (int x = 0; x < WFS_NPIX; x++)
-				row[x] += L->background;
+			if (L->geo && L->bkg_sky != 0) {
+				/* the sky's part times each pixel's area, the
+				 * thermal part as is (as detector.c's tiles) */
+				double thermal = L->background - L->bkg_sky;
+
+				geom_area_row(L->geo, sy, 0, WFS_NPIX, pixarea);
+				for (int x = 0; x < WFS_NPIX; x++)
+					row[x] += L->bkg_sky * pixarea[x] + thermal;
+			} else {
+				for (int x = 0; x < WFS_NPIX; x++)
+					row[x] += L->background;
+			}
 			light[k] = row;
 		}
 		pool_run(L->pool, strip_row, &s, (size_t)ny);
@@ -331,6 +343,7 @@ done:
 	free(s.dq);
 	free(lightbuf);
 	free(light);
+	free(pixarea);
 	for (int k = 0; k < 5; k++)
 		free(cards[k]);
 	ramp_fit_plan_free(&fp);

@@ -249,6 +249,17 @@ double ramp_nl_inverse(const struct ramp_det *d, double m)
 
 /* ---- level 1 ---- */
 
+/* nearbyint() in the default rounding mode (to nearest, ties to even),
+ * without the call (x86-64 has no rounding instruction below SSE4.1):
+ * adding and taking back 1.5 x 2^52 leaves no fraction bits, exactly, for
+ * |x| < 2^51; larger doubles are integers already (or NaN/inf). */
+static inline double round_even(double x)
+{
+	const double c = 0x1.8p52;
+
+	return fabs(x) < 0x1p51 ? (x + c) - c : x;
+}
+
 /*
  * Poisson counts of a row from one Philox call per pixel (draw 0 of its
  * cell in generator g), whose four words all serve:
@@ -333,7 +344,9 @@ static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *m
 			if (!(v > 0)) {
 				out[i] = 0;
 			} else if (v < POIS_INV) {
-				double m0 = floor(v * (1 / POIS_STEP)) * POIS_STEP, delta = v - m0;
+				/* 0 < v < 32: truncation is floor, without a call */
+				double m0 = (double)(int)(v * (1 / POIS_STEP)) * POIS_STEP;
+				double delta = v - m0;
 				double u = rng_u01(w[j][0], w[j][1]), k = 0;
 
 				if (m0 > 0) {
@@ -551,7 +564,7 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 				} else {
 					double zs = rng_normal_bits(&gz, cell, w[j][2], w[j][3]);
 
-					W = nearbyint(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs);
+					W = round_even(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs);
 					if (W < Di)
 						W = Di;
 					if (W > Di * N)
@@ -585,7 +598,7 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 				}
 				if (v > d->sat_e)
 					v = d->sat_e;
-				v = nearbyint(v * inv_g);
+				v = round_even(v * inv_g);
 				out[(size_t)gi * plane + (size_t)i] =
 					(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
 				S[i] += Di;

@@ -28,7 +28,7 @@ static double now(void)
 /* 0.2 to 20 counts/s across the SCA, as noise_bench; RAMP_FLAT=r: a flat
  * r counts/s; RAMP_SKY=r: r counts/s varying by +-3 % across the SCA, as
  * pixel areas make a sky vary (read once: getenv per pixel would cost more
- * than the noise) */
+ * than the noise); RAMP_PNORMAL=m as --set poisson-normal=m */
 static double flat = -1, sky = -1;
 
 static double signal(int x, int y)
@@ -57,6 +57,9 @@ int main(void)
 		flat = atof(getenv("RAMP_FLAT"));
 	if (getenv("RAMP_SKY"))
 		sky = atof(getenv("RAMP_SKY"));
+	/* RAMP_PNORMAL=m: --set poisson-normal=m (inf: always exact) */
+	if (getenv("RAMP_PNORMAL"))
+		k.poisson_normal = atof(getenv("RAMP_PNORMAL"));
 	if (ramp_pattern_get(4, &p, &e) || ramp_det_get(1, &d, &e)) {
 		printf("Bail out! %s\n", e.msg);
 		return 1;

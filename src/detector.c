@@ -5,11 +5,16 @@
  * noise and detector residuals applied per tile by noise.c; levels 1 and 2
  * (the ramp) are written whole by levels.c from write.c.
  */
+#include <math.h>
 #include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "detector.h"
 #include "exposure.h"
+#include "err.h"
 #include "instrument.h"
+#include "levels.h"
 #include "pool.h"
 #include "scene.h"
 #include "sky.h"
@@ -21,6 +26,22 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 
 	d->level = x->level;
 	d->sky = NULL;
+	d->poisson_normal = 0;
+	/* --set poisson-normal=N (the last one given wins) */
+	for (const char *const *kv = o->settings; kv && *kv; kv++) {
+		static const char key[] = "poisson-normal=";
+		const char *v = *kv + sizeof(key) - 1;
+		char *end;
+		double val;
+
+		if (strncmp(*kv, key, sizeof(key) - 1))
+			continue;
+		val = strtod(v, &end);
+		if (end == v || *end || isnan(val) || val < 10)
+			return err_set(e, EXIT_INPUT, "--set poisson-normal=%s: expected a mean "
+				       "of 10 or more (inf: always the exact count)", v);
+		d->poisson_normal = val;
+	}
 	for (int s = 0; s < WFS_NSCA; s++) {
 		const struct bkg_part *p = &x->bkg.sca[s];
 		int split = x->bkg.model == BKG_AVG || x->bkg.model == BKG_SKY;
@@ -35,6 +56,7 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 	}
 	d->noise = (struct noise_opts){
 		.stages = o->noise, .exptime = o->exptime,
+		.poisson_normal = d->poisson_normal,
 		.readnoise = o->readnoise, .dark_current = o->dark_current,
 		.cosmic_rate = o->cosmic_rate, .cosmic_residual = o->cosmic_residual,
 		.seed = x->seed, .filter = o->filter, .counts = o->bunit_counts,
@@ -100,4 +122,14 @@ int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0,
 	atomic_init(&j.failed, 0);
 	pool_run(pool, detector_tile, &j, ntx);
 	return atomic_load(&j.failed) ? -1 : 0;
+}
+
+void detector_level_setup(const struct detector *d, int sca, struct level_sca *L)
+{
+	const struct geom_sca *geo = d->sky ? &d->sky->sca[sca - 1].geo : NULL;
+
+	L->background = d->bkg_sky[sca - 1] + d->bkg_pixel[sca - 1];
+	L->geo = geo && geo->kind == GEOM_SIAF ? geo : NULL;
+	L->bkg_sky = d->bkg_sky[sca - 1];
+	L->key.poisson_normal = d->poisson_normal;
 }

@@ -51,7 +51,18 @@ struct detector {
 	 * the SIAF geometry each pixel's background is the --background value
 	 * times its area over a nominal 0.11" square (DETECTOR_SCENE). */
 	const struct sky *sky;
+	/* --set poisson-normal=N: the mean (e-, counts) from which a Poisson
+	 * count is the skew-corrected normal (rng_poisson_normal), at every
+	 * level; 0 for the defaults (NOISE_POISSON_NORMAL, RAMP_POISSON_NORMAL). */
+	double poisson_normal;
 };
+
+struct level_sca;
+
+/* The background of SCA sca at levels 1 and 2 (the sky's part per pixel
+ * area in the SIAF geometry, as detector_strip has it) and the knobs of
+ * the ramp's approximations, into L. */
+void detector_level_setup(const struct detector *d, int sca, struct level_sca *L);
 
 /* The detector stage of exposure x of a run with options o. */
 int detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x,

@@ -8,6 +8,7 @@
 
 #include "err.h"
 #include "fitsout.h"
+#include "geometry.h"
 #include "instrument.h"
 #include "levels.h"
 #include "pool.h"
@@ -196,6 +197,33 @@ static int hdu_cards(const struct level_sca *L, const char *extname, const char 
 	return 0;
 }
 
+/* Write the planes of computed strip s at their places in the file. */
+static int strip_write(const struct level_sca *L, const struct strip *s, int flo,
+		       struct fitsout *f, struct err *e)
+{
+	const struct ramp_pattern *p = L->pat;
+	int fy0 = s->fy0, ny = s->ny;
+
+	if (L->level == LEVEL_1) {
+		for (int g = 0; g < p->nres; g++)
+			if (fitsout_group_rows(f, 0, g, fy0 - flo, ny,
+					       s->l1 + (size_t)g * ny * FRAME, e) < 0)
+				return -1;
+	} else {
+		/* science rows only: the reference rows have no fit */
+		int a = fy0 < BORDER ? BORDER - fy0 : 0;
+		int b = fy0 + ny > BORDER + WFS_NPIX ? BORDER + WFS_NPIX - fy0 : ny;
+		long y0 = fy0 + a - BORDER - L->ylo;
+		size_t o = (size_t)a * WFS_NPIX;
+		const void *plane[5] = { s->rt + o, s->er + o, s->dq + o, s->vp + o, s->vr + o };
+
+		for (int k = 0; k < 5 && b > a; k++)
+			if (fitsout_group_rows(f, k, 0, y0, b - a, plane[k], e) < 0)
+				return -1;
+	}
+	return 0;
+}
+
 int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 {
 	const struct ramp_pattern *p = L->pat;
@@ -207,10 +235,16 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 	struct fitsout_hdu h[5];
 	char *cards[5] = { 0 }, name[5][24];
 	int ncards[5];
-	struct strip s = { .L = L, .fp = &fp };
-	double *lightbuf = NULL;
+	/* two strips: the workers compute one while this thread writes the
+	 * other, so that writing hides behind the ramp (or the ramp behind
+	 * the writing); the per-worker scratch is shared, as only one strip
+	 * is computed at a time */
+	struct strip st[2] = { { .L = L, .fp = &fp }, { .L = L, .fp = &fp } };
+	struct strip *prev = NULL;
+	double *lightbuf = NULL, *pixarea = NULL;
 	const double **light = NULL;
 	size_t area;
+	int running = 0;
 
 	if (L->level == LEVEL_1) {
 		snprintf(name[0], sizeof(name[0]), "WFI%02d", sca);
@@ -242,41 +276,50 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 		goto done;
 
 	area = (size_t)S * WFS_NPIX;
-	s.scr = calloc((size_t)nthr, sizeof(*s.scr));
-	s.rate = calloc((size_t)nthr, sizeof(*s.rate));
-	s.dnrow = calloc((size_t)nthr, sizeof(*s.dnrow));
+	st[0].scr = calloc((size_t)nthr, sizeof(*st[0].scr));
+	st[0].rate = calloc((size_t)nthr, sizeof(*st[0].rate));
+	st[0].dnrow = calloc((size_t)nthr, sizeof(*st[0].dnrow));
 	lightbuf = malloc((size_t)(S + 2) * WFS_NPIX * sizeof(double));
 	light = calloc((size_t)S + 2, sizeof(*light));
-	if (!s.scr || !s.rate || !s.dnrow || !lightbuf || !light)
+	pixarea = malloc(WFS_NPIX * sizeof(double));
+	if (!st[0].scr || !st[0].rate || !st[0].dnrow || !lightbuf || !light || !pixarea)
 		goto nomem;
 	for (int w = 0; w < nthr; w++)
-		if (!(s.scr[w] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
-		    !(s.rate[w] = calloc(WFS_NPIX, sizeof(double))) ||
-		    !(s.dnrow[w] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))))
+		if (!(st[0].scr[w] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
+		    !(st[0].rate[w] = calloc(WFS_NPIX, sizeof(double))) ||
+		    !(st[0].dnrow[w] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))))
 			goto nomem;
 		else
-			ramp_scratch_init(s.scr[w]);
-	if (L->level == LEVEL_1) {
-		if (!(s.l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
+			ramp_scratch_init(st[0].scr[w]);
+	st[1].scr = st[0].scr;
+	st[1].rate = st[0].rate;
+	st[1].dnrow = st[0].dnrow;
+	for (int b = 0; b < 2; b++) {
+		struct strip *s = &st[b];
+
+		s->light = light;
+		if (L->level == LEVEL_1) {
+			if (!(s->l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
+				goto nomem;
+		} else if (!(s->rt = malloc(area * sizeof(float))) ||
+			   !(s->er = malloc(area * sizeof(float))) ||
+			   !(s->vp = malloc(area * sizeof(float))) ||
+			   !(s->vr = malloc(area * sizeof(float))) ||
+			   !(s->dq = malloc(area * sizeof(uint32_t)))) {
 			goto nomem;
-	} else if (!(s.rt = malloc(area * sizeof(float))) ||
-		   !(s.er = malloc(area * sizeof(float))) ||
-		   !(s.vp = malloc(area * sizeof(float))) ||
-		   !(s.vr = malloc(area * sizeof(float))) ||
-		   !(s.dq = malloc(area * sizeof(uint32_t)))) {
-		goto nomem;
+		}
 	}
-	s.light = light;
-	for (int fy0 = flo; fy0 < fhi; fy0 += S) {
+	for (int fy0 = flo, b = 0; fy0 < fhi; fy0 += S, b ^= 1) {
+		struct strip *s = &st[b];
 		int ny = fhi - fy0 < S ? fhi - fy0 : S;
-		double t0 = now();
+		double t0 = now(), t1;
 
 		/* the science rows of the strip and one on either side, for IPC */
-		s.fy0 = fy0;
-		s.ny = ny;
-		s.sy0 = fy0 - BORDER;
+		s->fy0 = fy0;
+		s->ny = ny;
+		s->sy0 = fy0 - BORDER;
 		for (int k = 0; k < ny + 2; k++) {
-			int sy = s.sy0 - 1 + k;
+			int sy = s->sy0 - 1 + k;
 			double *row = lightbuf + (size_t)k * WFS_NPIX;
 
 			light[k] = NULL;
@@ -284,53 +327,67 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 				continue;
 			if (L->rate_row(L->arg, sy, row, e) < 0)
 				goto done;
-			for (int x = 0; x < WFS_NPIX; x++)
-				row[x] += L->background;
+			if (L->geo && L->bkg_sky != 0) {
+				/* the sky's part times each pixel's area, the
+				 * thermal part as is (as detector.c's tiles) */
+				double thermal = L->background - L->bkg_sky;
+
+				geom_area_row(L->geo, sy, 0, WFS_NPIX, pixarea);
+				for (int x = 0; x < WFS_NPIX; x++)
+					row[x] += L->bkg_sky * pixarea[x] + thermal;
+			} else {
+				for (int x = 0; x < WFS_NPIX; x++)
+					row[x] += L->background;
+			}
 			light[k] = row;
 		}
-		pool_run(L->pool, strip_row, &s, (size_t)ny);
-		L->t_ramp += now() - t0;
-		t0 = now();
-		if (L->level == LEVEL_1) {
-			for (int g = 0; g < p->nres; g++)
-				if (fitsout_group_rows(f, 0, g, fy0 - flo, ny,
-						       s.l1 + (size_t)g * ny * FRAME, e) < 0)
-					goto done;
-		} else {
-			/* science rows only: the reference rows have no fit */
-			int a = fy0 < BORDER ? BORDER - fy0 : 0;
-			int b = fy0 + ny > BORDER + WFS_NPIX ? BORDER + WFS_NPIX - fy0 : ny;
-			long y0 = fy0 + a - BORDER - L->ylo;
-			size_t o = (size_t)a * WFS_NPIX;
-			const void *plane[5] = { s.rt + o, s.er + o, s.dq + o, s.vp + o, s.vr + o };
+		pool_start(L->pool, strip_row, s, (size_t)ny);
+		running = 1;
+		t1 = now();
+		if (prev && strip_write(L, prev, flo, f, e) < 0)
+			goto done;
+		t1 = now() - t1;
+		L->t_write += t1;
+		pool_wait(L->pool);
+		running = 0;
+		/* the wall time less the writing, which overlapped the ramp:
+		 * the two add up to the wall time of the loop */
+		L->t_ramp += now() - t0 - t1;
+		prev = s;
+	}
+	{
+		double t1 = now();
 
-			for (int k = 0; k < 5 && b > a; k++)
-				if (fitsout_group_rows(f, k, 0, y0, b - a, plane[k], e) < 0)
-					goto done;
-		}
-		L->t_write += now() - t0;
+		if (prev && strip_write(L, prev, flo, f, e) < 0)
+			goto done;
+		L->t_write += now() - t1;
 	}
 	r = fitsout_group_end(f, e);
 	goto done;
 nomem:
 	err_sys(e, "detector level %d: memory", L->level);
 done:
-	for (int w = 0; s.scr && w < nthr; w++) {
-		free(s.scr[w]);
-		free(s.rate[w]);
-		free(s.dnrow[w]);
+	if (running)
+		pool_wait(L->pool);
+	for (int w = 0; st[0].scr && w < nthr; w++) {
+		free(st[0].scr[w]);
+		free(st[0].rate[w]);
+		free(st[0].dnrow[w]);
 	}
-	free(s.scr);
-	free(s.rate);
-	free(s.dnrow);
-	free(s.l1);
-	free(s.rt);
-	free(s.er);
-	free(s.vp);
-	free(s.vr);
-	free(s.dq);
+	free(st[0].scr);
+	free(st[0].rate);
+	free(st[0].dnrow);
+	for (int b = 0; b < 2; b++) {
+		free(st[b].l1);
+		free(st[b].rt);
+		free(st[b].er);
+		free(st[b].vp);
+		free(st[b].vr);
+		free(st[b].dq);
+	}
 	free(lightbuf);
 	free(light);
+	free(pixarea);
 	for (int k = 0; k < 5; k++)
 		free(cards[k]);
 	ramp_fit_plan_free(&fp);

@@ -24,6 +24,7 @@
 
 struct err;
 struct fitsout;
+struct geom_sca;
 struct pool;
 
 enum level { LEVEL_SCENE = 0, LEVEL_1 = 1, LEVEL_2 = 2 };
@@ -39,6 +40,12 @@ struct level_sca {
 	int ylo, yhi;           /* science rows [ylo, yhi) of 0 .. 4088 */
 	int strip;              /* rows per strip, > 0 */
 	double background;      /* counts/s/pixel added to the rendered light */
+	/* With geo set (the SIAF geometry), the sky's part of it per nominal
+	 * 0.11" pixel, which each pixel gets times its own area
+	 * (geom_area_row), as the scene level does (detector.c); the rest of
+	 * background (the thermal glow) is added as is. */
+	const struct geom_sca *geo;
+	double bkg_sky;
 	/* The rendered rate of science row y (0 .. 4087) into out[0 .. 4087];
 	 * called on the calling thread only.  0 or -1 (message in e). */
 	int (*rate_row)(void *arg, int y, double *out, struct err *e);

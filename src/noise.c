@@ -222,20 +222,6 @@ static void cr_template(double w[3][3])
 #define CR_NSEG ((CR_SPAN + CR_SEG - 1) / CR_SEG)
 #define CR_PER_CENTRE 1.0       /* lambda from which centres are drawn one by one */
 
-/* Poisson(lambda) for lambda < 10 by inversion from u (see rng.c),
- * continued from the u that decided "no hit" in the common case. */
-static int cr_count(double u, double lambda, double emu)
-{
-	double pk = emu, f = pk;
-	int k = 0;
-
-	while (u >= f && k < 200) {
-		k++;
-		pk *= lambda / k;
-		f += pk;
-	}
-	return k;
-}
 
 struct cr_tile {
 	double tw[3][3], resid;
@@ -274,7 +260,7 @@ static void cr_segment(const struct cr_tile *t, const struct rng *g, double ener
 	rng_cell_init(&c, g, cell, 0);
 	/* n lambda >= 10 needs t > 3e4 s; then PTRS on the stream. */
 	if (lambda < 10)
-		hits = cr_count(u, lambda, emu);
+		hits = rng_poisson_invert(u, lambda, emu);
 	else
 		hits = rng_poisson_draw(big, &c);
 	for (double h = 0; h < hits; h++) {
@@ -400,6 +386,7 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 	struct rng g_pois, g_read, g_flat, g_dshot, g_dfield;
 	struct rng_poisson dark;
 	double dark_in_poisson;
+	double normal_above = o && o->poisson_normal > 0 ? o->poisson_normal : NOISE_POISSON_NORMAL;
 	double z[CHUNK];
 	uint32_t w[CHUNK][4];
 
@@ -465,7 +452,8 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 					c[i] = m;
 					z[i] = isfinite(m) ? fabs(m) : 0;
 				}
-				rng_poisson_fill(&g_pois, (uint32_t)cell, (size_t)n, z, z);
+				rng_poisson_fill_approx(&g_pois, (uint32_t)cell, (size_t)n, z, z,
+							normal_above);
 				for (int i = 0; i < n; i++)
 					if (isfinite(c[i]))
 						c[i] = c[i] < 0 ? -z[i] : z[i];

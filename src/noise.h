@@ -41,6 +41,11 @@ struct noise_opts {
 	 * NOISE_FLAT_RESIDUAL): leave a stage out to drop its field. */
 	double dark_residual;   /* sigma of the fixed dark residual field, e-/s */
 	double flat_residual;   /* sigma of the fixed flat residual field */
+	/* The mean in counts from which the Poisson stage draws the
+	 * skew-corrected normal instead of the exact count (rng.h,
+	 * rng_poisson_normal); 0 selects NOISE_POISSON_NORMAL (--set
+	 * poisson-normal=N). */
+	double poisson_normal;
 };
 
 /* Defaults, as STIPS or the Roman WFI ground tests give them (see noise.c
@@ -51,6 +56,7 @@ struct noise_opts {
 #define NOISE_FLAT_RESIDUAL 0.00068 /* sigma of STIPS' mock flat (#142) */
 #define NOISE_COSMIC_RATE 5.0       /* hits/cm^2/s per population */
 #define NOISE_COSMIC_RESIDUAL 0.01  /* fraction of each hit left */
+#define NOISE_POISSON_NORMAL 1000.0 /* counts: exact Poisson below */
 
 /* Set every field to its default: no stages, no background, exptime 1 s,
  * counts/s output, seed 0. */

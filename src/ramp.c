@@ -199,6 +199,7 @@ int ramp_det_get(int sca, struct ramp_det *d, struct err *e)
 			{ "cosmic_e_high", offsetof(struct ramp_det, cosmic_e[1]) },
 			{ "pixel_area", offsetof(struct ramp_det, pixel_area) },
 			{ "jump_threshold", offsetof(struct ramp_det, jump_threshold) },
+			{ "nonlinear_flag", offsetof(struct ramp_det, nonlinear_flag) },
 		};
 
 		if (!strcmp(kind, "const")) {
@@ -223,7 +224,7 @@ int ramp_det_get(int sca, struct ramp_det *d, struct err *e)
 		}
 	}
 	tsv_free(&t);
-	if (have != 11 + 9 + 2 || ramp_det_finish(d) < 0)
+	if (have != 12 + 9 + 2 || ramp_det_finish(d) < 0)
 		return e ? err_set(e, EXIT_SYSTEM, "detector.tsv: incomplete or bad for WFI%02d", sca) : -1;
 	return 0;
 }
@@ -248,55 +249,89 @@ double ramp_nl_inverse(const struct ramp_det *d, double m)
 
 /* ---- level 1 ---- */
 
+/* nearbyint() in the default rounding mode (to nearest, ties to even),
+ * without the call (x86-64 has no rounding instruction below SSE4.1):
+ * adding and taking back 1.5 x 2^52 leaves no fraction bits, exactly, for
+ * |x| < 2^51; larger doubles are integers already (or NaN/inf). */
+static inline double round_even(double x)
+{
+	const double c = 0x1.8p52;
+
+	return fabs(x) < 0x1p51 ? (x + c) - c : x;
+}
+
 /*
- * Poisson counts of a row, one Philox call per pixel (draw 0 of its cell).
- * Means below POIS_INV use inversion, the smallest k with u < F(k), which
- * depends on u and the mean alone; the distribution function is tabulated
- * once a mean repeats (a flat sky: one table per group, kept across rows in
- * the caller's scratch) and searched by bisection, or else built on the way
- * (Devroye's sequential search).  Larger means go to rng_poisson (PTRS) on
- * the same cell.  So a count never depends on the pixels beside it.
+ * Poisson counts of a row from one Philox call per pixel (draw 0 of its
+ * cell in generator g), whose four words all serve:
+ *
+ * Means below POIS_INV are split into m0 = mu rounded down to a multiple
+ * of POIS_STEP and the rest delta = mu - m0 (both exact in binary), and the
+ * count is Poisson(m0) from words 0-1 plus Poisson(delta) from words 2-3:
+ * the sum of independent Poisson counts is a Poisson count of the summed
+ * mean, so this is exact.  Each part is the inversion k = min{k : u < F(k)}
+ * (rng_poisson_invert), a function of u and its mean alone.  The m0 part
+ * is looked up in a table of F kept per group in the caller's scratch
+ * across rows: a sky that varies from pixel to pixel (pixel areas, a
+ * gradient) keeps m0 for runs of pixels, where a table of the exact mean
+ * would be rebuilt at every pixel.  A guide table (Chen & Asau 1974) of
+ * the first k with F(k) > j / POIS_GUIDE starts the search, so a lookup is
+ * one or two comparisons.  The delta part is 0 unless u2 >= exp(-delta),
+ * exp(-delta) being kept while delta repeats.
+ *
+ * Means from POIS_INV to the normal limit go to rng_poisson_fill_approx
+ * (PTRS, Hormann 1993, exact) on the same cells, a run of such pixels at a
+ * time (a star); from the limit (ramp_key.poisson_normal) the
+ * skew-corrected normal rng_poisson_normal() of the ziggurat deviate of
+ * words 0-1.  So a count never depends on the pixels beside it, nor on
+ * what the tables held.
  */
 #define POIS_INV 32.0
+#define POIS_STEP 0.125
 #define POIS_TAB 128            /* F(k) for k < 128: 1 - F < 1e-30 at 32 */
+#define POIS_GUIDE 64
 
 struct pois_tab {
 	double mu;              /* the mean tabulated, or -1 */
-	int n;
 	double cdf[POIS_TAB];
+	unsigned char guide[POIS_GUIDE];
 };
 
-static double pois_search(double mu, double u)
-{
-	double pk = exp(-mu), f = pk;
-	int k = 0;
-
-	while (u >= f && k < 400) {
-		k++;
-		pk *= mu / k;
-		f += pk;
-	}
-	return k;
-}
+#define POIS_TAB_DOUBLES ((sizeof(struct pois_tab) + sizeof(double) - 1) / sizeof(double))
 
 static void pois_tabulate(struct pois_tab *t, double mu)
 {
 	double pk = exp(-mu), f = pk;
+	int k = 0;
 
+	/* the same products as rng_poisson_invert, so the same counts */
 	t->mu = mu;
 	t->cdf[0] = f;
-	for (t->n = 1; t->n < POIS_TAB; t->n++) {
-		pk *= mu / t->n;
+	for (int n = 1; n < POIS_TAB; n++) {
+		pk *= mu * (1.0 / n);
 		f += pk;
-		t->cdf[t->n] = f;
+		t->cdf[n] = f;
+	}
+	for (int j = 0; j < POIS_GUIDE; j++) {
+		while (k < POIS_TAB - 1 && t->cdf[k] <= (double)j / POIS_GUIDE)
+			k++;
+		t->guide[j] = (unsigned char)k;
 	}
 }
 
+static inline int pois_lookup(const struct pois_tab *t, double u)
+{
+	int k = t->guide[(int)(u * POIS_GUIDE)];
+
+	while (u >= t->cdf[k])
+		k++;
+	return k;
+}
+
 static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
-		     double *out, struct pois_tab *t)
+		     double *out, struct pois_tab *t, double normal_above)
 {
 	uint32_t w[256][4];
-	double prev = -1;
+	double prev = -1, dlast = -1, edlast = 1;
 
 	for (int i0 = 0; i0 < n; i0 += 256) {
 		int m = n - i0 < 256 ? n - i0 : 256;
@@ -309,29 +344,50 @@ static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *m
 			if (!(v > 0)) {
 				out[i] = 0;
 			} else if (v < POIS_INV) {
-				double u = rng_u01(w[j][0], w[j][1]);
+				/* 0 < v < 32: truncation is floor, without a call */
+				double m0 = (double)(int)(v * (1 / POIS_STEP)) * POIS_STEP;
+				double delta = v - m0;
+				double u = rng_u01(w[j][0], w[j][1]), k = 0;
 
-				if (v != t->mu && v == prev)
-					pois_tabulate(t, v);
-				if (v == t->mu && u < t->cdf[POIS_TAB - 1]) {
-					int k = 0;
-
-					/* the count of F(k) <= u, i.e. the smallest
-					 * k with u < F(k), by bisection without
-					 * branches to mispredict */
-					for (int step = POIS_TAB / 2; step; step >>= 1)
-						k += (t->cdf[k + step - 1] <= u) * step;
-					out[i] = k;
-				} else {
-					out[i] = pois_search(v, u);
+				if (m0 > 0) {
+					if (m0 != t->mu && m0 == prev)
+						pois_tabulate(t, m0);
+					if (m0 == t->mu && u < t->cdf[POIS_TAB - 1])
+						k = pois_lookup(t, u);
+					else
+						k = rng_poisson_invert(u, m0, exp(-m0));
 				}
-			} else {
-				struct rng_cell c;
+				prev = m0;
+				if (delta > 0) {
+					double u2 = rng_u01(w[j][2], w[j][3]);
 
-				rng_cell_preload(&c, g, cell0 + (uint32_t)i, w[j]);
-				out[i] = rng_poisson(v, &c);
+					/* 1 - delta <= exp(-delta): below the
+					 * rounded 1 - delta, less 2^-51 for the
+					 * roundings of both sides, u2 < exp(-delta)
+					 * is sure and the count 0, without the
+					 * exp (1 - delta of the time) */
+					if (!(u2 < (1 - delta) * (1 - 0x1p-51))) {
+						if (delta != dlast) {
+							dlast = delta;
+							edlast = exp(-delta);
+						}
+						if (u2 >= edlast)
+							k += rng_poisson_invert(u2, delta, edlast);
+					}
+				}
+				out[i] = k;
+			} else if (v >= normal_above) {
+				out[i] = rng_poisson_normal(v, rng_normal_bits(g, cell0 + (uint32_t)i,
+									       w[j][0], w[j][1]));
+			} else {
+				/* a run of PTRS means, drawn together */
+				int e = j + 1;
+
+				while (e < m && mu[i0 + e] >= POIS_INV && mu[i0 + e] < normal_above)
+					e++;
+				rng_poisson_fill(g, cell0 + (uint32_t)i, (size_t)(e - j), mu + i, out + i);
+				j = e - 1;
 			}
-			prev = v;
 		}
 	}
 }
@@ -345,7 +401,7 @@ struct cr_hit {
 static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 		   const struct ramp_key *k, uint32_t cell0, int n, struct cr_hit *h)
 {
-	double lambda = 2 * d->cosmic_rate * d->pixel_area * p->exptime;
+	double lambda = 2 * d->cosmic_rate * d->pixel_area * p->exptime, emu;
 	int last = p->last[p->nres - 1], nh = 0;
 	uint64_t thr;
 	struct rng g, gd;
@@ -355,7 +411,8 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 		return 0;
 	/* u < exp(-lambda) (no hit) exactly when its 53-bit integer is below
 	 * ceil(exp(-lambda) 2^53) */
-	thr = (uint64_t)ceil(exp(-lambda) * 0x1p53);
+	emu = exp(-lambda);
+	thr = (uint64_t)ceil(emu * 0x1p53);
 	rng_init(&g, k->seed, domain(k, DOM_CR, 0));
 	rng_init(&gd, k->seed, domain(k, DOM_CR_DETAIL, 0));
 	for (int i0 = 0; i0 < n; i0 += 64) {
@@ -364,20 +421,13 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 		rng_bits_n(&g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
 		for (int i = 0; i < m; i++) {
 			uint64_t b = ((uint64_t)w[i][0] << 32 | w[i][1]) >> 11;
-			double u, pk, f;
-			int hits = 0;
+			int hits;
 			struct rng_cell c;
 
 			if (b < thr)
 				continue;
 			/* the count by inversion, from the u that said "some" */
-			u = b * 0x1p-53;
-			pk = f = exp(-lambda);
-			while (u >= f && hits < 100) {
-				hits++;
-				pk *= lambda / hits;
-				f += pk;
-			}
+			hits = rng_poisson_invert(b * 0x1p-53, lambda, emu);
 			rng_cell_init(&c, &gd, cell0 + (uint32_t)(i0 + i), 0);
 			for (int j = 0; j < hits && nh < CR_MAX; j++) {
 				int pop = rng_cell_u01(&c) < 0.5;
@@ -393,8 +443,8 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 }
 
 /* The tables at the start of the scratch, in doubles. */
-#define RAMP_TABS ((RAMP_MAX_RES + 1) * 132)
-_Static_assert(sizeof(struct pois_tab) <= 132 * sizeof(double), "scratch tables");
+#define RAMP_TABS ((RAMP_MAX_RES + 1) * 140)
+_Static_assert(sizeof(struct pois_tab) <= 140 * sizeof(double), "scratch tables");
 
 void ramp_scratch_init(double *scratch)
 {
@@ -411,14 +461,15 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 {
 	struct pois_tab *tabs = (struct pois_tab *)scratch;
 	double *r = scratch + RAMP_TABS, *S = r + n, *P = S + n, *mu = P + n, *D = mu + n;
-	double *zs = D + n, *zr = zs + n;
 	/* 0: the default 4; below 0: never exact (the normal for every split) */
 	double dt = p->read_time, exact_max = k->split_exact_max > 0 ? k->split_exact_max :
 					      k->split_exact_max < 0 ? 0 : 4;
+	double normal_above = k->poisson_normal > 0 ? k->poisson_normal : RAMP_POISSON_NORMAL;
 	double inv_g = 1 / d->gain, dnmax = 65535;
 	struct cr_hit hits[CR_MAX];
-	int nh = 0, prev = 0;
+	int nh = 0, prev = 0, hp;
 	struct rng g;
+	uint32_t (*w)[4] = (uint32_t (*)[4])(D + n);    /* the read call of 256 pixels */
 
 	for (int i = 0; i < n; i++) {
 		double v = light ? rate[i] : 0;
@@ -436,14 +487,16 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 
 	for (int gi = 0; gi < p->nres; gi++) {
 		int a = p->first[gi], b = p->last[gi], N = b - a + 1, gap = a - prev - 1;
-		double sn = d->read_noise / sqrt(N), kvar = (N * (double)N - 1) / 12;
+		double sn = d->read_noise / sqrt(N), kvar = (N * (double)N - 1) / 12, inv_n = 1.0 / N;
+		double bk = d->beta * kvar * inv_n * inv_n;
 		int any = 0;
+		struct rng gs, gz;
 
 		if (gap > 0 && light) {
 			for (int i = 0; i < n; i++)
 				mu[i] = r[i] * gap * dt;
 			rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
-			pois_row(&g, cell0, n, mu, mu, &tabs[RAMP_MAX_RES]);
+			pois_row(&g, cell0, n, mu, mu, &tabs[RAMP_MAX_RES], normal_above);
 			for (int i = 0; i < n; i++)
 				S[i] += mu[i];
 		}
@@ -455,83 +508,101 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 				any |= (mu[i] = r[i] * N * dt) > 0;
 			rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
 			if (any)
-				pois_row(&g, cell0, n, mu, D, &tabs[gi]);
+				pois_row(&g, cell0, n, mu, D, &tabs[gi], normal_above);
 			else
 				memset(D, 0, (size_t)n * sizeof(*D));
 		} else {
 			memset(D, 0, (size_t)n * sizeof(*D));
 		}
-		/* W, the sum over the reads of the arrivals so far, into mu */
-		if (N == 1) {
-			memcpy(mu, D, (size_t)n * sizeof(*D));
-		} else {
-			struct rng gs;
+		/*
+		 * One Philox call per pixel (domain DOM_READ) gives the read
+		 * noise (words 0-1, a ziggurat deviate) and the split of the
+		 * group's arrivals among its reads (words 2-3): two slots of
+		 * 32 bits for up to two arrivals, further slots from the
+		 * pixel's own DOM_SPLIT calls, or the normal of the sum beyond
+		 * exact_max arrivals.  The ziggurat's rare slow cases take
+		 * numbers from DOM_READ (read noise) and DOM_SPLIT_N (split)
+		 * cells at draws 1, 2, ...
+		 */
+		rng_init(&g, k->seed, domain(k, DOM_READ, gi));
+		rng_init(&gs, k->seed, domain(k, DOM_SPLIT, gi));
+		rng_init(&gz, k->seed, domain(k, DOM_SPLIT_N, gi));
+		hp = 0;
+		for (int i0 = 0; i0 < n; i0 += 256) {
+			int m = n - i0 < 256 ? n - i0 : 256;
 
-			rng_init(&g, k->seed, domain(k, DOM_SPLIT_N, gi));
-			rng_init(&gs, k->seed, domain(k, DOM_SPLIT, gi));
-			if (light)
-				rng_normal_fill(&g, cell0, (size_t)n, zs);
-			for (int i = 0; i < n; i++) {
-				double Di = D[i], w;
+			rng_bits_n(&g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
+			for (int j = 0; j < m; j++) {
+				int i = i0 + j;
+				uint32_t cell = cell0 + (uint32_t)i;
+				double Di = D[i], W = 0, s0 = P[i] + S[i], send, mm, v;
+				double z = rng_normal_bits(&g, cell, w[j][0], w[j][1]);
 
-				if (Di == 0) {
-					w = 0;
+				/* W: the sum over the group's reads of the
+				 * arrivals in the group before each */
+				if (Di == 0 || N == 1) {
+					W = Di * N;
 				} else if (Di <= exact_max) {
 					uint32_t bits[4];
+					int nd = (int)Di;
 
-					w = Di;
-					for (int j = 0; j < (int)Di; j++) {
-						if (!(j & 3))
-							rng_bits(&gs, cell0 + (uint32_t)i, (uint32_t)(j >> 2), bits);
-						/* slot 0 .. N-1 from 32 bits: the arrival
-						 * in read a + s counts in N - 1 - s more */
-						w += N - 1 - (int)(((uint64_t)bits[j & 3] * (uint64_t)N) >> 32);
+					W = Di;
+					for (int q = 0; q < nd; q++) {
+						uint32_t x;
+
+						if (q < 2) {
+							x = w[j][2 + q];
+						} else {
+							if (!((q - 2) & 3))
+								rng_bits(&gs, cell, (uint32_t)((q - 2) >> 2), bits);
+							x = bits[(q - 2) & 3];
+						}
+						/* slot 0 .. N-1: the arrival in read a + s
+						 * counts in N - 1 - s more */
+						W += N - 1 - (int)(((uint64_t)x * (uint64_t)N) >> 32);
 					}
 				} else {
-					w = nearbyint(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs[i]);
-					if (w < Di)
-						w = Di;
-					if (w > Di * N)
-						w = Di * N;
+					double zs = rng_normal_bits(&gz, cell, w[j][2], w[j][3]);
+
+					W = round_even(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs);
+					if (W < Di)
+						W = Di;
+					if (W > Di * N)
+						W = Di * N;
 				}
-				mu[i] = w;
-			}
-		}
-		for (int h = 0; h < nh; h++)
-			if (hits[h].read >= a && hits[h].read <= b) {
-				mu[hits[h].pix] += hits[h].e * (b - hits[h].read + 1);
-				D[hits[h].pix] += hits[h].e;
-			}
-		rng_init(&g, k->seed, domain(k, DOM_READ, gi));
-		rng_normal_fill(&g, cell0, (size_t)n, zr);
-		for (int i = 0; i < n; i++) {
-			double s0 = P[i] + S[i], send = s0 + D[i], m, v;
+				/* a cosmic ray's charge counts from its read on
+				 * (the hits are in pixel order) */
+				for (; hp < nh && hits[hp].pix <= i; hp++)
+					if (hits[hp].pix == i && hits[hp].read >= a &&
+					    hits[hp].read <= b) {
+						W += hits[hp].e * (b - hits[hp].read + 1);
+						Di += hits[hp].e;
+					}
+				send = s0 + Di;
+				if (send < d->sat_true) {
+					mm = ramp_nl(d, s0 + W * inv_n) + bk * Di * Di;
+					v = mm + sn * z;
+				} else {
+					/* reads at saturation read the level exactly; the
+					 * read noise is that of the others */
+					int nfree = 0;
 
-			if (send < d->sat_true) {
-				double step = D[i] / N;
+					mm = 0;
+					for (int q = 1; q <= N; q++) {
+						double x = s0 + Di * q / N;
 
-				m = ramp_nl(d, s0 + mu[i] / N) + d->beta * step * step * kvar;
-				v = m + sn * zr[i];
-			} else {
-				/* reads at saturation read the level exactly; the
-				 * read noise is that of the others */
-				int nfree = 0;
-
-				m = 0;
-				for (int j = 1; j <= N; j++) {
-					double x = s0 + D[i] * j / N;
-
-					m += ramp_nl(d, x);
-					nfree += x < d->sat_true;
+						mm += ramp_nl(d, x);
+						nfree += x < d->sat_true;
+					}
+					v = (mm + d->read_noise * sqrt((double)nfree) * z) / N;
 				}
-				v = (m + d->read_noise * sqrt((double)nfree) * zr[i]) / N;
+				if (v > d->sat_e)
+					v = d->sat_e;
+				v = round_even(v * inv_g);
+				out[(size_t)gi * plane + (size_t)i] =
+					(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
+				S[i] += Di;
 			}
-			if (v > d->sat_e)
-				v = d->sat_e;
-			v = nearbyint(v * inv_g);
-			out[(size_t)gi * plane + (size_t)i] =
-				(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
-			S[i] += D[i];
 		}
 		prev = b;
 	}
@@ -634,8 +705,13 @@ int ramp_fit_plan_init(struct ramp_fit_plan *fp, const struct ramp_pattern *p,
 	/* resultants are 16-bit: their linearised charge is a table */
 	if (!(fp->nlinv = malloc(65536 * sizeof(double))))
 		return -1;
-	for (int v = 0; v < 65536; v++)
+	fp->nl_dn = 65536;
+	for (int v = 0; v < 65536; v++) {
 		fp->nlinv[v] = ramp_nl_inverse(d, v * d->gain);
+		if (v > 0 && fp->nl_dn == 65536 && d->nonlinear_flag > 0 &&
+		    fp->nlinv[v] > (v * d->gain) * (1 + d->nonlinear_flag))
+			fp->nl_dn = v;
+	}
 	return 0;
 }
 
@@ -773,6 +849,22 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 		}
 	}
 	out->nuse = nuse;
+	/*
+	 * The linearity flags, for the resultants the fit uses (saturated ones
+	 * are not corrected, so not flagged, as Roman's linearity step does):
+	 * NO_LIN_CORR when one is at 0 DN, clipped by the converter below the
+	 * range where the law holds, so its correction does not apply;
+	 * NONLINEAR when one is so far up the law that its correction exceeds
+	 * d.nonlinear_flag (5 %: from 75,586 e- measured, pedestal included).
+	 */
+	for (int i = 0; i < nuse; i++) {
+		int v = dn[(size_t)i * stride];
+
+		if (v == 0)
+			out->dq |= RAMP_NO_LIN_CORR;
+		if (v >= fp->nl_dn)
+			out->dq |= RAMP_NONLINEAR;
+	}
 	if (nuse == 0) {
 		out->dq |= RAMP_DO_NOT_USE;
 		return;

@@ -58,6 +58,8 @@ struct ramp_det {
 	double cosmic_e[2];     /* e- per hit of the two populations */
 	double pixel_area;      /* cm^2 */
 	double jump_threshold;  /* sigma */
+	double nonlinear_flag;  /* DQ NONLINEAR beyond this correction, true /
+	                           measured - 1 */
 	double ipc[3][3];       /* [dy + 1][dx + 1], sum 1 */
 	/* derived by ramp_det_finish(): */
 	double sat_e;           /* saturation in measured e- */
@@ -91,7 +93,12 @@ struct ramp_key {
 	double split_exact_max; /* arrivals in a group up to which they are
 	                           placed among its reads one by one; above,
 	                           the Irwin-Hall normal (ramp.c); default 4 */
+	double poisson_normal;  /* mean from which a group's count is the
+	                           skew-corrected normal (rng_poisson_normal);
+	                           0: RAMP_POISSON_NORMAL */
 };
+
+#define RAMP_POISSON_NORMAL 1000.0  /* e-, --set poisson-normal */
 
 /*
  * Level 1 of the n pixels cell0 .. cell0 + n - 1 (cell = absolute pixel
@@ -101,7 +108,7 @@ struct ramp_key {
  * pixels: pedestal, reset and read noise only.  Resultant r of pixel i goes
  * to out[r * plane + i].  scratch: RAMP_SCRATCH(n) doubles.  Thread-safe.
  */
-#define RAMP_SCRATCH(n) ((size_t)(n) * 7 + (RAMP_MAX_RES + 1) * 132)
+#define RAMP_SCRATCH(n) ((size_t)(n) * 5 + 512 + (RAMP_MAX_RES + 1) * 140)
 /* Before its first use, scratch must be set up by ramp_scratch_init() (it
  * keeps tables across calls; they change the speed, never the numbers). */
 void ramp_scratch_init(double *scratch);
@@ -121,6 +128,8 @@ struct ramp_fit_plan {
 	double *nlinv;          /* true charge of each DN value, 65536 */
 	double jump2;           /* jump_threshold^2 */
 	double dtbar[RAMP_MAX_RES], vdiff[RAMP_MAX_RES], cdiff[RAMP_MAX_RES];
+	int nl_dn;              /* the first DN whose correction exceeds
+	                           d.nonlinear_flag: DQ NONLINEAR */
 };
 
 /* 0, or -1 when out of memory.  Free with ramp_fit_plan_free(). */

@@ -325,6 +325,19 @@ static const double recip[64] = {
 	1.0 / 56, 1.0 / 57, 1.0 / 58, 1.0 / 59, 1.0 / 60, 1.0 / 61, 1.0 / 62, 1.0 / 63,
 };
 
+int rng_poisson_invert(double u, double mu, double emu)
+{
+	double pk = emu, f = pk;
+	int k = 0;
+
+	while (u >= f && k < RNG_INVERT_MAX) {
+		k++;
+		pk *= mu * (k < 64 ? recip[k] : 1.0 / k);
+		f += pk;
+	}
+	return k;
+}
+
 void rng_poisson_setup(struct rng_poisson *p, double mu)
 {
 	p->mu = mu;
@@ -380,8 +393,7 @@ double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c)
 	case 0:
 		return 0;
 	case 1: {
-		double u = rng_cell_u01(c), pk = p->emu, f = pk;
-		int k = 0;
+		double u = rng_cell_u01(c);
 
 		if (p->ncdf) {
 			/* F is increasing, so the count of F(i) <= u is the
@@ -395,12 +407,7 @@ double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c)
 				return n;
 		}
 
-		while (u >= f && k < 200) {
-			k++;
-			pk *= p->mu * (k < 64 ? recip[k] : 1.0 / k);
-			f += pk;
-		}
-		return k;
+		return rng_poisson_invert(u, p->mu, p->emu);
 	}
 	case 2: {
 		double m_int = floor(p->mu), m_frac = p->mu - m_int;
@@ -447,6 +454,8 @@ double rng_poisson_draw(struct rng_poisson *p, struct rng_cell *c)
  * pixels.  Attempt d of a cell uses its draw d, as the cell stream does.
  */
 #define FILL_MAX 256
+
+static inline double zig_normal(const struct rng *g, uint32_t cell, uint32_t hi, uint32_t lo);
 
 /* The PTRS constants of FILL_MAX pixels, by column. */
 struct ptrs_cols {
@@ -548,6 +557,12 @@ static int ptrs_slow(const struct ptrs_cols *q, size_t i, double u, double v,
 void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 		      const double *mu, double *out)
 {
+	rng_poisson_fill_approx(g, cell0, n, mu, out, INFINITY);
+}
+
+void rng_poisson_fill_approx(const struct rng *g, uint32_t cell0, size_t n,
+			     const double *mu, double *out, double normal_above)
+{
 	uint32_t w[FILL_MAX][4];
 	struct ptrs_cols q;
 	uint16_t pend[FILL_MAX], next[FILL_MAX];
@@ -558,8 +573,9 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 
 	if (n > FILL_MAX) {
 		for (size_t i = 0; i < n; i += FILL_MAX)
-			rng_poisson_fill(g, cell0 + (uint32_t)i,
-					 n - i < FILL_MAX ? n - i : FILL_MAX, mu + i, out + i);
+			rng_poisson_fill_approx(g, cell0 + (uint32_t)i,
+						n - i < FILL_MAX ? n - i : FILL_MAX, mu + i,
+						out + i, normal_above);
 		return;
 	}
 	rng_bits_n(g, cell0, 0, n, w);
@@ -567,7 +583,8 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 		q.mu[i] = mu[i];
 		q.u[i] = rng_u01(w[i][0], w[i][1]) - 0.5;
 		q.v[i] = rng_u01(w[i][2], w[i][3]);
-		nptrs += (mu[i] >= 10) & (mu[i] <= RNG_POISSON_EXACT_MAX);
+		nptrs += (mu[i] >= 10) & (mu[i] <= RNG_POISSON_EXACT_MAX) &
+			 (mu[i] < normal_above);
 	}
 	if (nptrs) {
 #ifdef RNG_AVX2
@@ -580,6 +597,13 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 	for (size_t i = 0; i < n; i++) {
 		double m = q.mu[i];
 
+		if (m >= normal_above && m <= RNG_POISSON_EXACT_MAX) {
+			/* zig_normal's slow cases use the cell's draws 1, 2,
+			 * ..., which PTRS would have used: the same stream */
+			out[i] = rng_poisson_normal(m, zig_normal(g, cell0 + (uint32_t)i,
+								   w[i][0], w[i][1]));
+			continue;
+		}
 		if (!(m >= 10) || m > RNG_POISSON_EXACT_MAX) {
 			struct rng_cell c;
 
@@ -824,6 +848,11 @@ static inline double zig_normal(const struct rng *g, uint32_t cell, uint32_t hi,
 
 	if (fabs(x) < zig_x[i + 1])
 		return x;
+	return zig_slow(g, cell, i, u);
+}
+
+double rng_normal_slow(const struct rng *g, uint32_t cell, int i, double u)
+{
 	return zig_slow(g, cell, i, u);
 }
 

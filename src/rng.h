@@ -131,6 +131,65 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
 /* Above this mean the count is a rounded Gaussian (see rng.c). */
 #define RNG_POISSON_EXACT_MAX 0x1p52
 
+/* The same as rng_poisson_fill, but means at or above normal_above get
+ * the skew-corrected normal approximation rng_poisson_normal() from the
+ * first two words of their cell's draw 0 (an approximation: its error
+ * against the exact count is in BENCHMARKS.md; normal_above = INFINITY
+ * gives rng_poisson_fill's numbers). */
+void rng_poisson_fill_approx(const struct rng *g, uint32_t cell0, size_t n,
+			     const double *mu, double *out, double normal_above);
+
+/*
+ * A Poisson count of mean mu from a standard normal deviate z: the
+ * Cornish-Fisher quantile with the skewness term, mu + sqrt(mu) z +
+ * (z^2 - 1) / 6, rounded to the nearest count (never below 0).  Its
+ * distribution function is within 0.012 / mu of the exact one (the
+ * largest difference over all counts; 1.2e-5 at mu = 1000), against
+ * 0.066 / sqrt(mu) for the plain rounded normal.
+ */
+static inline double rng_poisson_normal(double mu, double z)
+{
+	double k = __builtin_nearbyint(mu + __builtin_sqrt(mu) * z + (z * z - 1) * (1.0 / 6));
+
+	return k > 0 ? k : 0;
+}
+
+/*
+ * The smallest k with u < F(k; mu), F the Poisson distribution function,
+ * by sequential search from p(0) = emu = exp(-mu) (Devroye, "Non-Uniform
+ * Random Variate Generation", 1986, X.3.3): expected mu + 1 steps, exact
+ * up to the rounding of F.  For small means (below ~64); the count is
+ * capped at RNG_INVERT_MAX, which only u within ulps of 1 can reach.  The
+ * one inversion loop of the project: rng.c, ramp.c and noise.c use it.
+ */
+#define RNG_INVERT_MAX 400
+int rng_poisson_invert(double u, double mu, double emu);
+
+/* The ziggurat's layer edges x_0 .. x_256 (see rng.c). */
+extern const double *const rng_zig_x;
+
+/* The ziggurat's rare cases (a wedge or the tail) for layer i and signed
+ * uniform u, from cell's draws 1, 2, ... of g. */
+double rng_normal_slow(const struct rng *g, uint32_t cell, int i, double u);
+
+/* A standard normal deviate from the 64 bits hi:lo by the ziggurat of
+ * rng_normal_fill (8 bits pick the layer, the top 53 a signed uniform);
+ * the rare slow cases take their numbers from cell's draws 1, 2, ... of g,
+ * which must serve nothing else.  Inline: 99.3 % of deviates are a
+ * multiplication and a comparison. */
+static inline double rng_normal_bits(const struct rng *g, uint32_t cell, uint32_t hi,
+				     uint32_t lo)
+{
+	uint64_t w = (uint64_t)hi << 32 | lo;
+	int i = (int)(w & 0xff);
+	double u = (double)((int64_t)w >> 11) * 0x1p-52;
+	double x = u * rng_zig_x[i];
+
+	if (__builtin_fabs(x) < rng_zig_x[i + 1])
+		return x;
+	return rng_normal_slow(g, cell, i, u);
+}
+
 /* Standard normal deviates number first .. first + n - 1 of generator g
  * into out, by the ziggurat method: deviate i comes from half of Philox
  * call (i / 2, draw 0), and in the rare slow cases from cell i, draws 1, 2,
@@ -138,7 +197,5 @@ void rng_poisson_fill(const struct rng *g, uint32_t cell0, size_t n,
  * (domain) serves one purpose: do not mix this with other uses of g. */
 void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, double *out);
 
-/* The ziggurat's layer edges x_0 .. x_256, for the tests. */
-extern const double *const rng_zig_x;
 
 #endif

@@ -145,4 +145,26 @@ test_expect_success 'bad noise options are refused, leaving no file' '
 	test_must_fail --status 1 run --cosmic-residual 2 -o bad.fits none.csv 2> err &&
 	test_grep "cosmic-residual" err && ! test -e bad.fits
 '
+
+test_expect_success '--set poisson-normal: the normal above a mean, exact with inf, bad values named' '
+	run --noise poisson --background 2000 --exptime 1 --bunit counts --rows 1-64 -q \
+		-o pn.fits none.csv &&
+	run --noise poisson --background 2000 --exptime 1 --bunit counts --rows 1-64 -q \
+		--set poisson-normal=inf -o pe.fits none.csv &&
+	"$PY" - <<-\EOF &&
+	import numpy as np
+	from astropy.io import fits
+	a = np.asarray(fits.open("pn.fits")[1].data, dtype=np.float64)
+	b = np.asarray(fits.open("pe.fits")[1].data, dtype=np.float64)
+	assert (a != b).mean() > 0.9, "the knob changes the counts"
+	for d in (a, b):
+	    assert np.all(d == np.round(d)), "whole counts"
+	    m, v = d.mean(), d.var()
+	    print(m, v)
+	    assert abs(m / 2000 - 1) < 0.0005 and abs(v / 2000 - 1) < 0.02, (m, v)
+	EOF
+	test_must_fail --status 1 run --noise poisson --rows 1-4 --set poisson-normal=5 \
+		-o bad.fits none.csv 2> err &&
+	test_grep "poisson-normal=5: expected a mean of 10 or more" err && ! test -e bad.fits
+'
 test_done

@@ -23,6 +23,21 @@ assert names == ["WFI01", "WFI01_ERR", "WFI01_DQ", "WFI01_VAR_POISSON", "WFI01_V
 r, e, q = (np.asarray(h[k].data, dtype=np.float64) for k in (1, 2, 3))
 vp, vr = (np.asarray(h[k].data, dtype=np.float64) for k in (4, 5))
 assert h[3].data.dtype.kind == "u", h[3].data.dtype
+# the layout of wfiscene(1) "Files of levels 1 and 2", in every HDU
+units = ["counts/s", "counts/s", None, "(counts/s)^2", "(counts/s)^2"]
+for x, unit in zip(h[1:], units):
+    hd = x.header
+    assert x.data.shape == (4088, 4088), (x.name, x.data.shape)
+    assert hd["BITPIX"] == (32 if x.name.endswith("_DQ") else -32), (x.name, hd["BITPIX"])
+    assert hd.get("BUNIT") == unit, (x.name, hd.get("BUNIT"))
+    assert hd["LEVEL"] == "2" and hd["MATABLE"] == 4 and hd["NRESULT"] == 9, x.name
+    assert hd["READTIME"] == 3.16247 and hd["GAIN"] == 2 and hd["SATURATE"] == 55000, x.name
+    assert hd["MAREAD1"] == "1-1" and hd["MAREAD9"] == "44-44" and "MAREAD10" not in hd, x.name
+    assert hd["PEDESTAL"] == 10000 and hd["NLBETA"] == -6e-7 and hd["DARKCURR"] == 0.049, x.name
+    assert abs(hd["RDNOISE"] - 17.49 / 2 ** 0.5) < 1e-3 and abs(hd["EXPTIME"] - 139.149) < 1e-3, x.name
+    assert hd["RAMPFIT"] == "OPTIMAL" and hd["JUMPTHR"] == 5, x.name
+    assert hd["CTYPE1"].startswith("RA---TAN"), x.name
+assert h[3].header["BZERO"] == 2147483648
 assert np.allclose(e * e, vp + vr, rtol=1e-5)
 m = q == 0
 med = np.median(r[m])
@@ -48,8 +63,10 @@ test_expect_success 'level 2 split by rows and merged is the whole run, byte for
 '
 
 test_expect_success 'level 1: a 16-bit cube with the reference border, the same for any threads and tiles' '
-	run --level 1 --rows 1-100 --threads 1 --tile 64 -o a.fits none.csv &&
-	run --level 1 --rows 1-100 --threads 2 --tile 256 -o b.fits none.csv &&
+	# stips geometry: every pixel the nominal area, so the sky is flat
+	# (t5002 holds the SIAF pixel areas at levels 1 and 2)
+	run --geometry stips --level 1 --rows 1-100 --threads 1 --tile 64 -o a.fits none.csv &&
+	run --geometry stips --level 1 --rows 1-100 --threads 2 --tile 256 -o b.fits none.csv &&
 	test_cmp a.fits b.fits &&
 	$PY -c "
 from astropy.io import fits
@@ -104,6 +121,43 @@ test_expect_success 'options that do not go with the levels are refused' '
 	test_grep "expected scene, 1 or 2" err && ! test -e bad.fits &&
 	test_must_fail --status 1 run --level 1 --bunit counts -o bad.fits none.csv 2> err &&
 	test_grep "DN" err && ! test -e bad.fits
+'
+
+test_expect_success 'wfiscene(1) states the constants of data/detector.tsv' '
+	$PY - "$TOP/data/detector.tsv" "$TOP/man/wfiscene.1" <<-\EOF
+	import re, sys
+	rows = [l.rstrip("\n").split("\t") for l in open(sys.argv[1]) if not l.startswith("#")]
+	c = {r[1]: float(r[2]) for r in rows[1:] if r[0] == "const"}
+	ipc = {r[1]: float(r[2]) for r in rows[1:] if r[0] == "ipc"}
+	rn = [float(r[2]) for r in rows[1:] if r[0] == "readnoise"]
+	dk = [float(r[2]) for r in rows[1:] if r[0] == "dark"]
+	man = open(sys.argv[2]).read()
+	sect = man[man.index(".SH DETECTOR LEVELS"):man.index(".SH OUTPUT")]
+	sect = sect.replace("\\~", " ").replace("\\(mi", "-").replace("\\(mu", "x")
+	def has(text, what):
+	    assert text in sect, (what, text)
+	has("every 3.16247 s", "read_time")
+	has("Gain %g e-/DN" % c["gain"], "gain")
+	has("Saturation at %s DN (%s e- measured" % (format(int(c["saturation"]), ","),
+	    format(int(c["saturation"] * c["gain"]), ",")), "saturation")
+	has("Pedestal %s e- with a reset noise of %g e-" % (format(int(c["pedestal"]), ","),
+	    c["reset_noise"]), "pedestal")
+	has("-6x10\\(ha-7 per e-", "nonlinearity_beta") if c["nonlinearity_beta"] == -6e-7 else sys.exit("beta")
+	has("two populations of %g hits/cm\\(ha2/s each (%g and" % (c["cosmic_rate"], c["cosmic_e_low"]), "cosmic")
+	has("%s e- per hit" % format(int(c["cosmic_e_high"]), ","), "cosmic_e_high")
+	has("10\\(ha-6 cm\\(ha2", "pixel_area") if c["pixel_area"] == 1e-6 else sys.exit("area")
+	has("more than %g \\(*s" % c["jump_threshold"], "jump_threshold")
+	has("exceeds %g %%" % (100 * c["nonlinear_flag"]), "nonlinear_flag")
+	has("centre %.4f" % ipc["+0,+0"], "ipc centre")
+	edges = [ipc[k] for k in ("+0,-1", "-1,+0", "+1,+0", "+0,+1")]
+	corners = [ipc[k] for k in ("-1,-1", "+1,-1", "-1,+1", "+1,+1")]
+	has("edges %.4f to %.4f" % (min(edges), max(edges)), "ipc edges")
+	has("corners %.4f" % min(corners), "ipc corners")
+	has("to %.4f)" % max(corners), "ipc corners")
+	has("(%.1f to %.1f e-)" % (min(rn), max(rn)), "read noise range")
+	has("(%.3f to\n%.3f e-/s)" % (min(dk), max(dk)), "dark range")
+	print("ok", len(c), "constants")
+	EOF
 '
 
 test_expect_success 'merge refuses the row parts of a level-1 cube' '

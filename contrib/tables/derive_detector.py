@@ -98,6 +98,7 @@ def detector(m):
         ("cosmic_e_high", 5000, "e-", "STIPS solar population"),
         ("pixel_area", 1e-6, "cm^2", "H4RG-10: 10 micron pixels"),
         ("jump_threshold", 5.0, "sigma", "wfiscene's choice (romancal's default is 4-5 sigma)"),
+        ("nonlinear_flag", 0.05, "1", "wfiscene's choice: DQ NONLINEAR where the correction of a used resultant exceeds this fraction"),
     ]
     # GalSim's roman IPC kernel (roman_config.py ipc_kernel), normalised to
     # sum 1; rows are y offsets -1, 0, +1, columns x offsets -1, 0, +1.

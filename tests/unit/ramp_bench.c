@@ -25,10 +25,19 @@ static double now(void)
 	return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-/* 0.2 to 20 counts/s across the SCA, as noise_bench */
+/* 0.2 to 20 counts/s across the SCA, as noise_bench; RAMP_FLAT=r: a flat
+ * r counts/s; RAMP_SKY=r: r counts/s varying by +-3 % across the SCA, as
+ * pixel areas make a sky vary (read once: getenv per pixel would cost more
+ * than the noise); RAMP_PNORMAL=m as --set poisson-normal=m */
+static double flat = -1, sky = -1;
+
 static double signal(int x, int y)
 {
-	return getenv("RAMP_FLAT") ? atof(getenv("RAMP_FLAT")) : 0.2 + 19.8 * (x + y) / (2.0 * N);
+	if (flat >= 0)
+		return flat;
+	if (sky >= 0)
+		return sky * (0.97 + 0.06 * (x + 0.7 * y) / (1.7 * N));
+	return 0.2 + 19.8 * (x + y) / (2.0 * N);
 }
 
 int main(void)
@@ -44,6 +53,13 @@ int main(void)
 
 	if (!getenv("WFS_BENCH"))
 		skip_all("WFS_BENCH not set");
+	if (getenv("RAMP_FLAT"))
+		flat = atof(getenv("RAMP_FLAT"));
+	if (getenv("RAMP_SKY"))
+		sky = atof(getenv("RAMP_SKY"));
+	/* RAMP_PNORMAL=m: --set poisson-normal=m (inf: always exact) */
+	if (getenv("RAMP_PNORMAL"))
+		k.poisson_normal = atof(getenv("RAMP_PNORMAL"));
 	if (ramp_pattern_get(4, &p, &e) || ramp_det_get(1, &d, &e)) {
 		printf("Bail out! %s\n", e.msg);
 		return 1;

@@ -15,7 +15,7 @@
 enum { ROW = 4096 };
 
 struct result {
-	double mean, sd, err_rms, frac_sat, frac_jump, frac_dnu;
+	double mean, sd, err_rms, frac_sat, frac_jump, frac_dnu, frac_nl, frac_nlc;
 	long n;
 };
 
@@ -51,6 +51,8 @@ static struct result run(const struct ramp_pattern *p, const struct ramp_det *d,
 				rates_out[c + i] = (f.dq & RAMP_DO_NOT_USE) ? NAN : f.rate;
 			res.frac_sat += !!(f.dq & RAMP_SATURATED);
 			res.frac_jump += !!(f.dq & RAMP_JUMP_DET);
+			res.frac_nl += !!(f.dq & RAMP_NONLINEAR);
+			res.frac_nlc += !!(f.dq & RAMP_NO_LIN_CORR);
 			if (f.dq & RAMP_DO_NOT_USE) {
 				res.frac_dnu++;
 				continue;
@@ -70,6 +72,8 @@ static struct result run(const struct ramp_pattern *p, const struct ramp_det *d,
 	res.frac_sat /= npix;
 	res.frac_jump /= npix;
 	res.frac_dnu /= npix;
+	res.frac_nl /= npix;
+	res.frac_nlc /= npix;
 	free(r);
 	free(scr);
 	free(dn);
@@ -220,6 +224,39 @@ int main(void)
 
 		ok(s.frac_dnu == 1 && s.frac_sat == 1,
 		   "1e6 e-/s: every pixel saturated in its first resultant is DO_NOT_USE|SATURATED");
+	}
+
+	/* the linearity flags: NONLINEAR where a used resultant's correction
+	 * exceeds nonlinear_flag (5 %, from 75,586 e- measured), none below;
+	 * NO_LIN_CORR for a used resultant at 0 DN */
+	{
+		struct ramp_fit_plan fp;
+		double m5 = (1 - (2 / 1.05 - 1) * (2 / 1.05 - 1)) / (-4 * d.beta);
+		struct result lo = run(&p, &d, &k, 400, 20000, NULL);
+		struct result hi = run(&p, &d, &k, 600, 20000, NULL);
+		uint16_t dn[RAMP_MAX_RES];
+		struct ramp_fit f;
+
+		is_near(m5, 75586, 5, "a 5 %% correction from %.0f e- measured", m5);
+		/* rate 400: 10000 + 400 x 139 = 65,700 e- at the last read,
+		 * 600: 93,500 (below saturation, 118,000 true) */
+		ok(lo.frac_nl == 0 && lo.frac_nlc == 0 && lo.frac_sat == 0,
+		   "400 e-/s: no linearity flag (%.3f)", lo.frac_nl);
+		ok(hi.frac_nl == 1 && hi.frac_nlc == 0 && hi.frac_sat == 0,
+		   "600 e-/s: NONLINEAR everywhere (%.3f), not saturated", hi.frac_nl);
+		if (ramp_fit_plan_init(&fp, &p, &d) < 0)
+			return 1;
+		ok(fabs(fp.nl_dn * d.gain - m5) < 2 * d.gain, "NONLINEAR from %d DN", fp.nl_dn);
+		for (int i = 0; i < p.nres; i++)
+			dn[i] = (uint16_t)(5000 + 100 * i);
+		dn[2] = 0;
+		ramp_fit_pixel(&fp, dn, 1, &f);
+		ok((f.dq & RAMP_NO_LIN_CORR) && !(f.dq & RAMP_NONLINEAR),
+		   "a used resultant at 0 DN: NO_LIN_CORR (dq %u)", f.dq);
+		dn[2] = 5200;
+		ramp_fit_pixel(&fp, dn, 1, &f);
+		ok(!(f.dq & (RAMP_NO_LIN_CORR | RAMP_NONLINEAR)), "a clean ramp: neither (dq %u)", f.dq);
+		ramp_fit_plan_free(&fp);
 	}
 
 	/* cosmic rays: the pixels whose resultants changed when hits are on */

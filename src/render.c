@@ -12,6 +12,7 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 
+#include "clock.h"
 #include "engine.h"
 #include "err.h"
 #include "fftconv.h"

@@ -8,6 +8,7 @@
  *
  *   run.c        the run loop: exposures set up, catalogs read in chunks,
  *                each chunk placed while the previous one renders
+ *   clock.c      the run's clock and progress line (clock.h)
  *   exposure.c   the exposures: one from the options, or --pointings
  *   place.c      rows to placements: models, columns, fluxes, reach,
  *                which SCAs a row may reach, pixels, binning by tile
@@ -163,10 +164,6 @@ struct engine {
 	struct timespec t_start, t_progress;
 	int progress;                           /* stderr is a terminal */
 };
-
-/* run.c */
-double engine_clock(void);              /* monotonic seconds */
-void engine_progress(struct engine *g, const char *stage, int force);
 
 /* host.c: the struct wfs_host lent to plugins, and the services the engine
  * itself uses (errors from any thread, -v logging, a setting's value).

@@ -336,7 +336,7 @@ static int merge_data_length(struct merge *m, const char *what,
 {
 	long long bitpix, naxis, pcount = 0, gcount = 1, v;
 	unsigned long long count = 0, bytes;
-	char key[16];
+	char key[32];           /* "NAXISn", n up to 999; room for any long long */
 
 	if (merge_int(m, what, cards, n, "BITPIX", &bitpix) ||
 	    merge_int(m, what, cards, n, "NAXIS", &naxis))

@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <time.h>
 
+#include "clock.h"
 #include "engine.h"
 #include "err.h"
 #include "fftconv.h"

@@ -2,8 +2,8 @@
  * table.h - the table layer under catalog.h (internal to the catalog
  * module): any supported format, plain or compressed, read as chunks of
  * rows whose cells are text, plus the file's metadata and column units.
- * The core is table.c; the readers are table_text.c (CSV, whitespace, IPAC,
- * ECSV) and table_fits.c (FITS), built on table_build.h.
+ * The core is table.c; the readers are table_text.c and table_header.c (CSV,
+ * whitespace, IPAC, ECSV) and table_fits.c (FITS), built on table_build.h.
  *
  * Formats are recognised from the content (table_open):
  *   FITS        "SIMPLE  =" at byte 0; binary (and ASCII) table HDUs in turn

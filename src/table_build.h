@@ -1,6 +1,7 @@
 /*
  * table_build.h - between the table core (table.c) and its format readers
- * (table_text.c, table_fits.c); nothing else includes it but tests.
+ * (table_text.c with table_header.c, table_fits.c); nothing else includes it
+ * but tests.
  *
  * The core recognises the format and calls the reader's open function,
  * which reads the header: it declares the columns, their units and kinds

@@ -19,6 +19,7 @@
 
 #include "background.h"
 #include "date.h"
+#include "clock.h"
 #include "engine.h"
 #include "err.h"
 #include "fitsout.h"

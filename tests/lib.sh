@@ -135,6 +135,9 @@ have_python() { "$PY" -c 'import numpy, astropy' 2>/dev/null; }
 skip_all() { echo "1..0 # SKIP $*"; exit 0; }
 require_shared() { have_shared || skip_all "../shared is absent"; }
 require_python() { have_python || skip_all "python3 with numpy and astropy is absent (Debian packages python3-numpy, python3-astropy)"; }
+# A ThreadSanitizer build (make check SANITIZE=thread) runs several times
+# slower in several times the memory: tests of memory bounds skip there.
+tsan_build() { grep -qa __tsan_init "$WFS" 2>/dev/null; }
 
 test_done() {
 	echo "1..$test_count"

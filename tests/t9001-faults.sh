@@ -83,7 +83,8 @@ test_expect_success 'SIGINT while reading removes the --placed temporary' '
 	{ "$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits --placed p.csv \
 		--report r.json < in 2> err & } &&
 	pid=$! && exec 3> in && printf "x,y,flux\n" >&3 &&
-	{ wait_sigterm Cgt $pid; sleep 0.2; ls -A > during; kill -INT $pid; }; wait $pid; rc=$?
+	{ wait_sigterm Cgt $pid; i=0; while [ $i -lt 300 ] && ! ls -A | grep -q "^\.p\.csv\."; do
+		sleep 0.1; i=$((i + 1)); done; ls -A > during; kill -INT $pid; }; wait $pid; rc=$?
 	exec 3>&-
 	test $rc -eq 4 && test_grep "^\.p\.csv\." during &&
 	test -z "$(ls -A | grep -v "^err$\|^in$\|^during$")"
@@ -143,7 +144,7 @@ test_expect_success '--placed and --report name new files with the usual mode' '
 test_expect_success '--placed and --report to a FIFO through a link: written in place' '
 	d=$TRASH/fifo && mkdir "$d" && cd "$d" && mkfifo p1 p2 &&
 	ln -s p1 placed-link && ln -s p2 report-link &&
-	{ timeout 60 cat placed-link > got.csv & } && { timeout 60 cat report-link > got.json & } &&
+	{ timeout 600 cat placed-link > got.csv & } && { timeout 600 cat report-link > got.json & } &&
 	"$WFS" --filter F129 --psf "$PSF" -o out.fits --placed placed-link \
 		--report report-link ../two.csv && wait &&
 	test -p p1 && test -p p2 && test -L placed-link && test -L report-link &&

@@ -7,8 +7,9 @@ product embeds the tables this writes and never reads ../shared.
 """
 import math
 import os
-import re
 import sys
+
+from siaf_xml import siaf_entries
 
 roman = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
     os.path.dirname(__file__), "..", "..", "..", "shared", "roman")
@@ -16,16 +17,6 @@ out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(
     os.path.dirname(__file__), "..", "..", "data")
 
 FILTERS = ["F062", "F087", "F106", "F129", "F158", "F184", "F213", "F146"]
-
-
-def siaf_entries(path):
-    """Aperture name -> {field: text} for every SiafEntry in a SIAF XML."""
-    text = open(path).read()
-    entries = {}
-    for block in re.findall(r"<SiafEntry>(.*?)</SiafEntry>", text, re.S):
-        fields = dict(re.findall(r"<(\w+)>([^<]*)</\1>", block))
-        entries[fields["AperName"]] = fields
-    return entries
 
 
 def unit(v2, v3):

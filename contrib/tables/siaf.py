@@ -26,12 +26,12 @@ boresight; it has no pixels).  Columns:
                          the whole SCA; the worst error on a finer grid is in
                          the header.
 """
-import math
 import os
-import re
 import sys
 
 import numpy as np
+
+from siaf_xml import siaf_entries
 
 roman = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
     os.path.dirname(__file__), "..", "..", "..", "shared", "roman")
@@ -42,15 +42,6 @@ DEG = 5          # Sci2Idl / Idl2Sci degree in this SIAF
 SIP_INV = 6      # order of the fitted inverse (5: 3.7e-3 px, 6: 2.3e-4 px)
 HALF = 2044.0    # science pixels from the reference to the edge (4088 / 2)
 COMMIT = "1aa2e85c6057dbbd95fb7f4de6a36f9e0d30988b"
-
-
-def siaf_entries(path):
-    text = open(path).read()
-    entries = {}
-    for block in re.findall(r"<SiafEntry>(.*?)</SiafEntry>", text, re.S):
-        fields = dict(re.findall(r"<(\w+)>([^<]*)</\1>", block))
-        entries[fields["AperName"]] = fields
-    return entries
 
 
 def coeffs(e, name):

@@ -937,23 +937,18 @@ static const double *jitter_cov(const struct optics_psf_req *r, int pos, double 
 	return cov;
 }
 
-int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
+/* The transform's size *nfft, the pupil raster's largest side *pmax (at
+ * the shortest wavelength) and the Jacobians' stretch for request r: what
+ * optics_psf() and optics_psf_fits() share.  -1 with e set on a bad
+ * request. */
+static int psf_sizes(const struct optics_psf_req *r, int *nfft, int *pmax,
+		     double *stretch, struct err *e)
 {
-	struct job j;
-	int nth = r->threads > 0 ? r->threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
-	int pupil_n = r->pupil_n > 0 ? r->pupil_n : 256, rc = -1;
+	int pupil_n = r->pupil_n > 0 ? r->pupil_n : 256;
 	double lmax = 0, lmin = 1e9, dth = r->scale * ARCSEC;
 
-	if (nth < 1)
-		nth = 1;
-	if (nth > 64)
-		nth = 64;
 	if (r->n < 3 || r->n % 2 == 0 || r->nwave < 1 || r->npos < 1)
 		return err_set(e, EXIT_INPUT, "optics_psf: bad request");
-	memset(&j, 0, sizeof(j));
-	j.r = r;
-	j.h = (r->n - 1) / 2;
-	zernike_table(j.zt);
 	for (int k = 0; k < r->nwave; k++) {
 		lmax = fmax(lmax, r->lam[k]);
 		lmin = fmin(lmin, r->lam[k]);
@@ -964,18 +959,52 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 	 * that an FFT implies sit at least n samples beyond the box. */
 	double span = fmin(2 * r->pupil->half, 2 * r->pupil->rmax);
 	int need = (int)ceil(pupil_n * lmax * 1e-6 / (span * dth));
-	j.nfft = good_size(need > 2 * r->n ? need : 2 * r->n);
+	*nfft = good_size(need > 2 * r->n ? need : 2 * r->n);
 	/* pupil samples per side at the shortest wavelength; a Jacobian
 	 * stretches the pupil's extent in the transform's frame by up to the
-	 * largest singular value of A */
-	double stretch = pupil_stretch(r, e);
-	if (stretch < 0)
+	 * largest singular value of A.  As nfft * dth / lambda is the
+	 * transform's period in the pupil plane, pmax / nfft is about
+	 * stretch D dth / lambda_min whatever nfft: the pupil fits only when
+	 * the samples are finer than lambda_min / (stretch D). */
+	if ((*stretch = pupil_stretch(r, e)) < 0)
 		return -1;
-	j.pmax = (int)ceil(stretch * 2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
-			   (lmin * 1e-6 / (j.nfft * dth))) + 2;
+	*pmax = (int)ceil(*stretch * 2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
+			  (lmin * 1e-6 / (*nfft * dth))) + 2;
+	return 0;
+}
+
+int optics_psf_fits(const struct optics_psf_req *r, struct err *e)
+{
+	int nfft, pmax;
+	double stretch;
+
+	if (psf_sizes(r, &nfft, &pmax, &stretch, e))
+		return -1;
+	return pmax <= nfft;
+}
+
+int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
+{
+	struct job j;
+	int nth = r->threads > 0 ? r->threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
+	int rc = -1;
+	double dth = r->scale * ARCSEC, stretch;
+
+	if (nth < 1)
+		nth = 1;
+	if (nth > 64)
+		nth = 64;
+	memset(&j, 0, sizeof(j));
+	if (psf_sizes(r, &j.nfft, &j.pmax, &stretch, e))
+		return -1;
+	j.r = r;
+	j.h = (r->n - 1) / 2;
+	zernike_table(j.zt);
 	if (j.pmax > j.nfft)
-		return err_set(e, EXIT_INPUT, "optics_psf: pupil does not fit "
-			       "the FFT (%d > %d)", j.pmax, j.nfft);
+		return err_set(e, EXIT_INPUT, "optics_psf: samples of %g arcsec are "
+			       "coarser than the shortest wavelength's lambda / D: "
+			       "the pupil does not fit the FFT (%d > %d)", r->scale,
+			       j.pmax, j.nfft);
 	j.acc = calloc((size_t)r->npos * r->n * r->n, sizeof(double));
 	j.b1 = calloc(nth, sizeof(*j.b1));
 	j.b2 = calloc(nth, sizeof(*j.b2));

@@ -130,6 +130,13 @@ struct optics_psf_req {
 };
 int optics_psf(const struct optics_psf_req *r, double *out, struct err *e);
 
+/* Whether optics_psf() can compute r: 1 when the pupil's raster at the
+ * shortest wavelength fits the transform, i.e. r->scale is finer than
+ * about lambda_min / (stretch D) (0.043" for F062's shortest wavelength
+ * bin, about 0.5 micron: not the halo's 0.055" samples); 0 when not; -1 with e set on a bad
+ * request. */
+int optics_psf_fits(const struct optics_psf_req *r, struct err *e);
+
 /* The measured default number of wavelengths for a filter (psfbuild.c). */
 int psf_default_nwave(int filter);
 

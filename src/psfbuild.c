@@ -231,6 +231,68 @@ static double *node_jacobians(int sca, int grid, struct err *e)
 	return jac;
 }
 
+/*
+ * The rest of build() for a grid at 2 samples per pixel (the halo) whose
+ * samples are coarser than lambda / D at the band's shortest wavelength
+ * (F062: 0.055" against 0.043"; optics_psf_fits): the optics at 4 samples
+ * per pixel over the same field, made into the ePSF there and every other
+ * sample kept.  The ePSF's sample is the light of a pixel at that offset
+ * whatever the sampling, so this is the 4x ePSF's own value.  Not the 2x
+ * optics with the pupil folded into the transform (exact point samples):
+ * their sum, which each wavelength is normalised by, then counts aliased
+ * light, and the halo came out 4% dim against the 4x ePSF at 5-128 px
+ * (F062 SCA 1; BENCHMARKS.md "Halo").  For PSF_OPTICAL the 4x point
+ * samples, times 4 so that a sample still stands for the light of its
+ * 2x cell.  Four times the 2x optics' work; frees zern, img and rel, and
+ * g on failure.
+ */
+static struct psf_grid *build_fine(struct psf_grid *g, struct optics_psf_req *r, int kind,
+				   double *zern, double *img, double *rel, struct err *e)
+{
+	int n = r->n, nf = 2 * (n - 1) + 1, npos = r->npos;
+	struct psf_grid *f = NULL;
+	double *fimg = NULL;
+
+	r->n = nf;
+	r->scale /= 2;
+	if (!(f = psf_grid_new(nf, 4, g->nx, g->ny)) ||
+	    !(fimg = malloc(sizeof(double) * npos * nf * nf))) {
+		err_set(e, EXIT_SYSTEM, "out of memory");
+		goto fail;
+	}
+	if (optics_psf(r, fimg, e))
+		goto fail;
+	for (size_t i = 0; i < (size_t)npos * nf * nf; i++)
+		f->data[i] = (float)fimg[i];
+	f->kind = PSF_OPTICAL;
+	snprintf(f->origin, sizeof(f->origin), "builtin");
+	if (kind != PSF_OPTICAL && psf_make_epsf_kind(f, kind, e))
+		goto fail;
+	for (int p = 0; p < npos; p++)
+		for (int y = 0; y < n; y++)
+			for (int x = 0; x < n; x++)
+				g->data[((size_t)p * n + y) * n + x] =
+					(kind == PSF_OPTICAL ? 4 : 1) *
+					f->data[((size_t)p * nf + 2 * y) * nf + 2 * x];
+	g->kind = kind;
+	g->pixscale = WFS_PIXSCALE / 2;
+	snprintf(g->origin, sizeof(g->origin), "builtin");
+	psf_grid_free(f);
+	free(fimg);
+	free(zern);
+	free(img);
+	free(rel);
+	return g;
+fail:
+	psf_grid_free(f);
+	free(fimg);
+	psf_grid_free(g);
+	free(zern);
+	free(img);
+	free(rel);
+	return NULL;
+}
+
 /* Compute a grid: on STIPS's square pixels, or when jac (node_jacobians)
  * is given on the SCA's own. */
 static struct psf_grid *build(const struct optics *o, int filter, int sca,
@@ -295,6 +357,13 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 		err_set(e, EXIT_INPUT, "no SCA %d", sca);
 		goto fail;
 	}
+	g->sca = sca;
+	g->filter = filter;
+	int fits = optics_psf_fits(&r, e);
+	if (fits < 0)
+		goto fail;
+	if (!fits && over == 2)
+		return build_fine(g, &r, kind, zern, img, rel, e);
 	if (optics_psf(&r, img, e))
 		goto fail;
 	for (size_t i = 0; i < (size_t)npos * n * n; i++)

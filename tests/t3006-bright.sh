@@ -122,6 +122,32 @@ f = r[\"flux\"][0]
 assert 0.98 < f[\"placed\"] / f[\"requested\"] < 1, f
 "
 '
+# F062's shortest wavelengths put the halo's 2 samples per pixel beyond
+# lambda / D: the optics fold the pupil's raster into the transform's
+# period (once "pupil does not fit the FFT (2748 > 2160)", exit 1).
+test_expect_success 'a 14-mag star in F062 at the defaults: finite, its halo drawn, the flux of the stips box' '
+	printf "id,x,y,flux\n1,300.5,100.5,14\n" > f062.csv &&
+	"$WFS" --filter F062 --sca 1 --flux-unit abmag --rows 1-200 --report f062.json \
+		-o f062.fits f062.csv &&
+	"$WFS" --filter F062 --sca 1 --flux-unit abmag --rows 1-200 --set psf-extent=stips \
+		-o f062s.fits f062.csv &&
+	"$PY" -c "
+import json
+import numpy as np
+from astropy.io import fits
+a = fits.getdata(\"f062.fits\", 1).astype(float)
+b = fits.getdata(\"f062s.fits\", 1).astype(float)
+f = json.load(open(\"f062.json\"))[\"flux\"][0]
+print(\"# drawn %.6g, placed %.6g, requested %.6g, stips box %.6g; %d pixels (box 1936)\" %
+      (a.sum(), f[\"placed\"], f[\"requested\"], b.sum(), (a != 0).sum()))
+assert np.isfinite(a).all() and a.min() >= 0, a.min()
+assert (a != 0).sum() > 2 * 44 * 44, (a != 0).sum()
+assert abs(a.sum() / f[\"placed\"] - 1) < 1e-6, (a.sum(), f)
+assert 0.98 < a.sum() / f[\"requested\"] <= 1, (a.sum(), f)
+assert abs(a.sum() / b.sum() - 1) < 0.02, (a.sum(), b.sum())
+assert abs(a.max() / b.max() - 1) < 0.02, (a.max(), b.max())
+"
+'
 for kv in psf-extent=box psf-extent-noise=0 psf-extent-max=x psf-halo-power=2 \
 	psf-halo-radius=8 psf-halo-taper=x psf-halo-far=x; do
 	key=${kv%%=*}

@@ -817,7 +817,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 
 	/* Wings: pixel integrals outside Q, and the profile's gradient at the
 	 * pixel centres (for the first-moment term). */
-	int any = 0;
+	int any = 0, rough = 0;
 	for (int y = sy0; y <= sy1; y++) {
 		size_t o = (size_t)(y - sy0) * snx;
 		int in_qy = y >= icy - kq && y <= icy + kq;
@@ -837,6 +837,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 				}
 				any |= v != 0;
 			}
+			rough |= lv != v;
 			img[o + x - sx0] = v;
 			gxi[o + x - sx0] = gx;
 			gyi[o + x - sx0] = gy;
@@ -859,10 +860,15 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 				kdx[k] = -(xp - xm) * s1;
 				kdy[k] = -(yp - ym) * s1;
 			}
+		/* Where every pixel is smooth the Laplacian term's image is the
+		 * stamp itself: one convolution with E + lap E / 24 does both. */
+		if (!rough)
+			for (size_t k = 0; k < nker; k++)
+				ker[k] += klp[k];
 		if (host->convolve(host->ctx, thread, img, snx, sny, ker, kn) ||
 		    host->convolve(host->ctx, thread, gxi, snx, sny, kdx, kn) ||
 		    host->convolve(host->ctx, thread, gyi, snx, sny, kdy, kn) ||
-		    host->convolve(host->ctx, thread, lpi, snx, sny, klp, kn))
+		    (rough && host->convolve(host->ctx, thread, lpi, snx, sny, klp, kn)))
 			return host->error(host->ctx, "FFT convolution of a %d x %d galaxy stamp failed",
 					   snx, sny);
 		for (int y = win->y0; y < win->y0 + win->ny; y++) {
@@ -874,7 +880,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 			box_clip(&x0, &x1, sx0, sx1);
 			for (int x = x0; x <= x1; x++)
 				dst[x - win->x0] += img[o + x - sx0] + gxi[o + x - sx0] + gyi[o + x - sx0]
-						    + lpi[o + x - sx0];
+						    + (rough ? lpi[o + x - sx0] : 0.0);
 		}
 	}
 

@@ -73,6 +73,8 @@ static const struct wfs_column sersic_columns[SERSIC_NCOL] = {
 #define SERSIC_RT_MAX 1e7
 /* ... and never below this along the minor axis, pixels (see prepare). */
 #define SERSIC_RT_MIN 5.0
+/* The most light the cut by the noise may leave out (sersic-noise-cut). */
+#define SERSIC_NOISE_EPS 1e-2
 
 /* Where prepare() leaves its results in src->aux. */
 enum {
@@ -605,6 +607,13 @@ struct sersic_method {
 	int convolve;           /* 0: pixel integrals only (no PSF) */
 	double psf_core;        /* radius of the cubic ePSF core, pixels */
 	int core_k;             /* half-width of the sub-pixel core, pixels */
+	/* Optional: a wing pixel's integral *v and, where the light is
+	 * smooth over it (sersic_cell_scale at its nearest point at least
+	 * SERSIC_SMOOTH; the return value says so), the profile's gradient
+	 * at its centre (*gx, *gy; else 0), in one pass, sharing the work
+	 * of the two.  NULL: cell(), then that test and sersic_grad(). */
+	int (*wing)(const struct sersic_gal *g, const void *opt, double x0, double x1,
+		    double y0, double y1, double *v, double *gx, double *gy);
 };
 
 /* The ePSF samples at the galaxy: blend of four nodes at sample (ix, iy),
@@ -808,7 +817,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 
 	/* Wings: pixel integrals outside Q, and the profile's gradient at the
 	 * pixel centres (for the first-moment term). */
-	int any = 0;
+	int any = 0, rough = 0;
 	for (int y = sy0; y <= sy1; y++) {
 		size_t o = (size_t)(y - sy0) * snx;
 		int in_qy = y >= icy - kq && y <= icy + kq;
@@ -828,6 +837,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 				}
 				any |= v != 0;
 			}
+			rough |= lv != v;
 			img[o + x - sx0] = v;
 			gxi[o + x - sx0] = gx;
 			gyi[o + x - sx0] = gy;
@@ -850,10 +860,15 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 				kdx[k] = -(xp - xm) * s1;
 				kdy[k] = -(yp - ym) * s1;
 			}
+		/* Where every pixel is smooth the Laplacian term's image is the
+		 * stamp itself: one convolution with E + lap E / 24 does both. */
+		if (!rough)
+			for (size_t k = 0; k < nker; k++)
+				ker[k] += klp[k];
 		if (host->convolve(host->ctx, thread, img, snx, sny, ker, kn) ||
 		    host->convolve(host->ctx, thread, gxi, snx, sny, kdx, kn) ||
 		    host->convolve(host->ctx, thread, gyi, snx, sny, kdy, kn) ||
-		    host->convolve(host->ctx, thread, lpi, snx, sny, klp, kn))
+		    (rough && host->convolve(host->ctx, thread, lpi, snx, sny, klp, kn)))
 			return host->error(host->ctx, "FFT convolution of a %d x %d galaxy stamp failed",
 					   snx, sny);
 		for (int y = win->y0; y < win->y0 + win->ny; y++) {
@@ -865,7 +880,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 			box_clip(&x0, &x1, sx0, sx1);
 			for (int x = x0; x <= x1; x++)
 				dst[x - win->x0] += img[o + x - sx0] + gxi[o + x - sx0] + gyi[o + x - sx0]
-						    + lpi[o + x - sx0];
+						    + (rough ? lpi[o + x - sx0] : 0.0);
 		}
 	}
 
@@ -983,7 +998,7 @@ static const char *sersic_num(char buf[32], double v)
  * the total, q included.
  */
 static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
-				 double eps)
+				 double eps, double noise)
 {
 	double n = src->param[SERSIC_N], re = src->param[SERSIC_RE];
 	double phi = src->param[SERSIC_PHI], q = src->param[SERSIC_RATIO];
@@ -1040,6 +1055,18 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 		return host->error(host->ctx, "setting sersic-flux: '%s' is neither 'total' nor 'ie'", meaning);
 	}
 
+	/* The cut by the noise (sersic-noise-cut, quick only): where the
+	 * untruncated surface brightness falls below noise (counts/s per
+	 * pixel), I0 e^(-x) = noise at x = ln I0 - ln noise, the light beyond
+	 * is Q(2n, x); the cut is made there when that is more than eps, but
+	 * never beyond SERSIC_NOISE_EPS of the light, which the
+	 * renormalisation below puts back into the galaxy (so its flux stays
+	 * whole and its pixels rise by at most that fraction). */
+	if (noise > 0 && src->flux > 0) {
+		double x = log(src->flux) - lnk - log(noise);
+		double en = x > 0 ? sersic_gamma_q(a, x) : 1.0;
+		eps = fmax(eps, fmin(en, SERSIC_NOISE_EPS));
+	}
 	double xt = sersic_trunc_x(n, eps);
 	double qt, pt;
 	double rho_t = exp(n * log(xt / b));
@@ -1113,7 +1140,7 @@ static int sersic_reach_common(const struct wfs_host *host, const struct wfs_sou
 	struct wfs_box box;
 
 	at.x = at.y = 0;
-	if (sersic_prepare_common(host, &at, eps) < 0 ||
+	if (sersic_prepare_common(host, &at, eps, 0) < 0 ||
 	    sersic_footprint_common(host, &at, &box, convolve) < 0)
 		return -1;
 	*pixels = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1)) + 2;

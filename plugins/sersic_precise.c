@@ -162,7 +162,7 @@ static int precise_prepare(void *state, struct wfs_source *src)
 {
 	struct precise *p = state;
 
-	return sersic_prepare_common(p->host, src, p->trunc);
+	return sersic_prepare_common(p->host, src, p->trunc, 0);
 }
 
 static int precise_footprint(void *state, const struct wfs_source *src, struct wfs_box *box)
@@ -179,7 +179,7 @@ static int precise_render(void *state, void *tstate, void *thread,
 	/* Cells far out whose light is below 1e-3 of the tolerance of the
 	 * whole flux are not refined further. */
 	struct precise_opt o = { p->tol, 1e-3 * p->tol * 1e-4 };
-	struct sersic_method m = { precise_cell, &o, p->convolve, p->psf_core, p->core_k };
+	struct sersic_method m = { precise_cell, &o, p->convolve, p->psf_core, p->core_k, NULL };
 
 	return sersic_render_common(p->host, thread, src, win, &m);
 }

@@ -24,6 +24,8 @@
 #define QUICK_TRUNC 1e-3
 #define QUICK_STEP 0.5
 #define QUICK_NMAX 16
+#define QUICK_TAYLOR 1
+#define QUICK_NOISE_CUT 0.01
 
 struct quick {
 	const struct wfs_host *host;
@@ -31,12 +33,73 @@ struct quick {
 	int convolve;
 	double psf_core;
 	int core_k;
+	double taylor;          /* sersic-taylor: largest h / ell of the Taylor form */
+	double noise_cut;       /* sersic-noise-cut: fraction of the pixel noise */
+	double sigma;           /* the host's pixel-sigma, counts/s per pixel */
 };
+
+/*
+ * The integral of the profile over a cell from its value and curvature at
+ * the centre: int I = w_x w_y (I + (w_x^2 I_xx + w_y^2 I_yy) / 24), the
+ * cell's sides w_x, w_y, exact to second order (the midpoint rule at one
+ * point is the first term).  With rho^2 = u^2 ia2 + v^2 ib2 and
+ * I = I0 exp(f), f = -b (rho^2)^(1/2n):
+ *   f' = df / d rho^2 = -p / (2n rho^2),   f'' = f' (1/2n - 1) / rho^2,
+ *   I_xx = I ((f'^2 + f'') (d_x rho^2)^2 + f' d_xx rho^2),
+ * d_x rho^2 = 2 (u ia2 c - v ib2 s), d_xx rho^2 = 2 qa (y alike); the
+ * gradient I f' grad rho^2 comes with it, for the wing's first-moment term.
+ * Its error is fourth order, about (h / ell)^4 / 500 of the cell at the
+ * profile's length scale ell (BENCHMARKS.md has the measured errors).  The
+ * cell must hold no cusp (not near the centre) and not reach the
+ * truncation ellipse.
+ */
+static double quick_taylor(const struct sersic_gal *g, double x0, double x1, double y0,
+			   double y1, double *gx, double *gy)
+{
+	double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), wx = x1 - x0, wy = y1 - y0;
+	double u = g->ct * cx + g->st * cy, v = g->ct * cy - g->st * cx;
+	double r2 = u * u * g->ia2 + v * v * g->ib2;
+	double p = g->b * exp(0.5 * g->inv_n * log(r2));
+	double in = exp(g->lni0 - p);
+	double f1 = -0.5 * p * g->inv_n / r2, f2 = f1 * (0.5 * g->inv_n - 1.0) / r2;
+	double dx = 2 * (u * g->ia2 * g->ct - v * g->ib2 * g->st);
+	double dy = 2 * (u * g->ia2 * g->st + v * g->ib2 * g->ct);
+	double c = f1 * f1 + f2;
+	double ixx = in * (c * dx * dx + 2 * f1 * g->qa), iyy = in * (c * dy * dy + 2 * f1 * g->qc);
+
+	*gx = in * f1 * dx;
+	*gy = in * f1 * dy;
+	return wx * wy * (in + (wx * wx * ixx + wy * wy * iyy) / 24.0);
+}
+
+/* A cell's integral away from the centre and the needle cases: the
+ * Taylor form where h / ell is at most the sersic-taylor setting and the
+ * cell stays inside the truncation ellipse (*taylor set to 1, the gradient
+ * at the centre in gx, gy), else the midpoint rule on N x N points. */
+static double quick_points(const struct sersic_gal *g, const struct quick *p, double x0,
+			   double x1, double y0, double y1, double h, int *taylor,
+			   double *gx, double *gy)
+{
+	/* The points per side from the length scale at a lower bound on rho,
+	 * the cell's distance over r_e, which rounds the count up: what the
+	 * errors in BENCHMARKS.md were measured with. */
+	double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0, dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0;
+	double t = h / sersic_cell_scale(g, sqrt(dx * dx + dy * dy) / g->re, x0, x1, y0, y1);
+
+	*taylor = 0;
+	if (p && t <= p->taylor && sersic_rho2_max(g, x0, x1, y0, y1) < g->rho_t2) {
+		*taylor = 1;
+		return quick_taylor(g, x0, x1, y0, y1, gx, gy);
+	}
+	double n = ceil(t / QUICK_STEP);
+	return sersic_midpoint(g, x0, x1, y0, y1, n < 1 ? 1 : n > QUICK_NMAX ? QUICK_NMAX : (int)n);
+}
 
 static double quick_cell(const struct sersic_gal *g, const void *opt,
 			 double x0, double x1, double y0, double y1, double h)
 {
-	double rmin = sersic_rho_min(g, x0, x1, y0, y1);
+	double rmin = sersic_rho_min(g, x0, x1, y0, y1), gx, gy;
+	int taylor;
 
 	if (rmin >= g->rho_t)
 		return 0.0;
@@ -46,13 +109,37 @@ static double quick_cell(const struct sersic_gal *g, const void *opt,
 	 * needle or a galaxy far below a pixel, which points would miss. */
 	if (!(ceil(h / (QUICK_STEP * sersic_cell_scale(g, rmin, x0, x1, y0, y1))) <= QUICK_NMAX))
 		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12);
-	/* The points per side from the length scale at a lower bound on rho,
-	 * the cell's distance over r_e, which rounds the count up: what the
-	 * errors in BENCHMARKS.md were measured with. */
-	double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0, dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0;
-	double n = ceil(h / (QUICK_STEP * sersic_cell_scale(g, sqrt(dx * dx + dy * dy) / g->re,
-							      x0, x1, y0, y1)));
-	return sersic_midpoint(g, x0, x1, y0, y1, n < 1 ? 1 : n > QUICK_NMAX ? QUICK_NMAX : (int)n);
+	return quick_points(g, opt, x0, x1, y0, y1, h, &taylor, &gx, &gy);
+}
+
+/* A wing pixel (sersic_method.wing): quick_cell and the smoothness test
+ * and gradient of sersic_render_common in one pass, sharing rho_min, the
+ * length scale at it and, for the Taylor form, the profile at the centre. */
+static int quick_wing(const struct sersic_gal *g, const void *opt, double x0, double x1,
+		      double y0, double y1, double *v, double *gx, double *gy)
+{
+	double rmin = sersic_rho_min(g, x0, x1, y0, y1);
+	int taylor = 0;
+
+	*gx = *gy = 0;
+	if (rmin >= g->rho_t) {
+		*v = 0;
+		return 0;
+	}
+	double ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
+	if (sersic_near_centre(x0, x1, y0, y1, 1.0))
+		*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-4, 1e-12);
+	else if (!(ceil(1.0 / (QUICK_STEP * ell)) <= QUICK_NMAX))
+		*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12);
+	else
+		*v = quick_points(g, opt, x0, x1, y0, y1, 1.0, &taylor, gx, gy);
+	if (*v == 0 || !(ell >= SERSIC_SMOOTH)) {
+		*gx = *gy = 0;
+		return 0;
+	}
+	if (!taylor)
+		sersic_grad(g, 0.5 * (x0 + x1), 0.5 * (y0 + y1), gx, gy);
+	return 1;
 }
 
 static int quick_init(const struct wfs_host *host, void **state)
@@ -64,11 +151,17 @@ static int quick_init(const struct wfs_host *host, void **state)
 	p->host = host;
 	if (sersic_setting_num(host, "sersic-trunc", 1e-12, 0.5, QUICK_TRUNC, &p->trunc) ||
 	    sersic_setting_num(host, "psf-core", 0, 1e3, SERSIC_PSF_CORE, &p->psf_core) ||
+	    sersic_setting_num(host, "sersic-taylor", 0, 4, QUICK_TAYLOR, &p->taylor) ||
+	    sersic_setting_num(host, "sersic-noise-cut", 0, 1, QUICK_NOISE_CUT, &p->noise_cut) ||
 	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
 		free(p);
 		return -1;
 	}
+	const char *ps = host->setting ? host->setting(host->ctx, "pixel-sigma") : NULL;
+	p->sigma = ps ? strtod(ps, NULL) : 0;
+	if (!(p->sigma > 0) || !isfinite(p->sigma))
+		p->sigma = 0;
 	*state = p;
 	return 0;
 }
@@ -82,7 +175,7 @@ static int quick_prepare(void *state, struct wfs_source *src)
 {
 	struct quick *p = state;
 
-	return sersic_prepare_common(p->host, src, p->trunc);
+	return sersic_prepare_common(p->host, src, p->trunc, p->noise_cut * p->sigma);
 }
 
 static int quick_footprint(void *state, const struct wfs_source *src, struct wfs_box *box)
@@ -96,7 +189,7 @@ static int quick_render(void *state, void *tstate, void *thread,
 			const struct wfs_source *src, const struct wfs_window *win)
 {
 	struct quick *p = state;
-	struct sersic_method m = { quick_cell, NULL, p->convolve, p->psf_core, p->core_k };
+	struct sersic_method m = { quick_cell, p, p->convolve, p->psf_core, p->core_k, quick_wing };
 
 	return sersic_render_common(p->host, thread, src, win, &m);
 }
@@ -111,6 +204,10 @@ static int quick_reach(void *state, const struct wfs_source *src, double *pixels
 static const struct wfs_setting quick_settings[] = {
 	{ "sersic-trunc", SERSIC_STR(QUICK_TRUNC), "number from 1e-12 to 0.5",
 	  "fraction of the light allowed beyond the truncation radius" },
+	{ "sersic-noise-cut", SERSIC_STR(QUICK_NOISE_CUT), "number from 0 to 1",
+	  "cut each galaxy where its surface brightness falls below this fraction of the pixel noise, leaving out at most 1% of its light, put back by renormalising (0: off)" },
+	{ "sersic-taylor", SERSIC_STR(QUICK_TAYLOR), "number from 0 to 4",
+	  "cells with pixel size over the profile's length scale up to this are integrated from the value and curvature at their centre (0: points only)" },
 	SERSIC_SETTINGS,
 };
 

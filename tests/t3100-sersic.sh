@@ -290,4 +290,21 @@ test_expect_success 'two catalogs whose galaxy columns stand in different places
 	"$PY" boxsum.py aa.fits 25 100.3,100.6 > aa.sum &&
 	cmp ab.sum aa.sum
 '
+test_expect_success 'sersic-taylor and sersic-noise-cut: flux kept, both off give other bytes, bad values refused' '
+	printf "x,y,flux,type,n,re,phi,ratio\n400.5,400.5,300,sersic,4,3,30,0.6\n" > nc.csv &&
+	"$WFS" -q --filter F129 -o nc1.fits nc.csv &&
+	"$WFS" -q --filter F129 --set sersic-noise-cut=0 --set sersic-taylor=0 -o nc0.fits nc.csv &&
+	! cmp -s nc1.fits nc0.fits &&
+	"$PY" boxsum.py nc1.fits 150 400.5,400.5 > s1 &&
+	"$PY" boxsum.py nc0.fits 150 400.5,400.5 > s0 &&
+	"$PY" -c "
+import sys
+a, b = float(open(\"s1\").read()), float(open(\"s0\").read())
+sys.exit(not abs(a / b - 1) < 2e-3)
+" &&
+	for opt in sersic-noise-cut=2 sersic-noise-cut=x sersic-taylor=-1 sersic-taylor=5; do
+		test_must_fail --status 3 "$WFS" --filter F129 --set $opt -o o.fits nc.csv 2> err &&
+		grep -q "${opt%%=*}" err || return 1
+	done
+'
 test_done

@@ -46,7 +46,7 @@
 
 struct mock {
 	char err[512];
-	const char *keys[8], *vals[8];
+	const char *keys[16], *vals[16];
 	int nset;
 	float *epsf;
 	struct fftconv *fft;
@@ -1252,6 +1252,98 @@ static void test_flux_meaning(const struct wfs_model *m)
 
 /* reach() bounds the footprint's extent about the source, wherever the
  * source is, and leaves src as it was. */
+/*
+ * sersic-quick's two shortcuts against the exact reference, PSF-free:
+ * sersic-taylor (a cell from the value and curvature at its centre) is no
+ * worse than the points it replaces, pixel by pixel over a 41^2 box (those
+ * holding at least 1e-4 of the flux), and within 1% of each for n >= 1 (at
+ * n = 0.5 both are 5.7% off at the pixel the truncation cuts through); the cut by
+ * the noise (sersic-noise-cut, with the host's pixel-sigma) keeps the whole
+ * flux (within quick's 2e-3), shrinks the footprint, and moves no pixel by more than 1% of it
+ * plus the cut's level, s sigma.
+ */
+static void test_shortcuts(const struct wfs_model *m)
+{
+	static const double cases[][2] = { { 0.5, 3 }, { 1, 3 }, { 1, 10 }, { 2, 3 }, { 4, 3 }, { 4, 10 } };
+	const int h = 20, nx = 2 * h + 1;
+
+	mock_set(&mock, "sersic-convolve", "no");
+	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
+		struct gal g = { 100.37, 200.81, 1000, cases[i][0], cases[i][1], 20, 0.6 };
+		double *img[2] = { NULL, NULL }, worst[2] = { 0, 0 };
+		int ox, oy;
+		struct ref r;
+
+		for (int k = 0; k < 2; k++) {
+			struct model md;
+			mock_set(&mock, "sersic-taylor", k ? "1" : "0");
+			model_init(&md, m);
+			img[k] = draw(&md, &g, h, 64, &ox, &oy);
+			model_fini(&md);
+		}
+		if (!ok(img[0] && img[1], "sersic-taylor n %g re %g: drawn", g.n, g.re))
+			goto next;
+		ref_setup(&r, &g);
+		for (int y = 0; y < nx; y++)
+			for (int x = 0; x < nx; x++) {
+				double x0 = ox + x - 0.5 - g.x, y0 = oy + y - 0.5 - g.y;
+				double want = ref_rect(&r, x0, x0 + 1, y0, y0 + 1, 1e-14 * g.flux);
+				if (want < 1e-4 * g.flux)     /* fainter may lie beyond the cut */
+					continue;
+				for (int k = 0; k < 2; k++)
+					worst[k] = fmax(worst[k], fabs(img[k][(size_t)y * nx + x] / want - 1));
+			}
+		ok(worst[1] <= worst[0] * 1.05 + 1e-6 && (worst[1] <= 1e-2 || g.n < 1),
+		   "sersic-taylor=1 n %g re %g: worst pixel %.2e, points alone %.2e", g.n, g.re,
+		   worst[1], worst[0]);
+next:
+		free(img[0]);
+		free(img[1]);
+	}
+	mock_set(&mock, "sersic-taylor", "1");
+
+	/* The cut by the noise, for a galaxy whose light sinks into it. */
+	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
+		struct gal g = { 100.37, 200.81, 1000, cases[i][0], cases[i][1], 20, 0.6 };
+		const int hb = 160, nb = 2 * hb + 1;
+		double *img[2], tot[2];
+		struct wfs_box fp[2];
+		int ox, oy;
+		const double s = 0.01, sigma = 1.0;
+
+		for (int k = 0; k < 2; k++) {
+			struct model md;
+			struct wfs_source src;
+			double param[4];
+			mock_set(&mock, "sersic-noise-cut", k ? "0.01" : "0");
+			mock_set(&mock, "pixel-sigma", "1");
+			model_init(&md, m);
+			img[k] = draw(&md, &g, hb, 64, &ox, &oy);
+			prepare(&md, &g, &src, param);
+			md.m->footprint(md.state, &src, &fp[k]);
+			model_fini(&md);
+			tot[k] = img[k] ? sum(img[k], (size_t)nb * nb) : 0;
+		}
+		if (ok(img[0] && img[1], "sersic-noise-cut n %g re %g: drawn", g.n, g.re)) {
+			double worst = 0;
+			for (size_t p = 0; p < (size_t)nb * nb; p++) {
+				double d = fabs(img[1][p] - img[0][p]) - 1e-2 * img[0][p];
+				worst = fmax(worst, d / (s * sigma));
+			}
+			long a0 = (long)(fp[0].x1 - fp[0].x0) * (fp[0].y1 - fp[0].y0);
+			long a1 = (long)(fp[1].x1 - fp[1].x0) * (fp[1].y1 - fp[1].y0);
+			ok(fabs(tot[1] / g.flux - 1) < 2e-3 && a1 <= a0 && worst <= 1.0,
+			   "sersic-noise-cut=0.01 n %g re %g: flux kept (%.2e), footprint %ld of %ld px, "
+			   "pixel changes beyond 1%% within %.2f of the cut's level",
+			   g.n, g.re, tot[1] / g.flux - 1, a1, a0, worst);
+		}
+		free(img[0]);
+		free(img[1]);
+	}
+	mock_set(&mock, "sersic-noise-cut", "0");
+	mock_set(&mock, "sersic-convolve", "yes");
+}
+
 static void test_reach(const struct wfs_model *m)
 {
 	static const struct gal gals[] = {
@@ -1346,6 +1438,8 @@ int main(int argc, char **argv)
 		test_shape(ms[k]);
 		test_psf(ms[k]);
 		test_extremes(ms[k]);
+		if (!k)
+			test_shortcuts(ms[k]);
 	}
 	return done_testing();
 }

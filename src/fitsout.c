@@ -310,11 +310,18 @@ static int check_cards(struct fitsout *f, const char *cards, int ncards,
 
 /* ---- our writer: a buffered file descriptor ---- */
 
-static int write_all(struct fitsout *f, const unsigned char *p, size_t n,
-		     struct err *e)
+/* Write n bytes whole, retrying short writes and EINTR: at the file's
+ * position when off < 0 (the sequential writer), else at offset off (the
+ * multi-HDU group writer fills its planes in any order). */
+static int write_at(struct fitsout *f, const void *p, size_t n, long long off,
+		    struct err *e)
 {
+	const unsigned char *q = p;
+
 	while (n > 0) {
-		ssize_t w = write(f->fd, p, n);
+		ssize_t w = off < 0 ? write(f->fd, q, n)
+				    : pwrite(f->fd, q, n, (off_t)off);
+
 		if (w < 0 && errno == EINTR)
 			continue;
 		if (w <= 0) {
@@ -323,15 +330,17 @@ static int write_all(struct fitsout *f, const unsigned char *p, size_t n,
 			f->failed = 1;
 			return err_sys(e, "%s: write error", f->name);
 		}
-		p += w;
+		q += w;
 		n -= (size_t)w;
+		if (off >= 0)
+			off += w;
 	}
 	return 0;
 }
 
 static int wflush(struct fitsout *f, struct err *e)
 {
-	int r = write_all(f, f->buf, f->len, e);
+	int r = write_at(f, f->buf, f->len, -1, e);
 
 	f->len = 0;
 	return r;
@@ -777,29 +786,6 @@ static int bytes_per(int bitpix)
 	return bitpix == 16 ? 2 : 4;
 }
 
-static int group_pwrite(struct fitsout *f, const void *p, size_t n, long long off,
-			struct err *e)
-{
-	const unsigned char *q = p;
-
-	while (n > 0) {
-		ssize_t w = pwrite(f->fd, q, n, (off_t)off);
-
-		if (w < 0 && errno == EINTR)
-			continue;
-		if (w <= 0) {
-			if (w == 0)
-				errno = EIO;
-			f->failed = 1;
-			return err_sys(e, "%s: write error", f->name);
-		}
-		q += w;
-		n -= (size_t)w;
-		off += w;
-	}
-	return 0;
-}
-
 int fitsout_group_begin(struct fitsout *f, int nhdu, const struct fitsout_hdu *h,
 			struct err *e)
 {
@@ -928,7 +914,7 @@ int fitsout_group_rows(struct fitsout *f, int k, int plane, long y0, int nrows,
 		}
 	}
 	off = g->data_off + (((long long)plane * g->ny + y0) * g->nx) * (long long)bp;
-	if (group_pwrite(f, f->gbuf, n * bp, off, e))
+	if (write_at(f, f->gbuf, n * bp, off, e))
 		return -1;
 	g->rows += nrows;
 	return 0;

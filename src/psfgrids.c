@@ -42,8 +42,9 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 			 "the SIAF's" : "square 0.11\"", geom_name(g->o->geometry));
 	/* levels 1 and 2 apply IPC to the charge: an ePSF with it, twice */
 	if (g->o->level && grid->kind == PSF_EPSF)
-		host_log(g, 0, "warning: %s: an ePSF with IPC (KIND EPSF); --level %d applies "
-			 "IPC again to the charge (give KIND EPSFNOIPC or PSF)", path, g->o->level);
+		host_log(g, 0, "warning: %s: an ePSF with IPC folded in (WFSKIND EPSF); "
+			 "--level %d applies IPC again to the charge (give an optical PSF: "
+			 "wfiscene psf --kind psf)", path, g->o->level);
 }
 
 /* The halo's default radius (psf-halo-radius), pixels */

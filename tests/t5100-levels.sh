@@ -239,4 +239,11 @@ assert p.shape == (9, 150, 4096), p.shape
 assert (w[:, 154:304] == p).all(), (w[:, 154:304] != p).sum()
 "
 '
+test_expect_success 'a --psf ePSF with IPC folded in: a warning at level 1, none at the scene level' '
+	"$WFS" psf --filter F129 --sca 1 --kind epsf -o e.fits &&
+	run --psf e.fits --level 1 --rows 1-8 -o w1.fits none.csv 2> err &&
+	test_grep "IPC again" err &&
+	run --psf e.fits --rows 1-8 -o w0.fits none.csv 2> err0 &&
+	! grep "IPC again" err0
+'
 test_done

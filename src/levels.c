@@ -15,6 +15,11 @@
 
 #define FRAME 4096              /* the array with its reference border */
 #define BORDER 4
+/* Rows whose charge is held at once for IPC: the memory is CHUNK + 2
+ * rows of every resultant (12 bytes a pixel each), the two margin rows'
+ * charge is drawn again by the next chunk (2 / CHUNK of the charge's
+ * time) */
+#define CHUNK 64
 
 int level_parse(const char *s, int *level, struct err *e)
 {
@@ -44,8 +49,15 @@ struct strip {
 	int fy0, ny;            /* frame rows [fy0, fy0 + ny) */
 	const double *const *light;     /* science row sy at light[sy - sy0 + 1] */
 	int sy0;
+	/* the strip goes by chunks of rows c0 .. c0 + cn - 1 (of its ny): the
+	 * collected charge and the pixels' own part of science row sy at
+	 * ch[sy - (sy0 + c0) + 1] (the chunk and a row either side), each
+	 * resultant WFS_NPIX on; NULL off the array */
+	int c0, cn;
+	double **ch;
+	float **own;
 	/* per worker */
-	double **scr, **rate;
+	double **scr;
 	uint16_t **dnrow;
 	/* out */
 	uint16_t *l1;           /* [nres][ny][FRAME] */
@@ -53,24 +65,39 @@ struct strip {
 	uint32_t *dq;
 };
 
-static void strip_row(void *arg, int wid, size_t task)
+/* The first pass: the charge of the strip's science rows and of the one
+ * row either side, whose charge IPC shares with the strip's edge rows.
+ * A margin row draws the same keyed numbers as when it is the row of a
+ * strip, so the strip's seams leave no trace. */
+static void strip_charge(void *arg, int wid, size_t task)
 {
 	struct strip *s = arg;
+	struct level_sca *L = s->L;
+	int sy = s->sy0 + s->c0 - 1 + (int)task;
+
+	if (!s->ch[task])
+		return;
+	ramp_level1_charge(L->pat, L->det, &L->key,
+			   (uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX,
+			   s->light[s->c0 + task], s->ch[task], s->own[task], WFS_NPIX,
+			   s->scr[wid]);
+}
+
+/* The second pass: a frame row's resultants, IPC acting on the charge,
+ * then its ramp fit at level 2. */
+static void strip_row(void *arg, int wid, size_t ctask)
+{
+	struct strip *s = arg;
+	size_t task = (size_t)s->c0 + ctask;
 	struct level_sca *L = s->L;
 	const struct ramp_pattern *p = L->pat;
 	int fy = s->fy0 + (int)task, sy = fy - BORDER;
 	int light = sy >= 0 && sy < WFS_NPIX;
-	double *rate = s->rate[wid], *scr = s->scr[wid];
+	double *scr = s->scr[wid];
 	uint32_t cell0 = (uint32_t)fy * FRAME;
 	uint16_t *out;
 	size_t plane;
 
-	if (light) {
-		const double *const *l = s->light + (sy - s->sy0 + 1);
-
-		ramp_ipc_row(L->det, sy > 0 ? l[-1] : NULL, l[0],
-			     sy + 1 < WFS_NPIX ? l[1] : NULL, WFS_NPIX, rate);
-	}
 	if (L->level == LEVEL_1) {
 		plane = (size_t)s->ny * FRAME;
 		out = s->l1 + task * FRAME;
@@ -80,8 +107,15 @@ static void strip_row(void *arg, int wid, size_t task)
 	}
 	/* the reference columns, the science columns, the reference columns */
 	ramp_level1_row(p, L->det, &L->key, cell0, BORDER, NULL, 0, out, plane, scr);
-	ramp_level1_row(p, L->det, &L->key, cell0 + BORDER, WFS_NPIX, rate, light,
-			out + BORDER, plane, scr);
+	if (light) {
+		int k = sy - (s->sy0 + s->c0) + 1;
+
+		ramp_level1_finish(L->det, p->nres, WFS_NPIX, s->ch[k - 1], s->ch[k],
+				   s->ch[k + 1], s->own[k], WFS_NPIX, out + BORDER, plane);
+	} else {
+		ramp_level1_row(p, L->det, &L->key, cell0 + BORDER, WFS_NPIX, NULL, 0,
+				out + BORDER, plane, scr);
+	}
 	ramp_level1_row(p, L->det, &L->key, cell0 + BORDER + WFS_NPIX, BORDER, NULL, 0,
 			out + BORDER + WFS_NPIX, plane, scr);
 	if (L->level == LEVEL_2) {
@@ -241,8 +275,10 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 	 * is computed at a time */
 	struct strip st[2] = { { .L = L, .fp = &fp }, { .L = L, .fp = &fp } };
 	struct strip *prev = NULL;
-	double *lightbuf = NULL, *pixarea = NULL;
+	double *lightbuf = NULL, *pixarea = NULL, *chbuf = NULL, **ch = NULL;
+	float *ownbuf = NULL, **own = NULL;
 	const double **light = NULL;
+	size_t rowlen = (size_t)p->nres * WFS_NPIX;
 	size_t area;
 	int running = 0;
 
@@ -277,27 +313,33 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 
 	area = (size_t)S * WFS_NPIX;
 	st[0].scr = calloc((size_t)nthr, sizeof(*st[0].scr));
-	st[0].rate = calloc((size_t)nthr, sizeof(*st[0].rate));
 	st[0].dnrow = calloc((size_t)nthr, sizeof(*st[0].dnrow));
 	lightbuf = malloc((size_t)(S + 2) * WFS_NPIX * sizeof(double));
 	light = calloc((size_t)S + 2, sizeof(*light));
 	pixarea = malloc(WFS_NPIX * sizeof(double));
-	if (!st[0].scr || !st[0].rate || !st[0].dnrow || !lightbuf || !light || !pixarea)
+	/* the charge of a chunk and its margins: one set, as one chunk at a
+	 * time is computed */
+	chbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(double));
+	ownbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(float));
+	ch = calloc((size_t)CHUNK + 2, sizeof(*ch));
+	own = calloc((size_t)CHUNK + 2, sizeof(*own));
+	if (!st[0].scr || !st[0].dnrow || !lightbuf || !light || !pixarea || !chbuf ||
+	    !ownbuf || !ch || !own)
 		goto nomem;
 	for (int w = 0; w < nthr; w++)
 		if (!(st[0].scr[w] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
-		    !(st[0].rate[w] = calloc(WFS_NPIX, sizeof(double))) ||
 		    !(st[0].dnrow[w] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))))
 			goto nomem;
 		else
 			ramp_scratch_init(st[0].scr[w]);
 	st[1].scr = st[0].scr;
-	st[1].rate = st[0].rate;
 	st[1].dnrow = st[0].dnrow;
 	for (int b = 0; b < 2; b++) {
 		struct strip *s = &st[b];
 
 		s->light = light;
+		s->ch = ch;
+		s->own = own;
 		if (L->level == LEVEL_1) {
 			if (!(s->l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
 				goto nomem;
@@ -341,15 +383,36 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 			}
 			light[k] = row;
 		}
-		pool_start(L->pool, strip_row, s, (size_t)ny);
-		running = 1;
-		t1 = now();
-		if (prev && strip_write(L, prev, flo, f, e) < 0)
-			goto done;
-		t1 = now() - t1;
-		L->t_write += t1;
-		pool_wait(L->pool);
-		running = 0;
+		/* by chunks: the charge (the first chunk's while this thread
+		 * writes the previous strip), then IPC, the resultants and the
+		 * fits */
+		t1 = 0;
+		for (int c0 = 0; c0 < ny; c0 += CHUNK) {
+			int cn = ny - c0 < CHUNK ? ny - c0 : CHUNK;
+
+			s->c0 = c0;
+			s->cn = cn;
+			for (int k = 0; k < cn + 2; k++) {
+				int sy = s->sy0 + c0 - 1 + k;
+				int in = sy >= 0 && sy < WFS_NPIX;
+
+				ch[k] = in ? chbuf + (size_t)k * rowlen : NULL;
+				own[k] = in ? ownbuf + (size_t)k * rowlen : NULL;
+			}
+			pool_start(L->pool, strip_charge, s, (size_t)cn + 2);
+			running = 1;
+			if (c0 == 0) {
+				t1 = now();
+				if (prev && strip_write(L, prev, flo, f, e) < 0)
+					goto done;
+				t1 = now() - t1;
+				L->t_write += t1;
+			}
+			pool_wait(L->pool);
+			pool_start(L->pool, strip_row, s, (size_t)cn);
+			pool_wait(L->pool);
+			running = 0;
+		}
 		/* the wall time less the writing, which overlapped the ramp:
 		 * the two add up to the wall time of the loop */
 		L->t_ramp += now() - t0 - t1;
@@ -371,11 +434,9 @@ done:
 		pool_wait(L->pool);
 	for (int w = 0; st[0].scr && w < nthr; w++) {
 		free(st[0].scr[w]);
-		free(st[0].rate[w]);
 		free(st[0].dnrow[w]);
 	}
 	free(st[0].scr);
-	free(st[0].rate);
 	free(st[0].dnrow);
 	for (int b = 0; b < 2; b++) {
 		free(st[b].l1);
@@ -386,6 +447,10 @@ done:
 		free(st[b].dq);
 	}
 	free(lightbuf);
+	free(chbuf);
+	free(ownbuf);
+	free(ch);
+	free(own);
 	free(light);
 	free(pixarea);
 	for (int k = 0; k < 5; k++)

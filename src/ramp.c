@@ -454,13 +454,21 @@ void ramp_scratch_init(double *scratch)
 		t[i].mu = -1;
 }
 
-void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
-		     const struct ramp_key *k, uint32_t cell0, int n,
-		     const double *rate, int light, uint16_t *out, size_t plane,
-		     double *scratch)
+/*
+ * The resultants of a row.  With out, as DN; with ch (and own), split for
+ * IPC: ch[r * cplane + i] the measured charge that resultant r of pixel i
+ * collected (non-linearity and saturation applied, its own reset level
+ * taken out), own[r * cplane + i] that reset level seen through the
+ * non-linearity plus the read noise; ramp_level1_finish() joins them.
+ */
+static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
+		   const struct ramp_key *k, uint32_t cell0, int n,
+		   const double *rate, int light, uint16_t *out, size_t plane,
+		   double *ch, float *own, size_t cplane, double *scratch)
 {
 	struct pois_tab *tabs = (struct pois_tab *)scratch;
 	double *r = scratch + RAMP_TABS, *S = r + n, *P = S + n, *mu = P + n, *D = mu + n;
+	double *Q = D + n + 512;        /* the reset level seen through the NL */
 	/* 0: the default 4; below 0: never exact (the normal for every split) */
 	double dt = p->read_time, exact_max = k->split_exact_max > 0 ? k->split_exact_max :
 					      k->split_exact_max < 0 ? 0 : 4;
@@ -482,6 +490,9 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 	rng_normal_fill(&g, cell0, (size_t)n, P);
 	for (int i = 0; i < n; i++)
 		P[i] = d->pedestal + d->reset_noise * P[i];
+	if (ch)
+		for (int i = 0; i < n; i++)
+			Q[i] = ramp_nl(d, P[i]);
 	if (light)
 		nh = cr_hits(p, d, k, cell0, n, hits);
 
@@ -535,7 +546,7 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 			for (int j = 0; j < m; j++) {
 				int i = i0 + j;
 				uint32_t cell = cell0 + (uint32_t)i;
-				double Di = D[i], W = 0, s0 = P[i] + S[i], send, mm, v;
+				double Di = D[i], W = 0, s0 = P[i] + S[i], send, mm, nz, v;
 				double z = rng_normal_bits(&g, cell, w[j][0], w[j][1]);
 
 				/* W: the sum over the group's reads of the
@@ -581,7 +592,7 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 				send = s0 + Di;
 				if (send < d->sat_true) {
 					mm = ramp_nl(d, s0 + W * inv_n) + bk * Di * Di;
-					v = mm + sn * z;
+					nz = sn * z;
 				} else {
 					/* reads at saturation read the level exactly; the
 					 * read noise is that of the others */
@@ -594,43 +605,85 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 						mm += ramp_nl(d, x);
 						nfree += x < d->sat_true;
 					}
-					v = (mm + d->read_noise * sqrt((double)nfree) * z) / N;
+					mm *= inv_n;
+					nz = d->read_noise * sqrt((double)nfree) * z * inv_n;
 				}
+				S[i] += Di;
+				if (ch) {
+					size_t o = (size_t)gi * cplane + (size_t)i;
+
+					ch[o] = mm - Q[i];
+					own[o] = (float)(Q[i] + nz);
+					continue;
+				}
+				v = mm + nz;
 				if (v > d->sat_e)
 					v = d->sat_e;
 				v = round_even(v * inv_g);
 				out[(size_t)gi * plane + (size_t)i] =
 					(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
-				S[i] += Di;
 			}
 		}
 		prev = b;
 	}
 }
 
-void ramp_ipc_row(const struct ramp_det *d, const double *above, const double *row,
-		  const double *below, int n, double *out)
+void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
+		     const struct ramp_key *k, uint32_t cell0, int n,
+		     const double *rate, int light, uint16_t *out, size_t plane,
+		     double *scratch)
+{
+	level1(p, d, k, cell0, n, rate, light, out, plane, NULL, NULL, 0, scratch);
+}
+
+void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
+			const struct ramp_key *k, uint32_t cell0, int n,
+			const double *rate, double *ch, float *own, size_t cplane,
+			double *scratch)
+{
+	level1(p, d, k, cell0, n, rate, 1, NULL, 0, ch, own, cplane, scratch);
+}
+
+void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double *above,
+			const double *row, const double *below, const float *own,
+			size_t cplane, uint16_t *out, size_t plane)
 {
 	const double *rows[3] = { above, row, below };
+	double inv_g = 1 / d->gain, dnmax = 65535;
 
-	for (int x = 0; x < n; x++) {
-		double v = 0;
+	for (int gi = 0; gi < nres; gi++) {
+		size_t o = (size_t)gi * cplane;
+		const float *ow = own + o;
+		uint16_t *dn = out + (size_t)gi * plane;
 
-		/* charge of pixel (x, y) is shared: pixel (x + dx, y + dy)
-		 * receives ipc[dy][dx] of it; so out(x) gathers from x - dx */
-		for (int dy = -1; dy <= 1; dy++) {
-			const double *rr = rows[1 - dy];
+		for (int x = 0; x < n; x++) {
+			double v = 0;
 
-			if (!rr)
-				continue;
-			for (int dx = -1; dx <= 1; dx++) {
-				int xx = x - dx;
+			/* the charge of pixel (x, y) is shared: pixel
+			 * (x + dx, y + dy) receives ipc[dy][dx] of it; so
+			 * pixel x gathers from x - dx of the row y - dy, a
+			 * pixel off the array bringing nothing */
+			for (int dy = -1; dy <= 1; dy++) {
+				const double *rr = rows[1 - dy];
 
-				if (xx >= 0 && xx < n)
-					v += d->ipc[dy + 1][dx + 1] * rr[xx];
+				if (!rr)
+					continue;
+				rr += o;
+				if (x > 0 && x + 1 < n) {
+					v += d->ipc[dy + 1][0] * rr[x + 1] + d->ipc[dy + 1][1] * rr[x] +
+					     d->ipc[dy + 1][2] * rr[x - 1];
+				} else {
+					for (int dx = -1; dx <= 1; dx++)
+						if (x - dx >= 0 && x - dx < n)
+							v += d->ipc[dy + 1][dx + 1] * rr[x - dx];
+				}
 			}
+			v += ow[x];
+			if (v > d->sat_e)
+				v = d->sat_e;
+			v = round_even(v * inv_g);
+			dn[x] = (uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
 		}
-		out[x] = v;
 	}
 }
 

@@ -103,12 +103,13 @@ struct ramp_key {
 /*
  * Level 1 of the n pixels cell0 .. cell0 + n - 1 (cell = absolute pixel
  * y * 4096 + x of the 4096^2 array, reference border included) given their
- * expected rates rate[0..n) in e-/s of light (source and sky, IPC applied;
- * the dark current d->dark is added here).  light = 0 marks reference
- * pixels: pedestal, reset and read noise only.  Resultant r of pixel i goes
- * to out[r * plane + i].  scratch: RAMP_SCRATCH(n) doubles.  Thread-safe.
+ * expected rates rate[0..n) in e-/s of light (source and sky; the dark
+ * current d->dark is added here).  light = 0 marks reference pixels:
+ * pedestal, reset and read noise only.  Resultant r of pixel i goes to
+ * out[r * plane + i].  No IPC: see ramp_level1_charge().  scratch:
+ * RAMP_SCRATCH(n) doubles.  Thread-safe.
  */
-#define RAMP_SCRATCH(n) ((size_t)(n) * 5 + 512 + (RAMP_MAX_RES + 1) * 140)
+#define RAMP_SCRATCH(n) ((size_t)(n) * 6 + 512 + (RAMP_MAX_RES + 1) * 140)
 /* Before its first use, scratch must be set up by ramp_scratch_init() (it
  * keeps tables across calls; they change the speed, never the numbers). */
 void ramp_scratch_init(double *scratch);
@@ -116,6 +117,31 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 		     const struct ramp_key *k, uint32_t cell0, int n,
 		     const double *rate, int light, uint16_t *out, size_t plane,
 		     double *scratch);
+
+/*
+ * The same row of light pixels in two parts, for IPC to act on the
+ * collected charge: ch[r * cplane + i] the charge that resultant r of
+ * pixel i measures (Poisson arrivals of light and dark, cosmic rays,
+ * non-linearity and saturation; e-, its reset level taken out) and
+ * own[r * cplane + i] what the pixel adds itself (its reset level through
+ * the non-linearity, and the read noise).  The same random numbers as
+ * ramp_level1_row(), so a row's charge is the same whichever strip asks.
+ */
+void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
+			const struct ramp_key *k, uint32_t cell0, int n,
+			const double *rate, double *ch, float *own, size_t cplane,
+			double *scratch);
+
+/*
+ * The resultants (DN) of a row from ramp_level1_charge()'s parts: the
+ * charge of the rows above, at and below (NULL for a row off the array,
+ * which brings none; each with its resultants cplane apart) through the
+ * 3x3 IPC kernel of d, plus the row's own part; clipped at saturation and
+ * to 16 bits.  Resultant r of pixel x goes to out[r * plane + x].
+ */
+void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double *above,
+			const double *row, const double *below, const float *own,
+			size_t cplane, uint16_t *out, size_t plane);
 
 /* Weights of the unsegmented full ramp, one set per Casertano power;
  * computed once per pattern and detector, then shared by threads. */
@@ -156,10 +182,5 @@ struct ramp_fit {
  */
 void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 		    size_t stride, struct ramp_fit *out);
-
-/* Apply the 3x3 IPC kernel of d to the rows above, at and below (each n
- * long; NULL for a row off the array, which counts as zero) into out. */
-void ramp_ipc_row(const struct ramp_det *d, const double *above, const double *row,
-		  const double *below, int n, double *out);
 
 #endif

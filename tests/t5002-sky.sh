@@ -365,9 +365,15 @@ test_expect_success '--level 2, SIAF geometry: the sky part times each pixel are
 	from astropy.wcs import WCS
 	warnings.simplefilter("ignore")
 	nominal = (0.11 / 3600) ** 2
+	from scipy.ndimage import binary_dilation
 	with fits.open("lev2siaf.fits") as h:
 	    hd, rate = h["WFI09"].header, h["WFI09"].data
 	    assert rate.shape == (64, 4088), rate.shape
+	    # IPC gives the neighbours of a cosmic ray up to 76 e- of its
+	    # charge, too little for a jump to be seen there: leave out the
+	    # pixels next to a jump (romancal flags them), and those unused
+	    q = h["WFI09_DQ"].data
+	    good = ~binary_dilation((q & 4) != 0, np.ones((3, 3), bool)) & ((q & 1) == 0)
 	    w = WCS(hd)
 	    got, want = [], []
 	    # WFI09 pixels shrink by 1.3 % along a row; blocks of 64 x 512
@@ -381,7 +387,7 @@ test_expect_success '--level 2, SIAF geometry: the sky part times each pixel are
 	                      [c[1, 1] - c[0, 1], c[3, 1] - c[2, 1]]])
 	        area = abs(np.linalg.det(j)) / nominal
 	        want.append(hd["BKGZODI"] * area + hd["BKGTHERM"])
-	        got.append(rate[:, x0:x0 + 512].mean())
+	        got.append(rate[:, x0:x0 + 512][good[:, x0:x0 + 512]].mean())
 	    got, want = np.array(got), np.array(want)
 	    print(got, want)
 	    # the areas differ by more than the test resolves, so one flat

@@ -361,5 +361,40 @@ int main(void)
 		free(w);
 		free(s);
 	}
+	/* the charge and the pixels' own part, joined by an IPC kernel of
+	 * centre 1, are the resultants of ramp_level1_row: the same random
+	 * numbers (the sum of the two parts may round apart at a DN's half,
+	 * the own part being a float) */
+	{
+		double *scr = malloc(RAMP_SCRATCH(ROW) * sizeof(double)), r[ROW];
+		double *ch = malloc((size_t)p.nres * ROW * sizeof(double));
+		float *own = malloc((size_t)p.nres * ROW * sizeof(float));
+		uint16_t *w = malloc((size_t)p.nres * ROW * 2), *s = malloc((size_t)p.nres * ROW * 2);
+		struct ramp_det one = d;
+		long differ = 0, far = 0;
+
+		memset(one.ipc, 0, sizeof(one.ipc));
+		one.ipc[1][1] = 1;
+		ramp_scratch_init(scr);
+		for (int i = 0; i < ROW; i++)
+			r[i] = i * 3.7;     /* 0 to 15,000 e-/s: saturation included */
+		ramp_level1_row(&p, &one, &k, 8192, ROW, r, 1, w, ROW, scr);
+		ramp_level1_charge(&p, &one, &k, 8192, ROW, r, ch, own, ROW, scr);
+		ramp_level1_finish(&one, p.nres, ROW, NULL, ch, NULL, own, ROW, s, ROW);
+		for (long i = 0; i < (long)p.nres * ROW; i++) {
+			differ += w[i] != s[i];
+			far += abs((int)w[i] - (int)s[i]) > 1;
+		}
+		diag("charge + own against the row: %ld of %ld resultants 1 DN apart", differ,
+		     (long)p.nres * ROW);
+		ok(!far && differ < p.nres * ROW / 1000,
+		   "the charge split for IPC draws the row's numbers (%ld apart by 1 DN, %ld more)",
+		   differ, far);
+		free(scr);
+		free(ch);
+		free(own);
+		free(w);
+		free(s);
+	}
 	return done_testing();
 }

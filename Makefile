@@ -69,7 +69,12 @@ UNIT_BIN := $(patsubst tests/unit/%.c,$(B)/tests/%,$(UNIT_SRC))
 TOOL_SRC := $(wildcard contrib/*.c)
 TOOL_BIN := $(patsubst contrib/%.c,$(B)/contrib/%,$(TOOL_SRC))
 DATA     := $(wildcard data/*.tsv)
-TESTS    ?= tests/t*.sh
+# The slowest shell tests start first, so that prove -j2 does not end on one
+# long test running alone on a core.
+SLOW_TESTS := $(wildcard tests/t7100-*.sh tests/t3002-*.sh tests/t3100-*.sh \
+	tests/t4200-*.sh tests/t3005-*.sh tests/t3006-*.sh tests/t3004-*.sh \
+	tests/t5100-*.sh tests/t9002-*.sh tests/t6001-*.sh)
+TESTS    ?= $(SLOW_TESTS) $(filter-out $(SLOW_TESTS),$(wildcard tests/t*.sh))
 
 ## all: build wfiscene, the plugins and the contrib tools (default)
 all: $(B)/wfiscene $(PLUGINS) $(TOOL_BIN)
@@ -156,8 +161,11 @@ check: deps
 	$(Q)command -v prove > /dev/null 2>&1 || \
 		{ echo "make check: prove is not installed (Debian package perl)" >&2; exit 1; }
 	$(Q)$(MAKE) --no-print-directory all unit
-	$(Q)rc=0; WFS_BUILD=$(B) prove -j2 --directives $(UNIT_BIN) || rc=1; \
-	  WFS_BUILD=$(B) prove -j2 --directives --exec sh $(TESTS) :: || rc=1; exit $$rc
+	$(Q)rc=0; WFS_BUILD=$(B) prove -j2 --directives $(UNIT_BIN) \
+	    > $(B)/unit-tests.log 2>&1 & upid=$$!; \
+	  WFS_BUILD=$(B) prove -j2 --directives --exec sh $(TESTS) :: || rc=1; \
+	  if wait $$upid; then echo "unit tests: $$(tail -n 1 $(B)/unit-tests.log)"; \
+	  else rc=1; cat $(B)/unit-tests.log; echo "unit tests: FAIL (above)"; fi; exit $$rc
 
 ## unit: build the C unit tests
 unit: $(UNIT_BIN)

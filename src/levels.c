@@ -258,183 +258,119 @@ static int strip_write(const struct level_sca *L, const struct strip *s, int flo
 	return 0;
 }
 
-int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
+/* The HDUs of the SCA, their cards in cards[] (the caller frees them) and
+ * their names in name[]: at level 1 one cube of resultants in DN, the
+ * reference border included, rows [flo, fhi) of the frame; at level 2 the
+ * five planes of the ramp fit, science pixels only, as the Roman pipeline
+ * names them.  The number of HDUs, or -1 out of memory. */
+static int sca_hdus(const struct level_sca *L, int flo, int fhi, struct fitsout_hdu h[5],
+		    char *cards[5], char name[5][24])
 {
+	static const char *const suffix[5] = { "", "_ERR", "_DQ", "_VAR_POISSON",
+					       "_VAR_RNOISE" };
+	static const char *const unit[5] = { "counts/s", "counts/s", NULL,
+					     "(counts/s)^2", "(counts/s)^2" };
 	const struct ramp_pattern *p = L->pat;
-	int nthr = pool_threads(L->pool), sca = L->key.sca, nh, r = -1;
-	int flo = L->ylo == 0 ? 0 : L->ylo + BORDER;
-	int fhi = L->yhi == WFS_NPIX ? FRAME : L->yhi + BORDER;
-	int S = L->strip > 0 ? L->strip : 64;
-	struct ramp_fit_plan fp = { 0 };
-	struct fitsout_hdu h[5];
-	char *cards[5] = { 0 }, name[5][24];
-	int ncards[5];
-	/* two strips: the workers compute one while this thread writes the
-	 * other, so that writing hides behind the ramp (or the ramp behind
-	 * the writing); the per-worker scratch is shared, as only one strip
-	 * is computed at a time */
-	struct strip st[2] = { { .L = L, .fp = &fp }, { .L = L, .fp = &fp } };
-	struct strip *prev = NULL;
-	double *lightbuf = NULL, *pixarea = NULL, *chbuf = NULL, **ch = NULL;
-	float *ownbuf = NULL, **own = NULL;
-	const double **light = NULL;
-	size_t rowlen = (size_t)p->nres * WFS_NPIX;
-	size_t area;
-	int running = 0;
+	int sca = L->key.sca, ncards;
 
 	if (L->level == LEVEL_1) {
 		snprintf(name[0], sizeof(name[0]), "WFI%02d", sca);
 		if (hdu_cards(L, name[0], "DN", BORDER, L->ylo == 0 ? BORDER : 0,
-			      &cards[0], &ncards[0]) < 0)
-			goto nomem;
-		h[0] = (struct fitsout_hdu){ name[0], cards[0], ncards[0], 16, FRAME,
+			      &cards[0], &ncards) < 0)
+			return -1;
+		h[0] = (struct fitsout_hdu){ name[0], cards[0], ncards, 16, FRAME,
 					     fhi - flo, p->nres };
-		nh = 1;
-	} else {
-		static const char *const suffix[5] = { "", "_ERR", "_DQ", "_VAR_POISSON",
-						       "_VAR_RNOISE" };
-		static const char *const unit[5] = { "counts/s", "counts/s", NULL,
-						     "(counts/s)^2", "(counts/s)^2" };
-
-		for (int k = 0; k < 5; k++) {
-			snprintf(name[k], sizeof(name[k]), "WFI%02d%s", sca, suffix[k]);
-			if (hdu_cards(L, name[k], unit[k], 0, 0, &cards[k], &ncards[k]) < 0)
-				goto nomem;
-			h[k] = (struct fitsout_hdu){ name[k], cards[k], ncards[k],
-						     k == 2 ? 32 : -32, WFS_NPIX,
-						     L->yhi - L->ylo, 1 };
-		}
-		nh = 5;
-		if (ramp_fit_plan_init(&fp, p, L->det) < 0)
-			goto nomem;
+		return 1;
 	}
-	if (fitsout_group_begin(f, nh, h, e) < 0)
-		goto done;
+	for (int k = 0; k < 5; k++) {
+		snprintf(name[k], sizeof(name[k]), "WFI%02d%s", sca, suffix[k]);
+		if (hdu_cards(L, name[k], unit[k], 0, 0, &cards[k], &ncards) < 0)
+			return -1;
+		h[k] = (struct fitsout_hdu){ name[k], cards[k], ncards, k == 2 ? 32 : -32,
+					     WFS_NPIX, L->yhi - L->ylo, 1 };
+	}
+	return 5;
+}
 
+/* The buffers of one SCA's pass, shared by its strips. */
+struct sca_pass {
+	struct ramp_fit_plan fp;        /* level 2 */
+	/* two strips: the workers compute one while this thread writes the
+	 * other, so that writing hides behind the ramp (or the ramp behind
+	 * the writing); the per-worker scratch is shared, as only one strip
+	 * is computed at a time */
+	struct strip st[2];
+	int nthr;
+	int S;                  /* frame rows a strip */
+	double *lightbuf, *pixarea;
+	const double **light;
+	/* the charge of a chunk and its margins: one set, as one chunk at a
+	 * time is computed */
+	double *chbuf, **ch;
+	float *ownbuf, **own;
+};
+
+/* Allocate the buffers of w (zeroed by the caller, fp set up at level 2)
+ * for L.  0 or -1 out of memory; sca_pass_free() frees what was. */
+static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
+{
+	const struct ramp_pattern *p = L->pat;
+	size_t rowlen = (size_t)p->nres * WFS_NPIX, area;
+	int S = L->strip > 0 ? L->strip : 64, nthr = pool_threads(L->pool);
+	struct strip *st = w->st;
+
+	w->nthr = nthr;
+	w->S = S;
 	area = (size_t)S * WFS_NPIX;
 	st[0].scr = calloc((size_t)nthr, sizeof(*st[0].scr));
 	st[0].dnrow = calloc((size_t)nthr, sizeof(*st[0].dnrow));
-	lightbuf = malloc((size_t)(S + 2) * WFS_NPIX * sizeof(double));
-	light = calloc((size_t)S + 2, sizeof(*light));
-	pixarea = malloc(WFS_NPIX * sizeof(double));
-	/* the charge of a chunk and its margins: one set, as one chunk at a
-	 * time is computed */
-	chbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(double));
-	ownbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(float));
-	ch = calloc((size_t)CHUNK + 2, sizeof(*ch));
-	own = calloc((size_t)CHUNK + 2, sizeof(*own));
-	if (!st[0].scr || !st[0].dnrow || !lightbuf || !light || !pixarea || !chbuf ||
-	    !ownbuf || !ch || !own)
-		goto nomem;
-	for (int w = 0; w < nthr; w++)
-		if (!(st[0].scr[w] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
-		    !(st[0].dnrow[w] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))))
-			goto nomem;
+	w->lightbuf = malloc((size_t)(S + 2) * WFS_NPIX * sizeof(double));
+	w->light = calloc((size_t)S + 2, sizeof(*w->light));
+	w->pixarea = malloc(WFS_NPIX * sizeof(double));
+	w->chbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(double));
+	w->ownbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(float));
+	w->ch = calloc((size_t)CHUNK + 2, sizeof(*w->ch));
+	w->own = calloc((size_t)CHUNK + 2, sizeof(*w->own));
+	if (!st[0].scr || !st[0].dnrow || !w->lightbuf || !w->light || !w->pixarea ||
+	    !w->chbuf || !w->ownbuf || !w->ch || !w->own)
+		return -1;
+	for (int i = 0; i < nthr; i++)
+		if (!(st[0].scr[i] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
+		    !(st[0].dnrow[i] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))))
+			return -1;
 		else
-			ramp_scratch_init(st[0].scr[w]);
+			ramp_scratch_init(st[0].scr[i]);
 	st[1].scr = st[0].scr;
 	st[1].dnrow = st[0].dnrow;
 	for (int b = 0; b < 2; b++) {
 		struct strip *s = &st[b];
 
-		s->light = light;
-		s->ch = ch;
-		s->own = own;
+		s->L = L;
+		s->fp = &w->fp;
+		s->light = w->light;
+		s->ch = w->ch;
+		s->own = w->own;
 		if (L->level == LEVEL_1) {
 			if (!(s->l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
-				goto nomem;
+				return -1;
 		} else if (!(s->rt = malloc(area * sizeof(float))) ||
 			   !(s->er = malloc(area * sizeof(float))) ||
 			   !(s->vp = malloc(area * sizeof(float))) ||
 			   !(s->vr = malloc(area * sizeof(float))) ||
 			   !(s->dq = malloc(area * sizeof(uint32_t)))) {
-			goto nomem;
+			return -1;
 		}
 	}
-	for (int fy0 = flo, b = 0; fy0 < fhi; fy0 += S, b ^= 1) {
-		struct strip *s = &st[b];
-		int ny = fhi - fy0 < S ? fhi - fy0 : S;
-		double t0 = now(), t1;
+	return 0;
+}
 
-		/* the science rows of the strip and one on either side, for IPC */
-		s->fy0 = fy0;
-		s->ny = ny;
-		s->sy0 = fy0 - BORDER;
-		for (int k = 0; k < ny + 2; k++) {
-			int sy = s->sy0 - 1 + k;
-			double *row = lightbuf + (size_t)k * WFS_NPIX;
+static void sca_pass_free(struct sca_pass *w)
+{
+	struct strip *st = w->st;
 
-			light[k] = NULL;
-			if (sy < 0 || sy >= WFS_NPIX)
-				continue;
-			if (L->rate_row(L->arg, sy, row, e) < 0)
-				goto done;
-			if (L->geo && L->bkg_sky != 0) {
-				/* the sky's part times each pixel's area, the
-				 * thermal part as is (as detector.c's tiles) */
-				double thermal = L->background - L->bkg_sky;
-
-				geom_area_row(L->geo, sy, 0, WFS_NPIX, pixarea);
-				for (int x = 0; x < WFS_NPIX; x++)
-					row[x] += L->bkg_sky * pixarea[x] + thermal;
-			} else {
-				for (int x = 0; x < WFS_NPIX; x++)
-					row[x] += L->background;
-			}
-			light[k] = row;
-		}
-		/* by chunks: the charge (the first chunk's while this thread
-		 * writes the previous strip), then IPC, the resultants and the
-		 * fits */
-		t1 = 0;
-		for (int c0 = 0; c0 < ny; c0 += CHUNK) {
-			int cn = ny - c0 < CHUNK ? ny - c0 : CHUNK;
-
-			s->c0 = c0;
-			s->cn = cn;
-			for (int k = 0; k < cn + 2; k++) {
-				int sy = s->sy0 + c0 - 1 + k;
-				int in = sy >= 0 && sy < WFS_NPIX;
-
-				ch[k] = in ? chbuf + (size_t)k * rowlen : NULL;
-				own[k] = in ? ownbuf + (size_t)k * rowlen : NULL;
-			}
-			pool_start(L->pool, strip_charge, s, (size_t)cn + 2);
-			running = 1;
-			if (c0 == 0) {
-				t1 = now();
-				if (prev && strip_write(L, prev, flo, f, e) < 0)
-					goto done;
-				t1 = now() - t1;
-				L->t_write += t1;
-			}
-			pool_wait(L->pool);
-			pool_start(L->pool, strip_row, s, (size_t)cn);
-			pool_wait(L->pool);
-			running = 0;
-		}
-		/* the wall time less the writing, which overlapped the ramp:
-		 * the two add up to the wall time of the loop */
-		L->t_ramp += now() - t0 - t1;
-		prev = s;
-	}
-	{
-		double t1 = now();
-
-		if (prev && strip_write(L, prev, flo, f, e) < 0)
-			goto done;
-		L->t_write += now() - t1;
-	}
-	r = fitsout_group_end(f, e);
-	goto done;
-nomem:
-	err_sys(e, "detector level %d: memory", L->level);
-done:
-	if (running)
-		pool_wait(L->pool);
-	for (int w = 0; st[0].scr && w < nthr; w++) {
-		free(st[0].scr[w]);
-		free(st[0].dnrow[w]);
+	for (int i = 0; st[0].scr && i < w->nthr; i++) {
+		free(st[0].scr[i]);
+		free(st[0].dnrow[i]);
 	}
 	free(st[0].scr);
 	free(st[0].dnrow);
@@ -446,15 +382,137 @@ done:
 		free(st[b].vr);
 		free(st[b].dq);
 	}
-	free(lightbuf);
-	free(chbuf);
-	free(ownbuf);
-	free(ch);
-	free(own);
-	free(light);
-	free(pixarea);
+	free(w->lightbuf);
+	free(w->chbuf);
+	free(w->ownbuf);
+	free(w->ch);
+	free(w->own);
+	free(w->light);
+	free(w->pixarea);
+	ramp_fit_plan_free(&w->fp);
+}
+
+/* The light of strip s's science rows and of the one row either side,
+ * whose charge IPC shares with the strip's edge rows: the rendered rate
+ * plus the background, into w->light (NULL off the array).  0 or -1 with
+ * the message of rate_row. */
+static int strip_light(struct sca_pass *w, struct strip *s, struct err *e)
+{
+	struct level_sca *L = s->L;
+
+	for (int k = 0; k < s->ny + 2; k++) {
+		int sy = s->sy0 - 1 + k;
+		double *row = w->lightbuf + (size_t)k * WFS_NPIX;
+
+		w->light[k] = NULL;
+		if (sy < 0 || sy >= WFS_NPIX)
+			continue;
+		if (L->rate_row(L->arg, sy, row, e) < 0)
+			return -1;
+		if (L->geo && L->bkg_sky != 0) {
+			/* the sky's part times each pixel's area, the
+			 * thermal part as is (as detector.c's tiles) */
+			double thermal = L->background - L->bkg_sky;
+
+			geom_area_row(L->geo, sy, 0, WFS_NPIX, w->pixarea);
+			for (int x = 0; x < WFS_NPIX; x++)
+				row[x] += L->bkg_sky * w->pixarea[x] + thermal;
+		} else {
+			for (int x = 0; x < WFS_NPIX; x++)
+				row[x] += L->background;
+		}
+		w->light[k] = row;
+	}
+	return 0;
+}
+
+/* Compute strip s by chunks: the charge (the first chunk's while this
+ * thread writes the previous strip prev, if any), then IPC, the resultants
+ * and the fits.  The seconds spent writing in *t_write.  0 or -1 with a
+ * message, the workers idle either way. */
+static int strip_compute(struct sca_pass *w, struct strip *s, const struct strip *prev,
+			 int flo, struct fitsout *f, double *t_write, struct err *e)
+{
+	struct level_sca *L = s->L;
+	size_t rowlen = (size_t)L->pat->nres * WFS_NPIX;
+
+	*t_write = 0;
+	for (int c0 = 0; c0 < s->ny; c0 += CHUNK) {
+		int cn = s->ny - c0 < CHUNK ? s->ny - c0 : CHUNK;
+
+		s->c0 = c0;
+		s->cn = cn;
+		for (int k = 0; k < cn + 2; k++) {
+			int sy = s->sy0 + c0 - 1 + k;
+			int in = sy >= 0 && sy < WFS_NPIX;
+
+			w->ch[k] = in ? w->chbuf + (size_t)k * rowlen : NULL;
+			w->own[k] = in ? w->ownbuf + (size_t)k * rowlen : NULL;
+		}
+		pool_start(L->pool, strip_charge, s, (size_t)cn + 2);
+		if (c0 == 0 && prev) {
+			double t1 = now();
+
+			if (strip_write(L, prev, flo, f, e) < 0) {
+				pool_wait(L->pool);
+				return -1;
+			}
+			*t_write = now() - t1;
+			L->t_write += *t_write;
+		}
+		pool_wait(L->pool);
+		pool_start(L->pool, strip_row, s, (size_t)cn);
+		pool_wait(L->pool);
+	}
+	return 0;
+}
+
+int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
+{
+	int flo = L->ylo == 0 ? 0 : L->ylo + BORDER;
+	int fhi = L->yhi == WFS_NPIX ? FRAME : L->yhi + BORDER;
+	struct fitsout_hdu h[5];
+	char *cards[5] = { 0 }, name[5][24];
+	struct sca_pass w = { 0 };
+	struct strip *prev = NULL;
+	int nh, r = -1;
+
+	if ((nh = sca_hdus(L, flo, fhi, h, cards, name)) < 0)
+		goto nomem;
+	if (L->level == LEVEL_2 && ramp_fit_plan_init(&w.fp, L->pat, L->det) < 0)
+		goto nomem;
+	if (fitsout_group_begin(f, nh, h, e) < 0)
+		goto done;
+	if (sca_pass_alloc(&w, L) < 0)
+		goto nomem;
+	for (int fy0 = flo, b = 0; fy0 < fhi; fy0 += w.S, b ^= 1) {
+		struct strip *s = &w.st[b];
+		double t0 = now(), t1;
+
+		s->fy0 = fy0;
+		s->ny = fhi - fy0 < w.S ? fhi - fy0 : w.S;
+		s->sy0 = fy0 - BORDER;
+		if (strip_light(&w, s, e) < 0 || strip_compute(&w, s, prev, flo, f, &t1, e) < 0)
+			goto done;
+		/* the wall time less the writing, which overlapped the ramp:
+		 * the two add up to the wall time of the loop */
+		L->t_ramp += now() - t0 - t1;
+		prev = s;
+	}
+	if (prev) {
+		double t1 = now();
+
+		if (strip_write(L, prev, flo, f, e) < 0)
+			goto done;
+		L->t_write += now() - t1;
+	}
+	r = fitsout_group_end(f, e);
+	goto done;
+nomem:
+	err_sys(e, "detector level %d: memory", L->level);
+done:
+	sca_pass_free(&w);
 	for (int k = 0; k < 5; k++)
 		free(cards[k]);
-	ramp_fit_plan_free(&fp);
 	return r;
 }

@@ -454,6 +454,236 @@ void ramp_scratch_init(double *scratch)
 		t[i].mu = -1;
 }
 
+/* The state of one row's level1() call, shared by its steps. */
+struct l1row {
+	const struct ramp_pattern *p;
+	const struct ramp_det *d;
+	const struct ramp_key *k;
+	uint32_t cell0;
+	int n, light;
+	uint16_t *out;
+	size_t plane;
+	double *ch;
+	float *own;
+	size_t cplane;
+	/* in the caller's scratch: the Poisson tables (kept across rows), and
+	 * per pixel the rate r, the true charge S collected so far, the reset
+	 * level P, the means mu, the group's arrivals D, the reset level seen
+	 * through the NL Q, and w the read call of 256 pixels */
+	struct pois_tab *tabs;
+	double *r, *S, *P, *mu, *D, *Q;
+	uint32_t (*w)[4];
+	/* 0: the default 4; below 0: never exact (the normal for every split) */
+	double exact_max;
+	double normal_above;
+	struct cr_hit *hits;    /* CR_MAX of them, nh in pixel order */
+	int nh;
+};
+
+/* Before the first read: the rates (the dark current added where light
+ * falls), the reset level of each pixel and the row's cosmic-ray hits. */
+static void level1_start(struct l1row *R, const double *rate)
+{
+	const struct ramp_det *d = R->d;
+	const struct ramp_key *k = R->k;
+	double *r = R->r, *S = R->S, *P = R->P;
+	int n = R->n, light = R->light;
+	struct rng g;
+
+	for (int i = 0; i < n; i++) {
+		double v = light ? rate[i] : 0;
+
+		v = isfinite(v) ? (v > 0 ? v : 0) : (v > 0 ? RATE_MAX : 0);
+		r[i] = (v < RATE_MAX ? v : RATE_MAX) + (light ? d->dark : 0);
+		S[i] = 0;
+	}
+	rng_init(&g, k->seed, domain(k, DOM_RESET, 0));
+	rng_normal_fill(&g, R->cell0, (size_t)n, P);
+	for (int i = 0; i < n; i++)
+		P[i] = d->pedestal + d->reset_noise * P[i];
+	if (R->ch)
+		for (int i = 0; i < n; i++)
+			R->Q[i] = ramp_nl(d, P[i]);
+	R->nh = light ? cr_hits(R->p, d, k, R->cell0, n, R->hits) : 0;
+}
+
+/* The charge of group gi: into S what arrived in the skipped reads since
+ * the previous group (the last read prev), Poisson counts and cosmic rays;
+ * into D the Poisson count of each pixel's arrivals during the group's
+ * reads, which level1_reads() spreads over them. */
+static void level1_arrivals(struct l1row *R, int gi, int prev)
+{
+	const struct ramp_key *k = R->k;
+	int a = R->p->first[gi], N = R->p->last[gi] - a + 1, gap = a - prev - 1, n = R->n;
+	double dt = R->p->read_time, *r = R->r, *S = R->S, *mu = R->mu, *D = R->D;
+	int any = 0;
+	struct rng g;
+
+	if (gap > 0 && R->light) {
+		for (int i = 0; i < n; i++)
+			mu[i] = r[i] * gap * dt;
+		rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
+		pois_row(&g, R->cell0, n, mu, mu, &R->tabs[RAMP_MAX_RES], R->normal_above);
+		for (int i = 0; i < n; i++)
+			S[i] += mu[i];
+	}
+	for (int h = 0; h < R->nh; h++)
+		if (R->hits[h].read > prev && R->hits[h].read < a)
+			S[R->hits[h].pix] += R->hits[h].e;
+	if (R->light) {
+		for (int i = 0; i < n; i++)
+			any |= (mu[i] = r[i] * N * dt) > 0;
+		rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
+		if (any)
+			pois_row(&g, R->cell0, n, mu, D, &R->tabs[gi], R->normal_above);
+		else
+			memset(D, 0, (size_t)n * sizeof(*D));
+	} else {
+		memset(D, 0, (size_t)n * sizeof(*D));
+	}
+}
+
+/*
+ * W, the sum over a group of N reads of the arrivals in the group before
+ * each, for Di arrivals: each arrival falls in one of the N reads, a slot
+ * of 32 bits each, two from words 2-3 of the pixel's DOM_READ call wd,
+ * further slots from its own DOM_SPLIT calls (gs); beyond exact_max
+ * arrivals the normal of the sum (mean Di (N + 1) / 2, variance Di kvar)
+ * from words 2-3 (gz for the ziggurat's slow cases).  Inline: it is the
+ * body of level1_reads()'s pixel loop.
+ */
+static inline double split_arrivals(double Di, int N, double kvar, double exact_max,
+				    const uint32_t wd[4], const struct rng *gs,
+				    const struct rng *gz, uint32_t cell)
+{
+	double W;
+
+	if (Di == 0 || N == 1) {
+		W = Di * N;
+	} else if (Di <= exact_max) {
+		uint32_t bits[4];
+		int nd = (int)Di;
+
+		W = Di;
+		for (int q = 0; q < nd; q++) {
+			uint32_t x;
+
+			if (q < 2) {
+				x = wd[2 + q];
+			} else {
+				if (!((q - 2) & 3))
+					rng_bits(gs, cell, (uint32_t)((q - 2) >> 2), bits);
+				x = bits[(q - 2) & 3];
+			}
+			/* slot s of 0 .. N-1: the arrival in the
+			 * group's read s counts in N - 1 - s more */
+			W += N - 1 - (int)(((uint64_t)x * (uint64_t)N) >> 32);
+		}
+	} else {
+		double zs = rng_normal_bits(gz, cell, wd[2], wd[3]);
+
+		W = round_even(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs);
+		if (W < Di)
+			W = Di;
+		if (W > Di * N)
+			W = Di * N;
+	}
+	return W;
+}
+
+/* Resultant gi of every pixel from its arrivals D: how they fall among
+ * the group's reads, the cosmic rays within it, the non-linearity,
+ * saturation and the read noise; as DN into out or split into ch and own.
+ * The row's hot loop, kept whole in one function. */
+static void level1_reads(struct l1row *R, int gi)
+{
+	const struct ramp_det *d = R->d;
+	const struct ramp_key *k = R->k;
+	const struct cr_hit *hits = R->hits;
+	int a = R->p->first[gi], b = R->p->last[gi], N = b - a + 1;
+	double sn = d->read_noise / sqrt(N), kvar = (N * (double)N - 1) / 12, inv_n = 1.0 / N;
+	double bk = d->beta * kvar * inv_n * inv_n;
+	double exact_max = R->exact_max, inv_g = 1 / d->gain, dnmax = 65535;
+	double *S = R->S, *ch = R->ch, *Q = R->Q;
+	const double *P = R->P, *D = R->D;
+	float *own = R->own;
+	uint16_t *out = R->out;
+	size_t plane = R->plane, cplane = R->cplane;
+	uint32_t cell0 = R->cell0, (*w)[4] = R->w;
+	int n = R->n, nh = R->nh, hp = 0;
+	struct rng g, gs, gz;
+
+	/*
+	 * One Philox call per pixel (domain DOM_READ) gives the read
+	 * noise (words 0-1, a ziggurat deviate) and the split of the
+	 * group's arrivals among its reads (words 2-3): two slots of
+	 * 32 bits for up to two arrivals, further slots from the
+	 * pixel's own DOM_SPLIT calls, or the normal of the sum beyond
+	 * exact_max arrivals.  The ziggurat's rare slow cases take
+	 * numbers from DOM_READ (read noise) and DOM_SPLIT_N (split)
+	 * cells at draws 1, 2, ...
+	 */
+	rng_init(&g, k->seed, domain(k, DOM_READ, gi));
+	rng_init(&gs, k->seed, domain(k, DOM_SPLIT, gi));
+	rng_init(&gz, k->seed, domain(k, DOM_SPLIT_N, gi));
+	for (int i0 = 0; i0 < n; i0 += 256) {
+		int m = n - i0 < 256 ? n - i0 : 256;
+
+		rng_bits_n(&g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
+		for (int j = 0; j < m; j++) {
+			int i = i0 + j;
+			uint32_t cell = cell0 + (uint32_t)i;
+			double Di = D[i], W, s0 = P[i] + S[i], send, mm, nz, v;
+			double z = rng_normal_bits(&g, cell, w[j][0], w[j][1]);
+
+			/* W: the sum over the group's reads of the
+			 * arrivals in the group before each */
+			W = split_arrivals(Di, N, kvar, exact_max, w[j], &gs, &gz, cell);
+			/* a cosmic ray's charge counts from its read on
+			 * (the hits are in pixel order) */
+			for (; hp < nh && hits[hp].pix <= i; hp++)
+				if (hits[hp].pix == i && hits[hp].read >= a &&
+				    hits[hp].read <= b) {
+					W += hits[hp].e * (b - hits[hp].read + 1);
+					Di += hits[hp].e;
+				}
+			send = s0 + Di;
+			if (send < d->sat_true) {
+				mm = ramp_nl(d, s0 + W * inv_n) + bk * Di * Di;
+				nz = sn * z;
+			} else {
+				/* reads at saturation read the level exactly; the
+				 * read noise is that of the others */
+				int nfree = 0;
+
+				mm = 0;
+				for (int q = 1; q <= N; q++) {
+					double x = s0 + Di * q / N;
+
+					mm += ramp_nl(d, x);
+					nfree += x < d->sat_true;
+				}
+				mm *= inv_n;
+				nz = d->read_noise * sqrt((double)nfree) * z * inv_n;
+			}
+			S[i] += Di;
+			if (ch) {
+				size_t o = (size_t)gi * cplane + (size_t)i;
+
+				ch[o] = mm - Q[i];
+				own[o] = (float)(Q[i] + nz);
+				continue;
+			}
+			v = mm + nz;
+			if (v > d->sat_e)
+				v = d->sat_e;
+			v = round_even(v * inv_g);
+			out[(size_t)gi * plane + (size_t)i] =
+				(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
+		}
+	}
+}
+
 /*
  * The resultants of a row.  With out, as DN; with ch (and own), split for
  * IPC: ch[r * cplane + i] the measured charge that resultant r of pixel i
@@ -466,165 +696,31 @@ static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 		   const double *rate, int light, uint16_t *out, size_t plane,
 		   double *ch, float *own, size_t cplane, double *scratch)
 {
-	struct pois_tab *tabs = (struct pois_tab *)scratch;
-	double *r = scratch + RAMP_TABS, *S = r + n, *P = S + n, *mu = P + n, *D = mu + n;
-	double *Q = D + n + 512;        /* the reset level seen through the NL */
-	/* 0: the default 4; below 0: never exact (the normal for every split) */
-	double dt = p->read_time, exact_max = k->split_exact_max > 0 ? k->split_exact_max :
-					      k->split_exact_max < 0 ? 0 : 4;
-	double normal_above = k->poisson_normal > 0 ? k->poisson_normal : RAMP_POISSON_NORMAL;
-	double inv_g = 1 / d->gain, dnmax = 65535;
+	struct l1row R = {
+		.p = p, .d = d, .k = k, .cell0 = cell0, .n = n, .light = light,
+		.out = out, .plane = plane, .ch = ch, .own = own, .cplane = cplane,
+		.tabs = (struct pois_tab *)scratch,
+		.exact_max = k->split_exact_max > 0 ? k->split_exact_max :
+			     k->split_exact_max < 0 ? 0 : 4,
+		.normal_above = k->poisson_normal > 0 ? k->poisson_normal :
+				RAMP_POISSON_NORMAL,
+	};
 	struct cr_hit hits[CR_MAX];
-	int nh = 0, prev = 0, hp;
-	struct rng g;
-	uint32_t (*w)[4] = (uint32_t (*)[4])(D + n);    /* the read call of 256 pixels */
+	int prev = 0;
 
-	for (int i = 0; i < n; i++) {
-		double v = light ? rate[i] : 0;
-
-		v = isfinite(v) ? (v > 0 ? v : 0) : (v > 0 ? RATE_MAX : 0);
-		r[i] = (v < RATE_MAX ? v : RATE_MAX) + (light ? d->dark : 0);
-		S[i] = 0;
-	}
-	rng_init(&g, k->seed, domain(k, DOM_RESET, 0));
-	rng_normal_fill(&g, cell0, (size_t)n, P);
-	for (int i = 0; i < n; i++)
-		P[i] = d->pedestal + d->reset_noise * P[i];
-	if (ch)
-		for (int i = 0; i < n; i++)
-			Q[i] = ramp_nl(d, P[i]);
-	if (light)
-		nh = cr_hits(p, d, k, cell0, n, hits);
-
+	R.hits = hits;
+	R.r = scratch + RAMP_TABS;
+	R.S = R.r + n;
+	R.P = R.S + n;
+	R.mu = R.P + n;
+	R.D = R.mu + n;
+	R.Q = R.D + n + 512;
+	R.w = (uint32_t (*)[4])(R.D + n);
+	level1_start(&R, rate);
 	for (int gi = 0; gi < p->nres; gi++) {
-		int a = p->first[gi], b = p->last[gi], N = b - a + 1, gap = a - prev - 1;
-		double sn = d->read_noise / sqrt(N), kvar = (N * (double)N - 1) / 12, inv_n = 1.0 / N;
-		double bk = d->beta * kvar * inv_n * inv_n;
-		int any = 0;
-		struct rng gs, gz;
-
-		if (gap > 0 && light) {
-			for (int i = 0; i < n; i++)
-				mu[i] = r[i] * gap * dt;
-			rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
-			pois_row(&g, cell0, n, mu, mu, &tabs[RAMP_MAX_RES], normal_above);
-			for (int i = 0; i < n; i++)
-				S[i] += mu[i];
-		}
-		for (int h = 0; h < nh; h++)
-			if (hits[h].read > prev && hits[h].read < a)
-				S[hits[h].pix] += hits[h].e;
-		if (light) {
-			for (int i = 0; i < n; i++)
-				any |= (mu[i] = r[i] * N * dt) > 0;
-			rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
-			if (any)
-				pois_row(&g, cell0, n, mu, D, &tabs[gi], normal_above);
-			else
-				memset(D, 0, (size_t)n * sizeof(*D));
-		} else {
-			memset(D, 0, (size_t)n * sizeof(*D));
-		}
-		/*
-		 * One Philox call per pixel (domain DOM_READ) gives the read
-		 * noise (words 0-1, a ziggurat deviate) and the split of the
-		 * group's arrivals among its reads (words 2-3): two slots of
-		 * 32 bits for up to two arrivals, further slots from the
-		 * pixel's own DOM_SPLIT calls, or the normal of the sum beyond
-		 * exact_max arrivals.  The ziggurat's rare slow cases take
-		 * numbers from DOM_READ (read noise) and DOM_SPLIT_N (split)
-		 * cells at draws 1, 2, ...
-		 */
-		rng_init(&g, k->seed, domain(k, DOM_READ, gi));
-		rng_init(&gs, k->seed, domain(k, DOM_SPLIT, gi));
-		rng_init(&gz, k->seed, domain(k, DOM_SPLIT_N, gi));
-		hp = 0;
-		for (int i0 = 0; i0 < n; i0 += 256) {
-			int m = n - i0 < 256 ? n - i0 : 256;
-
-			rng_bits_n(&g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
-			for (int j = 0; j < m; j++) {
-				int i = i0 + j;
-				uint32_t cell = cell0 + (uint32_t)i;
-				double Di = D[i], W = 0, s0 = P[i] + S[i], send, mm, nz, v;
-				double z = rng_normal_bits(&g, cell, w[j][0], w[j][1]);
-
-				/* W: the sum over the group's reads of the
-				 * arrivals in the group before each */
-				if (Di == 0 || N == 1) {
-					W = Di * N;
-				} else if (Di <= exact_max) {
-					uint32_t bits[4];
-					int nd = (int)Di;
-
-					W = Di;
-					for (int q = 0; q < nd; q++) {
-						uint32_t x;
-
-						if (q < 2) {
-							x = w[j][2 + q];
-						} else {
-							if (!((q - 2) & 3))
-								rng_bits(&gs, cell, (uint32_t)((q - 2) >> 2), bits);
-							x = bits[(q - 2) & 3];
-						}
-						/* slot 0 .. N-1: the arrival in read a + s
-						 * counts in N - 1 - s more */
-						W += N - 1 - (int)(((uint64_t)x * (uint64_t)N) >> 32);
-					}
-				} else {
-					double zs = rng_normal_bits(&gz, cell, w[j][2], w[j][3]);
-
-					W = round_even(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs);
-					if (W < Di)
-						W = Di;
-					if (W > Di * N)
-						W = Di * N;
-				}
-				/* a cosmic ray's charge counts from its read on
-				 * (the hits are in pixel order) */
-				for (; hp < nh && hits[hp].pix <= i; hp++)
-					if (hits[hp].pix == i && hits[hp].read >= a &&
-					    hits[hp].read <= b) {
-						W += hits[hp].e * (b - hits[hp].read + 1);
-						Di += hits[hp].e;
-					}
-				send = s0 + Di;
-				if (send < d->sat_true) {
-					mm = ramp_nl(d, s0 + W * inv_n) + bk * Di * Di;
-					nz = sn * z;
-				} else {
-					/* reads at saturation read the level exactly; the
-					 * read noise is that of the others */
-					int nfree = 0;
-
-					mm = 0;
-					for (int q = 1; q <= N; q++) {
-						double x = s0 + Di * q / N;
-
-						mm += ramp_nl(d, x);
-						nfree += x < d->sat_true;
-					}
-					mm *= inv_n;
-					nz = d->read_noise * sqrt((double)nfree) * z * inv_n;
-				}
-				S[i] += Di;
-				if (ch) {
-					size_t o = (size_t)gi * cplane + (size_t)i;
-
-					ch[o] = mm - Q[i];
-					own[o] = (float)(Q[i] + nz);
-					continue;
-				}
-				v = mm + nz;
-				if (v > d->sat_e)
-					v = d->sat_e;
-				v = round_even(v * inv_g);
-				out[(size_t)gi * plane + (size_t)i] =
-					(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
-			}
-		}
-		prev = b;
+		level1_arrivals(&R, gi, prev);
+		level1_reads(&R, gi);
+		prev = p->last[gi];
 	}
 }
 

@@ -163,30 +163,18 @@ static inline void halo_free(struct halo *h)
 	h->env = h->cum = NULL;
 }
 
-/* Set up the model of array a (n x n, over samples per pixel, centre at
- * (n - 1) / 2).  Returns 0, or -1 when out of memory or the array is too
- * small (R < 16 pixels). */
-static inline int halo_setup(struct halo *h, const float *a, int n, int over,
-			     double alpha, double taper)
+/* The tail's amplitude A(t): the mean of value * d^alpha over the band's
+ * samples in each direction bin, from every sample of the array; *square
+ * and *disc get the sample sums of the whole array and of the disc, for
+ * the normalisation. */
+static inline void halo_setup_amplitude(struct halo *h, double *square_out, double *disc_out)
 {
-	int c = (n - 1) / 2;
-	double R = (double)c / over, cnt[HALO_NT] = { 0 };
-	double disc = 0, square = 0, tail = 0;
+	const float *a = h->a;
+	int n = h->n, over = h->over, c = h->c;
+	double R = h->R, alpha = h->alpha, square = 0, disc = 0, cnt[HALO_NT] = { 0 };
 
-	h->a = a;
-	h->n = n;
-	h->over = over;
-	h->c = c;
-	h->R = R - 1;           /* a bilinear read at R - 1 stays inside */
-	h->taper = taper < h->R / 2 ? taper : h->R / 2;
-	h->alpha = alpha;
-	h->s = 1;
-	if (R < 16 || alpha <= 2)
-		return -1;
-	R = h->R;
 	for (int k = 0; k <= HALO_NT; k++)
 		h->A[k] = 0;
-	/* the tail's amplitude, from every sample of the band */
 	for (int j = 0; j < n; j++)
 		for (int i = 0; i < n; i++) {
 			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
@@ -209,24 +197,32 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 		h->A[k] = cnt[k] > 0 ? h->A[k] / cnt[k] : (k > 0 ? h->A[k - 1] : 0);
 	/* the bins are centred half a bin on: shift so that A[k] is the value
 	 * at the bin's start, as halo_tail() reads it */
-	{
-		double first = h->A[0], prev = h->A[HALO_NT - 1];
+	double prev = h->A[HALO_NT - 1];
 
-		for (int k = 0; k < HALO_NT; k++) {
-			double cur = h->A[k];
+	for (int k = 0; k < HALO_NT; k++) {
+		double cur = h->A[k];
 
-			h->A[k] = 0.5 * (prev + cur);
-			prev = cur;
-		}
-		(void)first;
-		h->A[HALO_NT] = h->A[0];
+		h->A[k] = 0.5 * (prev + cur);
+		prev = cur;
 	}
+	h->A[HALO_NT] = h->A[0];
+	*square_out = square;
+	*disc_out = disc;
+}
+
+/* The scale s on the array's values that makes the model's total (the
+ * disc plus the tail integrated to infinity) the array's own square sum,
+ * applied to A; and A's largest value and integral over the turn. */
+static inline void halo_setup_scale(struct halo *h, double square, double disc)
+{
+	double tail = 0;
+
 	/* samples are over^2 per pixel: a pixel sum is the sample sum / over^2 */
-	square /= (double)over * over;
-	disc /= (double)over * over;
+	square /= (double)h->over * h->over;
+	disc /= (double)h->over * h->over;
 	for (int k = 0; k < HALO_NT; k++)
 		tail += h->A[k] * (2 * M_PI / HALO_NT);
-	tail *= pow(R, 2 - alpha) / (alpha - 2);
+	tail *= pow(h->R, 2 - h->alpha) / (h->alpha - 2);
 	h->s = square / (disc + tail);
 	h->total = square;
 	h->amax = 0;
@@ -238,8 +234,15 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 		if (k < HALO_NT)
 			h->atot += h->A[k] * (2 * M_PI / HALO_NT);
 	}
-	/* baseline and spikes */
-	h->rb = 0.5 * (1 + HALO_BAND) * R;
+}
+
+/* A = B + S, the baseline (the least of A within HALO_SW bins) and the
+ * spikes above it; then the spikes themselves: a local peak of S standing
+ * above the baseline, each bin within HALO_SW of one belonging to the
+ * nearest (cen). */
+static inline void halo_setup_spikes(struct halo *h)
+{
+	h->rb = 0.5 * (1 + HALO_BAND) * h->R;
 	h->bmax = h->smax = 0;
 	for (int k = 0; k < HALO_NT; k++) {
 		double m = h->A[k];
@@ -256,8 +259,6 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 	}
 	h->B[HALO_NT] = h->B[0];
 	h->S[HALO_NT] = h->S[0];
-	/* a spike: a local peak of S standing above the baseline; each bin
-	 * within HALO_SW of one belongs to the nearest */
 	for (int k = 0; k < HALO_NT; k++)
 		h->cen[k] = -1;
 	for (int k = 0; k < HALO_NT; k++) {
@@ -278,9 +279,13 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 				h->cen[b] = k;
 		}
 	}
-	/* the spikes' directions: bin c is at angle 2 pi c / NT - pi (see
-	 * halo_bin); and the tail away from them: the whole of A in a bin of
-	 * no spike (and the next, which the interpolation reads), B in one */
+}
+
+/* The spikes' directions: bin c is at angle 2 pi c / NT - pi (see
+ * halo_bin); and the tail away from them: the whole of A in a bin of no
+ * spike (and the next, which the interpolation reads), B in one. */
+static inline void halo_setup_directions(struct halo *h)
+{
 	h->nspk = 0;
 	h->nmax = h->btot = 0;
 	for (int k = 0; k < HALO_NT; k++) {
@@ -298,7 +303,15 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 		h->spk[h->nspk][0] = cos(phi);
 		h->spk[h->nspk++][1] = sin(phi);
 	}
-	/* the envelope, from every sample (any phase) and the tail */
+}
+
+/* The envelope env[r], from every sample (any phase) and the tail, and the
+ * enclosed light cum[r] at phase 0.  Returns -1 when out of memory. */
+static inline int halo_setup_envelope(struct halo *h)
+{
+	int n = h->n, over = h->over, c = h->c;
+	double R = h->R;
+
 	h->nenv = (int)ceil(R) + 1;
 	if (!(h->env = calloc(h->nenv, sizeof(double))) ||
 	    !(h->cum = calloc(h->nenv, sizeof(double)))) {
@@ -308,7 +321,7 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 	for (int j = 0; j < n; j++)
 		for (int i = 0; i < n; i++) {
 			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
-			double d = hypot(dx, dy), v = h->s * a[(size_t)j * n + i];
+			double d = hypot(dx, dy), v = h->s * h->a[(size_t)j * n + i];
 			int r = (int)d;
 
 			if (r >= h->nenv)
@@ -338,6 +351,32 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 		h->cum[r] += h->cum[r - 1];
 	h->envend = halo_tail_max(h, h->nenv);
 	return 0;
+}
+
+/* Set up the model of array a (n x n, over samples per pixel, centre at
+ * (n - 1) / 2).  Returns 0, or -1 when out of memory or the array is too
+ * small (R < 16 pixels). */
+static inline int halo_setup(struct halo *h, const float *a, int n, int over,
+			     double alpha, double taper)
+{
+	int c = (n - 1) / 2;
+	double R = (double)c / over, square, disc;
+
+	h->a = a;
+	h->n = n;
+	h->over = over;
+	h->c = c;
+	h->R = R - 1;           /* a bilinear read at R - 1 stays inside */
+	h->taper = taper < h->R / 2 ? taper : h->R / 2;
+	h->alpha = alpha;
+	h->s = 1;
+	if (R < 16 || alpha <= 2)
+		return -1;
+	halo_setup_amplitude(h, &square, &disc);
+	halo_setup_scale(h, square, disc);
+	halo_setup_spikes(h);
+	halo_setup_directions(h);
+	return halo_setup_envelope(h);
 }
 
 /* The largest value of the model at distance >= r. */

@@ -1,0 +1,539 @@
+/*
+ * sersic_render.h - rendering a Sérsic galaxy through the ePSF, shared by
+ * sersic_quick.c and sersic_precise.c: the wings integrated per pixel and
+ * convolved by FFT with second-order corrections, the core drawn on
+ * sub-pixel cells at the galaxy's own phase.  The profile and its
+ * integrals are sersic.h's; this is its second half, included by it once
+ * struct sersic_gal and the cell helpers are defined, and not on its own.
+ */
+#ifndef WFS_SERSIC_RENDER_H
+#define WFS_SERSIC_RENDER_H
+
+#ifndef WFS_SERSIC_H
+#error "sersic_render.h is part of sersic.h: include that"
+#endif
+
+#include <stddef.h>
+
+/*
+ * How a plugin integrates the profile over an axis-aligned cell
+ * [x0, x1] x [y0, y1] (offsets from the centre).  h is the cell's nominal
+ * size (1 for pixels, 1/over for sub-pixel cells).
+ */
+typedef double (*sersic_cell_fn)(const struct sersic_gal *g, const void *opt,
+				 double x0, double x1, double y0, double y1, double h);
+
+struct sersic_method {
+	sersic_cell_fn cell;
+	const void *opt;
+	int convolve;           /* 0: pixel integrals only (no PSF) */
+	double psf_core;        /* radius of the cubic ePSF core, pixels */
+	int core_k;             /* half-width of the sub-pixel core, pixels */
+	/* Optional: a wing pixel's integral *v and, where the light is
+	 * smooth over it (sersic_cell_scale at its nearest point at least
+	 * SERSIC_SMOOTH; the return value says so), the profile's gradient
+	 * at its centre (*gx, *gy; else 0), in one pass, sharing the work
+	 * of the two.  NULL: cell(), then that test and sersic_grad(). */
+	int (*wing)(const struct sersic_gal *g, const void *opt, double x0, double x1,
+		    double y0, double y1, double *v, double *gx, double *gy);
+};
+
+/* The ePSF samples at the galaxy: blend of four nodes at sample (ix, iy),
+ * zero outside the array. */
+static inline double epsf_at(const struct wfs_epsf *e, int ix, int iy)
+{
+	if (ix < 0 || iy < 0 || ix >= e->n || iy >= e->n)
+		return 0.0;
+	size_t k = (size_t)iy * e->n + ix;
+	return e->weight[0] * e->node[0][k] + e->weight[1] * e->node[1][k]
+	       + e->weight[2] * e->node[2][k] + e->weight[3] * e->node[3][k];
+}
+
+/* Keys' cubic convolution weights (a = -1/2) for taps -1, 0, 1, 2 at
+ * phase t in [0, 1): the interpolating cubic that reproduces quadratics. */
+static void sersic_keys(double t, double w[4])
+{
+	double t2 = t * t, t3 = t2 * t;
+
+	w[0] = -0.5 * t3 + t2 - 0.5 * t;
+	w[1] = 1.5 * t3 - 2.5 * t2 + 1.0;
+	w[2] = -1.5 * t3 + 2.0 * t2 + 0.5 * t;
+	w[3] = 0.5 * t3 - 0.5 * t2;
+}
+
+/*
+ * The ePSF at a fixed fractional sample offset (phx, phy) in [0, 1), as the
+ * point model evaluates it between samples: within `core` pixels of the
+ * centre in x and in y (setting psf-core, default 4) Keys' cubic on 4 x 4
+ * samples, so the sharp core is not flattened; farther out bilinear, where
+ * the ePSF is smooth on the sample scale (the point model's psf-wing=44,
+ * without its nearest samples beyond 8 pixels).  ep[k] = E(k + ph).  A galaxy much smaller
+ * than a cell is therefore drawn exactly as a point source of its flux.
+ * The four nodes are blended once into eb first (n x n scratch).
+ */
+static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, double core,
+			      double *eb, double *ep)
+{
+	int n = e->n;
+	double wx[4], wy[4];
+
+	for (size_t k = 0; k < (size_t)n * n; k++)
+		eb[k] = e->weight[0] * e->node[0][k] + e->weight[1] * e->node[1][k]
+			+ e->weight[2] * e->node[2][k] + e->weight[3] * e->node[3][k];
+	sersic_keys(phx, wx);
+	sersic_keys(phy, wy);
+	double b00 = (1 - phx) * (1 - phy), b01 = phx * (1 - phy), b10 = (1 - phx) * phy, b11 = phx * phy;
+	for (int ky = 0; ky < n; ky++) {
+		double dy = (ky + phy - e->centre) / e->over;
+		for (int kx = 0; kx < n; kx++) {
+			double dx = (kx + phx - e->centre) / e->over, v = 0;
+			const double *r0 = eb + (size_t)ky * n + kx;
+			if (fabs(dx) < core && fabs(dy) < core && kx >= 1 && ky >= 1 && kx + 2 < n &&
+			    ky + 2 < n) {
+				const double *r = r0 - n - 1;
+				for (int bb = 0; bb < 4; bb++, r += n)
+					v += wy[bb] * (wx[0] * r[0] + wx[1] * r[1] + wx[2] * r[2] + wx[3] * r[3]);
+			} else {
+				int xin = kx + 1 < n, yin = ky + 1 < n;
+				v = b00 * r0[0] + (xin ? b01 * r0[1] : 0) + (yin ? b10 * r0[n] : 0)
+				    + (xin && yin ? b11 * r0[n + 1] : 0);
+			}
+			ep[(size_t)ky * n + kx] = v;
+		}
+	}
+}
+
+/*
+ * The core is the (2K+1)^2 block of pixels around the centre drawn on
+ * sub-pixel cells; K is the setting sersic-core (default SERSIC_CORE).
+ * Outside it the pixel grid with the sharpened ePSF is accurate to second
+ * order in the pixel size over the profile's length scale; inside it sits
+ * the cusp (n > 1) and any structure finer than a pixel.  Measured against
+ * K = 8 (contrib/sersic-bench.py), K = 1 is within 0.3% per pixel for
+ * every galaxy of the benchmark grid and costs (4(2K+1)+1)^2 cells times
+ * (2K+1+2 h)^2 pixels of direct sums, about 0.3 ms.
+ */
+#define SERSIC_CORE 1
+
+/* Pixels whose light varies on a scale below this (pixels) get no
+ * second-order correction (see sersic_wings_integrate). */
+#define SERSIC_SMOOTH 0.1
+
+/* The ePSF half-width in whole pixels. */
+static int sersic_psf_half(const struct wfs_epsf *e)
+{
+	return e->centre / e->over;
+}
+
+static void box_clip(int *a0, int *a1, int b0, int b1)
+{
+	if (*a0 < b0)
+		*a0 = b0;
+	if (*a1 > b1)
+		*a1 = b1;
+}
+
+/*
+ * One convolved render's state, shared by its steps (sersic_render_common):
+ * the ePSF, the stamp the wings are drawn and convolved on, the core block
+ * Q with its cells on the galaxy's phase grid, and the scratch planes.  The
+ * steps copy the scalars their loops read into locals, as the single
+ * function did: a store into a plane could otherwise alias them and force
+ * a reload each time.
+ */
+struct sersic_stamp {
+	struct sersic_gal g;
+	struct wfs_epsf e;
+	int over, hp, kn;               /* ePSF samples per pixel, half-width, kernel side */
+	int sx0, sx1, sy0, sy1;         /* the stamp's pixels */
+	int snx, sny;
+	int kq;                         /* K: Q is the pixels within K of (icx, icy) */
+	double icx, icy;
+	double qx0, qx1, qy0, qy1;      /* Q's edges, pixels */
+	int a0, b0, na, nb;             /* Q's cells: the first index and the count, per axis */
+	int core_on;                    /* whether the core's light reaches the window */
+	size_t nker;
+	double *img, *gxi, *gyi, *lpi;  /* stamp planes: integrals, gradient terms, Laplacian term */
+	double *ker, *kdx, *kdy, *klp;  /* the kernels of those planes, kn x kn */
+	double *cells, *ep, *eb;        /* core cells; the ePSF at the phase, and blended */
+};
+
+/* Without the PSF: each window pixel the truncation box (gx0..gx1,
+ * gy0..gy1) touches gets its integral, nothing else. */
+static void sersic_render_pixels(const struct sersic_gal *g, const struct wfs_window *win,
+				 const struct sersic_method *m, double gx0, double gx1,
+				 double gy0, double gy1)
+{
+	int x0 = win->x0, x1 = win->x0 + win->nx - 1, y0 = win->y0, y1 = win->y0 + win->ny - 1;
+
+	if (gx0 > x0) x0 = (int)gx0;
+	if (gx1 < x1) x1 = (int)gx1;
+	if (gy0 > y0) y0 = (int)gy0;
+	if (gy1 < y1) y1 = (int)gy1;
+	for (int y = y0; y <= y1; y++) {
+		double *row = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
+		for (int x = x0; x <= x1; x++)
+			row[x] += m->cell(g, m->opt, x - 0.5 - g->xc, x + 0.5 - g->xc,
+					  y - 0.5 - g->yc, y + 0.5 - g->yc, 1.0);
+	}
+}
+
+/* Lay out the stamp and the core around the galaxy's pixels (gx0..gx1,
+ * gy0..gy1), st->g and st->e filled in.  Returns 0 when the stamp is empty:
+ * nothing of the galaxy reaches the window. */
+static int sersic_stamp_layout(struct sersic_stamp *st, const struct wfs_window *win,
+			       const struct sersic_method *m, double gx0, double gx1,
+			       double gy0, double gy1)
+{
+	const struct sersic_gal *g = &st->g;
+	int over = st->e.over, hp = sersic_psf_half(&st->e);
+
+	st->over = over;
+	st->hp = hp;
+	st->kn = 2 * hp + 1;
+	/* Stamp: the window grown by the PSF, cut to the galaxy grown by the
+	 * PSF.  It holds every pixel whose light reaches the window and every
+	 * window pixel the galaxy's light reaches, including those beyond the
+	 * truncation box that only the PSF wings light (they are zero in the
+	 * stamp before the convolution). */
+	int sx0 = win->x0 - hp, sx1 = win->x0 + win->nx - 1 + hp;
+	int sy0 = win->y0 - hp, sy1 = win->y0 + win->ny - 1 + hp;
+	if (gx0 - hp > sx0) sx0 = (int)gx0 - hp;
+	if (gx1 + hp < sx1) sx1 = (int)gx1 + hp;
+	if (gy0 - hp > sy0) sy0 = (int)gy0 - hp;
+	if (gy1 + hp < sy1) sy1 = (int)gy1 + hp;
+	if (sx0 > sx1 || sy0 > sy1)
+		return 0;
+	st->sx0 = sx0;
+	st->sx1 = sx1;
+	st->sy0 = sy0;
+	st->sy1 = sy1;
+	st->snx = sx1 - sx0 + 1;
+	st->sny = sy1 - sy0 + 1;
+
+	/* Core block Q, in pixels, and its cells on the galaxy's phase grid. */
+	int kq = m->core_k;
+	double icx = floor(g->xc + 0.5), icy = floor(g->yc + 0.5);
+	double qx0 = icx - kq - 0.5, qx1 = icx + kq + 0.5;
+	double qy0 = icy - kq - 0.5, qy1 = icy + kq + 0.5;
+	/* cells that reach into Q, and one more all round (sersic_core_cells) */
+	int a0 = (int)ceil((qx0 - g->xc) * over - 0.5) - 1, a1 = (int)floor((qx1 - g->xc) * over + 0.5) + 1;
+	int b0 = (int)ceil((qy0 - g->yc) * over - 0.5) - 1, b1 = (int)floor((qy1 - g->yc) * over + 0.5) + 1;
+	st->kq = kq;
+	st->icx = icx;
+	st->icy = icy;
+	st->qx0 = qx0;
+	st->qx1 = qx1;
+	st->qy0 = qy0;
+	st->qy1 = qy1;
+	st->a0 = a0;
+	st->b0 = b0;
+	st->na = a1 - a0 + 1;
+	st->nb = b1 - b0 + 1;
+	/* Does the core reach the window at all? */
+	st->core_on = qx1 + hp + 1 >= win->x0 && qx0 - hp - 1 <= win->x0 + win->nx - 1 &&
+		      qy1 + hp + 1 >= win->y0 && qy0 - hp - 1 <= win->y0 + win->ny - 1;
+	return 1;
+}
+
+/* The scratch planes, from the thread's scratch (render never allocates):
+ * four stamp planes and four kernels, and the core's cells and two ePSF
+ * arrays only when the core reaches the window. */
+static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struct sersic_stamp *st)
+{
+	size_t nstamp = (size_t)st->snx * st->sny, nker = (size_t)st->kn * st->kn;
+	size_t ncell = st->core_on ? (size_t)st->na * st->nb : 0;
+	size_t nep = st->core_on ? 2 * (size_t)st->e.n * st->e.n : 0;
+	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep) * sizeof(double));
+
+	if (!buf)
+		return host->error(host->ctx, "out of memory for a %d x %d galaxy stamp", st->snx, st->sny);
+	st->nker = nker;
+	st->img = buf;
+	st->gxi = st->img + nstamp;
+	st->gyi = st->gxi + nstamp;
+	st->lpi = st->gyi + nstamp;
+	st->ker = st->lpi + nstamp;
+	st->kdx = st->ker + nker;
+	st->kdy = st->kdx + nker;
+	st->klp = st->kdy + nker;
+	st->cells = st->klp + nker;
+	st->ep = st->cells + ncell;
+	st->eb = st->ep + nep / 2;
+	return 0;
+}
+
+/* Wings: pixel integrals outside Q, and the profile's gradient at the
+ * pixel centres (for the first-moment term), into the stamp planes.
+ * *any: some wing pixel has light; *rough: some has light too rough for
+ * the second-order terms, which then need a plane of their own. */
+static void sersic_wings_integrate(const struct sersic_stamp *st, const struct sersic_method *m,
+				   int *any_out, int *rough_out)
+{
+	const struct sersic_gal *g = &st->g;
+	int sx0 = st->sx0, sx1 = st->sx1, sy0 = st->sy0, sy1 = st->sy1, snx = st->snx, kq = st->kq;
+	double icx = st->icx, icy = st->icy;
+	double *img = st->img, *gxi = st->gxi, *gyi = st->gyi, *lpi = st->lpi;
+	int any = 0, rough = 0;
+
+	for (int y = sy0; y <= sy1; y++) {
+		size_t o = (size_t)(y - sy0) * snx;
+		int in_qy = y >= icy - kq && y <= icy + kq;
+		for (int x = sx0; x <= sx1; x++) {
+			double v = 0, gx = 0, gy = 0, lv = 0;
+			if (!(in_qy && x >= icx - kq && x <= icx + kq)) {
+				double x0 = x - 0.5 - g->xc, x1 = x + 0.5 - g->xc;
+				double y0 = y - 0.5 - g->yc, y1 = y + 0.5 - g->yc;
+				v = m->cell(g, m->opt, x0, x1, y0, y1, 1.0);
+				/* The corrections are a Taylor expansion over the
+				 * pixel: only where the light is smooth on it (a
+				 * needle, q -> 0, is not, and would go negative). */
+				if (v != 0 && sersic_cell_scale(g, sersic_rho_min(g, x0, x1, y0, y1),
+								x0, x1, y0, y1) >= SERSIC_SMOOTH) {
+					sersic_grad(g, x - g->xc, y - g->yc, &gx, &gy);
+					lv = v;
+				}
+				any |= v != 0;
+			}
+			rough |= lv != v;
+			img[o + x - sx0] = v;
+			gxi[o + x - sx0] = gx;
+			gyi[o + x - sx0] = gy;
+			lpi[o + x - sx0] = lv;
+		}
+	}
+	*any_out = any;
+	*rough_out = rough;
+}
+
+/* The wings through the ePSF: the pixel-offset kernels, the FFT
+ * convolutions of the stamp planes, and the window's part of the sum
+ * added to it. */
+static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
+				 const struct sersic_stamp *st, const struct wfs_window *win, int rough)
+{
+	const struct wfs_epsf *e = &st->e;
+	int over = st->over, hp = st->hp, kn = st->kn;
+	int sx0 = st->sx0, sx1 = st->sx1, sy0 = st->sy0, sy1 = st->sy1, snx = st->snx, sny = st->sny;
+	size_t nker = st->nker;
+	double *img = st->img, *gxi = st->gxi, *gyi = st->gyi, *lpi = st->lpi;
+	double *ker = st->ker, *kdx = st->kdx, *kdy = st->kdy, *klp = st->klp;
+
+	/* The pixel-offset ePSF kernels: E + lap E / 24 and the gradient
+	 * of E over 12, by central differences on the 4x samples. */
+	double s2 = over * over / 24.0, s1 = over / 24.0;      /* (over/2) / 12 */
+	for (int ky = 0; ky < kn; ky++)
+		for (int kx = 0; kx < kn; kx++) {
+			int sx = e->centre + over * (kx - hp), sy = e->centre + over * (ky - hp);
+			double c = epsf_at(e, sx, sy);
+			double xp = epsf_at(e, sx + 1, sy), xm = epsf_at(e, sx - 1, sy);
+			double yp = epsf_at(e, sx, sy + 1), ym = epsf_at(e, sx, sy - 1);
+			size_t k = (size_t)ky * kn + kx;
+			ker[k] = c;
+			klp[k] = (xp + xm + yp + ym - 4 * c) * s2;
+			kdx[k] = -(xp - xm) * s1;
+			kdy[k] = -(yp - ym) * s1;
+		}
+	/* Where every pixel is smooth the Laplacian term's image is the
+	 * stamp itself: one convolution with E + lap E / 24 does both. */
+	if (!rough)
+		for (size_t k = 0; k < nker; k++)
+			ker[k] += klp[k];
+	if (host->convolve(host->ctx, thread, img, snx, sny, ker, kn) ||
+	    host->convolve(host->ctx, thread, gxi, snx, sny, kdx, kn) ||
+	    host->convolve(host->ctx, thread, gyi, snx, sny, kdy, kn) ||
+	    (rough && host->convolve(host->ctx, thread, lpi, snx, sny, klp, kn)))
+		return host->error(host->ctx, "FFT convolution of a %d x %d galaxy stamp failed",
+				   snx, sny);
+	for (int y = win->y0; y < win->y0 + win->ny; y++) {
+		if (y < sy0 || y > sy1)
+			continue;
+		double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride;
+		size_t o = (size_t)(y - sy0) * snx;
+		int x0 = win->x0, x1 = win->x0 + win->nx - 1;
+		box_clip(&x0, &x1, sx0, sx1);
+		for (int x = x0; x <= x1; x++)
+			dst[x - win->x0] += img[o + x - sx0] + gxi[o + x - sx0] + gyi[o + x - sx0]
+					    + (rough ? lpi[o + x - sx0] : 0.0);
+	}
+	return 0;
+}
+
+/* Core cells, clipped to Q.  A cell cut by Q's edge keeps only the
+ * part inside, whose centroid is off the cell centre by up to half a
+ * cell; its light is shared between the two nearest cell centres (per
+ * axis, linearly) so its first moment stays where it is.  Left at the
+ * cell centre it would move by up to 1/8 pixel, several per cent of the
+ * pixels beside Q.  The ring of cells around the grid takes the shares
+ * that spill out. */
+static void sersic_core_cells(const struct sersic_stamp *st, const struct sersic_method *m)
+{
+	const struct sersic_gal *g = &st->g;
+	int over = st->over, a0 = st->a0, b0 = st->b0, na = st->na, nb = st->nb;
+	double qx0 = st->qx0, qx1 = st->qx1, qy0 = st->qy0, qy1 = st->qy1;
+	double cell = 1.0 / over, *cells = st->cells;
+
+	memset(cells, 0, (size_t)na * nb * sizeof(double));
+	for (int bj = 1; bj < nb - 1; bj++) {
+		double cy = (b0 + bj) * cell;
+		double y0 = fmax(cy - 0.5 * cell, qy0 - g->yc), y1 = fmin(cy + 0.5 * cell, qy1 - g->yc);
+		if (!(y1 > y0))
+			continue;
+		double fy = (0.5 * (y0 + y1) - cy) * over;      /* in [-1/2, 1/2] */
+		int sy = fy < 0 ? -1 : 1;
+		fy = fabs(fy);
+		for (int ai = 1; ai < na - 1; ai++) {
+			double cx = (a0 + ai) * cell;
+			double x0 = fmax(cx - 0.5 * cell, qx0 - g->xc), x1 = fmin(cx + 0.5 * cell, qx1 - g->xc);
+			if (!(x1 > x0))
+				continue;
+			double v = m->cell(g, m->opt, x0, x1, y0, y1, cell);
+			double fx = (0.5 * (x0 + x1) - cx) * over;
+			int sx = fx < 0 ? -1 : 1;
+			fx = fabs(fx);
+			double *c0 = cells + (size_t)bj * na + ai, *c1 = c0 + (ptrdiff_t)sy * na;
+			c0[0] += v * (1 - fx) * (1 - fy);
+			c0[sx] += v * fx * (1 - fy);
+			c1[0] += v * (1 - fx) * fy;
+			c1[sx] += v * fx * fy;
+		}
+	}
+}
+
+/* The core cells through the ePSF at the galaxy's own phase, summed
+ * directly into the window pixels the core reaches. */
+static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_window *win,
+			    const struct sersic_method *m)
+{
+	const struct wfs_epsf *e = &st->e;
+	int over = st->over, hp = st->hp, kq = st->kq;
+	int a0 = st->a0, b0 = st->b0, na = st->na, nb = st->nb;
+	double xc = st->g.xc, yc = st->g.yc, icx = st->icx, icy = st->icy;
+	double *cells = st->cells, *ep = st->ep, *eb = st->eb;
+	int en = e->n;
+
+	/* The ePSF at the galaxy's phase: sample position of pixel i, cell a is
+	 * centre + over (i - xc) - a = base + over i - a + phi, so ep[k] holds
+	 * E at k + phi. */
+	double tx = e->centre - over * xc, ty = e->centre - over * yc;
+	double bxf = floor(tx), byf = floor(ty);
+	double phx = tx - bxf, phy = ty - byf;
+	double core = m->psf_core * over + 2 < e->centre ? m->psf_core : 0;
+	sersic_phase_epsf(e, phx, phy, core, eb, ep);
+	/* Output pixels the core reaches, inside the window. */
+	int ox0 = (int)icx - kq - hp - 1, ox1 = (int)icx + kq + hp + 1;
+	int oy0 = (int)icy - kq - hp - 1, oy1 = (int)icy + kq + hp + 1;
+	box_clip(&ox0, &ox1, win->x0, win->x0 + win->nx - 1);
+	box_clip(&oy0, &oy1, win->y0, win->y0 + win->ny - 1);
+	long long bx = (long long)bxf, by = (long long)byf;
+	/* Each cell row reversed in place, so that pixel x's sum over a row,
+	 * sum_a C[a] ep[kx0 - a], runs forward through both arrays. */
+	for (int bj = 0; bj < nb; bj++)
+		for (int i = 0, j = na - 1; i < j; i++, j--) {
+			double t = cells[(size_t)bj * na + i];
+			cells[(size_t)bj * na + i] = cells[(size_t)bj * na + j];
+			cells[(size_t)bj * na + j] = t;
+		}
+	for (int y = oy0; y <= oy1; y++) {
+		double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
+		long long ky0 = by + (long long)over * y - b0;
+		for (int x = ox0; x <= ox1; x++) {
+			double s = 0;
+			/* reversed index t = na - 1 - a reads ep[kx0 - na + 1 + t] */
+			long long k0 = bx + (long long)over * x - a0 - na + 1;
+			int t0 = k0 < 0 ? (int)-k0 : 0;
+			int t1 = k0 + na > en ? (int)(en - k0) : na;
+			if (t0 >= t1)
+				continue;
+			for (int bj = 0; bj < nb; bj++) {
+				long long ky = ky0 - bj;
+				if (ky < 0 || ky >= en)
+					continue;
+				const double *erow = ep + (size_t)ky * en + (k0 + t0);
+				const double *crow = cells + (size_t)bj * na + t0;
+				/* four partial sums: the compiler may not reorder
+				 * a floating-point reduction by itself */
+				double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+				int len = t1 - t0, t = 0;
+				for (; t + 4 <= len; t += 4) {
+					s0 += crow[t] * erow[t];
+					s1 += crow[t + 1] * erow[t + 1];
+					s2 += crow[t + 2] * erow[t + 2];
+					s3 += crow[t + 3] * erow[t + 3];
+				}
+				for (; t < len; t++)
+					s0 += crow[t] * erow[t];
+				s += (s0 + s1) + (s2 + s3);
+			}
+			dst[x] += s;
+		}
+	}
+}
+
+/*
+ * Add the galaxy to window win.
+ *
+ * Without the PSF each pixel gets its integral.  With it, the value of
+ * pixel i is int I(u) E(i - u) du, E the ePSF (the PSF already convolved
+ * with the pixel).  Two grids share that integral:
+ *
+ *  - the core, a (2K+1)^2-pixel block Q around the centre, is cut into
+ *    cells of 1/over pixel centred on the galaxy's own sub-pixel phase
+ *    (centres xc + a/over), clipped to Q.  Each cell's integral C_a goes
+ *    through the ePSF at the one fractional sample offset the phase needs:
+ *    P(i) += sum_a C_a E(over (i - xc) - a + centre), the ePSF interpolated
+ *    as the point model does.  A galaxy much smaller than a cell falls in
+ *    the cell a = 0 and is drawn exactly as a point source of its flux.
+ *
+ *  - everything else is integrated per pixel, A_m, and convolved with the
+ *    ePSF at whole-pixel offsets (no interpolation), sharpened as
+ *    K = E + (1/24) lap E.  Why: sum_m A_m E(i - m) puts each pixel's light
+ *    at its centre, which for light spread evenly over the pixel blurs by a
+ *    second pixel box (variance 1/12 per axis): the error is
+ *    -(1/24) lap I * E to second order.  The correction term, applied to
+ *    A_m, cancels it; the Laplacian comes from the 4x samples by central
+ *    differences.  It needs light that is smooth over a pixel, which the
+ *    choice of K (sersic_core_k) ensures.
+ *
+ * The stamp for the wings is the window grown by the ePSF half-width, so
+ * light from outside the window, and outside the detector, that the PSF
+ * scatters into the window is included; it is convolved with
+ * host->convolve (FFTW) and only the window part is added.
+ */
+static int sersic_render_common(const struct wfs_host *host, void *thread,
+				const struct wfs_source *src, const struct wfs_window *win,
+				const struct sersic_method *m)
+{
+	struct sersic_stamp st;
+	double hx, hy;
+	int any, rough;
+
+	if (!(src->flux != 0) || !isfinite(src->flux))
+		return 0;
+	sersic_unpack(src, &st.g);
+	sersic_halfbox(&st.g, &hx, &hy);
+	/* The galaxy's pixels: every pixel the truncation box touches. */
+	double gx0 = floor(st.g.xc - hx + 0.5), gx1 = floor(st.g.xc + hx + 0.5);
+	double gy0 = floor(st.g.yc - hy + 0.5), gy1 = floor(st.g.yc + hy + 0.5);
+
+	if (!m->convolve) {
+		sersic_render_pixels(&st.g, win, m, gx0, gx1, gy0, gy1);
+		return 0;
+	}
+	if (host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, &st.e))
+		return -1;
+	if (!sersic_stamp_layout(&st, win, m, gx0, gx1, gy0, gy1))
+		return 0;
+	if (sersic_stamp_scratch(host, thread, &st) < 0)
+		return -1;
+	sersic_wings_integrate(&st, m, &any, &rough);
+	if (any && sersic_wings_convolve(host, thread, &st, win, rough) < 0)
+		return -1;
+	if (!st.core_on)
+		return 0;
+	sersic_core_cells(&st, m);
+	sersic_core_add(&st, win, m);
+	return 0;
+}
+
+#endif

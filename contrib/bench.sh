@@ -254,31 +254,37 @@ print('| $set | $t | %.2f | %.2f | %.0f | %.2f | %.2f | %.2f | %.2f | %.2f |' % 
 	done
 done
 echo
-echo "## Bright stars: the 88- and 176-pixel boxes"
+echo "## Bright stars: the 88- and 176-pixel boxes, and drawn to the noise"
 echo
 echo "Stars on SCA 1 in three magnitude ranges, one run each, one worker thread"
 echo "(\`--threads 1\`); render is the worker's busy time from --report, per star."
-echo "Defaults: \`--bright-limit 14\` (88 px) and \`--xbright-limit 3\` (176 px)."
-echo "\`starfield -n N -x -m MIN -M MAX | wfiscene --filter F129 --flux-unit abmag --threads 1 --report r.json -o out.fits\`"
+echo "\`--bright-limit 14\` (88 px) and \`--xbright-limit 3\` (176 px) pick the box;"
+echo "extent stips is STIPS's box alone (\`--set psf-extent=stips\`), noise the"
+echo "default (box, halo and tail out to 0.1 σ; fewer stars, as each costs more)."
+echo "\`starfield -n N -x -m MIN -M MAX | wfiscene --filter F129 --flux-unit abmag --threads 1 [--set psf-extent=stips] --report r.json -o out.fits\`"
 echo
-echo "| stars | AB mag | box px | pixels/star | wall s | render s | µs/star (render) | × faint |"
+echo "| stars | AB mag | box px | extent | wall s | render s | µs/star (render) | × faint, same extent |"
 echo "|---|---|---|---|---|---|---|---|"
 nf=200000; nb=50000; nx=10000
 [ "$quick" = 1 ] && nf=50000 && nb=12000 && nx=2500
 # build (or load) the three PSF grids first: one star of each class
 printf 'x,y,mag\n100,100,25\n200,200,12\n300,300,2\n' > "$W/warm.csv"
 "$WFS" --filter F129 --flux-unit abmag -o "$W/warm.fits" "$W/warm.csv"
-faint=
-for cls in "$nf 20 27 44" "$nb 10 14 88" "$nx 0 3 176"; do
-	set -- $cls
-	n=$1 lo=$2 hi=$3 box=$4
-	"$GEN" -n $n -x -s 11 -m $lo -M $hi > "$W/bright.csv"
-	set -- $(measure "'$WFS' --filter F129 --flux-unit abmag --threads 1 --report '$W/rb.json' -o '$W/o.fits' '$W/bright.csv'")
-	r=$(json "$W/rb.json" seconds render_busy)
-	us=$(awk -v r=$r -v n=$n 'BEGIN { printf "%.2f", 1e6 * r / n }')
-	[ -z "$faint" ] && faint=$us
-	awk -v n=$n -v lo=$lo -v hi=$hi -v b=$box -v t=$1 -v r=$r -v us=$us -v f=$faint 'BEGIN {
-		printf "| %d | %s-%s | %d | %d | %.2f | %.2f | %.1f | %.1f |\n", n, lo, hi, b, b * b, t, r, us, us / f }'
+for ext in stips noise; do
+	faint=
+	opt=; [ $ext = stips ] && opt="--set psf-extent=stips"
+	for cls in "$nf 20 27 44 1" "$nb 10 14 88 10" "$nx 0 3 176 100"; do
+		set -- $cls
+		n=$1 lo=$2 hi=$3 box=$4
+		[ $ext = noise ] && n=$((n / $5))
+		"$GEN" -n $n -x -s 11 -m $lo -M $hi > "$W/bright.csv"
+		set -- $(measure "'$WFS' --filter F129 --flux-unit abmag --threads 1 $opt --report '$W/rb.json' -o '$W/o.fits' '$W/bright.csv'")
+		r=$(json "$W/rb.json" seconds render_busy)
+		us=$(awk -v r=$r -v n=$n 'BEGIN { printf "%.2f", 1e6 * r / n }')
+		[ -z "$faint" ] && faint=$us
+		awk -v n=$n -v lo=$lo -v hi=$hi -v b=$box -v e=$ext -v t=$1 -v r=$r -v us=$us -v f=$faint 'BEGIN {
+			printf "| %d | %s-%s | %d | %s | %.2f | %.2f | %.1f | %.1f |\n", n, lo, hi, b, e, t, r, us, us / f }'
+	done
 done
 rm -f "$W/bright.csv"
 

@@ -200,7 +200,7 @@ static struct wcsprm *preview_wcs(fitsfile *f, const char *where, int *nwcs,
 {
 	struct wcsprm *wcs = NULL;
 	char *hdr = NULL;
-	int nkeys = 0, nreject = 0, status = 0, k;
+	int nkeys = 0, nreject = 0, status = 0, k = 0;
 
 	*nwcs = 0;
 	if (fits_convert_hdr2str(f, 0, NULL, 0, &hdr, &nkeys, &status)) {
@@ -208,7 +208,7 @@ static struct wcsprm *preview_wcs(fitsfile *f, const char *where, int *nwcs,
 		return NULL;
 	}
 	status = wcspih(hdr, nkeys, WCSHDR_all, 0, &nreject, nwcs, &wcs);
-	fits_free_memory(hdr, &k);
+	fits_free_memory(hdr, &k);	/* frees only while k holds no error */
 	if (status || *nwcs < 1) {
 		if (wcs)
 			wcsvfree(nwcs, &wcs);

@@ -91,6 +91,16 @@ enum {
 /* ------------------------------------------------------------------ */
 /* Regularised incomplete gamma functions.                             */
 
+/* ln Gamma(a), a > 0.  lgamma() stores the sign in the global signgam, a
+ * data race between the workers that render galaxies at once; lgamma_r
+ * keeps it in a local. */
+static inline double sersic_lgamma(double a)
+{
+	int sign;
+
+	return lgamma_r(a, &sign);
+}
+
 /*
  * P(a, x) and Q(a, x) = 1 - P, each computed directly (never as 1 minus the
  * other) so the small one keeps full relative precision: the power series
@@ -109,7 +119,7 @@ static double sersic_gamma_series(double a, double x)
 		if (fabs(term) < fabs(sum) * 1e-17)
 			break;
 	}
-	return sum * exp(a * log(x) - x - lgamma(a));
+	return sum * exp(a * log(x) - x - sersic_lgamma(a));
 }
 
 static double sersic_gamma_cfrac(double a, double x)
@@ -134,7 +144,7 @@ static double sersic_gamma_cfrac(double a, double x)
 		if (fabs(del - 1.0) < 2.5e-16)
 			break;
 	}
-	return exp(a * log(x) - x - lgamma(a)) * h;
+	return exp(a * log(x) - x - sersic_lgamma(a)) * h;
 }
 
 static double sersic_gamma_p(double a, double x)
@@ -158,7 +168,7 @@ static double sersic_gamma_q(double a, double x)
 /* d P(a, x) / dx = x^(a-1) e^-x / Gamma(a). */
 static double sersic_gamma_pdf(double a, double x)
 {
-	return x > 0 ? exp((a - 1.0) * log(x) - x - lgamma(a)) : 0.0;
+	return x > 0 ? exp((a - 1.0) * log(x) - x - sersic_lgamma(a)) : 0.0;
 }
 
 /*
@@ -649,7 +659,7 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 	 * (Gamma(40) ~ 1e46), re = 0.01 and re = 1e300 stay in range: first
 	 * for the row's own re and q (the total of --sersic-flux ie), then for
 	 * the semi-axes the galaxy is drawn with. */
-	double lng = log(2 * M_PI * n) + lgamma(a) - a * log(b);
+	double lng = log(2 * M_PI * n) + sersic_lgamma(a) - a * log(b);
 	sersic_axes(re, q, &ra, &rb);
 	double lnk = lng + log(ra) + log(rb);
 

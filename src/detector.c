@@ -68,9 +68,16 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 	return 0;
 }
 
+struct strip_job {
+	const struct detector *d;
+	int sca, y0, ny, T;
+	double *const *tiles;
+	atomic_int failed;
+};
+
 static void detector_tile(void *arg, int wid, size_t tx)
 {
-	struct detector_job *j = arg;
+	struct strip_job *j = arg;
 	int x0 = (int)tx * j->T;
 	int nx = x0 + j->T > WFS_NPIX ? WFS_NPIX - x0 : j->T;
 	struct noise_opts no = j->d->noise;
@@ -105,37 +112,16 @@ static void detector_tile(void *arg, int wid, size_t tx)
 		atomic_store(&j->failed, 1);
 }
 
-void detector_strip_start(struct detector_job *j, const struct detector *d, struct pool *pool,
-			  int sca, int y0, int ny, double *const *tiles, int ntx, int T)
-{
-	j->d = d;
-	j->sca = sca;
-	j->y0 = y0;
-	j->ny = ny;
-	j->T = T;
-	j->tiles = tiles;
-	j->started = d->active;
-	atomic_init(&j->failed, 0);
-	if (j->started)
-		pool_start(pool, detector_tile, j, ntx);
-}
-
-int detector_strip_wait(struct detector_job *j, struct pool *pool)
-{
-	if (!j->started)
-		return 0;
-	pool_wait(pool);
-	j->started = 0;
-	return atomic_load(&j->failed) ? -1 : 0;
-}
-
 int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
 		   double *const *tiles, int ntx, int T)
 {
-	struct detector_job j;
+	struct strip_job j = { .d = d, .sca = sca, .y0 = y0, .ny = ny, .T = T, .tiles = tiles };
 
-	detector_strip_start(&j, d, pool, sca, y0, ny, tiles, ntx, T);
-	return detector_strip_wait(&j, pool);
+	if (!d->active)
+		return 0;
+	atomic_init(&j.failed, 0);
+	pool_run(pool, detector_tile, &j, ntx);
+	return atomic_load(&j.failed) ? -1 : 0;
 }
 
 void detector_level_setup(const struct detector *d, int sca, struct level_sca *L)

@@ -2,9 +2,8 @@
  * detector.h - the detector stage: what happens to the light the models
  * drew, after rendering and before the image is written.
  *
- * write.c hands each strip of tiles of an SCA to detector_strip_start() once
- * all catalog chunks are drawn, and writes the strip before while the pool
- * works on it.  How far the detector is simulated is the
+ * write.c hands each strip of tiles of an SCA to detector_strip() once all
+ * catalog chunks are drawn.  How far the detector is simulated is the
  * exposure's level; each level is a function of the drawn rates, the
  * options, the SCA and the absolute pixel coordinates only (never of the
  * tile size, tile order or thread count), so runs split by SCA or rows give
@@ -13,7 +12,6 @@
 #ifndef WFS_DETECTOR_H
 #define WFS_DETECTOR_H
 
-#include <stdatomic.h>
 #include <stddef.h>
 
 #include "instrument.h"
@@ -33,7 +31,7 @@ enum detector_level {
 	/* The detector read up the ramp (ramp.c, levels.c): the resultants of
 	 * the MA table as 16-bit DN (level 1), or their ramp fits (level 2).
 	 * The SCA is written by level_write_sca() instead of strip by strip
-	 * through detector_strip_start(). */
+	 * through detector_strip(). */
 	DETECTOR_L1 = 1,
 	DETECTOR_L2 = 2,
 };
@@ -79,21 +77,5 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
  */
 int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
 		   double *const *tiles, int ntx, int T);
-
-/* detector_strip() in two halves: _start hands the strip to the pool and
- * returns at once, so that the caller can write the strip before while it
- * runs; _wait waits for it (returns 0 or -1 as detector_strip).  j, tiles
- * and the tiles themselves must stay put until _wait returns, and nothing
- * else may use the pool in between. */
-struct detector_job {
-	const struct detector *d;
-	int sca, y0, ny, T;
-	double *const *tiles;
-	atomic_int failed;
-	int started;
-};
-void detector_strip_start(struct detector_job *j, const struct detector *d, struct pool *pool,
-			  int sca, int y0, int ny, double *const *tiles, int ntx, int T);
-int detector_strip_wait(struct detector_job *j, struct pool *pool);
 
 #endif

@@ -167,102 +167,12 @@ static ptrdiff_t first_nonfinite(const float *a, size_t n)
 	return -1;
 }
 
-/* The rows [*ya, *yb) of strip ty (tile rows y0 .. y0 + ny - 1) that are
- * written: all of them but with --rows. */
-static void strip_rows(const struct engine *g, int ty, int *y0, int *ny, int *ya, int *yb)
-{
-	int T = g->tile;
-
-	*y0 = ty * T;
-	*ny = *y0 + T > WFS_NPIX ? WFS_NPIX - *y0 : T;
-	*ya = g->ylo > *y0 ? g->ylo - *y0 : 0;
-	*yb = g->yhi < *y0 + *ny ? g->yhi - *y0 : *ny;
-}
-
-/* Count strip ty of slot s into the run's totals (the drawn light, before
- * any noise), give every tile memory when the detector stage needs it, and
- * start that stage on the pool. */
-static int strip_start(struct engine *g, int s, const struct detector *d, int ty,
-		       struct detector_job *job)
-{
-	int T = g->tile, y0, ny, ya, yb;
-	double **row = &g->slot[s].tile[ty * g->ntx];
-
-	strip_rows(g, ty, &y0, &ny, &ya, &yb);
-	for (int tx = 0; tx < g->ntx; tx++) {
-		int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
-
-		for (int y = ya; row[tx] && y < yb; y++)
-			for (int x = 0; x < nx; x++)
-				g->image_sum[g->slot[s].sca - 1] += row[tx][(size_t)y * T + x];
-	}
-	for (int tx = 0; tx < g->ntx; tx++)
-		g->tiles_drawn += row[tx] != NULL;
-	g->tiles += g->ntx;
-	if (d->active)
-		for (int tx = 0; tx < g->ntx; tx++)
-			if (!row[tx] && !(row[tx] = tile_alloc(T)))
-				return err_sys(g->e, "tile memory");
-	detector_strip_start(job, d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T);
-	return 0;
-}
-
-/* Strip ty of slot s as float rows into the image, then its tiles freed. */
-static int strip_write(struct engine *g, struct fitsout *f, int s, int ty, float *strip)
-{
-	int T = g->tile, y0, ny, ya, yb;
-	double **row = &g->slot[s].tile[ty * g->ntx];
-
-	strip_rows(g, ty, &y0, &ny, &ya, &yb);
-	for (int y = ya; y < yb; y++)
-		for (int tx = 0; tx < g->ntx; tx++) {
-			int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
-			float *out = strip + (size_t)(y - ya) * WFS_NPIX + x0;
-
-			if (row[tx])
-				for (int x = 0; x < nx; x++)
-					out[x] = (float)row[tx][(size_t)y * T + x];
-			else
-				memset(out, 0, nx * sizeof(float));
-		}
-	/* make_source bounds each source, but many sources on one pixel, or a
-	 * model that draws more than its flux or NaN, could still put an
-	 * infinity or NaN in the file. */
-	{
-		ptrdiff_t k = first_nonfinite(strip, (size_t)(yb - ya) * WFS_NPIX);
-		int px = (int)(k % WFS_NPIX) + 1, py = y0 + ya + (int)(k / WFS_NPIX) + 1;
-
-		if (k >= 0 && isnan(strip[k]))
-			return err_set(g->e, EXIT_PLUGIN, "WFI%02d: pixel x=%d, y=%d "
-				       "(1-based) is NaN: a source model drew a value "
-				       "that is not a number", g->slot[s].sca, px, py);
-		if (k >= 0)
-			return err_set(g->e, EXIT_INPUT, "WFI%02d: pixel x=%d, y=%d "
-				       "(1-based) is beyond the largest 32-bit float "
-				       "(3.4e38): the sources there sum to more than "
-				       "the image can hold", g->slot[s].sca, px, py);
-	}
-	if (fitsout_image_rows(f, strip, yb - ya, g->e) < 0)
-		return -1;
-	for (int tx = 0; tx < g->ntx; tx++) {
-		tile_free(row[tx], T);
-		row[tx] = NULL;
-	}
-	return 0;
-}
-
-/* Slot s as one image HDU, strip by strip: the detector stage of strip
- * ty + 1 runs on the pool while strip ty is converted and written on this
- * thread (each pixel's noise depends on its coordinates only, so the
- * bytes are those of one strip at a time). */
 static int write_slot(struct engine *g, struct fitsout *f, int s, const struct detector *d,
 		      float *strip)
 {
-	int T = g->tile, ty0 = g->ylo / T, ty1 = (g->yhi - 1) / T, rc = 0;
-	struct detector_job job = { .started = 0 };
+	int T = g->tile;
 	char *cards;
 	int ncards;
-	double t0;
 
 	if (image_cards(g, s, &cards, &ncards) < 0)
 		return -1;
@@ -271,27 +181,72 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, const struct d
 		return -1;
 	}
 	free(cards);
-	t0 = engine_clock();
-	rc = strip_start(g, s, d, ty0, &job);
-	for (int ty = ty0; rc == 0 && ty <= ty1; ty++) {
-		if (detector_strip_wait(&job, g->pool) < 0) {
-			rc = err_set(g->e, EXIT_SYSTEM, "noise stage failed");
-			break;
+	/* The strips of tiles that hold the rows written, [ylo, yhi): all of
+	 * them but with --rows. */
+	for (int ty = g->ylo / T; ty * T < g->yhi; ty++) {
+		int y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
+		int ya = g->ylo > y0 ? g->ylo - y0 : 0;
+		int yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
+		double **row = &g->slot[s].tile[ty * g->ntx];
+		double t0;
+
+		for (int tx = 0; tx < g->ntx; tx++) {
+			int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
+
+			for (int y = ya; row[tx] && y < yb; y++)
+				for (int x = 0; x < nx; x++)
+					g->image_sum[g->slot[s].sca - 1] += row[tx][(size_t)y * T + x];
 		}
-		if (ty < ty1 && (rc = strip_start(g, s, d, ty + 1, &job)) < 0)
-			break;
+		for (int tx = 0; tx < g->ntx; tx++)
+			g->tiles_drawn += row[tx] != NULL;
+		g->tiles += g->ntx;
+		t0 = engine_clock();
+		if (d->active) {
+			for (int tx = 0; tx < g->ntx; tx++)
+				if (!row[tx] && !(row[tx] = tile_alloc(T)))
+					return err_sys(g->e, "tile memory");
+			if (detector_strip(d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T) < 0)
+				return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
+		}
 		g->t_noise += engine_clock() - t0;
 		t0 = engine_clock();
-		rc = strip_write(g, f, s, ty, strip);
+		for (int y = ya; y < yb; y++)
+			for (int tx = 0; tx < g->ntx; tx++) {
+				int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+				float *out = strip + (size_t)(y - ya) * WFS_NPIX + x0;
+
+				if (row[tx])
+					for (int x = 0; x < nx; x++)
+						out[x] = (float)row[tx][(size_t)y * T + x];
+				else
+					memset(out, 0, nx * sizeof(float));
+			}
+		/* make_source bounds each source, but many sources on one
+		 * pixel, or a model that draws more than its flux or NaN,
+		 * could still put an infinity or NaN in the file. */
+		{
+			ptrdiff_t k = first_nonfinite(strip, (size_t)(yb - ya) * WFS_NPIX);
+			int px = (int)(k % WFS_NPIX) + 1, py = y0 + ya + (int)(k / WFS_NPIX) + 1;
+
+			if (k >= 0 && isnan(strip[k]))
+				return err_set(g->e, EXIT_PLUGIN, "WFI%02d: pixel x=%d, y=%d "
+					       "(1-based) is NaN: a source model drew a value "
+					       "that is not a number", g->slot[s].sca, px, py);
+			if (k >= 0)
+				return err_set(g->e, EXIT_INPUT, "WFI%02d: pixel x=%d, y=%d "
+					       "(1-based) is beyond the largest 32-bit float "
+					       "(3.4e38): the sources there sum to more than "
+					       "the image can hold", g->slot[s].sca, px, py);
+		}
+		if (fitsout_image_rows(f, strip, yb - ya, g->e) < 0)
+			return -1;
+		for (int tx = 0; tx < g->ntx; tx++) {
+			tile_free(row[tx], T);
+			row[tx] = NULL;
+		}
 		g->t_write += engine_clock() - t0;
-		t0 = engine_clock();
 		engine_progress(g, "writing", 0);
 	}
-	/* On an error the pool may still hold the next strip's tiles. */
-	if (detector_strip_wait(&job, g->pool) < 0 && rc == 0)
-		rc = err_set(g->e, EXIT_SYSTEM, "noise stage failed");
-	if (rc < 0)
-		return -1;
 	return fitsout_image_end(f, g->e);
 }
 

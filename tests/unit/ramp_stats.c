@@ -396,5 +396,39 @@ int main(void)
 		free(w);
 		free(s);
 	}
+	/* the fits of a row are those of its pixels one by one: clean ramps,
+	 * jumps (many cosmic rays), saturation and the NONLINEAR flag */
+	{
+		double *scr = malloc(RAMP_SCRATCH(ROW) * sizeof(double)), r[ROW];
+		uint16_t *w = malloc((size_t)p.nres * ROW * 2);
+		struct ramp_fit *a = malloc(ROW * sizeof(*a)), b;
+		struct ramp_fit_plan fp;
+		struct ramp_det c = d;
+		long differ = 0, fast = 0;
+
+		c.cosmic_rate = 0.1 / (2 * c.pixel_area * p.exptime);
+		if (ramp_fit_plan_init(&fp, &p, &c) < 0)
+			return 1;
+		ramp_scratch_init(scr);
+		for (int y = 0; y < 4; y++) {
+			for (int i = 0; i < ROW; i++)
+				r[i] = y < 2 ? 0.01 * pow(1e6, (double)i / ROW) : 0.5 + i % 7;
+			ramp_level1_row(&p, &c, &k, (uint32_t)(y * ROW), ROW, r, 1, w, ROW, scr);
+			ramp_fit_row(&fp, w, ROW, ROW, a);
+			for (int i = 0; i < ROW; i++) {
+				ramp_fit_pixel(&fp, w + i, ROW, &b);
+				differ += !(a[i].rate == b.rate && a[i].var_poisson == b.var_poisson &&
+					    a[i].var_rnoise == b.var_rnoise && a[i].dq == b.dq &&
+					    a[i].njump == b.njump && a[i].nuse == b.nuse);
+				fast += !b.dq;
+			}
+		}
+		ok(!differ, "a row's fits are its pixels' (%ld of %d differ; %ld clean)", differ,
+		   4 * ROW, fast);
+		ramp_fit_plan_free(&fp);
+		free(scr);
+		free(w);
+		free(a);
+	}
 	return done_testing();
 }

@@ -59,6 +59,11 @@
 #include "ramp.h"
 #include "rng.h"
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define RAMP_AVX2 1
+#endif
+
 enum {
 	DOM_RESET = 0x41,
 	DOM_CR = 0x42,
@@ -740,19 +745,103 @@ void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
 	level1(p, d, k, cell0, n, rate, 1, NULL, 0, ch, own, cplane, scratch);
 }
 
+/* IPC of one resultant at the pixels x0 .. x1-1 (none at the row's ends),
+ * kr[j] the kernel row ipc[j] that acts on the row src[j] (a row off the
+ * array: the centre row with a kernel row of zeros, which adds zeros, so
+ * the sums are those of ramp_level1_finish()'s edge pixels' order). */
+static void ipc_span(const double *const src[3], const double kr[3][3], const float *ow,
+		     double sat_e, double inv_g, int x0, int x1, uint16_t *dn)
+{
+	const double *a = src[0], *b = src[1], *c = src[2];
+
+	for (int x = x0; x < x1; x++) {
+		double v = kr[0][0] * a[x + 1] + kr[0][1] * a[x] + kr[0][2] * a[x - 1];
+
+		v += kr[1][0] * b[x + 1] + kr[1][1] * b[x] + kr[1][2] * b[x - 1];
+		v += kr[2][0] * c[x + 1] + kr[2][1] * c[x] + kr[2][2] * c[x - 1];
+		v += ow[x];
+		if (v > sat_e)
+			v = sat_e;
+		v = round_even(v * inv_g);
+		dn[x] = (uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+	}
+}
+
+#ifdef RAMP_AVX2
+/* ipc_span() eight pixels at a time with AVX2, the same operations in the
+ * same order (no fused multiply-add), so the same DN; returns the first
+ * pixel it left to the caller. */
+__attribute__((target("avx2"))) static int
+ipc_span_avx2(const double *const src[3], const double kr[3][3], const float *ow,
+	      double sat_e, double inv_g, int x0, int x1, uint16_t *dn)
+{
+	__m256d k[3][3], sat = _mm256_set1_pd(sat_e), ig = _mm256_set1_pd(inv_g);
+	__m256d zero = _mm256_setzero_pd(), top = _mm256_set1_pd(65535);
+	int x = x0;
+
+	for (int j = 0; j < 3; j++)
+		for (int i = 0; i < 3; i++)
+			k[j][i] = _mm256_set1_pd(kr[j][i]);
+	for (; x + 8 <= x1; x += 8) {
+		__m128i q[2];
+
+		for (int h = 0; h < 2; h++) {
+			int xh = x + 4 * h;
+			__m256d v = zero;
+
+			for (int j = 0; j < 3; j++) {
+				const double *r = src[j] + xh;
+				__m256d t = _mm256_add_pd(_mm256_mul_pd(k[j][0], _mm256_loadu_pd(r + 1)),
+							  _mm256_mul_pd(k[j][1], _mm256_loadu_pd(r)));
+
+				t = _mm256_add_pd(t, _mm256_mul_pd(k[j][2], _mm256_loadu_pd(r - 1)));
+				v = j ? _mm256_add_pd(v, t) : t;
+			}
+			v = _mm256_add_pd(v, _mm256_cvtps_pd(_mm_loadu_ps(ow + xh)));
+			v = _mm256_min_pd(v, sat);
+			v = _mm256_round_pd(_mm256_mul_pd(v, ig),
+					    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+			v = _mm256_min_pd(_mm256_max_pd(v, zero), top);
+			q[h] = _mm256_cvttpd_epi32(v);
+		}
+		_mm_storeu_si128((__m128i *)(dn + x), _mm_packus_epi32(q[0], q[1]));
+	}
+	return x;
+}
+#endif
+
 void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double *above,
 			const double *row, const double *below, const float *own,
 			size_t cplane, uint16_t *out, size_t plane)
 {
 	const double *rows[3] = { above, row, below };
-	double inv_g = 1 / d->gain, dnmax = 65535;
+	double inv_g = 1 / d->gain, dnmax = 65535, kr[3][3];
+	int avx2 = 0;
 
+#ifdef RAMP_AVX2
+	avx2 = __builtin_cpu_supports("avx2");
+#endif
+	/* kernel row dy + 1 acts on rows[1 - dy] */
+	for (int j = 0; j < 3; j++)
+		for (int i = 0; i < 3; i++)
+			kr[j][i] = rows[2 - j] ? d->ipc[j][i] : 0;
 	for (int gi = 0; gi < nres; gi++) {
 		size_t o = (size_t)gi * cplane;
 		const float *ow = own + o;
 		uint16_t *dn = out + (size_t)gi * plane;
+		const double *src[3];
+		int xa = 1;
 
-		for (int x = 0; x < n; x++) {
+		for (int j = 0; j < 3; j++)
+			src[j] = (rows[2 - j] ? rows[2 - j] : row) + o;
+#ifdef RAMP_AVX2
+		if (avx2 && n > 2)
+			xa = ipc_span_avx2(src, kr, ow, d->sat_e, inv_g, 1, n - 1, dn);
+#endif
+		if (xa < n - 1)
+			ipc_span(src, kr, ow, d->sat_e, inv_g, xa, n - 1, dn);
+		/* the two end pixels, where the kernel reaches off the row */
+		for (int x = 0; x < n; x += n - 1 > 0 ? n - 1 : 1) {
 			double v = 0;
 
 			/* the charge of pixel (x, y) is shared: pixel
@@ -765,14 +854,9 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 				if (!rr)
 					continue;
 				rr += o;
-				if (x > 0 && x + 1 < n) {
-					v += d->ipc[dy + 1][0] * rr[x + 1] + d->ipc[dy + 1][1] * rr[x] +
-					     d->ipc[dy + 1][2] * rr[x - 1];
-				} else {
-					for (int dx = -1; dx <= 1; dx++)
-						if (x - dx >= 0 && x - dx < n)
-							v += d->ipc[dy + 1][dx + 1] * rr[x - dx];
-				}
+				for (int dx = -1; dx <= 1; dx++)
+					if (x - dx >= 0 && x - dx < n)
+						v += d->ipc[dy + 1][dx + 1] * rr[x - dx];
 			}
 			v += ow[x];
 			if (v > d->sat_e)

@@ -293,7 +293,7 @@ static inline double round_even(double x)
 #define POIS_INV 32.0
 #define POIS_STEP 0.125
 #define POIS_TAB 128            /* F(k) for k < 128: 1 - F < 1e-30 at 32 */
-#define POIS_GUIDE 64
+#define POIS_GUIDE 256
 
 struct pois_tab {
 	double mu;              /* the mean tabulated, or -1 */
@@ -327,6 +327,9 @@ static inline int pois_lookup(const struct pois_tab *t, double u)
 {
 	int k = t->guide[(int)(u * POIS_GUIDE)];
 
+	/* one step without a branch: whether u is past the guide's k is
+	 * a coin toss for the predictor; a second step is rare */
+	k += u >= t->cdf[k];
 	while (u >= t->cdf[k])
 		k++;
 	return k;
@@ -448,8 +451,8 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 }
 
 /* The tables at the start of the scratch, in doubles. */
-#define RAMP_TABS ((RAMP_MAX_RES + 1) * 140)
-_Static_assert(sizeof(struct pois_tab) <= 140 * sizeof(double), "scratch tables");
+#define RAMP_TABS ((RAMP_MAX_RES + 1) * 170)
+_Static_assert(sizeof(struct pois_tab) <= 170 * sizeof(double), "scratch tables");
 
 void ramp_scratch_init(double *scratch)
 {

@@ -552,16 +552,36 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 }
 
 /*
- * W, the sum over a group of N reads of the arrivals in the group before
- * each, for Di arrivals: each arrival falls in one of the N reads, a slot
- * of 32 bits each, two from words 2-3 of the pixel's DOM_READ call wd,
- * further slots from its own DOM_SPLIT calls (gs); beyond exact_max
- * arrivals the normal of the sum (mean Di (N + 1) / 2, variance Di kvar)
- * from words 2-3 (gz for the ziggurat's slow cases).  Inline: it is the
- * body of level1_reads()'s pixel loop.
+ * The next base-N digit of a uniform 64-bit x: floor(x N / 2^64), x
+ * becoming the rest (x N mod 2^64).  The digits of x, taken so, are those
+ * of floor(x N^k / 2^64), which is uniform on 0 .. N^k - 1 but for a bias
+ * of at most N^k / 2^64: k independent uniform digits.  Two 32 x 32 bit
+ * products, exact (N < 2^32).
  */
-static inline double split_arrivals(double Di, int N, double kvar, double exact_max,
-				    const uint32_t wd[4], const struct rng *gs,
+static inline int next_digit(uint64_t *x, uint32_t N)
+{
+	uint64_t lo = (*x & 0xffffffff) * N, hi = (*x >> 32) * N + (lo >> 32);
+
+	*x = hi << 32 | (lo & 0xffffffff);
+	return (int)(hi >> 32);
+}
+
+/*
+ * W, the sum over a group of N reads of the arrivals in the group before
+ * each, for Di arrivals: each arrival falls in one of the N reads, a
+ * uniform digit of 0 .. N-1 (next_digit).  The digits come from the 64
+ * bits of words 2-3 of the pixel's DOM_READ call wd, per of them from
+ * each 64 bits (N^per <= 2^32, so that their bias stays below 2^-32;
+ * per >= 4 for N <= 256), further 64 bits from the pixel's own DOM_SPLIT
+ * calls (gs), two to a call.  Beyond exact_max arrivals the normal of the
+ * sum (mean Di (N + 1) / 2, variance Di kvar, its root sq[Di] below
+ * SPLIT_SQ) from words 2-3 (gz for the ziggurat's slow cases).  Inline:
+ * it is the body of level1_reads()'s pixel loop.
+ */
+#define SPLIT_SQ 64            /* sqrt(D kvar) tabulated for D below */
+
+static inline double split_arrivals(double Di, int N, int per, double kvar, const double *sq,
+				    double exact_max, const uint32_t wd[4], const struct rng *gs,
 				    const struct rng *gz, uint32_t cell)
 {
 	double W;
@@ -569,28 +589,40 @@ static inline double split_arrivals(double Di, int N, double kvar, double exact_
 	if (Di == 0 || N == 1) {
 		W = Di * N;
 	} else if (Di <= exact_max) {
-		uint32_t bits[4];
-		int nd = (int)Di;
+		uint64_t x = (uint64_t)wd[2] << 32 | wd[3];
+		int nd = (int)Di, sum = 0;
 
-		W = Di;
-		for (int q = 0; q < nd; q++) {
-			uint32_t x;
+		if (nd <= 4 && per >= 4) {
+			/* the common case in four steps, without a
+			 * branch on the count */
+			for (int q = 0; q < 4; q++) {
+				int dg = next_digit(&x, (uint32_t)N);
 
-			if (q < 2) {
-				x = wd[2 + q];
-			} else {
-				if (!((q - 2) & 3))
-					rng_bits(gs, cell, (uint32_t)((q - 2) >> 2), bits);
-				x = bits[(q - 2) & 3];
+				sum += q < nd ? dg : 0;
 			}
-			/* slot s of 0 .. N-1: the arrival in the
-			 * group's read s counts in N - 1 - s more */
-			W += N - 1 - (int)(((uint64_t)x * (uint64_t)N) >> 32);
+		} else {
+			uint32_t bits[4];
+
+			for (int q = 0; q < nd; q++) {
+				int word = q / per;
+
+				if (word && q % per == 0) {
+					if (word & 1)
+						rng_bits(gs, cell, (uint32_t)(word >> 1), bits);
+					x = (uint64_t)bits[(word & 1) ? 0 : 2] << 32 |
+					    bits[(word & 1) ? 1 : 3];
+				}
+				sum += next_digit(&x, (uint32_t)N);
+			}
 		}
+		/* the arrival in the group's read s (0 .. N-1) counts in
+		 * N - s of its reads */
+		W = Di * N - sum;
 	} else {
 		double zs = rng_normal_bits(gz, cell, wd[2], wd[3]);
+		double sd = Di < SPLIT_SQ ? sq[(int)Di] : sqrt(Di * kvar);
 
-		W = round_even(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs);
+		W = round_even(Di * (N + 1) / 2 + sd * zs);
 		if (W < Di)
 			W = Di;
 		if (W > Di * N)
@@ -620,7 +652,16 @@ static void level1_reads(struct l1row *R, int gi)
 	uint32_t cell0 = R->cell0, (*w)[4] = R->w;
 	int n = R->n, nh = R->nh, hp = 0;
 	struct rng g, gs, gz;
+	double sq[SPLIT_SQ];
+	int per = 1;
 
+	/* the split's normal: the square root of a count's variance, the
+	 * very one it would compute, without the wait for a root per pixel */
+	for (int q = 0; q < SPLIT_SQ; q++)
+		sq[q] = sqrt(q * kvar);
+	/* digits of 0 .. N-1 from 64 bits while N^per <= 2^32 */
+	for (double np = N; N > 1 && np * N <= 0x1p32; np *= N)
+		per++;
 	/*
 	 * One Philox call per pixel (domain DOM_READ) gives the read
 	 * noise (words 0-1, a ziggurat deviate) and the split of the
@@ -646,7 +687,7 @@ static void level1_reads(struct l1row *R, int gi)
 
 			/* W: the sum over the group's reads of the
 			 * arrivals in the group before each */
-			W = split_arrivals(Di, N, kvar, exact_max, w[j], &gs, &gz, cell);
+			W = split_arrivals(Di, N, per, kvar, sq, exact_max, w[j], &gs, &gz, cell);
 			/* a cosmic ray's charge counts from its read on
 			 * (the hits are in pixel order) */
 			for (; hp < nh && hits[hp].pix <= i; hp++)

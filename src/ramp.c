@@ -275,13 +275,15 @@ static inline double round_even(double x)
  * the sum of independent Poisson counts is a Poisson count of the summed
  * mean, so this is exact.  Each part is the inversion k = min{k : u < F(k)}
  * (rng_poisson_invert), a function of u and its mean alone.  The m0 part
- * is looked up in a table of F kept per group in the caller's scratch
- * across rows: a sky that varies from pixel to pixel (pixel areas, a
- * gradient) keeps m0 for runs of pixels, where a table of the exact mean
- * would be rebuilt at every pixel.  A guide table (Chen & Asau 1974) of
- * the first k with F(k) > j / POIS_GUIDE starts the search, so a lookup is
- * one or two comparisons.  The delta part is 0 unless u2 >= exp(-delta),
- * exp(-delta) being kept while delta repeats.
+ * is looked up in one of two tables of F kept per group in the caller's
+ * scratch across rows: a sky that varies from pixel to pixel (pixel areas,
+ * a gradient) keeps m0 for runs of pixels, where a table of the exact mean
+ * would be rebuilt at every pixel, and the second table keeps a star's
+ * pixels from throwing the sky's away.  A guide table (Chen & Asau 1974)
+ * of the first k with F(k) > j / POIS_GUIDE starts the search, so a lookup
+ * is one or two comparisons.  The delta part is 0 unless u2 >= exp(-delta)
+ * and 1 unless u2 >= F(1); bounds on both settle all but ~delta^2 / 2 of
+ * the draws without the exp.
  *
  * Means from POIS_INV to the normal limit go to rng_poisson_fill_approx
  * (PTRS, Hormann 1993, exact) on the same cells, a run of such pixels at a
@@ -340,6 +342,7 @@ static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *m
 {
 	uint32_t w[256][4];
 	double prev = -1, dlast = -1, edlast = 1;
+	int victim = t[0].mu == -1 ? 0 : 1;
 
 	for (int i0 = 0; i0 < n; i0 += 256) {
 		int m = n - i0 < 256 ? n - i0 : 256;
@@ -358,29 +361,53 @@ static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *m
 				double u = rng_u01(w[j][0], w[j][1]), k = 0;
 
 				if (m0 > 0) {
-					if (m0 != t->mu && m0 == prev)
-						pois_tabulate(t, m0);
-					if (m0 == t->mu && u < t->cdf[POIS_TAB - 1])
-						k = pois_lookup(t, u);
-					else
+					int h = m0 == t[0].mu ? 0 : m0 == t[1].mu ? 1 : -1;
+
+					/* a new mean that repeats gets the table
+					 * used less lately */
+					if (h < 0 && m0 == prev)
+						pois_tabulate(&t[h = victim], m0);
+					if (h >= 0) {
+						victim = 1 - h;
+						if (u < t[h].cdf[POIS_TAB - 1])
+							k = pois_lookup(&t[h], u);
+						else
+							k = rng_poisson_invert(u, m0, exp(-m0));
+					} else {
 						k = rng_poisson_invert(u, m0, exp(-m0));
+					}
 				}
 				prev = m0;
 				if (delta > 0) {
-					double u2 = rng_u01(w[j][2], w[j][3]);
+					double u2 = rng_u01(w[j][2], w[j][3]), d2 = delta * delta;
 
-					/* 1 - delta <= exp(-delta): below the
-					 * rounded 1 - delta, less 2^-51 for the
-					 * roundings of both sides, u2 < exp(-delta)
-					 * is sure and the count 0, without the
-					 * exp (1 - delta of the time) */
-					if (!(u2 < (1 - delta) * (1 - 0x1p-51))) {
-						if (delta != dlast) {
-							dlast = delta;
-							edlast = exp(-delta);
+					/*
+					 * For 0 < d < 1/8 the alternating
+					 * series of falling terms bound
+					 *   1 - d + d^2/2 - d^3/6 < exp(-d)
+					 *     < 1 - d + d^2/2,
+					 *   exp(-d) (1 + d) > 1 - d^2/2 + d^3/3 - d^4/8,
+					 * the last F(1), the probability of a
+					 * count of 0 or 1.  With 2^-50 for the
+					 * roundings of both sides (the exp's
+					 * and F(1)'s included), they give the
+					 * count 0 or 1 without the exp, which
+					 * only the rest (~d^2 / 2) needs.
+					 */
+					if (!(u2 < (1 - delta + d2 * (0.5 - delta * (1.0 / 6))) *
+						   (1 - 0x1p-50))) {
+						if (u2 >= (1 - delta + 0.5 * d2) * (1 + 0x1p-50) &&
+						    u2 < (1 - d2 * (0.5 - delta * (1.0 / 3) + d2 * 0.125)) *
+							 (1 - 0x1p-50)) {
+							k += 1;
+						} else {
+							if (delta != dlast) {
+								dlast = delta;
+								edlast = exp(-delta);
+							}
+							if (u2 >= edlast)
+								k += rng_poisson_invert(u2, delta, edlast);
 						}
-						if (u2 >= edlast)
-							k += rng_poisson_invert(u2, delta, edlast);
 					}
 				}
 				out[i] = k;
@@ -451,14 +478,14 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 }
 
 /* The tables at the start of the scratch, in doubles. */
-#define RAMP_TABS ((RAMP_MAX_RES + 1) * 170)
+#define RAMP_TABS ((RAMP_MAX_RES + 1) * 2 * 170)
 _Static_assert(sizeof(struct pois_tab) <= 170 * sizeof(double), "scratch tables");
 
 void ramp_scratch_init(double *scratch)
 {
 	struct pois_tab *t = (struct pois_tab *)scratch;
 
-	for (int i = 0; i <= RAMP_MAX_RES; i++)
+	for (int i = 0; i < 2 * (RAMP_MAX_RES + 1); i++)
 		t[i].mu = -1;
 }
 
@@ -478,7 +505,7 @@ struct l1row {
 	 * per pixel the rate r, the true charge S collected so far, the reset
 	 * level P, the means mu, the group's arrivals D, the reset level seen
 	 * through the NL Q, and w the read call of 256 pixels */
-	struct pois_tab *tabs;
+	struct pois_tab *tabs;  /* two per group */
 	double *r, *S, *P, *mu, *D, *Q;
 	uint32_t (*w)[4];
 	/* 0: the default 4; below 0: never exact (the normal for every split) */
@@ -524,14 +551,13 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 	const struct ramp_key *k = R->k;
 	int a = R->p->first[gi], N = R->p->last[gi] - a + 1, gap = a - prev - 1, n = R->n;
 	double dt = R->p->read_time, *r = R->r, *S = R->S, *mu = R->mu, *D = R->D;
-	int any = 0;
 	struct rng g;
 
 	if (gap > 0 && R->light) {
 		for (int i = 0; i < n; i++)
 			mu[i] = r[i] * gap * dt;
 		rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
-		pois_row(&g, R->cell0, n, mu, mu, &R->tabs[RAMP_MAX_RES], R->normal_above);
+		pois_row(&g, R->cell0, n, mu, mu, &R->tabs[2 * RAMP_MAX_RES], R->normal_above);
 		for (int i = 0; i < n; i++)
 			S[i] += mu[i];
 	}
@@ -540,12 +566,9 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 			S[R->hits[h].pix] += R->hits[h].e;
 	if (R->light) {
 		for (int i = 0; i < n; i++)
-			any |= (mu[i] = r[i] * N * dt) > 0;
+			mu[i] = r[i] * N * dt;
 		rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
-		if (any)
-			pois_row(&g, R->cell0, n, mu, D, &R->tabs[gi], R->normal_above);
-		else
-			memset(D, 0, (size_t)n * sizeof(*D));
+		pois_row(&g, R->cell0, n, mu, D, &R->tabs[2 * gi], R->normal_above);
 	} else {
 		memset(D, 0, (size_t)n * sizeof(*D));
 	}

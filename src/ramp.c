@@ -654,105 +654,246 @@ static inline double split_arrivals(double Di, int N, int per, double kvar, cons
 	return W;
 }
 
-/* Resultant gi of every pixel from its arrivals D: how they fall among
- * the group's reads, the cosmic rays within it, the non-linearity,
- * saturation and the read noise; as DN into out or split into ch and own.
- * The row's hot loop, kept whole in one function. */
+/* The constants of one group's reads, shared by level1_reads()'s paths. */
+struct l1grp {
+	int gi, a, b, N, per;
+	double sn, kvar, inv_n, bk, exact_max, inv_g;
+	double sq[SPLIT_SQ];
+	struct rng g, gs, gz;
+};
+
+/* Resultant gi of pixel i from its arrivals D[i] and its DOM_READ call w:
+ * how they fall among the group's reads, the cosmic rays within it (*hp
+ * the next hit, in pixel order), the non-linearity, saturation and the
+ * read noise; as DN into out or split into ch and own. */
+static inline void read_pixel(struct l1row *R, const struct l1grp *G, int i,
+			      const uint32_t w[4], int *hp)
+{
+	const struct ramp_det *d = R->d;
+	const struct cr_hit *hits = R->hits;
+	int a = G->a, b = G->b, N = G->N, nh = R->nh;
+	uint32_t cell = R->cell0 + (uint32_t)i;
+	double Di = R->D[i], W, s0 = R->P[i] + R->S[i], send, mm, nz, v;
+	double z = rng_normal_bits(&G->g, cell, w[0], w[1]);
+
+	/* W: the sum over the group's reads of the arrivals in the group
+	 * before each */
+	W = split_arrivals(Di, N, G->per, G->kvar, G->sq, G->exact_max, w, &G->gs, &G->gz, cell);
+	/* a cosmic ray's charge counts from its read on (the hits are in
+	 * pixel order) */
+	for (; *hp < nh && hits[*hp].pix <= i; ++*hp)
+		if (hits[*hp].pix == i && hits[*hp].read >= a && hits[*hp].read <= b) {
+			W += hits[*hp].e * (b - hits[*hp].read + 1);
+			Di += hits[*hp].e;
+		}
+	send = s0 + Di;
+	if (send < d->sat_true) {
+		mm = ramp_nl(d, s0 + W * G->inv_n) + G->bk * Di * Di;
+		nz = G->sn * z;
+	} else {
+		/* reads at saturation read the level exactly; the read noise
+		 * is that of the others */
+		int nfree = 0;
+
+		mm = 0;
+		for (int q = 1; q <= N; q++) {
+			double x = s0 + Di * q / N;
+
+			mm += ramp_nl(d, x);
+			nfree += x < d->sat_true;
+		}
+		mm *= G->inv_n;
+		nz = d->read_noise * sqrt((double)nfree) * z * G->inv_n;
+	}
+	R->S[i] += Di;
+	if (R->ch) {
+		size_t o = (size_t)G->gi * R->cplane + (size_t)i;
+
+		R->ch[o] = mm - R->Q[i];
+		R->own[o] = (float)(R->Q[i] + nz);
+		return;
+	}
+	v = mm + nz;
+	if (v > d->sat_e)
+		v = d->sat_e;
+	v = round_even(v * G->inv_g);
+	R->out[(size_t)G->gi * R->plane + (size_t)i] =
+		(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+}
+
+#ifdef RAMP_AVX2
+/*
+ * read_pixel() for the eight pixels i .. i+7, none hit by a cosmic ray,
+ * with AVX-512: the same operations in the same order on each lane (no
+ * fused multiply-add), so the same numbers.  A lane the common path does
+ * not cover (a ziggurat's slow case, a split of more digits than one
+ * number's or a count beyond the root table, a group reaching saturation)
+ * is left alone, its bit in the mask returned for read_pixel().
+ */
+__attribute__((target("avx512f,avx512dq"))) static unsigned
+read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[4])
+{
+	const struct ramp_det *d = R->d;
+	const __m512i ev = _mm512_set_epi64(14, 12, 10, 8, 6, 4, 2, 0);
+	const __m512i od = _mm512_set_epi64(15, 13, 11, 9, 7, 5, 3, 1);
+	const __m512i b8 = _mm512_set1_epi64(0xff), one = _mm512_set1_epi64(1);
+	const __m512d sgn = _mm512_set1_pd(-0.0), scale = _mm512_set1_pd(0x1p-52);
+	const double *zx = rng_zig_x;
+	int N = G->N;
+	__m512i lo4 = _mm512_loadu_si512(w[0]), hi4 = _mm512_loadu_si512(w[4]);
+	/* words 0:1 and 2:3 of each call as 64-bit numbers, word 0 high */
+	__m512i w01 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, ev, hi4), 32);
+	__m512i w23 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, od, hi4), 32);
+	__m512d Di = _mm512_loadu_pd(R->D + i), Nd = _mm512_set1_pd(N);
+	__m512d s0 = _mm512_add_pd(_mm512_loadu_pd(R->P + i), _mm512_loadu_pd(R->S + i));
+	__m512d z, W, mm, nz, x, zx0, zx1;
+	__m512i li;
+	__mmask8 bad, easy, exact, nrm;
+
+	/* the read noise's deviate (rng_normal_bits) */
+	li = _mm512_and_si512(w01, b8);
+	zx0 = _mm512_i64gather_pd(li, zx, 8);
+	zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
+	z = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w01, 11)), scale),
+			  zx0);
+	bad = _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, z), zx1, _CMP_NLT_UQ);
+	/* the split (split_arrivals): none to place, digits, or the normal */
+	easy = _mm512_cmp_pd_mask(Di, _mm512_setzero_pd(), _CMP_EQ_OQ) | (N == 1 ? 0xff : 0);
+	exact = ~easy & _mm512_cmp_pd_mask(Di, _mm512_set1_pd(G->exact_max), _CMP_LE_OQ);
+	nrm = ~easy & ~exact;
+	W = _mm512_mul_pd(Di, Nd);
+	if (exact) {
+		const __m512i nv = _mm512_set1_epi64(N), m32 = _mm512_set1_epi64(0xffffffff);
+		__m512i nd = _mm512_cvttpd_epi64(Di), sum = _mm512_setzero_si512(), xx = w23;
+
+		bad |= exact & (G->per < 4 ? 0xff : _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(4)));
+		for (int q = 0; q < 4; q++) {
+			__m512i lo = _mm512_mul_epu32(xx, nv);
+			__m512i hi = _mm512_add_epi64(_mm512_mul_epu32(_mm512_srli_epi64(xx, 32), nv),
+						      _mm512_srli_epi64(lo, 32));
+
+			xx = _mm512_or_si512(_mm512_slli_epi64(hi, 32), _mm512_and_si512(lo, m32));
+			sum = _mm512_mask_add_epi64(sum, _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(q)),
+						    sum, _mm512_srli_epi64(hi, 32));
+		}
+		W = _mm512_mask_sub_pd(W, exact, W, _mm512_cvtepi64_pd(sum));
+	}
+	if (nrm) {
+		__m512d zs, sd, c, lim = _mm512_set1_pd(SPLIT_SQ);
+		__m512i si;
+
+		li = _mm512_and_si512(w23, b8);
+		zx0 = _mm512_i64gather_pd(li, zx, 8);
+		zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
+		zs = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w23, 11)),
+						 scale), zx0);
+		bad |= nrm & _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, zs), zx1, _CMP_NLT_UQ);
+		bad |= nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_NLT_UQ);
+		si = _mm512_maskz_cvttpd_epi64(nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_LT_OQ), Di);
+		sd = _mm512_i64gather_pd(si, G->sq, 8);
+		c = _mm512_add_pd(_mm512_div_pd(_mm512_mul_pd(Di, _mm512_set1_pd(N + 1)),
+						_mm512_set1_pd(2)), _mm512_mul_pd(sd, zs));
+		/* round_even: to nearest, ties to even, below 2^51 */
+		c = _mm512_mask_roundscale_pd(c, _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, c),
+								    _mm512_set1_pd(0x1p51), _CMP_LT_OQ),
+					      c, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, Di, _CMP_LT_OQ), Di);
+		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, W, _CMP_GT_OQ), W);
+		W = _mm512_mask_mov_pd(W, nrm, c);
+	}
+	/* saturation within the group: read_pixel() */
+	bad |= _mm512_cmp_pd_mask(_mm512_add_pd(s0, Di), _mm512_set1_pd(d->sat_true), _CMP_NLT_UQ);
+	x = _mm512_add_pd(s0, _mm512_mul_pd(W, _mm512_set1_pd(G->inv_n)));
+	mm = _mm512_add_pd(x, _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(d->beta), x), x));
+	mm = _mm512_add_pd(mm, _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(G->bk), Di), Di));
+	nz = _mm512_mul_pd(_mm512_set1_pd(G->sn), z);
+	_mm512_mask_storeu_pd(R->S + i, ~bad, _mm512_add_pd(_mm512_loadu_pd(R->S + i), Di));
+	if (R->ch) {
+		size_t o = (size_t)G->gi * R->cplane + (size_t)i;
+		__m512d q = _mm512_loadu_pd(R->Q + i);
+
+		/* a bad lane's are written again by read_pixel() */
+		_mm512_storeu_pd(R->ch + o, _mm512_sub_pd(mm, q));
+		_mm256_storeu_ps(R->own + o, _mm512_cvtpd_ps(_mm512_add_pd(q, nz)));
+	} else {
+		__m512d v = _mm512_min_pd(_mm512_add_pd(mm, nz), _mm512_set1_pd(d->sat_e));
+
+		v = _mm512_roundscale_pd(_mm512_mul_pd(v, _mm512_set1_pd(G->inv_g)),
+					 _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+		v = _mm512_min_pd(_mm512_max_pd(v, _mm512_setzero_pd()), _mm512_set1_pd(65535));
+		_mm_storeu_si128((__m128i *)(R->out + (size_t)G->gi * R->plane + (size_t)i),
+				 _mm512_cvtepi64_epi16(_mm512_cvttpd_epi64(v)));
+	}
+	return bad;
+}
+#endif
+
+/* Resultant gi of every pixel from its arrivals D (read_pixel()), eight
+ * at a time where the machine has AVX-512.  The row's hot loop. */
 static void level1_reads(struct l1row *R, int gi)
 {
 	const struct ramp_det *d = R->d;
 	const struct ramp_key *k = R->k;
-	const struct cr_hit *hits = R->hits;
-	int a = R->p->first[gi], b = R->p->last[gi], N = b - a + 1;
-	double sn = d->read_noise / sqrt(N), kvar = (N * (double)N - 1) / 12, inv_n = 1.0 / N;
-	double bk = d->beta * kvar * inv_n * inv_n;
-	double exact_max = R->exact_max, inv_g = 1 / d->gain, dnmax = 65535;
-	double *S = R->S, *ch = R->ch, *Q = R->Q;
-	const double *P = R->P, *D = R->D;
-	float *own = R->own;
-	uint16_t *out = R->out;
-	size_t plane = R->plane, cplane = R->cplane;
+	struct l1grp G;
 	uint32_t cell0 = R->cell0, (*w)[4] = R->w;
-	int n = R->n, nh = R->nh, hp = 0;
-	struct rng g, gs, gz;
-	double sq[SPLIT_SQ];
-	int per = 1;
+	int n = R->n, nh = R->nh, hp = 0, wide = 0;
 
+	G.gi = gi;
+	G.a = R->p->first[gi];
+	G.b = R->p->last[gi];
+	G.N = G.b - G.a + 1;
+	G.sn = d->read_noise / sqrt(G.N);
+	G.kvar = (G.N * (double)G.N - 1) / 12;
+	G.inv_n = 1.0 / G.N;
+	G.bk = d->beta * G.kvar * G.inv_n * G.inv_n;
+	G.exact_max = R->exact_max;
+	G.inv_g = 1 / d->gain;
 	/* the split's normal: the square root of a count's variance, the
 	 * very one it would compute, without the wait for a root per pixel */
 	for (int q = 0; q < SPLIT_SQ; q++)
-		sq[q] = sqrt(q * kvar);
+		G.sq[q] = sqrt(q * G.kvar);
 	/* digits of 0 .. N-1 from 64 bits while N^per <= 2^32 */
-	for (double np = N; N > 1 && np * N <= 0x1p32; np *= N)
-		per++;
+	G.per = 1;
+	for (double np = G.N; G.N > 1 && np * G.N <= 0x1p32; np *= G.N)
+		G.per++;
 	/*
-	 * One Philox call per pixel (domain DOM_READ) gives the read
-	 * noise (words 0-1, a ziggurat deviate) and the split of the
-	 * group's arrivals among its reads (words 2-3): two slots of
-	 * 32 bits for up to two arrivals, further slots from the
-	 * pixel's own DOM_SPLIT calls, or the normal of the sum beyond
-	 * exact_max arrivals.  The ziggurat's rare slow cases take
-	 * numbers from DOM_READ (read noise) and DOM_SPLIT_N (split)
-	 * cells at draws 1, 2, ...
+	 * One Philox call per pixel (domain DOM_READ) gives the read noise
+	 * (words 0-1, a ziggurat deviate) and the split of the group's
+	 * arrivals among its reads (words 2-3): the digits of one 64-bit
+	 * number, more from the pixel's own DOM_SPLIT calls, or the normal
+	 * of the sum beyond exact_max arrivals.  The ziggurat's rare slow
+	 * cases take numbers from DOM_READ (read noise) and DOM_SPLIT_N
+	 * (split) cells at draws 1, 2, ...
 	 */
-	rng_init(&g, k->seed, domain(k, DOM_READ, gi));
-	rng_init(&gs, k->seed, domain(k, DOM_SPLIT, gi));
-	rng_init(&gz, k->seed, domain(k, DOM_SPLIT_N, gi));
+	rng_init(&G.g, k->seed, domain(k, DOM_READ, gi));
+	rng_init(&G.gs, k->seed, domain(k, DOM_SPLIT, gi));
+	rng_init(&G.gz, k->seed, domain(k, DOM_SPLIT_N, gi));
+#ifdef RAMP_AVX2
+	wide = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq");
+#endif
 	for (int i0 = 0; i0 < n; i0 += 256) {
-		int m = n - i0 < 256 ? n - i0 : 256;
+		int m = n - i0 < 256 ? n - i0 : 256, j = 0;
 
-		rng_bits_n(&g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
-		for (int j = 0; j < m; j++) {
+		rng_bits_n(&G.g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
+#ifdef RAMP_AVX2
+		/* eight at a time but where a cosmic ray hits */
+		for (; wide && j + 8 <= m; j += 8) {
 			int i = i0 + j;
-			uint32_t cell = cell0 + (uint32_t)i;
-			double Di = D[i], W, s0 = P[i] + S[i], send, mm, nz, v;
-			double z = rng_normal_bits(&g, cell, w[j][0], w[j][1]);
+			unsigned bad;
 
-			/* W: the sum over the group's reads of the
-			 * arrivals in the group before each */
-			W = split_arrivals(Di, N, per, kvar, sq, exact_max, w[j], &gs, &gz, cell);
-			/* a cosmic ray's charge counts from its read on
-			 * (the hits are in pixel order) */
-			for (; hp < nh && hits[hp].pix <= i; hp++)
-				if (hits[hp].pix == i && hits[hp].read >= a &&
-				    hits[hp].read <= b) {
-					W += hits[hp].e * (b - hits[hp].read + 1);
-					Di += hits[hp].e;
-				}
-			send = s0 + Di;
-			if (send < d->sat_true) {
-				mm = ramp_nl(d, s0 + W * inv_n) + bk * Di * Di;
-				nz = sn * z;
-			} else {
-				/* reads at saturation read the level exactly; the
-				 * read noise is that of the others */
-				int nfree = 0;
-
-				mm = 0;
-				for (int q = 1; q <= N; q++) {
-					double x = s0 + Di * q / N;
-
-					mm += ramp_nl(d, x);
-					nfree += x < d->sat_true;
-				}
-				mm *= inv_n;
-				nz = d->read_noise * sqrt((double)nfree) * z * inv_n;
-			}
-			S[i] += Di;
-			if (ch) {
-				size_t o = (size_t)gi * cplane + (size_t)i;
-
-				ch[o] = mm - Q[i];
-				own[o] = (float)(Q[i] + nz);
+			if (hp < nh && R->hits[hp].pix < i + 8) {
+				for (int q = 0; q < 8; q++)
+					read_pixel(R, &G, i + q, w[j + q], &hp);
 				continue;
 			}
-			v = mm + nz;
-			if (v > d->sat_e)
-				v = d->sat_e;
-			v = round_even(v * inv_g);
-			out[(size_t)gi * plane + (size_t)i] =
-				(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
+			bad = read8_avx512(R, &G, i, w + j);
+			for (int q = 0; bad; q++, bad >>= 1)
+				if (bad & 1)
+					read_pixel(R, &G, i + q, w[j + q], &hp);
 		}
+#endif
+		for (; j < m; j++)
+			read_pixel(R, &G, i0 + j, w[j], &hp);
 	}
 }
 

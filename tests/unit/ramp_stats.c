@@ -357,6 +357,14 @@ int main(void)
 		}
 		same = !memcmp(w, s, (size_t)p.nres * ROW * 2);
 		ok(same, "a row cut in pieces gives the same resultants");
+		/* pieces of 7 pixels go one by one, never eight at a time */
+		for (int x = 0; x < ROW; x += 7) {
+			int n = ROW - x < 7 ? ROW - x : 7;
+
+			ramp_level1_row(&p, &d, &k, 8192 + x, n, r + x, 1, s + x, ROW, scr);
+		}
+		ok(!memcmp(w, s, (size_t)p.nres * ROW * 2),
+		   "pixels one by one give the resultants of eight at a time");
 		free(scr);
 		free(w);
 		free(s);

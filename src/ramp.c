@@ -300,7 +300,7 @@ static inline double round_even(double x)
 struct pois_tab {
 	double mu;              /* the mean tabulated, or -1 */
 	double cdf[POIS_TAB];
-	unsigned char guide[POIS_GUIDE];
+	unsigned char guide[POIS_GUIDE + 8];  /* 8 more: read 8 bytes at a time */
 };
 
 #define POIS_TAB_DOUBLES ((sizeof(struct pois_tab) + sizeof(double) - 1) / sizeof(double))
@@ -337,13 +337,192 @@ static inline int pois_lookup(const struct pois_tab *t, double u)
 	return k;
 }
 
+/* What pois_row() carries from pixel to pixel: the last m0, the table to
+ * rebuild next, and exp(-delta) of the last delta that needed it. */
+struct pois_state {
+	double prev, dlast, edlast;
+	int victim;
+};
+
+/* The count of the rest 0 < delta < 1/8 from the uniform u2. */
+static inline double pois_rest(double delta, double u2, struct pois_state *st)
+{
+	double d2 = delta * delta;
+
+	/*
+	 * For 0 < d < 1/8 the alternating series of falling terms bound
+	 *   1 - d + d^2/2 - d^3/6 < exp(-d) < 1 - d + d^2/2,
+	 *   exp(-d) (1 + d) > 1 - d^2/2 + d^3/3 - d^4/8,
+	 * the last F(1), the probability of a count of 0 or 1.  With 2^-50
+	 * for the roundings of both sides (the exp's and F(1)'s included),
+	 * they give the count 0 or 1 without the exp, which only the rest
+	 * (~d^2 / 2) needs.
+	 */
+	if (u2 < (1 - delta + d2 * (0.5 - delta * (1.0 / 6))) * (1 - 0x1p-50))
+		return 0;
+	if (u2 >= (1 - delta + 0.5 * d2) * (1 + 0x1p-50) &&
+	    u2 < (1 - d2 * (0.5 - delta * (1.0 / 3) + d2 * 0.125)) * (1 - 0x1p-50))
+		return 1;
+	if (delta != st->dlast) {
+		st->dlast = delta;
+		st->edlast = exp(-delta);
+	}
+	return u2 >= st->edlast ? rng_poisson_invert(u2, delta, st->edlast) : 0;
+}
+
+/* The count of a mean 0 < v < POIS_INV from its call w (t: the group's two
+ * tables). */
+static inline double pois_small(double v, const uint32_t w[4], struct pois_tab *t,
+				struct pois_state *st)
+{
+	/* 0 < v < 32: truncation is floor, without a call */
+	double m0 = (double)(int)(v * (1 / POIS_STEP)) * POIS_STEP;
+	double delta = v - m0;
+	double u = rng_u01(w[0], w[1]), k = 0;
+
+	if (m0 > 0) {
+		int h = m0 == t[0].mu ? 0 : m0 == t[1].mu ? 1 : -1;
+
+		/* a new mean that repeats gets the table used less lately */
+		if (h < 0 && m0 == st->prev)
+			pois_tabulate(&t[h = st->victim], m0);
+		if (h >= 0) {
+			st->victim = 1 - h;
+			if (u < t[h].cdf[POIS_TAB - 1])
+				k = pois_lookup(&t[h], u);
+			else
+				k = rng_poisson_invert(u, m0, exp(-m0));
+		} else {
+			k = rng_poisson_invert(u, m0, exp(-m0));
+		}
+	}
+	st->prev = m0;
+	if (delta > 0)
+		k += pois_rest(delta, rng_u01(w[2], w[3]), st);
+	return k;
+}
+
+#ifdef RAMP_AVX2
+/*
+ * pois_small() for the eight means v[0..8) with AVX-512, when each is
+ * below POIS_INV and its m0 is 0 or one of the two tables' (the sky's):
+ * the table lookups by gathers, the rest's count 0 or 1 from the same
+ * bounds, the rest's exact count (rare) by pois_rest().  The same counts
+ * into out; returns 0, having done nothing, when the eight do not qualify.
+ */
+__attribute__((target("avx512f,avx512dq"))) static int
+pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
+	     struct pois_state *st, double *out)
+{
+	const __m512i ev = _mm512_set_epi64(14, 12, 10, 8, 6, 4, 2, 0);
+	const __m512i od = _mm512_set_epi64(15, 13, 11, 9, 7, 5, 3, 1);
+	const __m512i one = _mm512_set1_epi64(1), zero = _mm512_setzero_si512();
+	const __m512d u53 = _mm512_set1_pd(0x1p-53), c1 = _mm512_set1_pd(1);
+	const long long stride = (long long)sizeof(struct pois_tab);
+	__m512d x = _mm512_loadu_pd(v), m0, delta, u, u2, d2, kd;
+	__m512i lo4, hi4, w01, w23, k, off, gidx;
+	__mmask8 h1, lit, more, rest, slow = 0;
+	double rests[8];
+
+	if (_mm512_cmp_pd_mask(x, _mm512_setzero_pd(), _CMP_GT_OQ) != 0xff ||
+	    _mm512_cmp_pd_mask(x, _mm512_set1_pd(POIS_INV), _CMP_LT_OQ) != 0xff)
+		return 0;
+	m0 = _mm512_mul_pd(_mm512_cvtepi32_pd(_mm512_cvttpd_epi32(
+				   _mm512_mul_pd(x, _mm512_set1_pd(1 / POIS_STEP)))),
+			   _mm512_set1_pd(POIS_STEP));
+	lit = _mm512_cmp_pd_mask(m0, _mm512_setzero_pd(), _CMP_GT_OQ);
+	h1 = _mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[1].mu), _CMP_EQ_OQ);
+	if ((lit & ~(_mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[0].mu), _CMP_EQ_OQ) | h1)) != 0)
+		return 0;
+	h1 &= ~_mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[0].mu), _CMP_EQ_OQ);
+	lo4 = _mm512_loadu_si512(w[0]);
+	hi4 = _mm512_loadu_si512(w[4]);
+	w01 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, ev, hi4), 32);
+	w23 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, od, hi4), 32);
+	u = _mm512_mul_pd(_mm512_cvtepu64_pd(_mm512_srli_epi64(w01, 11)), u53);
+	/* the table of each lane: its offset from t[0] in bytes */
+	off = _mm512_mask_mov_epi64(zero, h1, _mm512_set1_epi64(stride));
+	{
+		__m512d top = _mm512_mask_mov_pd(_mm512_set1_pd(t[0].cdf[POIS_TAB - 1]), h1,
+						 _mm512_set1_pd(t[1].cdf[POIS_TAB - 1]));
+
+		slow = lit & _mm512_cmp_pd_mask(u, top, _CMP_NLT_UQ);
+	}
+	gidx = _mm512_cvttpd_epi64(_mm512_mul_pd(u, _mm512_set1_pd(POIS_GUIDE)));
+	k = _mm512_and_si512(_mm512_i64gather_epi64(_mm512_add_epi64(off, gidx), t[0].guide, 1),
+			     _mm512_set1_epi64(0xff));
+	k = _mm512_maskz_mov_epi64(lit & ~slow, k);
+	/* the search from the guide's k: u >= F(k) steps on */
+	more = lit & ~slow;
+	while (more) {
+		__m512i ci = _mm512_add_epi64(_mm512_srli_epi64(off, 3), k);
+		__m512d f = _mm512_mask_i64gather_pd(c1, more, ci, t[0].cdf, 8);
+
+		more &= _mm512_cmp_pd_mask(u, f, _CMP_GE_OQ);
+		k = _mm512_mask_add_epi64(k, more, k, one);
+	}
+	kd = _mm512_cvtepi64_pd(k);
+	/* the rest */
+	delta = _mm512_sub_pd(x, m0);
+	rest = _mm512_cmp_pd_mask(delta, _mm512_setzero_pd(), _CMP_GT_OQ);
+	if (rest) {
+		__m512d l0, u0, l1;
+		__mmask8 z, o;
+
+		u2 = _mm512_mul_pd(_mm512_cvtepu64_pd(_mm512_srli_epi64(w23, 11)), u53);
+		d2 = _mm512_mul_pd(delta, delta);
+		l0 = _mm512_add_pd(_mm512_sub_pd(c1, delta),
+				   _mm512_mul_pd(d2, _mm512_sub_pd(_mm512_set1_pd(0.5),
+								   _mm512_mul_pd(delta, _mm512_set1_pd(1.0 / 6)))));
+		l0 = _mm512_mul_pd(l0, _mm512_set1_pd(1 - 0x1p-50));
+		u0 = _mm512_add_pd(_mm512_sub_pd(c1, delta), _mm512_mul_pd(_mm512_set1_pd(0.5), d2));
+		u0 = _mm512_mul_pd(u0, _mm512_set1_pd(1 + 0x1p-50));
+		l1 = _mm512_add_pd(_mm512_sub_pd(_mm512_set1_pd(0.5),
+						 _mm512_mul_pd(delta, _mm512_set1_pd(1.0 / 3))),
+				   _mm512_mul_pd(d2, _mm512_set1_pd(0.125)));
+		l1 = _mm512_mul_pd(_mm512_sub_pd(c1, _mm512_mul_pd(d2, l1)),
+				   _mm512_set1_pd(1 - 0x1p-50));
+		z = rest & _mm512_cmp_pd_mask(u2, l0, _CMP_LT_OQ);
+		o = rest & ~z & _mm512_cmp_pd_mask(u2, u0, _CMP_GE_OQ) &
+		    _mm512_cmp_pd_mask(u2, l1, _CMP_LT_OQ);
+		kd = _mm512_mask_add_pd(kd, o, kd, c1);
+		rest &= ~z & ~o;
+		if (rest)
+			_mm512_storeu_pd(rests, u2);
+	}
+	_mm512_storeu_pd(out, kd);
+	/* the lanes left: the table's top passed (the inversion), the rest's
+	 * exact count; in pixel order, as pois_small() would */
+	for (int q = 0; q < 8 && (slow | rest); q++) {
+		double mq = (double)(int)(v[q] * (1 / POIS_STEP)) * POIS_STEP;
+
+		if (slow >> q & 1)
+			out[q] += rng_poisson_invert(rng_u01(w[q][0], w[q][1]), mq, exp(-mq));
+		if (rest >> q & 1)
+			out[q] += pois_rest(v[q] - mq, rests[q], st);
+	}
+	/* as pois_small() leaves them after the eighth */
+	st->prev = m0[7];
+	if (lit) {
+		int q = 31 - __builtin_clz(lit);
+
+		st->victim = 1 - (h1 >> q & 1);
+	}
+	return 1;
+}
+#endif
+
 static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
 		     double *out, struct pois_tab *t, double normal_above)
 {
 	uint32_t w[256][4];
-	double prev = -1, dlast = -1, edlast = 1;
-	int victim = t[0].mu == -1 ? 0 : 1;
+	struct pois_state st = { .prev = -1, .dlast = -1, .edlast = 1,
+				 .victim = t[0].mu == -1 ? 0 : 1 };
+	int wide = 0;
 
+#ifdef RAMP_AVX2
+	wide = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq");
+#endif
 	for (int i0 = 0; i0 < n; i0 += 256) {
 		int m = n - i0 < 256 ? n - i0 : 256;
 
@@ -352,65 +531,17 @@ static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *m
 			int i = i0 + j;
 			double v = mu[i];
 
+#ifdef RAMP_AVX2
+			if (wide && !(j & 7) && j + 8 <= m &&
+			    pois8_avx512(mu + i, w + j, t, &st, out + i)) {
+				j += 7;
+				continue;
+			}
+#endif
 			if (!(v > 0)) {
 				out[i] = 0;
 			} else if (v < POIS_INV) {
-				/* 0 < v < 32: truncation is floor, without a call */
-				double m0 = (double)(int)(v * (1 / POIS_STEP)) * POIS_STEP;
-				double delta = v - m0;
-				double u = rng_u01(w[j][0], w[j][1]), k = 0;
-
-				if (m0 > 0) {
-					int h = m0 == t[0].mu ? 0 : m0 == t[1].mu ? 1 : -1;
-
-					/* a new mean that repeats gets the table
-					 * used less lately */
-					if (h < 0 && m0 == prev)
-						pois_tabulate(&t[h = victim], m0);
-					if (h >= 0) {
-						victim = 1 - h;
-						if (u < t[h].cdf[POIS_TAB - 1])
-							k = pois_lookup(&t[h], u);
-						else
-							k = rng_poisson_invert(u, m0, exp(-m0));
-					} else {
-						k = rng_poisson_invert(u, m0, exp(-m0));
-					}
-				}
-				prev = m0;
-				if (delta > 0) {
-					double u2 = rng_u01(w[j][2], w[j][3]), d2 = delta * delta;
-
-					/*
-					 * For 0 < d < 1/8 the alternating
-					 * series of falling terms bound
-					 *   1 - d + d^2/2 - d^3/6 < exp(-d)
-					 *     < 1 - d + d^2/2,
-					 *   exp(-d) (1 + d) > 1 - d^2/2 + d^3/3 - d^4/8,
-					 * the last F(1), the probability of a
-					 * count of 0 or 1.  With 2^-50 for the
-					 * roundings of both sides (the exp's
-					 * and F(1)'s included), they give the
-					 * count 0 or 1 without the exp, which
-					 * only the rest (~d^2 / 2) needs.
-					 */
-					if (!(u2 < (1 - delta + d2 * (0.5 - delta * (1.0 / 6))) *
-						   (1 - 0x1p-50))) {
-						if (u2 >= (1 - delta + 0.5 * d2) * (1 + 0x1p-50) &&
-						    u2 < (1 - d2 * (0.5 - delta * (1.0 / 3) + d2 * 0.125)) *
-							 (1 - 0x1p-50)) {
-							k += 1;
-						} else {
-							if (delta != dlast) {
-								dlast = delta;
-								edlast = exp(-delta);
-							}
-							if (u2 >= edlast)
-								k += rng_poisson_invert(u2, delta, edlast);
-						}
-					}
-				}
-				out[i] = k;
+				out[i] = pois_small(v, w[j], t, &st);
 			} else if (v >= normal_above) {
 				out[i] = rng_poisson_normal(v, rng_normal_bits(g, cell0 + (uint32_t)i,
 									       w[j][0], w[j][1]));

@@ -1517,6 +1517,79 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
  * ramp_fit_pixel(); otherwise the numbers are the very ones it computes:
  * the same operations in the same order.
  */
+#ifdef RAMP_AVX2
+/*
+ * ramp_fit_row()'s common case for the eight pixels dn[0..8) with
+ * AVX-512: the same operations in the same order on each lane, so the
+ * same numbers.  Returns the lanes it leaves to ramp_fit_pixel() (out of
+ * range, or a jump).
+ */
+__attribute__((target("avx512f,avx512dq"))) static unsigned
+fit8_avx512(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t plane, int lim,
+	    double vb, struct ramp_fit *out)
+{
+	static const double edge2[5] = { 25, 100, 400, 2500, 10000 };
+	int nres = fp->nres;
+	__m512d s[RAMP_MAX_RES], sig, var, s2, f, fj, zero = _mm512_setzero_pd();
+	__m512i pi = _mm512_setzero_si512(), one = _mm512_set1_epi64(1), wi;
+	__mmask8 bad = 0;
+	double rate[8], vr[8], vp[8];
+
+	for (int i = 0; i < nres; i++) {
+		__m512i v = _mm512_cvtepu16_epi64(_mm_loadu_si128((const __m128i *)(dn + (size_t)i *
+										    plane)));
+
+		bad |= _mm512_cmplt_epi64_mask(v, one) |
+		       _mm512_cmpge_epi64_mask(v, _mm512_set1_epi64(lim));
+		s[i] = _mm512_i64gather_pd(v, fp->nlinv, 8);
+	}
+	if (bad == 0xff)
+		return bad;
+	sig = _mm512_sub_pd(s[nres - 1], s[0]);
+	sig = _mm512_mask_mov_pd(sig, _mm512_cmp_pd_mask(sig, zero, _CMP_LT_OQ), zero);
+	/* power_index(): how many edges the snr^2 is not below */
+	var = _mm512_add_pd(sig, _mm512_set1_pd(vb));
+	s2 = _mm512_mul_pd(sig, sig);
+	for (int e = 0; e < 5; e++)
+		pi = _mm512_mask_add_epi64(pi, _mm512_cmp_pd_mask(s2, _mm512_mul_pd(
+						   _mm512_set1_pd(edge2[e]), var), _CMP_NLT_UQ), pi, one);
+	f = zero;
+	if (_mm512_cmpeq_epi64_mask(pi, _mm512_set1_epi64(pi[0])) == 0xff) {
+		/* one power for the eight (a sky): its weights as they are */
+		const double *w = fp->w[pi[0]];
+
+		for (int i = 0; i < nres; i++)
+			f = _mm512_add_pd(f, _mm512_mul_pd(_mm512_set1_pd(w[i]), s[i]));
+	} else {
+		wi = _mm512_mullo_epi64(pi, _mm512_set1_epi64(RAMP_MAX_RES));
+		for (int i = 0; i < nres; i++)
+			f = _mm512_add_pd(f, _mm512_mul_pd(_mm512_i64gather_pd(
+					  _mm512_add_epi64(wi, _mm512_set1_epi64(i)), fp->w[0], 8), s[i]));
+	}
+	fj = _mm512_mask_mov_pd(f, _mm512_cmp_pd_mask(f, zero, _CMP_LT_OQ), zero);
+	for (int i = 0; i + 1 < nres; i++) {
+		__m512d r = _mm512_sub_pd(_mm512_sub_pd(s[i + 1], s[i]),
+					  _mm512_mul_pd(fj, _mm512_set1_pd(fp->dtbar[i])));
+		__m512d vr = _mm512_add_pd(_mm512_set1_pd(fp->vdiff[i]),
+					   _mm512_mul_pd(fj, _mm512_set1_pd(fp->cdiff[i])));
+
+		bad |= _mm512_cmp_pd_mask(r, zero, _CMP_GT_OQ) &
+		       _mm512_cmp_pd_mask(_mm512_mul_pd(r, r),
+					  _mm512_mul_pd(_mm512_set1_pd(fp->jump2), vr), _CMP_GT_OQ);
+	}
+	_mm512_storeu_pd(rate, f);
+	_mm512_storeu_pd(vr, _mm512_i64gather_pd(pi, fp->vr, 8));
+	_mm512_storeu_pd(vp, _mm512_mul_pd(_mm512_i64gather_pd(pi, fp->vp, 8),
+					   _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(f, zero, _CMP_GT_OQ),
+							       f)));
+	for (int q = 0; q < 8; q++)
+		if (!(bad >> q & 1))
+			out[q] = (struct ramp_fit){ .rate = rate[q], .var_rnoise = vr[q],
+						    .var_poisson = vp[q], .nuse = nres };
+	return bad;
+}
+#endif
+
 void ramp_fit_row(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t plane, int n,
 		  struct ramp_fit *out)
 {
@@ -1526,8 +1599,19 @@ void ramp_fit_row(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t pla
 	/* resultants v in 1 .. lim - 1 raise no flag and saturate nothing */
 	int lim = sat_dn < fp->nl_dn ? (int)sat_dn : fp->nl_dn;
 	double vb = fp->var_read[0] + fp->var_read[nres - 1], jump2 = fp->jump2;
+	int x = 0;
 
-	for (int x = 0; x < n; x++) {
+#ifdef RAMP_AVX2
+	if (nres >= 2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq"))
+		for (; x + 8 <= n; x += 8) {
+			unsigned bad = fit8_avx512(fp, dn + x, plane, lim, vb, out + x);
+
+			for (int q = 0; bad; q++, bad >>= 1)
+				if (bad & 1)
+					ramp_fit_pixel(fp, dn + x + q, plane, &out[x + q]);
+		}
+#endif
+	for (; x < n; x++) {
 		double s[RAMP_MAX_RES], sig, f, fj;
 		const double *w;
 		int ok = nres >= 2, pi, jump = 0;

@@ -452,8 +452,21 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
 	k = _mm512_and_si512(_mm512_i64gather_epi64(_mm512_add_epi64(off, gidx), t[0].guide, 1),
 			     _mm512_set1_epi64(0xff));
 	k = _mm512_maskz_mov_epi64(lit & ~slow, k);
-	/* the search from the guide's k: u >= F(k) steps on */
+	/* the search from the guide's k: u >= F(k) steps on; the first two
+	 * steps' F together (F(k + 1) counts only past F(k): F rises, and
+	 * the guide's k may be the table's last, below the top) */
 	more = lit & ~slow;
+	if (more) {
+		__m512i ci = _mm512_add_epi64(_mm512_srli_epi64(off, 3), k);
+		__m512d f0 = _mm512_mask_i64gather_pd(c1, more, ci, t[0].cdf, 8);
+		__m512d f1 = _mm512_mask_i64gather_pd(c1, more, _mm512_add_epi64(ci, one),
+						      t[0].cdf, 8);
+		__mmask8 a = more & _mm512_cmp_pd_mask(u, f0, _CMP_GE_OQ);
+
+		k = _mm512_mask_add_epi64(k, a, k, one);
+		more = a & _mm512_cmp_pd_mask(u, f1, _CMP_GE_OQ);
+		k = _mm512_mask_add_epi64(k, more, k, one);
+	}
 	while (more) {
 		__m512i ci = _mm512_add_epi64(_mm512_srli_epi64(off, 3), k);
 		__m512d f = _mm512_mask_i64gather_pd(c1, more, ci, t[0].cdf, 8);

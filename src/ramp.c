@@ -892,7 +892,7 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 	__m512d s0 = _mm512_add_pd(_mm512_loadu_pd(R->P + i), _mm512_loadu_pd(R->S + i));
 	__m512d z, W, mm, nz, x, zx0, zx1;
 	__m512i li;
-	__mmask8 bad, easy, exact, nrm;
+	__mmask8 bad = 0, badz, easy, exact, nrm;
 
 	/* the read noise's deviate (rng_normal_bits) */
 	li = _mm512_and_si512(w01, b8);
@@ -900,7 +900,7 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 	zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
 	z = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w01, 11)), scale),
 			  zx0);
-	bad = _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, z), zx1, _CMP_NLT_UQ);
+	badz = _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, z), zx1, _CMP_NLT_UQ);
 	/* the split (split_arrivals): none to place, digits, or the normal */
 	easy = _mm512_cmp_pd_mask(Di, _mm512_setzero_pd(), _CMP_EQ_OQ) | (N == 1 ? 0xff : 0);
 	exact = ~easy & _mm512_cmp_pd_mask(Di, _mm512_set1_pd(G->exact_max), _CMP_LE_OQ);
@@ -967,6 +967,34 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 		v = _mm512_min_pd(_mm512_max_pd(v, _mm512_setzero_pd()), _mm512_set1_pd(65535));
 		_mm_storeu_si128((__m128i *)(R->out + (size_t)G->gi * R->plane + (size_t)i),
 				 _mm512_cvtepi64_epi16(_mm512_cvttpd_epi64(v)));
+	}
+	/* a lane whose only slow case is the read noise's deviate: that
+	 * deviate alone, as read_pixel() would draw it, into what it
+	 * changes (the charge does not hold it) */
+	badz &= ~bad;
+	if (badz) {
+		double mq[8];
+
+		_mm512_storeu_pd(mq, mm);
+		for (int q = 0; q < 8; q++) {
+			double zq, v;
+
+			if (!(badz >> q & 1))
+				continue;
+			zq = rng_normal_bits(&G->g, R->cell0 + (uint32_t)(i + q), w[q][0], w[q][1]);
+			if (R->ch) {
+				size_t o = (size_t)G->gi * R->cplane + (size_t)(i + q);
+
+				R->own[o] = (float)(R->Q[i + q] + G->sn * zq);
+				continue;
+			}
+			v = mq[q] + G->sn * zq;
+			if (v > d->sat_e)
+				v = d->sat_e;
+			v = round_even(v * G->inv_g);
+			R->out[(size_t)G->gi * R->plane + (size_t)(i + q)] =
+				(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+		}
 	}
 	return bad;
 }

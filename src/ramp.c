@@ -295,7 +295,8 @@ static inline double round_even(double x)
 #define POIS_INV 32.0
 #define POIS_STEP 0.125
 #define POIS_TAB 128            /* F(k) for k < 128: 1 - F < 1e-30 at 32 */
-#define POIS_GUIDE 256
+#define POIS_GUIDE 1024
+#define POIS_PAST 0x80          /* guide flag: u may pass the guide's k */
 
 struct pois_tab {
 	double mu;              /* the mean tabulated, or -1 */
@@ -308,7 +309,7 @@ struct pois_tab {
 static void pois_tabulate(struct pois_tab *t, double mu)
 {
 	double pk = exp(-mu), f = pk;
-	int k = 0;
+	int k, j = 0;
 
 	/* the same products as rng_poisson_invert, so the same counts */
 	t->mu = mu;
@@ -318,16 +319,34 @@ static void pois_tabulate(struct pois_tab *t, double mu)
 		f += pk;
 		t->cdf[n] = f;
 	}
-	for (int j = 0; j < POIS_GUIDE; j++) {
-		while (k < POIS_TAB - 1 && t->cdf[k] <= (double)j / POIS_GUIDE)
-			k++;
-		t->guide[j] = (unsigned char)k;
+	/* guide j: the first k with F(k) > j / POIS_GUIDE, the least count
+	 * of a u in [j, j + 1) / POIS_GUIDE; bit 7 (POIS_PAST) when F(k) <
+	 * (j + 1) / POIS_GUIDE, where such a u may pass it (without, the
+	 * count is k) */
+	/* by runs: the j with j / G < F(k) are those below ceil(F(k) G)
+	 * (G a power of 2, so exactly), and of the run of k only its last
+	 * bucket can hold F(k), unless F(k) G is a whole number */
+	for (k = 0; k < POIS_TAB - 1 && j < POIS_GUIDE; k++) {
+		double c = t->cdf[k] * POIS_GUIDE, e = ceil(c);
+		int end = e < POIS_GUIDE ? (int)e : POIS_GUIDE;
+
+		if (end <= j)
+			continue;
+		memset(t->guide + j, k, (size_t)(end - j));
+		if (c < end)
+			t->guide[end - 1] |= POIS_PAST;
+		j = end;
 	}
+	/* past F(POIS_TAB - 2): the table's last count */
+	for (; j < POIS_GUIDE; j++)
+		t->guide[j] = (unsigned char)((POIS_TAB - 1) |
+					      (t->cdf[POIS_TAB - 1] < (double)(j + 1) / POIS_GUIDE ?
+					       POIS_PAST : 0));
 }
 
 static inline int pois_lookup(const struct pois_tab *t, double u)
 {
-	int k = t->guide[(int)(u * POIS_GUIDE)];
+	int k = t->guide[(int)(u * POIS_GUIDE)] & (POIS_PAST - 1);
 
 	/* one step without a branch: whether u is past the guide's k is
 	 * a coin toss for the predictor; a second step is rare */
@@ -449,13 +468,13 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
 		slow = lit & _mm512_cmp_pd_mask(u, top, _CMP_NLT_UQ);
 	}
 	gidx = _mm512_cvttpd_epi64(_mm512_mul_pd(u, _mm512_set1_pd(POIS_GUIDE)));
-	k = _mm512_and_si512(_mm512_i64gather_epi64(_mm512_add_epi64(off, gidx), t[0].guide, 1),
-			     _mm512_set1_epi64(0xff));
-	k = _mm512_maskz_mov_epi64(lit & ~slow, k);
-	/* the search from the guide's k: u >= F(k) steps on; the first two
-	 * steps' F together (F(k + 1) counts only past F(k): F rises, and
-	 * the guide's k may be the table's last, below the top) */
-	more = lit & ~slow;
+	k = _mm512_i64gather_epi64(_mm512_add_epi64(off, gidx), t[0].guide, 1);
+	/* the search from the guide's k, where it is flagged: u >= F(k)
+	 * steps on; the first two steps' F together (F(k + 1) counts only
+	 * past F(k): F rises, and the guide's k may be the table's last,
+	 * below the top) */
+	more = lit & ~slow & _mm512_test_epi64_mask(k, _mm512_set1_epi64(POIS_PAST));
+	k = _mm512_maskz_and_epi64(lit & ~slow, k, _mm512_set1_epi64(POIS_PAST - 1));
 	if (more) {
 		__m512i ci = _mm512_add_epi64(_mm512_srli_epi64(off, 3), k);
 		__m512d f0 = _mm512_mask_i64gather_pd(c1, more, ci, t[0].cdf, 8);
@@ -622,8 +641,8 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 }
 
 /* The tables at the start of the scratch, in doubles. */
-#define RAMP_TABS ((RAMP_MAX_RES + 1) * 2 * 170)
-_Static_assert(sizeof(struct pois_tab) <= 170 * sizeof(double), "scratch tables");
+#define RAMP_TABS ((RAMP_MAX_RES + 1) * 2 * 260)
+_Static_assert(sizeof(struct pois_tab) <= 260 * sizeof(double), "scratch tables");
 
 void ramp_scratch_init(double *scratch)
 {

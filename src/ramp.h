@@ -109,7 +109,7 @@ struct ramp_key {
  * out[r * plane + i].  No IPC: see ramp_level1_charge().  scratch:
  * RAMP_SCRATCH(n) doubles.  Thread-safe.
  */
-#define RAMP_SCRATCH(n) ((size_t)(n) * 6 + 512 + (RAMP_MAX_RES + 1) * 2 * 170)
+#define RAMP_SCRATCH(n) ((size_t)(n) * 6 + 512 + (RAMP_MAX_RES + 1) * 2 * 260)
 /* Before its first use, scratch must be set up by ramp_scratch_init() (it
  * keeps tables across calls; they change the speed, never the numbers). */
 void ramp_scratch_init(double *scratch);

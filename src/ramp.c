@@ -441,7 +441,7 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
 	__m512d x = _mm512_loadu_pd(v), m0, delta, u, u2, d2, kd;
 	__m512i lo4, hi4, w01, w23, k, off, gidx;
 	__mmask8 h1, lit, more, rest, slow = 0;
-	double rests[8];
+	double rests[8], vq[8];
 
 	if (_mm512_cmp_pd_mask(x, _mm512_setzero_pd(), _CMP_GT_OQ) != 0xff ||
 	    _mm512_cmp_pd_mask(x, _mm512_set1_pd(POIS_INV), _CMP_LT_OQ) != 0xff)
@@ -522,16 +522,18 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
 		if (rest)
 			_mm512_storeu_pd(rests, u2);
 	}
+	/* out may be v (the gap's counts replace their means) */
+	_mm512_storeu_pd(vq, x);
 	_mm512_storeu_pd(out, kd);
 	/* the lanes left: the table's top passed (the inversion), the rest's
 	 * exact count; in pixel order, as pois_small() would */
 	for (int q = 0; q < 8 && (slow | rest); q++) {
-		double mq = (double)(int)(v[q] * (1 / POIS_STEP)) * POIS_STEP;
+		double mq = (double)(int)(vq[q] * (1 / POIS_STEP)) * POIS_STEP;
 
 		if (slow >> q & 1)
 			out[q] += rng_poisson_invert(rng_u01(w[q][0], w[q][1]), mq, exp(-mq));
 		if (rest >> q & 1)
-			out[q] += pois_rest(v[q] - mq, rests[q], st);
+			out[q] += pois_rest(vq[q] - mq, rests[q], st);
 	}
 	/* as pois_small() leaves them after the eighth */
 	st->prev = m0[7];

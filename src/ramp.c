@@ -711,6 +711,34 @@ static void level1_start(struct l1row *R, const double *rate)
  * the previous group (the last read prev), Poisson counts and cosmic rays;
  * into D the Poisson count of each pixel's arrivals during the group's
  * reads, which level1_reads() spreads over them. */
+#ifdef RAMP_AVX2
+__attribute__((target("avx512f"))) static int
+scale_row_avx512(const double *r, double a, double b, double *out, int n)
+{
+	int i = 0;
+
+	for (; i + 8 <= n; i += 8)
+		_mm512_storeu_pd(out + i, _mm512_mul_pd(_mm512_mul_pd(_mm512_loadu_pd(r + i),
+								      _mm512_set1_pd(a)),
+							_mm512_set1_pd(b)));
+	return i;
+}
+#endif
+
+/* out[i] = r[i] a b, the products in that order (eight at a time where
+ * the machine can: the same numbers). */
+static void scale_row(const double *r, double a, double b, double *out, int n)
+{
+	int i = 0;
+
+#ifdef RAMP_AVX2
+	if (__builtin_cpu_supports("avx512f"))
+		i = scale_row_avx512(r, a, b, out, n);
+#endif
+	for (; i < n; i++)
+		out[i] = r[i] * a * b;
+}
+
 static void level1_arrivals(struct l1row *R, int gi, int prev)
 {
 	const struct ramp_key *k = R->k;
@@ -719,8 +747,7 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 	struct rng g;
 
 	if (gap > 0 && R->light) {
-		for (int i = 0; i < n; i++)
-			mu[i] = r[i] * gap * dt;
+		scale_row(r, gap, dt, mu, n);
 		rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
 		pois_row(&g, R->cell0, n, mu, mu, &R->tabs[2 * RAMP_MAX_RES], R->normal_above);
 		for (int i = 0; i < n; i++)
@@ -730,8 +757,7 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 		if (R->hits[h].read > prev && R->hits[h].read < a)
 			S[R->hits[h].pix] += R->hits[h].e;
 	if (R->light) {
-		for (int i = 0; i < n; i++)
-			mu[i] = r[i] * N * dt;
+		scale_row(r, N, dt, mu, n);
 		rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
 		pois_row(&g, R->cell0, n, mu, D, &R->tabs[2 * gi], R->normal_above);
 	} else {
@@ -1019,6 +1045,19 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 	}
 	return bad;
 }
+
+/* sq[q] = sqrt(q kvar) for q < SPLIT_SQ, eight at a time. */
+__attribute__((target("avx512f,avx512dq"))) static void sq_avx512(double *sq, double kvar)
+{
+	_Static_assert(SPLIT_SQ % 8 == 0, "root table in eights");
+	for (int q = 0; q < SPLIT_SQ; q += 8) {
+		__m512i qi = _mm512_add_epi64(_mm512_set1_epi64(q),
+					      _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0));
+
+		_mm512_storeu_pd(sq + q, _mm512_sqrt_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(qi),
+								       _mm512_set1_pd(kvar))));
+	}
+}
 #endif
 
 /* Resultant gi of every pixel from its arrivals D (read_pixel()), eight
@@ -1041,10 +1080,19 @@ static void level1_reads(struct l1row *R, int gi)
 	G.bk = d->beta * G.kvar * G.inv_n * G.inv_n;
 	G.exact_max = R->exact_max;
 	G.inv_g = 1 / d->gain;
+#ifdef RAMP_AVX2
+	wide = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq");
+#endif
 	/* the split's normal: the square root of a count's variance, the
-	 * very one it would compute, without the wait for a root per pixel */
-	for (int q = 0; q < SPLIT_SQ; q++)
-		G.sq[q] = sqrt(q * G.kvar);
+	 * very one it would compute, without the wait for a root per pixel
+	 * (eight at a time where the machine can: the same roots) */
+#ifdef RAMP_AVX2
+	if (wide)
+		sq_avx512(G.sq, G.kvar);
+	else
+#endif
+		for (int q = 0; q < SPLIT_SQ; q++)
+			G.sq[q] = sqrt(q * G.kvar);
 	/* digits of 0 .. N-1 from 64 bits while N^per <= 2^32 */
 	G.per = 1;
 	for (double np = G.N; G.N > 1 && np * G.N <= 0x1p32; np *= G.N)
@@ -1061,9 +1109,6 @@ static void level1_reads(struct l1row *R, int gi)
 	rng_init(&G.g, k->seed, domain(k, DOM_READ, gi));
 	rng_init(&G.gs, k->seed, domain(k, DOM_SPLIT, gi));
 	rng_init(&G.gz, k->seed, domain(k, DOM_SPLIT_N, gi));
-#ifdef RAMP_AVX2
-	wide = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq");
-#endif
 	for (int i0 = 0; i0 < n; i0 += 256) {
 		int m = n - i0 < 256 ? n - i0 : 256, j = 0;
 

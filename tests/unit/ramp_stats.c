@@ -458,7 +458,11 @@ int main(void)
 			for (int i = 0; i < ROW; i++)
 				r[i] = y < 2 ? 0.01 * pow(1e6, (double)i / ROW) : 0.5 + i % 7;
 			ramp_level1_row(&p, &c, &k, (uint32_t)(y * ROW), ROW, r, 1, w, ROW, scr);
-			ramp_fit_row(&fp, w, ROW, ROW, a);
+			/* the first half eight at a time, the second in pieces
+			 * of 7, one by one */
+			ramp_fit_row(&fp, w, ROW, ROW / 2, a);
+			for (int x = ROW / 2; x < ROW; x += 7)
+				ramp_fit_row(&fp, w + x, ROW, ROW - x < 7 ? ROW - x : 7, a + x);
 			for (int i = 0; i < ROW; i++) {
 				ramp_fit_pixel(&fp, w + i, ROW, &b);
 				differ += !(a[i].rate == b.rate && a[i].var_poisson == b.var_poisson &&

@@ -219,15 +219,16 @@ philox16_avx2(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t out[1
  * the 32 x 32 -> 64 bit multiplication then gives a lane's high and low
  * words with no shuffling (the upper halves carry junk that the next
  * multiplication ignores and the end drops), and one ternary-logic step
- * XORs three words.  NSET sets of eight calls go through the rounds side
- * by side, so that one set's multiplications run while another's wait:
- * 16 * PHILOX_SETS / 2 calls at a time.  The same integers as rng_philox,
- * chosen at run time as philox16_avx2 is.
+ * XORs three words.  PHILOX_SETS sets of eight calls go through the
+ * rounds side by side, so that one set's multiplications run while
+ * another's wait (the loops unrolled, the words in registers).  The same
+ * integers as rng_philox, chosen at run time as philox16_avx2 is.
  */
-#define PHILOX_SETS 4
+#define PHILOX_SETS 6
 
-__attribute__((target("avx512f"))) static void
-philox_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out)[4])
+__attribute__((target("avx512f"), always_inline)) static inline void
+philox_sets_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out)[4],
+		   int nsets)
 {
 	const __m512i m0 = _mm512_set1_epi64(PHILOX_M0), m1 = _mm512_set1_epi64(PHILOX_M1);
 	const __m512i lo = _mm512_set_epi64(11, 3, 10, 2, 9, 1, 8, 0);
@@ -235,8 +236,8 @@ philox_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out
 	__m512i c[PHILOX_SETS][4];
 	uint32_t k0 = g->key[0], k1 = g->key[1];
 
-#pragma GCC unroll 4
-	for (int h = 0; h < PHILOX_SETS; h++) {
+#pragma GCC unroll 6
+	for (int h = 0; h < nsets; h++) {
 		c[h][0] = _mm512_add_epi64(_mm512_set1_epi64(cell0 + 8 * h),
 					   _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0));
 		c[h][1] = _mm512_set1_epi64(draw);
@@ -247,8 +248,8 @@ philox_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out
 	for (int r = 0; r < 10; r++) {
 		__m512i k0v = _mm512_set1_epi64(k0), k1v = _mm512_set1_epi64(k1);
 
-#pragma GCC unroll 4
-		for (int h = 0; h < PHILOX_SETS; h++) {
+#pragma GCC unroll 6
+		for (int h = 0; h < nsets; h++) {
 			__m512i p0 = _mm512_mul_epu32(c[h][0], m0), p1 = _mm512_mul_epu32(c[h][2], m1);
 
 			/* 0x96: the XOR of the three operands */
@@ -264,14 +265,27 @@ philox_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out
 	}
 	/* words 0 and 1 of a call side by side in a 64-bit lane, so are
 	 * 2 and 3; then the lanes of the two interleaved into calls */
-#pragma GCC unroll 4
-	for (int h = 0; h < PHILOX_SETS; h++) {
+#pragma GCC unroll 6
+	for (int h = 0; h < nsets; h++) {
 		__m512i w01 = _mm512_mask_blend_epi32(0xaaaa, c[h][0], _mm512_slli_epi64(c[h][1], 32));
 		__m512i w23 = _mm512_mask_blend_epi32(0xaaaa, c[h][2], _mm512_slli_epi64(c[h][3], 32));
 
 		_mm512_storeu_si512(out[8 * h], _mm512_permutex2var_epi64(w01, lo, w23));
 		_mm512_storeu_si512(out[8 * h + 4], _mm512_permutex2var_epi64(w01, hi, w23));
 	}
+}
+
+/* 8 * PHILOX_SETS calls, and 16 for what is left of a row. */
+__attribute__((target("avx512f"))) static void
+philox_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out)[4])
+{
+	philox_sets_avx512(g, cell0, draw, out, PHILOX_SETS);
+}
+
+__attribute__((target("avx512f"))) static void
+philox16_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out)[4])
+{
+	philox_sets_avx512(g, cell0, draw, out, 2);
 }
 #endif
 
@@ -281,9 +295,12 @@ void rng_bits_n(const struct rng *g, uint32_t cell0, uint32_t draw, size_t n,
 	size_t i = 0;
 
 #ifdef RNG_AVX2
-	if (n >= 8 * PHILOX_SETS && __builtin_cpu_supports("avx512f"))
+	if (n >= 16 && __builtin_cpu_supports("avx512f")) {
 		for (; i + 8 * PHILOX_SETS <= n; i += 8 * PHILOX_SETS)
 			philox_avx512(g, cell0 + (uint32_t)i, draw, out + i);
+		for (; i + 16 <= n; i += 16)
+			philox16_avx512(g, cell0 + (uint32_t)i, draw, out + i);
+	}
 	if (n - i >= 16 && __builtin_cpu_supports("avx2"))
 		for (; i + 16 <= n; i += 16)
 			philox16_avx2(g, cell0 + (uint32_t)i, draw, out + i);

@@ -11,6 +11,7 @@
 #include "err.h"
 #include "geometry.h"
 #include "instrument.h"
+#include "simd.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -620,7 +621,7 @@ void geom_area_row(const struct geom_sca *g, int y, int x0, int n, double *area)
 	nominal = WFS_PIXSCALE * WFS_PIXSCALE;
 	u0 = x0 + 1 - ap->xref;
 #ifdef GEOM_AVX512
-	if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq"))
+	if (simd_flags() & SIMD_AVX512)
 		i0 = area_avx512(c, u0, nominal, n, area);
 #endif
 	for (int i = i0; i < n; i++) {

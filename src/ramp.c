@@ -58,6 +58,7 @@
 #include "err.h"
 #include "ramp.h"
 #include "rng.h"
+#include "simd.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -555,7 +556,7 @@ static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *m
 	int wide = 0;
 
 #ifdef RAMP_AVX2
-	wide = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq");
+	wide = (simd_flags() & SIMD_AVX512) != 0;
 #endif
 	for (int i0 = 0; i0 < n; i0 += 256) {
 		int m = n - i0 < 256 ? n - i0 : 256;
@@ -732,7 +733,7 @@ static void scale_row(const double *r, double a, double b, double *out, int n)
 	int i = 0;
 
 #ifdef RAMP_AVX2
-	if (__builtin_cpu_supports("avx512f"))
+	if (simd_flags() & SIMD_AVX512)
 		i = scale_row_avx512(r, a, b, out, n);
 #endif
 	for (; i < n; i++)
@@ -1081,7 +1082,7 @@ static void level1_reads(struct l1row *R, int gi)
 	G.exact_max = R->exact_max;
 	G.inv_g = 1 / d->gain;
 #ifdef RAMP_AVX2
-	wide = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq");
+	wide = (simd_flags() & SIMD_AVX512) != 0;
 #endif
 	/* the split's normal: the square root of a count's variance, the
 	 * very one it would compute, without the wait for a root per pixel
@@ -1265,7 +1266,7 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 	int avx2 = 0;
 
 #ifdef RAMP_AVX2
-	avx2 = __builtin_cpu_supports("avx2");
+	avx2 = (simd_flags() & SIMD_AVX2) != 0;
 #endif
 	/* kernel row dy + 1 acts on rows[1 - dy] */
 	for (int j = 0; j < 3; j++)
@@ -1709,7 +1710,7 @@ void ramp_fit_row(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t pla
 	int x = 0;
 
 #ifdef RAMP_AVX2
-	if (nres >= 2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq"))
+	if (nres >= 2 && (simd_flags() & SIMD_AVX512))
 		for (; x + 8 <= n; x += 8) {
 			unsigned bad = fit8_avx512(fp, dn + x, plane, lim, vb, out + x);
 

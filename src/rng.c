@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "rng.h"
+#include "simd.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -295,13 +296,13 @@ void rng_bits_n(const struct rng *g, uint32_t cell0, uint32_t draw, size_t n,
 	size_t i = 0;
 
 #ifdef RNG_AVX2
-	if (n >= 16 && __builtin_cpu_supports("avx512f")) {
+	if (n >= 16 && (simd_flags() & SIMD_AVX512)) {
 		for (; i + 8 * PHILOX_SETS <= n; i += 8 * PHILOX_SETS)
 			philox_avx512(g, cell0 + (uint32_t)i, draw, out + i);
 		for (; i + 16 <= n; i += 16)
 			philox16_avx512(g, cell0 + (uint32_t)i, draw, out + i);
 	}
-	if (n - i >= 16 && __builtin_cpu_supports("avx2"))
+	if (n - i >= 16 && (simd_flags() & SIMD_AVX2))
 		for (; i + 16 <= n; i += 16)
 			philox16_avx2(g, cell0 + (uint32_t)i, draw, out + i);
 #endif
@@ -670,7 +671,7 @@ void rng_poisson_fill_approx(const struct rng *g, uint32_t cell0, size_t n,
 	}
 	if (nptrs) {
 #ifdef RNG_AVX2
-		if (__builtin_cpu_supports("avx2"))
+		if (simd_flags() & SIMD_AVX2)
 			ptrs_first_avx2(&q, n);
 		else
 #endif

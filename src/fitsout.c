@@ -376,6 +376,16 @@ static int wzeros(struct fitsout *f, size_t n, struct err *e)
 	return 0;
 }
 
+/* u with its bytes in big-endian order in memory. */
+static inline uint32_t swap32(uint32_t u)
+{
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+	return u;
+#else
+	return (u >> 24) | (u >> 8 & 0xff00) | (u << 8 & 0xff0000) | u << 24;
+#endif
+}
+
 /* Floats as big-endian IEEE-754, converted straight into the buffer. */
 static int wfloats(struct fitsout *f, const float *v, size_t n, struct err *e)
 {
@@ -904,13 +914,12 @@ int fitsout_group_rows(struct fitsout *f, int k, int plane, long y0, int nrows,
 		const uint32_t *v = data;
 		uint32_t flip = g->bitpix == 32 ? 0x80000000u : 0;
 
+		/* big-endian words by the byte swap, in a loop simple enough
+		 * to run several words at a time */
 		for (size_t i = 0; i < n; i++) {
-			uint32_t u = v[i] ^ flip;
+			uint32_t u = swap32(v[i] ^ flip);
 
-			f->gbuf[4 * i] = (unsigned char)(u >> 24);
-			f->gbuf[4 * i + 1] = (unsigned char)(u >> 16);
-			f->gbuf[4 * i + 2] = (unsigned char)(u >> 8);
-			f->gbuf[4 * i + 3] = (unsigned char)u;
+			memcpy(f->gbuf + 4 * i, &u, 4);
 		}
 	}
 	off = g->data_off + (((long long)plane * g->ny + y0) * g->nx) * (long long)bp;

@@ -11,6 +11,12 @@
 #include "err.h"
 #include "geometry.h"
 #include "instrument.h"
+#include "simd.h"
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define GEOM_AVX512 1
+#endif
 
 #define D2R (M_PI / 180.0)
 #define AS2R (M_PI / 180.0 / 3600.0)
@@ -571,10 +577,36 @@ static void row_jacobian(const struct geom_aperture *ap, double v, double d[4][G
 		}
 }
 
+#ifdef GEOM_AVX512
+/* The Horner loop of geom_area_row() for eight pixels at a time: the same
+ * operations in the same order on each, so the same areas.  Returns the
+ * pixels done. */
+__attribute__((target("avx512f,avx512dq"))) static int
+area_avx512(const double *c, double u0, double nominal, int n, double *area)
+{
+	const __m512i step = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+	const __m512d sgn = _mm512_set1_pd(-0.0);
+	int i = 0;
+
+	for (; i + 8 <= n; i += 8) {
+		__m512d u = _mm512_add_pd(_mm512_set1_pd(u0), _mm512_cvtepi64_pd(
+						  _mm512_add_epi64(_mm512_set1_epi64(i), step)));
+		__m512d s = _mm512_set1_pd(c[2 * GEOM_DEG - 2]);
+
+		for (int k = 2 * GEOM_DEG - 3; k >= 0; k--)
+			s = _mm512_add_pd(_mm512_mul_pd(s, u), _mm512_set1_pd(c[k]));
+		_mm512_storeu_pd(area + i, _mm512_div_pd(_mm512_andnot_pd(sgn, s),
+							 _mm512_set1_pd(nominal)));
+	}
+	return i;
+}
+#endif
+
 void geom_area_row(const struct geom_sca *g, int y, int x0, int n, double *area)
 {
 	const struct geom_aperture *ap = g->ap;
 	double d[4][GEOM_DEG], c[2 * GEOM_DEG - 1] = { 0 }, u0, nominal;
+	int i0 = 0;
 
 	if (g->kind == GEOM_STIPS) {
 		for (int i = 0; i < n; i++)
@@ -588,7 +620,11 @@ void geom_area_row(const struct geom_sca *g, int y, int x0, int n, double *area)
 			c[p + q] += d[0][p] * d[3][q] - d[1][p] * d[2][q];
 	nominal = WFS_PIXSCALE * WFS_PIXSCALE;
 	u0 = x0 + 1 - ap->xref;
-	for (int i = 0; i < n; i++) {
+#ifdef GEOM_AVX512
+	if (simd_flags() & SIMD_AVX512)
+		i0 = area_avx512(c, u0, nominal, n, area);
+#endif
+	for (int i = i0; i < n; i++) {
 		double u = u0 + i, s = c[2 * GEOM_DEG - 2];
 
 		for (int k = 2 * GEOM_DEG - 3; k >= 0; k--)

@@ -119,20 +119,25 @@ static void strip_row(void *arg, int wid, size_t ctask)
 	ramp_level1_row(p, L->det, &L->key, cell0 + BORDER + WFS_NPIX, BORDER, NULL, 0,
 			out + BORDER + WFS_NPIX, plane, scr);
 	if (L->level == LEVEL_2) {
-		size_t o = task * WFS_NPIX;
+		struct ramp_fit fit[256];
 
-		for (int x = 0; x < WFS_NPIX; x++) {
-			struct ramp_fit f;
-			int dnu;
+		for (int x0 = 0; x0 < WFS_NPIX; x0 += 256) {
+			int m = WFS_NPIX - x0 < 256 ? WFS_NPIX - x0 : 256;
+			size_t o = task * WFS_NPIX + (size_t)x0;
 
-			ramp_fit_pixel(s->fp, out + BORDER + x, FRAME, &f);
-			dnu = !!(f.dq & RAMP_DO_NOT_USE);
-			/* the pipeline's dark step: the mean dark current out */
-			s->rt[o + x] = dnu ? 0 : (float)(f.rate - L->det->dark);
-			s->er[o + x] = (float)sqrt(f.var_poisson + f.var_rnoise);
-			s->vp[o + x] = (float)f.var_poisson;
-			s->vr[o + x] = (float)f.var_rnoise;
-			s->dq[o + x] = f.dq;
+			ramp_fit_row(s->fp, out + BORDER + x0, FRAME, m, fit);
+			for (int x = 0; x < m; x++) {
+				const struct ramp_fit *f = &fit[x];
+				int dnu = !!(f->dq & RAMP_DO_NOT_USE);
+
+				/* the pipeline's dark step: the mean dark
+				 * current out */
+				s->rt[o + x] = dnu ? 0 : (float)(f->rate - L->det->dark);
+				s->er[o + x] = (float)sqrt(f->var_poisson + f->var_rnoise);
+				s->vp[o + x] = (float)f->var_poisson;
+				s->vr[o + x] = (float)f->var_rnoise;
+				s->dq[o + x] = f->dq;
+			}
 		}
 	}
 }

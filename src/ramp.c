@@ -58,6 +58,12 @@
 #include "err.h"
 #include "ramp.h"
 #include "rng.h"
+#include "simd.h"
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define RAMP_AVX2 1
+#endif
 
 enum {
 	DOM_RESET = 0x41,
@@ -270,13 +276,15 @@ static inline double round_even(double x)
  * the sum of independent Poisson counts is a Poisson count of the summed
  * mean, so this is exact.  Each part is the inversion k = min{k : u < F(k)}
  * (rng_poisson_invert), a function of u and its mean alone.  The m0 part
- * is looked up in a table of F kept per group in the caller's scratch
- * across rows: a sky that varies from pixel to pixel (pixel areas, a
- * gradient) keeps m0 for runs of pixels, where a table of the exact mean
- * would be rebuilt at every pixel.  A guide table (Chen & Asau 1974) of
- * the first k with F(k) > j / POIS_GUIDE starts the search, so a lookup is
- * one or two comparisons.  The delta part is 0 unless u2 >= exp(-delta),
- * exp(-delta) being kept while delta repeats.
+ * is looked up in one of two tables of F kept per group in the caller's
+ * scratch across rows: a sky that varies from pixel to pixel (pixel areas,
+ * a gradient) keeps m0 for runs of pixels, where a table of the exact mean
+ * would be rebuilt at every pixel, and the second table keeps a star's
+ * pixels from throwing the sky's away.  A guide table (Chen & Asau 1974)
+ * of the first k with F(k) > j / POIS_GUIDE starts the search, so a lookup
+ * is one or two comparisons.  The delta part is 0 unless u2 >= exp(-delta)
+ * and 1 unless u2 >= F(1); bounds on both settle all but ~delta^2 / 2 of
+ * the draws without the exp.
  *
  * Means from POIS_INV to the normal limit go to rng_poisson_fill_approx
  * (PTRS, Hormann 1993, exact) on the same cells, a run of such pixels at a
@@ -288,12 +296,13 @@ static inline double round_even(double x)
 #define POIS_INV 32.0
 #define POIS_STEP 0.125
 #define POIS_TAB 128            /* F(k) for k < 128: 1 - F < 1e-30 at 32 */
-#define POIS_GUIDE 64
+#define POIS_GUIDE 1024
+#define POIS_PAST 0x80          /* guide flag: u may pass the guide's k */
 
 struct pois_tab {
 	double mu;              /* the mean tabulated, or -1 */
 	double cdf[POIS_TAB];
-	unsigned char guide[POIS_GUIDE];
+	unsigned char guide[POIS_GUIDE + 8];  /* 8 more: read 8 bytes at a time */
 };
 
 #define POIS_TAB_DOUBLES ((sizeof(struct pois_tab) + sizeof(double) - 1) / sizeof(double))
@@ -301,7 +310,7 @@ struct pois_tab {
 static void pois_tabulate(struct pois_tab *t, double mu)
 {
 	double pk = exp(-mu), f = pk;
-	int k = 0;
+	int k, j = 0;
 
 	/* the same products as rng_poisson_invert, so the same counts */
 	t->mu = mu;
@@ -311,28 +320,244 @@ static void pois_tabulate(struct pois_tab *t, double mu)
 		f += pk;
 		t->cdf[n] = f;
 	}
-	for (int j = 0; j < POIS_GUIDE; j++) {
-		while (k < POIS_TAB - 1 && t->cdf[k] <= (double)j / POIS_GUIDE)
-			k++;
-		t->guide[j] = (unsigned char)k;
+	/* guide j: the first k with F(k) > j / POIS_GUIDE, the least count
+	 * of a u in [j, j + 1) / POIS_GUIDE; bit 7 (POIS_PAST) when F(k) <
+	 * (j + 1) / POIS_GUIDE, where such a u may pass it (without, the
+	 * count is k) */
+	/* by runs: the j with j / G < F(k) are those below ceil(F(k) G)
+	 * (G a power of 2, so exactly), and of the run of k only its last
+	 * bucket can hold F(k), unless F(k) G is a whole number */
+	for (k = 0; k < POIS_TAB - 1 && j < POIS_GUIDE; k++) {
+		double c = t->cdf[k] * POIS_GUIDE, e = ceil(c);
+		int end = e < POIS_GUIDE ? (int)e : POIS_GUIDE;
+
+		if (end <= j)
+			continue;
+		memset(t->guide + j, k, (size_t)(end - j));
+		if (c < end)
+			t->guide[end - 1] |= POIS_PAST;
+		j = end;
 	}
+	/* past F(POIS_TAB - 2): the table's last count */
+	for (; j < POIS_GUIDE; j++)
+		t->guide[j] = (unsigned char)((POIS_TAB - 1) |
+					      (t->cdf[POIS_TAB - 1] < (double)(j + 1) / POIS_GUIDE ?
+					       POIS_PAST : 0));
 }
 
 static inline int pois_lookup(const struct pois_tab *t, double u)
 {
-	int k = t->guide[(int)(u * POIS_GUIDE)];
+	int k = t->guide[(int)(u * POIS_GUIDE)] & (POIS_PAST - 1);
 
+	/* one step without a branch: whether u is past the guide's k is
+	 * a coin toss for the predictor; a second step is rare */
+	k += u >= t->cdf[k];
 	while (u >= t->cdf[k])
 		k++;
 	return k;
 }
 
+/* What pois_row() carries from pixel to pixel: the last m0, the table to
+ * rebuild next, and exp(-delta) of the last delta that needed it. */
+struct pois_state {
+	double prev, dlast, edlast;
+	int victim;
+};
+
+/* The count of the rest 0 < delta < 1/8 from the uniform u2. */
+static inline double pois_rest(double delta, double u2, struct pois_state *st)
+{
+	double d2 = delta * delta;
+
+	/*
+	 * For 0 < d < 1/8 the alternating series of falling terms bound
+	 *   1 - d + d^2/2 - d^3/6 < exp(-d) < 1 - d + d^2/2,
+	 *   exp(-d) (1 + d) > 1 - d^2/2 + d^3/3 - d^4/8,
+	 * the last F(1), the probability of a count of 0 or 1.  With 2^-50
+	 * for the roundings of both sides (the exp's and F(1)'s included),
+	 * they give the count 0 or 1 without the exp, which only the rest
+	 * (~d^2 / 2) needs.
+	 */
+	if (u2 < (1 - delta + d2 * (0.5 - delta * (1.0 / 6))) * (1 - 0x1p-50))
+		return 0;
+	if (u2 >= (1 - delta + 0.5 * d2) * (1 + 0x1p-50) &&
+	    u2 < (1 - d2 * (0.5 - delta * (1.0 / 3) + d2 * 0.125)) * (1 - 0x1p-50))
+		return 1;
+	if (delta != st->dlast) {
+		st->dlast = delta;
+		st->edlast = exp(-delta);
+	}
+	return u2 >= st->edlast ? rng_poisson_invert(u2, delta, st->edlast) : 0;
+}
+
+/* The count of a mean 0 < v < POIS_INV from its call w (t: the group's two
+ * tables). */
+static inline double pois_small(double v, const uint32_t w[4], struct pois_tab *t,
+				struct pois_state *st)
+{
+	/* 0 < v < 32: truncation is floor, without a call */
+	double m0 = (double)(int)(v * (1 / POIS_STEP)) * POIS_STEP;
+	double delta = v - m0;
+	double u = rng_u01(w[0], w[1]), k = 0;
+
+	if (m0 > 0) {
+		int h = m0 == t[0].mu ? 0 : m0 == t[1].mu ? 1 : -1;
+
+		/* a new mean that repeats gets the table used less lately */
+		if (h < 0 && m0 == st->prev)
+			pois_tabulate(&t[h = st->victim], m0);
+		if (h >= 0) {
+			st->victim = 1 - h;
+			if (u < t[h].cdf[POIS_TAB - 1])
+				k = pois_lookup(&t[h], u);
+			else
+				k = rng_poisson_invert(u, m0, exp(-m0));
+		} else {
+			k = rng_poisson_invert(u, m0, exp(-m0));
+		}
+	}
+	st->prev = m0;
+	if (delta > 0)
+		k += pois_rest(delta, rng_u01(w[2], w[3]), st);
+	return k;
+}
+
+#ifdef RAMP_AVX2
+/*
+ * pois_small() for the eight means v[0..8) with AVX-512, when each is
+ * below POIS_INV and its m0 is 0 or one of the two tables' (the sky's):
+ * the table lookups by gathers, the rest's count 0 or 1 from the same
+ * bounds, the rest's exact count (rare) by pois_rest().  The same counts
+ * into out; returns 0, having done nothing, when the eight do not qualify.
+ */
+__attribute__((target("avx512f,avx512dq"))) static int
+pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
+	     struct pois_state *st, double *out)
+{
+	const __m512i ev = _mm512_set_epi64(14, 12, 10, 8, 6, 4, 2, 0);
+	const __m512i od = _mm512_set_epi64(15, 13, 11, 9, 7, 5, 3, 1);
+	const __m512i one = _mm512_set1_epi64(1), zero = _mm512_setzero_si512();
+	const __m512d u53 = _mm512_set1_pd(0x1p-53), c1 = _mm512_set1_pd(1);
+	const long long stride = (long long)sizeof(struct pois_tab);
+	__m512d x = _mm512_loadu_pd(v), m0, delta, u, u2, d2, kd;
+	__m512i lo4, hi4, w01, w23, k, off, gidx;
+	__mmask8 h1, lit, more, rest, slow = 0;
+	double rests[8], vq[8];
+
+	if (_mm512_cmp_pd_mask(x, _mm512_setzero_pd(), _CMP_GT_OQ) != 0xff ||
+	    _mm512_cmp_pd_mask(x, _mm512_set1_pd(POIS_INV), _CMP_LT_OQ) != 0xff)
+		return 0;
+	m0 = _mm512_mul_pd(_mm512_cvtepi32_pd(_mm512_cvttpd_epi32(
+				   _mm512_mul_pd(x, _mm512_set1_pd(1 / POIS_STEP)))),
+			   _mm512_set1_pd(POIS_STEP));
+	lit = _mm512_cmp_pd_mask(m0, _mm512_setzero_pd(), _CMP_GT_OQ);
+	h1 = _mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[1].mu), _CMP_EQ_OQ);
+	if ((lit & ~(_mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[0].mu), _CMP_EQ_OQ) | h1)) != 0)
+		return 0;
+	h1 &= ~_mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[0].mu), _CMP_EQ_OQ);
+	lo4 = _mm512_loadu_si512(w[0]);
+	hi4 = _mm512_loadu_si512(w[4]);
+	w01 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, ev, hi4), 32);
+	w23 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, od, hi4), 32);
+	u = _mm512_mul_pd(_mm512_cvtepu64_pd(_mm512_srli_epi64(w01, 11)), u53);
+	/* the table of each lane: its offset from t[0] in bytes */
+	off = _mm512_mask_mov_epi64(zero, h1, _mm512_set1_epi64(stride));
+	{
+		__m512d top = _mm512_mask_mov_pd(_mm512_set1_pd(t[0].cdf[POIS_TAB - 1]), h1,
+						 _mm512_set1_pd(t[1].cdf[POIS_TAB - 1]));
+
+		slow = lit & _mm512_cmp_pd_mask(u, top, _CMP_NLT_UQ);
+	}
+	gidx = _mm512_cvttpd_epi64(_mm512_mul_pd(u, _mm512_set1_pd(POIS_GUIDE)));
+	k = _mm512_i64gather_epi64(_mm512_add_epi64(off, gidx), t[0].guide, 1);
+	/* the search from the guide's k, where it is flagged: u >= F(k)
+	 * steps on; the first two steps' F together (F(k + 1) counts only
+	 * past F(k): F rises, and the guide's k may be the table's last,
+	 * below the top) */
+	more = lit & ~slow & _mm512_test_epi64_mask(k, _mm512_set1_epi64(POIS_PAST));
+	k = _mm512_maskz_and_epi64(lit & ~slow, k, _mm512_set1_epi64(POIS_PAST - 1));
+	if (more) {
+		__m512i ci = _mm512_add_epi64(_mm512_srli_epi64(off, 3), k);
+		__m512d f0 = _mm512_mask_i64gather_pd(c1, more, ci, t[0].cdf, 8);
+		__m512d f1 = _mm512_mask_i64gather_pd(c1, more, _mm512_add_epi64(ci, one),
+						      t[0].cdf, 8);
+		__mmask8 a = more & _mm512_cmp_pd_mask(u, f0, _CMP_GE_OQ);
+
+		k = _mm512_mask_add_epi64(k, a, k, one);
+		more = a & _mm512_cmp_pd_mask(u, f1, _CMP_GE_OQ);
+		k = _mm512_mask_add_epi64(k, more, k, one);
+	}
+	while (more) {
+		__m512i ci = _mm512_add_epi64(_mm512_srli_epi64(off, 3), k);
+		__m512d f = _mm512_mask_i64gather_pd(c1, more, ci, t[0].cdf, 8);
+
+		more &= _mm512_cmp_pd_mask(u, f, _CMP_GE_OQ);
+		k = _mm512_mask_add_epi64(k, more, k, one);
+	}
+	kd = _mm512_cvtepi64_pd(k);
+	/* the rest */
+	delta = _mm512_sub_pd(x, m0);
+	rest = _mm512_cmp_pd_mask(delta, _mm512_setzero_pd(), _CMP_GT_OQ);
+	if (rest) {
+		__m512d l0, u0, l1;
+		__mmask8 z, o;
+
+		u2 = _mm512_mul_pd(_mm512_cvtepu64_pd(_mm512_srli_epi64(w23, 11)), u53);
+		d2 = _mm512_mul_pd(delta, delta);
+		l0 = _mm512_add_pd(_mm512_sub_pd(c1, delta),
+				   _mm512_mul_pd(d2, _mm512_sub_pd(_mm512_set1_pd(0.5),
+								   _mm512_mul_pd(delta, _mm512_set1_pd(1.0 / 6)))));
+		l0 = _mm512_mul_pd(l0, _mm512_set1_pd(1 - 0x1p-50));
+		u0 = _mm512_add_pd(_mm512_sub_pd(c1, delta), _mm512_mul_pd(_mm512_set1_pd(0.5), d2));
+		u0 = _mm512_mul_pd(u0, _mm512_set1_pd(1 + 0x1p-50));
+		l1 = _mm512_add_pd(_mm512_sub_pd(_mm512_set1_pd(0.5),
+						 _mm512_mul_pd(delta, _mm512_set1_pd(1.0 / 3))),
+				   _mm512_mul_pd(d2, _mm512_set1_pd(0.125)));
+		l1 = _mm512_mul_pd(_mm512_sub_pd(c1, _mm512_mul_pd(d2, l1)),
+				   _mm512_set1_pd(1 - 0x1p-50));
+		z = rest & _mm512_cmp_pd_mask(u2, l0, _CMP_LT_OQ);
+		o = rest & ~z & _mm512_cmp_pd_mask(u2, u0, _CMP_GE_OQ) &
+		    _mm512_cmp_pd_mask(u2, l1, _CMP_LT_OQ);
+		kd = _mm512_mask_add_pd(kd, o, kd, c1);
+		rest &= ~z & ~o;
+		if (rest)
+			_mm512_storeu_pd(rests, u2);
+	}
+	/* out may be v (the gap's counts replace their means) */
+	_mm512_storeu_pd(vq, x);
+	_mm512_storeu_pd(out, kd);
+	/* the lanes left: the table's top passed (the inversion), the rest's
+	 * exact count; in pixel order, as pois_small() would */
+	for (int q = 0; q < 8 && (slow | rest); q++) {
+		double mq = (double)(int)(vq[q] * (1 / POIS_STEP)) * POIS_STEP;
+
+		if (slow >> q & 1)
+			out[q] += rng_poisson_invert(rng_u01(w[q][0], w[q][1]), mq, exp(-mq));
+		if (rest >> q & 1)
+			out[q] += pois_rest(vq[q] - mq, rests[q], st);
+	}
+	/* as pois_small() leaves them after the eighth */
+	st->prev = m0[7];
+	if (lit) {
+		int q = 31 - __builtin_clz(lit);
+
+		st->victim = 1 - (h1 >> q & 1);
+	}
+	return 1;
+}
+#endif
+
 static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
 		     double *out, struct pois_tab *t, double normal_above)
 {
 	uint32_t w[256][4];
-	double prev = -1, dlast = -1, edlast = 1;
+	struct pois_state st = { .prev = -1, .dlast = -1, .edlast = 1,
+				 .victim = t[0].mu == -1 ? 0 : 1 };
+	int wide = 0;
 
+#ifdef RAMP_AVX2
+	wide = (simd_flags() & SIMD_AVX512) != 0;
+#endif
 	for (int i0 = 0; i0 < n; i0 += 256) {
 		int m = n - i0 < 256 ? n - i0 : 256;
 
@@ -341,41 +566,17 @@ static void pois_row(const struct rng *g, uint32_t cell0, int n, const double *m
 			int i = i0 + j;
 			double v = mu[i];
 
+#ifdef RAMP_AVX2
+			if (wide && !(j & 7) && j + 8 <= m &&
+			    pois8_avx512(mu + i, w + j, t, &st, out + i)) {
+				j += 7;
+				continue;
+			}
+#endif
 			if (!(v > 0)) {
 				out[i] = 0;
 			} else if (v < POIS_INV) {
-				/* 0 < v < 32: truncation is floor, without a call */
-				double m0 = (double)(int)(v * (1 / POIS_STEP)) * POIS_STEP;
-				double delta = v - m0;
-				double u = rng_u01(w[j][0], w[j][1]), k = 0;
-
-				if (m0 > 0) {
-					if (m0 != t->mu && m0 == prev)
-						pois_tabulate(t, m0);
-					if (m0 == t->mu && u < t->cdf[POIS_TAB - 1])
-						k = pois_lookup(t, u);
-					else
-						k = rng_poisson_invert(u, m0, exp(-m0));
-				}
-				prev = m0;
-				if (delta > 0) {
-					double u2 = rng_u01(w[j][2], w[j][3]);
-
-					/* 1 - delta <= exp(-delta): below the
-					 * rounded 1 - delta, less 2^-51 for the
-					 * roundings of both sides, u2 < exp(-delta)
-					 * is sure and the count 0, without the
-					 * exp (1 - delta of the time) */
-					if (!(u2 < (1 - delta) * (1 - 0x1p-51))) {
-						if (delta != dlast) {
-							dlast = delta;
-							edlast = exp(-delta);
-						}
-						if (u2 >= edlast)
-							k += rng_poisson_invert(u2, delta, edlast);
-					}
-				}
-				out[i] = k;
+				out[i] = pois_small(v, w[j], t, &st);
 			} else if (v >= normal_above) {
 				out[i] = rng_poisson_normal(v, rng_normal_bits(g, cell0 + (uint32_t)i,
 									       w[j][0], w[j][1]));
@@ -443,14 +644,14 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 }
 
 /* The tables at the start of the scratch, in doubles. */
-#define RAMP_TABS ((RAMP_MAX_RES + 1) * 140)
-_Static_assert(sizeof(struct pois_tab) <= 140 * sizeof(double), "scratch tables");
+#define RAMP_TABS ((RAMP_MAX_RES + 1) * 2 * 260)
+_Static_assert(sizeof(struct pois_tab) <= 260 * sizeof(double), "scratch tables");
 
 void ramp_scratch_init(double *scratch)
 {
 	struct pois_tab *t = (struct pois_tab *)scratch;
 
-	for (int i = 0; i <= RAMP_MAX_RES; i++)
+	for (int i = 0; i < 2 * (RAMP_MAX_RES + 1); i++)
 		t[i].mu = -1;
 }
 
@@ -470,7 +671,7 @@ struct l1row {
 	 * per pixel the rate r, the true charge S collected so far, the reset
 	 * level P, the means mu, the group's arrivals D, the reset level seen
 	 * through the NL Q, and w the read call of 256 pixels */
-	struct pois_tab *tabs;
+	struct pois_tab *tabs;  /* two per group */
 	double *r, *S, *P, *mu, *D, *Q;
 	uint32_t (*w)[4];
 	/* 0: the default 4; below 0: never exact (the normal for every split) */
@@ -511,19 +712,45 @@ static void level1_start(struct l1row *R, const double *rate)
  * the previous group (the last read prev), Poisson counts and cosmic rays;
  * into D the Poisson count of each pixel's arrivals during the group's
  * reads, which level1_reads() spreads over them. */
+#ifdef RAMP_AVX2
+__attribute__((target("avx512f"))) static int
+scale_row_avx512(const double *r, double a, double b, double *out, int n)
+{
+	int i = 0;
+
+	for (; i + 8 <= n; i += 8)
+		_mm512_storeu_pd(out + i, _mm512_mul_pd(_mm512_mul_pd(_mm512_loadu_pd(r + i),
+								      _mm512_set1_pd(a)),
+							_mm512_set1_pd(b)));
+	return i;
+}
+#endif
+
+/* out[i] = r[i] a b, the products in that order (eight at a time where
+ * the machine can: the same numbers). */
+static void scale_row(const double *r, double a, double b, double *out, int n)
+{
+	int i = 0;
+
+#ifdef RAMP_AVX2
+	if (simd_flags() & SIMD_AVX512)
+		i = scale_row_avx512(r, a, b, out, n);
+#endif
+	for (; i < n; i++)
+		out[i] = r[i] * a * b;
+}
+
 static void level1_arrivals(struct l1row *R, int gi, int prev)
 {
 	const struct ramp_key *k = R->k;
 	int a = R->p->first[gi], N = R->p->last[gi] - a + 1, gap = a - prev - 1, n = R->n;
 	double dt = R->p->read_time, *r = R->r, *S = R->S, *mu = R->mu, *D = R->D;
-	int any = 0;
 	struct rng g;
 
 	if (gap > 0 && R->light) {
-		for (int i = 0; i < n; i++)
-			mu[i] = r[i] * gap * dt;
+		scale_row(r, gap, dt, mu, n);
 		rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
-		pois_row(&g, R->cell0, n, mu, mu, &R->tabs[RAMP_MAX_RES], R->normal_above);
+		pois_row(&g, R->cell0, n, mu, mu, &R->tabs[2 * RAMP_MAX_RES], R->normal_above);
 		for (int i = 0; i < n; i++)
 			S[i] += mu[i];
 	}
@@ -531,29 +758,45 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 		if (R->hits[h].read > prev && R->hits[h].read < a)
 			S[R->hits[h].pix] += R->hits[h].e;
 	if (R->light) {
-		for (int i = 0; i < n; i++)
-			any |= (mu[i] = r[i] * N * dt) > 0;
+		scale_row(r, N, dt, mu, n);
 		rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
-		if (any)
-			pois_row(&g, R->cell0, n, mu, D, &R->tabs[gi], R->normal_above);
-		else
-			memset(D, 0, (size_t)n * sizeof(*D));
+		pois_row(&g, R->cell0, n, mu, D, &R->tabs[2 * gi], R->normal_above);
 	} else {
 		memset(D, 0, (size_t)n * sizeof(*D));
 	}
 }
 
 /*
- * W, the sum over a group of N reads of the arrivals in the group before
- * each, for Di arrivals: each arrival falls in one of the N reads, a slot
- * of 32 bits each, two from words 2-3 of the pixel's DOM_READ call wd,
- * further slots from its own DOM_SPLIT calls (gs); beyond exact_max
- * arrivals the normal of the sum (mean Di (N + 1) / 2, variance Di kvar)
- * from words 2-3 (gz for the ziggurat's slow cases).  Inline: it is the
- * body of level1_reads()'s pixel loop.
+ * The next base-N digit of a uniform 64-bit x: floor(x N / 2^64), x
+ * becoming the rest (x N mod 2^64).  The digits of x, taken so, are those
+ * of floor(x N^k / 2^64), which is uniform on 0 .. N^k - 1 but for a bias
+ * of at most N^k / 2^64: k independent uniform digits.  Two 32 x 32 bit
+ * products, exact (N < 2^32).
  */
-static inline double split_arrivals(double Di, int N, double kvar, double exact_max,
-				    const uint32_t wd[4], const struct rng *gs,
+static inline int next_digit(uint64_t *x, uint32_t N)
+{
+	uint64_t lo = (*x & 0xffffffff) * N, hi = (*x >> 32) * N + (lo >> 32);
+
+	*x = hi << 32 | (lo & 0xffffffff);
+	return (int)(hi >> 32);
+}
+
+/*
+ * W, the sum over a group of N reads of the arrivals in the group before
+ * each, for Di arrivals: each arrival falls in one of the N reads, a
+ * uniform digit of 0 .. N-1 (next_digit).  The digits come from the 64
+ * bits of words 2-3 of the pixel's DOM_READ call wd, per of them from
+ * each 64 bits (N^per <= 2^32, so that their bias stays below 2^-32;
+ * per >= 4 for N <= 256), further 64 bits from the pixel's own DOM_SPLIT
+ * calls (gs), two to a call.  Beyond exact_max arrivals the normal of the
+ * sum (mean Di (N + 1) / 2, variance Di kvar, its root sq[Di] below
+ * SPLIT_SQ) from words 2-3 (gz for the ziggurat's slow cases).  Inline:
+ * it is the body of level1_reads()'s pixel loop.
+ */
+#define SPLIT_SQ 64            /* sqrt(D kvar) tabulated for D below */
+
+static inline double split_arrivals(double Di, int N, int per, double kvar, const double *sq,
+				    double exact_max, const uint32_t wd[4], const struct rng *gs,
 				    const struct rng *gz, uint32_t cell)
 {
 	double W;
@@ -561,28 +804,40 @@ static inline double split_arrivals(double Di, int N, double kvar, double exact_
 	if (Di == 0 || N == 1) {
 		W = Di * N;
 	} else if (Di <= exact_max) {
-		uint32_t bits[4];
-		int nd = (int)Di;
+		uint64_t x = (uint64_t)wd[2] << 32 | wd[3];
+		int nd = (int)Di, sum = 0;
 
-		W = Di;
-		for (int q = 0; q < nd; q++) {
-			uint32_t x;
+		if (nd <= 4 && per >= 4) {
+			/* the common case in four steps, without a
+			 * branch on the count */
+			for (int q = 0; q < 4; q++) {
+				int dg = next_digit(&x, (uint32_t)N);
 
-			if (q < 2) {
-				x = wd[2 + q];
-			} else {
-				if (!((q - 2) & 3))
-					rng_bits(gs, cell, (uint32_t)((q - 2) >> 2), bits);
-				x = bits[(q - 2) & 3];
+				sum += q < nd ? dg : 0;
 			}
-			/* slot s of 0 .. N-1: the arrival in the
-			 * group's read s counts in N - 1 - s more */
-			W += N - 1 - (int)(((uint64_t)x * (uint64_t)N) >> 32);
+		} else {
+			uint32_t bits[4];
+
+			for (int q = 0; q < nd; q++) {
+				int word = q / per;
+
+				if (word && q % per == 0) {
+					if (word & 1)
+						rng_bits(gs, cell, (uint32_t)(word >> 1), bits);
+					x = (uint64_t)bits[(word & 1) ? 0 : 2] << 32 |
+					    bits[(word & 1) ? 1 : 3];
+				}
+				sum += next_digit(&x, (uint32_t)N);
+			}
 		}
+		/* the arrival in the group's read s (0 .. N-1) counts in
+		 * N - s of its reads */
+		W = Di * N - sum;
 	} else {
 		double zs = rng_normal_bits(gz, cell, wd[2], wd[3]);
+		double sd = Di < SPLIT_SQ ? sq[(int)Di] : sqrt(Di * kvar);
 
-		W = round_even(Di * (N + 1) / 2 + sqrt(Di * kvar) * zs);
+		W = round_even(Di * (N + 1) / 2 + sd * zs);
 		if (W < Di)
 			W = Di;
 		if (W > Di * N)
@@ -591,96 +846,293 @@ static inline double split_arrivals(double Di, int N, double kvar, double exact_
 	return W;
 }
 
-/* Resultant gi of every pixel from its arrivals D: how they fall among
- * the group's reads, the cosmic rays within it, the non-linearity,
- * saturation and the read noise; as DN into out or split into ch and own.
- * The row's hot loop, kept whole in one function. */
+/* The constants of one group's reads, shared by level1_reads()'s paths. */
+struct l1grp {
+	int gi, a, b, N, per;
+	double sn, kvar, inv_n, bk, exact_max, inv_g;
+	double sq[SPLIT_SQ];
+	struct rng g, gs, gz;
+};
+
+/* Resultant gi of pixel i from its arrivals D[i] and its DOM_READ call w:
+ * how they fall among the group's reads, the cosmic rays within it (*hp
+ * the next hit, in pixel order), the non-linearity, saturation and the
+ * read noise; as DN into out or split into ch and own. */
+static inline void read_pixel(struct l1row *R, const struct l1grp *G, int i,
+			      const uint32_t w[4], int *hp)
+{
+	const struct ramp_det *d = R->d;
+	const struct cr_hit *hits = R->hits;
+	int a = G->a, b = G->b, N = G->N, nh = R->nh;
+	uint32_t cell = R->cell0 + (uint32_t)i;
+	double Di = R->D[i], W, s0 = R->P[i] + R->S[i], send, mm, nz, v;
+	double z = rng_normal_bits(&G->g, cell, w[0], w[1]);
+
+	/* W: the sum over the group's reads of the arrivals in the group
+	 * before each */
+	W = split_arrivals(Di, N, G->per, G->kvar, G->sq, G->exact_max, w, &G->gs, &G->gz, cell);
+	/* a cosmic ray's charge counts from its read on (the hits are in
+	 * pixel order) */
+	for (; *hp < nh && hits[*hp].pix <= i; ++*hp)
+		if (hits[*hp].pix == i && hits[*hp].read >= a && hits[*hp].read <= b) {
+			W += hits[*hp].e * (b - hits[*hp].read + 1);
+			Di += hits[*hp].e;
+		}
+	send = s0 + Di;
+	if (send < d->sat_true) {
+		mm = ramp_nl(d, s0 + W * G->inv_n) + G->bk * Di * Di;
+		nz = G->sn * z;
+	} else {
+		/* reads at saturation read the level exactly; the read noise
+		 * is that of the others */
+		int nfree = 0;
+
+		mm = 0;
+		for (int q = 1; q <= N; q++) {
+			double x = s0 + Di * q / N;
+
+			mm += ramp_nl(d, x);
+			nfree += x < d->sat_true;
+		}
+		mm *= G->inv_n;
+		nz = d->read_noise * sqrt((double)nfree) * z * G->inv_n;
+	}
+	R->S[i] += Di;
+	if (R->ch) {
+		size_t o = (size_t)G->gi * R->cplane + (size_t)i;
+
+		R->ch[o] = mm - R->Q[i];
+		R->own[o] = (float)(R->Q[i] + nz);
+		return;
+	}
+	v = mm + nz;
+	if (v > d->sat_e)
+		v = d->sat_e;
+	v = round_even(v * G->inv_g);
+	R->out[(size_t)G->gi * R->plane + (size_t)i] =
+		(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+}
+
+#ifdef RAMP_AVX2
+/*
+ * read_pixel() for the eight pixels i .. i+7, none hit by a cosmic ray,
+ * with AVX-512: the same operations in the same order on each lane (no
+ * fused multiply-add), so the same numbers.  A lane the common path does
+ * not cover (a ziggurat's slow case, a split of more digits than one
+ * number's or a count beyond the root table, a group reaching saturation)
+ * is left alone, its bit in the mask returned for read_pixel().
+ */
+__attribute__((target("avx512f,avx512dq"))) static unsigned
+read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[4])
+{
+	const struct ramp_det *d = R->d;
+	const __m512i ev = _mm512_set_epi64(14, 12, 10, 8, 6, 4, 2, 0);
+	const __m512i od = _mm512_set_epi64(15, 13, 11, 9, 7, 5, 3, 1);
+	const __m512i b8 = _mm512_set1_epi64(0xff), one = _mm512_set1_epi64(1);
+	const __m512d sgn = _mm512_set1_pd(-0.0), scale = _mm512_set1_pd(0x1p-52);
+	const double *zx = rng_zig_x;
+	int N = G->N;
+	__m512i lo4 = _mm512_loadu_si512(w[0]), hi4 = _mm512_loadu_si512(w[4]);
+	/* words 0:1 and 2:3 of each call as 64-bit numbers, word 0 high */
+	__m512i w01 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, ev, hi4), 32);
+	__m512i w23 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, od, hi4), 32);
+	__m512d Di = _mm512_loadu_pd(R->D + i), Nd = _mm512_set1_pd(N);
+	__m512d s0 = _mm512_add_pd(_mm512_loadu_pd(R->P + i), _mm512_loadu_pd(R->S + i));
+	__m512d z, W, mm, nz, x, zx0, zx1;
+	__m512i li;
+	__mmask8 bad = 0, badz, easy, exact, nrm;
+
+	/* the read noise's deviate (rng_normal_bits) */
+	li = _mm512_and_si512(w01, b8);
+	zx0 = _mm512_i64gather_pd(li, zx, 8);
+	zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
+	z = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w01, 11)), scale),
+			  zx0);
+	badz = _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, z), zx1, _CMP_NLT_UQ);
+	/* the split (split_arrivals): none to place, digits, or the normal */
+	easy = _mm512_cmp_pd_mask(Di, _mm512_setzero_pd(), _CMP_EQ_OQ) | (N == 1 ? 0xff : 0);
+	exact = ~easy & _mm512_cmp_pd_mask(Di, _mm512_set1_pd(G->exact_max), _CMP_LE_OQ);
+	nrm = ~easy & ~exact;
+	W = _mm512_mul_pd(Di, Nd);
+	if (exact) {
+		const __m512i nv = _mm512_set1_epi64(N), m32 = _mm512_set1_epi64(0xffffffff);
+		__m512i nd = _mm512_cvttpd_epi64(Di), sum = _mm512_setzero_si512(), xx = w23;
+
+		bad |= exact & (G->per < 4 ? 0xff : _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(4)));
+		for (int q = 0; q < 4; q++) {
+			__m512i lo = _mm512_mul_epu32(xx, nv);
+			__m512i hi = _mm512_add_epi64(_mm512_mul_epu32(_mm512_srli_epi64(xx, 32), nv),
+						      _mm512_srli_epi64(lo, 32));
+
+			xx = _mm512_or_si512(_mm512_slli_epi64(hi, 32), _mm512_and_si512(lo, m32));
+			sum = _mm512_mask_add_epi64(sum, _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(q)),
+						    sum, _mm512_srli_epi64(hi, 32));
+		}
+		W = _mm512_mask_sub_pd(W, exact, W, _mm512_cvtepi64_pd(sum));
+	}
+	if (nrm) {
+		__m512d zs, sd, c, lim = _mm512_set1_pd(SPLIT_SQ);
+		__m512i si;
+
+		li = _mm512_and_si512(w23, b8);
+		zx0 = _mm512_i64gather_pd(li, zx, 8);
+		zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
+		zs = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w23, 11)),
+						 scale), zx0);
+		bad |= nrm & _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, zs), zx1, _CMP_NLT_UQ);
+		bad |= nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_NLT_UQ);
+		si = _mm512_maskz_cvttpd_epi64(nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_LT_OQ), Di);
+		sd = _mm512_i64gather_pd(si, G->sq, 8);
+		c = _mm512_add_pd(_mm512_div_pd(_mm512_mul_pd(Di, _mm512_set1_pd(N + 1)),
+						_mm512_set1_pd(2)), _mm512_mul_pd(sd, zs));
+		/* round_even: to nearest, ties to even, below 2^51 */
+		c = _mm512_mask_roundscale_pd(c, _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, c),
+								    _mm512_set1_pd(0x1p51), _CMP_LT_OQ),
+					      c, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, Di, _CMP_LT_OQ), Di);
+		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, W, _CMP_GT_OQ), W);
+		W = _mm512_mask_mov_pd(W, nrm, c);
+	}
+	/* saturation within the group: read_pixel() */
+	bad |= _mm512_cmp_pd_mask(_mm512_add_pd(s0, Di), _mm512_set1_pd(d->sat_true), _CMP_NLT_UQ);
+	x = _mm512_add_pd(s0, _mm512_mul_pd(W, _mm512_set1_pd(G->inv_n)));
+	mm = _mm512_add_pd(x, _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(d->beta), x), x));
+	mm = _mm512_add_pd(mm, _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(G->bk), Di), Di));
+	nz = _mm512_mul_pd(_mm512_set1_pd(G->sn), z);
+	_mm512_mask_storeu_pd(R->S + i, ~bad, _mm512_add_pd(_mm512_loadu_pd(R->S + i), Di));
+	if (R->ch) {
+		size_t o = (size_t)G->gi * R->cplane + (size_t)i;
+		__m512d q = _mm512_loadu_pd(R->Q + i);
+
+		/* a bad lane's are written again by read_pixel() */
+		_mm512_storeu_pd(R->ch + o, _mm512_sub_pd(mm, q));
+		_mm256_storeu_ps(R->own + o, _mm512_cvtpd_ps(_mm512_add_pd(q, nz)));
+	} else {
+		__m512d v = _mm512_min_pd(_mm512_add_pd(mm, nz), _mm512_set1_pd(d->sat_e));
+
+		v = _mm512_roundscale_pd(_mm512_mul_pd(v, _mm512_set1_pd(G->inv_g)),
+					 _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+		v = _mm512_min_pd(_mm512_max_pd(v, _mm512_setzero_pd()), _mm512_set1_pd(65535));
+		_mm_storeu_si128((__m128i *)(R->out + (size_t)G->gi * R->plane + (size_t)i),
+				 _mm512_cvtepi64_epi16(_mm512_cvttpd_epi64(v)));
+	}
+	/* a lane whose only slow case is the read noise's deviate: that
+	 * deviate alone, as read_pixel() would draw it, into what it
+	 * changes (the charge does not hold it) */
+	badz &= ~bad;
+	if (badz) {
+		double mq[8];
+
+		_mm512_storeu_pd(mq, mm);
+		for (int q = 0; q < 8; q++) {
+			double zq, v;
+
+			if (!(badz >> q & 1))
+				continue;
+			zq = rng_normal_bits(&G->g, R->cell0 + (uint32_t)(i + q), w[q][0], w[q][1]);
+			if (R->ch) {
+				size_t o = (size_t)G->gi * R->cplane + (size_t)(i + q);
+
+				R->own[o] = (float)(R->Q[i + q] + G->sn * zq);
+				continue;
+			}
+			v = mq[q] + G->sn * zq;
+			if (v > d->sat_e)
+				v = d->sat_e;
+			v = round_even(v * G->inv_g);
+			R->out[(size_t)G->gi * R->plane + (size_t)(i + q)] =
+				(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+		}
+	}
+	return bad;
+}
+
+/* sq[q] = sqrt(q kvar) for q < SPLIT_SQ, eight at a time. */
+__attribute__((target("avx512f,avx512dq"))) static void sq_avx512(double *sq, double kvar)
+{
+	_Static_assert(SPLIT_SQ % 8 == 0, "root table in eights");
+	for (int q = 0; q < SPLIT_SQ; q += 8) {
+		__m512i qi = _mm512_add_epi64(_mm512_set1_epi64(q),
+					      _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0));
+
+		_mm512_storeu_pd(sq + q, _mm512_sqrt_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(qi),
+								       _mm512_set1_pd(kvar))));
+	}
+}
+#endif
+
+/* Resultant gi of every pixel from its arrivals D (read_pixel()), eight
+ * at a time where the machine has AVX-512.  The row's hot loop. */
 static void level1_reads(struct l1row *R, int gi)
 {
 	const struct ramp_det *d = R->d;
 	const struct ramp_key *k = R->k;
-	const struct cr_hit *hits = R->hits;
-	int a = R->p->first[gi], b = R->p->last[gi], N = b - a + 1;
-	double sn = d->read_noise / sqrt(N), kvar = (N * (double)N - 1) / 12, inv_n = 1.0 / N;
-	double bk = d->beta * kvar * inv_n * inv_n;
-	double exact_max = R->exact_max, inv_g = 1 / d->gain, dnmax = 65535;
-	double *S = R->S, *ch = R->ch, *Q = R->Q;
-	const double *P = R->P, *D = R->D;
-	float *own = R->own;
-	uint16_t *out = R->out;
-	size_t plane = R->plane, cplane = R->cplane;
+	struct l1grp G;
 	uint32_t cell0 = R->cell0, (*w)[4] = R->w;
-	int n = R->n, nh = R->nh, hp = 0;
-	struct rng g, gs, gz;
+	int n = R->n, nh = R->nh, hp = 0, wide = 0;
 
+	G.gi = gi;
+	G.a = R->p->first[gi];
+	G.b = R->p->last[gi];
+	G.N = G.b - G.a + 1;
+	G.sn = d->read_noise / sqrt(G.N);
+	G.kvar = (G.N * (double)G.N - 1) / 12;
+	G.inv_n = 1.0 / G.N;
+	G.bk = d->beta * G.kvar * G.inv_n * G.inv_n;
+	G.exact_max = R->exact_max;
+	G.inv_g = 1 / d->gain;
+#ifdef RAMP_AVX2
+	wide = (simd_flags() & SIMD_AVX512) != 0;
+#endif
+	/* the split's normal: the square root of a count's variance, the
+	 * very one it would compute, without the wait for a root per pixel
+	 * (eight at a time where the machine can: the same roots) */
+#ifdef RAMP_AVX2
+	if (wide)
+		sq_avx512(G.sq, G.kvar);
+	else
+#endif
+		for (int q = 0; q < SPLIT_SQ; q++)
+			G.sq[q] = sqrt(q * G.kvar);
+	/* digits of 0 .. N-1 from 64 bits while N^per <= 2^32 */
+	G.per = 1;
+	for (double np = G.N; G.N > 1 && np * G.N <= 0x1p32; np *= G.N)
+		G.per++;
 	/*
-	 * One Philox call per pixel (domain DOM_READ) gives the read
-	 * noise (words 0-1, a ziggurat deviate) and the split of the
-	 * group's arrivals among its reads (words 2-3): two slots of
-	 * 32 bits for up to two arrivals, further slots from the
-	 * pixel's own DOM_SPLIT calls, or the normal of the sum beyond
-	 * exact_max arrivals.  The ziggurat's rare slow cases take
-	 * numbers from DOM_READ (read noise) and DOM_SPLIT_N (split)
-	 * cells at draws 1, 2, ...
+	 * One Philox call per pixel (domain DOM_READ) gives the read noise
+	 * (words 0-1, a ziggurat deviate) and the split of the group's
+	 * arrivals among its reads (words 2-3): the digits of one 64-bit
+	 * number, more from the pixel's own DOM_SPLIT calls, or the normal
+	 * of the sum beyond exact_max arrivals.  The ziggurat's rare slow
+	 * cases take numbers from DOM_READ (read noise) and DOM_SPLIT_N
+	 * (split) cells at draws 1, 2, ...
 	 */
-	rng_init(&g, k->seed, domain(k, DOM_READ, gi));
-	rng_init(&gs, k->seed, domain(k, DOM_SPLIT, gi));
-	rng_init(&gz, k->seed, domain(k, DOM_SPLIT_N, gi));
+	rng_init(&G.g, k->seed, domain(k, DOM_READ, gi));
+	rng_init(&G.gs, k->seed, domain(k, DOM_SPLIT, gi));
+	rng_init(&G.gz, k->seed, domain(k, DOM_SPLIT_N, gi));
 	for (int i0 = 0; i0 < n; i0 += 256) {
-		int m = n - i0 < 256 ? n - i0 : 256;
+		int m = n - i0 < 256 ? n - i0 : 256, j = 0;
 
-		rng_bits_n(&g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
-		for (int j = 0; j < m; j++) {
+		rng_bits_n(&G.g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
+#ifdef RAMP_AVX2
+		/* eight at a time but where a cosmic ray hits */
+		for (; wide && j + 8 <= m; j += 8) {
 			int i = i0 + j;
-			uint32_t cell = cell0 + (uint32_t)i;
-			double Di = D[i], W, s0 = P[i] + S[i], send, mm, nz, v;
-			double z = rng_normal_bits(&g, cell, w[j][0], w[j][1]);
+			unsigned bad;
 
-			/* W: the sum over the group's reads of the
-			 * arrivals in the group before each */
-			W = split_arrivals(Di, N, kvar, exact_max, w[j], &gs, &gz, cell);
-			/* a cosmic ray's charge counts from its read on
-			 * (the hits are in pixel order) */
-			for (; hp < nh && hits[hp].pix <= i; hp++)
-				if (hits[hp].pix == i && hits[hp].read >= a &&
-				    hits[hp].read <= b) {
-					W += hits[hp].e * (b - hits[hp].read + 1);
-					Di += hits[hp].e;
-				}
-			send = s0 + Di;
-			if (send < d->sat_true) {
-				mm = ramp_nl(d, s0 + W * inv_n) + bk * Di * Di;
-				nz = sn * z;
-			} else {
-				/* reads at saturation read the level exactly; the
-				 * read noise is that of the others */
-				int nfree = 0;
-
-				mm = 0;
-				for (int q = 1; q <= N; q++) {
-					double x = s0 + Di * q / N;
-
-					mm += ramp_nl(d, x);
-					nfree += x < d->sat_true;
-				}
-				mm *= inv_n;
-				nz = d->read_noise * sqrt((double)nfree) * z * inv_n;
-			}
-			S[i] += Di;
-			if (ch) {
-				size_t o = (size_t)gi * cplane + (size_t)i;
-
-				ch[o] = mm - Q[i];
-				own[o] = (float)(Q[i] + nz);
+			if (hp < nh && R->hits[hp].pix < i + 8) {
+				for (int q = 0; q < 8; q++)
+					read_pixel(R, &G, i + q, w[j + q], &hp);
 				continue;
 			}
-			v = mm + nz;
-			if (v > d->sat_e)
-				v = d->sat_e;
-			v = round_even(v * inv_g);
-			out[(size_t)gi * plane + (size_t)i] =
-				(uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
+			bad = read8_avx512(R, &G, i, w + j);
+			for (int q = 0; bad; q++, bad >>= 1)
+				if (bad & 1)
+					read_pixel(R, &G, i + q, w[j + q], &hp);
 		}
+#endif
+		for (; j < m; j++)
+			read_pixel(R, &G, i0 + j, w[j], &hp);
 	}
 }
 
@@ -740,19 +1192,103 @@ void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
 	level1(p, d, k, cell0, n, rate, 1, NULL, 0, ch, own, cplane, scratch);
 }
 
+/* IPC of one resultant at the pixels x0 .. x1-1 (none at the row's ends),
+ * kr[j] the kernel row ipc[j] that acts on the row src[j] (a row off the
+ * array: the centre row with a kernel row of zeros, which adds zeros, so
+ * the sums are those of ramp_level1_finish()'s edge pixels' order). */
+static void ipc_span(const double *const src[3], const double kr[3][3], const float *ow,
+		     double sat_e, double inv_g, int x0, int x1, uint16_t *dn)
+{
+	const double *a = src[0], *b = src[1], *c = src[2];
+
+	for (int x = x0; x < x1; x++) {
+		double v = kr[0][0] * a[x + 1] + kr[0][1] * a[x] + kr[0][2] * a[x - 1];
+
+		v += kr[1][0] * b[x + 1] + kr[1][1] * b[x] + kr[1][2] * b[x - 1];
+		v += kr[2][0] * c[x + 1] + kr[2][1] * c[x] + kr[2][2] * c[x - 1];
+		v += ow[x];
+		if (v > sat_e)
+			v = sat_e;
+		v = round_even(v * inv_g);
+		dn[x] = (uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+	}
+}
+
+#ifdef RAMP_AVX2
+/* ipc_span() eight pixels at a time with AVX2, the same operations in the
+ * same order (no fused multiply-add), so the same DN; returns the first
+ * pixel it left to the caller. */
+__attribute__((target("avx2"))) static int
+ipc_span_avx2(const double *const src[3], const double kr[3][3], const float *ow,
+	      double sat_e, double inv_g, int x0, int x1, uint16_t *dn)
+{
+	__m256d k[3][3], sat = _mm256_set1_pd(sat_e), ig = _mm256_set1_pd(inv_g);
+	__m256d zero = _mm256_setzero_pd(), top = _mm256_set1_pd(65535);
+	int x = x0;
+
+	for (int j = 0; j < 3; j++)
+		for (int i = 0; i < 3; i++)
+			k[j][i] = _mm256_set1_pd(kr[j][i]);
+	for (; x + 8 <= x1; x += 8) {
+		__m128i q[2];
+
+		for (int h = 0; h < 2; h++) {
+			int xh = x + 4 * h;
+			__m256d v = zero;
+
+			for (int j = 0; j < 3; j++) {
+				const double *r = src[j] + xh;
+				__m256d t = _mm256_add_pd(_mm256_mul_pd(k[j][0], _mm256_loadu_pd(r + 1)),
+							  _mm256_mul_pd(k[j][1], _mm256_loadu_pd(r)));
+
+				t = _mm256_add_pd(t, _mm256_mul_pd(k[j][2], _mm256_loadu_pd(r - 1)));
+				v = j ? _mm256_add_pd(v, t) : t;
+			}
+			v = _mm256_add_pd(v, _mm256_cvtps_pd(_mm_loadu_ps(ow + xh)));
+			v = _mm256_min_pd(v, sat);
+			v = _mm256_round_pd(_mm256_mul_pd(v, ig),
+					    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+			v = _mm256_min_pd(_mm256_max_pd(v, zero), top);
+			q[h] = _mm256_cvttpd_epi32(v);
+		}
+		_mm_storeu_si128((__m128i *)(dn + x), _mm_packus_epi32(q[0], q[1]));
+	}
+	return x;
+}
+#endif
+
 void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double *above,
 			const double *row, const double *below, const float *own,
 			size_t cplane, uint16_t *out, size_t plane)
 {
 	const double *rows[3] = { above, row, below };
-	double inv_g = 1 / d->gain, dnmax = 65535;
+	double inv_g = 1 / d->gain, dnmax = 65535, kr[3][3];
+	int avx2 = 0;
 
+#ifdef RAMP_AVX2
+	avx2 = (simd_flags() & SIMD_AVX2) != 0;
+#endif
+	/* kernel row dy + 1 acts on rows[1 - dy] */
+	for (int j = 0; j < 3; j++)
+		for (int i = 0; i < 3; i++)
+			kr[j][i] = rows[2 - j] ? d->ipc[j][i] : 0;
 	for (int gi = 0; gi < nres; gi++) {
 		size_t o = (size_t)gi * cplane;
 		const float *ow = own + o;
 		uint16_t *dn = out + (size_t)gi * plane;
+		const double *src[3];
+		int xa = 1;
 
-		for (int x = 0; x < n; x++) {
+		for (int j = 0; j < 3; j++)
+			src[j] = (rows[2 - j] ? rows[2 - j] : row) + o;
+#ifdef RAMP_AVX2
+		if (avx2 && n > 2)
+			xa = ipc_span_avx2(src, kr, ow, d->sat_e, inv_g, 1, n - 1, dn);
+#endif
+		if (xa < n - 1)
+			ipc_span(src, kr, ow, d->sat_e, inv_g, xa, n - 1, dn);
+		/* the two end pixels, where the kernel reaches off the row */
+		for (int x = 0; x < n; x += n - 1 > 0 ? n - 1 : 1) {
 			double v = 0;
 
 			/* the charge of pixel (x, y) is shared: pixel
@@ -765,14 +1301,9 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 				if (!rr)
 					continue;
 				rr += o;
-				if (x > 0 && x + 1 < n) {
-					v += d->ipc[dy + 1][0] * rr[x + 1] + d->ipc[dy + 1][1] * rr[x] +
-					     d->ipc[dy + 1][2] * rr[x - 1];
-				} else {
-					for (int dx = -1; dx <= 1; dx++)
-						if (x - dx >= 0 && x - dx < n)
-							v += d->ipc[dy + 1][dx + 1] * rr[x - dx];
-				}
+				for (int dx = -1; dx <= 1; dx++)
+					if (x - dx >= 0 && x - dx < n)
+						v += d->ipc[dy + 1][dx + 1] * rr[x - dx];
 			}
 			v += ow[x];
 			if (v > d->sat_e)
@@ -1082,5 +1613,149 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 			out->rate = out->var_rnoise = out->var_poisson = 0;
 			out->dq |= RAMP_DO_NOT_USE;
 		}
+	}
+}
+
+/*
+ * The common case of ramp_fit_pixel(), without its general machinery: no
+ * resultant saturated, at 0 DN or beyond the NONLINEAR flag, so the piece
+ * is the whole ramp and its weights are the plan's; the rate is then a
+ * fixed weighted sum of the linearised resultants.  When the jump test
+ * finds a rise (or a resultant is out of that range), the pixel goes to
+ * ramp_fit_pixel(); otherwise the numbers are the very ones it computes:
+ * the same operations in the same order.
+ */
+#ifdef RAMP_AVX2
+/*
+ * ramp_fit_row()'s common case for the eight pixels dn[0..8) with
+ * AVX-512: the same operations in the same order on each lane, so the
+ * same numbers.  Returns the lanes it leaves to ramp_fit_pixel() (out of
+ * range, or a jump).
+ */
+__attribute__((target("avx512f,avx512dq"))) static unsigned
+fit8_avx512(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t plane, int lim,
+	    double vb, struct ramp_fit *out)
+{
+	static const double edge2[5] = { 25, 100, 400, 2500, 10000 };
+	int nres = fp->nres;
+	__m512d s[RAMP_MAX_RES], sig, var, s2, f, fj, zero = _mm512_setzero_pd();
+	__m512i pi = _mm512_setzero_si512(), one = _mm512_set1_epi64(1), wi;
+	__mmask8 bad = 0;
+	double rate[8], vr[8], vp[8];
+
+	for (int i = 0; i < nres; i++) {
+		__m512i v = _mm512_cvtepu16_epi64(_mm_loadu_si128((const __m128i *)(dn + (size_t)i *
+										    plane)));
+
+		bad |= _mm512_cmplt_epi64_mask(v, one) |
+		       _mm512_cmpge_epi64_mask(v, _mm512_set1_epi64(lim));
+		s[i] = _mm512_i64gather_pd(v, fp->nlinv, 8);
+	}
+	if (bad == 0xff)
+		return bad;
+	sig = _mm512_sub_pd(s[nres - 1], s[0]);
+	sig = _mm512_mask_mov_pd(sig, _mm512_cmp_pd_mask(sig, zero, _CMP_LT_OQ), zero);
+	/* power_index(): how many edges the snr^2 is not below */
+	var = _mm512_add_pd(sig, _mm512_set1_pd(vb));
+	s2 = _mm512_mul_pd(sig, sig);
+	for (int e = 0; e < 5; e++)
+		pi = _mm512_mask_add_epi64(pi, _mm512_cmp_pd_mask(s2, _mm512_mul_pd(
+						   _mm512_set1_pd(edge2[e]), var), _CMP_NLT_UQ), pi, one);
+	f = zero;
+	if (_mm512_cmpeq_epi64_mask(pi, _mm512_set1_epi64(pi[0])) == 0xff) {
+		/* one power for the eight (a sky): its weights as they are */
+		const double *w = fp->w[pi[0]];
+
+		for (int i = 0; i < nres; i++)
+			f = _mm512_add_pd(f, _mm512_mul_pd(_mm512_set1_pd(w[i]), s[i]));
+	} else {
+		wi = _mm512_mullo_epi64(pi, _mm512_set1_epi64(RAMP_MAX_RES));
+		for (int i = 0; i < nres; i++)
+			f = _mm512_add_pd(f, _mm512_mul_pd(_mm512_i64gather_pd(
+					  _mm512_add_epi64(wi, _mm512_set1_epi64(i)), fp->w[0], 8), s[i]));
+	}
+	fj = _mm512_mask_mov_pd(f, _mm512_cmp_pd_mask(f, zero, _CMP_LT_OQ), zero);
+	for (int i = 0; i + 1 < nres; i++) {
+		__m512d r = _mm512_sub_pd(_mm512_sub_pd(s[i + 1], s[i]),
+					  _mm512_mul_pd(fj, _mm512_set1_pd(fp->dtbar[i])));
+		__m512d vr = _mm512_add_pd(_mm512_set1_pd(fp->vdiff[i]),
+					   _mm512_mul_pd(fj, _mm512_set1_pd(fp->cdiff[i])));
+
+		bad |= _mm512_cmp_pd_mask(r, zero, _CMP_GT_OQ) &
+		       _mm512_cmp_pd_mask(_mm512_mul_pd(r, r),
+					  _mm512_mul_pd(_mm512_set1_pd(fp->jump2), vr), _CMP_GT_OQ);
+	}
+	_mm512_storeu_pd(rate, f);
+	_mm512_storeu_pd(vr, _mm512_i64gather_pd(pi, fp->vr, 8));
+	_mm512_storeu_pd(vp, _mm512_mul_pd(_mm512_i64gather_pd(pi, fp->vp, 8),
+					   _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(f, zero, _CMP_GT_OQ),
+							       f)));
+	for (int q = 0; q < 8; q++)
+		if (!(bad >> q & 1))
+			out[q] = (struct ramp_fit){ .rate = rate[q], .var_rnoise = vr[q],
+						    .var_poisson = vp[q], .nuse = nres };
+	return bad;
+}
+#endif
+
+void ramp_fit_row(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t plane, int n,
+		  struct ramp_fit *out)
+{
+	const double *nlinv = fp->nlinv;
+	int nres = fp->nres;
+	double sat_dn = floor(fp->d.saturation);
+	/* resultants v in 1 .. lim - 1 raise no flag and saturate nothing */
+	int lim = sat_dn < fp->nl_dn ? (int)sat_dn : fp->nl_dn;
+	double vb = fp->var_read[0] + fp->var_read[nres - 1], jump2 = fp->jump2;
+	int x = 0;
+
+#ifdef RAMP_AVX2
+	if (nres >= 2 && (simd_flags() & SIMD_AVX512))
+		for (; x + 8 <= n; x += 8) {
+			unsigned bad = fit8_avx512(fp, dn + x, plane, lim, vb, out + x);
+
+			for (int q = 0; bad; q++, bad >>= 1)
+				if (bad & 1)
+					ramp_fit_pixel(fp, dn + x + q, plane, &out[x + q]);
+		}
+#endif
+	for (; x < n; x++) {
+		double s[RAMP_MAX_RES], sig, f, fj;
+		const double *w;
+		int ok = nres >= 2, pi, jump = 0;
+
+		for (int i = 0; i < nres; i++) {
+			int v = dn[(size_t)i * plane + (size_t)x];
+
+			ok &= v >= 1 && v < lim;
+			s[i] = nlinv[v];
+		}
+		if (!ok)
+			goto general;
+		sig = s[nres - 1] - s[0];
+		if (sig < 0)
+			sig = 0;
+		pi = power_index(sig, sig + vb);
+		w = fp->w[pi];
+		f = 0;
+		for (int i = 0; i < nres; i++)
+			f += w[i] * s[i];
+		fj = f < 0 ? 0 : f;
+		/* the jump test without branches: a rise is as likely as
+		 * a fall in a clean ramp, which no predictor guesses */
+		for (int i = 0; i + 1 < nres; i++) {
+			double r = s[i + 1] - s[i] - fj * fp->dtbar[i];
+			double var = fp->vdiff[i] + fj * fp->cdiff[i];
+
+			jump |= (r > 0) & (r * r > jump2 * var);
+		}
+		if (jump)
+			goto general;
+		out[x] = (struct ramp_fit){ .rate = f, .var_rnoise = fp->vr[pi],
+					    .var_poisson = fp->vp[pi] * (f > 0 ? f : 0),
+					    .nuse = nres };
+		continue;
+general:
+		ramp_fit_pixel(fp, dn + x, plane, &out[x]);
 	}
 }

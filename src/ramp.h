@@ -109,7 +109,7 @@ struct ramp_key {
  * out[r * plane + i].  No IPC: see ramp_level1_charge().  scratch:
  * RAMP_SCRATCH(n) doubles.  Thread-safe.
  */
-#define RAMP_SCRATCH(n) ((size_t)(n) * 6 + 512 + (RAMP_MAX_RES + 1) * 140)
+#define RAMP_SCRATCH(n) ((size_t)(n) * 6 + 512 + (RAMP_MAX_RES + 1) * 2 * 260)
 /* Before its first use, scratch must be set up by ramp_scratch_init() (it
  * keeps tables across calls; they change the speed, never the numbers). */
 void ramp_scratch_init(double *scratch);
@@ -182,5 +182,11 @@ struct ramp_fit {
  */
 void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 		    size_t stride, struct ramp_fit *out);
+
+/* The fits of the n pixels x = 0 .. n-1 of a row, resultant r of pixel x
+ * at dn[r * plane + x], into out[x]: the results of ramp_fit_pixel(),
+ * faster for pixels with no saturation, flag or jump.  Thread-safe. */
+void ramp_fit_row(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t plane, int n,
+		  struct ramp_fit *out);
 
 #endif

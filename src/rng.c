@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "rng.h"
+#include "simd.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -213,13 +214,95 @@ philox16_avx2(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t out[1
 }
 #endif
 
+#ifdef RNG_AVX2
+/*
+ * Calls with AVX-512, a counter word in the low half of each 64-bit lane:
+ * the 32 x 32 -> 64 bit multiplication then gives a lane's high and low
+ * words with no shuffling (the upper halves carry junk that the next
+ * multiplication ignores and the end drops), and one ternary-logic step
+ * XORs three words.  PHILOX_SETS sets of eight calls go through the
+ * rounds side by side, so that one set's multiplications run while
+ * another's wait (the loops unrolled, the words in registers).  The same
+ * integers as rng_philox, chosen at run time as philox16_avx2 is.
+ */
+#define PHILOX_SETS 6
+
+__attribute__((target("avx512f"), always_inline)) static inline void
+philox_sets_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out)[4],
+		   int nsets)
+{
+	const __m512i m0 = _mm512_set1_epi64(PHILOX_M0), m1 = _mm512_set1_epi64(PHILOX_M1);
+	const __m512i lo = _mm512_set_epi64(11, 3, 10, 2, 9, 1, 8, 0);
+	const __m512i hi = _mm512_set_epi64(15, 7, 14, 6, 13, 5, 12, 4);
+	__m512i c[PHILOX_SETS][4];
+	uint32_t k0 = g->key[0], k1 = g->key[1];
+
+#pragma GCC unroll 6
+	for (int h = 0; h < nsets; h++) {
+		c[h][0] = _mm512_add_epi64(_mm512_set1_epi64(cell0 + 8 * h),
+					   _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0));
+		c[h][1] = _mm512_set1_epi64(draw);
+		c[h][2] = _mm512_set1_epi64(g->dom[0]);
+		c[h][3] = _mm512_set1_epi64(g->dom[1]);
+	}
+#pragma GCC unroll 10
+	for (int r = 0; r < 10; r++) {
+		__m512i k0v = _mm512_set1_epi64(k0), k1v = _mm512_set1_epi64(k1);
+
+#pragma GCC unroll 6
+		for (int h = 0; h < nsets; h++) {
+			__m512i p0 = _mm512_mul_epu32(c[h][0], m0), p1 = _mm512_mul_epu32(c[h][2], m1);
+
+			/* 0x96: the XOR of the three operands */
+			c[h][0] = _mm512_ternarylogic_epi64(_mm512_srli_epi64(p1, 32), c[h][1], k0v,
+							    0x96);
+			c[h][2] = _mm512_ternarylogic_epi64(_mm512_srli_epi64(p0, 32), c[h][3], k1v,
+							    0x96);
+			c[h][1] = p1;
+			c[h][3] = p0;
+		}
+		k0 += PHILOX_W0;
+		k1 += PHILOX_W1;
+	}
+	/* words 0 and 1 of a call side by side in a 64-bit lane, so are
+	 * 2 and 3; then the lanes of the two interleaved into calls */
+#pragma GCC unroll 6
+	for (int h = 0; h < nsets; h++) {
+		__m512i w01 = _mm512_mask_blend_epi32(0xaaaa, c[h][0], _mm512_slli_epi64(c[h][1], 32));
+		__m512i w23 = _mm512_mask_blend_epi32(0xaaaa, c[h][2], _mm512_slli_epi64(c[h][3], 32));
+
+		_mm512_storeu_si512(out[8 * h], _mm512_permutex2var_epi64(w01, lo, w23));
+		_mm512_storeu_si512(out[8 * h + 4], _mm512_permutex2var_epi64(w01, hi, w23));
+	}
+}
+
+/* 8 * PHILOX_SETS calls, and 16 for what is left of a row. */
+__attribute__((target("avx512f"))) static void
+philox_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out)[4])
+{
+	philox_sets_avx512(g, cell0, draw, out, PHILOX_SETS);
+}
+
+__attribute__((target("avx512f"))) static void
+philox16_avx512(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t (*out)[4])
+{
+	philox_sets_avx512(g, cell0, draw, out, 2);
+}
+#endif
+
 void rng_bits_n(const struct rng *g, uint32_t cell0, uint32_t draw, size_t n,
 		uint32_t (*out)[4])
 {
 	size_t i = 0;
 
 #ifdef RNG_AVX2
-	if (n >= 16 && __builtin_cpu_supports("avx2"))
+	if (n >= 16 && (simd_flags() & SIMD_AVX512)) {
+		for (; i + 8 * PHILOX_SETS <= n; i += 8 * PHILOX_SETS)
+			philox_avx512(g, cell0 + (uint32_t)i, draw, out + i);
+		for (; i + 16 <= n; i += 16)
+			philox16_avx512(g, cell0 + (uint32_t)i, draw, out + i);
+	}
+	if (n - i >= 16 && (simd_flags() & SIMD_AVX2))
 		for (; i + 16 <= n; i += 16)
 			philox16_avx2(g, cell0 + (uint32_t)i, draw, out + i);
 #endif
@@ -588,7 +671,7 @@ void rng_poisson_fill_approx(const struct rng *g, uint32_t cell0, size_t n,
 	}
 	if (nptrs) {
 #ifdef RNG_AVX2
-		if (__builtin_cpu_supports("avx2"))
+		if (simd_flags() & SIMD_AVX2)
 			ptrs_first_avx2(&q, n);
 		else
 #endif
@@ -807,7 +890,100 @@ static const double zig_x[257] = {
 	0.21524189598487156, 0,
 };
 
+/* f(x_i) = exp(-x_i^2 / 2) at each edge, as exp(-0.5 * x * x) rounds it
+ * (tests/unit/rng_philox.c checks that), so that a wedge's test takes one
+ * exp, not three. */
+static const double zig_f[257] = {
+	0x1.f4a946f138416p-12, 0x1.4a605b6b9f70fp-10, 0x1.55f9f43c1b072p-9,
+	0x1.08a1f03b0b20dp-8, 0x1.69ea8d90cb873p-8, 0x1.ce160f8ec684dp-8,
+	0x1.1a59229952f9fp-7, 0x1.4eb96421acffp-7, 0x1.841040d8da48ap-7,
+	0x1.ba48d274f8fb9p-7, 0x1.f152a4f72dd59p-7, 0x1.149033460301fp-6,
+	0x1.30d388dab5e21p-6, 0x1.4d6eaf2fbb06cp-6, 0x1.6a5daf40bbf9p-6,
+	0x1.879d1b600c113p-6, 0x1.a529f4e22ec02p-6, 0x1.c301983cd0924p-6,
+	0x1.e121adb828c7dp-6, 0x1.ff881d718a5ccp-6, 0x1.0f1982e968017p-5,
+	0x1.1e9059f1f6ac3p-5, 0x1.2e27ce83df4a5p-5, 0x1.3ddf2ce98eed8p-5,
+	0x1.4db5d0e112772p-5, 0x1.5dab23cf2adeap-5, 0x1.6dbe9b398d078p-5,
+	0x1.7defb77af2733p-5, 0x1.8e3e02a68b5c1p-5, 0x1.9ea90f929557ap-5,
+	0x1.af30790385f8bp-5, 0x1.bfd3e0f282a45p-5, 0x1.d092efeadf17cp-5,
+	0x1.e16d547b2519cp-5, 0x1.f262c2b6c6e49p-5, 0x1.01b979e30e49dp-4,
+	0x1.0a4ed2c159629p-4, 0x1.12f14d0f217a2p-4, 0x1.1ba0cbe978982p-4,
+	0x1.245d344dd0d96p-4, 0x1.2d266cf9b3115p-4, 0x1.35fc5e4d93e7p-4,
+	0x1.3edef23269a86p-4, 0x1.47ce1401b2219p-4, 0x1.50c9b06fa2bb4p-4,
+	0x1.59d1b577466a9p-4, 0x1.62e6124854d1dp-4, 0x1.6c06b73694a52p-4,
+	0x1.753395aaa117bp-4, 0x1.7e6ca013eefdcp-4, 0x1.87b1c9dbf2858p-4,
+	0x1.9103075a4a0b4p-4, 0x1.9a604dc9d5b1fp-4, 0x1.a3c9933ea628dp-4,
+	0x1.ad3ece9caf63dp-4, 0x1.b6bff78f2e241p-4, 0x1.c04d0680b1027p-4,
+	0x1.c9e5f493b7423p-4, 0x1.d38abb9bd91fap-4, 0x1.dd3b56176e8a9p-4,
+	0x1.e6f7bf29aa562p-4, 0x1.f0bff29520e33p-4, 0x1.fa93ecb6b2244p-4,
+	0x1.0239d54067d38p-3, 0x1.072f94bb8bf91p-3, 0x1.0c2b33d5209c7p-3,
+	0x1.112cb1da26ec6p-3, 0x1.16340e5a82d7p-3, 0x1.1b41492757d4fp-3,
+	0x1.2054625183c41p-3, 0x1.256d5a2835ec4p-3, 0x1.2a8c3137a0728p-3,
+	0x1.2fb0e847c2a73p-3, 0x1.34db805b4ab99p-3, 0x1.3a0bfaae8d7fep-3,
+	0x1.3f4258b6931c2p-3, 0x1.447e9c20375e9p-3, 0x1.49c0c6cf5ce44p-3,
+	0x1.4f08dade31fdap-3, 0x1.5456da9c8684fp-3, 0x1.59aac88f31d89p-3,
+	0x1.5f04a76f88414p-3, 0x1.64647a2adf1b9p-3, 0x1.69ca43e21f275p-3,
+	0x1.6f3607e96472dp-3, 0x1.74a7c9c7ab5bcp-3, 0x1.7a1f8d368a338p-3,
+	0x1.7f9d5621f7187p-3, 0x1.852128a819a49p-3, 0x1.8aab09192816cp-3,
+	0x1.903afbf74fa7bp-3, 0x1.95d105f6a7c3ap-3, 0x1.9b6d2bfd2fe6fp-3,
+	0x1.a10f7322d7e5p-3, 0x1.a6b7e0b19268ep-3, 0x1.ac667a2571816p-3,
+	0x1.b21b452ccd149p-3, 0x1.b7d647a8731b9p-3, 0x1.bd9787abe18afp-3,
+	0x1.c35f0b7d89d53p-3, 0x1.c92cd9971df5fp-3, 0x1.cf00f8a5e6fd5p-3,
+	0x1.d4db6f8b25156p-3, 0x1.dabc455c7901p-3, 0x1.e0a381645718dp-3,
+	0x1.e6912b2283ce6p-3, 0x1.ec854a4c99c4dp-3, 0x1.f27fe6ce998d8p-3,
+	0x1.f88108cb8323bp-3, 0x1.fe88b89df93c7p-3, 0x1.024b7f6c7747fp-2,
+	0x1.0555f2242e9d9p-2, 0x1.0863b8f904336p-2, 0x1.0b74d88b242dap-2,
+	0x1.0e895598709c4p-2, 0x1.11a134fcf2423p-2, 0x1.14bc7bb34ee67p-2,
+	0x1.17db2ed5454e8p-2, 0x1.1afd539c2f05p-2, 0x1.1e22ef6188116p-2,
+	0x1.214c079f7cc9ep-2, 0x1.2478a1f17de89p-2, 0x1.27a8c414db11ep-2,
+	0x1.2adc73e963fddp-2, 0x1.2e13b77210766p-2, 0x1.314e94d5af62fp-2,
+	0x1.348d125f9d19ep-2, 0x1.37cf368081379p-2, 0x1.3b1507cf143aep-2,
+	0x1.3e5e8d08ed2dbp-2, 0x1.41abcd1357a19p-2, 0x1.44fccefc324fep-2,
+	0x1.485199fad6ad4p-2, 0x1.4baa357109ca2p-2, 0x1.4f06a8ebf6d92p-2,
+	0x1.5266fc2533bedp-2, 0x1.55cb3703d01p-2, 0x1.5933619d6eebep-2,
+	0x1.5c9f84376c244p-2, 0x1.600fa7480d2c8p-2, 0x1.6383d377be515p-2,
+	0x1.66fc11a25cbe2p-2, 0x1.6a786ad88de21p-2, 0x1.6df8e86124caap-2,
+	0x1.717d93ba9614cp-2, 0x1.7506769c7b1edp-2, 0x1.78939af9252ebp-2,
+	0x1.7c250aff414b1p-2, 0x1.7fbad11b8d913p-2, 0x1.8354f7faa0ddbp-2,
+	0x1.86f38a8ac5ab8p-2, 0x1.8a9693fde918bp-2, 0x1.8e3e1fcb9f119p-2,
+	0x1.91ea39b33cb1bp-2, 0x1.959aedbe09f98p-2, 0x1.995048418c0ccp-2,
+	0x1.9d0a55e1e93e5p-2, 0x1.a0c9239468445p-2, 0x1.a48cbea20c056p-2,
+	0x1.a85534aa4d889p-2, 0x1.ac2293a5f5aa5p-2, 0x1.aff4e9ea1855ap-2,
+	0x1.b3cc462b331d2p-2, 0x1.b7a8b78071324p-2, 0x1.bb8a4d6716d9ap-2,
+	0x1.bf7117c616a1fp-2, 0x1.c35d26f1d2cbfp-2, 0x1.c74e8bb00d7cep-2,
+	0x1.cb45573c0a84ep-2, 0x1.cf419b4ae5b75p-2, 0x1.d3436a1021086p-2,
+	0x1.d74ad6426de39p-2, 0x1.db57f320b56b6p-2, 0x1.df6ad47763a0ep-2,
+	0x1.e3838ea5f9b89p-2, 0x1.e7a236a4ec3cap-2, 0x1.ebc6e20bd1f59p-2,
+	0x1.eff1a717e8f9ap-2, 0x1.f4229cb2f7af8p-2, 0x1.f859da7a900cfp-2,
+	0x1.fc9778c7bbda8p-2, 0x1.006dc85b8cac8p-1, 0x1.02931e18b822dp-1,
+	0x1.04bbcafa63f3p-1, 0x1.06e7dccf03c38p-1, 0x1.091761d995d82p-1,
+	0x1.0b4a68d70d9afp-1, 0x1.0d810104142a1p-1, 0x1.0fbb3a2325915p-1,
+	0x1.11f9248311f3bp-1, 0x1.143ad105ea9ap-1, 0x1.16805128639dep-1,
+	0x1.18c9b709b3c55p-1, 0x1.1b171573fd117p-1, 0x1.1d687fe54996fp-1,
+	0x1.1fbe0a9929627p-1, 0x1.2217ca92ff7f7p-1, 0x1.2475d5a90db89p-1,
+	0x1.26d84290504f2p-1, 0x1.293f28e93cd1ap-1, 0x1.2baaa14d7954dp-1,
+	0x1.2e1ac55ea3bfp-1, 0x1.308fafd6438f1p-1, 0x1.33097c9703a38p-1,
+	0x1.358848bf550ebp-1, 0x1.380c32bda00d7p-1, 0x1.3a955a662cd1p-1,
+	0x1.3d23e10af31a5p-1, 0x1.3fb7e99585b84p-1, 0x1.425198a355fe5p-1,
+	0x1.44f114a49367bp-1, 0x1.479685fdf5014p-1, 0x1.4a42172dc527bp-1,
+	0x1.4cf3f4f494ec3p-1, 0x1.4fac4e820b66ap-1, 0x1.526b55a656cd8p-1,
+	0x1.55313f08d9e49p-1, 0x1.57fe4264c8d92p-1, 0x1.5ad29acc85c8bp-1,
+	0x1.5dae86f4aff6cp-1, 0x1.6092498802667p-1, 0x1.637e298550c1ap-1,
+	0x1.667272a92e325p-1, 0x1.696f75e513b2cp-1, 0x1.6c7589e635a8bp-1,
+	0x1.6f850baea7afp-1, 0x1.729e5f43f6d14p-1, 0x1.75c1f0770d858p-1,
+	0x1.78f033ca0b0d8p-1, 0x1.7c29a779c685bp-1, 0x1.7f6ed4b20e2cep-1,
+	0x1.82c050f56cf71p-1, 0x1.861ebfc37bcadp-1, 0x1.898ad48badf04p-1,
+	0x1.8d0554fe60aaap-1, 0x1.908f1bd317151p-1, 0x1.94291c21b7a4ap-1,
+	0x1.97d4657617ac4p-1, 0x1.9b9228d240685p-1, 0x1.9f63bee651fdcp-1,
+	0x1.a34aafdf5af14p-1, 0x1.a748bd550c9e7p-1, 0x1.ab5fef17a250ap-1,
+	0x1.af92a3f6ce8a8p-1, 0x1.b3e3a8234dd16p-1, 0x1.b85653a8ff558p-1,
+	0x1.bceeb4ee1dc88p-1, 0x1.c1b1cd9eebafp-1, 0x1.c6a5ecea97886p-1,
+	0x1.cbd33a8a72df3p-1, 0x1.d144978a119e4p-1, 0x1.d70920657bcfbp-1,
+	0x1.dd36fa704de9fp-1, 0x1.e3f11e027f082p-1, 0x1.eb7545b6ca922p-1,
+	0x1.f446ac979f097p-1, 0x1p+0
+};
+
 const double *const rng_zig_x = zig_x;
+const double *const rng_zig_f = zig_f;
 
 static double zig_slow(const struct rng *g, uint32_t cell, int i, double u)
 {
@@ -828,8 +1004,7 @@ static double zig_slow(const struct rng *g, uint32_t cell, int i, double u)
 			} while (2 * b < a * a);
 			return u < 0 ? -(zig_x[1] + a) : zig_x[1] + a;
 		} else {
-			double f0 = exp(-0.5 * zig_x[i] * zig_x[i]);
-			double f1 = exp(-0.5 * zig_x[i + 1] * zig_x[i + 1]);
+			double f0 = zig_f[i], f1 = zig_f[i + 1];
 
 			if (f0 + rng_cell_u01(&c) * (f1 - f0) < exp(-0.5 * x * x))
 				return x;

@@ -165,8 +165,10 @@ static inline double rng_poisson_normal(double mu, double z)
 #define RNG_INVERT_MAX 400
 int rng_poisson_invert(double u, double mu, double emu);
 
-/* The ziggurat's layer edges x_0 .. x_256 (see rng.c). */
+/* The ziggurat's layer edges x_0 .. x_256 and f(x_i) = exp(-x_i^2 / 2)
+ * there (see rng.c). */
 extern const double *const rng_zig_x;
+extern const double *const rng_zig_f;
 
 /* The ziggurat's rare cases (a wedge or the tail) for layer i and signed
  * uniform u, from cell's draws 1, 2, ... of g. */

@@ -246,4 +246,17 @@ test_expect_success 'a --psf ePSF with IPC folded in: a warning at level 1, none
 	run --psf e.fits --rows 1-8 -o w0.fits none.csv 2> err0 &&
 	! grep "IPC again" err0
 '
+test_expect_success 'the vector loops and the plain ones (WFISCENE_NO_SIMD) give the same bytes' '
+	# the SIAF geometry (a sky that varies with pixel area), a saturating
+	# star, a faint and a bright sky (small Poisson means and the normal
+	# form above poisson-normal), levels 1 and 2 and the scene level
+	for bg in 0.54 50; do
+		for lv in "--level 1" "--level 2" "--noise all"; do
+			run --background $bg $lv --rows 1990-2100 -o v.fits bright.csv &&
+			WFISCENE_NO_SIMD=1 run --background $bg $lv --rows 1990-2100 \
+				-o p.fits bright.csv &&
+			test_cmp v.fits p.fits || return 1
+		done
+	done
+'
 test_done

@@ -106,11 +106,11 @@ int main(void)
 		for (int x = 0; x < N; x++)
 			rate[x] = signal(x, y);
 		ramp_level1_row(&p, &d, &k, (uint32_t)y * N, N, rate, 1, dn, N, scr);
-		for (int x = 0; x < N; x++) {
-			struct ramp_fit f;
+		for (int x = 0; x < N; x += 256) {
+			struct ramp_fit f[256];
 
-			ramp_fit_pixel(&fp, dn + x, N, &f);
-			sink += f.rate;
+			ramp_fit_row(&fp, dn + x, N, 256, f);
+			sink += f[0].rate;
 		}
 	}
 	t_l2 = now() - t0;

@@ -357,6 +357,50 @@ int main(void)
 		}
 		same = !memcmp(w, s, (size_t)p.nres * ROW * 2);
 		ok(same, "a row cut in pieces gives the same resultants");
+		/* pieces of 7 pixels go one by one, never eight at a time:
+		 * the rates above, then a faint sky that rises across the row
+		 * (its Poisson tables change) with a star every 50 pixels */
+		for (int pass = 0; pass < 2; pass++) {
+			if (pass) {
+				for (int i = 0; i < ROW; i++)
+					r[i] = 0.2 + 2e-3 * i + (i % 50 < 3 ? 40.0 / (1 + i % 50) : 0);
+				ramp_level1_row(&p, &d, &k, 8192, ROW, r, 1, w, ROW, scr);
+			}
+			for (int x = 0; x < ROW; x += 7) {
+				int n = ROW - x < 7 ? ROW - x : 7;
+
+				ramp_level1_row(&p, &d, &k, 8192 + x, n, r + x, 1, s + x, ROW, scr);
+			}
+			ok(!memcmp(w, s, (size_t)p.nres * ROW * 2),
+			   "pixels one by one give the resultants of eight at a time (%s)",
+			   pass ? "a faint sky" : "0 to 15,000 e-/s");
+		}
+		free(scr);
+		free(w);
+		free(s);
+	}
+	/* the same with a table that skips reads: the gaps' counts are
+	 * drawn in place of their means */
+	{
+		struct ramp_pattern q;
+		double *scr = malloc(RAMP_SCRATCH(ROW) * sizeof(double)), r[ROW];
+		uint16_t *w, *s;
+
+		if (ramp_pattern_get(109, &q, &e) < 0)
+			return 1;
+		w = malloc((size_t)q.nres * ROW * 2);
+		s = malloc((size_t)q.nres * ROW * 2);
+		ramp_scratch_init(scr);
+		for (int i = 0; i < ROW; i++)
+			r[i] = 0.2 + 2e-3 * i + (i % 50 < 3 ? 40.0 / (1 + i % 50) : 0);
+		ramp_level1_row(&q, &d, &k, 8192, ROW, r, 1, w, ROW, scr);
+		for (int x = 0; x < ROW; x += 7) {
+			int n = ROW - x < 7 ? ROW - x : 7;
+
+			ramp_level1_row(&q, &d, &k, 8192 + x, n, r + x, 1, s + x, ROW, scr);
+		}
+		ok(!memcmp(w, s, (size_t)q.nres * ROW * 2),
+		   "pixels one by one give the resultants of eight at a time (table 109's gaps)");
 		free(scr);
 		free(w);
 		free(s);
@@ -395,6 +439,44 @@ int main(void)
 		free(own);
 		free(w);
 		free(s);
+	}
+	/* the fits of a row are those of its pixels one by one: clean ramps,
+	 * jumps (many cosmic rays), saturation and the NONLINEAR flag */
+	{
+		double *scr = malloc(RAMP_SCRATCH(ROW) * sizeof(double)), r[ROW];
+		uint16_t *w = malloc((size_t)p.nres * ROW * 2);
+		struct ramp_fit *a = malloc(ROW * sizeof(*a)), b;
+		struct ramp_fit_plan fp;
+		struct ramp_det c = d;
+		long differ = 0, fast = 0;
+
+		c.cosmic_rate = 0.1 / (2 * c.pixel_area * p.exptime);
+		if (ramp_fit_plan_init(&fp, &p, &c) < 0)
+			return 1;
+		ramp_scratch_init(scr);
+		for (int y = 0; y < 4; y++) {
+			for (int i = 0; i < ROW; i++)
+				r[i] = y < 2 ? 0.01 * pow(1e6, (double)i / ROW) : 0.5 + i % 7;
+			ramp_level1_row(&p, &c, &k, (uint32_t)(y * ROW), ROW, r, 1, w, ROW, scr);
+			/* the first half eight at a time, the second in pieces
+			 * of 7, one by one */
+			ramp_fit_row(&fp, w, ROW, ROW / 2, a);
+			for (int x = ROW / 2; x < ROW; x += 7)
+				ramp_fit_row(&fp, w + x, ROW, ROW - x < 7 ? ROW - x : 7, a + x);
+			for (int i = 0; i < ROW; i++) {
+				ramp_fit_pixel(&fp, w + i, ROW, &b);
+				differ += !(a[i].rate == b.rate && a[i].var_poisson == b.var_poisson &&
+					    a[i].var_rnoise == b.var_rnoise && a[i].dq == b.dq &&
+					    a[i].njump == b.njump && a[i].nuse == b.nuse);
+				fast += !b.dq;
+			}
+		}
+		ok(!differ, "a row's fits are its pixels' (%ld of %d differ; %ld clean)", differ,
+		   4 * ROW, fast);
+		ramp_fit_plan_free(&fp);
+		free(scr);
+		free(w);
+		free(a);
 	}
 	return done_testing();
 }

@@ -9,7 +9,8 @@
  *
  * Units: charge in electrons (e-), rates in e-/s (wfiscene's counts/s),
  * resultants in DN (16-bit, gain e-/DN).  The model and every constant:
- * ramp.c, data/detector.tsv and the LEVELS section of wfiscene(1).
+ * ramp.c (level 1), ramp_fit.c (level 2), data/detector.tsv and the LEVELS
+ * section of wfiscene(1).
  */
 #ifndef WFS_RAMP_H
 #define WFS_RAMP_H

@@ -160,7 +160,7 @@ static inline double rng_poisson_normal(double mu, double z)
  * Random Variate Generation", 1986, X.3.3): expected mu + 1 steps, exact
  * up to the rounding of F.  For small means (below ~64); the count is
  * capped at RNG_INVERT_MAX, which only u within ulps of 1 can reach.  The
- * one inversion loop of the project: rng.c, ramp.c and noise.c use it.
+ * one inversion loop of the project: rng.c, ramp.c, ramp_pois.c and noise.c use it.
  */
 #define RNG_INVERT_MAX 400
 int rng_poisson_invert(double u, double mu, double emu);

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include <sys/stat.h>
 
 #include <fitsio.h>
 #include <wcslib/wcs.h>
@@ -349,17 +350,21 @@ static int had_checksum(fitsfile *f)
 int into_compose(const struct into *in, const char *path, struct err *e)
 {
 	fitsfile *src = NULL, *eng = NULL, *out = NULL;
-	char tmp[4200], name[4210];
+	char tmp[4200];
 	double *a = NULL, *b = NULL;
 	int status = 0, fd, rc = -1;
+	struct stat sb;
 
+	/* The registered temporary (tempfile.h) proved the name free; cfitsio
+	 * creates the file itself, taking the name literally
+	 * (fits_create_diskfile: no "[ext]" or "!" parsing of a user's path). */
 	if ((fd = tempfile_beside(path, tmp, sizeof(tmp), e)) < 0)
-		return -1;
+		goto out;
 	close(fd);
-	snprintf(name, sizeof(name), "!%s", tmp);
+	unlink(tmp);
 	if (fits_open_diskfile(&src, in->path, READONLY, &status) ||
 	    fits_open_diskfile(&eng, path, READONLY, &status) ||
-	    fits_create_file(&out, name, &status) ||
+	    fits_create_diskfile(&out, tmp, &status) ||
 	    fits_copy_file(src, out, 1, 1, 1, &status)) {
 		err_fits(e, status, "--into %s: %s", in->spec, path);
 		goto out;
@@ -403,11 +408,8 @@ int into_compose(const struct into *in, const char *path, struct err *e)
 		err_fits(e, status, "%s", tmp);
 		goto out;
 	}
-	if (rename(tmp, path) < 0) {
-		err_sys(e, "%s", path);
+	if (tempfile_commit(tmp, path, e) < 0)
 		goto out;
-	}
-	tmp[0] = 0;
 	rc = 0;
 out:
 	status = 0;
@@ -419,8 +421,12 @@ out:
 	status = 0;
 	if (eng)
 		fits_close_file(eng, &status);
-	if (tmp[0])
-		unlink(tmp);
+	tempfile_discard(tmp);
+	/* The run failed: what lies under path is the scene without the
+	 * image it was to be added to, so it goes too (a failed run leaves
+	 * nothing under the requested name). */
+	if (rc < 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode))
+		unlink(path);
 	free(a);
 	free(b);
 	return rc;

@@ -250,10 +250,12 @@ int report_write(struct engine *g)
 	for (int s = 0; s < g->nslot; s++)
 		fprintf(f, "%s%d", s ? ", " : "", g->slot[s].sca);
 	fprintf(f, "], \"ra\": %.10g, \"dec\": %.10g, \"pa\": %.10g, \"geometry\": \"%s\", "
-		"\"exptime\": %.10g, "
-		"\"psf\": \"%s\", \"threads\": %d, \"tile\": %d, \"chunk\": %zu, "
+		"\"exptime\": %.10g, \"psf\": ",
+		g->sky.ra0, g->sky.dec0, g->sky.pa0, geom_name(o->geometry), o->exptime);
+	/* --psf is a user's file name: escaped like the --set values */
+	report_string(f, o->psf);
+	fprintf(f, ", \"threads\": %d, \"tile\": %d, \"chunk\": %zu, "
 		"\"seed\": %llu, \"noise\": %u, \"background\": ",
-		g->sky.ra0, g->sky.dec0, g->sky.pa0, geom_name(o->geometry), o->exptime, o->psf,
 		g->nworker, g->tile, o->chunk, (unsigned long long)x->seed, o->noise);
 	if (o->bkg_model == BKG_SKY)
 		fputs("\"sky\"},\n", f);

@@ -66,6 +66,32 @@ assert np.array_equal(a[\"WFI04\"].data, b[\"WFI04\"].data)
 assert a[0].header == b[0].header
 assert a[\"WFI04\"].header == b[\"WFI04\"].header"
 '
+test_expect_success 'an output name with cfitsio syntax is taken literally, no temporary left' '
+	mkdir lit &&
+	"$WFS" --filter F129 --sca 1 --into base.fits -o "lit/x[1].fits" b.csv &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+a, b = fits.open(\"inj1.fits\"), fits.open(\"lit/x[1].fits\")
+assert len(a) == len(b)
+assert all(np.array_equal(x.data, y.data) for x, y in zip(a, b))" &&
+	test "$(ls -A lit)" = "x[1].fits"
+'
+
+SHIM=$TRASH/enospc.so
+if cc -shared -fPIC -o "$SHIM" "$TOP/tests/shim/enospc.c" -ldl 2>/dev/null; then
+	test_expect_success 'the disk full while adding to the image: exit 2, nothing left' '
+		# the scene (67 MB) fits, the image with it added (134 MB) does not
+		mkdir full &&
+		test_must_fail --status 2 env WFS_ENOSPC_MATCH="$TRASH/full/" \
+			WFS_ENOSPC_AFTER=80000000 LD_PRELOAD="$SHIM" \
+			"$WFS" --filter F129 --sca 1 --into base.fits -o full/inj.fits b.csv 2>err &&
+		test_grep "full/inj.fits: error writing" err &&
+		test -z "$(ls -A full)"
+	'
+else
+	test_skip 'disk full while adding' 'cannot build tests/shim/enospc.c'
+fi
 test_expect_success '--noise poisson adds the photon noise of the added light only' '
 	"$WFS" --filter F129 --sca 1 --into base.fits --noise poisson --seed 5 -o injn.fits b.csv &&
 	"$PY" -c "

@@ -27,6 +27,14 @@ assert all(v >= 0 for v in r[\"seconds\"].values())
 assert r[\"psf_grids\"][\"built\"] + r[\"psf_grids\"][\"loaded\"] >= 1 or r[\"settings\"][\"psf\"] != \"builtin\"
 "
 '
+test_expect_success 'a --psf name with a quote and a backslash stays valid JSON' '
+	"$WFS" psf --filter F129 --sca 1 -o "q\"b\\x.fits" &&
+	"$WFS" --filter F129 --psf "q\"b\\x.fits" --report q.json -o q.fits stars.csv &&
+	"$PY" -c "
+import json
+r = json.load(open(\"q.json\"))
+assert r[\"settings\"][\"psf\"] == \"q\\\"b\\\\x.fits\", r[\"settings\"][\"psf\"]"
+'
 test_expect_success 'the report shows what a scene left out: models, FFT plans, tiles, noise' '
 	printf "x,y,flux\n100,100,50\n" > pt.csv &&
 	"$WFS" --filter F129 --psf "$PSF" --report w1.json -o w1.fits pt.csv &&

@@ -70,6 +70,23 @@ int ramp_fit_plan_init(struct ramp_fit_plan *fp, const struct ramp_pattern *p,
 	fp->p = *p;
 	fp->d = *d;
 	fp->nres = p->nres;
+	/* The level from which the fit takes a resultant as saturated.  IPC
+	 * shares the measured charge after each pixel's own was clipped, so a
+	 * saturated pixel beside fainter ones reads as little as its reset
+	 * level R plus K0 (saturation - R), K0 the kernel's centre, and its
+	 * later resultants level off there, below the clip: fitted as signal
+	 * they give a flat ramp (a rate near 0) or false jumps.  So the fit
+	 * starts saturation there, R taken 5 sigma of reset noise low (as
+	 * romancal's saturation threshold sits below the physical level).  A
+	 * uniform field still reads the clip (the kernel sums to 1); with no
+	 * IPC (K0 = 1) the level is the clip. */
+	{
+		double r = ramp_nl(d, d->pedestal - 5 * d->reset_noise);
+		double s = d->saturation * d->gain, k0 = d->ipc[1][1];
+
+		if (k0 > 0 && k0 < 1 && r < s)
+			fp->d.saturation = floor((r + k0 * (s - r)) / d->gain);
+	}
 	for (int i = 0; i < p->nres; i++)
 		fp->var_read[i] = d->read_noise * d->read_noise / p->nread[i] +
 				  d->gain * d->gain / 12;

@@ -110,6 +110,27 @@ assert np.isfinite(r).all() and r.max() > 1e4, r.max()
 "
 '
 
+test_expect_success 'around a saturating star every rate but DO_NOT_USE is within 10 % of the light' '
+	# IPC shares the charge after each pixel is clipped: a saturated
+	# pixel beside fainter ones levels off below the clip, which the fit
+	# must take as saturation, not as a flat ramp or jumps
+	run --level 2 --rows 1990-2100 -o star2.fits bright.csv &&
+	run --exptime 139.149 --rows 1990-2100 -o star0.fits bright.csv &&
+	$PY -c "
+from astropy.io import fits
+import numpy as np
+r = fits.getdata(\"star2.fits\", \"WFI01\").astype(float)
+q = fits.getdata(\"star2.fits\", \"WFI01_DQ\").astype(np.int64)
+m = fits.getdata(\"star0.fits\", \"WFI01\").astype(float) + 0.049
+y0, x0 = np.unravel_index(np.argmax(m), m.shape)
+yy, xx = np.mgrid[0:m.shape[0], 0:m.shape[1]]
+near = (np.hypot(yy - y0, xx - x0) < 30) & ((q & 1) == 0)
+ratio = r[near] / m[near]
+off = (np.abs(ratio - 1) > 0.1).sum()
+assert near.sum() > 1000 and ((q[near] & 2) != 0).sum() > 500, (near.sum(), (q & 2).sum())
+assert off < 0.01 * near.sum() and ratio.min() > 0.5, (off, near.sum(), ratio.min())
+"
+'
 test_expect_success 'options that do not go with the levels are refused' '
 	test_must_fail --status 1 run --level 2 --exptime 100 -o bad.fits none.csv 2> err &&
 	test_grep "MA table 4 lasts 139.149 s" err && ! test -e bad.fits &&

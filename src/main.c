@@ -42,7 +42,7 @@ struct scene_cmd {
 
 static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
 	set_model_int, set_model_word, set_flux_unit, set_psf, set_background, set_noise,
-	set_seed, set_version, set_date, set_exptime, set_level;
+	set_seed, set_version, set_date, set_exptime, set_level, set_ma_table;
 
 static const char *const refs[] = { "wfi01", "boresight", NULL };
 /* in the order of enum wfs_geometry */
@@ -152,7 +152,7 @@ static const struct opt scene_options[] = {
 	{ OPT("level", 0, "L", "scene", "scene (rates), 1 (resultants in DN) or 2 (ramp fits)",
 	  set_level, OFF(o.level)) },
 	{ OPT("ma-table", 0, "N", "4", "MultiAccum table of levels 1 and 2 (3-17, 109, 110)",
-	  opt_int, OFF(o.ma_table)), .lo = 1, .hi = 999 },
+	  set_ma_table, OFF(o.ma_table)), .lo = 1, .hi = 999 },
 	OPT_SECTION("Running:"),
 	{ OPT("threads", 0, "N", "all cores", "worker threads", opt_int, OFF(o.threads)),
 	  .lo = 0, .hi = 1024, .flags = OPT_SHOW_DEFAULT },
@@ -336,6 +336,14 @@ static int set_exptime(const struct opt_arg *a, struct err *e)
 	return opt_double(a, e);
 }
 
+static int set_ma_table(const struct opt_arg *a, struct err *e)
+{
+	struct scene_cmd *c = a->base;
+
+	c->o.ma_table_given = a->value != a->opt->def;
+	return opt_int(a, e);
+}
+
 static int set_level(const struct opt_arg *a, struct err *e)
 {
 	return level_parse(a->value, a->field, e);
@@ -413,6 +421,10 @@ static int check_options(struct scene_opts *o, struct err *e)
 		return err_set(e, EXIT_INPUT, "--rows with --compress %s: the parts of an image "
 			       "are joined uncompressed (compress the merged file, e.g. with "
 			       "fpack(1))", o->compress);
+	if (o->level == LEVEL_SCENE && o->ma_table_given)
+		return err_set(e, EXIT_INPUT, "--ma-table %d without --level 1 or 2: a read "
+			       "pattern is for the detector levels (the scene level takes "
+			       "--exptime)", o->ma_table);
 	if (o->level != LEVEL_SCENE) {
 		struct ramp_pattern p;
 		const char *lv = o->level == LEVEL_1 ? "1" : "2";

@@ -64,6 +64,7 @@ struct scene_opts {
 	int level;                      /* enum detector_level: --level */
 	int ma_table;                   /* --ma-table: read pattern of levels 1, 2 */
 	int exptime_given;              /* --exptime was on the command line */
+	int ma_table_given;             /* --ma-table was on the command line */
 };
 
 /* Simulate the scene from the catalogs (NULL-terminated; "-" is stdin).

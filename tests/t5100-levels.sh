@@ -143,6 +143,8 @@ test_expect_success 'options that do not go with the levels are refused' '
 	test_grep "uncompressed" err && ! test -e bad.fits &&
 	test_must_fail --status 1 run --level 2 --ma-table 2 -o bad.fits none.csv 2> err &&
 	test_grep "no MultiAccum table 2 (there are 3, 4" err && ! test -e bad.fits &&
+	test_must_fail --status 1 run --ma-table 3 -o bad.fits none.csv 2> err &&
+	test_grep "without --level 1 or 2" err && ! test -e bad.fits &&
 	test_must_fail --status 1 run --level 3 -o bad.fits none.csv 2> err &&
 	test_grep "expected scene, 1 or 2" err && ! test -e bad.fits &&
 	test_must_fail --status 1 run --level 1 --bunit counts -o bad.fits none.csv 2> err &&

@@ -273,6 +273,45 @@ static int by_tile(const void *a, const void *b)
 		} \
 } while (0)
 
+/* ROUNDS timings of the polyphase loop over the n stars st into the tiles of
+ * base (img, or imgf laid out as it), whose elements are of type T; the
+ * fastest in best.  poly holds OVER x OVER phases of 48 x 48. */
+#define POLYPHASE_ROUNDS(T, base) do { \
+	best = 1e30; \
+	for (int r = 0; r < ROUNDS; r++) { \
+		double t = cpu_now(); \
+		for (long i = 0; i < n; i++) { \
+			const struct star *s = &st[i]; \
+			double tx0 = -OVER * s->x, ty0 = -OVER * s->y; \
+			int bx = (int)floor(tx0), by = (int)floor(ty0); \
+			double fx = tx0 - bx, fy = ty0 - by; \
+			long sx = C + bx, sy = C + by; \
+			int mx0 = (int)(sx >= 0 ? sx / OVER : -((-sx + OVER - 1) / OVER)); \
+			int my0 = (int)(sy >= 0 ? sy / OVER : -((-sy + OVER - 1) / OVER)); \
+			int rx0 = (int)(sx - OVER * mx0), ry0 = (int)(sy - OVER * my0); \
+			int rx1 = (rx0 + 1) % OVER, ry1 = (ry0 + 1) % OVER; \
+			int mx1 = mx0 + (rx0 + 1) / OVER, my1 = my0 + (ry0 + 1) / OVER; \
+			float w0 = (float)(s->flux * (1 - fy) * (1 - fx)); \
+			float w1 = (float)(s->flux * (1 - fy) * fx); \
+			float w2 = (float)(s->flux * fy * (1 - fx)), w3 = (float)(s->flux * fy * fx); \
+			FOR_WINDOWS(s, { \
+				T *tb = (base) + (tile - img); \
+				for (int y = y0; y < y1; y++) { \
+					T *restrict row = tb + (size_t)(y - ty * TILE) * TILE - tx * TILE; \
+					const float *restrict s0 = poly + ((ry0 * OVER + rx0) * 48 + y + my0 + 1) * 48 + mx0 + 1; \
+					const float *restrict s1 = poly + ((ry0 * OVER + rx1) * 48 + y + my0 + 1) * 48 + mx1 + 1; \
+					const float *restrict s2 = poly + ((ry1 * OVER + rx0) * 48 + y + my1 + 1) * 48 + mx0 + 1; \
+					const float *restrict s3 = poly + ((ry1 * OVER + rx1) * 48 + y + my1 + 1) * 48 + mx1 + 1; \
+					for (int x = x0; x < x1; x++) \
+						row[x] += w0 * s0[x] + w1 * s1[x] + w2 * s2[x] + w3 * s3[x]; \
+				} \
+			}); \
+		} \
+		t = cpu_now() - t; \
+		best = t < best ? t : best; \
+	} \
+} while (0)
+
 /* Draw source q alone into a zeroed buffer of w x w pixels whose pixel 0
  * is the first of its box (returned in b), as the host would: prepare(),
  * footprint(), render().  Returns 0 or -1. */
@@ -419,80 +458,12 @@ int main(int argc, char **argv)
 			sink += img[i] + imgf[i];
 		return sink == 12345.678;
 	}
-	/* polyphase bilinear from one array: weights per star, 4 streams */
-	best = 1e30;
-	for (int r = 0; r < ROUNDS; r++) {
-		double t = cpu_now();
-
-		for (long i = 0; i < n; i++) {
-			const struct star *s = &st[i];
-			double tx0 = -OVER * s->x, ty0 = -OVER * s->y;
-			int bx = (int)floor(tx0), by = (int)floor(ty0);
-			double fx = tx0 - bx, fy = ty0 - by;
-			long sx = C + bx, sy = C + by;
-			int mx0 = (int)(sx >= 0 ? sx / OVER : -((-sx + OVER - 1) / OVER));
-			int my0 = (int)(sy >= 0 ? sy / OVER : -((-sy + OVER - 1) / OVER));
-			int rx0 = (int)(sx - OVER * mx0), ry0 = (int)(sy - OVER * my0);
-			int rx1 = (rx0 + 1) % OVER, ry1 = (ry0 + 1) % OVER;
-			int mx1 = mx0 + (rx0 + 1) / OVER, my1 = my0 + (ry0 + 1) / OVER;
-			float w0 = (float)(s->flux * (1 - fy) * (1 - fx)), w1 = (float)(s->flux * (1 - fy) * fx);
-			float w2 = (float)(s->flux * fy * (1 - fx)), w3 = (float)(s->flux * fy * fx);
-
-			FOR_WINDOWS(s, {
-				for (int y = y0; y < y1; y++) {
-					double *restrict row = tile + (size_t)(y - ty * TILE) * TILE - tx * TILE;
-					const float *restrict s0 = poly + ((ry0 * OVER + rx0) * 48 + y + my0 + 1) * 48 + mx0 + 1;
-					const float *restrict s1 = poly + ((ry0 * OVER + rx1) * 48 + y + my0 + 1) * 48 + mx1 + 1;
-					const float *restrict s2 = poly + ((ry1 * OVER + rx0) * 48 + y + my1 + 1) * 48 + mx0 + 1;
-					const float *restrict s3 = poly + ((ry1 * OVER + rx1) * 48 + y + my1 + 1) * 48 + mx1 + 1;
-
-					for (int x = x0; x < x1; x++)
-						row[x] += w0 * s0[x] + w1 * s1[x] + w2 * s2[x] + w3 * s3[x];
-				}
-			});
-		}
-		t = cpu_now() - t;
-		best = t < best ? t : best;
-	}
+	/* polyphase bilinear from one array: weights per star, 4 streams; into
+	 * the double tiles, then into float ones (the floor of an interpolating
+	 * renderer that accumulates in float) */
+	POLYPHASE_ROUNDS(double, img);
 	printf("polyphase %.1f %.2f\n", best / n * 1e9, best / n * 1e9 / stamp_ns);
-	/* the same into float tiles: the floor of an interpolating renderer that
-	 * accumulates in float */
-	best = 1e30;
-	for (int r = 0; r < ROUNDS; r++) {
-		double t = cpu_now();
-
-		for (long i = 0; i < n; i++) {
-			const struct star *s = &st[i];
-			double tx0 = -OVER * s->x, ty0 = -OVER * s->y;
-			int bx = (int)floor(tx0), by = (int)floor(ty0);
-			double fx = tx0 - bx, fy = ty0 - by;
-			long sx = C + bx, sy = C + by;
-			int mx0 = (int)(sx >= 0 ? sx / OVER : -((-sx + OVER - 1) / OVER));
-			int my0 = (int)(sy >= 0 ? sy / OVER : -((-sy + OVER - 1) / OVER));
-			int rx0 = (int)(sx - OVER * mx0), ry0 = (int)(sy - OVER * my0);
-			int rx1 = (rx0 + 1) % OVER, ry1 = (ry0 + 1) % OVER;
-			int mx1 = mx0 + (rx0 + 1) / OVER, my1 = my0 + (ry0 + 1) / OVER;
-			float w0 = (float)(s->flux * (1 - fy) * (1 - fx)), w1 = (float)(s->flux * (1 - fy) * fx);
-			float w2 = (float)(s->flux * fy * (1 - fx)), w3 = (float)(s->flux * fy * fx);
-
-			FOR_WINDOWS(s, {
-				float *ftile = imgf + (tile - img);
-
-				for (int y = y0; y < y1; y++) {
-					float *restrict row = ftile + (size_t)(y - ty * TILE) * TILE - tx * TILE;
-					const float *restrict s0 = poly + ((ry0 * OVER + rx0) * 48 + y + my0 + 1) * 48 + mx0 + 1;
-					const float *restrict s1 = poly + ((ry0 * OVER + rx1) * 48 + y + my0 + 1) * 48 + mx1 + 1;
-					const float *restrict s2 = poly + ((ry1 * OVER + rx0) * 48 + y + my1 + 1) * 48 + mx0 + 1;
-					const float *restrict s3 = poly + ((ry1 * OVER + rx1) * 48 + y + my1 + 1) * 48 + mx1 + 1;
-
-					for (int x = x0; x < x1; x++)
-						row[x] += w0 * s0[x] + w1 * s1[x] + w2 * s2[x] + w3 * s3[x];
-				}
-			});
-		}
-		t = cpu_now() - t;
-		best = t < best ? t : best;
-	}
+	POLYPHASE_ROUNDS(float, imgf);
 	printf("polyphase-float %.1f %.2f\n", best / n * 1e9, best / n * 1e9 / stamp_ns);
 	/* the stamp in catalog order */
 	best = 1e30;

@@ -395,11 +395,10 @@ static int wfloats(struct fitsout *f, const float *v, size_t n, struct err *e)
 
 		for (size_t i = 0; i < k; i++, q += 4) {
 			uint32_t u;
+
 			memcpy(&u, &v[i], 4);
-			q[0] = (unsigned char)(u >> 24);
-			q[1] = (unsigned char)(u >> 16);
-			q[2] = (unsigned char)(u >> 8);
-			q[3] = (unsigned char)u;
+			u = swap32(u);
+			memcpy(q, &u, 4);
 		}
 		f->len += k * 4;
 		v += k;

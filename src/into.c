@@ -347,6 +347,20 @@ static int had_checksum(fitsfile *f)
 	return 1;
 }
 
+int into_check_output(const struct into *in, const char *path, struct err *e)
+{
+	struct stat a, b;
+
+	/* lstat: an output that is a symbolic link is replaced itself (the
+	 * output is renamed over its name), not the file it points to */
+	if (stat(in->path, &a) == 0 && lstat(path, &b) == 0 && a.st_dev == b.st_dev &&
+	    a.st_ino == b.st_ino)
+		return err_set(e, EXIT_INPUT, "--into %s and -o %s are the same file: the "
+			       "scene would replace the image before it is read; write "
+			       "the result to another name", in->spec, path);
+	return 0;
+}
+
 int into_compose(const struct into *in, const char *path, struct err *e)
 {
 	fitsfile *src = NULL, *eng = NULL, *out = NULL;

@@ -34,6 +34,12 @@ void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
  * SCA's window.  Returns 0 or -1. */
 int into_apply(const struct into *in, struct sky *sky, struct err *e);
 
+/* Refuse an output path that names the --into image itself (the same
+ * file, by device and inode; a symbolic link as -o is replaced, not
+ * followed): the scene would be written over it before it is read.
+ * Returns 0 or -1 (exit 1). */
+int into_check_output(const struct into *in, const char *path, struct err *e);
+
 /* Replace the engine's image at path (one HDU WFInn per SCA) by a copy of
  * the --into image with those HDUs' pixels added to the mapped HDUs'.
  * Written beside path and renamed over it.  Returns 0 or -1. */

@@ -78,6 +78,14 @@ assert all(np.array_equal(x.data, y.data) for x, y in zip(a, b))" &&
 	test "$(ls -A lit)" = "x[1].fits"
 '
 
+test_expect_success '-o naming the --into image itself is refused, the image intact' '
+	cp base.fits self.fits &&
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 1 --into self.fits -o self.fits \
+		b.csv 2>err &&
+	test_grep "same file" err &&
+	cmp base.fits self.fits
+'
+
 SHIM=$TRASH/enospc.so
 if cc -shared -fPIC -o "$SHIM" "$TOP/tests/shim/enospc.c" -ldl 2>/dev/null; then
 	test_expect_success 'the disk full while adding to the image: exit 2, nothing left' '

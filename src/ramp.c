@@ -317,9 +317,8 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 	return nh;
 }
 
-/* The tables at the start of the scratch, in doubles. */
-#define RAMP_TABS ((RAMP_MAX_RES + 1) * 2 * 260)
-_Static_assert(sizeof(struct pois_tab) <= 260 * sizeof(double), "scratch tables");
+/* The tables at the start of the scratch (RAMP_TABS doubles). */
+_Static_assert(sizeof(struct pois_tab) <= RAMP_TAB_DOUBLES * sizeof(double), "scratch tables");
 
 void ramp_scratch_init(double *scratch)
 {

@@ -110,7 +110,11 @@ struct ramp_key {
  * out[r * plane + i].  No IPC: see ramp_level1_charge().  scratch:
  * RAMP_SCRATCH(n) doubles.  Thread-safe.
  */
-#define RAMP_SCRATCH(n) ((size_t)(n) * 6 + 512 + (RAMP_MAX_RES + 1) * 2 * 260)
+/* The Poisson tables kept in the scratch: two per group and two more, of
+ * RAMP_TAB_DOUBLES each (ramp_pois.h's struct pois_tab fits). */
+#define RAMP_TAB_DOUBLES 260
+#define RAMP_TABS ((RAMP_MAX_RES + 1) * 2 * RAMP_TAB_DOUBLES)
+#define RAMP_SCRATCH(n) ((size_t)(n) * 6 + 512 + RAMP_TABS)
 /* Before its first use, scratch must be set up by ramp_scratch_init() (it
  * keeps tables across calls; they change the speed, never the numbers). */
 void ramp_scratch_init(double *scratch);

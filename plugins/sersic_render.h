@@ -284,14 +284,19 @@ static void sersic_wings_integrate(const struct sersic_stamp *st, const struct s
 			if (!(in_qy && x >= icx - kq && x <= icx + kq)) {
 				double x0 = x - 0.5 - g->xc, x1 = x + 0.5 - g->xc;
 				double y0 = y - 0.5 - g->yc, y1 = y + 0.5 - g->yc;
-				v = m->cell(g, m->opt, x0, x1, y0, y1, 1.0);
 				/* The corrections are a Taylor expansion over the
 				 * pixel: only where the light is smooth on it (a
 				 * needle, q -> 0, is not, and would go negative). */
-				if (v != 0 && sersic_cell_scale(g, sersic_rho_min(g, x0, x1, y0, y1),
-								x0, x1, y0, y1) >= SERSIC_SMOOTH) {
-					sersic_grad(g, x - g->xc, y - g->yc, &gx, &gy);
-					lv = v;
+				if (m->wing) {
+					if (m->wing(g, m->opt, x0, x1, y0, y1, &v, &gx, &gy))
+						lv = v;
+				} else {
+					v = m->cell(g, m->opt, x0, x1, y0, y1, 1.0);
+					if (v != 0 && sersic_cell_scale(g, sersic_rho_min(g, x0, x1, y0, y1),
+									x0, x1, y0, y1) >= SERSIC_SMOOTH) {
+						sersic_grad(g, x - g->xc, y - g->yc, &gx, &gy);
+						lv = v;
+					}
 				}
 				any |= v != 0;
 			}

@@ -7,7 +7,11 @@
 #include <fftw3.h>
 #include <pthread.h>
 #include <stdlib.h>
+#include <math.h>
+#include <stdatomic.h>
 #include <string.h>
+
+#include "simd.h"
 
 struct fftconv_plan {
 	int nx, ny;                     /* padded real size */
@@ -184,6 +188,131 @@ out:
 	return p;
 }
 
+/* out[0, n) += v k[0, n): the direct sum's one loop, plain and with AVX2
+ * (no FMA: a product then a sum, as the plain loop, so the same bytes). */
+static void axpy_plain(double *restrict out, const double *restrict k, double v, int n)
+{
+	for (int i = 0; i < n; i++)
+		out[i] += v * k[i];
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+__attribute__((target("avx2"))) static void axpy_avx2(double *restrict out,
+							const double *restrict k, double v, int n)
+{
+	__m256d vv = _mm256_set1_pd(v);
+	int i = 0;
+
+	for (; i + 4 <= n; i += 4)
+		_mm256_storeu_pd(out + i, _mm256_add_pd(_mm256_loadu_pd(out + i),
+							_mm256_mul_pd(vv, _mm256_loadu_pd(k + i))));
+	for (; i < n; i++)
+		out[i] += v * k[i];
+}
+#endif
+
+static void (*axpy_choose(void))(double *restrict, const double *restrict, double, int)
+{
+#if defined(__x86_64__) && defined(__GNUC__)
+	if (simd_flags() & SIMD_AVX2)
+		return axpy_avx2;
+#endif
+	return axpy_plain;
+}
+
+/* The part of the image that is not zero: [*x0, *x1] x [*y0, *y1] and how
+ * many pixels it has that are not.  0 when the whole image is zero. */
+static size_t image_support(const double *img, int nx, int ny, int *x0, int *x1, int *y0,
+			    int *y1)
+{
+	size_t nnz = 0;
+
+	*x0 = nx;
+	*x1 = -1;
+	*y0 = ny;
+	*y1 = -1;
+	for (int y = 0; y < ny; y++) {
+		const double *r = img + (size_t)y * nx;
+		int a = 0, b = nx - 1;
+
+		while (a < nx && r[a] == 0)
+			a++;
+		if (a == nx)
+			continue;
+		while (r[b] == 0)
+			b--;
+		for (int x = a; x <= b; x++)
+			nnz += r[x] != 0;
+		*x0 = a < *x0 ? a : *x0;
+		*x1 = b > *x1 ? b : *x1;
+		*y0 = y < *y0 ? y : *y0;
+		*y1 = y;
+	}
+	return nnz;
+}
+
+/*
+ * Which way is cheaper for nnz lit pixels and a padded transform of
+ * px x py: the direct sum costs about nnz kn^2 multiply-adds, the FFT
+ * three transforms of px py log2(px py) butterflies and the padding and
+ * product around them.  FFTCONV_DIRECT_COST is the ratio of the two unit
+ * costs, measured on the development machine (BENCHMARKS.md, "Sérsic
+ * galaxies"); the crossing is flat, so a factor of two either way costs
+ * little.
+ */
+#define FFTCONV_DIRECT_COST 0.7
+
+static int direct_cheaper(size_t nnz, int kn, int px, int py)
+{
+	double n = (double)px * py;
+
+	return FFTCONV_DIRECT_COST * (double)nnz * kn * kn < 3 * n * log2(n) + 8 * n;
+}
+
+static atomic_int forced = FFTCONV_AUTO;
+
+void fftconv_force(int method)
+{
+	atomic_store(&forced, method);
+}
+
+/* The sum over the lit pixels, scattered through the kernel into the
+ * output block [ox0, ox1] x [oy0, oy1] (out, ow wide). */
+static void convolve_direct(const double *img, int nx, int bx0, int bx1, int by0, int by1,
+			    const double *kernel, int kn, double *out, int ox0, int ox1,
+			    int oy0, int oy1)
+{
+	void (*axpy)(double *restrict, const double *restrict, double, int) = axpy_choose();
+	int h = (kn - 1) / 2, ow = ox1 - ox0 + 1;
+
+	memset(out, 0, (size_t)ow * (oy1 - oy0 + 1) * sizeof(double));
+	for (int y = by0; y <= by1; y++)
+		for (int x = bx0; x <= bx1; x++) {
+			double v = img[(size_t)y * nx + x];
+
+			if (v == 0)
+				continue;
+			/* output (x + kx - h, y + ky - h) inside the block */
+			int kx0 = ox0 - x + h > 0 ? ox0 - x + h : 0;
+			int kx1 = ox1 - x + h < kn - 1 ? ox1 - x + h : kn - 1;
+			int ky0 = oy0 - y + h > 0 ? oy0 - y + h : 0;
+			int ky1 = oy1 - y + h < kn - 1 ? oy1 - y + h : kn - 1;
+
+			for (int ky = ky0; ky <= ky1; ky++)
+				axpy(out + (size_t)(y + ky - h - oy0) * ow + (x + kx0 - h - ox0),
+				     kernel + (size_t)ky * kn + kx0, v, kx1 - kx0 + 1);
+		}
+}
+
+/*
+ * Only the lit part of the image is transformed: a block of w x v pixels
+ * convolved with a kn-wide kernel lights w + kn - 1 x v + kn - 1 pixels,
+ * and a circular transform at least that size holds them without wrapping.
+ * A galaxy's stamp is its light grown by the ePSF's half-width on every
+ * side, so this halves the side of most transforms; a block with few lit
+ * pixels is summed directly instead.
+ */
 int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 		     double *img, int nx, int ny, const double *kernel, int kn)
 {
@@ -191,8 +320,31 @@ int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 	    nx > (1 << 20) || ny > (1 << 20) || kn > (1 << 20))
 		return -1;
 
-	int h = (kn - 1) / 2;
-	int px = fftconv_size(nx + kn - 1), py = fftconv_size(ny + kn - 1);
+	int h = (kn - 1) / 2, bx0, bx1, by0, by1;
+	size_t nnz = image_support(img, nx, ny, &bx0, &bx1, &by0, &by1);
+
+	if (!nnz)
+		return 0;       /* dark in, dark out */
+
+	int wx = bx1 - bx0 + 1, wy = by1 - by0 + 1;
+	/* the pixels the light reaches */
+	int ox0 = bx0 - h > 0 ? bx0 - h : 0, ox1 = bx1 + h < nx - 1 ? bx1 + h : nx - 1;
+	int oy0 = by0 - h > 0 ? by0 - h : 0, oy1 = by1 + h < ny - 1 ? by1 + h : ny - 1;
+	int ow = ox1 - ox0 + 1, oh = oy1 - oy0 + 1;
+	int px = fftconv_size(wx + kn - 1), py = fftconv_size(wy + kn - 1);
+	int method = atomic_load(&forced);
+
+	if (method == FFTCONV_AUTO)
+		method = direct_cheaper(nnz, kn, px, py) ? FFTCONV_DIRECT : FFTCONV_FFT;
+	if (method == FFTCONV_DIRECT) {
+		if (thread_reserve(t, ow, oh))
+			return -1;
+		convolve_direct(img, nx, bx0, bx1, by0, by1, kernel, kn, t->rimg, ox0, ox1, oy0, oy1);
+		for (int y = oy0; y <= oy1; y++)
+			memcpy(img + (size_t)y * nx + ox0, t->rimg + (size_t)(y - oy0) * ow,
+			       ow * sizeof(double));
+		return 0;
+	}
 
 	if (thread_reserve(t, px, py))
 		return -1;
@@ -200,15 +352,15 @@ int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 	if (!p)
 		return -1;
 
-	/* The image at the origin, zero beyond it up to the padded size. */
+	/* The lit block at the origin, zero beyond it up to the padded size. */
 	memset(t->rimg, 0, (size_t)px * py * sizeof(double));
-	for (int y = 0; y < ny; y++)
-		memcpy(t->rimg + (size_t)y * px, img + (size_t)y * nx, nx * sizeof(double));
+	for (int y = 0; y < wy; y++)
+		memcpy(t->rimg + (size_t)y * px, img + (size_t)(by0 + y) * nx + bx0,
+		       wx * sizeof(double));
 
 	/* The kernel with its centre moved to (0, 0) and negative offsets
 	 * wrapped to the far end: sample (h + dx, h + dy) goes to
-	 * (dx mod px, dy mod py).  px >= nx + kn - 1 keeps every output pixel
-	 * of the image free of wrapped light. */
+	 * (dx mod px, dy mod py). */
 	memset(t->rker, 0, (size_t)px * py * sizeof(double));
 	for (int ky = 0; ky < kn; ky++) {
 		int y = ky - h < 0 ? ky - h + py : ky - h;
@@ -230,7 +382,17 @@ int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 	}
 	fftw_execute_dft_c2r(p->inv, t->cimg, t->rimg);
 
-	for (int y = 0; y < ny; y++)
-		memcpy(img + (size_t)y * nx, t->rimg + (size_t)y * px, nx * sizeof(double));
+	/* Output pixel (bx0 + d, by0 + e), d in [-h, wx - 1 + h], is the
+	 * circular result at (d mod px, e mod py). */
+	for (int y = oy0; y <= oy1; y++) {
+		int e = y - by0 < 0 ? y - by0 + py : y - by0;
+		const double *r = t->rimg + (size_t)e * px;
+		double *o = img + (size_t)y * nx;
+
+		for (int x = ox0; x <= ox1; x++) {
+			int d = x - bx0 < 0 ? x - bx0 + px : x - bx0;
+			o[x] = r[d];
+		}
+	}
 	return 0;
 }

@@ -19,10 +19,13 @@
  * executed with the new-array interface on the thread's own fftw_malloc'd
  * buffers, which have the same alignment, as FFTW requires.
  *
- * The padded size is the smallest 2^a 3^b 5^c 7^d >= nx + kn - 1 (and the
- * same for y), so the circular convolution of the padded arrays equals the
- * linear one on the image: nothing wraps around.  The result does not
- * depend on the thread or on which plans exist, only on (nx, ny, kn).
+ * Only the image's lit part is transformed: the smallest block holding
+ * every pixel that is not zero, w x v, padded to fftconv_size(w + kn - 1)
+ * by fftconv_size(v + kn - 1), so the circular convolution of the padded
+ * arrays equals the linear one on every pixel the light reaches: nothing
+ * wraps around.  Where the lit pixels are few the sum is taken directly
+ * instead (fftconv_force).  The result does not depend on the thread or
+ * on which plans exist, only on the image and the kernel.
  */
 #ifndef WFS_FFTCONV_H
 #define WFS_FFTCONV_H
@@ -62,6 +65,15 @@ void fftconv_thread_free(struct fftconv_thread *t);
  */
 int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 		     double *img, int nx, int ny, const double *kernel, int kn);
+
+/* How fftconv_convolve sums: FFTCONV_AUTO (the default) takes the direct
+ * sum over the lit pixels where that costs less than the transforms, and
+ * the FFT elsewhere; FFTCONV_FFT and FFTCONV_DIRECT force one way, for the
+ * tests and the benchmarks that compare them.  Process-wide; not while a
+ * thread is inside fftconv_convolve.  Both ways give the same sums to
+ * rounding (the FFT's, about 1e-16 of the largest term). */
+enum { FFTCONV_AUTO, FFTCONV_FFT, FFTCONV_DIRECT };
+void fftconv_force(int method);
 
 /* The smallest 2^a 3^b 5^c 7^d >= n.  Exposed for tests and cost models. */
 int fftconv_good_size(int n);

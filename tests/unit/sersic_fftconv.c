@@ -1,7 +1,9 @@
 /*
  * sersic_fftconv.c - the host's FFT convolution service against a direct
  * sum: odd kernels, zero outside the image, sizes that are and are not
- * FFT-friendly, and two threads sharing one plan cache.
+ * FFT-friendly, two threads sharing one plan cache, and both of its ways
+ * (the transform of the lit block, the direct sum over the lit pixels) on
+ * images lit only in part, as a galaxy's stamp is.
  */
 #include "fftconv.h"
 #include "tap.h"
@@ -47,6 +49,43 @@ static double max_diff(struct fftconv *fc, struct fftconv_thread *t, int nx, int
 	return d;
 }
 
+/* An nx x ny image dark but for the block [x0, x0 + w) x [y0, y0 + v),
+ * every other pixel of which is lit when sparse: the largest difference
+ * from the direct sum when convolved the given way, or -1 when a pixel
+ * the light cannot reach is not zero. */
+static double part_diff(struct fftconv *fc, struct fftconv_thread *t, int nx, int ny, int x0,
+			int y0, int w, int v, int sparse, int kn, int method, unsigned seed)
+{
+	double *img = calloc((size_t)nx * ny, sizeof(double)), *ref = malloc(sizeof(double) * nx * ny);
+	double *k = malloc(sizeof(double) * kn * kn), d = 0;
+	int h = (kn - 1) / 2;
+
+	for (int y = y0; y < y0 + v; y++)
+		for (int x = x0; x < x0 + w; x++)
+			if (!sparse || (x + y) % 2 == 0)
+				img[y * nx + x] = 1 + (double)((seed = seed * 1103515245u + 12345u) >> 8) / (1 << 24);
+	for (int i = 0; i < kn * kn; i++)
+		k[i] = (double)((seed = seed * 1103515245u + 12345u) >> 8) / (1 << 24) - 0.3;
+	direct(img, nx, ny, k, kn, ref);
+	fftconv_force(method);
+	if (fftconv_convolve(fc, t, img, nx, ny, k, kn))
+		d = INFINITY;
+	fftconv_force(FFTCONV_AUTO);
+	for (int y = 0; y < ny; y++)
+		for (int x = 0; x < nx; x++) {
+			int far = x < x0 - h || x >= x0 + w + h || y < y0 - h || y >= y0 + v + h;
+
+			if (far && img[y * nx + x] != 0)
+				d = -1;
+			if (d >= 0)
+				d = fmax(d, fabs(img[y * nx + x] - ref[y * nx + x]));
+		}
+	free(img);
+	free(ref);
+	free(k);
+	return d;
+}
+
 struct job { struct fftconv *fc; double d; };
 
 static void *worker(void *arg)
@@ -74,6 +113,40 @@ int main(void)
 	is_near(max_diff(fc, t, 64, 64, 5, 3), 0, 1e-11, "power-of-two image");
 	is_near(max_diff(fc, t, 37, 53, 11, 4), 0, 1e-11, "prime-sized image");
 	is_near(max_diff(fc, t, 37, 53, 11, 5), 0, 1e-11, "same size again, cached plan");
+
+	/* A galaxy's stamp: a lit block in a dark margin of the kernel's
+	 * half-width; lit blocks at an edge, in a corner, a single pixel;
+	 * each the three ways. */
+	static const struct { int nx, ny, x0, y0, w, v, sparse, kn; const char *what; } part[] = {
+		{ 74, 80, 22, 22, 30, 36, 0, 45, "a 30x36 block in a margin of 22" },
+		{ 74, 80, 22, 22, 30, 36, 1, 45, "the same block, every other pixel lit" },
+		{ 60, 50, 0, 10, 12, 9, 0, 45, "a block at the left edge" },
+		{ 60, 50, 50, 41, 10, 9, 0, 21, "a block in the far corner" },
+		{ 45, 45, 22, 22, 1, 1, 0, 45, "one lit pixel" },
+		{ 40, 40, 39, 0, 1, 1, 0, 45, "one lit pixel in a corner, kernel wider than the image" },
+		{ 100, 30, 3, 3, 94, 24, 0, 7, "a wide block, small kernel" },
+	};
+	static const char *const way[] = { "chosen", "transform", "direct sum" };
+	for (size_t i = 0; i < sizeof(part) / sizeof(part[0]); i++)
+		for (int m = FFTCONV_AUTO; m <= FFTCONV_DIRECT; m++) {
+			double d = part_diff(fc, t, part[i].nx, part[i].ny, part[i].x0, part[i].y0,
+					     part[i].w, part[i].v, part[i].sparse, part[i].kn, m, 11u + i);
+			ok(d >= 0 && d < 1e-11, "%s, %s: within %.2g of the direct sum, dark where "
+			   "no light reaches", part[i].what, way[m], d);
+		}
+	{
+		double dark[30 * 20] = { 0 }, k3[9] = { 1, 1, 1, 1, 1, 1, 1, 1, 1 };
+		int lit = 0;
+
+		for (int m = FFTCONV_AUTO; m <= FFTCONV_DIRECT; m++) {
+			fftconv_force(m);
+			lit |= fftconv_convolve(fc, t, dark, 30, 20, k3, 3) != 0;
+			fftconv_force(FFTCONV_AUTO);
+		}
+		for (int i = 0; i < 30 * 20; i++)
+			lit |= dark[i] != 0;
+		ok(!lit, "a dark image stays dark, each way");
+	}
 
 	double img[4] = { 1, 2, 3, 4 }, k[2] = { 1, 1 };
 	ok(fftconv_convolve(fc, t, img, 2, 2, k, 2) == -1 && img[3] == 4,

@@ -82,10 +82,13 @@ enum {
 	AUX_B,          /* b_n */
 	AUX_LNI0,       /* ln I0, counts/s per pixel^2 at the centre (renormalised) */
 	AUX_RHO_T,      /* truncation radius in units of r_e */
-	AUX_XT,         /* b rho_t^(1/n) */
+	AUX_PSFN,       /* the ePSF's light over its light within AUX_PSFH (1: not cut) */
 	AUX_FINF,       /* flux of the untruncated profile with this I0 */
 	AUX_PT,         /* 1 - eps: fraction of F_inf inside rho_t */
 	AUX_QT,         /* eps = Q(2n, x_t) */
+	AUX_PSFH,       /* the ePSF's half-width drawn, whole pixels (sersic-psf-cut); 0: all of it */
+	/* x_t = b rho_t^(1/n) is not kept: sersic_unpack forms it again,
+	 * with the same operations as prepare(), so the same bits. */
 };
 
 /* ------------------------------------------------------------------ */
@@ -293,7 +296,7 @@ static void sersic_unpack(const struct wfs_source *src, struct sersic_gal *g)
 	g->lni0 = src->aux[AUX_LNI0];
 	g->rho_t = src->aux[AUX_RHO_T];
 	g->rho_t2 = g->rho_t * g->rho_t;
-	g->xt = src->aux[AUX_XT];
+	g->xt = g->b * exp(log(g->rho_t) / src->param[SERSIC_N]);
 	g->finf = src->aux[AUX_FINF];
 	g->pt = src->aux[AUX_PT];
 	g->qt = src->aux[AUX_QT];
@@ -718,10 +721,11 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 	src->aux[AUX_B] = b;
 	src->aux[AUX_LNI0] = src->flux > 0 ? log(finf) - lnk : -INFINITY;
 	src->aux[AUX_RHO_T] = rho_t;
-	src->aux[AUX_XT] = xt;
 	src->aux[AUX_FINF] = finf;
 	src->aux[AUX_PT] = pt;
 	src->aux[AUX_QT] = qt;
+	src->aux[AUX_PSFH] = 0;
+	src->aux[AUX_PSFN] = 1;
 	return 0;
 }
 
@@ -740,7 +744,7 @@ static int sersic_footprint_common(const struct wfs_host *host, const struct wfs
 		struct wfs_epsf e;
 		if (host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, &e))
 			return -1;
-		hp = sersic_psf_half(&e);
+		hp = sersic_psf_drawn(&e, src);
 	}
 	const double lim = 1e8;
 	double x0 = fmax(floor(g.xc - hx + 0.5) - hp, -lim), x1 = fmin(floor(g.xc + hx + 0.5) + hp + 1, lim);

@@ -26,6 +26,7 @@
 #define QUICK_NMAX 16
 #define QUICK_TAYLOR 1
 #define QUICK_NOISE_CUT 0.01
+#define QUICK_PSF_CUT 0.1
 
 struct quick {
 	const struct wfs_host *host;
@@ -35,6 +36,7 @@ struct quick {
 	int core_k;
 	double taylor;          /* sersic-taylor: largest h / ell of the Taylor form */
 	double noise_cut;       /* sersic-noise-cut: fraction of the pixel noise */
+	double psf_cut;         /* sersic-psf-cut: fraction of the noise over the footprint */
 	double sigma;           /* the host's pixel-sigma, counts/s per pixel */
 };
 
@@ -153,6 +155,7 @@ static int quick_init(const struct wfs_host *host, void **state)
 	    sersic_setting_num(host, "psf-core", 0, 1e3, SERSIC_PSF_CORE, &p->psf_core) ||
 	    sersic_setting_num(host, "sersic-taylor", 0, 4, QUICK_TAYLOR, &p->taylor) ||
 	    sersic_setting_num(host, "sersic-noise-cut", 0, 1, QUICK_NOISE_CUT, &p->noise_cut) ||
+	    sersic_setting_num(host, "sersic-psf-cut", 0, 10, QUICK_PSF_CUT, &p->psf_cut) ||
 	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
 		free(p);
@@ -171,11 +174,82 @@ static void quick_fini(void *state)
 	free(state);
 }
 
+/* The largest ePSF half-width psf_rings handles (a 4x-sampled ePSF of
+ * 181 samples has 22). */
+#define PSF_HMAX 256
+
+/* The ePSF's samples at whole-pixel offsets (dx, dy) from its centre summed
+ * over squares: ring[h] the sum over max(|dx|, |dy|) = h, for h = 0..hp.
+ * Their running sum is the light the ePSF carries within half-width h. */
+static void psf_rings(const struct wfs_epsf *e, double *ring, int hp)
+{
+	int over = e->over;
+
+	for (int h = 0; h <= hp; h++)
+		ring[h] = 0;
+	for (int dy = -hp; dy <= hp; dy++)
+		for (int dx = -hp; dx <= hp; dx++) {
+			int h = abs(dx) > abs(dy) ? abs(dx) : abs(dy);
+
+			ring[h] += epsf_at(e, e->centre + over * dx, e->centre + over * dy);
+		}
+}
+
+/*
+ * The cut of the ePSF by the noise (sersic-psf-cut): the smallest
+ * half-width h at which the light the ePSF would still carry beyond h, the
+ * galaxy's flux times the absolute values of its rings beyond h, is at most
+ * psf_cut times the noise of one pixel.  That light is less than the cut
+ * in every pixel, and all of it together is too; render() scales the
+ * ePSF within h by its whole light over its light within h (AUX_PSFN), so
+ * the flux stays whole and no pixel moves by more than the cut.  A faint
+ * galaxy is thus convolved with the part of the ePSF its light is seen
+ * through, as a faint star's box is cut (psf-box=adaptive); a bright one
+ * keeps all of it.
+ */
+static int quick_psf_cut(const struct quick *p, struct wfs_source *src)
+{
+	struct wfs_epsf e;
+	double ring[PSF_HMAX + 1], beyond[PSF_HMAX + 2];
+	int hp, h;
+
+	if (!p->convolve || !(p->psf_cut > 0) || !(p->sigma > 0) || !(src->flux > 0))
+		return 0;
+	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e))
+		return -1;
+	hp = sersic_psf_half(&e);
+	if (hp > PSF_HMAX)
+		return 0;
+	psf_rings(&e, ring, hp);
+	beyond[hp + 1] = 0;
+	for (h = hp; h >= 0; h--)
+		beyond[h] = beyond[h + 1] + fabs(ring[h]);
+	/* never inside the core's pixels and one beyond (sersic_core_add) */
+	for (h = p->core_k + 1; h < hp; h++)
+		if (src->flux * beyond[h + 1] <= p->psf_cut * p->sigma)
+			break;
+	if (h < hp) {
+		double all = 0, in = 0;
+
+		for (int k = 0; k <= hp; k++) {
+			all += ring[k];
+			in += k <= h ? ring[k] : 0;
+		}
+		if (in > 0 && all > 0) {
+			src->aux[AUX_PSFH] = h;
+			src->aux[AUX_PSFN] = all / in;
+		}
+	}
+	return 0;
+}
+
 static int quick_prepare(void *state, struct wfs_source *src)
 {
 	struct quick *p = state;
 
-	return sersic_prepare_common(p->host, src, p->trunc, p->noise_cut * p->sigma);
+	if (sersic_prepare_common(p->host, src, p->trunc, p->noise_cut * p->sigma) < 0)
+		return -1;
+	return quick_psf_cut(p, src);
 }
 
 static int quick_footprint(void *state, const struct wfs_source *src, struct wfs_box *box)
@@ -206,6 +280,8 @@ static const struct wfs_setting quick_settings[] = {
 	  "fraction of the light allowed beyond the truncation radius" },
 	{ "sersic-noise-cut", SERSIC_STR(QUICK_NOISE_CUT), "number from 0 to 1",
 	  "cut each galaxy where its surface brightness falls below this fraction of the pixel noise, leaving out at most 1% of its light, put back by renormalising (0: off)" },
+	{ "sersic-psf-cut", SERSIC_STR(QUICK_PSF_CUT), "number from 0 to 10",
+	  "convolve each galaxy with the ePSF out to where the light left beyond is below this fraction of the noise summed over its pixels, that light put back by renormalising (0: the whole ePSF)" },
 	{ "sersic-taylor", SERSIC_STR(QUICK_TAYLOR), "number from 0 to 4",
 	  "cells with pixel size over the profile's length scale up to this are integrated from the value and curvature at their centre (0: points only)" },
 	SERSIC_SETTINGS,

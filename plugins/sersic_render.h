@@ -69,23 +69,38 @@ static void sersic_keys(double t, double w[4])
  * the ePSF is smooth on the sample scale (the point model's psf-wing=44,
  * without its nearest samples beyond 8 pixels).  ep[k] = E(k + ph).  A galaxy much smaller
  * than a cell is therefore drawn exactly as a point source of its flux.
- * The four nodes are blended once into eb first (n x n scratch).
+ * The four nodes are blended once into eb first (n x n scratch), both only
+ * over the samples [lo_x, hi_x] x [lo_y, hi_y] (and the blend's taps
+ * around them): the rest of ep is left as it was.
  */
 static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, double core,
-			      double *eb, double *ep)
+			      double *eb, double *ep, int lo_x, int hi_x, int lo_y, int hi_y)
 {
 	int n = e->n;
 	double wx[4], wy[4];
 
-	for (size_t k = 0; k < (size_t)n * n; k++)
-		eb[k] = e->weight[0] * e->node[0][k] + e->weight[1] * e->node[1][k]
-			+ e->weight[2] * e->node[2][k] + e->weight[3] * e->node[3][k];
+	/* only the samples [lo, hi] on each axis are asked for; the blend
+	 * reaches 1 before and 2 after them */
+	lo_x = lo_x < 0 ? 0 : lo_x;
+	lo_y = lo_y < 0 ? 0 : lo_y;
+	hi_x = hi_x >= n ? n - 1 : hi_x;
+	hi_y = hi_y >= n ? n - 1 : hi_y;
+	if (lo_x > hi_x || lo_y > hi_y)
+		return;
+	int bx0 = lo_x > 0 ? lo_x - 1 : 0, bx1 = hi_x + 2 < n ? hi_x + 2 : n - 1;
+	int by0 = lo_y > 0 ? lo_y - 1 : 0, by1 = hi_y + 2 < n ? hi_y + 2 : n - 1;
+	for (int ky = by0; ky <= by1; ky++)
+		for (int kx = bx0; kx <= bx1; kx++) {
+			size_t k = (size_t)ky * n + kx;
+			eb[k] = e->weight[0] * e->node[0][k] + e->weight[1] * e->node[1][k]
+				+ e->weight[2] * e->node[2][k] + e->weight[3] * e->node[3][k];
+		}
 	sersic_keys(phx, wx);
 	sersic_keys(phy, wy);
 	double b00 = (1 - phx) * (1 - phy), b01 = phx * (1 - phy), b10 = (1 - phx) * phy, b11 = phx * phy;
-	for (int ky = 0; ky < n; ky++) {
+	for (int ky = lo_y; ky <= hi_y; ky++) {
 		double dy = (ky + phy - e->centre) / e->over;
-		for (int kx = 0; kx < n; kx++) {
+		for (int kx = lo_x; kx <= hi_x; kx++) {
 			double dx = (kx + phx - e->centre) / e->over, v = 0;
 			const double *r0 = eb + (size_t)ky * n + kx;
 			if (fabs(dx) < core && fabs(dy) < core && kx >= 1 && ky >= 1 && kx + 2 < n &&
@@ -125,6 +140,16 @@ static int sersic_psf_half(const struct wfs_epsf *e)
 	return e->centre / e->over;
 }
 
+/* The half-width drawn for src: prepare()'s cut (AUX_PSFH), or all of it. */
+static int sersic_psf_drawn(const struct wfs_epsf *e, const struct wfs_source *src)
+{
+	int hp = sersic_psf_half(e);
+	double h = src->aux[AUX_PSFH];
+
+	return h >= 1 && h < hp ? (int)h : hp;
+}
+
+
 static void box_clip(int *a0, int *a1, int b0, int b1)
 {
 	if (*a0 < b0)
@@ -144,7 +169,8 @@ static void box_clip(int *a0, int *a1, int b0, int b1)
 struct sersic_stamp {
 	struct sersic_gal g;
 	struct wfs_epsf e;
-	int over, hp, kn;               /* ePSF samples per pixel, half-width, kernel side */
+	int over, hp, kn;               /* ePSF samples per pixel, half-width drawn, kernel side */
+	double psf_norm;                /* on the cut ePSF's light (AUX_PSFN) */
 	int sx0, sx1, sy0, sy1;         /* the stamp's pixels */
 	int snx, sny;
 	int kq;                         /* K: Q is the pixels within K of (icx, icy) */
@@ -186,7 +212,7 @@ static int sersic_stamp_layout(struct sersic_stamp *st, const struct wfs_window 
 			       double gy0, double gy1)
 {
 	const struct sersic_gal *g = &st->g;
-	int over = st->e.over, hp = sersic_psf_half(&st->e);
+	int over = st->e.over, hp = st->hp;
 
 	st->over = over;
 	st->hp = hp;
@@ -339,6 +365,16 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 			kdx[k] = -(xp - xm) * s1;
 			kdy[k] = -(yp - ym) * s1;
 		}
+	/* A cut ePSF (sersic-psf-cut) carries the light it leaves out in
+	 * what it keeps (prepare()'s factor), so the galaxy's flux stays
+	 * whole; the light moved is below the cut's fraction of the noise. */
+	if (st->psf_norm != 1)
+		for (size_t k = 0; k < nker; k++) {
+			ker[k] *= st->psf_norm;
+			klp[k] *= st->psf_norm;
+			kdx[k] *= st->psf_norm;
+			kdy[k] *= st->psf_norm;
+		}
 	/* Where every pixel is smooth the Laplacian term's image is the
 	 * stamp itself: one convolution with E + lap E / 24 does both. */
 	if (!rough)
@@ -405,6 +441,40 @@ static void sersic_core_cells(const struct sersic_stamp *st, const struct sersic
 	}
 }
 
+/* One output pixel of the core: sum_a C[a] ep[k0 + t] over the reversed
+ * cell rows (sersic_core_add), ky0 the ePSF row of cell row 0. */
+static inline double sersic_core_pixel(const double *cells, const double *ep, int na, int nb,
+				       int en, long long k0, long long ky0)
+{
+	int t0 = k0 < 0 ? (int)-k0 : 0;
+	int t1 = k0 + na > en ? (int)(en - k0) : na;
+	double s = 0;
+
+	if (t0 >= t1)
+		return 0;
+	for (int bj = 0; bj < nb; bj++) {
+		long long ky = ky0 - bj;
+		if (ky < 0 || ky >= en)
+			continue;
+		const double *erow = ep + (size_t)ky * en + (k0 + t0);
+		const double *crow = cells + (size_t)bj * na + t0;
+		/* four partial sums: the compiler may not reorder a
+		 * floating-point reduction by itself */
+		double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+		int len = t1 - t0, t = 0;
+		for (; t + 4 <= len; t += 4) {
+			s0 += crow[t] * erow[t];
+			s1 += crow[t + 1] * erow[t + 1];
+			s2 += crow[t + 2] * erow[t + 2];
+			s3 += crow[t + 3] * erow[t + 3];
+		}
+		for (; t < len; t++)
+			s0 += crow[t] * erow[t];
+		s += (s0 + s1) + (s2 + s3);
+	}
+	return s;
+}
+
 /* The core cells through the ePSF at the galaxy's own phase, summed
  * directly into the window pixels the core reaches. */
 static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_window *win,
@@ -424,13 +494,36 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 	double bxf = floor(tx), byf = floor(ty);
 	double phx = tx - bxf, phy = ty - byf;
 	double core = m->psf_core * over + 2 < e->centre ? m->psf_core : 0;
-	sersic_phase_epsf(e, phx, phy, core, eb, ep);
-	/* Output pixels the core reaches, inside the window. */
-	int ox0 = (int)icx - kq - hp - 1, ox1 = (int)icx + kq + hp + 1;
-	int oy0 = (int)icy - kq - hp - 1, oy1 = (int)icy + kq + hp + 1;
+	long long bx = (long long)bxf, by = (long long)byf;
+	/* Output pixels the core reaches, inside the window.  A cut ePSF
+	 * (sersic-psf-cut) is drawn within its half-width hp of every pixel
+	 * of the core (so from hp to hp + 2K of each cell), and the core's
+	 * pixels are then scaled so that its light is what the whole ePSF
+	 * would put down: its cells' sum times the ePSF's light, which
+	 * prepare()'s factor gives from its light within hp. */
+	int cut = st->psf_norm != 1, reach = cut ? hp - 1 : hp;
+	int ox0 = (int)icx - kq - reach - 1, ox1 = (int)icx + kq + reach + 1;
+	int oy0 = (int)icy - kq - reach - 1, oy1 = (int)icy + kq + reach + 1;
+	int rx0 = ox0, rx1 = ox1, ry0 = oy0, ry1 = oy1;
+	double norm = 1, whole = 0;
+
+	/* the samples the pixels [rx0, rx1] x [ry0, ry1] read: pixel x, cell
+	 * a0 + i reads k = bx + over x - a0 - i */
+	sersic_phase_epsf(e, phx, phy, core, eb, ep, (int)(bx + (long long)over * rx0 - a0 - na + 1),
+			  (int)(bx + (long long)over * rx1 - a0), (int)(by + (long long)over * ry0 - b0 - nb + 1),
+			  (int)(by + (long long)over * ry1 - b0));
+	if (cut) {
+		double within = 0;
+
+		for (int dy = -hp; dy <= hp; dy++)
+			for (int dx = -hp; dx <= hp; dx++)
+				within += epsf_at(e, e->centre + over * dx, e->centre + over * dy);
+		for (size_t k = 0; k < (size_t)na * nb; k++)
+			whole += cells[k];
+		whole *= within * st->psf_norm;
+	}
 	box_clip(&ox0, &ox1, win->x0, win->x0 + win->nx - 1);
 	box_clip(&oy0, &oy1, win->y0, win->y0 + win->ny - 1);
-	long long bx = (long long)bxf, by = (long long)byf;
 	/* Each cell row reversed in place, so that pixel x's sum over a row,
 	 * sum_a C[a] ep[kx0 - a], runs forward through both arrays. */
 	for (int bj = 0; bj < nb; bj++)
@@ -439,39 +532,24 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 			cells[(size_t)bj * na + i] = cells[(size_t)bj * na + j];
 			cells[(size_t)bj * na + j] = t;
 		}
+	/* reversed index t = na - 1 - a reads ep[kx0 - na + 1 + t] */
+	if (cut) {
+		double drawn = 0;
+
+		for (int y = ry0; y <= ry1; y++)
+			for (int x = rx0; x <= rx1; x++)
+				drawn += sersic_core_pixel(cells, ep, na, nb, en,
+							   bx + (long long)over * x - a0 - na + 1,
+							   by + (long long)over * y - b0);
+		if (drawn > 0 && whole > 0)
+			norm = whole / drawn;
+	}
 	for (int y = oy0; y <= oy1; y++) {
 		double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
 		long long ky0 = by + (long long)over * y - b0;
-		for (int x = ox0; x <= ox1; x++) {
-			double s = 0;
-			/* reversed index t = na - 1 - a reads ep[kx0 - na + 1 + t] */
-			long long k0 = bx + (long long)over * x - a0 - na + 1;
-			int t0 = k0 < 0 ? (int)-k0 : 0;
-			int t1 = k0 + na > en ? (int)(en - k0) : na;
-			if (t0 >= t1)
-				continue;
-			for (int bj = 0; bj < nb; bj++) {
-				long long ky = ky0 - bj;
-				if (ky < 0 || ky >= en)
-					continue;
-				const double *erow = ep + (size_t)ky * en + (k0 + t0);
-				const double *crow = cells + (size_t)bj * na + t0;
-				/* four partial sums: the compiler may not reorder
-				 * a floating-point reduction by itself */
-				double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-				int len = t1 - t0, t = 0;
-				for (; t + 4 <= len; t += 4) {
-					s0 += crow[t] * erow[t];
-					s1 += crow[t + 1] * erow[t + 1];
-					s2 += crow[t + 2] * erow[t + 2];
-					s3 += crow[t + 3] * erow[t + 3];
-				}
-				for (; t < len; t++)
-					s0 += crow[t] * erow[t];
-				s += (s0 + s1) + (s2 + s3);
-			}
-			dst[x] += s;
-		}
+		for (int x = ox0; x <= ox1; x++)
+			dst[x] += norm * sersic_core_pixel(cells, ep, na, nb, en,
+							   bx + (long long)over * x - a0 - na + 1, ky0);
 	}
 }
 
@@ -527,6 +605,8 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 	}
 	if (host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, &st.e))
 		return -1;
+	st.hp = sersic_psf_drawn(&st.e, src);
+	st.psf_norm = st.hp < sersic_psf_half(&st.e) && src->aux[AUX_PSFN] > 0 ? src->aux[AUX_PSFN] : 1;
 	if (!sersic_stamp_layout(&st, win, m, gx0, gx1, gy0, gy1))
 		return 0;
 	if (sersic_stamp_scratch(host, thread, &st) < 0)

@@ -179,7 +179,7 @@ static int precise_render(void *state, void *tstate, void *thread,
 	/* Cells far out whose light is below 1e-3 of the tolerance of the
 	 * whole flux are not refined further. */
 	struct precise_opt o = { p->tol, 1e-3 * p->tol * 1e-4 };
-	struct sersic_method m = { precise_cell, &o, p->convolve, p->psf_core, p->core_k, NULL };
+	struct sersic_method m = { precise_cell, &o, p->convolve, p->psf_core, p->core_k, NULL, NULL, 1 };
 
 	return sersic_render_common(p->host, thread, src, win, &m);
 }

@@ -36,6 +36,15 @@ struct sersic_method {
 	 * of the two.  NULL: cell(), then that test and sersic_grad(). */
 	int (*wing)(const struct sersic_gal *g, const void *opt, double x0, double x1,
 		    double y0, double y1, double *v, double *gx, double *gy);
+	/* Optional, with wing: a block of block x block wing pixels
+	 * ([x0, x1] x [y0, y1], offsets) at once.  Returns -1 when the block
+	 * is dark (no light in any of its pixels), 1 when its light is faint
+	 * and smooth enough to be spread over its pixels from its integral *v
+	 * and the gradient (*gx, *gy) at its centre, 0 when its pixels must be
+	 * taken one by one. */
+	int (*block_fn)(const struct sersic_gal *g, const void *opt, double x0, double x1,
+			double y0, double y1, double *v, double *gx, double *gy);
+	int block;
 };
 
 /* The ePSF samples at the galaxy: blend of four nodes at sample (ix, iy),
@@ -289,50 +298,95 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	return 0;
 }
 
+/* One wing pixel (x, y), outside Q, into the stamp planes at offset o:
+ * its integral, and the gradient at its centre where the light is smooth
+ * over it. */
+static inline void sersic_wing_pixel(const struct sersic_stamp *st, const struct sersic_method *m,
+				     int x, int y, size_t o, int *any, int *rough)
+{
+	const struct sersic_gal *g = &st->g;
+	double v = 0, gx = 0, gy = 0, lv = 0;
+	double x0 = x - 0.5 - g->xc, x1 = x + 0.5 - g->xc;
+	double y0 = y - 0.5 - g->yc, y1 = y + 0.5 - g->yc;
+
+	/* The corrections are a Taylor expansion over the pixel: only where
+	 * the light is smooth on it (a needle, q -> 0, is not, and would go
+	 * negative). */
+	if (m->wing) {
+		if (m->wing(g, m->opt, x0, x1, y0, y1, &v, &gx, &gy))
+			lv = v;
+	} else {
+		v = m->cell(g, m->opt, x0, x1, y0, y1, 1.0);
+		if (v != 0 && sersic_cell_scale(g, sersic_rho_min(g, x0, x1, y0, y1),
+						x0, x1, y0, y1) >= SERSIC_SMOOTH) {
+			sersic_grad(g, x - g->xc, y - g->yc, &gx, &gy);
+			lv = v;
+		}
+	}
+	*any |= v != 0;
+	*rough |= lv != v;
+	st->img[o] = v;
+	st->gxi[o] = gx;
+	st->gyi[o] = gy;
+	st->lpi[o] = lv;
+}
+
 /* Wings: pixel integrals outside Q, and the profile's gradient at the
  * pixel centres (for the first-moment term), into the stamp planes.
- * *any: some wing pixel has light; *rough: some has light too rough for
- * the second-order terms, which then need a plane of their own. */
+ * With m->block_fn, the stamp is walked in blocks of m->block pixels a
+ * side: a dark block is zeros at once, a faint smooth one gets its
+ * integral spread linearly over its pixels (a pixel at offset d from the
+ * block's centre v / B^2 + grad . d, which keeps the block's sum, and the
+ * block's gradient), any other is taken pixel by pixel.  *any: some wing
+ * pixel has light; *rough: some has light too rough for the second-order
+ * terms, which then need a plane of their own. */
 static void sersic_wings_integrate(const struct sersic_stamp *st, const struct sersic_method *m,
 				   int *any_out, int *rough_out)
 {
 	const struct sersic_gal *g = &st->g;
 	int sx0 = st->sx0, sx1 = st->sx1, sy0 = st->sy0, sy1 = st->sy1, snx = st->snx, kq = st->kq;
-	double icx = st->icx, icy = st->icy;
-	double *img = st->img, *gxi = st->gxi, *gyi = st->gyi, *lpi = st->lpi;
+	int qx0 = (int)st->icx - kq, qx1 = (int)st->icx + kq, qy0 = (int)st->icy - kq, qy1 = (int)st->icy + kq;
+	int B = m->block_fn && m->block > 1 ? m->block : 1;
 	int any = 0, rough = 0;
+	/* Blocks lie on the detector's grid of B pixels, not the stamp's, so
+	 * a pixel is drawn the same way whichever window (tile) the stamp was
+	 * grown from; one the stamp cuts fills only its pixels inside. */
+	int ax0 = sx0 - ((sx0 % B) + B) % B, ay0 = sy0 - ((sy0 % B) + B) % B;
 
-	for (int y = sy0; y <= sy1; y++) {
-		size_t o = (size_t)(y - sy0) * snx;
-		int in_qy = y >= icy - kq && y <= icy + kq;
-		for (int x = sx0; x <= sx1; x++) {
-			double v = 0, gx = 0, gy = 0, lv = 0;
-			if (!(in_qy && x >= icx - kq && x <= icx + kq)) {
-				double x0 = x - 0.5 - g->xc, x1 = x + 0.5 - g->xc;
-				double y0 = y - 0.5 - g->yc, y1 = y + 0.5 - g->yc;
-				/* The corrections are a Taylor expansion over the
-				 * pixel: only where the light is smooth on it (a
-				 * needle, q -> 0, is not, and would go negative). */
-				if (m->wing) {
-					if (m->wing(g, m->opt, x0, x1, y0, y1, &v, &gx, &gy))
-						lv = v;
-				} else {
-					v = m->cell(g, m->opt, x0, x1, y0, y1, 1.0);
-					if (v != 0 && sersic_cell_scale(g, sersic_rho_min(g, x0, x1, y0, y1),
-									x0, x1, y0, y1) >= SERSIC_SMOOTH) {
-						sersic_grad(g, x - g->xc, y - g->yc, &gx, &gy);
-						lv = v;
+	for (int by = ay0; by <= sy1; by += B)
+		for (int bx = ax0; bx <= sx1; bx += B) {
+			int ex = bx + B - 1, ey = by + B - 1;
+			int in_q = !(ex < qx0 || bx > qx1 || ey < qy0 || by > qy1);
+			int how = 0;
+			double v = 0, gx = 0, gy = 0;
+
+			/* blocks outside Q only */
+			if (B > 1 && !in_q)
+				how = m->block_fn(g, m->opt, bx - 0.5 - g->xc, ex + 0.5 - g->xc,
+						  by - 0.5 - g->yc, ey + 0.5 - g->yc, &v, &gx, &gy);
+			for (int y = by > sy0 ? by : sy0; y <= ey && y <= sy1; y++) {
+				size_t o = (size_t)(y - sy0) * snx - sx0;
+				int in_qy = y >= qy0 && y <= qy1;
+
+				for (int x = bx > sx0 ? bx : sx0; x <= ex && x <= sx1; x++) {
+					if (in_qy && x >= qx0 && x <= qx1) {
+						st->img[o + x] = st->gxi[o + x] = st->gyi[o + x] = st->lpi[o + x] = 0;
+					} else if (how < 0) {
+						st->img[o + x] = st->gxi[o + x] = st->gyi[o + x] = st->lpi[o + x] = 0;
+					} else if (how > 0) {
+						double p = v / ((double)B * B) + gx * (x - 0.5 * (bx + ex)) +
+							   gy * (y - 0.5 * (by + ey));
+
+						st->img[o + x] = st->lpi[o + x] = p;
+						st->gxi[o + x] = gx;
+						st->gyi[o + x] = gy;
+						any |= p != 0;
+					} else {
+						sersic_wing_pixel(st, m, x, y, o + x, &any, &rough);
 					}
 				}
-				any |= v != 0;
 			}
-			rough |= lv != v;
-			img[o + x - sx0] = v;
-			gxi[o + x - sx0] = gx;
-			gyi[o + x - sx0] = gy;
-			lpi[o + x - sx0] = lv;
 		}
-	}
 	*any_out = any;
 	*rough_out = rough;
 }

@@ -349,4 +349,32 @@ sys.exit(not ok)
 		grep -q "sersic-psf-cut" err || return 1
 	done
 '
+test_expect_success 'sersic-wing-block: faint smooth wing pixels in blocks, each within an eighth of the noise cut, flux kept' '
+	"$PY" -c "
+import random
+random.seed(7)
+print(\"x,y,flux,type,n,re,phi,ratio\")
+for k in range(30):
+    print(\"%.2f,%.2f,%.3f,sersic,%.2f,%.2f,%.1f,%.2f\" % (100 + 160 * (k % 6) + random.random(),
+          100 + 160 * (k // 6) + random.random(), 10 ** random.uniform(0, 2.5),
+          random.uniform(1, 4), random.uniform(1, 6), random.uniform(0, 180), random.uniform(0.3, 1)))
+" > wb.csv &&
+	"$WFS" -q --filter F129 --report wb4.json -o wb4.fits wb.csv &&
+	"$WFS" -q --filter F129 --set sersic-wing-block=1 -o wb1.fits wb.csv &&
+	"$PY" -c "
+import json, sys
+import numpy as np
+from astropy.io import fits
+sig = float(json.load(open(\"wb4.json\"))[\"error_budget\"][\"pixel_sigma\"])
+a, b = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float)
+        for f in (\"wb1.fits\", \"wb4.fits\"))
+d = np.abs(a - b)
+print(\"largest change %.3g sigma, total %.3g\" % (d.max() / sig, b.sum() / a.sum() - 1))
+sys.exit(not (0 < d.max() <= 0.01 * sig / 8 and abs(b.sum() / a.sum() - 1) < 1e-5))
+" &&
+	for opt in sersic-wing-block=0 sersic-wing-block=17 sersic-wing-block=2.5 sersic-wing-block=x; do
+		test_must_fail --status 3 "$WFS" --filter F129 --set $opt -o o.fits wb.csv 2> err &&
+		grep -q "sersic-wing-block" err || return 1
+	done
+'
 test_done

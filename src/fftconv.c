@@ -253,21 +253,33 @@ static size_t image_support(const double *img, int nx, int ny, int *x0, int *x1,
 }
 
 /*
- * Which way is cheaper for nnz lit pixels and a padded transform of
- * px x py: the direct sum costs about nnz kn^2 multiply-adds, the FFT
- * three transforms of px py log2(px py) butterflies and the padding and
- * product around them.  FFTCONV_DIRECT_COST is the ratio of the two unit
- * costs, measured on the development machine (BENCHMARKS.md, "Sérsic
- * galaxies"); the crossing is flat, so a factor of two either way costs
- * little.
+ * The cost of the direct sum, in multiply-adds with a call's overhead
+ * counted as 16 of them: scattering nnz lit pixels through the kernel's
+ * rows (nnz kn calls of kn), or the block's rows through its taps (v kn^2
+ * calls of w).  *rows says which is less.
  */
-#define FFTCONV_DIRECT_COST 0.7
+static double direct_cost(size_t nnz, int w, int v, int kn, int *rows)
+{
+	double scatter = (double)nnz * kn * (kn + 16), byrow = (double)v * kn * kn * (w + 16);
 
-static int direct_cheaper(size_t nnz, int kn, int px, int py)
+	*rows = byrow < scatter;
+	return *rows ? byrow : scatter;
+}
+
+/*
+ * Whether the direct sum costs less than the transforms of px x py: three
+ * transforms of px py log2(px py) butterflies and the padding and product
+ * around them.  FFTCONV_DIRECT_COST is the ratio of the two unit costs,
+ * measured on the development machine (BENCHMARKS.md, "Sérsic galaxies");
+ * the crossing is flat, so a factor of two either way costs little.
+ */
+#define FFTCONV_DIRECT_COST 0.6
+
+static int direct_cheaper(double cost, int px, int py)
 {
 	double n = (double)px * py;
 
-	return FFTCONV_DIRECT_COST * (double)nnz * kn * kn < 3 * n * log2(n) + 8 * n;
+	return FFTCONV_DIRECT_COST * cost < 3 * n * log2(n) + 8 * n;
 }
 
 static atomic_int forced = FFTCONV_AUTO;
@@ -278,10 +290,11 @@ void fftconv_force(int method)
 }
 
 /* The sum over the lit pixels, scattered through the kernel into the
- * output block [ox0, ox1] x [oy0, oy1] (out, ow wide). */
-static void convolve_direct(const double *img, int nx, int bx0, int bx1, int by0, int by1,
-			    const double *kernel, int kn, double *out, int ox0, int ox1,
-			    int oy0, int oy1)
+ * output block [ox0, ox1] x [oy0, oy1] (out, ow wide): a kernel row per
+ * lit pixel, the better way for a block narrower than the kernel. */
+static void convolve_scatter(const double *img, int nx, int bx0, int bx1, int by0, int by1,
+			     const double *kernel, int kn, double *out, int ox0, int ox1,
+			     int oy0, int oy1)
 {
 	void (*axpy)(double *restrict, const double *restrict, double, int) = axpy_choose();
 	int h = (kn - 1) / 2, ow = ox1 - ox0 + 1;
@@ -303,6 +316,39 @@ static void convolve_direct(const double *img, int nx, int bx0, int bx1, int by0
 				axpy(out + (size_t)(y + ky - h - oy0) * ow + (x + kx0 - h - ox0),
 				     kernel + (size_t)ky * kn + kx0, v, kx1 - kx0 + 1);
 		}
+}
+
+/* The sum over the lit block [bx0, bx1] x [by0, by1] into the output block
+ * [ox0, ox1] x [oy0, oy1] (out, ow wide), a row of the block and a tap of
+ * the kernel at a time: output row y + ky - h gains tap (kx, ky) times the
+ * block's row shifted by kx - h, one long loop instead of one per pixel. */
+static void convolve_rows(const double *img, int nx, int bx0, int bx1, int by0, int by1,
+			    const double *kernel, int kn, double *out, int ox0, int ox1,
+			    int oy0, int oy1)
+{
+	void (*axpy)(double *restrict, const double *restrict, double, int) = axpy_choose();
+	int h = (kn - 1) / 2, ow = ox1 - ox0 + 1;
+
+	memset(out, 0, (size_t)ow * (oy1 - oy0 + 1) * sizeof(double));
+	for (int y = by0; y <= by1; y++) {
+		const double *row = img + (size_t)y * nx;
+		int ky0 = oy0 - y + h > 0 ? oy0 - y + h : 0;
+		int ky1 = oy1 - y + h < kn - 1 ? oy1 - y + h : kn - 1;
+
+		for (int ky = ky0; ky <= ky1; ky++) {
+			double *orow = out + (size_t)(y + ky - h - oy0) * ow;
+
+			for (int kx = 0; kx < kn; kx++) {
+				double k = kernel[(size_t)ky * kn + kx];
+				/* source x lands on x + kx - h, inside [ox0, ox1] */
+				int x0 = ox0 - kx + h > bx0 ? ox0 - kx + h : bx0;
+				int x1 = ox1 - kx + h < bx1 ? ox1 - kx + h : bx1;
+
+				if (k != 0 && x0 <= x1)
+					axpy(orow + (x0 + kx - h - ox0), row + x0, k, x1 - x0 + 1);
+			}
+		}
+	}
 }
 
 /*
@@ -331,15 +377,17 @@ int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 	int ox0 = bx0 - h > 0 ? bx0 - h : 0, ox1 = bx1 + h < nx - 1 ? bx1 + h : nx - 1;
 	int oy0 = by0 - h > 0 ? by0 - h : 0, oy1 = by1 + h < ny - 1 ? by1 + h : ny - 1;
 	int ow = ox1 - ox0 + 1, oh = oy1 - oy0 + 1;
-	int px = fftconv_size(wx + kn - 1), py = fftconv_size(wy + kn - 1);
+	int px = fftconv_size(wx + kn - 1), py = fftconv_size(wy + kn - 1), rows;
 	int method = atomic_load(&forced);
+	double cost = direct_cost(nnz, wx, wy, kn, &rows);
 
 	if (method == FFTCONV_AUTO)
-		method = direct_cheaper(nnz, kn, px, py) ? FFTCONV_DIRECT : FFTCONV_FFT;
+		method = direct_cheaper(cost, px, py) ? FFTCONV_DIRECT : FFTCONV_FFT;
 	if (method == FFTCONV_DIRECT) {
 		if (thread_reserve(t, ow, oh))
 			return -1;
-		convolve_direct(img, nx, bx0, bx1, by0, by1, kernel, kn, t->rimg, ox0, ox1, oy0, oy1);
+		(rows ? convolve_rows : convolve_scatter)(img, nx, bx0, bx1, by0, by1, kernel, kn,
+							  t->rimg, ox0, ox1, oy0, oy1);
 		for (int y = oy0; y <= oy1; y++)
 			memcpy(img + (size_t)y * nx + ox0, t->rimg + (size_t)(y - oy0) * ow,
 			       ow * sizeof(double));

@@ -2,8 +2,9 @@
  * sersic_fftconv.c - the host's FFT convolution service against a direct
  * sum: odd kernels, zero outside the image, sizes that are and are not
  * FFT-friendly, two threads sharing one plan cache, and both of its ways
- * (the transform of the lit block, the direct sum over the lit pixels) on
- * images lit only in part, as a galaxy's stamp is.
+ * (the transform of the lit block, the direct sum over the lit pixels,
+ * scattered through the kernel for a block narrower than it or by rows for
+ * a wide one) on images lit only in part, as a galaxy's stamp is.
  */
 #include "fftconv.h"
 #include "tap.h"

@@ -116,6 +116,8 @@ static const struct wfs_setting point_settings[] = {
 	{ "psf-extent-max", "8192", "number >= 1", "the largest drawing radius, pixels" },
 	{ "psf-extent-min", "(the class's box)", "number >= 1",
 	  "let a faint source's box shrink toward its drawing radius, down to this" },
+	{ "psf-extent-cut", "0.1", "number >= 0",
+	  "a faint source's box shrinks to where less than this fraction of the noise per pixel of its light lies beyond, scaled up so its flux is whole (0: the class's box)" },
 	{ "psf-halo-power", "3", "number >= 2.5", "power-law index of the far tail" },
 	{ "psf-halo-taper", "16", "number >= 0",
 	  "pixels over which the halo array hands over to the tail" },
@@ -219,6 +221,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	p->extent_noise = 0.1;
 	p->extent_max = 8192;
 	p->extent_min = -1;
+	p->extent_cut = 0.1;
 	p->halo_power = 3;
 	p->halo_taper = 16;
 	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
@@ -233,6 +236,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	    setting_number(host, "psf-extent-noise", 1e-6, 0, &p->extent_noise) < 0 ||
 	    setting_number(host, "psf-extent-max", 1, 0, &p->extent_max) < 0 ||
 	    setting_number(host, "psf-extent-min", 1, 0, &p->extent_min) < 0 ||
+	    setting_number(host, "psf-extent-cut", 0, 0, &p->extent_cut) < 0 ||
 	    setting_number(host, "psf-halo-power", 2.5, 0, &p->halo_power) < 0 ||
 	    setting_number(host, "psf-halo-taper", 0, 0, &p->halo_taper) < 0 ||
 	    setting_choice(host, "psf-halo-far", far, 2, &p->halo_far) < 0)
@@ -301,7 +305,7 @@ static int point_prepare(void *state, struct wfs_source *src)
 {
 	struct point *p = state;
 
-	return p->extent == EXTENT_STIPS ? epsf_prepare(p, src, 0) : noise_prepare(p, src);
+	return p->extent == EXTENT_STIPS ? epsf_prepare(p, src, 0, 0) : noise_prepare(p, src);
 }
 
 static int point_render(void *state, void *tstate, void *thread,

@@ -172,6 +172,7 @@ struct point {
 	double extent_max;      /* psf-extent-max: largest radius, pixels */
 	double extent_min;      /* psf-extent-min: smallest box half-width, pixels
 				 * (negative: the class's box) */
+	double extent_cut;      /* psf-extent-cut: fraction of sigma (0: off) */
 	double halo_power;      /* psf-halo-power: the tail's power */
 	double halo_taper;      /* psf-halo-taper: pixels */
 	int halo_far;           /* psf-halo-far: HALO_FAR_SPIKES or HALO_FAR_DISC */
@@ -251,7 +252,7 @@ void poly_free_all(struct point *p);
 
 /* point_epsf.c: prepare() and render() of a source's ePSF box; a box of
  * half-width at most cap (0: the class's) */
-int epsf_prepare(struct point *p, struct wfs_source *src, double cap);
+int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut);
 int epsf_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
 
 /* point_halo.c: psf-extent=noise */

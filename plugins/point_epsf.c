@@ -295,12 +295,12 @@ static double flux_factor(double t, double k, double u)
  *   aux[4..7]  the source's weights of its cell's nodes (psf-blend=core),
  *              or NaN when render() must look the arrays up itself
  */
-int epsf_prepare(struct point *p, struct wfs_source *src, double cap)
+int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 {
 	struct wfs_epsf e;
 	struct draw d;
 	const struct poly *node[4];
-	double w[4], half, t = 0;
+	double w[4], half, t = 0, t_all = 0, whole;
 	struct poly *cell = NULL;
 	int nn = 0, blend = source_blend(p, src), same = blend == BLEND_CORE;
 
@@ -369,6 +369,27 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap)
 	}
 	if (cap > 0 && cap < half)
 		half = cap;
+	whole = half;
+	if (cut && p->extent_cut > 0 && p->sigma > 0 && half == floor(half) && half <= d.pl[0]->nee) {
+		/* psf-extent-cut: the smallest half-width, beyond the core, past
+		 * which the source's light within the whole box (for the blend
+		 * at the source, or the cell's; ee_table) is at most extent_cut
+		 * of the noise per pixel; that light is put back below */
+		int h, H = (int)half;
+
+		for (h = (int)ceil(p->core) + 1; h < H; h++) {
+			double out = 0;
+
+			if (blend == BLEND_CELL)
+				out = src->flux * (cell->ee[H] - cell->ee[h]);
+			for (int k = 0; k < nn; k++)
+				out += w[k] * src->flux * (node[k]->ee[H] - node[k]->ee[h]);
+			if (fabs(out) <= p->extent_cut * p->sigma)
+				break;
+		}
+		if (h < H)
+			half = h;
+	}
 	src->aux[0] = half;
 	zones(p, src, blend, half, &d);
 	/* T: the bilinear sum over the box of the blend at the source (of
@@ -377,10 +398,25 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap)
 		t = src->flux * bil_sum(cell, &d.g, d.box);
 	for (int k = 0; k < nn; k++)
 		t += w[k] * src->flux * bil_sum(node[k], &d.g, d.box);
+	/* A box the cut shrank draws the light of the whole one at the
+	 * source's phase: its factor below carries the light beyond it (below
+	 * the cut), outside the core.  That light is taken from the cell's
+	 * blend where there is one (one table instead of four; the blends'
+	 * light in the whole box differs by some 1e-4 of it). */
+	t_all = t;
+	if (half < whole) {
+		struct zone all = square(src->x, src->y, whole);
+
+		if (cell)
+			t_all = src->flux * bil_sum(cell, &d.g, all);
+		else
+			for (int k = t_all = 0; k < nn; k++)
+				t_all += w[k] * src->flux * bil_sum(node[k], &d.g, all);
+	}
 	if (one_array(&d)) {
 		const struct geom *g = &d.g;
 
-		src->aux[1] = t;
+		src->aux[1] = t_all;
 		src->aux[2] = src->flux * (tap_sum(cell, g, g->an, g->bn, corners_of(g, d.box)) -
 					   (zone_empty(d.wing) ? 0 :
 					    tap_sum(cell, g, g->an, g->bn, corners_of(g, d.wing))) +
@@ -394,7 +430,7 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap)
 			u -= d.wn[i] * b;
 			k += d.wn[i] * (d.keys ? keys_sum(d.pl[i], &d.g, d.core) : b);
 		}
-		src->aux[1] = flux_factor(t, k, u);
+		src->aux[1] = flux_factor(t_all, k, u);
 		src->aux[2] = 0;
 	}
 	return 0;

@@ -77,6 +77,7 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	const struct halo *h;
 	struct wfs_source fs;
 	double r, half, c, cap, fl = src->flux;
+	int faint;
 
 	if (!(h = halo_of(p, src)) || (c = core_scale(p, src, h)) < 0)
 		return -1;
@@ -89,15 +90,18 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	cap = p->chalf[src->sca][src->psf_class];
 	if (p->extent_min > 0 && fmax(r, p->extent_min) < cap)
 		cap = fmax(r, p->extent_min);
-	if (epsf_prepare(p, &fs, cap) < 0)
-		return -1;
-	memcpy(src->aux, fs.aux, sizeof(src->aux));
-	half = fs.aux[0];
 	/* no halo when the box holds everything above the level; the core's
 	 * own values at the box's edge may stand a few per cent above the
 	 * halo's (it is sampled twice as finely), so the halo takes over
-	 * once the envelope there reaches half the level */
-	if (r <= half && fl * halo_envelope(h, half - 1) < 0.5 * p->extent_noise * p->sigma)
+	 * once the envelope there reaches half the level.  Only a source with
+	 * no halo may have its box cut by psf-extent-cut, which puts the
+	 * light beyond the cut back into the box. */
+	faint = r <= cap && fl * halo_envelope(h, cap - 1) < 0.5 * p->extent_noise * p->sigma;
+	if (epsf_prepare(p, &fs, cap, faint) < 0)
+		return -1;
+	memcpy(src->aux, fs.aux, sizeof(src->aux));
+	half = fs.aux[0];
+	if (faint)
 		r = 0;
 	else if (r <= half)
 		r = half + 1;
@@ -105,7 +109,8 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	p->requested += fabs(fl);
 	p->npoint++;
 	p->nhalo += r > 0;
-	p->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, half - 0.5));
+	/* a cut box carries the light of the box before the cut */
+	p->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, (faint ? cap : half) - 0.5));
 	/* beyond the base radius, the light away from the spikes */
 	if (r > 0 && psf_spikes(p))
 		p->left += fabs(fl) * halo_base_between(h, halo_base_radius(h, p->extent_noise *

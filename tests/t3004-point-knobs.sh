@@ -157,12 +157,12 @@ assert b[\"psf-box-sigma\"] == \"0.1\" and b[\"psf-cell\"] == \"512\", b
 assert list(b) == [\"psf-interp\", \"psf-core\", \"psf-wing\", \"psf-box\",
                    \"psf-box-noise\", \"psf-box-sigma\", \"psf-blend\", \"psf-cell\",
                    \"psf-extent\", \"psf-extent-noise\", \"psf-extent-max\",
-                   \"psf-extent-min\", \"psf-halo-power\", \"psf-halo-taper\",
+                   \"psf-extent-min\", \"psf-extent-cut\", \"psf-halo-power\", \"psf-halo-taper\",
                    \"psf-halo-far\"], b
 "
 '
 for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-box-noise=0 \
-	psf-box-sigma=x psf-blend=tile psf-cell=0 psf-cell=10.5; do
+	psf-box-sigma=x psf-blend=tile psf-cell=0 psf-cell=10.5 psf-extent-cut=-1 psf-extent-cut=x; do
 	key=${kv%%=*}
 	test_expect_success "--set $kv is refused, naming $key" "
 		test_must_fail --status 3 run bad.fits --set $kv 2> err &&
@@ -170,4 +170,44 @@ for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-
 		! test -e bad.fits
 	"
 done
+test_expect_success 'psf-extent-cut: faint stars in boxes cut by the noise, each pixel within the cut, flux kept; bright ones and STIPS boxes whole' '
+	"$PY" -c "
+import random
+random.seed(3)
+print(\"x,y,mag\")
+for k in range(100):
+    print(\"%.3f,%.3f,%.3f\" % (40 + 60 * (k % 10) + random.random(), 40 + 60 * (k // 10) + random.random(),
+          random.uniform(20, 27)))
+print(\"1500.4,1500.6,12\")
+" > cut.csv &&
+	"$WFS" --filter F129 --flux-unit abmag --report cut1.json -o cut1.fits cut.csv &&
+	"$WFS" --filter F129 --flux-unit abmag --set psf-extent-cut=0 -o cut0.fits cut.csv &&
+	"$WFS" --filter F129 --flux-unit abmag --set psf-extent-cut=1 -o cut9.fits cut.csv &&
+	"$WFS" --filter F129 --flux-unit abmag --set psf-extent=stips -o st1.fits cut.csv &&
+	"$WFS" --filter F129 --flux-unit abmag --set psf-extent=stips --set psf-extent-cut=0 -o st0.fits cut.csv &&
+	"$PY" -c "
+import json, sys
+import numpy as np
+from astropy.io import fits
+img = lambda f: [h.data for h in fits.open(f) if h.data is not None][0].astype(float)
+sig = float(json.load(open(\"cut1.json\"))[\"error_budget\"][\"pixel_sigma\"])
+a, b, c = img(\"cut0.fits\"), img(\"cut1.fits\"), img(\"cut9.fits\")
+rows = [l.split(\",\") for l in open(\"cut.csv\").read().split()[1:-1]]
+ok = True
+for cut, im in ((0.1, b), (1.0, c)):
+    d = np.abs(im - a)
+    worst = 0
+    for r in rows:
+        x, y = int(float(r[0])), int(float(r[1]))
+        box = (slice(y - 29, y + 29), slice(x - 29, x + 29))
+        worst = max(worst, abs(im[box].sum() - a[box].sum()))
+    print(\"cut %g: largest change %.3g sigma, worst star flux %.3g sigma\" % (cut, d.max() / sig, worst / sig))
+    # every pixel within the cut; the light of each star put back, to a tenth of it
+    ok &= 0 < d.max() <= cut * sig and worst <= 0.1 * cut * sig
+box = (slice(1499 - 60, 1499 + 60), slice(1499 - 60, 1499 + 60))
+ok &= np.array_equal(a[box], b[box])
+ok &= np.array_equal(img(\"st0.fits\"), img(\"st1.fits\"))
+sys.exit(not ok)
+"
+'
 test_done

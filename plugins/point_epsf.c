@@ -284,6 +284,18 @@ static double flux_factor(double t, double k, double u)
 	return u > 0.01 * fabs(t) && isfinite(t - k) ? (t - k) / u : 1;
 }
 
+/* The light of the source (the blend at it, or its cell's) in a box of
+ * half-width H but not in that of half-width h (ee_table), absolute. */
+static double beyond(const struct wfs_source *src, const struct poly *cell, int blend,
+		     const struct poly *const node[4], const double w[4], int nn, int H, int h)
+{
+	double out = blend == BLEND_CELL ? src->flux * (cell->ee[H] - cell->ee[h]) : 0;
+
+	for (int k = 0; k < nn; k++)
+		out += w[k] * src->flux * (node[k]->ee[H] - node[k]->ee[h]);
+	return fabs(out);
+}
+
 /*
  * prepare(): the arrays the source reads (polyphase copies of its grid
  * nodes and of its cell's blend, made once and kept), its box and what its
@@ -375,18 +387,15 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 		 * which the source's light within the whole box (for the blend
 		 * at the source, or the cell's; ee_table) is at most extent_cut
 		 * of the noise per pixel; that light is put back below */
-		int h, H = (int)half;
+		int h = (int)ceil(p->core) + 1, H = (int)half;
 
-		for (h = (int)ceil(p->core) + 1; h < H; h++) {
-			double out = 0;
-
-			if (blend == BLEND_CELL)
-				out = src->flux * (cell->ee[H] - cell->ee[h]);
-			for (int k = 0; k < nn; k++)
-				out += w[k] * src->flux * (node[k]->ee[H] - node[k]->ee[h]);
-			if (fabs(out) <= p->extent_cut * p->sigma)
+		/* most sources that need the whole box are seen at its edge */
+		if (h < H && !(beyond(src, cell, blend, node, w, nn, H, H - 1) <=
+			       p->extent_cut * p->sigma))
+			h = H;
+		for (; h < H; h++)
+			if (beyond(src, cell, blend, node, w, nn, H, h) <= p->extent_cut * p->sigma)
 				break;
-		}
 		if (h < H)
 			half = h;
 	}

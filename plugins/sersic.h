@@ -730,9 +730,12 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 }
 
 /* The pixels the galaxy touches: the truncation ellipse's box plus the
- * ePSF's half-width, clamped so distant or huge galaxies stay in int. */
+ * ePSF's half-width drawn, and the pixels its core block (core_k about
+ * the centre pixel) reaches through that ePSF (sersic_core_add), which
+ * a needle lying across an axis, or a large core, puts beyond the box;
+ * clamped so distant or huge galaxies stay in int. */
 static int sersic_footprint_common(const struct wfs_host *host, const struct wfs_source *src,
-				   struct wfs_box *box, int convolve)
+				   struct wfs_box *box, int convolve, int core_k)
 {
 	struct sersic_gal g;
 	double hx, hy;
@@ -749,6 +752,15 @@ static int sersic_footprint_common(const struct wfs_host *host, const struct wfs
 	const double lim = 1e8;
 	double x0 = fmax(floor(g.xc - hx + 0.5) - hp, -lim), x1 = fmin(floor(g.xc + hx + 0.5) + hp + 1, lim);
 	double y0 = fmax(floor(g.yc - hy + 0.5) - hp, -lim), y1 = fmin(floor(g.yc + hy + 0.5) + hp + 1, lim);
+	if (convolve) {
+		/* the core's reach: K + hp + 1 about the centre pixel */
+		double icx = floor(g.xc + 0.5), icy = floor(g.yc + 0.5), k = core_k + hp + 1;
+
+		x0 = fmax(fmin(x0, icx - k), -lim);
+		x1 = fmin(fmax(x1, icx + k + 1), lim);
+		y0 = fmax(fmin(y0, icy - k), -lim);
+		y1 = fmin(fmax(y1, icy + k + 1), lim);
+	}
 	/* A central surface brightness below the least double (e^-745 per
 	 * pixel; r_e = 1e300, or no flux) puts nothing in any pixel. */
 	if (!(x0 < x1) || !(y0 < y1) || !(g.lni0 > -745))
@@ -765,14 +777,14 @@ static int sersic_footprint_common(const struct wfs_host *host, const struct wfs
  * for the rounding of the box's edges.  prepare() is run on a copy, so src
  * keeps its aux. */
 static int sersic_reach_common(const struct wfs_host *host, const struct wfs_source *src,
-			       double eps, int convolve, double *pixels)
+			       double eps, int convolve, int core_k, double *pixels)
 {
 	struct wfs_source at = *src;
 	struct wfs_box box;
 
 	at.x = at.y = 0;
 	if (sersic_prepare_common(host, &at, eps, 0) < 0 ||
-	    sersic_footprint_common(host, &at, &box, convolve) < 0)
+	    sersic_footprint_common(host, &at, &box, convolve, core_k) < 0)
 		return -1;
 	*pixels = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1)) + 2;
 	return 0;

@@ -169,7 +169,7 @@ static int precise_footprint(void *state, const struct wfs_source *src, struct w
 {
 	struct precise *p = state;
 
-	return sersic_footprint_common(p->host, src, box, p->convolve);
+	return sersic_footprint_common(p->host, src, box, p->convolve, p->core_k);
 }
 
 static int precise_render(void *state, void *tstate, void *thread,
@@ -188,7 +188,7 @@ static int precise_reach(void *state, const struct wfs_source *src, double *pixe
 {
 	struct precise *p = state;
 
-	return sersic_reach_common(p->host, src, p->trunc, p->convolve, pixels);
+	return sersic_reach_common(p->host, src, p->trunc, p->convolve, p->core_k, pixels);
 }
 
 static const struct wfs_setting precise_settings[] = {

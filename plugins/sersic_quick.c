@@ -294,7 +294,7 @@ static int quick_footprint(void *state, const struct wfs_source *src, struct wfs
 {
 	struct quick *p = state;
 
-	return sersic_footprint_common(p->host, src, box, p->convolve);
+	return sersic_footprint_common(p->host, src, box, p->convolve, p->core_k);
 }
 
 static int quick_render(void *state, void *tstate, void *thread,
@@ -311,7 +311,7 @@ static int quick_reach(void *state, const struct wfs_source *src, double *pixels
 {
 	struct quick *p = state;
 
-	return sersic_reach_common(p->host, src, p->trunc, p->convolve, pixels);
+	return sersic_reach_common(p->host, src, p->trunc, p->convolve, p->core_k, pixels);
 }
 
 static const struct wfs_setting quick_settings[] = {

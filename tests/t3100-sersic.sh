@@ -317,6 +317,8 @@ for k in range(40):
           60 + 80 * (k // 8) + random.random(), 10 ** random.uniform(-0.5, 2),
           random.uniform(0.5, 4), random.uniform(0.2, 5), random.uniform(0, 180), random.uniform(0.3, 1)))
 print(\"1200.3,1200.7,1e5,sersic,2,4,20,0.7\")
+# bright enough that the cut takes little: where the scaling of the core errs most
+print(\"870.735,330.960,1000,sersic,1,2,3.3,0.7\")
 " > pc.csv &&
 	"$WFS" -q --filter F129 --report pc1.json -o pc1.fits pc.csv &&
 	"$WFS" -q --filter F129 --set sersic-psf-cut=0 -o pc0.fits pc.csv &&
@@ -328,7 +330,7 @@ from astropy.io import fits
 sig = float(json.load(open(\"pc1.json\"))[\"error_budget\"][\"pixel_sigma\"])
 a, b, c = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float)
            for f in (\"pc0.fits\", \"pc1.fits\", \"pc9.fits\"))
-rows = [l.split(\",\") for l in open(\"pc.csv\").read().split()[1:]]
+rows = [l.split(\",\") for l in open(\"pc.csv\").read().split()[1:] if not l.startswith(\"1200.3\")]
 ok = True
 for cut, im in ((0.1, b), (1.0, c)):
     d = np.abs(im - a)
@@ -337,8 +339,10 @@ for cut, im in ((0.1, b), (1.0, c)):
     for r in rows:
         x, y = int(float(r[0])), int(float(r[1]))
         box = (slice(y - 39, y + 39), slice(x - 39, x + 39))
-        # the light left out is put back: a tenth of the bound (measured: 0.025)
-        ok &= abs(im[box].sum() - a[box].sum()) <= 0.1 * cut * sig
+        # the light left out is put back: a tenth of the bound (measured:
+        # 0.025), and 3e-4 of the flux (the ePSF summed at whole pixels
+        # against at the phase of the galaxy)
+        ok &= abs(im[box].sum() - a[box].sum()) <= 0.1 * cut * sig + 3e-4 * float(r[2])
 # the bright galaxy keeps all of its ePSF: the same pixels
 box = (slice(1199 - 60, 1199 + 60), slice(1199 - 60, 1199 + 60))
 ok &= np.array_equal(a[box], b[box])
@@ -361,6 +365,7 @@ for k in range(30):
 " > wb.csv &&
 	"$WFS" -q --filter F129 --report wb4.json -o wb4.fits wb.csv &&
 	"$WFS" -q --filter F129 --set sersic-wing-block=1 -o wb1.fits wb.csv &&
+	"$WFS" -q --filter F129 --tile 64 -o wb64.fits wb.csv &&
 	"$PY" -c "
 import json, sys
 import numpy as np
@@ -370,11 +375,28 @@ a, b = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float)
         for f in (\"wb1.fits\", \"wb4.fits\"))
 d = np.abs(a - b)
 print(\"largest change %.3g sigma, total %.3g\" % (d.max() / sig, b.sum() / a.sum() - 1))
-sys.exit(not (0 < d.max() <= 0.01 * sig / 8 and abs(b.sum() / a.sum() - 1) < 1e-5))
+# the blocks lie on the grid of the detector: tiles of 64 pixels draw the same to rounding
+t = [h.data for h in fits.open(\"wb64.fits\") if h.data is not None][0].astype(float)
+sys.exit(not (0 < d.max() <= 0.01 * sig / 8 and abs(b.sum() / a.sum() - 1) < 1e-5 and
+              np.abs(t - b).max() <= 1e-9 * sig))
 " &&
 	for opt in sersic-wing-block=0 sersic-wing-block=17 sersic-wing-block=2.5 sersic-wing-block=x; do
 		test_must_fail --status 3 "$WFS" --filter F129 --set $opt -o o.fits wb.csv 2> err &&
 		grep -q "sersic-wing-block" err || return 1
 	done
+'
+test_expect_success 'sersic-psf-cut: a needle across an axis with a large core keeps its light (the footprint holds what the core reaches)' '
+	printf "x,y,flux,type,n,re,phi,ratio\n1000.0,1000.3,200,sersic,1,10,0,0.001\n" > nd.csv &&
+	"$WFS" -q --filter F129 --sersic-core 8 --report nd1.json -o nd1.fits nd.csv &&
+	"$WFS" -q --filter F129 --sersic-core 8 --set sersic-psf-cut=0 -o nd0.fits nd.csv &&
+	"$PY" -c "
+import json, sys
+from astropy.io import fits
+sig = float(json.load(open(\"nd1.json\"))[\"error_budget\"][\"pixel_sigma\"])
+a, b = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float) for f in (\"nd0.fits\", \"nd1.fits\"))
+box = (slice(999 - 80, 999 + 80), slice(999 - 80, 999 + 80))
+print(\"flux %.6g against %.6g\" % (b[box].sum(), a[box].sum()))
+sys.exit(not abs(b[box].sum() - a[box].sum()) <= 0.01 * sig + 3e-4 * 200)
+"
 '
 test_done

@@ -402,11 +402,14 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 	src->aux[0] = half;
 	zones(p, src, blend, half, &d);
 	/* T: the bilinear sum over the box of the blend at the source (of
-	 * the cell's, psf-blend=cell) */
-	if (blend == BLEND_CELL)
-		t = src->flux * bil_sum(cell, &d.g, d.box);
-	for (int k = 0; k < nn; k++)
-		t += w[k] * src->flux * bil_sum(node[k], &d.g, d.box);
+	 * the cell's, psf-blend=cell); one array with a cut box draws the
+	 * whole box's light below instead, and needs no T */
+	if (!(half < whole && one_array(&d))) {
+		if (blend == BLEND_CELL)
+			t = src->flux * bil_sum(cell, &d.g, d.box);
+		for (int k = 0; k < nn; k++)
+			t += w[k] * src->flux * bil_sum(node[k], &d.g, d.box);
+	}
 	/* A box the cut shrank draws the light of the whole one at the
 	 * source's phase: its factor below carries the light beyond it (below
 	 * the cut), outside the core.  That light is taken from the cell's

@@ -50,8 +50,12 @@ void render_errors_collect(struct engine *g)
 		err_clear(&g->w[i].err);
 }
 
-/* Placements prefetched ahead of the one drawn. */
+/* Placements prefetched ahead of the one drawn, and the placement whose
+ * tile rows are (only for windows of at most RENDER_ROWS_MAX rows: a
+ * larger one streams, which the hardware prefetcher follows). */
 #define RENDER_AHEAD 4
+#define RENDER_ROWS_AHEAD 2
+#define RENDER_ROWS_MAX 24
 
 /* The calling thread's CPU seconds: the render stage's cost in --report,
  * which a shared machine's load does not inflate as it does the wall
@@ -94,6 +98,23 @@ void render_tile(void *arg, int wid, size_t task)
 
 			for (size_t c = 0; c < sizeof(*p); c += 64)
 				__builtin_prefetch(q + c);
+		}
+		/* and the tile rows of the one after next (its placement came
+		 * in two turns ago): a faint star's few short rows are too far
+		 * apart for the hardware to see coming */
+		if (k + RENDER_ROWS_AHEAD < b->count[t + 1]) {
+			const struct placement *q = &b->p[b->items[k + RENDER_ROWS_AHEAD]];
+			int qx0 = q->box.x0 > x0 ? q->box.x0 : x0, qy0 = q->box.y0 > y0 ? q->box.y0 : y0;
+			int qx1 = q->box.x1 < x0 + T ? q->box.x1 : x0 + T;
+			int qy1 = q->box.y1 < y0 + T ? q->box.y1 : y0 + T;
+
+			if (qx0 < qx1 && qy1 - qy0 <= RENDER_ROWS_MAX)
+				for (int y = qy0; y < qy1; y++) {
+					const double *r = tile + (size_t)(y - y0) * T;
+
+					__builtin_prefetch(r + (qx0 - x0), 1);
+					__builtin_prefetch(r + (qx1 - 1 - x0), 1);
+				}
 		}
 
 		if (!w->started[p->model]) {

@@ -382,19 +382,25 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 	if (cap > 0 && cap < half)
 		half = cap;
 	whole = half;
-	if (cut && p->extent_cut > 0 && p->sigma > 0 && half == floor(half) && half <= d.pl[0]->nee) {
+	if (cut && p->extent_cut > 0 && p->sigma > 0 && half == floor(half) && half <= d.pl[0]->nee &&
+	    p->interp != INTERP_BICUBIC) {
 		/* psf-extent-cut: the smallest half-width, beyond the core, past
 		 * which the source's light within the whole box (for the blend
 		 * at the source, or the cell's; ee_table) is at most extent_cut
 		 * of the noise per pixel; that light is put back below */
-		int h = (int)ceil(p->core) + 1, H = (int)half;
+		int rc = (int)ceil(p->core), h = rc + 1, H = (int)half;
+		double all = beyond(src, cell, blend, node, w, nn, H, 0);
 
 		/* most sources that need the whole box are seen at its edge */
 		if (h < H && !(beyond(src, cell, blend, node, w, nn, H, H - 1) <=
 			       p->extent_cut * p->sigma))
 			h = H;
+		/* the light put back goes outside the core (flux_factor), so
+		 * the box keeps at least 2% of the light there; bicubic (the
+		 * core is the box) is never cut */
 		for (; h < H; h++)
-			if (beyond(src, cell, blend, node, w, nn, H, h) <= p->extent_cut * p->sigma)
+			if (beyond(src, cell, blend, node, w, nn, H, h) <= p->extent_cut * p->sigma &&
+			    beyond(src, cell, blend, node, w, nn, h, rc) >= 0.02 * all)
 				break;
 		if (h < H)
 			half = h;

@@ -26,6 +26,21 @@ for a in sys.argv[3:]:
     print("%.6f" % d[j - h:j + h + 1, i - h:i + h + 1].sum())
 PY
 
+# n random galaxies on a grid of cols columns from start, step apart:
+# galgrid.py SEED N COLS START STEP LOG10_FLUX_LO LOG10_FLUX_HI N_LO RE_LO RE_HI
+cat > galgrid.py <<'PY'
+import random
+import sys
+seed, n, cols = (int(v) for v in sys.argv[1:4])
+start, step, flo, fhi, nlo, relo, rehi = (float(v) for v in sys.argv[4:11])
+random.seed(seed)
+print("x,y,flux,type,n,re,phi,ratio")
+for k in range(n):
+    print("%.2f,%.2f,%.3f,sersic,%.2f,%.2f,%.1f,%.2f" % (start + step * (k % cols) + random.random(),
+          start + step * (k // cols) + random.random(), 10 ** random.uniform(flo, fhi),
+          random.uniform(nlo, 4), random.uniform(relo, rehi), random.uniform(0, 180), random.uniform(0.3, 1)))
+PY
+
 # The point sources of these scenes are drawn in STIPS's boxes
 # (psf-extent=stips), each box holding the whole flux as the box a galaxy
 # is convolved with does, so that a vanishing galaxy and a point source can
@@ -308,18 +323,10 @@ sys.exit(not abs(a / b - 1) < 2e-3)
 	done
 '
 test_expect_success 'sersic-psf-cut: faint galaxies through the ePSF cut by the noise, each pixel within the cut, flux kept, bright ones whole' '
-	"$PY" -c "
-import random
-random.seed(5)
-print(\"x,y,flux,type,n,re,phi,ratio\")
-for k in range(40):
-    print(\"%.2f,%.2f,%.3f,sersic,%.2f,%.2f,%.1f,%.2f\" % (60 + 80 * (k % 8) + random.random(),
-          60 + 80 * (k // 8) + random.random(), 10 ** random.uniform(-0.5, 2),
-          random.uniform(0.5, 4), random.uniform(0.2, 5), random.uniform(0, 180), random.uniform(0.3, 1)))
-print(\"1200.3,1200.7,1e5,sersic,2,4,20,0.7\")
-# bright enough that the cut takes little: where the scaling of the core errs most
-print(\"870.735,330.960,1000,sersic,1,2,3.3,0.7\")
-" > pc.csv &&
+	"$PY" galgrid.py 5 40 8 60 80 -0.5 2 0.5 0.2 5 > pc.csv &&
+	# a bright galaxy, and one bright enough that the cut takes little:
+	# where the scaling of the core errs most
+	printf "1200.3,1200.7,1e5,sersic,2,4,20,0.7\n870.735,330.960,1000,sersic,1,2,3.3,0.7\n" >> pc.csv &&
 	"$WFS" -q --filter F129 --report pc1.json -o pc1.fits pc.csv &&
 	"$WFS" -q --filter F129 --set sersic-psf-cut=0 -o pc0.fits pc.csv &&
 	"$WFS" -q --filter F129 --set sersic-psf-cut=1 -o pc9.fits pc.csv &&
@@ -354,15 +361,7 @@ sys.exit(not ok)
 	done
 '
 test_expect_success 'sersic-wing-block: faint smooth wing pixels in blocks, each within an eighth of the noise cut, flux kept' '
-	"$PY" -c "
-import random
-random.seed(7)
-print(\"x,y,flux,type,n,re,phi,ratio\")
-for k in range(30):
-    print(\"%.2f,%.2f,%.3f,sersic,%.2f,%.2f,%.1f,%.2f\" % (100 + 160 * (k % 6) + random.random(),
-          100 + 160 * (k // 6) + random.random(), 10 ** random.uniform(0, 2.5),
-          random.uniform(1, 4), random.uniform(1, 6), random.uniform(0, 180), random.uniform(0.3, 1)))
-" > wb.csv &&
+	"$PY" galgrid.py 7 30 6 100 160 0 2.5 1 1 6 > wb.csv &&
 	"$WFS" -q --filter F129 --report wb4.json -o wb4.fits wb.csv &&
 	"$WFS" -q --filter F129 --set sersic-wing-block=1 -o wb1.fits wb.csv &&
 	"$WFS" -q --filter F129 --tile 64 -o wb64.fits wb.csv &&

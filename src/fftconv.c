@@ -289,47 +289,39 @@ void fftconv_force(int method)
 	atomic_store(&forced, method);
 }
 
-/* The sum over the lit pixels, scattered through the kernel into the
- * output block [ox0, ox1] x [oy0, oy1] (out, ow wide): a kernel row per
- * lit pixel, the better way for a block narrower than the kernel. */
-static void convolve_scatter(const double *img, int nx, int bx0, int bx1, int by0, int by1,
-			     const double *kernel, int kn, double *out, int ox0, int ox1,
-			     int oy0, int oy1)
-{
-	void (*axpy)(double *restrict, const double *restrict, double, int) = axpy_choose();
-	int h = (kn - 1) / 2, ow = ox1 - ox0 + 1;
-
-	memset(out, 0, (size_t)ow * (oy1 - oy0 + 1) * sizeof(double));
-	for (int y = by0; y <= by1; y++)
-		for (int x = bx0; x <= bx1; x++) {
-			double v = img[(size_t)y * nx + x];
-
-			if (v == 0)
-				continue;
-			/* output (x + kx - h, y + ky - h) inside the block */
-			int kx0 = ox0 - x + h > 0 ? ox0 - x + h : 0;
-			int kx1 = ox1 - x + h < kn - 1 ? ox1 - x + h : kn - 1;
-			int ky0 = oy0 - y + h > 0 ? oy0 - y + h : 0;
-			int ky1 = oy1 - y + h < kn - 1 ? oy1 - y + h : kn - 1;
-
-			for (int ky = ky0; ky <= ky1; ky++)
-				axpy(out + (size_t)(y + ky - h - oy0) * ow + (x + kx0 - h - ox0),
-				     kernel + (size_t)ky * kn + kx0, v, kx1 - kx0 + 1);
-		}
-}
-
 /* The sum over the lit block [bx0, bx1] x [by0, by1] into the output block
- * [ox0, ox1] x [oy0, oy1] (out, ow wide), a row of the block and a tap of
- * the kernel at a time: output row y + ky - h gains tap (kx, ky) times the
- * block's row shifted by kx - h, one long loop instead of one per pixel. */
-static void convolve_rows(const double *img, int nx, int bx0, int bx1, int by0, int by1,
+ * [ox0, ox1] x [oy0, oy1] (out, ow wide), one of two ways:
+ *  - scattered: each lit pixel times the kernel's rows (kn calls of kn),
+ *    the better way for a block narrower than the kernel;
+ *  - by rows: output row y + ky - h gains tap (kx, ky) times the block's
+ *    row shifted by kx - h (kn^2 calls of the block's width). */
+static void convolve_direct(const double *img, int nx, int bx0, int bx1, int by0, int by1,
 			    const double *kernel, int kn, double *out, int ox0, int ox1,
-			    int oy0, int oy1)
+			    int oy0, int oy1, int rows)
 {
 	void (*axpy)(double *restrict, const double *restrict, double, int) = axpy_choose();
 	int h = (kn - 1) / 2, ow = ox1 - ox0 + 1;
 
 	memset(out, 0, (size_t)ow * (oy1 - oy0 + 1) * sizeof(double));
+	if (!rows) {
+		for (int y = by0; y <= by1; y++)
+			for (int x = bx0; x <= bx1; x++) {
+				double v = img[(size_t)y * nx + x];
+
+				if (v == 0)
+					continue;
+				/* output (x + kx - h, y + ky - h) inside the block */
+				int kx0 = ox0 - x + h > 0 ? ox0 - x + h : 0;
+				int kx1 = ox1 - x + h < kn - 1 ? ox1 - x + h : kn - 1;
+				int ky0 = oy0 - y + h > 0 ? oy0 - y + h : 0;
+				int ky1 = oy1 - y + h < kn - 1 ? oy1 - y + h : kn - 1;
+
+				for (int ky = ky0; ky <= ky1; ky++)
+					axpy(out + (size_t)(y + ky - h - oy0) * ow + (x + kx0 - h - ox0),
+					     kernel + (size_t)ky * kn + kx0, v, kx1 - kx0 + 1);
+			}
+		return;
+	}
 	for (int y = by0; y <= by1; y++) {
 		const double *row = img + (size_t)y * nx;
 		int ky0 = oy0 - y + h > 0 ? oy0 - y + h : 0;
@@ -386,8 +378,8 @@ int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 	if (method == FFTCONV_DIRECT) {
 		if (thread_reserve(t, ow, oh))
 			return -1;
-		(rows ? convolve_rows : convolve_scatter)(img, nx, bx0, bx1, by0, by1, kernel, kn,
-							  t->rimg, ox0, ox1, oy0, oy1);
+		convolve_direct(img, nx, bx0, bx1, by0, by1, kernel, kn, t->rimg, ox0, ox1, oy0, oy1,
+				rows);
 		for (int y = oy0; y <= oy1; y++)
 			memcpy(img + (size_t)y * nx + ox0, t->rimg + (size_t)(y - oy0) * ow,
 			       ow * sizeof(double));

@@ -191,6 +191,7 @@ struct sersic_stamp {
 	double *img, *gxi, *gyi, *lpi;  /* stamp planes: integrals, gradient terms, Laplacian term */
 	double *ker, *kdx, *kdy, *klp;  /* the kernels of those planes, kn x kn */
 	double *cells, *ep, *eb;        /* core cells; the ePSF at the phase, and blended */
+	double *cpix;                   /* a cut core's pixels (sersic_core_add), or NULL */
 };
 
 /* Without the PSF: each window pixel the truncation box (gx0..gx1,
@@ -279,7 +280,10 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	size_t nstamp = (size_t)st->snx * st->sny, nker = (size_t)st->kn * st->kn;
 	size_t ncell = st->core_on ? (size_t)st->na * st->nb : 0;
 	size_t nep = st->core_on ? 2 * (size_t)st->e.n * st->e.n : 0;
-	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep) * sizeof(double));
+	size_t side = 2 * ((size_t)st->kq + st->hp) + 1;
+	size_t ncpix = st->core_on && st->psf_norm != 1 ? side * side : 0;
+	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep + ncpix) *
+				    sizeof(double));
 
 	if (!buf)
 		return host->error(host->ctx, "out of memory for a %d x %d galaxy stamp", st->snx, st->sny);
@@ -295,6 +299,7 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	st->cells = st->klp + nker;
 	st->ep = st->cells + ncell;
 	st->eb = st->ep + nep / 2;
+	st->cpix = ncpix ? st->eb + nep / 2 : NULL;
 	return 0;
 }
 
@@ -549,33 +554,22 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 	double phx = tx - bxf, phy = ty - byf;
 	double core = m->psf_core * over + 2 < e->centre ? m->psf_core : 0;
 	long long bx = (long long)bxf, by = (long long)byf;
-	/* Output pixels the core reaches, inside the window.  A cut ePSF
-	 * (sersic-psf-cut) is drawn within its half-width hp of every pixel
-	 * of the core (so from hp to hp + 2K of each cell), and the core's
-	 * pixels are then scaled so that its light is what the whole ePSF
-	 * would put down: its cells' sum times the ePSF's light, which
-	 * prepare()'s factor gives from its light within hp. */
-	int cut = st->psf_norm != 1, reach = cut ? hp - 1 : hp;
-	int ox0 = (int)icx - kq - reach - 1, ox1 = (int)icx + kq + reach + 1;
-	int oy0 = (int)icy - kq - reach - 1, oy1 = (int)icy + kq + reach + 1;
-	int rx0 = ox0, rx1 = ox1, ry0 = oy0, ry1 = oy1;
-	double norm = 1, whole = 0;
+	/* The pixels the core reaches: K + hp + 1 about its centre pixel.  A
+	 * cut ePSF (sersic-psf-cut) is drawn within its half-width hp of
+	 * every pixel of the core (so from hp to hp + 2K of each cell), and
+	 * the core's pixels are then scaled so that its light is what the
+	 * whole ePSF would put down: its cells' sum times the ePSF's light,
+	 * which prepare()'s factor gives from its light within hp. */
+	int cut = st->cpix != NULL, r = kq + hp + !cut;
+	int rx0 = (int)icx - r, ry0 = (int)icy - r, side = 2 * r + 1;
+	int ox0 = rx0, ox1 = rx0 + side - 1, oy0 = ry0, oy1 = ry0 + side - 1;
+	double norm = 1;
 
-	/* the samples the pixels [rx0, rx1] x [ry0, ry1] read: pixel x, cell
-	 * a0 + i reads k = bx + over x - a0 - i */
+	/* the samples the pixels [rx0, rx0 + side) x [ry0, ry0 + side) read:
+	 * pixel x, cell a0 + i reads k = bx + over x - a0 - i */
 	sersic_phase_epsf(e, phx, phy, core, eb, ep, (int)(bx + (long long)over * rx0 - a0 - na + 1),
-			  (int)(bx + (long long)over * rx1 - a0), (int)(by + (long long)over * ry0 - b0 - nb + 1),
-			  (int)(by + (long long)over * ry1 - b0));
-	if (cut) {
-		double within = 0;
-
-		for (int dy = -hp; dy <= hp; dy++)
-			for (int dx = -hp; dx <= hp; dx++)
-				within += epsf_at(e, e->centre + over * dx, e->centre + over * dy);
-		for (size_t k = 0; k < (size_t)na * nb; k++)
-			whole += cells[k];
-		whole *= within * st->psf_norm;
-	}
+			  (int)(bx + (long long)over * ox1 - a0), (int)(by + (long long)over * ry0 - b0 - nb + 1),
+			  (int)(by + (long long)over * oy1 - b0));
 	box_clip(&ox0, &ox1, win->x0, win->x0 + win->nx - 1);
 	box_clip(&oy0, &oy1, win->y0, win->y0 + win->ny - 1);
 	/* Each cell row reversed in place, so that pixel x's sum over a row,
@@ -588,22 +582,37 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 		}
 	/* reversed index t = na - 1 - a reads ep[kx0 - na + 1 + t] */
 	if (cut) {
-		double drawn = 0;
+		/* every pixel of the cut core once, into cpix, then the window's */
+		double within = 0, whole = 0, drawn = 0;
 
-		for (int y = ry0; y <= ry1; y++)
-			for (int x = rx0; x <= rx1; x++)
-				drawn += sersic_core_pixel(cells, ep, na, nb, en,
-							   bx + (long long)over * x - a0 - na + 1,
-							   by + (long long)over * y - b0);
+		for (int dy = -hp; dy <= hp; dy++)
+			for (int dx = -hp; dx <= hp; dx++)
+				within += epsf_at(e, e->centre + over * dx, e->centre + over * dy);
+		for (size_t k = 0; k < (size_t)na * nb; k++)
+			whole += cells[k];
+		whole *= within * st->psf_norm;
+		for (int y = 0; y < side; y++)
+			for (int x = 0; x < side; x++)
+				drawn += st->cpix[(size_t)y * side + x] = sersic_core_pixel(
+					cells, ep, na, nb, en, bx + (long long)over * (rx0 + x) - a0 - na + 1,
+					by + (long long)over * (ry0 + y) - b0);
 		if (drawn > 0 && whole > 0)
 			norm = whole / drawn;
+		for (int y = oy0; y <= oy1; y++) {
+			double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
+			const double *c = st->cpix + (size_t)(y - ry0) * side - rx0;
+
+			for (int x = ox0; x <= ox1; x++)
+				dst[x] += norm * c[x];
+		}
+		return;
 	}
 	for (int y = oy0; y <= oy1; y++) {
 		double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
 		long long ky0 = by + (long long)over * y - b0;
 		for (int x = ox0; x <= ox1; x++)
-			dst[x] += norm * sersic_core_pixel(cells, ep, na, nb, en,
-							   bx + (long long)over * x - a0 - na + 1, ky0);
+			dst[x] += sersic_core_pixel(cells, ep, na, nb, en,
+						    bx + (long long)over * x - a0 - na + 1, ky0);
 	}
 }
 

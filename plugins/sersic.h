@@ -82,7 +82,7 @@ enum {
 	AUX_B,          /* b_n */
 	AUX_LNI0,       /* ln I0, counts/s per pixel^2 at the centre (renormalised) */
 	AUX_RHO_T,      /* truncation radius in units of r_e */
-	AUX_PSFN,       /* the ePSF's light over its light within AUX_PSFH (1: not cut) */
+	AUX_PSFALL,     /* the whole ePSF's light at whole-pixel offsets, when cut (AUX_PSFH) */
 	AUX_FINF,       /* flux of the untruncated profile with this I0 */
 	AUX_PT,         /* 1 - eps: fraction of F_inf inside rho_t */
 	AUX_QT,         /* eps = Q(2n, x_t) */
@@ -725,7 +725,7 @@ static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source 
 	src->aux[AUX_PT] = pt;
 	src->aux[AUX_QT] = qt;
 	src->aux[AUX_PSFH] = 0;
-	src->aux[AUX_PSFN] = 1;
+	src->aux[AUX_PSFALL] = 0;
 	return 0;
 }
 

@@ -239,7 +239,7 @@ static void psf_rings(const struct wfs_epsf *e, double *ring, int hp)
  * galaxy's flux times the absolute values of its rings beyond h, is at most
  * psf_cut times the noise of one pixel.  That light is less than the cut
  * in every pixel, and all of it together is too; render() scales the
- * ePSF within h by its whole light over its light within h (AUX_PSFN), so
+ * ePSF within h to its whole light (AUX_PSFALL), so
  * the flux stays whole and no pixel moves by more than the cut.  A faint
  * galaxy is thus convolved with the part of the ePSF its light is seen
  * through, as a faint star's box is cut (psf-box=adaptive); a bright one
@@ -267,15 +267,13 @@ static int quick_psf_cut(const struct quick *p, struct wfs_source *src)
 		if (src->flux * beyond[h + 1] <= p->psf_cut * p->sigma)
 			break;
 	if (h < hp) {
-		double all = 0, in = 0;
+		double all = 0;
 
-		for (int k = 0; k <= hp; k++) {
+		for (int k = 0; k <= hp; k++)
 			all += ring[k];
-			in += k <= h ? ring[k] : 0;
-		}
-		if (in > 0 && all > 0) {
+		if (all > 0) {
 			src->aux[AUX_PSFH] = h;
-			src->aux[AUX_PSFN] = all / in;
+			src->aux[AUX_PSFALL] = all;
 		}
 	}
 	return 0;

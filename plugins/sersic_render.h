@@ -179,7 +179,7 @@ struct sersic_stamp {
 	struct sersic_gal g;
 	struct wfs_epsf e;
 	int over, hp, kn;               /* ePSF samples per pixel, half-width drawn, kernel side */
-	double psf_norm;                /* on the cut ePSF's light (AUX_PSFN) */
+	double psf_all;                 /* a cut ePSF's whole light (AUX_PSFALL), 0: not cut */
 	int sx0, sx1, sy0, sy1;         /* the stamp's pixels */
 	int snx, sny;
 	int kq;                         /* K: Q is the pixels within K of (icx, icy) */
@@ -281,7 +281,7 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	size_t ncell = st->core_on ? (size_t)st->na * st->nb : 0;
 	size_t nep = st->core_on ? 2 * (size_t)st->e.n * st->e.n : 0;
 	size_t side = 2 * ((size_t)st->kq + st->hp) + 1;
-	size_t ncpix = st->core_on && st->psf_norm != 1 ? side * side : 0;
+	size_t ncpix = st->core_on && st->psf_all > 0 ? side * side : 0;
 	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep + ncpix) *
 				    sizeof(double));
 
@@ -412,6 +412,7 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 	/* The pixel-offset ePSF kernels: E + lap E / 24 and the gradient
 	 * of E over 12, by central differences on the 4x samples. */
 	double s2 = over * over / 24.0, s1 = over / 24.0;      /* (over/2) / 12 */
+	double in = 0;
 	for (int ky = 0; ky < kn; ky++)
 		for (int kx = 0; kx < kn; kx++) {
 			int sx = e->centre + over * (kx - hp), sy = e->centre + over * (ky - hp);
@@ -420,20 +421,25 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 			double yp = epsf_at(e, sx, sy + 1), ym = epsf_at(e, sx, sy - 1);
 			size_t k = (size_t)ky * kn + kx;
 			ker[k] = c;
+			in += c;
 			klp[k] = (xp + xm + yp + ym - 4 * c) * s2;
 			kdx[k] = -(xp - xm) * s1;
 			kdy[k] = -(yp - ym) * s1;
 		}
 	/* A cut ePSF (sersic-psf-cut) carries the light it leaves out in
-	 * what it keeps (prepare()'s factor), so the galaxy's flux stays
-	 * whole; the light moved is below the cut's fraction of the noise. */
-	if (st->psf_norm != 1)
+	 * what it keeps: scaled to the whole ePSF's light, so the galaxy's
+	 * flux stays whole; the light moved is below the cut's fraction of
+	 * the noise. */
+	if (st->psf_all > 0 && in > 0) {
+		double f = st->psf_all / in;
+
 		for (size_t k = 0; k < nker; k++) {
-			ker[k] *= st->psf_norm;
-			klp[k] *= st->psf_norm;
-			kdx[k] *= st->psf_norm;
-			kdy[k] *= st->psf_norm;
+			ker[k] *= f;
+			klp[k] *= f;
+			kdx[k] *= f;
+			kdy[k] *= f;
 		}
+	}
 	/* Where every pixel is smooth the Laplacian term's image is the
 	 * stamp itself: one convolution with E + lap E / 24 does both. */
 	if (!rough)
@@ -558,8 +564,8 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 	 * cut ePSF (sersic-psf-cut) is drawn within its half-width hp of
 	 * every pixel of the core (so from hp to hp + 2K of each cell), and
 	 * the core's pixels are then scaled so that its light is what the
-	 * whole ePSF would put down: its cells' sum times the ePSF's light,
-	 * which prepare()'s factor gives from its light within hp. */
+	 * whole ePSF would put down: its cells' sum times the ePSF's light
+	 * (AUX_PSFALL). */
 	int cut = st->cpix != NULL, r = kq + hp + !cut;
 	int rx0 = (int)icx - r, ry0 = (int)icy - r, side = 2 * r + 1;
 	int ox0 = rx0, ox1 = rx0 + side - 1, oy0 = ry0, oy1 = ry0 + side - 1;
@@ -583,14 +589,11 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 	/* reversed index t = na - 1 - a reads ep[kx0 - na + 1 + t] */
 	if (cut) {
 		/* every pixel of the cut core once, into cpix, then the window's */
-		double within = 0, whole = 0, drawn = 0;
+		double whole = 0, drawn = 0;
 
-		for (int dy = -hp; dy <= hp; dy++)
-			for (int dx = -hp; dx <= hp; dx++)
-				within += epsf_at(e, e->centre + over * dx, e->centre + over * dy);
 		for (size_t k = 0; k < (size_t)na * nb; k++)
 			whole += cells[k];
-		whole *= within * st->psf_norm;
+		whole *= st->psf_all;
 		for (int y = 0; y < side; y++)
 			for (int x = 0; x < side; x++)
 				drawn += st->cpix[(size_t)y * side + x] = sersic_core_pixel(
@@ -669,7 +672,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 	if (host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, &st.e))
 		return -1;
 	st.hp = sersic_psf_drawn(&st.e, src);
-	st.psf_norm = st.hp < sersic_psf_half(&st.e) && src->aux[AUX_PSFN] > 0 ? src->aux[AUX_PSFN] : 1;
+	st.psf_all = st.hp < sersic_psf_half(&st.e) && src->aux[AUX_PSFALL] > 0 ? src->aux[AUX_PSFALL] : 0;
 	if (!sersic_stamp_layout(&st, win, m, gx0, gx1, gy0, gy1))
 		return 0;
 	if (sersic_stamp_scratch(host, thread, &st) < 0)

@@ -258,6 +258,8 @@ struct sersic_gal {
 	 * (dx, dy), A dx^2 + 2 B dx dy + C dy^2, only for its ratios */
 	double ia2, ib2;
 	double qa, qb, qc;
+	/* for a method's own use, set by its stamp_setup (sersic_render.h) */
+	double method_lo2, method_hi2;
 };
 
 /*

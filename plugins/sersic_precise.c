@@ -179,7 +179,8 @@ static int precise_render(void *state, void *tstate, void *thread,
 	/* Cells far out whose light is below 1e-3 of the tolerance of the
 	 * whole flux are not refined further. */
 	struct precise_opt o = { p->tol, 1e-3 * p->tol * 1e-4 };
-	struct sersic_method m = { precise_cell, &o, p->convolve, p->psf_core, p->core_k, NULL, NULL, 1 };
+	struct sersic_method m = { .cell = precise_cell, .opt = &o, .convolve = p->convolve,
+				   .psf_core = p->psf_core, .core_k = p->core_k, .block = 1 };
 
 	return sersic_render_common(p->host, thread, src, win, &m);
 }

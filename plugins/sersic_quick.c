@@ -5,21 +5,27 @@
  *
  * Cell integration: the cells within one cell of the centre (where the cusp
  * of n > 1, or a galaxy smaller than a cell, defeats any sampling) by wedges
- * from the centre (sersic_rect_rel), to 1e-4 of the cell; every other cell
- * by the midpoint rule on an N x N grid.  The midpoint rule's error on a
- * cell of side h is about (h/N)^2 / (24 ell^2) of the cell, ell the
- * profile's length scale at the cell's nearest point (sersic_scale), so
- * N = ceil(h / (QUICK_STEP ell)): with QUICK_STEP = 0.5 a cell is within
- * about 1%, and most of the light sits in cells far better than that.  A
- * cell that would need more than QUICK_NMAX points a side (a needle, q r_e
- * far below a pixel, which points would step over) goes to the wedges too,
- * to 1e-3 of its light.  The measured total-flux error is below 1% for
- * n <= 4 (BENCHMARKS.md).
+ * from the centre (sersic_rect_rel), to 1e-4 of the cell; a cell small
+ * against the profile's length scale ell (sersic_scale) from the value and
+ * curvature at its centre (quick_taylor); a cell the truncation ellipse
+ * cuts by the midpoint rule on an N x N grid, N = ceil(h / (QUICK_STEP
+ * ell)), whose error on a smooth cell of side h is about (h/N)^2 / (24
+ * ell^2), within about 1% with QUICK_STEP = 0.5; every other cell by the
+ * N-point Gauss-Legendre rule in each direction, N the fewest whose error
+ * for a profile of length scale ell, c_N (h / ell)^2N with
+ * c_N = (N!)^4 / ((2N + 1) ((2N)!)^3), is within the midpoint rule's
+ * QUICK_STEP^2 / 24 (c_1 = 1/24: one point is the midpoint rule).  Gauss's
+ * rule reaches it with far fewer points: 2 x 2 up to h = 2.6 ell, where
+ * the midpoint rule takes 6 x 6.  A cell that would need more than
+ * QUICK_NMAX midpoints a side (a needle, q r_e far below a pixel, which
+ * points would step over) goes to the wedges too, to 1e-3 of its light.
+ * The measured total-flux error is below 1% for n <= 4 (BENCHMARKS.md).
  *
  * Settings: sersic-trunc (flux fraction beyond the truncation radius,
  * default 1e-3), sersic-convolve (yes/no), sersic-flux (total/ie).
  */
 #include "sersic.h"
+#include "vmath.h"
 
 #define QUICK_TRUNC 1e-3
 #define QUICK_STEP 0.5
@@ -28,6 +34,7 @@
 #define QUICK_NOISE_CUT 0.01
 #define QUICK_PSF_CUT 0.1
 #define QUICK_WING_BLOCK 4
+#define QUICK_GAUSS 6
 
 struct quick {
 	const struct wfs_host *host;
@@ -41,6 +48,7 @@ struct quick {
 	double wing_block;      /* sersic-wing-block: side of a faint wing's blocks, pixels */
 	double block_sb;        /* the surface brightness below which blocks are used */
 	double sigma;           /* the host's pixel-sigma, counts/s per pixel */
+	double gauss_t[QUICK_GAUSS];    /* gauss_tmax of each rule */
 };
 
 /*
@@ -58,14 +66,10 @@ struct quick {
  * cell must hold no cusp (not near the centre) and not reach the
  * truncation ellipse.
  */
-static double quick_taylor(const struct sersic_gal *g, double x0, double x1, double y0,
-			   double y1, double *gx, double *gy)
+static inline double quick_taylor_at(const struct sersic_gal *g, double wx, double wy, double u,
+				     double v, double r2, double p, double in, double *gx,
+				     double *gy)
 {
-	double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), wx = x1 - x0, wy = y1 - y0;
-	double u = g->ct * cx + g->st * cy, v = g->ct * cy - g->st * cx;
-	double r2 = u * u * g->ia2 + v * v * g->ib2;
-	double p = g->b * exp(0.5 * g->inv_n * log(r2));
-	double in = exp(g->lni0 - p);
 	double f1 = -0.5 * p * g->inv_n / r2, f2 = f1 * (0.5 * g->inv_n - 1.0) / r2;
 	double dx = 2 * (u * g->ia2 * g->ct - v * g->ib2 * g->st);
 	double dy = 2 * (u * g->ia2 * g->st + v * g->ib2 * g->ct);
@@ -77,24 +81,109 @@ static double quick_taylor(const struct sersic_gal *g, double x0, double x1, dou
 	return wx * wy * (in + (wx * wx * ixx + wy * wy * iyy) / 24.0);
 }
 
-/* A cell's integral away from the centre and the needle cases: the
- * Taylor form where h / ell is at most the sersic-taylor setting and the
- * cell stays inside the truncation ellipse (*taylor set to 1, the gradient
- * at the centre in gx, gy), else the midpoint rule on N x N points. */
+/* The Taylor form of the cell from its centre: rho^2 there, p = b rho^(1/n)
+ * and I, then quick_taylor_at. */
+static double quick_taylor(const struct sersic_gal *g, double x0, double x1, double y0,
+			   double y1, double *gx, double *gy)
+{
+	double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1);
+	double u = g->ct * cx + g->st * cy, v = g->ct * cy - g->st * cx;
+	double r2 = u * u * g->ia2 + v * v * g->ib2;
+	double p = g->b * exp(0.5 * g->inv_n * log(r2));
+
+	return quick_taylor_at(g, x1 - x0, y1 - y0, u, v, r2, p, exp(g->lni0 - p), gx, gy);
+}
+
+/* Gauss-Legendre rules of 1 to QUICK_GAUSS points on [-1/2, 1/2]: rule n's
+ * nodes gauss_x[n - 1][0..n-1] and weights gauss_w (summing to 1). */
+static const double gauss_x[QUICK_GAUSS][QUICK_GAUSS] = {
+	{ 0 },
+	{ -0.288675134594812882254574390251, 0.288675134594812882254574390251 },
+	{ -0.387298334620741688517926539978, 0, 0.387298334620741688517926539978 },
+	{ -0.430568155797026287612789271622, -0.169990521792428132401161714056,
+	  0.169990521792428132401161714056, 0.430568155797026287612789271622 },
+	{ -0.453089922969331996296843904655, -0.269234655052841545475025074600, 0,
+	  0.269234655052841545475025074600, 0.453089922969331996296843904655 },
+	{ -0.466234757101576013906150777246, -0.330604693233132256830699797845,
+	  -0.119309593041598454315250860053, 0.119309593041598454315250860053,
+	  0.330604693233132256830699797845, 0.466234757101576013906150777246 },
+};
+static const double gauss_w[QUICK_GAUSS][QUICK_GAUSS] = {
+	{ 1 },
+	{ 0.5, 0.5 },
+	{ 5.0 / 18, 8.0 / 18, 5.0 / 18 },
+	{ 0.173927422568726928686531974611, 0.326072577431273071313468025389,
+	  0.326072577431273071313468025389, 0.173927422568726928686531974611 },
+	{ 0.118463442528094543757132020359, 0.239314335249683234020645757336, 64.0 / 225,
+	  0.239314335249683234020645757336, 0.118463442528094543757132020359 },
+	{ 0.085662246189585172520148071086, 0.180380786524069303784916756919,
+	  0.233956967286345523694935171995, 0.233956967286345523694935171995,
+	  0.180380786524069303784916756919, 0.085662246189585172520148071086 },
+};
+
+/* The largest h / ell each Gauss rule takes: c_n t^2n = QUICK_STEP^2 / 24,
+ * c_n = (n!)^4 / ((2n + 1) ((2n)!)^3) (the rule's error term for a
+ * profile whose k-th derivative is ell^-k times its value). */
+static double gauss_tmax(int n)
+{
+	double f = 1, f2 = 1;
+
+	for (int k = 1; k <= n; k++)
+		f *= k;
+	for (int k = 1; k <= 2 * n; k++)
+		f2 *= k;
+	double c = f * f * f * f / ((2 * n + 1) * f2 * f2 * f2);
+	return pow(QUICK_STEP * QUICK_STEP / (24 * c), 1.0 / (2 * n));
+}
+
+static double quick_gauss(const struct sersic_gal *g, double x0, double x1, double y0,
+			  double y1, int n)
+{
+	double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), wx = x1 - x0, wy = y1 - y0, s = 0;
+	const double *nx = gauss_x[n - 1], *nw = gauss_w[n - 1];
+
+	for (int j = 0; j < n; j++) {
+		double y = cy + wy * nx[j], r = 0;
+
+		for (int i = 0; i < n; i++)
+			r += nw[i] * sersic_sb(g, cx + wx * nx[i], y);
+		s += nw[j] * r;
+	}
+	return s * wx * wy;
+}
+
+/* The length scale of the cell at a lower bound on rho, the cell's
+ * distance over r_e, which errs short: what sets the cell's rule. */
+static double quick_scale_near(const struct sersic_gal *g, double x0, double x1, double y0,
+			       double y1)
+{
+	double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0, dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0;
+
+	return sersic_cell_scale(g, sqrt(dx * dx + dy * dy) / g->re, x0, x1, y0, y1);
+}
+
+/* A cell's integral away from the centre and the needle cases, t its size
+ * over quick_scale_near: the Taylor form where t is at most the
+ * sersic-taylor setting and the cell stays inside the truncation ellipse
+ * (*taylor set to 1, the gradient at the centre in gx, gy); else, inside
+ * the ellipse, the Gauss rule of the fewest points for t (more than
+ * QUICK_GAUSS: the largest); a cell the ellipse cuts, whose step no smooth
+ * rule sees, by the midpoint rule on N x N points. */
 static double quick_points(const struct sersic_gal *g, const struct quick *p, double x0,
-			   double x1, double y0, double y1, double h, int *taylor,
+			   double x1, double y0, double y1, double t, int *taylor,
 			   double *gx, double *gy)
 {
-	/* The points per side from the length scale at a lower bound on rho,
-	 * the cell's distance over r_e, which rounds the count up: what the
-	 * errors in BENCHMARKS.md were measured with. */
-	double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0, dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0;
-	double t = h / sersic_cell_scale(g, sqrt(dx * dx + dy * dy) / g->re, x0, x1, y0, y1);
-
 	*taylor = 0;
-	if (p && t <= p->taylor && sersic_rho2_max(g, x0, x1, y0, y1) < g->rho_t2) {
-		*taylor = 1;
-		return quick_taylor(g, x0, x1, y0, y1, gx, gy);
+	if (p && sersic_rho2_max(g, x0, x1, y0, y1) < g->rho_t2) {
+		if (t <= p->taylor) {
+			*taylor = 1;
+			return quick_taylor(g, x0, x1, y0, y1, gx, gy);
+		}
+		int k = 1;
+
+		while (k < QUICK_GAUSS && !(t <= p->gauss_t[k - 1]))
+			k++;
+		return quick_gauss(g, x0, x1, y0, y1, k);
 	}
 	double n = ceil(t / QUICK_STEP);
 	return sersic_midpoint(g, x0, x1, y0, y1, n < 1 ? 1 : n > QUICK_NMAX ? QUICK_NMAX : (int)n);
@@ -114,7 +203,8 @@ static double quick_cell(const struct sersic_gal *g, const void *opt,
 	 * needle or a galaxy far below a pixel, which points would miss. */
 	if (!(ceil(h / (QUICK_STEP * sersic_cell_scale(g, rmin, x0, x1, y0, y1))) <= QUICK_NMAX))
 		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12);
-	return quick_points(g, opt, x0, x1, y0, y1, h, &taylor, &gx, &gy);
+	return quick_points(g, opt, x0, x1, y0, y1, h / quick_scale_near(g, x0, x1, y0, y1),
+			    &taylor, &gx, &gy);
 }
 
 /* A wing pixel (sersic_method.wing): quick_cell and the smoothness test
@@ -131,13 +221,24 @@ static int quick_wing(const struct sersic_gal *g, const void *opt, double x0, do
 		*v = 0;
 		return 0;
 	}
-	double ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
-	if (sersic_near_centre(x0, x1, y0, y1, 1.0))
+	double ell, near = 0;
+
+	if (sersic_near_centre(x0, x1, y0, y1, 1.0)) {
+		ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
 		*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-4, 1e-12);
-	else if (!(ceil(1.0 / (QUICK_STEP * ell)) <= QUICK_NMAX))
-		*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12);
-	else
-		*v = quick_points(g, opt, x0, x1, y0, y1, 1.0, &taylor, gx, gy);
+	} else {
+		/* For n >= 1 the length scale grows with rho, so where the one
+		 * at the lower bound passes both tests below (the needle's and
+		 * the smooth light's), the one at rho_min does too and is not
+		 * needed. */
+		near = quick_scale_near(g, x0, x1, y0, y1);
+		ell = g->n >= 1 && g->ib2 >= g->ia2 && near >= 1.0 / (QUICK_STEP * QUICK_NMAX) &&
+		      near >= SERSIC_SMOOTH ? near : sersic_cell_scale(g, rmin, x0, x1, y0, y1);
+		if (!(ceil(1.0 / (QUICK_STEP * ell)) <= QUICK_NMAX))
+			*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12);
+		else
+			*v = quick_points(g, opt, x0, x1, y0, y1, 1.0 / near, &taylor, gx, gy);
+	}
 	if (*v == 0 || !(ell >= SERSIC_SMOOTH)) {
 		*gx = *gy = 0;
 		return 0;
@@ -145,6 +246,150 @@ static int quick_wing(const struct sersic_gal *g, const void *opt, double x0, do
 	if (!taylor)
 		sersic_grad(g, 0.5 * (x0 + x1), 0.5 * (y0 + y1), gx, gy);
 	return 1;
+}
+
+/*
+ * The fast wing pixels (stamp_setup, quick_wing_row).  quick_wing tests the
+ * profile's length scale (sersic_cell_scale) of a pixel against three
+ * levels: the Taylor form's (1 / sersic-taylor), the needle's and the
+ * smooth light's.  The scale sersic_scale(rho) = minor / sqrt(A rho^al +
+ * B rho^be), al = 2/n - 2, be = 1/n - 2, falls and rises at most once:
+ * for n >= 1 both powers fall, so it only grows; for n < 1 the sum has one
+ * least value, at rho^(1/n) = -B be / (A al) (none for n <= 1/2, where it
+ * only falls).  So the scale passes all three levels on one interval of
+ * rho, found here once a stamp by bisection; its ends' squares go to
+ * g->method_lo2, method_hi2 (empty: lo2 infinite).  A pixel whose lower
+ * bound on rho, (distance / r_e), and whose largest rho both lie in it,
+ * away from the centre and inside the truncation ellipse, holds every rho
+ * the tests look at inside it, so passes them all: it is the Taylor form
+ * with its gradient, and quick_wing_row takes a row's such pixels
+ * together.
+ */
+static double quick_bisect(const struct sersic_gal *g, double lo, double hi, double level,
+			   int rising)
+{
+	/* the end of [lo, hi] where the scale passes level, moved in until
+	 * the interval is 1e-12 of it */
+	for (int it = 0; it < 100 && hi - lo > 1e-12 * hi; it++) {
+		double mid = 0.5 * (lo + hi);
+
+		if ((sersic_scale(g, mid) >= level) == rising)
+			hi = mid;
+		else
+			lo = mid;
+	}
+	return rising ? hi : lo;
+}
+
+static void quick_stamp_setup(struct sersic_gal *g, const void *opt)
+{
+	const struct quick *p = opt;
+	double level = fmax(fmax(1.0 / (QUICK_STEP * QUICK_NMAX), SERSIC_SMOOTH),
+			    p->taylor > 0 ? 1.0 / p->taylor : INFINITY);
+	double top = g->rho_t, peak = top, lo, hi;
+
+	g->method_lo2 = INFINITY;
+	g->method_hi2 = 0;
+	if (!(level < INFINITY) || !(g->ib2 >= g->ia2) || !(g->n > 0))
+		return;
+	if (g->n < 1) {
+		double al = 2 * g->inv_n - 2, be = g->inv_n - 2;
+		double a = g->b * g->inv_n, bb = a * (g->inv_n - 1);
+
+		peak = be < 0 ? exp(g->n * log(-bb * be / (a * a * al))) : 0;
+		peak = peak < top ? peak : top;
+	}
+	if (!(sersic_scale(g, peak) >= level))
+		return;
+	lo = sersic_scale(g, 0) >= level ? 0 : quick_bisect(g, 0, peak, level, 1);
+	hi = sersic_scale(g, top) >= level ? top : quick_bisect(g, peak, top, level, 0);
+	g->method_lo2 = lo * lo;
+	g->method_hi2 = hi * hi;
+}
+
+/* p = b rho^(1/n) and I = exp(lni0 - p) at n points from rho^2 (vmath.h's
+ * exp and log: the same bytes in the vector code and the plain). */
+static void quick_profile_plain(int n, const double *restrict r2, double b, double h,
+				double lni0, double *restrict p, double *restrict in)
+{
+	for (int j = 0; j < n; j++) {
+		p[j] = b * vm_exp(h * vm_log(r2[j]));
+		in[j] = vm_exp(lni0 - p[j]);
+	}
+}
+
+#if defined(__GNUC__) && defined(__x86_64__)
+__attribute__((target("avx2,fma"))) static void
+quick_profile_avx2(int n, const double *restrict r2, double b, double h, double lni0,
+		   double *restrict p, double *restrict in)
+{
+	for (int j = 0; j < n; j++) {
+		p[j] = b * vm_exp(h * vm_log(r2[j]));
+		in[j] = vm_exp(lni0 - p[j]);
+	}
+}
+#endif
+
+static void (*quick_profile)(int n, const double *restrict r2, double b, double h, double lni0,
+			     double *restrict p, double *restrict in) = quick_profile_plain;
+
+/* The pixels of a row taken at once, in pieces of QUICK_RUN. */
+#define QUICK_RUN 64
+
+static void quick_wing_row(const struct sersic_gal *g, const void *opt, int y, int xa, int xb,
+			   double *img, double *gxi, double *gyi, double *lpi, int *any, int *rough)
+{
+	double y0 = y - 0.5 - g->yc, y1 = y + 0.5 - g->yc, cy = 0.5 * (y0 + y1);
+	double dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0, ny = (y0 - 1.0 <= 0 && y1 + 1.0 >= 0);
+	double u[QUICK_RUN], v[QUICK_RUN], r2[QUICK_RUN], pw[QUICK_RUN], in[QUICK_RUN];
+	int at[QUICK_RUN];
+
+	for (int a = xa; a <= xb; a += QUICK_RUN) {
+		int e = xb - a < QUICK_RUN - 1 ? xb : a + QUICK_RUN - 1, nf = 0;
+
+		for (int x = a; x <= e; x++) {
+			double x0 = x - 0.5 - g->xc, x1 = x + 0.5 - g->xc;
+			double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0;
+			int k = x - xa;
+
+			double rmax2;
+
+			if ((dx * dx + dy * dy) * g->ia2 >= g->method_lo2 &&
+			    !(ny && x0 - 1.0 <= 0 && x1 + 1.0 >= 0) &&
+			    (rmax2 = sersic_rho2_max(g, x0, x1, y0, y1)) < g->rho_t2 &&
+			    rmax2 <= g->method_hi2) {
+				double cx = 0.5 * (x0 + x1);
+
+				u[nf] = g->ct * cx + g->st * cy;
+				v[nf] = g->ct * cy - g->st * cx;
+				r2[nf] = u[nf] * u[nf] * g->ia2 + v[nf] * v[nf] * g->ib2;
+				at[nf++] = x;
+				continue;
+			}
+			double val, gx, gy;
+			int smooth = quick_wing(g, opt, x0, x1, y0, y1, &val, &gx, &gy);
+
+			img[k] = val;
+			gxi[k] = gx;
+			gyi[k] = gy;
+			lpi[k] = smooth ? val : 0;
+			*any |= val != 0;
+			*rough |= lpi[k] != val;
+		}
+		quick_profile(nf, r2, g->b, 0.5 * g->inv_n, g->lni0, pw, in);
+		for (int j = 0; j < nf; j++) {
+			int k = at[j] - xa;
+			double gx, gy, val = quick_taylor_at(g, 1.0, 1.0, u[j], v[j], r2[j], pw[j], in[j],
+							     &gx, &gy);
+
+			if (val == 0)
+				gx = gy = 0;
+			img[k] = lpi[k] = val;
+			gxi[k] = gx;
+			gyi[k] = gy;
+			*any |= val != 0;
+		}
+	}
 }
 
 /*
@@ -176,6 +421,14 @@ static int quick_block(const struct sersic_gal *g, const void *opt, double x0, d
 
 static int quick_init(const struct wfs_host *host, void **state)
 {
+#if defined(__GNUC__) && defined(__x86_64__)
+	/* the vector profile where the CPU has it and WFISCENE_NO_SIMD is
+	 * not set (the tests compare the two) */
+	__builtin_cpu_init();
+	if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+	    !getenv("WFISCENE_NO_SIMD"))
+		quick_profile = quick_profile_avx2;
+#endif
 	struct quick *p = calloc(1, sizeof(*p));
 
 	if (!p)
@@ -203,6 +456,8 @@ static int quick_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "setting sersic-wing-block: %g is not a whole number of pixels", b);
 	}
 	p->block_sb = p->noise_cut * p->sigma;
+	for (int k = 0; k < QUICK_GAUSS; k++)
+		p->gauss_t[k] = gauss_tmax(k + 1);
 	*state = p;
 	return 0;
 }
@@ -300,7 +555,7 @@ static int quick_render(void *state, void *tstate, void *thread,
 {
 	struct quick *p = state;
 	struct sersic_method m = { quick_cell, p, p->convolve, p->psf_core, p->core_k, quick_wing,
-				   quick_block, (int)p->wing_block };
+				   quick_block, (int)p->wing_block, quick_wing_row, quick_stamp_setup };
 
 	return sersic_render_common(p->host, thread, src, win, &m);
 }

@@ -45,6 +45,16 @@ struct sersic_method {
 	int (*block_fn)(const struct sersic_gal *g, const void *opt, double x0, double x1,
 			double y0, double y1, double *v, double *gx, double *gy);
 	int block;
+	/* Optional, with wing: the wing pixels xa..xb of row y at once (what
+	 * wing() gives each of them, and the same tests), pixel xa + k into
+	 * img[k], gxi[k], gyi[k] and lpi[k] (the smooth part: img where wing()
+	 * would return 1, else 0), *any and *rough as sersic_wing_pixel sets
+	 * them; so that the work of a row can be shared and run in vector
+	 * code. */
+	void (*wing_row)(const struct sersic_gal *g, const void *opt, int y, int xa, int xb,
+			 double *img, double *gxi, double *gyi, double *lpi, int *any, int *rough);
+	/* Optional: called once a stamp, after the galaxy is unpacked. */
+	void (*stamp_setup)(struct sersic_gal *g, const void *opt);
 };
 
 /* The ePSF samples at the galaxy: blend of four nodes at sample (ix, iy),
@@ -386,12 +396,31 @@ static void sersic_wings_integrate(const struct sersic_stamp *st, const struct s
 						st->gxi[o + x] = gx;
 						st->gyi[o + x] = gy;
 						any |= p != 0;
+					} else if (m->wing_row) {
+						st->img[o + x] = NAN;   /* for the rows below */
 					} else {
 						sersic_wing_pixel(st, m, x, y, o + x, &any, &rough);
 					}
 				}
 			}
 		}
+	/* With wing_row, the pixels left marked, a row's runs at a time. */
+	for (int y = sy0; m->wing_row && y <= sy1; y++) {
+		size_t o = (size_t)(y - sy0) * snx;
+
+		for (int x = sx0; x <= sx1; x++) {
+			size_t k = o + (size_t)(x - sx0);
+			int xb = x;
+
+			if (!isnan(st->img[k]))
+				continue;
+			while (xb < sx1 && isnan(st->img[k + (size_t)(xb + 1 - x)]))
+				xb++;
+			m->wing_row(g, m->opt, y, x, xb, st->img + k, st->gxi + k, st->gyi + k,
+				    st->lpi + k, &any, &rough);
+			x = xb;
+		}
+	}
 	*any_out = any;
 	*rough_out = rough;
 }
@@ -677,6 +706,8 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 		return 0;
 	if (sersic_stamp_scratch(host, thread, &st) < 0)
 		return -1;
+	if (m->stamp_setup)
+		m->stamp_setup(&st.g, m->opt);
 	sersic_wings_integrate(&st, m, &any, &rough);
 	if (any && sersic_wings_convolve(host, thread, &st, win, rough) < 0)
 		return -1;

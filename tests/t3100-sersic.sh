@@ -384,6 +384,18 @@ sys.exit(not (0 < d.max() <= 0.01 * sig / 8 and abs(b.sum() / a.sum() - 1) < 1e-
 		grep -q "sersic-wing-block" err || return 1
 	done
 '
+test_expect_success 'sersic-quick: the vector profile of a row (AVX2) and the plain code (WFISCENE_NO_SIMD) give the same bytes' '
+	"$PY" galgrid.py 11 48 8 60 90 0 3 0.5 0.5 8 > vs.csv &&
+	"$WFS" -q --filter F129 --exptime 1000 -o vs1.fits vs.csv &&
+	WFISCENE_NO_SIMD=1 "$WFS" -q --filter F129 --exptime 1000 -o vs0.fits vs.csv &&
+	"$PY" -c "
+import sys
+import numpy as np
+from astropy.io import fits
+a, b = ([h.data for h in fits.open(f) if h.data is not None][0] for f in (\"vs0.fits\", \"vs1.fits\"))
+sys.exit(not (np.array_equal(a, b) and a.sum() > 0))
+"
+'
 test_expect_success 'sersic-psf-cut: a needle across an axis with a large core keeps its light (the footprint holds what the core reaches)' '
 	printf "x,y,flux,type,n,re,phi,ratio\n1000.0,1000.3,200,sersic,1,10,0,0.001\n" > nd.csv &&
 	"$WFS" -q --filter F129 --sersic-core 8 --report nd1.json -o nd1.fits nd.csv &&

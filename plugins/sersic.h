@@ -112,7 +112,7 @@ static inline double sersic_lgamma(double a)
  *   Q = x^a e^-x / Gamma(a) * 1 / (x + 1 - a - 1(1 - a) / (x + 3 - a - ...))
  * (evaluated by the modified Lentz method) for x >= a + 1.
  */
-static double sersic_gamma_series(double a, double x)
+static double sersic_gamma_series(double a, double x, double lga)
 {
 	double term = 1.0 / a, sum = term;
 
@@ -122,10 +122,10 @@ static double sersic_gamma_series(double a, double x)
 		if (fabs(term) < fabs(sum) * 1e-17)
 			break;
 	}
-	return sum * exp(a * log(x) - x - sersic_lgamma(a));
+	return sum * exp(a * log(x) - x - lga);
 }
 
-static double sersic_gamma_cfrac(double a, double x)
+static double sersic_gamma_cfrac(double a, double x, double lga)
 {
 	const double tiny = 1e-300;
 	double b = x + 1.0 - a, c = 1.0 / tiny, d = 1.0 / b, h = d;
@@ -147,7 +147,7 @@ static double sersic_gamma_cfrac(double a, double x)
 		if (fabs(del - 1.0) < 2.5e-16)
 			break;
 	}
-	return exp(a * log(x) - x - sersic_lgamma(a)) * h;
+	return exp(a * log(x) - x - lga) * h;
 }
 
 static double sersic_gamma_p(double a, double x)
@@ -156,16 +156,24 @@ static double sersic_gamma_p(double a, double x)
 		return 0.0;
 	if (isinf(x))
 		return 1.0;
-	return x < a + 1.0 ? sersic_gamma_series(a, x) : 1.0 - sersic_gamma_cfrac(a, x);
+	return x < a + 1.0 ? sersic_gamma_series(a, x, sersic_lgamma(a))
+			   : 1.0 - sersic_gamma_cfrac(a, x, sersic_lgamma(a));
 }
 
-static double sersic_gamma_q(double a, double x)
+/* Q(a, x), given lga = ln Gamma(a) (a galaxy's 2n is the same in every
+ * call: struct sersic_gal keeps it). */
+static double sersic_gamma_q_lg(double a, double lga, double x)
 {
 	if (!(x > 0))
 		return 1.0;
 	if (isinf(x))
 		return 0.0;
-	return x < a + 1.0 ? 1.0 - sersic_gamma_series(a, x) : sersic_gamma_cfrac(a, x);
+	return x < a + 1.0 ? 1.0 - sersic_gamma_series(a, x, lga) : sersic_gamma_cfrac(a, x, lga);
+}
+
+static double sersic_gamma_q(double a, double x)
+{
+	return sersic_gamma_q_lg(a, sersic_lgamma(a), x);
 }
 
 /* d P(a, x) / dx = x^(a-1) e^-x / Gamma(a). */
@@ -254,6 +262,7 @@ struct sersic_gal {
 	double finf, pt, qt;    /* F_inf, 1 - eps, eps */
 	double flux;            /* the row's flux, the scale of absolute tolerances */
 	double rt, rtb;         /* truncation semi-axes, pixels */
+	double lg2n;            /* ln Gamma(2n), for the wedges' Q(2n, x) */
 	/* rho^2 = u^2 ia2 + v^2 ib2 (below); and as a quadratic form in
 	 * (dx, dy), A dx^2 + 2 B dx dy + C dy^2, only for its ratios */
 	double ia2, ib2;
@@ -299,6 +308,7 @@ static void sersic_unpack(const struct wfs_source *src, struct sersic_gal *g)
 	g->rho_t = src->aux[AUX_RHO_T];
 	g->rho_t2 = g->rho_t * g->rho_t;
 	g->xt = g->b * exp(log(g->rho_t) / src->param[SERSIC_N]);
+	g->lg2n = sersic_lgamma(2 * g->n);
 	g->finf = src->aux[AUX_FINF];
 	g->pt = src->aux[AUX_PT];
 	g->qt = src->aux[AUX_QT];
@@ -515,7 +525,7 @@ static inline double sersic_wedge_g(const struct sersic_gal *g, double d, double
 	if (rho >= g->rho_t)
 		return 0.0;
 	double x = g->b * exp(g->inv_n * log(rho));
-	return fmax(sersic_gamma_q(2 * g->n, x) - g->qt, 0.0);
+	return fmax(sersic_gamma_q_lg(2 * g->n, g->lg2n, x) - g->qt, 0.0);
 }
 
 static double sersic_gk(const struct sersic_gal *g, double d, double a, double b,

@@ -4,8 +4,10 @@
  * libm's exp and log are one call per value, with branches for every
  * special case; a galaxy's wing needs several of each per pixel.  These
  * are the textbook reductions written without branches, so that a loop
- * over an array of them becomes vector code (the compiler's, in each
- * caller's avx2 clone) and runs four values per instruction:
+ * over an array of them becomes vector code (the compiler's, in a caller's
+ * function built for AVX2 and FMA, given -fno-trapping-math so that the
+ * selects between doubles become blends: the Makefile's FP_FLAGS) and runs
+ * four values per instruction:
  *
  *   exp(x) = 2^k exp(r),  k = round(x / ln 2),  r = x - k ln 2 (ln 2 in two
  *            parts, so r is exact), |r| <= ln2 / 2, exp(r) by its Taylor
@@ -19,7 +21,9 @@
  * [-708, 709] (below -708 it returns 0, above 709 the value at 709), log
  * for normal positive x (the caller keeps 0, negatives, infinities and
  * NaN away).  Every operation is the same in the vector and the plain
- * code, fma included, so a machine without AVX2 gets the same bytes.
+ * code, fma included, so a machine without AVX2 gets the same bytes, as
+ * long as the compiler fuses no a * b + c of its own (-ffp-contract=off,
+ * FP_FLAGS: clang would fuse one in vm_log's AVX2 copy otherwise).
  */
 #ifndef WFS_VMATH_H
 #define WFS_VMATH_H

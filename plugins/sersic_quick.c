@@ -35,6 +35,7 @@
 #define QUICK_PSF_CUT 0.1
 #define QUICK_WING_BLOCK 4
 #define QUICK_GAUSS 6
+#define QUICK_MOMENT_CUT 0.1
 
 struct quick {
 	const struct wfs_host *host;
@@ -46,6 +47,7 @@ struct quick {
 	double noise_cut;       /* sersic-noise-cut: fraction of the pixel noise */
 	double psf_cut;         /* sersic-psf-cut: fraction of the pixel noise */
 	double wing_block;      /* sersic-wing-block: side of a faint wing's blocks, pixels */
+	double moment_cut;      /* sersic-moment-cut: fraction of the pixel noise */
 	double block_sb;        /* the surface brightness below which blocks are used */
 	double sigma;           /* the host's pixel-sigma, counts/s per pixel */
 	double gauss_t[QUICK_GAUSS];    /* gauss_tmax of each rule */
@@ -440,6 +442,7 @@ static int quick_init(const struct wfs_host *host, void **state)
 	    sersic_setting_num(host, "sersic-noise-cut", 0, 1, QUICK_NOISE_CUT, &p->noise_cut) ||
 	    sersic_setting_num(host, "sersic-psf-cut", 0, 10, QUICK_PSF_CUT, &p->psf_cut) ||
 	    sersic_setting_num(host, "sersic-wing-block", 1, 16, QUICK_WING_BLOCK, &p->wing_block) ||
+	    sersic_setting_num(host, "sersic-moment-cut", 0, 10, QUICK_MOMENT_CUT, &p->moment_cut) ||
 	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
 		free(p);
@@ -555,7 +558,8 @@ static int quick_render(void *state, void *tstate, void *thread,
 {
 	struct quick *p = state;
 	struct sersic_method m = { quick_cell, p, p->convolve, p->psf_core, p->core_k, quick_wing,
-				   quick_block, (int)p->wing_block, quick_wing_row, quick_stamp_setup };
+				   quick_block, (int)p->wing_block, quick_wing_row, quick_stamp_setup,
+				   p->moment_cut * p->sigma };
 
 	return sersic_render_common(p->host, thread, src, win, &m);
 }
@@ -576,6 +580,8 @@ static const struct wfs_setting quick_settings[] = {
 	  "convolve each galaxy with the ePSF out to where the light left beyond is below this fraction of the noise summed over its pixels, that light put back by renormalising (0: the whole ePSF)" },
 	{ "sersic-wing-block", SERSIC_STR(QUICK_WING_BLOCK), "whole number from 1 to 16",
 	  "wing pixels fainter than sersic-noise-cut of the pixel noise, where the profile is smooth, are integrated in blocks of this many pixels a side and spread linearly over them (1: pixel by pixel)" },
+	{ "sersic-moment-cut", SERSIC_STR(QUICK_MOMENT_CUT), "number from 0 to 10",
+	  "leave out a galaxy's first-moment terms (its gradient through the ePSF's) where they can add no pixel more than this fraction of the pixel noise (0: always drawn)" },
 	{ "sersic-taylor", SERSIC_STR(QUICK_TAYLOR), "number from 0 to 4",
 	  "cells with pixel size over the profile's length scale up to this are integrated from the value and curvature at their centre (0: points only)" },
 	SERSIC_SETTINGS,

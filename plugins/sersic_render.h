@@ -55,6 +55,11 @@ struct sersic_method {
 			 double *img, double *gxi, double *gyi, double *lpi, int *any, int *rough);
 	/* Optional: called once a stamp, after the galaxy is unpacked. */
 	void (*stamp_setup)(struct sersic_gal *g, const void *opt);
+	/* The first-moment terms (the gradient planes through the ePSF's
+	 * gradient) are left out of a stamp where a bound on what they add
+	 * to any pixel is at most this, counts/s (sersic-moment-cut times
+	 * the pixel noise; 0: always drawn). */
+	double moment_level;
 };
 
 /* The ePSF samples at the galaxy: blend of four nodes at sample (ix, iy),
@@ -429,7 +434,8 @@ static void sersic_wings_integrate(const struct sersic_stamp *st, const struct s
  * convolutions of the stamp planes, and the window's part of the sum
  * added to it. */
 static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
-				 const struct sersic_stamp *st, const struct wfs_window *win, int rough)
+				 const struct sersic_stamp *st, const struct wfs_window *win, int rough,
+				 double level)
 {
 	const struct wfs_epsf *e = &st->e;
 	int over = st->over, hp = st->hp, kn = st->kn;
@@ -474,9 +480,47 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 	if (!rough)
 		for (size_t k = 0; k < nker; k++)
 			ker[k] += klp[k];
+	/*
+	 * The first-moment terms: the gradient planes (the profile's gradient
+	 * at the pixels outside the core square Q) through the kernels
+	 * -dE / 12.  By parts, a gradient through a kernel is the light
+	 * through the kernel's derivative, less the light on the region's
+	 * edge through the kernel, so they add to any pixel at most
+	 *
+	 *   F (max |d2E/dx2| + max |d2E/dy2|) / 12
+	 *     + (Q's perimeter) I_Q (max |kdx| + max |kdy|),
+	 *
+	 * F the flux, I_Q the largest surface brightness on Q's edge (at
+	 * distance kq or more from the centre, so at rho >= kq / r_e); the
+	 * first taken twice over for the sampling.  This bounds the whole
+	 * galaxy, whichever window the stamp serves, so the choice is the
+	 * same in every window.  Below moment_level the terms are left out.
+	 * Their total is the planes' sums times the kernels' sums, which a
+	 * difference kernel makes nearly zero: the flux stays.
+	 */
+	int moments = 1;
+	if (level > 0) {
+		const struct sersic_gal *g = &st->g;
+		double dmax = 0, kmax = 0, f = st->psf_all > 0 && in > 0 ? st->psf_all / in : 1;
+
+		for (int ky = 0; ky < kn; ky++)
+			for (int kx = 0; kx < kn; kx++) {
+				int sx = e->centre + over * (kx - hp), sy = e->centre + over * (ky - hp);
+				double c = 2 * epsf_at(e, sx, sy);
+				size_t k = (size_t)ky * kn + kx;
+
+				dmax = fmax(dmax, fabs(epsf_at(e, sx + 1, sy) + epsf_at(e, sx - 1, sy) - c) +
+						  fabs(epsf_at(e, sx, sy + 1) + epsf_at(e, sx, sy - 1) - c));
+				kmax = fmax(kmax, fabs(kdx[k]) + fabs(kdy[k]));
+			}
+		double iq = st->kq > 0 ? exp(g->lni0 - g->b * exp(log(st->kq / g->re) / g->n)) : exp(g->lni0);
+		double bound = 2 * g->flux * f * dmax * over * over / 12 + 4 * (2 * st->kq + 1) * iq * kmax;
+
+		moments = !(bound <= level);
+	}
 	if (host->convolve(host->ctx, thread, img, snx, sny, ker, kn) ||
-	    host->convolve(host->ctx, thread, gxi, snx, sny, kdx, kn) ||
-	    host->convolve(host->ctx, thread, gyi, snx, sny, kdy, kn) ||
+	    (moments && host->convolve(host->ctx, thread, gxi, snx, sny, kdx, kn)) ||
+	    (moments && host->convolve(host->ctx, thread, gyi, snx, sny, kdy, kn)) ||
 	    (rough && host->convolve(host->ctx, thread, lpi, snx, sny, klp, kn)))
 		return host->error(host->ctx, "FFT convolution of a %d x %d galaxy stamp failed",
 				   snx, sny);
@@ -488,8 +532,9 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 		int x0 = win->x0, x1 = win->x0 + win->nx - 1;
 		box_clip(&x0, &x1, sx0, sx1);
 		for (int x = x0; x <= x1; x++)
-			dst[x - win->x0] += img[o + x - sx0] + gxi[o + x - sx0] + gyi[o + x - sx0]
-					    + (rough ? lpi[o + x - sx0] : 0.0);
+			dst[x - win->x0] += img[o + x - sx0] +
+					    (moments ? gxi[o + x - sx0] + gyi[o + x - sx0] : 0.0) +
+					    (rough ? lpi[o + x - sx0] : 0.0);
 	}
 	return 0;
 }
@@ -709,7 +754,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 	if (m->stamp_setup)
 		m->stamp_setup(&st.g, m->opt);
 	sersic_wings_integrate(&st, m, &any, &rough);
-	if (any && sersic_wings_convolve(host, thread, &st, win, rough) < 0)
+	if (any && sersic_wings_convolve(host, thread, &st, win, rough, m->moment_level) < 0)
 		return -1;
 	if (!st.core_on)
 		return 0;

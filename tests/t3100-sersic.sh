@@ -384,6 +384,28 @@ sys.exit(not (0 < d.max() <= 0.01 * sig / 8 and abs(b.sum() / a.sum() - 1) < 1e-
 		grep -q "sersic-wing-block" err || return 1
 	done
 '
+test_expect_success 'sersic-moment-cut: first-moment terms left out only where they move no pixel by more than the cut, flux kept' '
+	"$PY" galgrid.py 9 40 8 60 80 -0.5 2.5 0.5 0.3 6 > mc.csv &&
+	"$WFS" -q --filter F129 --report mc.json -o mc1.fits mc.csv &&
+	"$WFS" -q --filter F129 --set sersic-moment-cut=0 -o mc0.fits mc.csv &&
+	"$WFS" -q --filter F129 --set sersic-moment-cut=10 -o mc9.fits mc.csv &&
+	"$PY" -c "
+import json, sys
+import numpy as np
+from astropy.io import fits
+sig = float(json.load(open(\"mc.json\"))[\"error_budget\"][\"pixel_sigma\"])
+a, b, c = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float)
+           for f in (\"mc0.fits\", \"mc1.fits\", \"mc9.fits\"))
+d, e = np.abs(b - a), np.abs(c - a)
+print(\"default: largest change %.3g sigma, total %.2g; cut 10: %.3g sigma\" % (d.max() / sig, b.sum() / a.sum() - 1, e.max() / sig))
+sys.exit(not (0 < d.max() <= 0.1 * sig and abs(b.sum() / a.sum() - 1) < 1e-5 and
+              d.max() < e.max() <= 10 * sig))
+" &&
+	for opt in sersic-moment-cut=-1 sersic-moment-cut=11 sersic-moment-cut=nan sersic-moment-cut=x; do
+		test_must_fail --status 3 "$WFS" --filter F129 --set $opt -o o.fits mc.csv 2> err &&
+		grep -q "sersic-moment-cut" err || return 1
+	done
+'
 test_expect_success 'sersic-quick: the vector profile of a row (AVX2) and the plain code (WFISCENE_NO_SIMD) give the same bytes' '
 	"$PY" galgrid.py 11 48 8 60 90 0 3 0.5 0.5 8 > vs.csv &&
 	"$WFS" -q --filter F129 --exptime 1000 -o vs1.fits vs.csv &&

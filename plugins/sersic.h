@@ -550,12 +550,46 @@ static double sersic_gk(const struct sersic_gal *g, double d, double a, double b
 }
 
 /*
+ * The 3-point Gauss rule and its 7-point Kronrod extension over [a, b]
+ * first: where they agree within tol, the Kronrod sum (its own error is far
+ * below their difference), for 7 evaluations instead of sersic_gk's 15;
+ * else sersic_gk over [a, b].  Worth it where tol is loose (sersic-quick's
+ * cells next to the centre of a galaxy below the noise); at 1e-4 of a
+ * cell's light the two rarely agree and the 7 are lost.
+ */
+static const double gk7_x[3] = {
+	0.960491268708020283423507092629080, 0.774596669241483377035853079956480,
+	0.434243749346802558002071502844628 };
+static const double gk7_wk[4] = {
+	0.104656226026467265193823857192073, 0.268488089868333440728569280666710,
+	0.401397414775962222905051818618432, 0.450916538658474142345110087045571 };
+
+static double sersic_gk7(const struct sersic_gal *g, double d, double a, double b, double tol)
+{
+	double m = 0.5 * (a + b), h = 0.5 * (b - a), fc = sersic_wedge_g(g, d, m);
+	double k = gk7_wk[3] * fc, gs = 8.0 / 9 * fc;
+
+	for (int i = 0; i < 3; i++) {
+		double f = sersic_wedge_g(g, d, m - h * gk7_x[i]) + sersic_wedge_g(g, d, m + h * gk7_x[i]);
+
+		k += gk7_wk[i] * f;
+		if (i == 1)
+			gs += 5.0 / 9 * f;
+	}
+	k *= h;
+	gs *= h;
+	if (fabs(k - gs) <= tol && isfinite(k))
+		return k;
+	return sersic_gk(g, d, a, b, tol, 0);
+}
+
+/*
  * Integral of the profile over [x0, x1] x [y0, y1] (offsets from the centre,
  * pixels) by wedges.  tol is the absolute tolerance as a fraction of the
- * galaxy's flux.
+ * galaxy's flux; k7: each edge tries sersic_gk7 first.
  */
 static double sersic_rect_polar(const struct sersic_gal *g, double x0, double x1,
-				double y0, double y1, double tol)
+				double y0, double y1, double tol, int k7)
 {
 	double vx[4] = { x0, x1, x1, x0 }, vy[4] = { y0, y0, y1, y1 };
 	double s[4], t[4], sum = 0;
@@ -584,7 +618,8 @@ static double sersic_rect_polar(const struct sersic_gal *g, double x0, double x1
 		/* Angles from the foot of the perpendicular: psi = atan(along / d). */
 		double ux = ex / len, uy = ey / len;
 		double pa = atan2(ax * ux + ay * uy, d), pb = atan2(bx * ux + by * uy, d);
-		double gi = sersic_gk(g, d, fmin(pa, pb), fmax(pa, pb), etol, 0);
+		double gi = k7 ? sersic_gk7(g, d, fmin(pa, pb), fmax(pa, pb), etol)
+			       : sersic_gk(g, d, fmin(pa, pb), fmax(pa, pb), etol, 0);
 		sum += (sweep > 0 ? 1.0 : -1.0) * (g->pt * fabs(sweep) - gi);
 	}
 	return g->finf / (2 * M_PI) * sum;
@@ -597,21 +632,22 @@ static double sersic_rect_polar(const struct sersic_gal *g, double x0, double x1
  * I(rho_min) times the area; where the light turns out far below that
  * bound (a needle crossing the cell, a far cell whose wedges nearly
  * cancel) the integral is redone to rel of what the first pass found,
- * at most twice more.
+ * at most twice more.  k7: where atol is the looser (a floor set by the
+ * noise), the edges try sersic_gk7 first.
  */
 static double sersic_rect_rel(const struct sersic_gal *g, double x0, double x1, double y0,
-			      double y1, double rmin, double rel, double atol)
+			      double y1, double rmin, double rel, double atol, int k7)
 {
 	double bound = exp(g->lni0 - g->b * pow(rmin, g->inv_n)) * (x1 - x0) * (y1 - y0) / g->flux;
 	double t = fmax(rel * fmin(bound, 1.0), atol);
-	double v = sersic_rect_polar(g, x0, x1, y0, y1, t);
+	double v = sersic_rect_polar(g, x0, x1, y0, y1, t, k7 && atol >= rel * fmin(bound, 1.0));
 
 	for (int k = 0; k < 2; k++) {
 		double want = fmax(0.5 * rel * fabs(v) / g->flux, atol);
 		if (!(want < 0.25 * t))
 			break;
 		t = want;
-		v = sersic_rect_polar(g, x0, x1, y0, y1, t);
+		v = sersic_rect_polar(g, x0, x1, y0, y1, t, 0);
 	}
 	return v;
 }

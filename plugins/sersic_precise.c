@@ -91,7 +91,7 @@ static double adapt(const struct sersic_gal *g, const struct precise_opt *o,
 	 * split, or if far too wide, wedges. */
 	double side = fmax(x1 - x0, y1 - y0), ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
 	if (ell * PRECISE_WEDGE < side)
-		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 0.1 * o->tol, atol / g->flux);
+		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 0.1 * o->tol, atol / g->flux, 0);
 	int seen = ell * PRECISE_SEEN >= side || depth >= PRECISE_DEPTH;
 	/* A cell cut by the truncation ellipse holds light at the eps level
 	 * (about eps / (pi q rho_t^2 r_e^2) of the flux per pixel), behind a
@@ -126,7 +126,7 @@ static double precise_cell(const struct sersic_gal *g, const void *opt,
 	/* Near the centre: exact wedges, to the tolerance of the cell's own
 	 * light. */
 	if (sersic_near_centre(x0, x1, y0, y1, h))
-		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 0.1 * o->tol, o->atol);
+		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 0.1 * o->tol, o->atol, 0);
 	/* Smooth light well inside the cut: 2 x 2 points. */
 	double ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
 	if (ell >= 10.0 * h && sersic_rho2_max(g, x0, x1, y0, y1) <= g->rho_t2)

@@ -36,6 +36,7 @@
 #define QUICK_WING_BLOCK 4
 #define QUICK_GAUSS 6
 #define QUICK_MOMENT_CUT 0.1
+#define QUICK_CENTRE_CUT 0.01
 
 struct quick {
 	const struct wfs_host *host;
@@ -48,6 +49,8 @@ struct quick {
 	double psf_cut;         /* sersic-psf-cut: fraction of the pixel noise */
 	double wing_block;      /* sersic-wing-block: side of a faint wing's blocks, pixels */
 	double moment_cut;      /* sersic-moment-cut: fraction of the pixel noise */
+	double centre_cut;      /* sersic-centre-cut: fraction of the pixel noise */
+	double centre_abs;      /* a cell's share of it, counts/s (quick_centre) */
 	double block_sb;        /* the surface brightness below which blocks are used */
 	double sigma;           /* the host's pixel-sigma, counts/s per pixel */
 	double gauss_t[QUICK_GAUSS];    /* gauss_tmax of each rule */
@@ -191,6 +194,21 @@ static double quick_points(const struct sersic_gal *g, const struct quick *p, do
 	return sersic_midpoint(g, x0, x1, y0, y1, n < 1 ? 1 : n > QUICK_NMAX ? QUICK_NMAX : (int)n);
 }
 
+/*
+ * The absolute floor, a fraction of the flux, to which the cells next to
+ * the centre are integrated by wedges (sersic-centre-cut): the cut times
+ * the pixel noise shared among the 3 x 3 cells of a pixel that can lie
+ * there, so no pixel moves by more than the cut; where it is looser than
+ * 1e-4 of a cell's light (a galaxy below the noise) the wedges take the
+ * 7-point rule first (sersic_rect_rel).
+ */
+static double quick_centre(const struct sersic_gal *g, const void *opt)
+{
+	const struct quick *p = opt;
+
+	return p && p->centre_abs > 0 && g->flux > 0 ? fmax(1e-12, p->centre_abs / g->flux) : 1e-12;
+}
+
 static double quick_cell(const struct sersic_gal *g, const void *opt,
 			 double x0, double x1, double y0, double y1, double h)
 {
@@ -200,11 +218,11 @@ static double quick_cell(const struct sersic_gal *g, const void *opt,
 	if (rmin >= g->rho_t)
 		return 0.0;
 	if (sersic_near_centre(x0, x1, y0, y1, h))
-		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-4, 1e-12);
+		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-4, quick_centre(g, opt), 1);
 	/* More points than QUICK_NMAX even at the cell's nearest point: a
 	 * needle or a galaxy far below a pixel, which points would miss. */
 	if (!(ceil(h / (QUICK_STEP * sersic_cell_scale(g, rmin, x0, x1, y0, y1))) <= QUICK_NMAX))
-		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12);
+		return sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12, 0);
 	return quick_points(g, opt, x0, x1, y0, y1, h / quick_scale_near(g, x0, x1, y0, y1),
 			    &taylor, &gx, &gy);
 }
@@ -227,7 +245,7 @@ static int quick_wing(const struct sersic_gal *g, const void *opt, double x0, do
 
 	if (sersic_near_centre(x0, x1, y0, y1, 1.0)) {
 		ell = sersic_cell_scale(g, rmin, x0, x1, y0, y1);
-		*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-4, 1e-12);
+		*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-4, quick_centre(g, opt), 1);
 	} else {
 		/* For n >= 1 the length scale grows with rho, so where the one
 		 * at the lower bound passes both tests below (the needle's and
@@ -237,7 +255,7 @@ static int quick_wing(const struct sersic_gal *g, const void *opt, double x0, do
 		ell = g->n >= 1 && g->ib2 >= g->ia2 && near >= 1.0 / (QUICK_STEP * QUICK_NMAX) &&
 		      near >= SERSIC_SMOOTH ? near : sersic_cell_scale(g, rmin, x0, x1, y0, y1);
 		if (!(ceil(1.0 / (QUICK_STEP * ell)) <= QUICK_NMAX))
-			*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12);
+			*v = sersic_rect_rel(g, x0, x1, y0, y1, rmin, 1e-3, 1e-12, 0);
 		else
 			*v = quick_points(g, opt, x0, x1, y0, y1, 1.0 / near, &taylor, gx, gy);
 	}
@@ -443,6 +461,7 @@ static int quick_init(const struct wfs_host *host, void **state)
 	    sersic_setting_num(host, "sersic-psf-cut", 0, 10, QUICK_PSF_CUT, &p->psf_cut) ||
 	    sersic_setting_num(host, "sersic-wing-block", 1, 16, QUICK_WING_BLOCK, &p->wing_block) ||
 	    sersic_setting_num(host, "sersic-moment-cut", 0, 10, QUICK_MOMENT_CUT, &p->moment_cut) ||
+	    sersic_setting_num(host, "sersic-centre-cut", 0, 10, QUICK_CENTRE_CUT, &p->centre_cut) ||
 	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
 		free(p);
@@ -459,6 +478,8 @@ static int quick_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "setting sersic-wing-block: %g is not a whole number of pixels", b);
 	}
 	p->block_sb = p->noise_cut * p->sigma;
+	/* at most 3 x 3 cells of a pixel lie next to the centre */
+	p->centre_abs = p->centre_cut * p->sigma / 9;
 	for (int k = 0; k < QUICK_GAUSS; k++)
 		p->gauss_t[k] = gauss_tmax(k + 1);
 	*state = p;
@@ -582,6 +603,8 @@ static const struct wfs_setting quick_settings[] = {
 	  "wing pixels fainter than sersic-noise-cut of the pixel noise, where the profile is smooth, are integrated in blocks of this many pixels a side and spread linearly over them (1: pixel by pixel)" },
 	{ "sersic-moment-cut", SERSIC_STR(QUICK_MOMENT_CUT), "number from 0 to 10",
 	  "leave out a galaxy's first-moment terms (its gradient through the ePSF's) where they can add no pixel more than this fraction of the pixel noise (0: always drawn)" },
+	{ "sersic-centre-cut", SERSIC_STR(QUICK_CENTRE_CUT), "number from 0 to 10",
+	  "integrate the cells next to a galaxy's centre to within this fraction of the pixel noise in any pixel, where that is looser than 1e-4 of their light (0: always 1e-4)" },
 	{ "sersic-taylor", SERSIC_STR(QUICK_TAYLOR), "number from 0 to 4",
 	  "cells with pixel size over the profile's length scale up to this are integrated from the value and curvature at their centre (0: points only)" },
 	SERSIC_SETTINGS,

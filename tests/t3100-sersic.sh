@@ -406,6 +406,26 @@ sys.exit(not (0 < d.max() <= 0.1 * sig and abs(b.sum() / a.sum() - 1) < 1e-5 and
 		grep -q "sersic-moment-cut" err || return 1
 	done
 '
+test_expect_success 'sersic-centre-cut: the cells next to faint galaxies'"'"' centres integrated to the noise, no pixel moved by more than the cut, flux kept' '
+	"$PY" galgrid.py 10 40 8 60 80 -1 2 0.5 0.3 6 > cc.csv &&
+	"$WFS" -q --filter F129 --report cc.json -o cc1.fits cc.csv &&
+	"$WFS" -q --filter F129 --set sersic-centre-cut=0 -o cc0.fits cc.csv &&
+	"$PY" -c "
+import json, sys
+import numpy as np
+from astropy.io import fits
+sig = float(json.load(open(\"cc.json\"))[\"error_budget\"][\"pixel_sigma\"])
+a, b = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float)
+        for f in (\"cc0.fits\", \"cc1.fits\"))
+d = np.abs(b - a)
+print(\"largest change %.3g sigma, total %.2g\" % (d.max() / sig, b.sum() / a.sum() - 1))
+sys.exit(not (0 < d.max() <= 0.01 * sig and abs(b.sum() / a.sum() - 1) < 1e-6))
+" &&
+	for opt in sersic-centre-cut=-1 sersic-centre-cut=11 sersic-centre-cut=inf sersic-centre-cut=x; do
+		test_must_fail --status 3 "$WFS" --filter F129 --set $opt -o o.fits cc.csv 2> err &&
+		grep -q "sersic-centre-cut" err || return 1
+	done
+'
 test_expect_success 'sersic-quick: the vector profile of a row (AVX2) and the plain code (WFISCENE_NO_SIMD) give the same bytes' '
 	"$PY" galgrid.py 11 48 8 60 90 0 3 0.5 0.5 8 > vs.csv &&
 	"$WFS" -q --filter F129 --exptime 1000 -o vs1.fits vs.csv &&

@@ -447,8 +447,9 @@ static inline double sersic_rho2_max(const struct sersic_gal *g, double x0, doub
 	double m = 0;
 
 	for (int k = 0; k < 4; k++) {
-		double dx = k & 1 ? x1 : x0, dy = k & 2 ? y1 : y0;
-		m = fmax(m, sersic_rho2(g, dx, dy));
+		double dx = k & 1 ? x1 : x0, dy = k & 2 ? y1 : y0, r = sersic_rho2(g, dx, dy);
+
+		m = r > m ? r : m;      /* fmax's value (a NaN keeps m), without its call */
 	}
 	return m;
 }

@@ -447,7 +447,7 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 	/* The pixel-offset ePSF kernels: E + lap E / 24 and the gradient
 	 * of E over 12, by central differences on the 4x samples. */
 	double s2 = over * over / 24.0, s1 = over / 24.0;      /* (over/2) / 12 */
-	double in = 0;
+	double in = 0, dmax = 0, kmax = 0;      /* for the first-moment terms' bound */
 	for (int ky = 0; ky < kn; ky++)
 		for (int kx = 0; kx < kn; kx++) {
 			int sx = e->centre + over * (kx - hp), sy = e->centre + over * (ky - hp);
@@ -460,6 +460,8 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 			klp[k] = (xp + xm + yp + ym - 4 * c) * s2;
 			kdx[k] = -(xp - xm) * s1;
 			kdy[k] = -(yp - ym) * s1;
+			dmax = fmax(dmax, fabs(xp + xm - 2 * c) + fabs(yp + ym - 2 * c));
+			kmax = fmax(kmax, fabs(kdx[k]) + fabs(kdy[k]));
 		}
 	/* A cut ePSF (sersic-psf-cut) carries the light it leaves out in
 	 * what it keeps: scaled to the whole ePSF's light, so the galaxy's
@@ -501,18 +503,10 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 	int moments = 1;
 	if (level > 0) {
 		const struct sersic_gal *g = &st->g;
-		double dmax = 0, kmax = 0, f = st->psf_all > 0 && in > 0 ? st->psf_all / in : 1;
+		/* kmax was taken before the scaling above; dmax gets it here */
+		double f = st->psf_all > 0 && in > 0 ? st->psf_all / in : 1;
 
-		for (int ky = 0; ky < kn; ky++)
-			for (int kx = 0; kx < kn; kx++) {
-				int sx = e->centre + over * (kx - hp), sy = e->centre + over * (ky - hp);
-				double c = 2 * epsf_at(e, sx, sy);
-				size_t k = (size_t)ky * kn + kx;
-
-				dmax = fmax(dmax, fabs(epsf_at(e, sx + 1, sy) + epsf_at(e, sx - 1, sy) - c) +
-						  fabs(epsf_at(e, sx, sy + 1) + epsf_at(e, sx, sy - 1) - c));
-				kmax = fmax(kmax, fabs(kdx[k]) + fabs(kdy[k]));
-			}
+		kmax *= f;
 		double iq = st->kq > 0 ? exp(g->lni0 - g->b * exp(log(st->kq / g->re) / g->n)) : exp(g->lni0);
 		double bound = 2 * g->flux * f * dmax * over * over / 12 + 4 * (2 * st->kq + 1) * iq * kmax;
 

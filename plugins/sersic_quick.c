@@ -197,8 +197,9 @@ static double quick_points(const struct sersic_gal *g, const struct quick *p, do
 /*
  * The absolute floor, a fraction of the flux, to which the cells next to
  * the centre are integrated by wedges (sersic-centre-cut): the cut times
- * the pixel noise shared among the 3 x 3 cells of a pixel that can lie
- * there, so no pixel moves by more than the cut; where it is looser than
+ * the pixel noise shared among the 4 x 4 cells that can lie there, so no
+ * pixel, and no galaxy's flux, moves by more than the cut (as far as the
+ * quadrature's own error estimates go); where it is looser than
  * 1e-4 of a cell's light (a galaxy below the noise) the wedges take the
  * 7-point rule first (sersic_rect_rel).
  */
@@ -478,8 +479,10 @@ static int quick_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "setting sersic-wing-block: %g is not a whole number of pixels", b);
 	}
 	p->block_sb = p->noise_cut * p->sigma;
-	/* at most 3 x 3 cells of a pixel lie next to the centre */
-	p->centre_abs = p->centre_cut * p->sigma / 9;
+	/* at most 4 x 4 cells lie next to the centre (sersic_near_centre: a
+	 * centre on a cell's corner), all in one pixel when it is the
+	 * pixel's centre */
+	p->centre_abs = p->centre_cut * p->sigma / 16;
 	for (int k = 0; k < QUICK_GAUSS; k++)
 		p->gauss_t[k] = gauss_tmax(k + 1);
 	*state = p;

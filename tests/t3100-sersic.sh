@@ -406,10 +406,24 @@ sys.exit(not (0 < d.max() <= 0.1 * sig and abs(b.sum() / a.sum() - 1) < 1e-5 and
 		grep -q "sersic-moment-cut" err || return 1
 	done
 '
-test_expect_success 'sersic-centre-cut: the cells next to faint galaxies'"'"' centres integrated to the noise, no pixel moved by more than the cut, flux kept' '
-	"$PY" galgrid.py 10 40 8 60 80 -1 2 0.5 0.3 6 > cc.csv &&
-	"$WFS" -q --filter F129 --report cc.json -o cc1.fits cc.csv &&
-	"$WFS" -q --filter F129 --set sersic-centre-cut=0 -o cc0.fits cc.csv &&
+# Galaxies far smaller than a pixel, centred on the edges of the core's
+# quarter-pixel cells, drawn with no core square (--sersic-core 0): where
+# the centre cut moves pixels most (found by an audit over 10^4 of them:
+# up to 0.6 of the cut).
+cat > cc.csv <<'CSV'
+x,y,flux,type,n,re,phi,ratio
+100.3750010000,100.5000010000,485.926,sersic,0.574,0.007624,100.46,0.0354
+160.6280000000,100.5000010000,505.938,sersic,0.551,0.003434,58.91,0.004936
+220.6250010000,100.4999000000,284.112,sersic,0.615,0.002749,170.37,0.001651
+280.5000010000,100.5001000000,1525.977,sersic,0.358,0.005087,127.46,0.01064
+340.5000010000,100.4999000000,1189.777,sersic,0.431,0.008681,28.99,0.001226
+400.3760000000,100.5000010000,472.600,sersic,0.327,0.02454,92.97,0.04155
+460.6280000000,100.5000010000,468.887,sersic,0.622,0.002788,49.13,0.006051
+520.5000010000,100.0001000000,417.473,sersic,0.473,0.008975,10.50,0.002
+CSV
+test_expect_success 'sersic-centre-cut: the cells next to faint galaxies'"'"' centres integrated to the noise, no pixel moved by more than the cut, each galaxy'"'"'s flux by at most the cut' '
+	"$WFS" -q --filter F062 --sersic-core 0 --report cc.json -o cc1.fits cc.csv &&
+	"$WFS" -q --filter F062 --sersic-core 0 --set sersic-centre-cut=0 -o cc0.fits cc.csv &&
 	"$PY" -c "
 import json, sys
 import numpy as np
@@ -418,8 +432,9 @@ sig = float(json.load(open(\"cc.json\"))[\"error_budget\"][\"pixel_sigma\"])
 a, b = ([h.data for h in fits.open(f) if h.data is not None][0].astype(float)
         for f in (\"cc0.fits\", \"cc1.fits\"))
 d = np.abs(b - a)
-print(\"largest change %.3g sigma, total %.2g\" % (d.max() / sig, b.sum() / a.sum() - 1))
-sys.exit(not (0 < d.max() <= 0.01 * sig and abs(b.sum() / a.sum() - 1) < 1e-6))
+print(\"largest change %.3g of the cut, flux %.3g sigma\" % (d.max() / (0.01 * sig), abs(b.sum() - a.sum()) / sig))
+# more than a twentieth of the cut: the floor is used, and by the 7-point pair
+sys.exit(not (0.0005 * sig < d.max() <= 0.01 * sig and abs(b.sum() - a.sum()) <= 8 * 0.01 * sig))
 " &&
 	for opt in sersic-centre-cut=-1 sersic-centre-cut=11 sersic-centre-cut=inf sersic-centre-cut=x; do
 		test_must_fail --status 3 "$WFS" --filter F129 --set $opt -o o.fits cc.csv 2> err &&

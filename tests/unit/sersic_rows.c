@@ -5,8 +5,9 @@
  * 1e-3 to 100 pixels, axis ratios down to 1e-3, every sersic-taylor from
  * 0.25 to 4) gets the same integral to 1e-11 (the rows' exp and log are
  * vmath.h's, the pixel's libm's), the same gradient and the same smooth
- * part.  The plugin's source is compiled in, so its static functions are
- * reachable.
+ * part; and sersic_rect_rel's 7-point first pass (sersic-centre-cut) taken
+ * where the noise floor is the looser tolerance, and only there.  The
+ * plugin's source is compiled in, so its static functions are reachable.
  */
 #include "tap.h"
 #include "../../plugins/sersic_quick.c"
@@ -99,5 +100,44 @@ int main(void)
 	   pixels - differ, pixels, worst);
 	ok(grads == 0, "gradients the same to 1e-11 (%ld differ)", grads);
 	ok(smooth == 0, "the smooth part and the any/rough flags the same (%ld differ)", smooth);
+
+	/* sersic-centre-cut's wedges (sersic_rect_rel with k7): where the
+	 * absolute floor is the looser, the 7-point pair is taken (another
+	 * value than the 15-point rule's, within the floor); where it is not,
+	 * the 15-point rule alone (the same bytes). */
+	long loose = 0, took7 = 0, beyond = 0, tight_same = 0, tight = 0;
+	for (int it = 0; it < 200; it++) {
+		struct sersic_gal g;
+		double re = exp(log(1e-3) + uniform(&s) * log(1e4));
+
+		galaxy(&g, ns[it % 13], re, 0.05 + 0.95 * uniform(&s), M_PI * uniform(&s), &s);
+		for (int c = 0; c < 9; c++) {
+			double h = 0.25, x0 = (c % 3 - 1.5) * h, y0 = (c / 3 - 1.5) * h;
+			double rmin = sersic_rho_min(&g, x0, x0 + h, y0, y0 + h);
+			double bound = exp(g.lni0 - g.b * pow(rmin, g.inv_n)) * h * h / g.flux;
+
+			if (!(rmin < g.rho_t))
+				continue;
+			for (int k = 0; k < 2; k++) {
+				double atol = k ? 1e-3 : 1e-12;
+				double v7 = sersic_rect_rel(&g, x0, x0 + h, y0, y0 + h, rmin, 1e-4, atol, 1);
+				double v15 = sersic_rect_rel(&g, x0, x0 + h, y0, y0 + h, rmin, 1e-4, atol, 0);
+
+				if (atol >= 1e-4 * fmin(bound, 1.0)) {
+					loose++;
+					took7 += v7 != v15;
+					beyond += !(fabs(v7 - v15) <= 2 * atol * g.flux);
+				} else {
+					tight++;
+					tight_same += v7 == v15;
+				}
+			}
+		}
+	}
+	ok(loose > 100 && took7 > loose / 4 && beyond == 0,
+	   "loose floor: the 7-point pair taken in %ld of %ld cells, %ld beyond twice the floor",
+	   took7, loose, beyond);
+	ok(tight > 100 && tight_same == tight, "tight: the 15-point rule alone in %ld of %ld cells",
+	   tight_same, tight);
 	return done_testing();
 }

@@ -150,15 +150,15 @@ static double sersic_gamma_cfrac(double a, double x, double lga)
 	return exp(a * log(x) - x - lga) * h;
 }
 
-static double sersic_gamma_p(double a, double x)
+static double sersic_gamma_p_lg(double a, double lga, double x)
 {
 	if (!(x > 0))
 		return 0.0;
 	if (isinf(x))
 		return 1.0;
-	return x < a + 1.0 ? sersic_gamma_series(a, x, sersic_lgamma(a))
-			   : 1.0 - sersic_gamma_cfrac(a, x, sersic_lgamma(a));
+	return x < a + 1.0 ? sersic_gamma_series(a, x, lga) : 1.0 - sersic_gamma_cfrac(a, x, lga);
 }
+
 
 /* Q(a, x), given lga = ln Gamma(a) (a galaxy's 2n is the same in every
  * call: struct sersic_gal keeps it). */
@@ -177,9 +177,9 @@ static double sersic_gamma_q(double a, double x)
 }
 
 /* d P(a, x) / dx = x^(a-1) e^-x / Gamma(a). */
-static double sersic_gamma_pdf(double a, double x)
+static double sersic_gamma_pdf_lg(double a, double lga, double x)
 {
-	return x > 0 ? exp((a - 1.0) * log(x) - x - sersic_lgamma(a)) : 0.0;
+	return x > 0 ? exp((a - 1.0) * log(x) - x - lga) : 0.0;
 }
 
 /*
@@ -194,19 +194,19 @@ static double sersic_gamma_inv(double a, double tail, int upper, double x0)
 {
 	/* Q(a, a + 60 + 60 sqrt(a)) < 1e-25, below any tail asked for. */
 	double lo = 0.0, hi = a + 60.0 + 60.0 * sqrt(a), x = x0;
-	double target = log(tail);
+	double target = log(tail), lga = sersic_lgamma(a);      /* once, not twice a step */
 
 	if (!(x > lo && x < hi))
 		x = 0.5 * (lo + hi);
 	for (int it = 0; it < 200; it++) {
-		double t = upper ? sersic_gamma_q(a, x) : sersic_gamma_p(a, x);
+		double t = upper ? sersic_gamma_q_lg(a, lga, x) : sersic_gamma_p_lg(a, lga, x);
 		double f = log(t) - target;
 		/* P rises and Q falls with x: move the bracket. */
 		if ((f > 0) == !upper)
 			hi = x;
 		else
 			lo = x;
-		double dlog = sersic_gamma_pdf(a, x) / t * (upper ? -1.0 : 1.0);
+		double dlog = sersic_gamma_pdf_lg(a, lga, x) / t * (upper ? -1.0 : 1.0);
 		double nx = x - f / dlog;
 		if (!(nx > lo && nx < hi) || !isfinite(nx))
 			nx = 0.5 * (lo + hi);

@@ -159,7 +159,6 @@ static double sersic_gamma_p_lg(double a, double lga, double x)
 	return x < a + 1.0 ? sersic_gamma_series(a, x, lga) : 1.0 - sersic_gamma_cfrac(a, x, lga);
 }
 
-
 /* Q(a, x), given lga = ln Gamma(a) (a galaxy's 2n is the same in every
  * call: struct sersic_gal keeps it). */
 static double sersic_gamma_q_lg(double a, double lga, double x)

@@ -21,8 +21,8 @@
  * points would step over) goes to the wedges too, to 1e-3 of its light.
  * The measured total-flux error is below 1% for n <= 4 (BENCHMARKS.md).
  *
- * Settings: sersic-trunc (flux fraction beyond the truncation radius,
- * default 1e-3), sersic-convolve (yes/no), sersic-flux (total/ie).
+ * Settings: quick_settings below (each one's meaning and range), and
+ * sersic.h's shared ones.
  */
 #include "sersic.h"
 #include "vmath.h"
@@ -34,6 +34,8 @@
 #define QUICK_NOISE_CUT 0.01
 #define QUICK_PSF_CUT 0.1
 #define QUICK_WING_BLOCK 4
+#define QUICK_MOMENT_CUT 0.1
+#define QUICK_CENTRE_CUT 0.01
 #define QUICK_GAUSS 6
 /* The largest ePSF half-width psf_rings handles (a 4x-sampled ePSF of
  * 181 samples has 22). */
@@ -45,8 +47,6 @@ struct quick_rings {
 	int hp, n;
 	double ring[PSF_HMAX + 1];
 };
-#define QUICK_MOMENT_CUT 0.1
-#define QUICK_CENTRE_CUT 0.01
 
 struct quick {
 	const struct wfs_host *host;
@@ -341,9 +341,11 @@ static void quick_stamp_setup(struct sersic_gal *g, const void *opt)
 }
 
 /* p = b rho^(1/n) and I = exp(lni0 - p) at n points from rho^2 (vmath.h's
- * exp and log: the same bytes in the vector code and the plain). */
-static void quick_profile_plain(int n, const double *restrict r2, double b, double h,
-				double lni0, double *restrict p, double *restrict in)
+ * exp and log: the same bytes in the vector code and the plain), inlined
+ * into a plain copy and one built for AVX2 and FMA. */
+static inline __attribute__((always_inline)) void
+quick_profile_loop(int n, const double *restrict r2, double b, double h, double lni0,
+		   double *restrict p, double *restrict in)
 {
 	for (int j = 0; j < n; j++) {
 		p[j] = b * vm_exp(h * vm_log(r2[j]));
@@ -351,15 +353,18 @@ static void quick_profile_plain(int n, const double *restrict r2, double b, doub
 	}
 }
 
+static void quick_profile_plain(int n, const double *restrict r2, double b, double h,
+				double lni0, double *restrict p, double *restrict in)
+{
+	quick_profile_loop(n, r2, b, h, lni0, p, in);
+}
+
 #if defined(__GNUC__) && defined(__x86_64__)
 __attribute__((target("avx2,fma"))) static void
 quick_profile_avx2(int n, const double *restrict r2, double b, double h, double lni0,
 		   double *restrict p, double *restrict in)
 {
-	for (int j = 0; j < n; j++) {
-		p[j] = b * vm_exp(h * vm_log(r2[j]));
-		in[j] = vm_exp(lni0 - p[j]);
-	}
+	quick_profile_loop(n, r2, b, h, lni0, p, in);
 }
 #endif
 
@@ -373,7 +378,8 @@ static void quick_wing_row(const struct sersic_gal *g, const void *opt, int y, i
 			   double *img, double *gxi, double *gyi, double *lpi, int *any, int *rough)
 {
 	double y0 = y - 0.5 - g->yc, y1 = y + 0.5 - g->yc, cy = 0.5 * (y0 + y1);
-	double dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0, ny = (y0 - 1.0 <= 0 && y1 + 1.0 >= 0);
+	double dy = y0 > 0 ? y0 : y1 < 0 ? -y1 : 0;
+	int ny = y0 - 1.0 <= 0 && y1 + 1.0 >= 0;        /* the row is near the centre's */
 	double u[QUICK_RUN], v[QUICK_RUN], r2[QUICK_RUN], pw[QUICK_RUN], in[QUICK_RUN];
 	int at[QUICK_RUN];
 
@@ -382,10 +388,7 @@ static void quick_wing_row(const struct sersic_gal *g, const void *opt, int y, i
 
 		for (int x = a; x <= e; x++) {
 			double x0 = x - 0.5 - g->xc, x1 = x + 0.5 - g->xc;
-			double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0;
-			int k = x - xa;
-
-			double rmax2;
+			double dx = x0 > 0 ? x0 : x1 < 0 ? -x1 : 0, rmax2;
 
 			if ((dx * dx + dy * dy) * g->ia2 >= g->method_lo2 &&
 			    !(ny && x0 - 1.0 <= 0 && x1 + 1.0 >= 0) &&
@@ -402,25 +405,16 @@ static void quick_wing_row(const struct sersic_gal *g, const void *opt, int y, i
 			double val, gx, gy;
 			int smooth = quick_wing(g, opt, x0, x1, y0, y1, &val, &gx, &gy);
 
-			img[k] = val;
-			gxi[k] = gx;
-			gyi[k] = gy;
-			lpi[k] = smooth ? val : 0;
-			*any |= val != 0;
-			*rough |= lpi[k] != val;
+			sersic_wing_put(img, gxi, gyi, lpi, (size_t)(x - xa), val, gx, gy, smooth, any, rough);
 		}
 		quick_profile(nf, r2, g->b, 0.5 * g->inv_n, g->lni0, pw, in);
 		for (int j = 0; j < nf; j++) {
-			int k = at[j] - xa;
 			double gx, gy, val = quick_taylor_at(g, 1.0, 1.0, u[j], v[j], r2[j], pw[j], in[j],
 							     &gx, &gy);
 
 			if (val == 0)
 				gx = gy = 0;
-			img[k] = lpi[k] = val;
-			gxi[k] = gx;
-			gyi[k] = gy;
-			*any |= val != 0;
+			sersic_wing_put(img, gxi, gyi, lpi, (size_t)(at[j] - xa), val, gx, gy, 1, any, rough);
 		}
 	}
 }

@@ -173,7 +173,6 @@ static int sersic_psf_drawn(const struct wfs_epsf *e, const struct wfs_source *s
 	return h >= 1 && h < hp ? (int)h : hp;
 }
 
-
 static void box_clip(int *a0, int *a1, int b0, int b1)
 {
 	if (*a0 < b0)
@@ -318,6 +317,20 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	return 0;
 }
 
+/* A wing pixel's integral v and gradient (gx, gy) into the planes at k:
+ * the smooth part lpi is v where the light is smooth over the pixel (the
+ * second-order terms hold there), else 0 and the pixel is rough. */
+static inline void sersic_wing_put(double *img, double *gxi, double *gyi, double *lpi, size_t k,
+				   double v, double gx, double gy, int smooth, int *any, int *rough)
+{
+	img[k] = v;
+	gxi[k] = gx;
+	gyi[k] = gy;
+	lpi[k] = smooth ? v : 0;
+	*any |= v != 0;
+	*rough |= lpi[k] != v;
+}
+
 /* One wing pixel (x, y), outside Q, into the stamp planes at offset o:
  * its integral, and the gradient at its centre where the light is smooth
  * over it. */
@@ -325,30 +338,25 @@ static inline void sersic_wing_pixel(const struct sersic_stamp *st, const struct
 				     int x, int y, size_t o, int *any, int *rough)
 {
 	const struct sersic_gal *g = &st->g;
-	double v = 0, gx = 0, gy = 0, lv = 0;
+	double v = 0, gx = 0, gy = 0;
 	double x0 = x - 0.5 - g->xc, x1 = x + 0.5 - g->xc;
 	double y0 = y - 0.5 - g->yc, y1 = y + 0.5 - g->yc;
+	int smooth = 0;
 
 	/* The corrections are a Taylor expansion over the pixel: only where
 	 * the light is smooth on it (a needle, q -> 0, is not, and would go
 	 * negative). */
 	if (m->wing) {
-		if (m->wing(g, m->opt, x0, x1, y0, y1, &v, &gx, &gy))
-			lv = v;
+		smooth = m->wing(g, m->opt, x0, x1, y0, y1, &v, &gx, &gy);
 	} else {
 		v = m->cell(g, m->opt, x0, x1, y0, y1, 1.0);
 		if (v != 0 && sersic_cell_scale(g, sersic_rho_min(g, x0, x1, y0, y1),
 						x0, x1, y0, y1) >= SERSIC_SMOOTH) {
 			sersic_grad(g, x - g->xc, y - g->yc, &gx, &gy);
-			lv = v;
+			smooth = 1;
 		}
 	}
-	*any |= v != 0;
-	*rough |= lv != v;
-	st->img[o] = v;
-	st->gxi[o] = gx;
-	st->gyi[o] = gy;
-	st->lpi[o] = lv;
+	sersic_wing_put(st->img, st->gxi, st->gyi, st->lpi, o, v, gx, gy, smooth, any, rough);
 }
 
 /* Wings: pixel integrals outside Q, and the profile's gradient at the
@@ -389,9 +397,8 @@ static void sersic_wings_integrate(const struct sersic_stamp *st, const struct s
 				int in_qy = y >= qy0 && y <= qy1;
 
 				for (int x = bx > sx0 ? bx : sx0; x <= ex && x <= sx1; x++) {
-					if (in_qy && x >= qx0 && x <= qx1) {
-						st->img[o + x] = st->gxi[o + x] = st->gyi[o + x] = st->lpi[o + x] = 0;
-					} else if (how < 0) {
+					if ((in_qy && x >= qx0 && x <= qx1) || how < 0) {
+						/* the core's own, or dark */
 						st->img[o + x] = st->gxi[o + x] = st->gyi[o + x] = st->lpi[o + x] = 0;
 					} else if (how > 0) {
 						double p = v / ((double)B * B) + gx * (x - 0.5 * (bx + ex)) +

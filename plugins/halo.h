@@ -175,10 +175,13 @@ static inline void halo_setup_amplitude(struct halo *h, double *square_out, doub
 
 	for (int k = 0; k <= HALO_NT; k++)
 		h->A[k] = 0;
+	/* d by sqrt rather than hypot (a third of the set-up's time): for the
+	 * grids' power-of-two oversampling dx^2 + dy^2 is exact, and the two
+	 * agree */
 	for (int j = 0; j < n; j++)
 		for (int i = 0; i < n; i++) {
 			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
-			double d = hypot(dx, dy), v = a[(size_t)j * n + i];
+			double d = sqrt(dx * dx + dy * dy), v = a[(size_t)j * n + i];
 
 			square += v;
 			if (d < R)
@@ -321,7 +324,7 @@ static inline int halo_setup_envelope(struct halo *h)
 	for (int j = 0; j < n; j++)
 		for (int i = 0; i < n; i++) {
 			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
-			double d = hypot(dx, dy), v = h->s * h->a[(size_t)j * n + i];
+			double d = sqrt(dx * dx + dy * dy), v = h->s * h->a[(size_t)j * n + i];
 			int r = (int)d;
 
 			if (r >= h->nenv)

@@ -85,6 +85,7 @@
  * point.h what they share.
  */
 #include <math.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -202,6 +203,43 @@ static double scene_sigma(const struct wfs_host *host)
 	return te > 0 && var > 0 ? sqrt(var) / te : 0;
 }
 
+/* The number of the next state made (struct point.serial). */
+static atomic_ulong serials;
+
+/* The calling thread's last state and its tally there, so that most calls
+ * find their tally without the lock.  The state is known by its address
+ * and number: a state freed and another made at the same address differ
+ * in number, and the cached tally is never read before both match. */
+static _Thread_local struct {
+	const struct point *p;
+	unsigned long serial;
+	struct tally *t;
+} mine;
+
+struct tally *tally_of(struct point *p)
+{
+	struct tally *t;
+	pthread_t self = pthread_self();
+
+	if (mine.p == p && mine.serial == p->serial)
+		return mine.t;
+	pthread_mutex_lock(&p->lock);
+	for (t = p->tallies; t && !pthread_equal(t->thread, self); t = t->next)
+		;
+	if (!t && (t = calloc(1, sizeof(*t)))) {
+		t->thread = self;
+		t->next = p->tallies;
+		p->tallies = t;
+	}
+	pthread_mutex_unlock(&p->lock);
+	if (t) {
+		mine.p = p;
+		mine.serial = p->serial;
+		mine.t = t;
+	}
+	return t;
+}
+
 static int point_init(const struct wfs_host *host, void **state)
 {
 	static const char *const interp[] = { "bilinear", "core", "bicubic" };
@@ -215,6 +253,8 @@ static int point_init(const struct wfs_host *host, void **state)
 	if (!p)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
+	pthread_mutex_init(&p->lock, NULL);
+	p->serial = atomic_fetch_add(&serials, 1) + 1;
 	kernels_choose(p);
 	p->sigma = scene_sigma(host);
 	p->extent = EXTENT_NOISE;
@@ -265,6 +305,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	*state = p;
 	return 0;
 fail:
+	pthread_mutex_destroy(&p->lock);
 	free(p);
 	return -1;
 }
@@ -272,16 +313,26 @@ fail:
 static void point_fini(void *state)
 {
 	struct point *p = state;
+	struct tally all = { 0 };
 
 	if (!p)
 		return;
 	poly_free_all(p);
-	if (p->extent == EXTENT_NOISE && p->requested > 0)
+	for (struct tally *t = p->tallies, *next; t; t = next) {
+		next = t->next;
+		all.requested += t->requested;
+		all.left += t->left;
+		all.nhalo += t->nhalo;
+		all.npoint += t->npoint;
+		free(t);
+	}
+	if (p->extent == EXTENT_NOISE && all.requested > 0)
 		p->host->log(p->host->ctx, 1, "point: %.6g of %.6g counts/s (%.3g%%) left beyond "
-			     "the drawn radii; %lld of %lld sources with a halo", p->left,
-			     p->requested, 100 * p->left / p->requested, p->nhalo, p->npoint);
+			     "the drawn radii; %lld of %lld sources with a halo", all.left,
+			     all.requested, 100 * all.left / all.requested, all.nhalo, all.npoint);
 	for (int s = 0; s < 19; s++)
 		halo_free(&p->halo[s]);
+	pthread_mutex_destroy(&p->lock);
 	free(p);
 }
 
@@ -357,6 +408,7 @@ static const struct wfs_model point_model = {
 	.settings = point_settings,
 	.nsettings = NSETTINGS,
 	.reach = point_reach,
+	.flags = WFS_PARALLEL_PREPARE,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -15,6 +15,8 @@
 #define WFS_POINT_H
 
 #include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -157,6 +159,18 @@ struct core_args {
 	float kx[4], ky[4], bw[4], cw[32];
 };
 
+/* What one thread's prepare() calls counted, psf-extent=noise: the flux
+ * of the sources prepared and the part left beyond their drawn radii, the
+ * sources drawn with a halo and all of them.  Summed at fini (in the order
+ * the threads first prepared, so the sums' last bits may vary; they are
+ * only logged). */
+struct tally {
+	double requested, left;
+	long long nhalo, npoint;
+	pthread_t thread;
+	struct tally *next;
+};
+
 struct point {
 	const struct wfs_host *host;
 	int interp;             /* psf-interp */
@@ -176,11 +190,18 @@ struct point {
 	double halo_power;      /* psf-halo-power: the tail's power */
 	double halo_taper;      /* psf-halo-taper: pixels */
 	int halo_far;           /* psf-halo-far: HALO_FAR_SPIKES or HALO_FAR_DISC */
+	/* prepare() runs on several threads (WFS_PARALLEL_PREPARE): what it
+	 * sets up on first use (the halos, the cores' scales, the polyphase
+	 * copies) is made under lock and then flagged ready with release
+	 * order; its counters are per thread (struct tally) */
+	pthread_mutex_t lock;
 	struct halo halo[19];   /* per SCA, set up in prepare() */
-	double cfac[19][3];     /* per SCA and class: the core's scale, 0 unset */
+	_Atomic int halo_ready[19];
+	double cfac[19][3];     /* per SCA and class: the core's scale */
 	int chalf[19][3];       /* and the box's half-width (core_scale) */
-	double requested, left; /* flux of the sources prepared, and left out */
-	long long nhalo, npoint; /* sources drawn with a halo, and all */
+	_Atomic int cfac_ready[19][3];
+	unsigned long serial;   /* this state's number among all made */
+	struct tally *tallies;  /* one per thread that prepared */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
 	double (*core_rows)(const struct core_args *, float *);
 	struct poly slot[POLY_SLOTS];
@@ -254,6 +275,9 @@ void poly_free_all(struct point *p);
  * half-width at most cap (0: the class's) */
 int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut);
 int epsf_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
+
+/* point.c: the calling thread's counters of p (NULL: out of memory) */
+struct tally *tally_of(struct point *p);
 
 /* point_halo.c: psf-extent=noise */
 const struct halo *halo_of(struct point *p, const struct wfs_source *src);

@@ -10,17 +10,28 @@
 
 #include "point.h"
 
-/* The halo of SCA sca, set up on first use (main thread). */
+/* The centre pixel of an SCA's 4088 x 4088 (model.h's coordinates). */
+#define SCA_CENTRE 2043.5
+
+/* The halo of SCA sca, set up on first use by one thread under the lock. */
 const struct halo *halo_of(struct point *p, const struct wfs_source *src)
 {
 	struct halo *h = &p->halo[src->sca];
 	struct wfs_epsf e;
+	int ok = 1;
 
-	if (h->env)
+	if (atomic_load_explicit(&p->halo_ready[src->sca], memory_order_acquire))
 		return h;
 	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, WFS_PSF_HALO, &e) < 0)
 		return NULL;
-	if (halo_setup(h, e.node[0], e.n, e.over, p->halo_power, p->halo_taper) < 0) {
+	pthread_mutex_lock(&p->lock);
+	if (!atomic_load_explicit(&p->halo_ready[src->sca], memory_order_relaxed)) {
+		if ((ok = halo_setup(h, e.node[0], e.n, e.over, p->halo_power,
+				     p->halo_taper) == 0))
+			atomic_store_explicit(&p->halo_ready[src->sca], 1, memory_order_release);
+	}
+	pthread_mutex_unlock(&p->lock);
+	if (!ok) {
 		p->host->error(p->host->ctx, "halo of SCA %d: %d samples at %d per pixel are "
 			       "too few (or out of memory)", src->sca, e.n, e.over);
 		return NULL;
@@ -32,7 +43,7 @@ const struct halo *halo_of(struct point *p, const struct wfs_source *src)
  * The core's scale for SCA sca and the source's class: the halo's light in
  * the class's box over the core's own (the cores are normalised within
  * their boxes, so they hold the light beyond them too), both for a source
- * on a pixel centre, from the first node of the source's position.  The
+ * on a pixel centre, from the first node of the SCA's centre.  The
  * box is the class's less one pixel all round: the grids' outermost
  * samples stand about 20% below their neighbours (a 10.5 mag star on a
  * whole pixel in F129 drew its box's last column 3.5 sigma below the
@@ -41,17 +52,19 @@ const struct halo *halo_of(struct point *p, const struct wfs_source *src)
  */
 static double core_scale(struct point *p, const struct wfs_source *src, const struct halo *h)
 {
-	double *c = &p->cfac[src->sca][src->psf_class];
+	_Atomic int *ready = &p->cfac_ready[src->sca][src->psf_class];
 	struct wfs_epsf e;
 
-	if (*c > 0)
-		return *c;
-	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+	if (atomic_load_explicit(ready, memory_order_acquire))
+		return p->cfac[src->sca][src->psf_class];
+	/* from the first node at the SCA's centre, whichever source asks
+	 * first (so the scale is the same for any order of the sources and
+	 * any thread): each thread that finds it unset computes it, and the
+	 * first one stores it */
+	if (p->host->epsf(p->host->ctx, src->sca, SCA_CENTRE, SCA_CENTRE, src->psf_class, &e) < 0)
 		return -1;
 	double fine = 0, far = 0;
 	int half = e.centre / e.over - 1;
-
-	p->chalf[src->sca][src->psf_class] = half;
 
 	for (int j = -half; j <= half; j++)
 		for (int i = -half; i <= half; i++) {
@@ -60,8 +73,14 @@ static double core_scale(struct point *p, const struct wfs_source *src, const st
 			fine += e.node[0][(size_t)(e.centre + e.over * j) * e.n + e.centre + e.over * i];
 			far += h->s * h->a[(size_t)(h->c + h->over * j) * h->n + h->c + h->over * i];
 		}
-	*c = fine > 0 && far > 0 ? far / fine : 1;
-	return *c;
+	pthread_mutex_lock(&p->lock);
+	if (!atomic_load_explicit(ready, memory_order_relaxed)) {
+		p->cfac[src->sca][src->psf_class] = fine > 0 && far > 0 ? far / fine : 1;
+		p->chalf[src->sca][src->psf_class] = half;
+		atomic_store_explicit(ready, 1, memory_order_release);
+	}
+	pthread_mutex_unlock(&p->lock);
+	return p->cfac[src->sca][src->psf_class];
 }
 
 /*
@@ -76,6 +95,7 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 {
 	const struct halo *h;
 	struct wfs_source fs;
+	struct tally *t;
 	double r, half, c, cap, fl = src->flux;
 	int faint;
 
@@ -106,14 +126,16 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	else if (r <= half)
 		r = half + 1;
 	src->aux[0] = half + HALO_PACK * r;
-	p->requested += fabs(fl);
-	p->npoint++;
-	p->nhalo += r > 0;
+	if (!(t = tally_of(p)))
+		return p->host->error(p->host->ctx, "out of memory");
+	t->requested += fabs(fl);
+	t->npoint++;
+	t->nhalo += r > 0;
 	/* a cut box carries the light of the box before the cut */
-	p->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, (faint ? cap : half) - 0.5));
+	t->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, (faint ? cap : half) - 0.5));
 	/* beyond the base radius, the light away from the spikes */
 	if (r > 0 && psf_spikes(p))
-		p->left += fabs(fl) * halo_base_between(h, halo_base_radius(h, p->extent_noise *
+		t->left += fabs(fl) * halo_base_between(h, halo_base_radius(h, p->extent_noise *
 								    p->sigma / fl, r), r);
 	return 0;
 }

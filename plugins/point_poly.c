@@ -7,9 +7,10 @@
  * and its enclosed light (psf-box=adaptive).
  *
  * The table is an open-addressed hash of POLY_SLOTS slots, never removed
- * from, and read by render() on the workers while the host's prepare()
- * adds to it for the next chunk of rows.  So a slot is published as in a
- * single-writer lock-free map: the host fills p->slot[i] while it is
+ * from, and read by render() on the workers while prepare() adds to it for
+ * the next chunk of rows, on several threads.  So a slot is published as
+ * in a single-writer lock-free map: the writers take turns (p->lock), and
+ * the one adding looks again under the lock, fills p->slot[i] while it is
  * still unseen, then stores its key into p->keys[i] with release order;
  * every probe loads p->keys[i] with acquire order and reads the slot only
  * after seeing its key there, so it sees the slot whole.  (A probe for a
@@ -123,9 +124,9 @@ static void sat_table(struct poly *q, double *row)
 }
 
 /* The polyphase copy of an n x n ePSF array under key, filled into an empty
- * slot but not published (poly_publish).  Main thread only (prepare), and
- * nothing else may be added before it is published.  NULL with an error
- * recorded when it fails. */
+ * slot but not published (poly_publish).  With p->lock held, which keeps
+ * anything else from being added before it is published.  NULL with an
+ * error recorded when it fails. */
 static struct poly *poly_make(struct point *p, uint64_t key, const float *node, int n, int over)
 {
 	int m = (n + over - 1) / over + 2 * PAD + 1;
@@ -167,10 +168,9 @@ static struct poly *poly_make(struct point *p, uint64_t key, const float *node, 
 	return &p->slot[i];
 }
 
-/* The polyphase copy of an n x n ePSF array under key, made and published
- * the first time.  Main thread only (prepare).  NULL with an error recorded
- * when it fails. */
-struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
+/* poly_add() with p->lock held. */
+static struct poly *poly_add_locked(struct point *p, uint64_t key, const float *node, int n,
+				    int over)
 {
 	size_t i;
 	struct poly *q = poly_probe(p, key, &i);
@@ -183,6 +183,21 @@ struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, i
 	return q;
 }
 
+/* The polyphase copy of an n x n ePSF array under key, made and published
+ * the first time.  NULL with an error recorded when it fails. */
+struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
+{
+	size_t i;
+	struct poly *q = poly_probe(p, key, &i);
+
+	if (q)
+		return q;
+	pthread_mutex_lock(&p->lock);
+	q = poly_add_locked(p, key, node, n, over);
+	pthread_mutex_unlock(&p->lock);
+	return q;
+}
+
 /* The key of the blended cell holding (x, y): odd, so never a node's. */
 uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 {
@@ -192,15 +207,11 @@ uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 	return 1 | (uint64_t)src->sca << 1 | (uint64_t)src->psf_class << 8 | cx << 16 | cy << 32;
 }
 
-/* psf-blend=cell: the ePSF blended once at the centre of the source's cell
- * (bilinear in position, as the host's weights say), so a source reads one
- * array instead of four.  NULL with an error recorded when it fails. */
-struct poly *cell_add(struct point *p, const struct wfs_source *src)
+/* cell_add() with p->lock held: the cell under key blended from e's nodes,
+ * unless another thread made it first. */
+static struct poly *cell_make(struct point *p, uint64_t key, const struct wfs_epsf *ep)
 {
-	uint64_t key = cell_key(p, src);
-	struct wfs_epsf e;
-	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
-	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
+	const struct wfs_epsf e = *ep;
 	struct poly *c = (struct poly *)poly_find(p, key);
 	const float *cnode[4];
 	const struct poly *cpoly[4];
@@ -209,8 +220,6 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 
 	if (c)
 		return c;
-	if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
-		return NULL;
 	nn = (size_t)e.n * e.n;
 	if (!(mix = malloc(nn * sizeof(float)))) {
 		p->host->error(p->host->ctx, "out of memory");
@@ -231,7 +240,8 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 		cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
 		cpoly[k] = NULL;
 		if (p->blend == BLEND_CORE && cnode[k] &&
-		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over))) {
+		    !(cpoly[k] = poly_add_locked(p, (uint64_t)(uintptr_t)e.node[k], e.node[k],
+						 e.n, e.over))) {
 			free(mix);
 			return NULL;
 		}
@@ -246,6 +256,27 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 		c->cpoly[k] = cpoly[k];
 	}
 	poly_publish(p, (size_t)(c - p->slot));
+	return c;
+}
+
+/* psf-blend=cell: the ePSF blended once at the centre of the source's cell
+ * (bilinear in position, as the host's weights say), so a source reads one
+ * array instead of four.  NULL with an error recorded when it fails. */
+struct poly *cell_add(struct point *p, const struct wfs_source *src)
+{
+	uint64_t key = cell_key(p, src);
+	struct wfs_epsf e;
+	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
+	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
+	struct poly *c = (struct poly *)poly_find(p, key);
+
+	if (c)
+		return c;
+	if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
+		return NULL;
+	pthread_mutex_lock(&p->lock);
+	c = cell_make(p, key, &e);
+	pthread_mutex_unlock(&p->lock);
 	return c;
 }
 

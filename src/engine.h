@@ -62,7 +62,10 @@ struct placement {
 	int model;
 	int slot;
 	size_t param_off;       /* into batch.param */
+	size_t row;             /* the row of the chunk */
+	int from;               /* the row's own model (model[row]) */
 };
+
 
 /* The placements of one chunk, binned by tile. */
 struct batch {
@@ -82,9 +85,11 @@ struct worker {
 	struct engine *g;
 	/* The worker's own error record, written only by its thread while
 	 * the pool runs and read by the main thread after pool_wait()
-	 * (render_errors_collect); err_task is the tile it failed on. */
+	 * (render_errors_collect); err_task is the tile it failed on, or for
+	 * a thread of place_pool the placement. */
 	struct err err;
 	size_t err_task;
+	int place;              /* a thread of place_pool: may load PSF grids */
 	void *scratch;
 	size_t scratch_cap;
 	struct fftconv_thread *fft;
@@ -112,7 +117,9 @@ struct engine {
 	struct slot slot[WFS_NSCA];
 	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
 
-	struct psf_grid *grid[WFS_NSCA][4];     /* [3]: the halo (psf.h) */
+	/* [3]: the halo (psf.h); published under grid_lock (psfgrids.c) */
+	struct psf_grid *grid[WFS_NSCA][4];
+	pthread_mutex_t grid_lock;
 	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
 	struct psf_build_opts pbo;
 
@@ -122,6 +129,12 @@ struct engine {
 	struct pool *pool;
 	struct worker *w;
 	int nworker;
+	/* prepare() and footprint() of WFS_PARALLEL_PREPARE models (place.c):
+	 * a second pool, as the first draws the previous chunk meanwhile,
+	 * and its threads' records (only err and place used) */
+	struct pool *place_pool;
+	struct worker *pw;
+	int npw;
 
 	char filter_name[16], exptime_str[32], seed_str[32];
 	char bkg_str[32], readnoise_str[32], noise_str[64], sigma_str[32], mjd_str[32];
@@ -177,7 +190,7 @@ const char *host_setting(void *ctx, const char *key);
 
 /* psfgrids.c */
 const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls);
-int psfgrids_need(struct engine *g, int sca, int cls);
+int psfgrids_need(struct engine *g, int sca, int cls, struct err *e);
 int psfgrids_open_user(struct engine *g);
 void psfgrids_free(struct engine *g);
 

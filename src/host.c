@@ -5,7 +5,7 @@
  * Errors from any thread (a worker's go to its own record, merged by the
  * main thread after the pool waits; the main thread's to the run's), -v
  * logging, settings by key (the scene's own, then --set), ePSF
- * samples (grids loaded on the main thread only, see psfgrids.c), per-worker
+ * samples (grids loaded by the threads that prepare, see psfgrids.c), per-worker
  * scratch memory and FFT convolution.  The engine uses host_error, host_log
  * and host_setting itself too.
  */
@@ -25,7 +25,8 @@
  * The worker the calling thread draws for.  Thread-local because
  * host->error() has no thread argument (model.h): a model calls it with the
  * host's ctx from render() on any worker.  Set by render_tile() around its
- * work, NULL on the main thread.
+ * work, and by place.c's threads of place_pool around theirs; NULL on the
+ * main thread.
  */
 static _Thread_local struct worker *current_worker;
 
@@ -94,22 +95,27 @@ const char *host_setting(void *ctx, const char *key)
 	return hit;
 }
 
-/* Grids are loaded (or built) the first time a model asks for one from the
- * main thread, in prepare() or footprint(): a scene whose models never draw
- * with the ePSF builds none.  Workers only read grids already loaded. */
+/* Grids are loaded (or built) the first time a model asks for one in
+ * prepare() or footprint(), on the main thread or a thread of place_pool:
+ * a scene whose models never draw with the ePSF builds none.  Render
+ * workers only read grids already loaded. */
 static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 		     struct wfs_epsf *out)
 {
 	struct engine *g = ctx;
+	struct worker *w = current_worker;
 	const struct psf_grid *grid;
 
 	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 3)
 		return host_error(ctx, "no ePSF for SCA %d class %d", sca, cls);
 	if (!(grid = psfgrids_get(g, sca, cls))) {
-		if (!pthread_equal(pthread_self(), g->main_thread))
+		int placing = w && w->g == g ? w->place
+				: pthread_equal(pthread_self(), g->main_thread);
+
+		if (!placing)
 			return host_error(ctx, "ePSF of SCA %d class %d asked for in render() "
 					  "but not in prepare() or footprint()", sca, cls);
-		if (psfgrids_need(g, sca, cls) < 0)
+		if (psfgrids_need(g, sca, cls, w && w->g == g ? &w->err : g->e) < 0)
 			return -1;
 		grid = psfgrids_get(g, sca, cls);
 	}

@@ -5,11 +5,14 @@
  * reads, each row's reach (how far beyond an SCA edge it may still throw
  * light), which requested SCAs each sky row may reach (slot masks, so most
  * rows far from every SCA cost no projection), the exact pixel on each SCA,
- * the row's flux in counts/s there, the model's prepare() and footprint(),
- * and finally the placements binned by the tiles their footprints touch,
- * which is what render.c draws.
+ * the row's flux in counts/s there, the model's prepare() and footprint()
+ * (on several threads for a model that allows it: see pend() below), and
+ * finally the placements binned by the tiles their footprints touch, which
+ * is what render.c draws.
  */
 #include <math.h>
+#include <stdatomic.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -157,19 +160,19 @@ static int psf_class_of(const struct engine *g, double mag)
 
 /* src's flux checked: positive, finite, and within what a float32 image
  * holds.  model names the model that set the flux, NULL for the catalog. */
-static int flux_check(struct engine *g, const struct rows *r, size_t i,
-		      const struct wfs_source *src, const char *model)
+static int flux_check(const struct engine *g, const struct rows *r, size_t i,
+		      const struct wfs_source *src, const char *model, struct err *e)
 {
 	const char *what = model ? "becomes, by its model," : "converts to";
 
 	if (!isfinite(src->flux) || src->flux <= 0)
-		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g %s %g counts/s "
+		return err_set(e, EXIT_INPUT, "%s:%ld: flux %g %s %g counts/s "
 			       "on SCA %d: not a positive finite number", r->file,
 			       r->line[i], r->flux[i], what, src->flux, src->sca);
 	/* The image is float32 (at most 3.4e38): one source may bring up to
 	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
 	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
-		return err_set(g->e, EXIT_INPUT, "%s:%ld: flux %g %s %g %s on SCA %d, "
+		return err_set(e, EXIT_INPUT, "%s:%ld: flux %g %s %g %s on SCA %d, "
 			       "more than the 1e32 that one source may put in a "
 			       "float32 image", r->file, r->line[i], r->flux[i],
 			       model ? what : "gives",
@@ -180,10 +183,10 @@ static int flux_check(struct engine *g, const struct rows *r, size_t i,
 
 /* Fill src for row i on SCA sca at pixel (x, y): its flux there, checked,
  * its magnitude and ePSF class, the catalog's facts, the exposure's date.
- * Returns 0 or -1. */
-static int fill_source(struct engine *g, const struct rows *r, size_t i,
+ * On any thread.  Returns 0, or -1 with the error in e. */
+static int fill_source(const struct engine *g, const struct rows *r, size_t i,
 		       const double *param, int sca, double x, double y,
-		       struct wfs_source *src)
+		       struct wfs_source *src, struct err *e)
 {
 	memset(src, 0, sizeof(*src));
 	src->x = x;
@@ -196,23 +199,23 @@ static int fill_source(struct engine *g, const struct rows *r, size_t i,
 	src->param = param;
 	src->flux_meaning = g->flux_meaning;
 	src->mjd = g->x->date;
-	return flux_check(g, r, i, src, NULL);
+	return flux_check(g, r, i, src, NULL, e);
 }
 
 /* A model's prepare() or reach() returned -1 for row i.  A refused row is
  * bad input; a refusal without a message is a broken plugin (silent is the
  * message then); a host service that failed under it (a PSF file that
  * cannot be read) keeps its own message and status.  Returns -1. */
-static int row_refused(struct engine *g, const struct rows *r, size_t i,
+static int row_refused(struct err *e, const struct rows *r, size_t i,
 		       const struct wfs_model *md, const char *silent)
 {
-	if (g->e->code != EXIT_OK && g->e->code != EXIT_PLUGIN)
+	if (e->code != EXIT_OK && e->code != EXIT_PLUGIN)
 		return -1;
-	if (g->e->code == EXIT_OK)
-		err_set(g->e, EXIT_PLUGIN, "%s", silent);
+	if (e->code == EXIT_OK)
+		err_set(e, EXIT_PLUGIN, "%s", silent);
 	else
-		g->e->code = EXIT_INPUT;
-	err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
+		e->code = EXIT_INPUT;
+	err_prefix(e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
 	return -1;
 }
 
@@ -236,13 +239,13 @@ static int source_at(struct engine *g, const struct rows *r, size_t i, int m,
 {
 	const struct plugin *pl = &g->plugins.p[m];
 
-	if (fill_source(g, r, i, param, sca, x, y, src) < 0)
+	if (fill_source(g, r, i, param, sca, x, y, src, g->e) < 0)
 		return -1;
 	if (pl->drawer < 0)
 		return 0;
 	if (pl->m->prepare && pl->m->prepare(pl->state, src) < 0)
-		return row_refused(g, r, i, pl->m, "prepare() failed" MODEL_SILENT);
-	if (flux_check(g, r, i, src, pl->m->name) < 0)
+		return row_refused(g->e, r, i, pl->m, "prepare() failed" MODEL_SILENT);
+	if (flux_check(g, r, i, src, pl->m->name, g->e) < 0)
 		return -1;
 	if (!isfinite(src->x) || !isfinite(src->y))
 		return err_set(g->e, EXIT_PLUGIN, "%s:%ld: model '%s' moved the source to "
@@ -253,29 +256,21 @@ static int source_at(struct engine *g, const struct rows *r, size_t i, int m,
 	return 0;
 }
 
-/* source_at(), then the drawing model checks and prepares it.  Returns 0
- * or -1. */
-static int make_source(struct engine *g, const struct rows *r, size_t i, int m,
-		       const double *param, int sca, double x, double y,
-		       struct wfs_source *src)
+/*
+ * Model d's prepare() and footprint() of src, the source of row i, on
+ * whichever thread runs it (the main one, or place_pool's for a
+ * WFS_PARALLEL_PREPARE model).  Returns 0, or -1 with the error in e.
+ */
+static int settle(struct engine *g, const struct rows *r, size_t i, int d,
+		  struct wfs_source *src, struct wfs_box *box, struct err *e)
 {
-	const struct plugin *dp = &g->plugins.p[drawer_of(g, m)];
+	const struct plugin *dp = &g->plugins.p[d];
 
-	if (source_at(g, r, i, m, param, sca, x, y, src) < 0)
-		return -1;
 	if (dp->m->prepare && dp->m->prepare(dp->state, src) < 0)
-		return row_refused(g, r, i, dp->m, "prepare() failed" MODEL_SILENT);
-	return 0;
-}
-
-static int footprint(struct engine *g, const struct rows *r, size_t i, int m,
-		     const struct wfs_source *src, struct wfs_box *box)
-{
-	const struct wfs_model *md = g->plugins.p[drawer_of(g, m)].m;
-
-	if (md->footprint(g->plugins.p[m].state, src, box) < 0) {
-		err_set(g->e, EXIT_PLUGIN, "footprint() failed" MODEL_SILENT);
-		err_prefix(g->e, "%s:%ld: model '%s'", r->file, r->line[i], md->name);
+		return row_refused(e, r, i, dp->m, "prepare() failed" MODEL_SILENT);
+	if (dp->m->footprint(dp->state, src, box) < 0) {
+		err_set(e, EXIT_PLUGIN, "footprint() failed" MODEL_SILENT);
+		err_prefix(e, "%s:%ld: model '%s'", r->file, r->line[i], dp->m->name);
 		return -1;
 	}
 	return 0;
@@ -379,41 +374,189 @@ static int sky_shape(struct engine *g, const struct rows *r, size_t i, int m,
 	return 1;
 }
 
-static int add_placement(struct engine *g, struct batch *b, const struct rows *r,
-			 size_t i, int m, const double *param, int slot, double x,
-			 double y)
+/*
+ * Placing a chunk's rows takes three steps, so that the models' prepare()
+ * and footprint() can run on several threads while the result stays that
+ * of one thread going through the rows in order:
+ *
+ *   pend()     main thread, in order: the row's source on the slot (its
+ *              flux, and a deciding model's say, source_at), appended to
+ *              the batch
+ *   settle()   the drawing model's prepare() and footprint(): on the main
+ *              thread, or for a model that allows it (WFS_PARALLEL_PREPARE)
+ *              on place_pool's threads, PLACE_PART placements a task
+ *   keep()     main thread, in order: the counts, the --placed list, the
+ *              rows drawn (--rows), and the batch closed up over the
+ *              sources that light nothing
+ *
+ * A failure anywhere reports the first failing placement in that order, as
+ * one pass would: the threads' errors carry their placement's index.
+ */
+#define PLACE_PART 512
+
+static int pend(struct engine *g, struct batch *b, const struct rows *r, size_t i, int m,
+		const double *param, int slot, double x, double y)
 {
-	const struct wfs_model *md = g->plugins.p[m].m;
+	const struct plugin *pl = &g->plugins.p[m];
+	int d = drawer_of(g, m), nrow = pl->m->ncolumns;
+	int n = nrow + (d != m ? g->plugins.p[d].m->ncolumns : 0);
+	double shaped[MAX_COLUMNS], *v;
 	struct placement *p;
-	struct wfs_source src;
-	struct wfs_box box;
-	double shaped[MAX_COLUMNS];
 
+	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
+	    grow((void **)&b->param, &b->capparam, b->nparam + n + 1, sizeof(double)) < 0)
+		return err_sys(g->e, "placements");
+	/* the row's columns, then its drawing model's (model.h, drawn_by) */
+	v = b->param + b->nparam;
+	memcpy(v, param, n * sizeof(double));
 	if (sky_shape(g, r, i, m, param, g->slot[slot].sca, x, y, shaped))
-		param = shaped;
+		memcpy(v, shaped, nrow * sizeof(double));
+	p = &b->p[b->n];
+	if (d != m) {
+		/* the deciding model's prepare(), here in order */
+		if (source_at(g, r, i, m, v, g->slot[slot].sca, x, y, &p->src) < 0)
+			return -1;
+	} else {
+		/* filled by settle() */
+		p->src.x = x;
+		p->src.y = y;
+		p->src.param = v;
+	}
+	p->model = d;
+	p->from = m;
+	p->slot = slot;
+	p->row = i;
+	p->param_off = b->nparam + (size_t)(p->src.param - v);
+	b->nparam += n;
+	b->n++;
+	return 0;
+}
 
-	if (make_source(g, r, i, m, param, g->slot[slot].sca, x, y, &src) < 0 ||
-	    footprint(g, r, i, m, &src, &box) < 0)
+/* settle() of placement p, its source filled first unless pend() did. */
+static int place_settle(struct engine *g, const struct rows *r, struct placement *p,
+			struct err *e)
+{
+	if (p->from == p->model &&
+	    fill_source(g, r, p->row, p->src.param, g->slot[p->slot].sca, p->src.x, p->src.y,
+			&p->src, e) < 0)
 		return -1;
-	if (box.x0 < 0) box.x0 = 0;
-	if (box.y0 < 0) box.y0 = 0;
-	if (box.x1 > WFS_NPIX) box.x1 = WFS_NPIX;
-	if (box.y1 > WFS_NPIX) box.y1 = WFS_NPIX;
-	if (box.x0 >= box.x1 || box.y0 >= box.y1) {
+	return settle(g, r, p->row, p->model, &p->src, &p->box, e);
+}
+
+/* The threads' share of settle(): the placements of task part that
+ * place_pool takes (their drawing model allows it), in order, each
+ * thread stopping at its first failure. */
+struct settle_job {
+	struct engine *g;
+	const struct rows *r;
+	struct batch *b;
+	atomic_size_t failed;   /* the lowest failing placement, or SIZE_MAX */
+};
+
+static int in_pool(const struct engine *g, const struct placement *p)
+{
+	return g->plugins.p[p->model].flags & WFS_PARALLEL_PREPARE;
+}
+
+static void settle_part(void *arg, int wid, size_t part)
+{
+	struct settle_job *j = arg;
+	struct engine *g = j->g;
+	struct worker *w = &g->pw[wid];
+	size_t end = (part + 1) * PLACE_PART;
+
+	host_worker(w);
+	for (size_t k = part * PLACE_PART; k < end && k < j->b->n; k++) {
+		if (k > atomic_load_explicit(&j->failed, memory_order_relaxed))
+			break;  /* an earlier placement failed: this one is moot */
+		if (!in_pool(g, &j->b->p[k]))
+			continue;
+		if (place_settle(g, j->r, &j->b->p[k], &w->err) < 0) {
+			size_t f = atomic_load(&j->failed);
+
+			w->err_task = k;
+			while (k < f && !atomic_compare_exchange_weak(&j->failed, &f, k))
+				;
+			break;
+		}
+	}
+	host_worker(NULL);
+}
+
+/*
+ * settle() for the batch's placements: place_pool's threads take those
+ * whose model allows it, when there are enough of them to share, while
+ * the main thread takes the rest in order.  Returns 0, or -1 with the
+ * first failing placement's error in g->e.
+ */
+static int settle_all(struct engine *g, const struct rows *r, struct batch *b)
+{
+	struct settle_job j = { .g = g, .r = r, .b = b };
+	size_t npool = 0, failed = SIZE_MAX, parts = (b->n + PLACE_PART - 1) / PLACE_PART;
+	struct worker *first = NULL;
+
+	atomic_init(&j.failed, SIZE_MAX);
+	if (g->place_pool)
+		for (size_t k = 0; k < b->n && npool < 2 * PLACE_PART; k++)
+			npool += in_pool(g, &b->p[k]);
+	if (npool < 2 * PLACE_PART)
+		npool = 0;
+	if (npool)
+		pool_start(g->place_pool, settle_part, &j, parts);
+	for (size_t k = 0; k < b->n && k < failed; k++)
+		if ((!npool || !in_pool(g, &b->p[k])) && place_settle(g, r, &b->p[k], g->e) < 0)
+			failed = k;
+	if (!npool)
+		return failed == SIZE_MAX ? 0 : -1;
+	pool_wait(g->place_pool);
+	for (int t = 0; t < g->npw; t++)
+		if (g->pw[t].err.code != EXIT_OK && g->pw[t].err_task < failed) {
+			first = &g->pw[t];
+			failed = first->err_task;
+		}
+	if (first) {
+		err_clear(g->e);
+		err_set(g->e, first->err.code, "%s", first->err.msg);
+	}
+	for (int t = 0; t < g->npw; t++)
+		err_clear(&g->pw[t].err);
+	return failed == SIZE_MAX ? 0 : -1;
+}
+
+/* The counts and the --placed list of placement k, in order; *kept tells
+ * whether the batch keeps it (it lights a pixel drawn). */
+static int keep(struct engine *g, struct batch *b, const struct rows *r, size_t k, int *kept)
+{
+	struct placement *p = &b->p[k];
+	const struct wfs_source *src = &p->src;
+	const struct wfs_model *md = g->plugins.p[p->from].m;
+	struct wfs_box *box = &p->box;
+	size_t i = p->row;
+
+	*kept = 0;
+	if (box->x0 < 0) box->x0 = 0;
+	if (box->y0 < 0) box->y0 = 0;
+	if (box->x1 > WFS_NPIX) box->x1 = WFS_NPIX;
+	if (box->y1 > WFS_NPIX) box->y1 = WFS_NPIX;
+	if (box->x0 >= box->x1 || box->y0 >= box->y1) {
 		g->offdet++;    /* all its light misses this SCA */
 		return 0;
 	}
 	g->placements++;
-	g->per_model[m]++;
-	g->flux_requested[src.sca - 1] += src.flux;
-	g->placed_on[src.sca - 1]++;
+	g->per_model[p->from]++;
+	g->flux_requested[src->sca - 1] += src->flux;
+	g->placed_on[src->sca - 1]++;
 	if (g->placed && !g->placed_roman &&
-	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src.id, src.sca,
-		    src.x + 1, src.y + 1, src.flux, src.mag, md->name) < 0)
+	    fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.6g,%.4f,%s\n", src->id, src->sca,
+		    src->x + 1, src->y + 1, src->flux, src->mag, md->name) < 0)
 		return err_sys(g->e, "%s", g->o->placed);
 	if (g->placed && g->placed_roman && !g->listed[i]) {
+		/* the row's own columns come first (pend) */
+		const double *param = b->param + p->param_off -
+				      (p->from != p->model ? md->ncolumns : 0);
+
 		g->listed[i] = 1;
-		if (placed_roman_row(g, r, i, md, param, &src) < 0)
+		if (placed_roman_row(g, r, i, md, param, src) < 0)
 			return err_sys(g->e, "%s", g->o->placed);
 	}
 	/* With --rows, counted and listed as in a run of the whole SCA (the
@@ -424,27 +567,12 @@ static int add_placement(struct engine *g, struct batch *b, const struct rows *r
 	{
 		int margin = g->o->level ? 1 : 0;
 
-		if (box.y0 < g->ylo - margin)
-			box.y0 = g->ylo - margin;
-		if (box.y1 > g->yhi + margin)
-			box.y1 = g->yhi + margin;
+		if (box->y0 < g->ylo - margin)
+			box->y0 = g->ylo - margin;
+		if (box->y1 > g->yhi + margin)
+			box->y1 = g->yhi + margin;
 	}
-	if (box.y0 >= box.y1)
-		return 0;
-	/* drawn by the drawing model, with its columns (src.param) */
-	md = g->plugins.p[drawer_of(g, m)].m;
-	if (grow((void **)&b->p, &b->cap, b->n + 1, sizeof(*b->p)) < 0 ||
-	    grow((void **)&b->param, &b->capparam, b->nparam + md->ncolumns + 1,
-		 sizeof(double)) < 0)
-		return err_sys(g->e, "placements");
-	p = &b->p[b->n++];
-	p->src = src;
-	p->box = box;
-	p->model = drawer_of(g, m);
-	p->slot = slot;
-	p->param_off = b->nparam;
-	memcpy(b->param + b->nparam, src.param, md->ncolumns * sizeof(double));
-	b->nparam += md->ncolumns;
+	*kept = box->y0 < box->y1;
 	return 0;
 }
 
@@ -469,7 +597,7 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 		if (source_at(g, r, i, m, param, g->slot[0].sca, centre, centre, &src) < 0)
 			return -1;
 		if (pl->reach(pl->state, &src, &ext) < 0)
-			return row_refused(g, r, i, pl->m, "reach() failed" MODEL_SILENT);
+			return row_refused(g->e, r, i, pl->m, "reach() failed" MODEL_SILENT);
 		if (!(ext >= 0) || isinf(ext))
 			return err_set(g->e, EXIT_PLUGIN, "%s:%ld: model '%s': reach() gave %g "
 				       "pixels, not a finite number >= 0", r->file, r->line[i],
@@ -477,8 +605,8 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 		*reach = ext * WFS_PIXSCALE;
 		return 0;
 	}
-	if (make_source(g, r, i, m, param, g->slot[0].sca, 0, 0, &src) < 0 ||
-	    footprint(g, r, i, m, &src, &box) < 0)
+	if (source_at(g, r, i, m, param, g->slot[0].sca, 0, 0, &src) < 0 ||
+	    settle(g, r, i, drawer_of(g, m), &src, &box, g->e) < 0)
 		return -1;
 	ext = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1));
 	*reach = (ext + 2) * WFS_PIXSCALE;
@@ -683,8 +811,8 @@ static int place_on_slot(struct engine *g, const struct rows *r, struct batch *b
 			size_t i = g->cand[k];
 
 			if (!isnan(g->px[k]) &&
-			    add_placement(g, b, r, i, model[i], &param[i * MAX_COLUMNS], s,
-					  g->px[k], g->py[k]) < 0)
+			    pend(g, b, r, i, model[i], &param[i * MAX_COLUMNS], s,
+				  g->px[k], g->py[k]) < 0)
 				return -1;
 		}
 		return 0;
@@ -710,7 +838,7 @@ static int place_on_slot(struct engine *g, const struct rows *r, struct batch *b
 			if (isnan(x))
 				continue;
 		}
-		if (add_placement(g, b, r, i, model[i], &param[i * MAX_COLUMNS], s, x, y) < 0)
+		if (pend(g, b, r, i, model[i], &param[i * MAX_COLUMNS], s, x, y) < 0)
 			return -1;
 	}
 	return 0;
@@ -744,8 +872,9 @@ static const struct rows *moved_rows(struct engine *g, const struct rows *r)
 int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 {
 	double *param = NULL, maxreach = 0;
-	size_t nxy = 0;
-	int *model = NULL, rc = -1;
+	size_t nxy = 0, n = 0;
+	int *model = NULL, rc = -1, pended = 0;
+	struct err stopped;
 
 	b->n = b->nparam = 0;
 	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)
@@ -779,11 +908,30 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 		goto out;
 	project_sky_to_focal(g, r, maxreach);
 	slot_masks(g, r, maxreach);
-	for (int s = 0; s < g->nslot; s++)
-		if (place_on_slot(g, r, b, s, model, param, nxy) < 0)
-			goto out;
+	for (int s = 0; s < g->nslot && !pended; s++)
+		if (place_on_slot(g, r, b, s, model, param, nxy) < 0) {
+			/* reported only if no placement before it fails */
+			pended = -1;
+			stopped = *g->e;
+			err_clear(g->e);
+		}
 	for (size_t i = 0; i < b->n; i++)
 		b->p[i].src.param = b->param + b->p[i].param_off;
+	if (settle_all(g, r, b) < 0)
+		goto out;
+	if (pended < 0) {
+		*g->e = stopped;
+		goto out;
+	}
+	for (size_t k = 0; k < b->n; k++) {
+		int kept;
+
+		if (keep(g, b, r, k, &kept) < 0)
+			goto out;
+		if (kept)
+			b->p[n++] = b->p[k];
+	}
+	b->n = n;
 	rc = 0;
 out:
 	free(param);

@@ -257,6 +257,8 @@ static int read_appended(struct plugin *pl, struct err *e)
 	}
 	if (WFS_HAS(m->size, struct wfs_model, reach))
 		pl->reach = m->reach;
+	if (WFS_HAS(m->size, struct wfs_model, flags))
+		pl->flags = m->flags & WFS_PARALLEL_PREPARE;
 	return 0;
 }
 

@@ -41,6 +41,7 @@ struct plugin {
 	int nsettings;
 	int (*reach)(void *state, const struct wfs_source *src, double *pixels);
 	int drawer;             /* index of the drawn_by model, or -1 */
+	uint32_t flags;         /* WFS_PARALLEL_PREPARE or 0 */
 };
 
 /* Column c of pl's model, through the plugin's own stride. */

@@ -3,10 +3,15 @@
  *
  * The built-in grids are built or read from the cache (psfbuild.c) the
  * first time a model asks for one; a --psf FILE serves every SCA, a --psf
- * FILE with %d one file per SCA.  Grids are loaded on the main thread only
- * (in prepare() or footprint()); workers only read grids already loaded.
+ * FILE with %d one file per SCA.  Grids are loaded in prepare() or
+ * footprint(), on the main thread or, for a model whose prepare() runs on
+ * several (WFS_PARALLEL_PREPARE), on any of those: one at a time under
+ * grid_lock, each published whole (a release store that psfgrids_get()'s
+ * acquire load pairs with), so a thread that finds a grid sees all of it.
+ * Render workers only read grids already loaded.
  */
 #include <limits.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -20,7 +25,13 @@ const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls)
 {
 	if (g->user_grid && cls < 3)
 		return g->user_grid;
-	return g->grid[sca - 1][cls];
+	return __atomic_load_n(&g->grid[sca - 1][cls], __ATOMIC_ACQUIRE);
+}
+
+/* Make grid (sca, cls) visible to every thread, whole. */
+static void publish(struct engine *g, int sca, int cls, struct psf_grid *grid)
+{
+	__atomic_store_n(&g->grid[sca - 1][cls], grid, __ATOMIC_RELEASE);
 }
 
 /* A --psf file made for another filter or (with %d) another SCA than it
@@ -52,7 +63,7 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 
 /* The halo (class 3): always the built-in optics' (a --psf file's core is
  * scaled to join it by the point model). */
-static int need_halo(struct engine *g, int sca)
+static int need_halo(struct engine *g, int sca, struct err *e)
 {
 	const char *rs = host_setting(g, "psf-halo-radius");
 	char *end = NULL;
@@ -60,7 +71,7 @@ static int need_halo(struct engine *g, int sca)
 	struct psf_grid *grid;
 
 	if (rs && (*end || end == rs || rad < 32 || rad > PSF_HALO_MAX))
-		return err_set(g->e, EXIT_INPUT, "psf-halo-radius: expected 32 to %d "
+		return err_set(e, EXIT_INPUT, "psf-halo-radius: expected 32 to %d "
 			       "pixels, not '%s'", PSF_HALO_MAX, rs);
 	if (strcmp(g->o->psf, "builtin"))
 		host_log(g, 1, "%s: the far wing beyond its box is the built-in optics' "
@@ -68,52 +79,66 @@ static int need_halo(struct engine *g, int sca)
 	host_log(g, 1, "PSF halo for %s SCA %d, +-%ld pixels: building or loading",
 		 g->filter_name, sca, rad);
 	if (!(grid = psf_builtin_halo(g->o->filter, sca, (int)rad, 1,
-				      g->o->level ? PSF_EPSF_NOIPC : PSF_EPSF, &g->pbo, g->e)))
+				      g->o->level ? PSF_EPSF_NOIPC : PSF_EPSF, &g->pbo, e)))
 		return -1;
-	g->grid[sca - 1][3] = grid;
+	publish(g, sca, 3, grid);
 	return 0;
 }
 
-/* Make sure the ePSF grid of (sca, cls) is loaded.  Main thread only. */
-int psfgrids_need(struct engine *g, int sca, int cls)
+/* Load the grid of (sca, cls), with grid_lock held; errors into e. */
+static int load(struct engine *g, int sca, int cls, struct err *e)
 {
 	const struct scene_opts *o = g->o;
 	struct psf_grid *grid;
 
 	if (psfgrids_get(g, sca, cls))
-		return 0;
+		return 0;       /* another thread loaded it first */
 	if (cls == 3)
-		return need_halo(g, sca);
+		return need_halo(g, sca, e);
 	if (strcmp(o->psf, "builtin")) {
 		/* A user file: per SCA when the name holds %d, and then its one
 		 * size serves every brightness class. */
 		char path[PATH_MAX];
 
 		if (g->grid[sca - 1][0]) {
-			g->grid[sca - 1][cls] = g->grid[sca - 1][0];
+			publish(g, sca, cls, g->grid[sca - 1][0]);
 			return 0;
 		}
-		if (name_expand(path, sizeof(path), "--psf", o->psf, sca, NULL, g->e) < 0 ||
-		    !(grid = psf_grid_read(path, g->e)))
+		if (name_expand(path, sizeof(path), "--psf", o->psf, sca, NULL, e) < 0 ||
+		    !(grid = psf_grid_read(path, e)))
 			return -1;
 		psf_file_warn(g, grid, path, sca);
 		if (grid->kind == PSF_OPTICAL &&
-		    psf_make_epsf_kind(grid, o->level ? PSF_EPSF_NOIPC : PSF_EPSF, g->e) < 0) {
+		    psf_make_epsf_kind(grid, o->level ? PSF_EPSF_NOIPC : PSF_EPSF, e) < 0) {
 			psf_grid_free(grid);
 			return -1;
 		}
-		g->grid[sca - 1][0] = grid;
-		g->grid[sca - 1][cls] = grid;
+		publish(g, sca, 0, grid);
+		publish(g, sca, cls, grid);
 		return 0;
 	}
 	host_log(g, 1, "ePSF grid for %s SCA %d, %d samples: building or loading",
 		 g->filter_name, sca, psf_class_n[cls]);
 	/* levels 1 and 2 apply IPC to the charge themselves (levels.c) */
 	if (!(grid = psf_builtin(o->filter, sca, cls, o->level ? PSF_EPSF_NOIPC : PSF_EPSF,
-				 &g->pbo, g->e)))
+				 &g->pbo, e)))
 		return -1;
-	g->grid[sca - 1][cls] = grid;
+	publish(g, sca, cls, grid);
 	return 0;
+}
+
+/* Make sure the ePSF grid of (sca, cls) is loaded, from any thread that
+ * runs prepare() or footprint(); errors into e. */
+int psfgrids_need(struct engine *g, int sca, int cls, struct err *e)
+{
+	int rc;
+
+	if (psfgrids_get(g, sca, cls))
+		return 0;
+	pthread_mutex_lock(&g->grid_lock);
+	rc = load(g, sca, cls, e);
+	pthread_mutex_unlock(&g->grid_lock);
+	return rc;
 }
 
 

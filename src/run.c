@@ -71,9 +71,10 @@ static void engine_setting_strings(struct engine *g)
  * plugins (loaded by each engine: a plugin's state may hold per-exposure
  * values it read from host->setting), workers' state on the shared pool. */
 static int engine_init(struct engine *g, const struct scene_opts *o, const struct exposure *x,
-		       struct pool *pool, struct err *e)
+		       struct pool *pool, struct pool *place_pool, struct err *e)
 {
 	memset(g, 0, sizeof(*g));
+	pthread_mutex_init(&g->grid_lock, NULL);
 	g->o = o;
 	g->x = x;
 	g->e = e;
@@ -108,8 +109,18 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	if (!(g->fft = fftconv_new()))
 		return err_sys(e, "FFT set-up");
 	g->pool = pool;
+	g->place_pool = place_pool;
 	if (render_threads_init(g) < 0)
 		return -1;
+	if (place_pool) {
+		g->npw = pool_threads(place_pool);
+		if (!(g->pw = calloc(g->npw, sizeof(*g->pw))))
+			return err_sys(e, "threads");
+		for (int i = 0; i < g->npw; i++) {
+			g->pw[i].g = g;
+			g->pw[i].place = 1;
+		}
+	}
 	return psfgrids_open_user(g);
 }
 
@@ -117,6 +128,7 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 static void engine_free(struct engine *g)
 {
 	render_threads_stop(g);
+	free(g->pw);
 	plugins_free(&g->plugins);
 	fftconv_free(g->fft);
 	for (int s = 0; s < g->nslot; s++) {
@@ -136,6 +148,7 @@ static void engine_free(struct engine *g)
 	free(g->listed);
 	free(g->mra); free(g->mdec); free(g->moved);
 	sky_free(&g->sky);
+	pthread_mutex_destroy(&g->grid_lock);
 }
 
 /*
@@ -382,7 +395,8 @@ static int series_per_pass(const struct scene_opts *o, const struct exposure *x,
 /* Exposures x[first .. first+n-1] drawn in one pass over the catalogs: an
  * engine each, the catalogs streamed through them, each written. */
 static int run_pass(const struct scene_opts *o, char *const *catalogs, struct exposure *x,
-		    int n, struct pool *pool, struct into *into, struct timespec t0,
+		    int n, struct pool *pool, struct pool *place_pool, struct into *into,
+		    struct timespec t0,
 		    struct err *e)
 {
 	struct engine **g = calloc(n, sizeof(*g));
@@ -396,7 +410,7 @@ static int run_pass(const struct scene_opts *o, char *const *catalogs, struct ex
 			goto out;
 		}
 		made++;
-		if (engine_init(g[i], o, &x[i], pool, e) < 0 ||
+		if (engine_init(g[i], o, &x[i], pool, place_pool, e) < 0 ||
 		    (into && into_apply(into, &g[i]->sky, e) < 0))
 			goto out;
 		if ((x[i].placed && placed_open(g[i]) < 0) ||
@@ -424,10 +438,10 @@ out:
 int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 {
 	struct exposure *x = NULL;
-	struct pool *pool = NULL;
+	struct pool *pool = NULL, *place_pool = NULL;
 	struct into *into = NULL;
 	struct timespec t0;
-	int n = 0, per, rc = -1;
+	int n = 0, per, nthreads, rc = -1;
 
 	clock_gettime(CLOCK_MONOTONIC, &t0);
 	if (o->into && (o->pointings || o->row_first || !strcmp(o->output, "-") ||
@@ -463,12 +477,17 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 				"at most %d at a time (%.0f MB each)\n", n, (n + per - 1) / per,
 				per, exposure_bytes(o, &x[0]) / 1048576.0);
 	}
-	if (!(pool = pool_new(o->threads > 0 ? o->threads : pool_cpus()))) {
+	nthreads = o->threads > 0 ? o->threads : pool_cpus();
+	/* the models' prepare() on as many threads, beside the render pool's
+	 * (place.c): one thread would only stand in for the main one */
+	if (!(pool = pool_new(nthreads)) ||
+	    (nthreads > 1 && !(place_pool = pool_new(nthreads)))) {
 		err_sys(e, "memory");
 		goto out;
 	}
 	for (int i = 0; i < n; i += per)
-		if (run_pass(o, catalogs, x + i, n - i < per ? n - i : per, pool, into, t0, e) < 0)
+		if (run_pass(o, catalogs, x + i, n - i < per ? n - i : per, pool, place_pool,
+			     into, t0, e) < 0)
 			goto out;
 	if (into && into_compose(into, x[0].output, e) < 0)
 		goto out;
@@ -476,6 +495,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 out:
 	into_free(into);
 	pool_free(pool);
+	pool_free(place_pool);
 	exposures_free(x, n);
 	return rc;
 }

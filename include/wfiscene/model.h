@@ -26,13 +26,15 @@
  *                           position the row may throw light, so the host
  *                           knows which SCAs it may land on
  *   thread_start(state, &t) once per worker thread that renders this model
- *   prepare(state, src)     once per row and SCA it lands on, main thread,
- *                           with x, y, sca, flux and mag set for that SCA:
+ *   prepare(state, src)     once per row and SCA it lands on, main thread
+ *                           (several threads: WFS_PARALLEL_PREPARE), with
+ *                           x, y, sca, flux and mag set for that SCA:
  *                           validate the row's parameters and precompute
  *                           into src->aux
- *   footprint(state, src)   once per row and SCA it lands on, main thread: the
- *                           pixels the source may touch, so the host can bin
- *                           it by tile
+ *   footprint(state, src)   once per row and SCA it lands on, right after
+ *                           its prepare() on the same thread: the pixels
+ *                           the source may touch, so the host can bin it
+ *                           by tile
  *   render(state, t, ...)   once per (source, tile) pair, in worker threads
  *   thread_stop(state, t)   per thread started
  *   fini(state)             once
@@ -122,10 +124,11 @@ extern "C" {
 /* The edition of this header, raised whenever members are appended (the
  * version above stays): 1 the first; 2 reach(), settings, column_size,
  * setting_size, wfs_host.source_size, wfs_source.flux_meaning; 3 the
- * exposure's time, wfs_source.mjd and wfs_model.drawn_by.  A plugin MAY test
+ * exposure's time, wfs_source.mjd and wfs_model.drawn_by; 4 wfs_model.flags
+ * (WFS_PARALLEL_PREPARE).  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
-#define WFS_ABI_EDITION 3
+#define WFS_ABI_EDITION 4
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -238,11 +241,12 @@ struct wfs_host {
 	/* The ePSF of SCA sca and size class cls at position (x, y).  Returns 0,
 	 * or -1 with an error recorded.  The arrays stay valid and unchanged
 	 * until fini().  The host loads (or builds) a grid the first time it is
-	 * asked for from prepare() or footprint(), which run in the main
-	 * thread; render() may then ask for it from any thread.  A model that
-	 * draws with the ePSF MUST therefore ask for its source's SCA and class
-	 * in prepare() or footprint() first; a model that never asks costs no
-	 * PSF at all. */
+	 * asked for from prepare() or footprint() (on whichever thread the
+	 * host runs them: one grid is loaded once, the other threads that
+	 * want it waiting); render() may then ask for it from any thread.  A
+	 * model that draws with the ePSF MUST therefore ask for its source's
+	 * SCA and class in prepare() or footprint() first; a model that never
+	 * asks costs no PSF at all. */
 	int (*epsf)(void *ctx, int sca, double x, double y, int cls,
 		    struct wfs_epsf *out);
 
@@ -378,9 +382,30 @@ struct wfs_model {
 	 * catalog after this model's), to the drawing model's prepare(),
 	 * footprint() and render(), and reach() where this model's prepare()
 	 * ran first on a copy.  The two models' columns together are at most
-	 * 32, the most one model may read. */
+	 * 32, the most one model may read.  The deciding model's prepare()
+	 * runs on the host's main thread, in catalog order, whatever its
+	 * flags. */
 	const char *drawn_by;
+
+	/* Edition 4.  What the model allows the host, WFS_PARALLEL_PREPARE or
+	 * 0; absent: 0. */
+	uint32_t flags;
 };
+
+/*
+ * flags: prepare() and footprint() are thread-safe.  The host MAY then call
+ * them for different sources from several threads at once (never for one
+ * source from two threads; footprint() right after prepare() on the same
+ * thread), while render() draws an earlier chunk's sources on others.  The
+ * model guards whatever its prepare() shares (caches, counters), and its
+ * result for a source MUST NOT depend on which thread prepared it or on
+ * which other sources were prepared before it, so the image stays the
+ * same for any number of threads.  host->error() from such a call records
+ * that thread's error (the host reports the first failing row in catalog
+ * order, as without the flag).  Without the flag both run on the host's
+ * main thread one source at a time.
+ */
+#define WFS_PARALLEL_PREPARE 1u
 
 #if defined(__GNUC__)
 #define WFS_EXPORT __attribute__((visibility("default")))

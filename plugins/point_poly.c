@@ -8,10 +8,12 @@
  *
  * The table is an open-addressed hash of POLY_SLOTS slots, never removed
  * from, and read by render() on the workers while prepare() adds to it for
- * the next chunk of rows, on several threads.  So a slot is published as
- * in a single-writer lock-free map: the writers take turns (p->lock), and
- * the one adding looks again under the lock, fills p->slot[i] while it is
- * still unseen, then stores its key into p->keys[i] with release order;
+ * the next chunk of rows, on several threads.  A copy is made outside the
+ * table by whichever thread first misses it (two may make the same one;
+ * one is kept), and then a slot is published as in a single-writer
+ * lock-free map: the writers take turns (p->lock), and the one adding looks
+ * again under the lock, fills p->slot[i] while it is still unseen, then
+ * stores its key into p->keys[i] with release order;
  * every probe loads p->keys[i] with acquire order and reads the slot only
  * after seeing its key there, so it sees the slot whole.  (A probe for a
  * key added in an earlier chunk never passes a slot being filled, as that
@@ -123,79 +125,90 @@ static void sat_table(struct poly *q, double *row)
 	}
 }
 
-/* The polyphase copy of an n x n ePSF array under key, filled into an empty
- * slot but not published (poly_publish).  With p->lock held, which keeps
- * anything else from being added before it is published.  NULL with an
- * error recorded when it fails. */
-static struct poly *poly_make(struct point *p, uint64_t key, const float *node, int n, int over)
+/* Free what poly_build() allocated (a copy another thread beat into the
+ * table, or one that failed). */
+static void poly_drop(struct poly *q)
+{
+	free(q->plane);
+	free(q->sat);
+	free(q->ee);
+	q->plane = q->sat = NULL;
+	q->ee = NULL;
+}
+
+/* The polyphase copy of an n x n ePSF array under key, into *q, outside
+ * the table: any thread, no lock.  Returns 0, or -1 with an error recorded
+ * (poly_drop() then has nothing to free). */
+static int poly_build(struct point *p, uint64_t key, const float *node, int n, int over,
+		      struct poly *q)
 {
 	int m = (n + over - 1) / over + 2 * PAD + 1;
-	size_t i;
-	struct poly q = { .key = key, .n = n, .over = over, .centre = (n - 1) / 2, .m = m };
 	double *row;
 
-	if (poly_probe(p, key, &i))
-		return NULL;    /* not reached: the callers look first */
-	if (i == POLY_SLOTS) {
-		p->host->error(p->host->ctx, "too many ePSF nodes and cells (%d)", POLY_SLOTS);
-		return NULL;
-	}
-	q.nee = q.centre / over;
-	q.plane = calloc((size_t)over * over * m * m + VSLACK, sizeof(float));
-	q.sat = malloc((size_t)over * over * (m + 1) * (m + 1) * sizeof(float));
-	q.ee = calloc((size_t)q.nee + 1, sizeof(double));
+	*q = (struct poly){ .key = key, .n = n, .over = over, .centre = (n - 1) / 2, .m = m };
+	q->nee = q->centre / over;
+	q->plane = calloc((size_t)over * over * m * m + VSLACK, sizeof(float));
+	q->sat = malloc((size_t)over * over * (m + 1) * (m + 1) * sizeof(float));
+	q->ee = calloc((size_t)q->nee + 1, sizeof(double));
 	row = malloc((size_t)(m + 1) * sizeof(double));
-	if (!q.plane || !q.sat || !q.ee || !row) {
-		free(q.plane);
-		free(q.sat);
-		free(q.ee);
+	if (!q->plane || !q->sat || !q->ee || !row) {
 		free(row);
-		p->host->error(p->host->ctx, "out of memory");
-		return NULL;
+		poly_drop(q);
+		return p->host->error(p->host->ctx, "out of memory");
 	}
 	for (int r = 0; r < over; r++)
 		for (int s = 0; s < over; s++) {
-			float *pl = q.plane + (size_t)(r * over + s) * m * m;
+			float *pl = q->plane + (size_t)(r * over + s) * m * m;
 
 			for (int y = r, a = PAD; y < n; y += over, a++)
 				for (int x = s, b = PAD; x < n; x += over, b++)
 					pl[a * m + b] = node[(size_t)y * n + x];
 		}
-	ee_table(&q, node);
-	sat_table(&q, row);
+	ee_table(q, node);
+	sat_table(q, row);
 	free(row);
-	p->slot[i] = q;
-	return &p->slot[i];
+	return 0;
 }
 
-/* poly_add() with p->lock held. */
-static struct poly *poly_add_locked(struct point *p, uint64_t key, const float *node, int n,
-				    int over)
+/*
+ * Put the copy *q into the table and publish it, unless a copy under its
+ * key got there first (then *q is dropped and that one returned): the
+ * writers take turns under p->lock, so a slot is filled by one thread while
+ * unseen.  NULL with an error recorded when the table is full.
+ */
+static struct poly *poly_insert(struct point *p, struct poly *q)
 {
+	struct poly *in;
 	size_t i;
-	struct poly *q = poly_probe(p, key, &i);
 
-	if (q)
-		return q;
-	if (!(q = poly_make(p, key, node, n, over)))
-		return NULL;
-	poly_publish(p, (size_t)(q - p->slot));
-	return q;
+	pthread_mutex_lock(&p->lock);
+	if ((in = poly_probe(p, q->key, &i))) {
+		poly_drop(q);
+	} else if (i == POLY_SLOTS) {
+		poly_drop(q);
+		p->host->error(p->host->ctx, "too many ePSF nodes and cells (%d)", POLY_SLOTS);
+	} else {
+		p->slot[i] = *q;
+		poly_publish(p, i);
+		in = &p->slot[i];
+	}
+	pthread_mutex_unlock(&p->lock);
+	return in;
 }
 
 /* The polyphase copy of an n x n ePSF array under key, made and published
- * the first time.  NULL with an error recorded when it fails. */
+ * the first time (two threads may both make it; one copy is kept).  NULL
+ * with an error recorded when it fails. */
 struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over)
 {
 	size_t i;
-	struct poly *q = poly_probe(p, key, &i);
+	struct poly *q = poly_probe(p, key, &i), made;
 
 	if (q)
 		return q;
-	pthread_mutex_lock(&p->lock);
-	q = poly_add_locked(p, key, node, n, over);
-	pthread_mutex_unlock(&p->lock);
-	return q;
+	if (poly_build(p, key, node, n, over, &made) < 0)
+		return NULL;
+	return poly_insert(p, &made);
 }
 
 /* The key of the blended cell holding (x, y): odd, so never a node's. */
@@ -207,19 +220,37 @@ uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 	return 1 | (uint64_t)src->sca << 1 | (uint64_t)src->psf_class << 8 | cx << 16 | cy << 32;
 }
 
-/* cell_add() with p->lock held: the cell under key blended from e's nodes,
- * unless another thread made it first. */
-static struct poly *cell_make(struct point *p, uint64_t key, const struct wfs_epsf *ep)
+/* psf-blend=cell: the ePSF blended once at the centre of the source's cell
+ * (bilinear in position, as the host's weights say), so a source reads one
+ * array instead of four.  Made outside the lock, like poly_add().  NULL
+ * with an error recorded when it fails. */
+struct poly *cell_add(struct point *p, const struct wfs_source *src)
 {
-	const struct wfs_epsf e = *ep;
-	struct poly *c = (struct poly *)poly_find(p, key);
+	uint64_t key = cell_key(p, src);
+	struct wfs_epsf e;
+	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
+	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
+	struct poly *c = (struct poly *)poly_find(p, key), made;
 	const float *cnode[4];
 	const struct poly *cpoly[4];
 	float *mix;
 	size_t nn;
+	int rc;
 
 	if (c)
 		return c;
+	if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
+		return NULL;
+	/* what the cell is blended from, for the core's correction
+	 * (psf-blend=core): the nodes' own polyphase copies too, made
+	 * first, so that the cell is published whole */
+	for (int k = 0; k < 4; k++) {
+		cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
+		cpoly[k] = NULL;
+		if (p->blend == BLEND_CORE && cnode[k] &&
+		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over)))
+			return NULL;
+	}
 	nn = (size_t)e.n * e.n;
 	if (!(mix = malloc(nn * sizeof(float)))) {
 		p->host->error(p->host->ctx, "out of memory");
@@ -233,51 +264,16 @@ static struct poly *cell_make(struct point *p, uint64_t key, const struct wfs_ep
 				v += e.weight[k] * e.node[k][i];
 		mix[i] = (float)v;
 	}
-	/* what the cell is blended from, for the core's correction
-	 * (psf-blend=core): the nodes' own polyphase copies too, made
-	 * first, so that the cell is published whole */
-	for (int k = 0; k < 4; k++) {
-		cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
-		cpoly[k] = NULL;
-		if (p->blend == BLEND_CORE && cnode[k] &&
-		    !(cpoly[k] = poly_add_locked(p, (uint64_t)(uintptr_t)e.node[k], e.node[k],
-						 e.n, e.over))) {
-			free(mix);
-			return NULL;
-		}
-	}
-	c = poly_make(p, key, mix, e.n, e.over);
+	rc = poly_build(p, key, mix, e.n, e.over, &made);
 	free(mix);
-	if (!c)
+	if (rc < 0)
 		return NULL;
 	for (int k = 0; k < 4; k++) {
-		c->cnode[k] = cnode[k];
-		c->cweight[k] = cnode[k] ? e.weight[k] : 0;
-		c->cpoly[k] = cpoly[k];
+		made.cnode[k] = cnode[k];
+		made.cweight[k] = cnode[k] ? e.weight[k] : 0;
+		made.cpoly[k] = cpoly[k];
 	}
-	poly_publish(p, (size_t)(c - p->slot));
-	return c;
-}
-
-/* psf-blend=cell: the ePSF blended once at the centre of the source's cell
- * (bilinear in position, as the host's weights say), so a source reads one
- * array instead of four.  NULL with an error recorded when it fails. */
-struct poly *cell_add(struct point *p, const struct wfs_source *src)
-{
-	uint64_t key = cell_key(p, src);
-	struct wfs_epsf e;
-	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
-	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
-	struct poly *c = (struct poly *)poly_find(p, key);
-
-	if (c)
-		return c;
-	if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
-		return NULL;
-	pthread_mutex_lock(&p->lock);
-	c = cell_make(p, key, &e);
-	pthread_mutex_unlock(&p->lock);
-	return c;
+	return poly_insert(p, &made);
 }
 
 void poly_free_all(struct point *p)

@@ -95,6 +95,48 @@ rm -f "$W/one.csv"
 [ "${BENCH_RENDER_ONLY:-0}" = 1 ] && exit 0
 
 echo
+echo "## Faint stars end to end from a file: the goal of 2x10^6 stars/s"
+echo
+echo "Faint stars (AB 20-27) on SCA 1, two threads (the defaults), from a CSV file"
+echo "and from the same rows as a FITS table (\`build/contrib/csv2fits\`):"
+echo "\`starfield -n N -x -s 1 > one.csv; wfiscene --filter F129 --flux-unit abmag --report r.json -o out.fits one.csv\`."
+echo "Median of three runs by wall time (the whole process; CPU is its user +"
+echo "system); the stage seconds are that run's --report (main thread: read and"
+echo "parse, then project and place, waiting for the threads that prepare)."
+echo
+echo "| catalog | stars | wall s | CPU s | stars/s | read+parse s | project+place s | render CPU s | write s |"
+echo "|---|---|---|---|---|---|---|---|---|"
+for n in $big $huge; do
+	"$GEN" -n $n -x -s 1 > "$W/goal.csv"
+	"$B/contrib/csv2fits" "$W/goal.fits" < "$W/goal.csv"
+	sync    # the catalogs written back first, not during the runs
+	for cat in goal.csv goal.fits; do
+		for k in 1 2 3; do
+			echo "$(measure3 "'$WFS' --filter F129 --flux-unit abmag --report '$W/goal$k.json' -o '$W/o.fits' '$W/$cat'") $k"
+		done | sort -n | sed -n 2p > "$W/goal.med"
+		set -- $(cat "$W/goal.med")
+		r="$W/goal$4.json"
+		awk -v c="${cat#goal.}" -v n=$n -v t=$1 -v cpu=$2 \
+			-v rp=$(json "$r" seconds read_parse) -v pp=$(json "$r" seconds project_place) \
+			-v rc=$(json "$r" seconds render_cpu) -v wr=$(json "$r" seconds write) 'BEGIN {
+			printf "| %s file | %d | %.2f | %.2f | %.0f | %.2f | %.2f | %.2f | %.3f |\n",
+				toupper(c), n, t, cpu, n / t, rp, pp, rc, wr }'
+	done
+done
+rm -f "$W/goal.csv" "$W/goal.fits"
+echo
+echo "What a fresh process pays for zeroed memory: the first write to one SCA's"
+echo "accumulation tiles (134 MB of doubles), then twice more in the same process"
+echo "(\`cc -O2 contrib/bench/firsttouch.c -o firsttouch && firsttouch\`), right"
+echo "after the runs above and again after 10 s idle (a virtual machine may give"
+echo "freed memory back to its host, and then pays to get it again):"
+echo
+cc -O2 -o "$W/firsttouch" contrib/bench/firsttouch.c
+"$W/firsttouch" | sed 's/^/    /'
+sleep 10
+"$W/firsttouch" | sed 's/^/    /'
+
+echo
 echo "## Faint stars (AB 20-27), end to end"
 echo
 echo "\`zstd -dc stars.csv.zst | wfiscene --filter F129 --sca S --flux-unit abmag -o out.fits\`"

@@ -217,6 +217,7 @@ static const struct wfs_model precise_model = {
 	.settings = precise_settings,
 	.nsettings = (int)(sizeof(precise_settings) / sizeof(precise_settings[0])),
 	.reach = precise_reach,
+	.flags = WFS_PARALLEL_PREPARE,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -24,6 +24,9 @@
  * Settings: quick_settings below (each one's meaning and range), and
  * sersic.h's shared ones.
  */
+#include <pthread.h>
+#include <stdatomic.h>
+
 #include "sersic.h"
 #include "vmath.h"
 
@@ -41,11 +44,13 @@
  * 181 samples has 22). */
 #define PSF_HMAX 256
 
-/* One ePSF node's ring sums (psf_rings), kept for the run. */
+/* One ePSF node's ring sums (psf_rings), kept for the run in a list that
+ * only grows at its head. */
 struct quick_rings {
 	const float *node;
 	int hp, n;
 	double ring[PSF_HMAX + 1];
+	struct quick_rings *next;
 };
 
 struct quick {
@@ -64,8 +69,11 @@ struct quick {
 	double block_sb;        /* the surface brightness below which blocks are used */
 	double sigma;           /* the host's pixel-sigma, counts/s per pixel */
 	double gauss_t[QUICK_GAUSS];    /* gauss_tmax of each rule */
-	struct quick_rings *rings;      /* node_rings' cache, prepare() only */
-	int nrings, caprings;
+	/* node_rings' cache, read by prepare() on any thread: an entry is
+	 * made whole outside the list, then put at its head under lock with
+	 * release order; readers walk it from an acquire load of the head */
+	_Atomic(struct quick_rings *) rings;
+	pthread_mutex_t lock;
 };
 
 /*
@@ -461,6 +469,7 @@ static int quick_init(const struct wfs_host *host, void **state)
 	if (!p)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
+	pthread_mutex_init(&p->lock, NULL);
 	if (sersic_setting_num(host, "sersic-trunc", 1e-12, 0.5, QUICK_TRUNC, &p->trunc) ||
 	    sersic_setting_num(host, "psf-core", 0, 1e3, SERSIC_PSF_CORE, &p->psf_core) ||
 	    sersic_setting_num(host, "sersic-taylor", 0, 4, QUICK_TAYLOR, &p->taylor) ||
@@ -471,6 +480,7 @@ static int quick_init(const struct wfs_host *host, void **state)
 	    sersic_setting_num(host, "sersic-centre-cut", 0, 10, QUICK_CENTRE_CUT, &p->centre_cut) ||
 	    sersic_setting_core(host, &p->core_k) ||
 	    sersic_setting_convolve(host, &p->convolve)) {
+		pthread_mutex_destroy(&p->lock);
 		free(p);
 		return -1;
 	}
@@ -481,6 +491,7 @@ static int quick_init(const struct wfs_host *host, void **state)
 	if (p->wing_block != floor(p->wing_block)) {
 		double b = p->wing_block;
 
+		pthread_mutex_destroy(&p->lock);
 		free(p);
 		return host->error(host->ctx, "setting sersic-wing-block: %g is not a whole number of pixels", b);
 	}
@@ -499,7 +510,11 @@ static void quick_fini(void *state)
 {
 	struct quick *p = state;
 
-	free(p->rings);
+	for (struct quick_rings *r = atomic_load(&p->rings), *next; r; r = next) {
+		next = r->next;
+		free(r);
+	}
+	pthread_mutex_destroy(&p->lock);
 	free(p);
 }
 
@@ -510,27 +525,28 @@ static void quick_fini(void *state)
  * The sums are linear in the nodes' weights, so they are kept for each
  * node the run meets (node_rings) and blended with the galaxy's weights:
  * four times hp + 1 products a galaxy instead of (2 hp + 1)^2 blended
- * samples.  Only prepare() reads them, on the host's one thread.
+ * samples.  Only prepare() reads them, on whichever thread runs it.
  */
+static const struct quick_rings *rings_find(const struct quick_rings *r, const float *node,
+					    int hp, int n)
+{
+	for (; r; r = r->next)
+		if (r->node == node && r->hp == hp && r->n == n)
+			return r;
+	return NULL;
+}
+
 static const double *node_rings(struct quick *p, const struct wfs_epsf *e, int k, int hp)
 {
 	const float *node = e->node[k];
-	struct quick_rings *r;
+	const struct quick_rings *had;
+	struct quick_rings *r, *head;
 	int over = e->over;
 
-	for (int i = 0; i < p->nrings; i++)
-		if (p->rings[i].node == node && p->rings[i].hp == hp && p->rings[i].n == e->n)
-			return p->rings[i].ring;
-	if (p->nrings == p->caprings) {
-		int cap = p->caprings ? 2 * p->caprings : 16;
-		struct quick_rings *q = realloc(p->rings, (size_t)cap * sizeof(*q));
-
-		if (!q)
-			return NULL;
-		p->rings = q;
-		p->caprings = cap;
-	}
-	r = &p->rings[p->nrings++];
+	if ((had = rings_find(atomic_load_explicit(&p->rings, memory_order_acquire), node, hp, e->n)))
+		return had->ring;
+	if (!(r = malloc(sizeof(*r))))
+		return NULL;
 	r->node = node;
 	r->hp = hp;
 	r->n = e->n;
@@ -542,7 +558,18 @@ static const double *node_rings(struct quick *p, const struct wfs_epsf *e, int k
 
 			r->ring[h] += node[(size_t)(e->centre + over * dy) * e->n + e->centre + over * dx];
 		}
-	return r->ring;
+	/* another thread may have put the same sums in meanwhile: keep one */
+	pthread_mutex_lock(&p->lock);
+	head = atomic_load_explicit(&p->rings, memory_order_relaxed);
+	if ((had = rings_find(head, node, hp, e->n))) {
+		free(r);
+	} else {
+		r->next = head;
+		atomic_store_explicit(&p->rings, r, memory_order_release);
+		had = r;
+	}
+	pthread_mutex_unlock(&p->lock);
+	return had->ring;
 }
 
 static int psf_rings(struct quick *p, const struct wfs_epsf *e, double *ring, int hp)
@@ -678,6 +705,7 @@ static const struct wfs_model quick_model = {
 	.settings = quick_settings,
 	.nsettings = (int)(sizeof(quick_settings) / sizeof(quick_settings[0])),
 	.reach = quick_reach,
+	.flags = WFS_PARALLEL_PREPARE,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

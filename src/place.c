@@ -504,8 +504,13 @@ static int settle_all(struct engine *g, const struct rows *r, struct batch *b)
 	if (npool)
 		pool_start(g->place_pool, settle_part, &j, parts);
 	for (size_t k = 0; k < b->n && k < failed; k++)
-		if ((!npool || !in_pool(g, &b->p[k])) && place_settle(g, r, &b->p[k], g->e) < 0)
-			failed = k;
+		if ((!npool || !in_pool(g, &b->p[k])) && place_settle(g, r, &b->p[k], g->e) < 0) {
+			size_t f = atomic_load(&j.failed);
+
+			failed = k;     /* and the threads need not go past it */
+			while (k < f && !atomic_compare_exchange_weak(&j.failed, &f, k))
+				;
+		}
 	if (!npool)
 		return failed == SIZE_MAX ? 0 : -1;
 	pool_wait(g->place_pool);

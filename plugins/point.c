@@ -297,6 +297,8 @@ static int point_init(const struct wfs_host *host, void **state)
 		goto fail;
 	}
 	p->cell = (int)cell;
+	if (poly_table_init(p) < 0)
+		goto fail;
 	if (p->adaptive && !(p->sigma > 0)) {
 		host->error(host->ctx, "psf-box: adaptive needs the noise per pixel: --noise "
 			    "with --background or read noise, or --set psf-box-sigma=S");
@@ -305,6 +307,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	*state = p;
 	return 0;
 fail:
+	poly_free_all(p);
 	pthread_mutex_destroy(&p->lock);
 	free(p);
 	return -1;

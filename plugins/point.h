@@ -25,8 +25,10 @@
 
 /* Polyphase copies of the ePSF nodes, found by the node's address (the
  * host's arrays stay put until fini), and of blended cells, found by an odd
- * key (node addresses are even).  Open addressing, never removed. */
-#define POLY_SLOTS 8192
+ * key (node addresses are even).  Open addressing, never removed; the
+ * table's size is set once in init from psf-cell (poly_table_init). */
+#define POLY_NODES 4096         /* room kept for node copies besides the cells */
+#define POLY_SLOTS_MAX (1u << 19)
 #define MAX_ROW 1024            /* widest window row of the general path */
 /* Planes carry PAD zero samples on each side, so that the Keys taps (one
  * sample before, two after) of any pixel inside the box stay inside the
@@ -204,8 +206,11 @@ struct point {
 	struct tally *tallies;  /* one per thread that prepared */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
 	double (*core_rows)(const struct core_args *, float *);
-	struct poly slot[POLY_SLOTS];
-	_Atomic uint64_t keys[POLY_SLOTS]; /* slot[i]'s key once published (point_poly.c) */
+	struct poly *slot;      /* nslots of them, a power of two */
+	_Atomic uint64_t *keys; /* slot[i]'s key once published (point_poly.c) */
+	size_t nslots;
+	long cell_lo, cell_hi;  /* the cells kept per SCA and class along each
+				 * axis, [cell_lo, cell_hi] (cell_in_range) */
 };
 
 /* floor(x) and ceil(x) for |x| < 2^62, without a library call (the
@@ -265,6 +270,8 @@ static inline double box_half_of(const struct wfs_source *src)
 void kernels_choose(struct point *p);
 
 /* point_poly.c */
+int poly_table_init(struct point *p);
+int cell_in_range(const struct point *p, const struct wfs_source *src);
 const struct poly *poly_find(const struct point *p, uint64_t key);
 struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, int over);
 uint64_t cell_key(const struct point *p, const struct wfs_source *src);

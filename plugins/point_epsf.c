@@ -68,10 +68,14 @@ static int core_correction(const struct point *p, const struct wfs_source *src,
 /* The blend a source gets: psf-blend=core draws the 44-pixel class only;
  * the bright classes' boxes (88 and 176 pixels) are blended per source, as
  * their cells would be 4 and 16 times larger (0.6 and 2.3 MB each) for a few
- * sources. */
+ * sources.  A source in a cell beyond those the table keeps (more than one
+ * cell off the detector) is blended per source too. */
 static int source_blend(const struct point *p, const struct wfs_source *src)
 {
-	return p->blend == BLEND_CORE && src->psf_class != WFS_PSF_NORMAL ? BLEND_SOURCE : p->blend;
+	if (p->blend == BLEND_SOURCE ||
+	    (p->blend == BLEND_CORE && src->psf_class != WFS_PSF_NORMAL) || !cell_in_range(p, src))
+		return BLEND_SOURCE;
+	return p->blend;
 }
 
 /* Keys' cubic convolution weights for taps -1, 0, 1, 2 at phase t in [0, 1). */

@@ -43,7 +43,7 @@ const struct halo *halo_of(struct point *p, const struct wfs_source *src)
  * The core's scale for SCA sca and the source's class: the halo's light in
  * the class's box over the core's own (the cores are normalised within
  * their boxes, so they hold the light beyond them too), both for a source
- * on a pixel centre, from the first node of the SCA's centre.  The
+ * on a pixel centre, from the node nearest the SCA's centre.  The
  * box is the class's less one pixel all round: the grids' outermost
  * samples stand about 20% below their neighbours (a 10.5 mag star on a
  * whole pixel in F129 drew its box's last column 3.5 sigma below the
@@ -57,20 +57,24 @@ static double core_scale(struct point *p, const struct wfs_source *src, const st
 
 	if (atomic_load_explicit(ready, memory_order_acquire))
 		return p->cfac[src->sca][src->psf_class];
-	/* from the first node at the SCA's centre, whichever source asks
-	 * first (so the scale is the same for any order of the sources and
-	 * any thread): each thread that finds it unset computes it, and the
-	 * first one stores it */
+	/* from the node nearest the SCA's centre (the largest weight there),
+	 * whichever source asks first, so that the scale is the same for any
+	 * order of the sources and any thread: each thread that finds it
+	 * unset computes it, and the first one stores it */
 	if (p->host->epsf(p->host->ctx, src->sca, SCA_CENTRE, SCA_CENTRE, src->psf_class, &e) < 0)
 		return -1;
 	double fine = 0, far = 0;
-	int half = e.centre / e.over - 1;
+	int half = e.centre / e.over - 1, k0 = 0;
+
+	for (int k = 1; k < 4; k++)
+		if (e.weight[k] > e.weight[k0])
+			k0 = k;
 
 	for (int j = -half; j <= half; j++)
 		for (int i = -half; i <= half; i++) {
 			if (abs(i) == half || abs(j) == half)
 				continue;       /* the box: |i - x| < half */
-			fine += e.node[0][(size_t)(e.centre + e.over * j) * e.n + e.centre + e.over * i];
+			fine += e.node[k0][(size_t)(e.centre + e.over * j) * e.n + e.centre + e.over * i];
 			far += h->s * h->a[(size_t)(h->c + h->over * j) * h->n + h->c + h->over * i];
 		}
 	pthread_mutex_lock(&p->lock);

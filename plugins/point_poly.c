@@ -6,7 +6,7 @@
  * with each copy its summed-area tables (the box sums of the flux factor)
  * and its enclosed light (psf-box=adaptive).
  *
- * The table is an open-addressed hash of POLY_SLOTS slots, never removed
+ * The table is an open-addressed hash of p->nslots slots, never removed
  * from, and read by render() on the workers while prepare() adds to it for
  * the next chunk of rows, on several threads.  A copy is made outside the
  * table by whichever thread first misses it (two may make the same one;
@@ -27,13 +27,13 @@
 
 #include "point.h"
 
-static size_t poly_hash(uint64_t key)
+static size_t poly_hash(const struct point *p, uint64_t key)
 {
 	uint64_t h = key;
 
 	h ^= h >> 17;
 	h *= 0x9e3779b97f4a7c15ULL;
-	return (size_t)(h >> 20) & (POLY_SLOTS - 1);
+	return (size_t)(h >> 20) & (p->nslots - 1);
 }
 
 /* The published key of slot i (0: empty). */
@@ -43,12 +43,12 @@ static inline uint64_t slot_key(const struct point *p, size_t i)
 }
 
 /* The slot under key, or where it would go: *empty set to the first empty
- * slot on key's path (POLY_SLOTS when the table is full). */
+ * slot on key's path (p->nslots when the table is full). */
 static struct poly *poly_probe(struct point *p, uint64_t key, size_t *empty)
 {
-	size_t i = poly_hash(key);
+	size_t i = poly_hash(p, key);
 
-	for (size_t k = 0; k < POLY_SLOTS; k++, i = (i + 1) & (POLY_SLOTS - 1)) {
+	for (size_t k = 0; k < p->nslots; k++, i = (i + 1) & (p->nslots - 1)) {
 		uint64_t s = slot_key(p, i);
 
 		if (s == key)
@@ -58,7 +58,7 @@ static struct poly *poly_probe(struct point *p, uint64_t key, size_t *empty)
 			return NULL;
 		}
 	}
-	*empty = POLY_SLOTS;
+	*empty = p->nslots;
 	return NULL;
 }
 
@@ -179,14 +179,15 @@ static int poly_build(struct point *p, uint64_t key, const float *node, int n, i
 static struct poly *poly_insert(struct point *p, struct poly *q)
 {
 	struct poly *in;
-	size_t i;
+	size_t i = 0;
 
 	pthread_mutex_lock(&p->lock);
 	if ((in = poly_probe(p, q->key, &i))) {
 		poly_drop(q);
-	} else if (i == POLY_SLOTS) {
+	} else if (i == p->nslots) {
 		poly_drop(q);
-		p->host->error(p->host->ctx, "too many ePSF nodes and cells (%d)", POLY_SLOTS);
+		p->host->error(p->host->ctx, "too many ePSF nodes and cells (%zu): the --psf "
+			       "grid has too many nodes", p->nslots);
 	} else {
 		p->slot[i] = *q;
 		poly_publish(p, i);
@@ -209,6 +210,60 @@ struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, i
 	if (poly_build(p, key, node, n, over, &made) < 0)
 		return NULL;
 	return poly_insert(p, &made);
+}
+
+/*
+ * The table, sized once for every cell the run can make, so that it never
+ * fills in the middle of a run (which row found it full would depend on
+ * the order the threads prepare in): the cells of psf-cell pixels over
+ * the detector and one cell beyond each edge, on each of the 18 SCAs, for
+ * the one class psf-blend=core blends (the faint one) or the three of
+ * psf-blend=cell, plus POLY_NODES node copies, at most half full.  A
+ * source in a cell beyond that (a faint star placed far off the detector,
+ * whose light reaches in) reads its own four nodes (cell_in_range), as
+ * decided by its position alone.  Returns 0, or -1 with an error recorded
+ * when psf-cell is so small that the table would pass POLY_SLOTS_MAX.
+ */
+/* The slots wanted for psf-cell c (twice the cells and nodes kept). */
+static size_t slots_wanted(const struct point *p, long c)
+{
+	long side = (4088 + c - 1) / c + 2;     /* cells -1 .. ceil(4088 / c) */
+	size_t cells = p->blend == BLEND_SOURCE ? 0 : (size_t)side * side * 18 *
+		       (p->blend == BLEND_CELL ? 3 : 1);
+
+	return 2 * (cells + POLY_NODES);
+}
+
+int poly_table_init(struct point *p)
+{
+	size_t need = slots_wanted(p, p->cell), n = 1024;
+
+	p->cell_lo = -1;
+	p->cell_hi = (4088 + p->cell - 1) / p->cell;
+	if (need > POLY_SLOTS_MAX) {
+		long c = p->cell;
+
+		while (c < 4096 && slots_wanted(p, c) > POLY_SLOTS_MAX)
+			c++;
+		return p->host->error(p->host->ctx, "psf-cell: %d pixels makes more blended "
+				      "cells than the point model keeps; use %ld or more", p->cell, c);
+	}
+	while (n < need)
+		n *= 2;
+	p->nslots = n;
+	p->slot = calloc(n, sizeof(*p->slot));
+	p->keys = calloc(n, sizeof(*p->keys));
+	if (!p->slot || !p->keys)
+		return p->host->error(p->host->ctx, "out of memory for %zu ePSF copies", n);
+	return 0;
+}
+
+/* Whether src's cell is one the table keeps room for (poly_table_init). */
+int cell_in_range(const struct point *p, const struct wfs_source *src)
+{
+	double cx = floor(src->x / p->cell), cy = floor(src->y / p->cell);
+
+	return cx >= p->cell_lo && cx <= p->cell_hi && cy >= p->cell_lo && cy <= p->cell_hi;
 }
 
 /* The key of the blended cell holding (x, y): odd, so never a node's. */
@@ -278,9 +333,13 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 
 void poly_free_all(struct point *p)
 {
-	for (int i = 0; i < POLY_SLOTS; i++) {
+	for (size_t i = 0; p->slot && i < p->nslots; i++) {
 		free(p->slot[i].plane);
 		free(p->slot[i].sat);
 		free(p->slot[i].ee);
 	}
+	free(p->slot);
+	free((void *)p->keys);
+	p->slot = NULL;
+	p->keys = NULL;
 }

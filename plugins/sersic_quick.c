@@ -454,16 +454,24 @@ static int quick_block(const struct sersic_gal *g, const void *opt, double x0, d
 	return 1;
 }
 
-static int quick_init(const struct wfs_host *host, void **state)
+/* The vector profile where the CPU has it and WFISCENE_NO_SIMD is not set
+ * (the tests compare the two): chosen once per process, as a run with
+ * several exposures makes a state per exposure while others draw. */
+static pthread_once_t quick_profile_once = PTHREAD_ONCE_INIT;
+
+static void quick_profile_choose(void)
 {
 #if defined(__GNUC__) && defined(__x86_64__)
-	/* the vector profile where the CPU has it and WFISCENE_NO_SIMD is
-	 * not set (the tests compare the two) */
 	__builtin_cpu_init();
 	if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
 	    !getenv("WFISCENE_NO_SIMD"))
 		quick_profile = quick_profile_avx2;
 #endif
+}
+
+static int quick_init(const struct wfs_host *host, void **state)
+{
+	pthread_once(&quick_profile_once, quick_profile_choose);
 	struct quick *p = calloc(1, sizeof(*p));
 
 	if (!p)

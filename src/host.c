@@ -49,18 +49,22 @@ int host_error(void *ctx, const char *fmt, ...)
 	return -1;
 }
 
+/* A line at a time, written whole (threads that prepare may log at once). */
 void host_log(void *ctx, int level, const char *fmt, ...)
 {
 	struct engine *g = ctx;
+	char line[2048];
 	va_list ap;
+	int n;
 
 	if (level > g->o->verbose)
 		return;
 	va_start(ap, fmt);
-	fputs("wfiscene: ", stderr);
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
+	n = snprintf(line, sizeof(line), "wfiscene: ");
+	vsnprintf(line + n, sizeof(line) - n - 1, fmt, ap);
 	va_end(ap);
+	strcat(line, "\n");
+	fputs(line, stderr);
 }
 
 const char *host_setting(void *ctx, const char *key)

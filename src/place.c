@@ -503,7 +503,8 @@ static int settle_all(struct engine *g, const struct rows *r, struct batch *b)
 		npool = 0;
 	if (npool)
 		pool_start(g->place_pool, settle_part, &j, parts);
-	for (size_t k = 0; k < b->n && k < failed; k++)
+	for (size_t k = 0; k < b->n && k < failed &&
+	     k <= atomic_load_explicit(&j.failed, memory_order_relaxed); k++)
 		if ((!npool || !in_pool(g, &b->p[k])) && place_settle(g, r, &b->p[k], g->e) < 0) {
 			size_t f = atomic_load(&j.failed);
 

@@ -81,10 +81,69 @@ test_expect_success 'a row refused on the main thread before a bad one in the th
 	bad 3901 1195 > bad3.csv &&
 	first_error bad3.csv "^wfiscene: bad3.csv:1195: model .variable.: column .amplitude."
 '
-test_expect_success 'and so in chunks of 1000 rows, where they fall in later chunks' '
-	chunk="--chunk 1000" &&
+test_expect_success 'and so in chunks of 2000 rows, where they fall in later chunks' '
+	chunk="--chunk 2000" &&
 	first_error bad1.csv "^wfiscene: bad1.csv:1801: flux" &&
 	first_error bad2.csv "^wfiscene: bad2.csv:1101: flux" &&
 	first_error bad3.csv "^wfiscene: bad3.csv:1195: model .variable."
+'
+# The threads take 512 placements at a time (place.c, PLACE_PART): two
+# bad rows in neighbouring parts, one each side of the boundary, failing
+# at once, again and again.  Placements go SCA by SCA, so the rank of a
+# row among those of SCA 1 is its placement.
+test_expect_success 'bad rows either side of a boundary between the threads'"'"' parts' '
+	"$PY" -c "
+rows = [l.rstrip().split(\",\") for l in open(\"mix.csv\")][1:]
+sca1 = [i for i, r in enumerate(rows) if r[4] == \"1\"]
+pts = [i for i in sca1[505:520] if rows[i][5] == \"point\"]
+print(pts[0] + 2, pts[-1] + 2)
+" > lines && read a z < lines &&
+	awk -F, -v OFS=, -v a=$a -v z=$z "NR == a || NR == z { \$4 = \"1e40\" } { print }" \
+		mix.csv > edge.csv &&
+	for k in 1 2 3 4 5; do
+		first_error edge.csv "^wfiscene: edge.csv:$a: flux 1e+40" || return 1
+	done
+'
+# A model without the flag (tests/plugins/counts.c, a square) is prepared on
+# the main thread while the threads prepare the point rows: its refusal and
+# theirs still come in catalog order.  And a model drawn by counts (drawn.c)
+# hands counts its own state in footprint(), not the deciding model's.
+mkdir plugins
+test_expect_success 'test plugins counts (no flag) and drawnc (drawn by counts) build' '
+	${CC:-cc} -std=c11 -Wall -Wextra -Wno-unused-parameter -shared -fPIC \
+		-fvisibility=hidden -I"$TOP/include" -Wl,-z,defs -o plugins/counts.so \
+		"$TOP/tests/plugins/counts.c" -lm &&
+	${CC:-cc} -std=c11 -Wall -Wextra -Wno-unused-parameter -shared -fPIC \
+		-fvisibility=hidden -I"$TOP/include" -Wl,-z,defs -DDRAWN_NAME="\"drawnc\"" \
+		-DDRAWN_BY="\"counts\"" -o plugins/drawnc.so "$TOP/tests/plugins/drawn.c" -lm &&
+	"$PY" -c "
+import random
+random.seed(9)
+print(\"id,x,y,flux,type,side,dx\")
+for i in range(3000):
+    t = \"counts\" if i % 40 == 5 else \"drawnc\" if i % 40 == 25 else \"point\"
+    print(\"%d,%.2f,%.2f,%.2f,%s,%s,%s\" % (i + 1, random.uniform(10, 4070), random.uniform(10, 4070),
+          random.uniform(1, 100), t, 5 if t != \"point\" else \"\", 1.5 if t == \"drawnc\" else \"\"))
+" > sq.csv
+'
+sq() { "$WFS" --filter F129 --sca 1 --plugin-path "$TRASH/plugins" "$@"; }
+test_expect_success 'a model without the flag: the same image, and footprint() its own state' '
+	sq --threads 1 -o q1.fits sq.csv 2> log1 && sq --threads 2 -o q2.fits sq.csv 2> log2 &&
+	cmp q1.fits q2.fits &&
+	test_grep "counts: prepare 150 footprint 150" log1 &&
+	test_grep "counts: prepare 150 footprint 150" log2
+'
+test_expect_success 'its refusal and a thread'"'"'s failure, in either order' '
+	awk -F, -v OFS=, "NR == 1007 { \$6 = 4 } NR == 2500 { \$4 = \"1e40\" } { print }" \
+		sq.csv > sq1.csv &&
+	awk -F, -v OFS=, "NR == 1000 { \$4 = \"1e40\" } NR == 2487 { \$6 = 4 } { print }" \
+		sq.csv > sq2.csv &&
+	sed -n "1007p;2487p" sq.csv | cut -d, -f5 > types && test "$(sort -u types)" = counts &&
+	for t in 1 2 3; do
+		test_must_fail --status 1 sq --threads $t -o b.fits sq1.csv 2> err &&
+		test_grep "^wfiscene: sq1.csv:1007: model .counts.: column .side." err &&
+		test_must_fail --status 1 sq --threads $t -o b.fits sq2.csv 2> err &&
+		test_grep "^wfiscene: sq2.csv:1000: flux 1e+40" err && ! test -e b.fits || return 1
+	done
 '
 test_done

@@ -400,10 +400,17 @@ struct wfs_model {
  * model guards whatever its prepare() shares (caches, counters), and its
  * result for a source MUST NOT depend on which thread prepared it or on
  * which other sources were prepared before it, so the image stays the
- * same for any number of threads.  host->error() from such a call records
- * that thread's error (the host reports the first failing row in catalog
- * order, as without the flag).  Without the flag both run on the host's
- * main thread one source at a time.
+ * same for any number of threads.  That includes failing: a cache with a
+ * limit is sized when the model starts (or the model falls back to what
+ * it does without it, decided by the source alone), never full for
+ * whichever row comes last.  From such a call the model MAY use
+ * host->error() (it records that thread's error: the host reports the
+ * first failing row in catalog order, as without the flag), host->log(),
+ * host->setting() and host->epsf(); and a row after the first failing one
+ * MAY still be prepared, its result dropped.  Without the flag both run on
+ * the host's main thread one source at a time.  Either way, within a chunk
+ * of rows every deciding model's prepare() (drawn_by) runs before any
+ * drawing model's.
  */
 #define WFS_PARALLEL_PREPARE 1u
 

@@ -29,6 +29,9 @@
  * table's size is set once in init from psf-cell (poly_table_init). */
 #define POLY_NODES 4096         /* room kept for node copies besides the cells */
 #define POLY_SLOTS_MAX (1u << 19)
+/* An SCA's pixels a side and the SCAs there are (model.h, Coordinates). */
+#define SCA_SIDE 4088
+#define SCA_COUNT 18
 #define MAX_ROW 1024            /* widest window row of the general path */
 /* Planes carry PAD zero samples on each side, so that the Keys taps (one
  * sample before, two after) of any pixel inside the box stay inside the
@@ -209,8 +212,8 @@ struct point {
 	struct poly *slot;      /* nslots of them, a power of two */
 	_Atomic uint64_t *keys; /* slot[i]'s key once published (point_poly.c) */
 	size_t nslots;
-	long cell_lo, cell_hi;  /* the cells kept per SCA and class along each
-				 * axis, [cell_lo, cell_hi] (cell_in_range) */
+	long cell_hi;           /* the cells kept per SCA and class along each
+				 * axis, -1 .. cell_hi (cell_in_range) */
 };
 
 /* floor(x) and ceil(x) for |x| < 2^62, without a library call (the

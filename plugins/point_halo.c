@@ -10,8 +10,8 @@
 
 #include "point.h"
 
-/* The centre pixel of an SCA's 4088 x 4088 (model.h's coordinates). */
-#define SCA_CENTRE 2043.5
+/* The centre pixel of an SCA (model.h's coordinates). */
+#define SCA_CENTRE ((SCA_SIDE - 1) / 2.0)
 
 /* The halo of SCA sca, set up on first use by one thread under the lock. */
 const struct halo *halo_of(struct point *p, const struct wfs_source *src)

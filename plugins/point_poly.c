@@ -212,6 +212,23 @@ struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, i
 	return poly_insert(p, &made);
 }
 
+/* The last cell kept along an axis for psf-cell c: the cells -1 .. this
+ * cover the detector and one cell beyond each edge. */
+static long cell_last(long c)
+{
+	return (SCA_SIDE + c - 1) / c;
+}
+
+/* The slots wanted for psf-cell c (twice the cells and nodes kept). */
+static size_t slots_wanted(const struct point *p, long c)
+{
+	size_t side = (size_t)cell_last(c) + 2;
+	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * SCA_COUNT *
+		       (p->blend == BLEND_CELL ? 3 : 1);
+
+	return 2 * (cells + POLY_NODES);
+}
+
 /*
  * The table, sized once for every cell the run can make, so that it never
  * fills in the middle of a run (which row found it full would depend on
@@ -224,22 +241,11 @@ struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, i
  * decided by its position alone.  Returns 0, or -1 with an error recorded
  * when psf-cell is so small that the table would pass POLY_SLOTS_MAX.
  */
-/* The slots wanted for psf-cell c (twice the cells and nodes kept). */
-static size_t slots_wanted(const struct point *p, long c)
-{
-	long side = (4088 + c - 1) / c + 2;     /* cells -1 .. ceil(4088 / c) */
-	size_t cells = p->blend == BLEND_SOURCE ? 0 : (size_t)side * side * 18 *
-		       (p->blend == BLEND_CELL ? 3 : 1);
-
-	return 2 * (cells + POLY_NODES);
-}
-
 int poly_table_init(struct point *p)
 {
 	size_t need = slots_wanted(p, p->cell), n = 1024;
 
-	p->cell_lo = -1;
-	p->cell_hi = (4088 + p->cell - 1) / p->cell;
+	p->cell_hi = cell_last(p->cell);
 	if (need > POLY_SLOTS_MAX) {
 		long c = p->cell;
 
@@ -263,7 +269,7 @@ int cell_in_range(const struct point *p, const struct wfs_source *src)
 {
 	double cx = floor(src->x / p->cell), cy = floor(src->y / p->cell);
 
-	return cx >= p->cell_lo && cx <= p->cell_hi && cy >= p->cell_lo && cy <= p->cell_hi;
+	return cx >= -1 && cx <= p->cell_hi && cy >= -1 && cy <= p->cell_hi;
 }
 
 /* The key of the blended cell holding (x, y): odd, so never a node's. */

@@ -107,19 +107,17 @@ static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 		     struct wfs_epsf *out)
 {
 	struct engine *g = ctx;
-	struct worker *w = current_worker;
+	/* the calling thread's worker of this engine, NULL on the main thread */
+	struct worker *w = current_worker && current_worker->g == g ? current_worker : NULL;
 	const struct psf_grid *grid;
 
 	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 3)
 		return host_error(ctx, "no ePSF for SCA %d class %d", sca, cls);
 	if (!(grid = psfgrids_get(g, sca, cls))) {
-		int placing = w && w->g == g ? w->place
-				: pthread_equal(pthread_self(), g->main_thread);
-
-		if (!placing)
+		if (w ? !w->place : !pthread_equal(pthread_self(), g->main_thread))
 			return host_error(ctx, "ePSF of SCA %d class %d asked for in render() "
 					  "but not in prepare() or footprint()", sca, cls);
-		if (psfgrids_need(g, sca, cls, w && w->g == g ? &w->err : g->e) < 0)
+		if (psfgrids_need(g, sca, cls, w ? &w->err : g->e) < 0)
 			return -1;
 		grid = psfgrids_get(g, sca, cls);
 	}

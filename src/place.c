@@ -453,6 +453,15 @@ struct settle_job {
 	atomic_size_t failed;   /* the lowest failing placement, or SIZE_MAX */
 };
 
+/* Lower j->failed to placement k if k comes before it. */
+static void settle_failed(struct settle_job *j, size_t k)
+{
+	size_t f = atomic_load(&j->failed);
+
+	while (k < f && !atomic_compare_exchange_weak(&j->failed, &f, k))
+		;
+}
+
 static int in_pool(const struct engine *g, const struct placement *p)
 {
 	return g->plugins.p[p->model].flags & WFS_PARALLEL_PREPARE;
@@ -472,11 +481,8 @@ static void settle_part(void *arg, int wid, size_t part)
 		if (!in_pool(g, &j->b->p[k]))
 			continue;
 		if (place_settle(g, j->r, &j->b->p[k], &w->err) < 0) {
-			size_t f = atomic_load(&j->failed);
-
 			w->err_task = k;
-			while (k < f && !atomic_compare_exchange_weak(&j->failed, &f, k))
-				;
+			settle_failed(j, k);
 			break;
 		}
 	}
@@ -506,11 +512,8 @@ static int settle_all(struct engine *g, const struct rows *r, struct batch *b)
 	for (size_t k = 0; k < b->n && k < failed &&
 	     k <= atomic_load_explicit(&j.failed, memory_order_relaxed); k++)
 		if ((!npool || !in_pool(g, &b->p[k])) && place_settle(g, r, &b->p[k], g->e) < 0) {
-			size_t f = atomic_load(&j.failed);
-
-			failed = k;     /* and the threads need not go past it */
-			while (k < f && !atomic_compare_exchange_weak(&j.failed, &f, k))
-				;
+			failed = k;
+			settle_failed(&j, k);   /* the threads need not go past it */
 		}
 	if (!npool)
 		return failed == SIZE_MAX ? 0 : -1;

@@ -170,6 +170,17 @@ for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-
 		! test -e bad.fits
 	"
 done
+# The point model keeps room for every blended cell of 18 SCAs from the
+# start (a table that filled while several threads prepare would fail
+# whichever row came last): a cell so small that this passes its limit is
+# refused before any row, with the smallest that fits.
+test_expect_success 'psf-cell too small for the table: refused at start, naming the least that fits' '
+	test_must_fail --status 3 run bad.fits --set psf-cell=34 2> err &&
+	test_grep "psf-cell: 34 pixels .*use 35 or more" err && ! test -e bad.fits &&
+	test_must_fail --status 3 run bad.fits --set psf-blend=cell --set psf-cell=61 2> err &&
+	test_grep "psf-cell: 61 pixels .*use 62 or more" err && ! test -e bad.fits &&
+	run c35.fits --set psf-cell=35 && run c62.fits --set psf-blend=cell --set psf-cell=62
+'
 test_expect_success 'psf-extent-cut: faint stars in boxes cut by the noise, each pixel within the cut, flux kept; bright ones and STIPS boxes whole' '
 	"$PY" -c "
 import random

@@ -20,6 +20,9 @@
 #include "err.h"
 #include "fftconv.h"
 
+/* What model.h tells plugins of the detector is what the host draws. */
+_Static_assert(WFS_SCA_SIDE == WFS_NPIX && WFS_SCA_COUNT == WFS_NSCA,
+	       "model.h's SCA constants differ from instrument.h's");
 
 /*
  * The worker the calling thread draws for.  Thread-local because
@@ -111,7 +114,7 @@ static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 	struct worker *w = current_worker && current_worker->g == g ? current_worker : NULL;
 	const struct psf_grid *grid;
 
-	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 3)
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > WFS_PSF_HALO)
 		return host_error(ctx, "no ePSF for SCA %d class %d", sca, cls);
 	if (!(grid = psfgrids_get(g, sca, cls))) {
 		if (w ? !w->place : !pthread_equal(pthread_self(), g->main_thread))

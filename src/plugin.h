@@ -24,7 +24,7 @@
 struct err;
 
 #define PLUGIN_MAX 64
-#define PLUGIN_COLUMNS_MAX 32   /* catalog columns one model may read */
+#define PLUGIN_COLUMNS_MAX WFS_MAX_COLUMNS /* catalog columns one model may read */
 
 struct plugin {
 	char name[64];

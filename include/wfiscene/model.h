@@ -25,7 +25,9 @@
  *   reach(state, src)       once per sky row, main thread: how far from its
  *                           position the row may throw light, so the host
  *                           knows which SCAs it may land on
- *   thread_start(state, &t) once per worker thread that renders this model
+ *   thread_start(state, &t) once per worker thread that renders this model,
+ *                           on that thread before its first render() of
+ *                           the exposure: 0, or -1 to stop the run
  *   prepare(state, src)     once per row and SCA it lands on, main thread
  *                           (several threads: WFS_PARALLEL_PREPARE), with
  *                           x, y, sca, flux and mag set for that SCA:
@@ -36,11 +38,14 @@
  *                           the source may touch, so the host can bin it
  *                           by tile
  *   render(state, t, ...)   once per (source, tile) pair, in worker threads
- *   thread_stop(state, t)   per thread started
+ *   thread_stop(state, t)   per thread started (whose thread_start()
+ *                           returned 0), on the main thread once the
+ *                           workers are idle
  *   fini(state)             once
  *
  * Coordinates.  Pixel coordinates are 0-based science-frame pixels of one
- * SCA (4088 x 4088): pixel (i, j) covers [i - 0.5, i + 0.5) x [j - 0.5, j + 0.5)
+ * SCA (WFS_SCA_SIDE x WFS_SCA_SIDE, 4088 x 4088; SCAs are numbered 1 to
+ * WFS_SCA_COUNT, 18): pixel (i, j) covers [i - 0.5, i + 0.5) x [j - 0.5, j + 0.5)
  * and its centre is at (i, j).  x runs along FITS NAXIS1 (columns), y along
  * NAXIS2 (rows).  FITS and catalog pixel positions are 1-based; the host
  * converts before a plugin sees them.
@@ -78,7 +83,9 @@
  *   filter       the filter name, e.g. "F158"
  *   exptime      the exposure time in seconds, "%.17g"
  *   seed         the exposure's random seed, an unsigned decimal integer
- *   background   the background in counts/s/pixel, "%.17g" ("0" for none)
+ *   background   the background in counts/s/pixel, "%.17g" ("0" for none):
+ *                the least of the 18 SCAs', so that runs split by SCA see
+ *                the same value
  *   readnoise    the read noise in e-, "%.17g"; "0" when --noise leaves it out
  *   noise        the --noise stages drawn, each followed by a comma:
  *                "poisson,readnoise,dark,flat,cosmic," or a subset, "" for none
@@ -86,11 +93,33 @@
  *                types below), "quick" or "precise"
  *   mjd          the exposure's date as an MJD, "%.17g"; NULL when the run
  *                has no date (hosts before edition 3: always NULL)
+ *   pixel-sigma  the noise of one pixel in counts/s, "%.17g", always > 0:
+ *                the square root of the variance the --noise stages draw
+ *                (the sky's Poisson noise, read noise, dark current) over
+ *                the exposure time; when they draw none (or none that adds
+ *                anything), that of the nominal ones (the exposure's sky, or
+ *                the filter's average, and the default read noise), so
+ *                that a model which draws down to a fraction of the noise
+ *                draws a noiseless image as the mean of a noisy one.  Hosts
+ *                before edition 5 MAY answer NULL: work it out from
+ *                exptime, background, readnoise and noise then.
  *
  * and every KEY of --set KEY=VALUE (the value as typed, the last one given
  * winning); NULL for a key that is not set.  A model reads the keys it
  * declares in wfs_model.settings, and SHOULD name them after itself
  * ("psf-core", "sersic-trunc", "moffat-beta").
+ *
+ * The list above is the whole of the scene's keys.  Hosts of edition 1
+ * answered one more, now a field of the source, which a model reads only
+ * from a host whose source_size lacks that field:
+ *
+ *   sersic-flux  what a row's flux column states, "total" or "ie"
+ *                (wfs_source.flux_meaning)
+ *
+ * The host itself reads one --set key for the models: psf-halo-radius (the
+ * half-width of the WFS_PSF_HALO array, see host->epsf).  The test
+ * tests/t7027-plugin-settings.sh holds the built-in models to this: each
+ * key they read is listed here or in their own wfs_model.settings.
  *
  * Time.  An exposure may have a date (wfiscene --date, or a date column of
  * --pointings): src->mjd gives it to a model (edition 3 on, see
@@ -125,10 +154,13 @@ extern "C" {
  * version above stays): 1 the first; 2 reach(), settings, column_size,
  * setting_size, wfs_host.source_size, wfs_source.flux_meaning; 3 the
  * exposure's time, wfs_source.mjd and wfs_model.drawn_by; 4 wfs_model.flags
- * (WFS_PARALLEL_PREPARE).  A plugin MAY test
+ * (WFS_PARALLEL_PREPARE); 5 no member, but what the built-in models relied
+ * on stated here: WFS_SCA_SIDE, WFS_SCA_COUNT, WFS_MAX_COLUMNS,
+ * WFS_PSF_HALO, WFS_PRINTF, the setting pixel-sigma, thread_start()'s
+ * return value.  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
-#define WFS_ABI_EDITION 4
+#define WFS_ABI_EDITION 5
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -138,9 +170,45 @@ extern "C" {
 /* Number of per-source scratch values a model may fill in prepare(). */
 #define WFS_AUX 8
 
+/* The detector.  An SCA has WFS_SCA_SIDE science pixels a side (the
+ * reference border is the host's: a model never sees it); the SCAs are
+ * numbered 1 to WFS_SCA_COUNT (wfs_source.sca).  A model that keeps
+ * something per SCA sizes it with these, never with numbers of its own. */
+#define WFS_SCA_SIDE 4088
+#define WFS_SCA_COUNT 18
+
+/* The most catalog columns one model may read (wfs_model.ncolumns), and
+ * a deciding model and the model that draws its sources together
+ * (wfs_model.drawn_by).  The host refuses a model that declares more. */
+#define WFS_MAX_COLUMNS 32
+
+/* Compiler attributes, guarded so that the header is plain C11 for any
+ * compiler: WFS_EXPORT marks the entry (below), WFS_PRINTF(f, a) says that
+ * argument f is a printf format whose arguments start at a, so a model's
+ * host->error() and host->log() calls are checked like printf's. */
+#if defined(__GNUC__)
+#define WFS_EXPORT __attribute__((visibility("default")))
+#define WFS_PRINTF(f, a) __attribute__((format(printf, f, a)))
+#else
+#define WFS_EXPORT
+#define WFS_PRINTF(f, a)
+#endif
+
 /* The ePSF size classes: the 44, 88 and 176 pixel boxes of STIPS, chosen by
- * magnitude against the scene's bright and extra-bright limits. */
-enum wfs_psf_class { WFS_PSF_NORMAL = 0, WFS_PSF_BRIGHT = 1, WFS_PSF_XBRIGHT = 2 };
+ * magnitude against the scene's bright and extra-bright limits
+ * (wfs_source.psf_class is one of the first three).  WFS_PSF_HALO is no
+ * source's class but a fourth array host->epsf() gives: the built-in
+ * optics' ePSF of the SCA over a larger field, R = psf-halo-radius pixels
+ * either side (--set psf-halo-radius, 32 to 1024, default 256) at over = 2
+ * samples per pixel (n = 4R + 1), one node at the SCA's centre (its four
+ * nodes are the same), for the far wing of bright stars.  It is the
+ * built-in optics' whatever --psf says, normalised as the optics give it
+ * over its field, the light beyond the field left out (wfiscene(1),
+ * "Bright stars: the extent and the halo"). */
+enum wfs_psf_class {
+	WFS_PSF_NORMAL = 0, WFS_PSF_BRIGHT = 1, WFS_PSF_XBRIGHT = 2,
+	WFS_PSF_HALO = 3
+};
 
 /* What a row's flux column states, for a model with a half-light radius
  * (wfs_source.flux_meaning).  A catalog fact: STIPS's internal catalogs,
@@ -227,18 +295,19 @@ struct wfs_host {
 	 * return -1, so a callback can `return host->error(host->ctx, ...)`.
 	 * The host adds the place (file, line, model) in front. */
 	int (*error)(void *ctx, const char *fmt, ...)
-		__attribute__((format(printf, 2, 3)));
+		WFS_PRINTF(2, 3);
 
 	/* A message for people on stderr at verbosity level (0 normal, 1 -v,
 	 * 2 -vv).  Not for use in render(). */
 	void (*log)(void *ctx, int level, const char *fmt, ...)
-		__attribute__((format(printf, 3, 4)));
+		WFS_PRINTF(3, 4);
 
 	/* A setting by its key: the scene's ("filter", "exptime", ...: see
 	 * Settings above) or a --set key, or NULL when unset. */
 	const char *(*setting)(void *ctx, const char *key);
 
-	/* The ePSF of SCA sca and size class cls at position (x, y).  Returns 0,
+	/* The ePSF of SCA sca and size class cls (enum wfs_psf_class, the halo
+	 * included) at position (x, y).  Returns 0,
 	 * or -1 with an error recorded.  The arrays stay valid and unchanged
 	 * until fini().  The host loads (or builds) a grid the first time it is
 	 * asked for from prepare() or footprint() (on whichever thread the
@@ -318,7 +387,14 @@ struct wfs_model {
 	/* Release what init made.  MAY be NULL. */
 	void (*fini)(void *state);
 
-	/* Per-thread state for render(), or NULL.  MAY be NULL. */
+	/* Per-thread state for render().  thread_start() is called on a worker
+	 * thread before its first render() of this model in the exposure; it
+	 * returns 0 with *tstate set (MAY be NULL), which every render() on
+	 * that thread then gets, or -1 with an error recorded: the run stops
+	 * with exit status 3 and no file, as for render().  thread_stop() is
+	 * called for each thread whose thread_start() returned 0, on the
+	 * host's main thread once the workers are idle.  Either MAY be NULL
+	 * (both NULL: tstate is NULL). */
 	int (*thread_start)(void *state, void **tstate);
 	void (*thread_stop)(void *state, void *tstate);
 
@@ -382,7 +458,7 @@ struct wfs_model {
 	 * catalog after this model's), to the drawing model's prepare(),
 	 * footprint() and render(), and reach() where this model's prepare()
 	 * ran first on a copy.  The two models' columns together are at most
-	 * 32, the most one model may read.  The deciding model's prepare()
+	 * WFS_MAX_COLUMNS, the most one model may read.  The deciding model's prepare()
 	 * runs on the host's main thread, in catalog order, whatever its
 	 * flags. */
 	const char *drawn_by;
@@ -413,12 +489,6 @@ struct wfs_model {
  * drawing model's.
  */
 #define WFS_PARALLEL_PREPARE 1u
-
-#if defined(__GNUC__)
-#define WFS_EXPORT __attribute__((visibility("default")))
-#else
-#define WFS_EXPORT
-#endif
 
 /* The one symbol a plugin exports, defined by the plugin as
  *

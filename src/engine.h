@@ -12,6 +12,7 @@
  *   exposure.c   the exposures: one from the options, or --pointings
  *   place.c      rows to placements: models, columns, fluxes, reach,
  *                which SCAs a row may reach, pixels, binning by tile
+ *   settings.c   the engine's messages and settings, lent to models by host.c
  *   host.c       the services the host lends to every model (struct wfs_host)
  *   psfgrids.c   the ePSF grids the scene's models ask for
  *   render.c     worker threads drawing whole tiles
@@ -178,14 +179,20 @@ struct engine {
 	int progress;                           /* stderr is a terminal */
 };
 
-/* host.c: the struct wfs_host lent to plugins, and the services the engine
- * itself uses (errors from any thread, -v logging, a setting's value).
- * host_worker() says which worker the calling thread is drawing for (NULL:
- * the main thread), so that host_error() writes that worker's record. */
+/* host.c: the struct wfs_host lent to plugins. */
 void host_init(struct engine *g);
+
+/* settings.c: the engine's messages and settings, which host.c also lends
+ * to plugins (errors from any thread, -v logging, a setting's value).
+ * settings_init() fixes the scene's settings as text for the exposure.
+ * host_worker() says which worker the calling thread is drawing for (NULL:
+ * the main thread), so that host_error() writes that worker's record;
+ * host_current() is that worker if it is one of g's, else NULL. */
+void settings_init(struct engine *g);
 void host_worker(struct worker *w);
-int host_error(void *ctx, const char *fmt, ...);
-void host_log(void *ctx, int level, const char *fmt, ...);
+struct worker *host_current(const struct engine *g);
+int host_error(void *ctx, const char *fmt, ...) WFS_PRINTF(2, 3);
+void host_log(void *ctx, int level, const char *fmt, ...) WFS_PRINTF(3, 4);
 const char *host_setting(void *ctx, const char *key);
 
 /* psfgrids.c */
@@ -194,9 +201,11 @@ int psfgrids_need(struct engine *g, int sca, int cls, struct err *e);
 int psfgrids_open_user(struct engine *g);
 void psfgrids_free(struct engine *g);
 
-/* place.c */
+/* tile.c: the memory of one tile of T x T doubles, zeroed */
 double *tile_alloc(int T);
 void tile_free(double *p, int T);
+
+/* place.c */
 double place_zeropoint(const struct engine *g, int sca);
 int place_batch(struct engine *g, const struct rows *r, struct batch *b);
 int place_bin(struct engine *g, struct batch *b);

@@ -2,19 +2,13 @@
  * host.c - the plugin host: the services lent to every model through
  * struct wfs_host (include/wfiscene/model.h).
  *
- * Errors from any thread (a worker's go to its own record, merged by the
- * main thread after the pool waits; the main thread's to the run's), -v
- * logging, settings by key (the scene's own, then --set), ePSF
- * samples (grids loaded by the threads that prepare, see psfgrids.c), per-worker
- * scratch memory and FFT convolution.  The engine uses host_error, host_log
- * and host_setting itself too.
+ * host_init() fills the struct: errors, -v logging and settings by key are
+ * settings.c's (the engine uses them itself too); here are the rest, ePSF
+ * samples (grids loaded by the threads that prepare, see psfgrids.c),
+ * per-worker scratch memory and FFT convolution.
  */
-#include <math.h>
 #include <pthread.h>
-#include <stdarg.h>
-#include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
 
 #include "engine.h"
 #include "err.h"
@@ -23,84 +17,6 @@
 /* What model.h tells plugins of the detector is what the host draws. */
 _Static_assert(WFS_SCA_SIDE == WFS_NPIX && WFS_SCA_COUNT == WFS_NSCA,
 	       "model.h's SCA constants differ from instrument.h's");
-
-/*
- * The worker the calling thread draws for.  Thread-local because
- * host->error() has no thread argument (model.h): a model calls it with the
- * host's ctx from render() on any worker.  Set by render_tile() around its
- * work, and by place.c's threads of place_pool around theirs; NULL on the
- * main thread.
- */
-static _Thread_local struct worker *current_worker;
-
-void host_worker(struct worker *w)
-{
-	current_worker = w;
-}
-
-int host_error(void *ctx, const char *fmt, ...)
-{
-	struct engine *g = ctx;
-	struct worker *w = current_worker;
-	char msg[1024];
-	va_list ap;
-
-	va_start(ap, fmt);
-	vsnprintf(msg, sizeof(msg), fmt, ap);
-	va_end(ap);
-	err_set(w && w->g == g ? &w->err : g->e, EXIT_PLUGIN, "%s", msg);
-	return -1;
-}
-
-/* A line at a time, written whole (threads that prepare may log at once). */
-void host_log(void *ctx, int level, const char *fmt, ...)
-{
-	struct engine *g = ctx;
-	char line[2048];
-	va_list ap;
-	int n;
-
-	if (level > g->o->verbose)
-		return;
-	va_start(ap, fmt);
-	n = snprintf(line, sizeof(line), "wfiscene: ");
-	vsnprintf(line + n, sizeof(line) - n - 1, fmt, ap);
-	va_end(ap);
-	strcat(line, "\n");
-	fputs(line, stderr);
-}
-
-const char *host_setting(void *ctx, const char *key)
-{
-	struct engine *g = ctx;
-
-	if (!strcmp(key, "filter"))
-		return g->filter_name;
-	if (!strcmp(key, "exptime"))
-		return g->exptime_str;
-	if (!strcmp(key, "seed"))
-		return g->seed_str;
-	if (!strcmp(key, "sersic"))
-		return g->o->sersic;
-	if (!strcmp(key, "background"))
-		return g->bkg_str;
-	if (!strcmp(key, "readnoise"))
-		return g->readnoise_str;
-	if (!strcmp(key, "noise"))
-		return g->noise_str;
-	if (!strcmp(key, "pixel-sigma"))
-		return g->sigma_str;
-	if (!strcmp(key, "mjd"))
-		return isnan(g->x->date) ? NULL : g->mjd_str;
-	/* --set key=value: the last one given wins */
-	const char *hit = NULL;
-	size_t n = strlen(key);
-
-	for (const char *const *kv = g->o->settings; kv && *kv; kv++)
-		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
-			hit = *kv + n + 1;
-	return hit;
-}
 
 /* Grids are loaded (or built) the first time a model asks for one in
  * prepare() or footprint(), on the main thread or a thread of place_pool:
@@ -111,7 +27,7 @@ static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 {
 	struct engine *g = ctx;
 	/* the calling thread's worker of this engine, NULL on the main thread */
-	struct worker *w = current_worker && current_worker->g == g ? current_worker : NULL;
+	struct worker *w = host_current(g);
 	const struct psf_grid *grid;
 
 	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > WFS_PSF_HALO)

@@ -28,45 +28,6 @@
 #include "pool.h"
 #include "tree.h"
 
-/* The settings lent to models as text (host_setting), fixed for the run. */
-static void engine_setting_strings(struct engine *g)
-{
-	const struct scene_opts *o = g->o;
-
-	snprintf(g->filter_name, sizeof(g->filter_name), "%s", filter_get(o->filter)->name);
-	snprintf(g->exptime_str, sizeof(g->exptime_str), "%.17g", o->exptime);
-	snprintf(g->seed_str, sizeof(g->seed_str), "%llu", (unsigned long long)g->x->seed);
-	snprintf(g->mjd_str, sizeof(g->mjd_str), "%.17g", g->x->date);
-	/* the least of the 18 SCAs' backgrounds: the same for runs split by SCA */
-	snprintf(g->bkg_str, sizeof(g->bkg_str), "%.17g", g->x->bkg.least);
-	snprintf(g->readnoise_str, sizeof(g->readnoise_str), "%.17g",
-		 o->noise & NOISE_READ ? o->readnoise : 0.0);
-	snprintf(g->noise_str, sizeof(g->noise_str), "%s%s%s%s%s",
-		 o->noise & NOISE_POISSON ? "poisson," : "", o->noise & NOISE_READ ? "readnoise," : "",
-		 o->noise & NOISE_DARK ? "dark," : "", o->noise & NOISE_FLAT ? "flat," : "",
-		 o->noise & NOISE_COSMIC ? "cosmic," : "");
-	{
-		/* The noise of one pixel in counts/s, for models that draw
-		 * down to a fraction of it (point's psf-extent): the noise
-		 * stages' sky, read noise and dark current over the exposure;
-		 * with none of them (or none that adds anything), the nominal
-		 * ones (the exposure's or the filter's average sky, the default
-		 * read noise), so a noiseless image is the mean of a noisy one. */
-		double t = o->exptime, var = 0, bk = g->x->background;
-		double sky = bk > 0 ? bk : filter_get(o->filter)->bkg_avg;
-
-		if (o->noise & NOISE_POISSON)
-			var += bk * t;
-		if (o->noise & NOISE_READ)
-			var += o->readnoise * o->readnoise;
-		if (o->noise & NOISE_DARK)
-			var += o->dark_current * t;
-		if (!(var > 0))
-			var = sky * t + NOISE_READNOISE * NOISE_READNOISE;
-		snprintf(g->sigma_str, sizeof(g->sigma_str), "%.17g", sqrt(var) / t);
-	}
-}
-
 /* An engine for exposure x: its sky geometry, its SCAs' tile grids, the
  * plugins (loaded by each engine: a plugin's state may hold per-exposure
  * values it read from host->setting), workers' state on the shared pool. */
@@ -79,7 +40,7 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	g->x = x;
 	g->e = e;
 	g->main_thread = pthread_self();
-	engine_setting_strings(g);
+	settings_init(g);
 	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, o->geometry, x->sca_mask, e) < 0)
 		return -1;
 	g->tile = o->tile;

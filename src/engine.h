@@ -12,6 +12,7 @@
  *   exposure.c   the exposures: one from the options, or --pointings
  *   place.c      rows to placements: models, columns, fluxes, reach,
  *                which SCAs a row may reach, pixels, binning by tile
+ *   tile.c       the tiles' memory, allocated when first touched
  *   settings.c   the engine's messages and settings, lent to models by host.c
  *   host.c       the services the host lends to every model (struct wfs_host)
  *   psfgrids.c   the ePSF grids the scene's models ask for

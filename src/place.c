@@ -16,7 +16,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 
 #include "catalog.h"
 #include "engine.h"
@@ -24,23 +23,6 @@
 #include "motion.h"
 #include "pool.h"
 
-
-/*
- * A zeroed tile.  Tiles are mapped from the kernel directly: its pages come
- * zeroed and are only touched by the worker that first draws on them,
- * whereas calloc() would zero them with memset in the main thread once
- * glibc's mmap threshold has risen above a tile's size (it does after the
- * first large free).  18 SCAs of 512-pixel tiles are 2.4 GB of doubles.
- */
-double *tile_alloc(int T)
-{
-	return pool_zalloc((size_t)T * T * sizeof(double));     /* huge pages: pool.h */
-}
-
-void tile_free(double *p, int T)
-{
-	pool_zfree(p, (size_t)T * T * sizeof(double));
-}
 
 static int grow(void **p, size_t *cap, size_t need, size_t size)
 {
@@ -1009,7 +991,3 @@ int place_bin(struct engine *g, struct batch *b)
 	b->nitems = total;
 	return 0;
 }
-
-/* A model failed in a worker: the first failure names the model (and the
- * source), later ones on other threads add nothing.  what is the message
- * when the plugin recorded none, as it must. */

@@ -56,11 +56,15 @@ static const char *const yesno[] = { "yes", "no", NULL };
 static const char *const compressions[] = { "none", "rice", "gzip", NULL };
 static const char *const norms[] = { "project", "etc", NULL };    /* enum bkg_norm */
 
+/* The filters --filter takes, as instrument.c names them, in its order:
+ * the one spelling of the list in --help and the messages. */
+#define FILTER_LIST "F062 F087 F106 F129 F158 F184 F213 F146"
+
 static const struct opt scene_options[] = {
 	OPT_SECTION("Scene:"),
 	{ OPT("output", 'o', "FILE", NULL, "output FITS ('-' stdout; '%d' in FILE: one per SCA)",
 	  opt_string, OFF(o.output)) },
-	{ OPT("filter", 0, "F", NULL, "F062 F087 F106 F129 F158 F184 F213 F146 (required)",
+	{ OPT("filter", 0, "F", NULL, FILTER_LIST " (required)",
 	  set_filter, OFF(o.filter)) },
 	{ OPT("sca", 0, "LIST", "1", "SCAs: 1, 1-18, 2,5,9, WFI05", set_sca, OFF(o.sca_mask)) },
 	{ OPT("ra", 0, "DEG", "0", "right ascension of the pointing", opt_double, OFF(o.ra)),
@@ -190,8 +194,8 @@ static const struct opt_cmd scene_cmd_line = {
 static int set_filter(const struct opt_arg *a, struct err *e)
 {
 	if ((*(int *)a->field = filter_lookup(a->value)) < 0)
-		return err_set(e, EXIT_INPUT, "--filter: unknown filter '%s': use F062, "
-			       "F087, F106, F129, F158, F184, F213 or F146", a->value);
+		return err_set(e, EXIT_INPUT, "--filter: unknown filter '%s': use one of "
+			       FILTER_LIST, a->value);
 	return 0;
 }
 
@@ -399,8 +403,7 @@ static int fail(const struct err *e)
 static int check_options(struct scene_opts *o, struct err *e)
 {
 	if (o->filter < 0)
-		return err_set(e, EXIT_INPUT, "--filter is required (F062, F087, F106, F129, "
-			       "F158, F184, F213 or F146)");
+		return err_set(e, EXIT_INPUT, "--filter is required (" FILTER_LIST ")");
 	if (o->bkg_model == BKG_AVG)
 		o->background = filter_get(o->filter)->bkg_avg;
 	if (o->bkg_model == BKG_SKY && isnan(o->date) && !o->pointings)

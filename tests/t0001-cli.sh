@@ -25,6 +25,14 @@ test_expect_success 'an unknown filter is named' '
 test_expect_success 'filters are case-insensitive' '
 	"$WFS" --filter f129 --help > /dev/null
 '
+test_expect_success 'the filters --help and the messages list are those --filter takes' '
+	test_must_fail --status 1 "$WFS" --filter F999 -o out.fits cat.csv 2> err &&
+	list=$(sed -n "s/.*use one of //p" err) && test "$(echo $list | wc -w)" = 8 &&
+	for f in $list; do "$WFS" --filter $f --help > /dev/null || exit 1; done &&
+	"$WFS" --help > help && test_grep "--filter F  *$list (required)" help &&
+	test_must_fail --status 1 "$WFS" -o out.fits cat.csv 2> err &&
+	test_grep "filter is required ($list)" err
+'
 for bad in 0 19 1-20 5-3 x WFI 1,,2 "1,"; do
 	test_expect_success "--sca '$bad' is refused" "
 		test_must_fail --status 1 \"\$WFS\" --filter F129 --sca '$bad' -o out.fits cat.csv 2> err &&

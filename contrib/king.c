@@ -480,13 +480,101 @@ static int number(const char *opt, const char *s, double lo, double hi,
 	return 0;
 }
 
+/* The options, with M13's defaults (see usage()). */
+struct opts {
+	double n, ra0, dec0, rc, rt, dm, av, alpha, mmin;
+	unsigned long long seed;
+	const struct band *band;
+	int zstd;
+};
+
+/* Parse the command line into o.  Returns 0, 1 after -h (usage written),
+ * or -1 after a message on stderr. */
+static int parse_options(int argc, char **argv, struct opts *o)
+{
+	int c;
+
+	while ((c = getopt(argc, argv, "n:r:d:c:t:f:m:A:a:M:s:zh")) != -1) {
+		int bad = 0;
+		switch (c) {
+		case 'n': bad = number("n", optarg, 0, 1e12, &o->n);
+			if (!bad && o->n != floor(o->n)) {
+				fprintf(stderr, "king: -n: not a whole number: '%s'\n",
+					optarg);
+				bad = 1;
+			}
+			break;
+		case 'r': bad = number("r", optarg, -360, 720, &o->ra0); break;
+		case 'd': bad = number("d", optarg, -90, 90, &o->dec0); break;
+		case 'c': bad = number("c", optarg, 1e-6, 1e4, &o->rc); break;
+		case 't': bad = number("t", optarg, 1e-6, 1e5, &o->rt); break;
+		case 'm': bad = number("m", optarg, -10, 60, &o->dm); break;
+		case 'A': bad = number("A", optarg, 0, 50, &o->av); break;
+		case 'a': bad = number("a", optarg, -5, 5, &o->alpha); break;
+		case 'M': bad = number("M", optarg, 0.08, 0.79, &o->mmin); break;
+		case 's': {
+			char *end;
+			errno = 0;
+			o->seed = strtoull(optarg, &end, 0);
+			if (end == optarg || *end || errno || *optarg == '-') {
+				fprintf(stderr, "king: -s: bad seed '%s' (want an "
+					"integer from 0 to 2^64-1)\n", optarg);
+				bad = 1;
+			}
+			break;
+		}
+		case 'z': o->zstd = 1; break;
+		case 'f':
+			o->band = NULL;
+			for (size_t i = 0; i < NBANDS; i++)
+				if (!strcmp(optarg, bands[i].name))
+					o->band = &bands[i];
+			if (!o->band) {
+				fprintf(stderr, "king: -f: unknown filter '%s' (use "
+					"F062 F087 F106 F129 F146 F158 F184 F213)\n",
+					optarg);
+				bad = 1;
+			}
+			break;
+		case 'h': usage(stdout); return 1;
+		default: bad = 1; break;
+		}
+		if (bad) {
+			fprintf(stderr, "king: try 'king -h'\n");
+			return -1;
+		}
+	}
+	if (optind < argc) {
+		fprintf(stderr, "king: unexpected argument '%s'; try 'king -h'\n",
+			argv[optind]);
+		return -1;
+	}
+	if (o->rt <= o->rc) {
+		fprintf(stderr, "king: the tidal radius (%g') must exceed the "
+			"core radius (%g')\n", o->rt, o->rc);
+		return -1;
+	}
+	if (o->rt > 600) {
+		fprintf(stderr, "king: tidal radius %g' is beyond 10 degrees\n", o->rt);
+		return -1;
+	}
+	if (o->zstd && isatty(STDOUT_FILENO)) {
+		fprintf(stderr, "king: refusing to write compressed data to a "
+			"terminal\n");
+		return -1;
+	}
+	return 0;
+
+}
+
 int main(int argc, char **argv)
 {
-	double n = 100000, ra0 = 250.4235, dec0 = 36.4613, rc = 0.62, rt = 21.0;
-	double dm = 14.27, av = 0.06, alpha = 1.3, mmin = 0.1;
-	unsigned long long seed = 1;
-	const struct band *band = &bands[3];
-	int zstd = 0, c, status = 2;
+	struct opts opt = {
+		.n = 100000, .ra0 = 250.4235, .dec0 = 36.4613, .rc = 0.62, .rt = 21.0,
+		.dm = 14.27, .av = 0.06, .alpha = 1.3, .mmin = 0.1, .seed = 1,
+		.band = &bands[3],
+	};
+	int status = 2, r;
 	struct rng rng;
 	struct king king;
 	struct imf imf;
@@ -495,75 +583,14 @@ int main(int argc, char **argv)
 	double sd0, cd0;
 	char line[128];
 
-	while ((c = getopt(argc, argv, "n:r:d:c:t:f:m:A:a:M:s:zh")) != -1) {
-		int bad = 0;
-		switch (c) {
-		case 'n': bad = number("n", optarg, 0, 1e12, &n);
-			if (!bad && n != floor(n)) {
-				fprintf(stderr, "king: -n: not a whole number: '%s'\n",
-					optarg);
-				bad = 1;
-			}
-			break;
-		case 'r': bad = number("r", optarg, -360, 720, &ra0); break;
-		case 'd': bad = number("d", optarg, -90, 90, &dec0); break;
-		case 'c': bad = number("c", optarg, 1e-6, 1e4, &rc); break;
-		case 't': bad = number("t", optarg, 1e-6, 1e5, &rt); break;
-		case 'm': bad = number("m", optarg, -10, 60, &dm); break;
-		case 'A': bad = number("A", optarg, 0, 50, &av); break;
-		case 'a': bad = number("a", optarg, -5, 5, &alpha); break;
-		case 'M': bad = number("M", optarg, 0.08, 0.79, &mmin); break;
-		case 's': {
-			char *end;
-			errno = 0;
-			seed = strtoull(optarg, &end, 0);
-			if (end == optarg || *end || errno || *optarg == '-') {
-				fprintf(stderr, "king: -s: bad seed '%s' (want an "
-					"integer from 0 to 2^64-1)\n", optarg);
-				bad = 1;
-			}
-			break;
-		}
-		case 'z': zstd = 1; break;
-		case 'f':
-			band = NULL;
-			for (size_t i = 0; i < NBANDS; i++)
-				if (!strcmp(optarg, bands[i].name))
-					band = &bands[i];
-			if (!band) {
-				fprintf(stderr, "king: -f: unknown filter '%s' (use "
-					"F062 F087 F106 F129 F146 F158 F184 F213)\n",
-					optarg);
-				bad = 1;
-			}
-			break;
-		case 'h': usage(stdout); return 0;
-		default: bad = 1; break;
-		}
-		if (bad) {
-			fprintf(stderr, "king: try 'king -h'\n");
-			return 1;
-		}
-	}
-	if (optind < argc) {
-		fprintf(stderr, "king: unexpected argument '%s'; try 'king -h'\n",
-			argv[optind]);
-		return 1;
-	}
-	if (rt <= rc) {
-		fprintf(stderr, "king: the tidal radius (%g') must exceed the "
-			"core radius (%g')\n", rt, rc);
-		return 1;
-	}
-	if (rt > 600) {
-		fprintf(stderr, "king: tidal radius %g' is beyond 10 degrees\n", rt);
-		return 1;
-	}
-	if (zstd && isatty(STDOUT_FILENO)) {
-		fprintf(stderr, "king: refusing to write compressed data to a "
-			"terminal\n");
-		return 1;
-	}
+	if ((r = parse_options(argc, argv, &opt)))
+		return r < 0;
+
+	double n = opt.n, ra0 = opt.ra0, dec0 = opt.dec0, rc = opt.rc, rt = opt.rt;
+	double dm = opt.dm, av = opt.av, alpha = opt.alpha, mmin = opt.mmin;
+	unsigned long long seed = opt.seed;
+	const struct band *band = opt.band;
+	int zstd = opt.zstd;
 
 	rng_seed(&rng, (uint64_t)seed);
 	king.xt = (rt / rc) * (rt / rc);

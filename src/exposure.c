@@ -82,6 +82,56 @@ static int pointings_reorder(char **field, int nf, const int *role, int nrole, c
 	return n;
 }
 
+/* Exposure n of p, the pointing of line lineno: its fields (nf of them in
+ * the standard order, the first three the numbers v) over the defaults of
+ * the options.  Returns 0, or -1 with an error naming the line. */
+static int pointing_fill(const struct scene_opts *o, int lineno, char **field, int nf,
+			 const double *v, struct exposure *p, int n, struct err *e)
+{
+	memset(&p[n], 0, sizeof(p[n]));
+	p[n].ra = v[0];
+	p[n].dec = v[1];
+	p[n].pa = v[2];
+	p[n].seed = o->seed + n;
+	snprintf(p[n].name, sizeof(p[n].name), "%03d", n + 1);
+	p[n].date = o->date;
+	if (nf >= 4 && strcmp(field[3], "-")) {
+		if (strlen(field[3]) >= sizeof(p[n].name) ||
+		    strspn(field[3], "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+			   "0123456789_.-") != strlen(field[3])) {
+			err_set(e, EXIT_INPUT, "%s:%d: name '%s': use letters, digits, '_', "
+				"'.' and '-' (at most 63)", o->pointings, lineno, field[3]);
+			return -1;
+		}
+		strcpy(p[n].name, field[3]);
+		for (int k = 0; k < n; k++)
+			if (!strcmp(p[k].name, p[n].name)) {
+				err_set(e, EXIT_INPUT, "%s:%d: name '%s' is used twice",
+					o->pointings, lineno, p[n].name);
+				return -1;
+			}
+	}
+	if (nf >= 5 && strcmp(field[4], "-")) {
+		char *end;
+
+		errno = 0;
+		p[n].seed = strtoull(field[4], &end, 10);
+		if (*end || errno || field[4][0] == '-') {
+			err_set(e, EXIT_INPUT, "%s:%d: seed: not an integer: '%s'",
+				o->pointings, lineno, field[4]);
+			return -1;
+		}
+	}
+	if (nf == 6 && strcmp(field[5], "-")) {
+		char what[PATH_MAX + 32];
+
+		snprintf(what, sizeof(what), "%s:%d: date", o->pointings, lineno);
+		if (date_parse(field[5], what, &p[n].date, e) < 0)
+			return -1;
+	}
+	return 0;
+}
+
 /*
  * A pointings file: one exposure a line, "ra dec pa [name [seed [date]]]",
  * fields separated by blanks or commas; '#' starts a comment; a first line
@@ -168,47 +218,8 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 			}
 			p = q;
 		}
-		memset(&p[n], 0, sizeof(p[n]));
-		p[n].ra = v[0];
-		p[n].dec = v[1];
-		p[n].pa = v[2];
-		p[n].seed = o->seed + n;
-		snprintf(p[n].name, sizeof(p[n].name), "%03d", n + 1);
-		p[n].date = o->date;
-		if (nf >= 4 && strcmp(field[3], "-")) {
-			if (strlen(field[3]) >= sizeof(p[n].name) ||
-			    strspn(field[3], "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
-				   "0123456789_.-") != strlen(field[3])) {
-				err_set(e, EXIT_INPUT, "%s:%d: name '%s': use letters, digits, '_', "
-					"'.' and '-' (at most 63)", o->pointings, lineno, field[3]);
-				goto fail;
-			}
-			strcpy(p[n].name, field[3]);
-			for (int k = 0; k < n; k++)
-				if (!strcmp(p[k].name, p[n].name)) {
-					err_set(e, EXIT_INPUT, "%s:%d: name '%s' is used twice",
-						o->pointings, lineno, p[n].name);
-					goto fail;
-				}
-		}
-		if (nf >= 5 && strcmp(field[4], "-")) {
-			char *end;
-
-			errno = 0;
-			p[n].seed = strtoull(field[4], &end, 10);
-			if (*end || errno || field[4][0] == '-') {
-				err_set(e, EXIT_INPUT, "%s:%d: seed: not an integer: '%s'",
-					o->pointings, lineno, field[4]);
-				goto fail;
-			}
-		}
-		if (nf == 6 && strcmp(field[5], "-")) {
-			char what[PATH_MAX + 32];
-
-			snprintf(what, sizeof(what), "%s:%d: date", o->pointings, lineno);
-			if (date_parse(field[5], what, &p[n].date, e) < 0)
-				goto fail;
-		}
+		if (pointing_fill(o, lineno, field, nf, v, p, n, e) < 0)
+			goto fail;
 		n++;
 	}
 	if (ferror(f)) {

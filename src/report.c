@@ -220,6 +220,68 @@ static void report_background(FILE *f, struct engine *g)
 	fputs("\n  ]},\n", f);
 }
 
+/* "work": what the scene needed and so did. */
+static void report_work(FILE *f, struct engine *g)
+{
+	const struct scene_opts *o = g->o;
+	int first;
+
+	/* What the scene needed and so did: the models loaded, the FFT sizes
+	 * planned (Sersic convolution), the tiles drawn on before noise (the
+	 * rest were never allocated), the noise stages that drew random
+	 * numbers (none: the random number code never ran). */
+	fprintf(f, "  \"work\": {\"models\": [");
+	first = 1;
+	for (int m = 0; m < g->plugins.n; m++)
+		if (g->plugins.p[m].ready) {
+			fprintf(f, "%s\"%s\"", first ? "" : ", ", g->plugins.p[m].name);
+			first = 0;
+		}
+	fprintf(f, "], \"fft_plans\": %d, \"tiles_drawn\": %llu, \"tiles\": %llu, "
+		"\"noise_stages\": [", fftconv_nplans(g->fft), g->tiles_drawn, g->tiles);
+	first = 1;
+	for (int k = 0; k < 5; k++)
+		if (o->noise & (1u << k)) {
+			static const char *const stage[] = { "poisson", "readnoise", "dark", "flat",
+							     "cosmic" };
+
+			fprintf(f, "%s\"%s\"", first ? "" : ", ", stage[k]);
+			first = 0;
+		}
+	fputs("]},\n", f);
+}
+
+/* "psf_grids": the grids built and loaded and each one's least enclosed
+ * light; returns the largest truncation loss among them. */
+static double report_psf_grids(FILE *f, struct engine *g)
+{
+	double worst_loss = 0;
+	int first;
+
+	fprintf(f, "  \"psf_grids\": {\"built\": %d, \"loaded\": %d, \"boxes\": [",
+		g->pbo.built, g->pbo.loaded);
+	/* The light a point source's box leaves out, at the grid's worst node
+	 * and phase: the largest truncation loss of the settings. */
+	first = 1;
+	for (int s = 0; s < WFS_NSCA; s++)
+		for (int c = 0; c < 3; c++) {
+			const struct psf_grid *gr = psfgrids_get(g, s + 1, c);
+			double lo = 1;
+
+			if (!gr || (c > 0 && gr == psfgrids_get(g, s + 1, c - 1)))
+				continue;
+			for (int k = 0; k < gr->nx * gr->ny; k++)
+				for (int p = 0; p < gr->over * gr->over; p++)
+					lo = fmin(lo, psf_enclosed(gr, k, p % gr->over, p / gr->over));
+			worst_loss = fmax(worst_loss, 1 - lo);
+			fprintf(f, "%s\n    {\"sca\": %d, \"class\": %d, \"samples\": %d, "
+				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, gr->n, lo);
+			first = 0;
+		}
+	fputs("\n  ]},\n", f);
+	return worst_loss;
+}
+
 /* The per-run report: what was done, how long each stage took, what the
  * chosen settings cost in accuracy.  JSON, written atomically. */
 int report_write(struct engine *g)
@@ -293,49 +355,10 @@ int report_write(struct engine *g)
 		fprintf(f, "%s\n    {\"sca\": %d, \"requested\": %.10g, \"placed\": %.10g}",
 			s ? "," : "", sca, g->flux_requested[sca - 1], g->image_sum[sca - 1]);
 	}
-	/* What the scene needed and so did: the models loaded, the FFT sizes
-	 * planned (Sersic convolution), the tiles drawn on before noise (the
-	 * rest were never allocated), the noise stages that drew random
-	 * numbers (none: the random number code never ran). */
-	fprintf(f, "\n  ],\n  \"work\": {\"models\": [");
-	first = 1;
-	for (int m = 0; m < g->plugins.n; m++)
-		if (g->plugins.p[m].ready) {
-			fprintf(f, "%s\"%s\"", first ? "" : ", ", g->plugins.p[m].name);
-			first = 0;
-		}
-	fprintf(f, "], \"fft_plans\": %d, \"tiles_drawn\": %llu, \"tiles\": %llu, "
-		"\"noise_stages\": [", fftconv_nplans(g->fft), g->tiles_drawn, g->tiles);
-	first = 1;
-	for (int k = 0; k < 5; k++)
-		if (o->noise & (1u << k)) {
-			static const char *const stage[] = { "poisson", "readnoise", "dark", "flat",
-							     "cosmic" };
-
-			fprintf(f, "%s\"%s\"", first ? "" : ", ", stage[k]);
-			first = 0;
-		}
-	fprintf(f, "]},\n  \"psf_grids\": {\"built\": %d, \"loaded\": %d, \"boxes\": [",
-		g->pbo.built, g->pbo.loaded);
-	/* The light a point source's box leaves out, at the grid's worst node
-	 * and phase: the largest truncation loss of the settings. */
-	first = 1;
-	for (int s = 0; s < WFS_NSCA; s++)
-		for (int c = 0; c < 3; c++) {
-			const struct psf_grid *gr = psfgrids_get(g, s + 1, c);
-			double lo = 1;
-
-			if (!gr || (c > 0 && gr == psfgrids_get(g, s + 1, c - 1)))
-				continue;
-			for (int k = 0; k < gr->nx * gr->ny; k++)
-				for (int p = 0; p < gr->over * gr->over; p++)
-					lo = fmin(lo, psf_enclosed(gr, k, p % gr->over, p / gr->over));
-			worst_loss = fmax(worst_loss, 1 - lo);
-			fprintf(f, "%s\n    {\"sca\": %d, \"class\": %d, \"samples\": %d, "
-				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, gr->n, lo);
-			first = 0;
-		}
-	fprintf(f, "\n  ]},\n  \"error_budget\": {\"largest_truncation_loss\": %.8f, "
+	fputs("\n  ],\n", f);
+	report_work(f, g);
+	worst_loss = report_psf_grids(f, g);
+	fprintf(f, "  \"error_budget\": {\"largest_truncation_loss\": %.8f, "
 		"\"psf_grid\": \"%dx%d nodes, bilinear in position\", ",
 		worst_loss, g->user_grid ? g->user_grid->nx : 3, g->user_grid ? g->user_grid->ny : 3);
 	/* the noise per pixel that models drawing down to a fraction of it

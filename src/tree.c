@@ -413,12 +413,56 @@ static int cmp_files(const void *pa, const void *pb)
 	return strcmp(a->path, b->path);
 }
 
+/* Which files of t to read: those whose pixels reach a disc of o (all of
+ * them without discs); the others counted as skipped, with their bytes and
+ * (from a FITS header) rows. */
+static int mark_reads(struct tree *t, const struct tree_opts *o, struct err *e)
+{
+	double (*cv)[3] = NULL;
+
+	if (o->ndisc && !(cv = malloc((size_t)o->ndisc * sizeof(*cv))))
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	for (int d = 0; d < o->ndisc; d++) {
+		double th = (90.0 - o->disc[d].dec) * DEG, ph = o->disc[d].ra * DEG;
+
+		cv[d][0] = sin(th) * cos(ph);
+		cv[d][1] = sin(th) * sin(ph);
+		cv[d][2] = cos(th);
+	}
+	t->counts.files = t->n;
+	for (size_t i = 0; i < t->n; i++) {
+		struct tfile *f = &t->f[i];
+		long long ns = f->order < 0 ? t->nside : 1ll << f->order, pn = f->pix;
+
+		if (f->order < 0 && !t->nested) {
+			int64_t q;
+
+			ring2nest64(ns, f->pix, &q);
+			pn = q;
+		}
+		f->read = !o->ndisc;
+		for (int d = 0; d < o->ndisc && !f->read; d++)
+			f->read = tree_pixel_reaches(ns, pn, cv[d], o->disc[d].radius);
+		if (!f->read) {
+			long long rows = fits_rows(f->path);
+
+			t->counts.skipped++;
+			t->counts.bytes_skipped += (unsigned long long)f->size;
+			if (rows >= 0)
+				t->counts.rows_skipped += (unsigned long long)rows;
+			else
+				t->counts.rows_uncounted++;
+		}
+	}
+	free(cv);
+	return 0;
+}
+
 struct tree *tree_open(const char *dir, const struct tree_opts *o,
 		       struct err *e)
 {
 	struct tree *t = calloc(1, sizeof(*t));
 	int flat = 0, hats = 0;
-	double (*cv)[3] = NULL;
 
 	if (!t || !(t->dir = strdup(dir))) {
 		err_set(e, EXIT_SYSTEM, "out of memory");
@@ -472,44 +516,8 @@ struct tree *tree_open(const char *dir, const struct tree_opts *o,
 		}
 	}
 
-	if (o->ndisc && !(cv = malloc((size_t)o->ndisc * sizeof(*cv)))) {
-		err_set(e, EXIT_SYSTEM, "out of memory");
+	if (mark_reads(t, o, e) < 0)
 		goto fail;
-	}
-	for (int d = 0; d < o->ndisc; d++) {
-		double th = (90.0 - o->disc[d].dec) * DEG, ph = o->disc[d].ra * DEG;
-
-		cv[d][0] = sin(th) * cos(ph);
-		cv[d][1] = sin(th) * sin(ph);
-		cv[d][2] = cos(th);
-	}
-	t->counts.files = t->n;
-	for (size_t i = 0; i < t->n; i++) {
-		struct tfile *f = &t->f[i];
-		long long ns = f->order < 0 ? t->nside : 1ll << f->order, pn = f->pix;
-
-		if (f->order < 0 && !t->nested) {
-			int64_t q;
-
-			ring2nest64(ns, f->pix, &q);
-			pn = q;
-		}
-		f->read = !o->ndisc;
-		for (int d = 0; d < o->ndisc && !f->read; d++)
-			f->read = tree_pixel_reaches(ns, pn, cv[d], o->disc[d].radius);
-		if (!f->read) {
-			long long rows = fits_rows(f->path);
-
-			t->counts.skipped++;
-			t->counts.bytes_skipped += (unsigned long long)f->size;
-			if (rows >= 0)
-				t->counts.rows_skipped += (unsigned long long)rows;
-			else
-				t->counts.rows_uncounted++;
-		}
-	}
-	free(cv);
-	cv = NULL;
 	if (!(t->order = malloc((t->n + 1) * sizeof(size_t)))) {
 		err_set(e, EXIT_SYSTEM, "out of memory");
 		goto fail;
@@ -534,7 +542,6 @@ struct tree *tree_open(const char *dir, const struct tree_opts *o,
 	}
 	return t;
 fail:
-	free(cv);
 	tree_free(t);
 	return NULL;
 }

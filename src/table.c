@@ -1,9 +1,9 @@
 /*
- * table.c - the table core: a file opened and recognised, its columns
- * (names, units, kinds) and metadata, and chunks of rows read through the
- * format's reader (table_text.c for CSV, whitespace, IPAC and ECSV,
- * table_fits.c for FITS).  See table.h for the API the catalog reads
- * through and table_build.h for what the readers use.
+ * table.c - the table core: a table's columns (names, units, kinds) and
+ * metadata, which its format's reader declares, and chunks of rows read
+ * through that reader (table_text.c for CSV, whitespace, IPAC and ECSV,
+ * table_fits.c for FITS; table_open.c chooses).  See table.h for the API
+ * the catalog reads through and table_build.h for what the readers use.
  */
 #include <ctype.h>
 #include <stdlib.h>
@@ -208,40 +208,22 @@ unsigned long long table_raw_bytes(const struct table *t)
 {
 	return t->in ? input_raw_bytes(t->in) : 0;
 }
-struct table *table_open(const char *path, size_t chunk_rows, struct err *e)
+struct table *table_new(struct input *in, struct err *e)
 {
 	struct table *t = calloc(1, sizeof(*t));
-	const void *p;
-	ssize_t n;
 
 	if (!t) {
+		input_close(in);
 		table_oom(e);
 		return NULL;
 	}
-	if (!chunk_rows)
-		chunk_rows = 65536;
-	t->in = input_open(path, e);
-	if (!t->in)
-		goto fail;
-	t->name = strdup(input_name(t->in));
-	if (!t->name) {
+	t->in = in;
+	if (!(t->name = strdup(input_name(in)))) {
+		table_close(t);
 		table_oom(e);
-		goto fail;
-	}
-	n = input_peek(t->in, &p, 80, e);
-	if (n < 0)
-		goto fail;
-	if (n >= 9 && memcmp(p, "SIMPLE  =", 9) == 0) {
-		t->fmt = TABLE_FITS;
-		if (table_fits_open(t, t->in, chunk_rows, e) < 0)
-			goto fail;
-	} else if (table_text_open(t, t->in, chunk_rows, e) < 0) {
-		goto fail;
+		return NULL;
 	}
 	return t;
-fail:
-	table_close(t);
-	return NULL;
 }
 
 long table_read(struct table *t, struct table_chunk *c, struct err *e)

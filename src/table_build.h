@@ -1,14 +1,15 @@
 /*
- * table_build.h - between the table core (table.c) and its format readers
- * (table_text.c with table_header.c, table_fits.c); nothing else includes it
- * but tests.
+ * table_build.h - between the table core (table.c), the opening of a table
+ * (table_open.c) and the format readers (table_text.c with table_lines.c
+ * and table_header.c, table_fits.c); nothing else includes it but tests.
  *
- * The core recognises the format and calls the reader's open function,
- * which reads the header: it declares the columns, their units and kinds
- * and the metadata through the table_add_* and table_set_* calls below, and
- * registers itself with table_set_reader().  table_read() and table_close()
- * then go to the reader's callbacks.  Messages name the file with
- * table_name(); the core's strings live as long as the table.
+ * table_open.c makes the table (table_new), recognises the format and calls
+ * the reader's open function, which reads the header: it declares the
+ * columns, their units and kinds and the metadata through the table_add_*
+ * and table_set_* calls below, and registers itself with
+ * table_set_reader().  table_read() and table_close() then go to the
+ * reader's callbacks.  Messages name the file with table_name(); the core's
+ * strings live as long as the table.  The core calls no reader by name.
  */
 #ifndef WFS_TABLE_BUILD_H
 #define WFS_TABLE_BUILD_H
@@ -37,6 +38,10 @@ int table_text_open(struct table *t, struct input *in, size_t chunk_rows,
  * unlinked temporary file first, because cfitsio needs to seek. */
 int table_fits_open(struct table *t, struct input *in, size_t chunk_rows,
 		    struct err *e);
+
+/* An empty table reading in, named after it; it owns in from now on (also
+ * on failure: NULL with a message, in closed). */
+struct table *table_new(struct input *in, struct err *e);
 
 void table_set_reader(struct table *t, const struct table_reader *reader, void *rd);
 void table_set_format(struct table *t, enum table_format fmt);

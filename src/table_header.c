@@ -3,7 +3,7 @@
  * column line of CSV and whitespace tables (and their "\key=value"
  * metadata lines), IPAC's "|name|" lines with their types, units and null
  * values, and ECSV's YAML header, read as far as wfiscene needs it.  The
- * lines come from table_text.c's buffer; the columns, units and metadata
+ * lines come from table_lines.c's buffer; the columns, units and metadata
  * go to the table core through table_build.h.
  */
 #include <stdlib.h>

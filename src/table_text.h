@@ -1,9 +1,9 @@
 /*
- * table_text.h - between the two files of the text table reader:
- * table_text.c (the buffer, lines, the CSV/whitespace tokenizer, IPAC rows,
- * chunks) and table_header.c (the headers: the column line of CSV and
- * whitespace tables, IPAC's pipe lines, ECSV's YAML).  Nothing else
- * includes it.
+ * table_text.h - between the three files of the text table reader:
+ * table_text.c (opening a text table, IPAC rows, chunks), table_lines.c
+ * (the buffer, lines, the CSV/whitespace tokenizer) and table_header.c
+ * (the headers: the column line of CSV and whitespace tables, IPAC's pipe
+ * lines, ECSV's YAML).  Nothing else includes it.
  */
 #ifndef WFS_TABLE_TEXT_H
 #define WFS_TABLE_TEXT_H
@@ -59,7 +59,7 @@ struct text_reader {
 	long *line_of;
 };
 
-/* table_text.c: the next complete line [*ls, *le) (see there for quotes
+/* table_lines.c: the next complete line [*ls, *le) (see there for quotes
  * and can_move; 1 a line, 0 the end, 2 the buffer is full, -1 an error);
  * text_unread() gives it back. */
 int text_line(struct text_reader *t, char **ls, char **le, int quotes,

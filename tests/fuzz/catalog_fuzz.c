@@ -11,8 +11,8 @@
  *   clang -g -O1 -fsanitize=fuzzer,address,undefined -std=c11 \
  *     -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE -Isrc \
  *     -DTABLE_BUF=512 -DTABLE_MAX_LINE=65536 \
- *     tests/fuzz/catalog_fuzz.c src/input.c src/table.c src/table_text.c \
- *     src/table_header.c src/table_fits.c \
+ *     tests/fuzz/catalog_fuzz.c src/input.c src/table.c src/table_open.c \
+ *     src/table_text.c src/table_lines.c src/table_header.c src/table_fits.c \
  *     src/catalog.c src/tree.c src/err.c src/instrument.c src/data.c build/data_tables.c \
  *     $(pkg-config --cflags --libs cfitsio libzstd zlib) -lchealpix -lm -o build/catalog_fuzz
  *   build/catalog_fuzz -max_len=65536 tests/fuzz/corpus

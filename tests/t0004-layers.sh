@@ -1,0 +1,72 @@
+#!/bin/sh
+# Files follow the data flow: no file of src/ calls back into one that calls
+# it, directly or through others (a file A "calls" B when A's object uses a
+# symbol B's defines, as nm shows them), and no source file is over 1,200
+# lines.  A plugin's own units may call each other; they are not in
+# build/obj.
+. "$(dirname "$0")/lib.sh"
+
+command -v nm > /dev/null || skip_all "nm is absent (Debian package binutils)"
+command -v perl > /dev/null || skip_all "perl is absent (Debian package perl)"
+ls "$BUILD"/obj/*.o > /dev/null 2>&1 || skip_all "no objects in $BUILD/obj (make all)"
+
+# circles DIR [SRC]: each circle among DIR's objects (with SRC, only those
+# of a SRC/NAME.c that exists: a stale object is no file), one line
+# "a -> b -> a".
+circles() {
+	for o in "$1"/*.o; do
+		[ -z "${2:-}" ] || [ -f "$2/$(basename "$o" .o).c" ] || continue
+		nm "$o" | sed "s|^|$(basename "$o" .o) |"
+	done | perl -e '
+		my (%def, %use, %g);
+		while (<>) {
+			my @f = split;
+			if (@f == 4 && $f[2] =~ /^[TDBR]$/) { $def{$f[3]} = $f[0] }
+			elsif (@f == 3 && $f[1] eq "U") { $use{$f[0]}{$f[2]} = 1 }
+		}
+		for my $a (keys %use) {
+			for my $s (keys %{$use{$a}}) {
+				my $b = $def{$s};
+				$g{$a}{$b} = 1 if defined $b && $b ne $a;
+			}
+		}
+		my (%state, @path);
+		sub visit {
+			my $v = shift;
+			$state{$v} = 1;
+			push @path, $v;
+			for my $w (sort keys %{$g{$v}}) {
+				if (($state{$w} // 0) == 1) {
+					my @p = @path;
+					shift @p while $p[0] ne $w;
+					print join(" -> ", @p, $w), "\n";
+				} elsif (!$state{$w}) {
+					visit($w);
+				}
+			}
+			pop @path;
+			$state{$v} = 2;
+		}
+		visit($_) for grep { !$state{$_} } sort keys %g;
+	'
+}
+
+test_expect_success 'no file of src/ calls back into a file that calls it' '
+	circles "$BUILD/obj" "$TOP/src" > found &&
+	test ! -s found || { cat found; false; }
+'
+
+test_expect_success '... which the check does see: two objects that call each other' '
+	mkdir o &&
+	printf "int b(void);\nint a(void) { return b(); }\n" > a.c &&
+	printf "int a(void);\nint b(void) { return 1; }\nint c(void) { return a(); }\n" > b.c &&
+	${CC:-cc} -c a.c -o o/a.o && ${CC:-cc} -c b.c -o o/b.o &&
+	circles o > found && test_grep "a -> b -> a" found
+'
+
+test_expect_success 'no source file is over 1,200 lines' '
+	wc -l "$TOP"/src/*.[ch] "$TOP"/plugins/*.[ch] "$TOP"/include/wfiscene/*.h |
+		awk "\$2 != \"total\" && \$1 > 1200" > long &&
+	test ! -s long || { cat long; false; }
+'
+test_done

@@ -129,6 +129,14 @@
  * model usually draws like another one, a point source: it then names that
  * model in wfs_model.drawn_by and does not draw at all (see drawn_by).
  *
+ * Known by name.  Two things the host still does by a model's name or its
+ * columns' names, which no field here lets a model say for itself yet:
+ * --set placed=romanisim writes "point" rows as romanisim's PSF and
+ * "sersic" rows as its SER (n, re and ratio, phi), other models' rows with
+ * their model's name and no shape; and a romanisim catalog's galaxy (its
+ * pa on the sky) is reshaped to the SIAF's pixels through the columns
+ * named "re", "ratio" and "phi" of any model that has all three.
+ *
  * Resolving a catalog type.  A row of type T is drawn by the model T, except
  * when the scene has a setting T (an option of that name, or --set T=M):
  * then by the model T-M, a family of methods drawing the same thing.  Today

@@ -56,6 +56,7 @@
 
 #include "data.h"
 #include "err.h"
+#include "persist.h"
 #include "ramp.h"
 #include "ramp_pois.h"
 #include "rng.h"
@@ -75,6 +76,7 @@ enum {
 	DOM_SPLIT_N = 0x46,
 	DOM_READ = 0x47,
 	DOM_GAP = 0x48,
+	DOM_GLOW = 0x49,
 };
 
 #define RATE_MAX 1e12           /* e-/s: beyond this a pixel is as saturated */
@@ -352,6 +354,12 @@ struct l1row {
 	double normal_above;
 	struct cr_hit *hits;    /* CR_MAX of them, nh in pixel order */
 	int nh;
+	/* the afterglow (NULL: none), and per glow pixel the arrivals of
+	 * the group gD and their sum over its reads gW (as D and W); gp the
+	 * next glow pixel read_pixel() looks for */
+	const struct ramp_glow *glow;
+	double *gD, *gW;
+	int gp;
 };
 
 /* Before the first read: the rates (the dark current added where light
@@ -413,6 +421,47 @@ static void scale_row(const double *r, double a, double b, double *out, int n)
 		out[i] = r[i] * a * b;
 }
 
+/*
+ * The afterglow of the reads prev + 1 .. last[gi]: a Poisson count per
+ * read and glow pixel of the charge the curve releases since the read
+ * before, those of the reads skipped before the group into S, those of the
+ * group's reads into gD (their sum) and gW (each counted in the group's
+ * reads from its own on, as W counts the light's arrivals).
+ */
+static void level1_glow(struct l1row *R, int gi, int prev)
+{
+	const struct ramp_glow *gl = R->glow;
+	const struct ramp_key *k = R->k;
+	int a = R->p->first[gi], b = R->p->last[gi];
+	double dt = R->p->read_time;
+
+	for (int q = 0; q < gl->n; q++)
+		R->gD[q] = R->gW[q] = 0;
+	for (int j = prev + 1; j <= b; j++) {
+		struct rng g;
+
+		rng_init(&g, k->seed, domain(k, DOM_GLOW, j));
+		for (int q = 0; q < gl->n; q++) {
+			int i = (int)(gl->pix[q] - gl->base);
+			double lag = gl->t0 - gl->tend[q];
+			double m = persist_charge(gl->curve, gl->scale[q], lag + (j - 1) * dt,
+						  lag + j * dt), c;
+			struct rng_cell cell;
+
+			if (!(m > 0))
+				continue;
+			rng_cell_init(&cell, &g, R->cell0 + (uint32_t)i, 0);
+			c = rng_poisson(m, &cell);
+			if (j < a) {
+				R->S[i] += c;
+			} else {
+				R->gD[q] += c;
+				R->gW[q] += c * (b - j + 1);
+			}
+		}
+	}
+}
+
 static void level1_arrivals(struct l1row *R, int gi, int prev)
 {
 	const struct ramp_key *k = R->k;
@@ -437,6 +486,8 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 	} else {
 		memset(D, 0, (size_t)n * sizeof(*D));
 	}
+	if (R->glow && R->glow->n)
+		level1_glow(R, gi, prev);
 }
 
 /*
@@ -551,6 +602,17 @@ static inline void read_pixel(struct l1row *R, const struct l1grp *G, int i,
 			W += hits[*hp].e * (b - hits[*hp].read + 1);
 			Di += hits[*hp].e;
 		}
+	/* the afterglow's arrivals, as a cosmic ray's */
+	if (R->glow) {
+		const struct ramp_glow *gl = R->glow;
+
+		for (; R->gp < gl->n && gl->pix[R->gp] - gl->base < (uint32_t)i; R->gp++)
+			;
+		if (R->gp < gl->n && gl->pix[R->gp] - gl->base == (uint32_t)i) {
+			W += R->gW[R->gp];
+			Di += R->gD[R->gp];
+		}
+	}
 	send = s0 + Di;
 	if (send < d->sat_true) {
 		mm = ramp_nl(d, s0 + W * G->inv_n) + G->bk * Di * Di;
@@ -734,6 +796,15 @@ __attribute__((target("avx512f,avx512dq"))) static void sq_avx512(double *sq, do
 }
 #endif
 
+/* Whether a glow pixel at or after read_pixel()'s place is before pixel
+ * end (those go through read_pixel()). */
+static inline int glow_within(const struct l1row *R, int end)
+{
+	const struct ramp_glow *gl = R->glow;
+
+	return gl && R->gp < gl->n && gl->pix[R->gp] - gl->base < (uint32_t)end;
+}
+
 /* Resultant gi of every pixel from its arrivals D (read_pixel()), eight
  * at a time where the machine has AVX-512.  The row's hot loop. */
 static void level1_reads(struct l1row *R, int gi)
@@ -754,6 +825,7 @@ static void level1_reads(struct l1row *R, int gi)
 	G.bk = d->beta * G.kvar * G.inv_n * G.inv_n;
 	G.exact_max = R->exact_max;
 	G.inv_g = 1 / d->gain;
+	R->gp = 0;
 #ifdef RAMP_AVX2
 	wide = (simd_flags() & SIMD_AVX512) != 0;
 #endif
@@ -793,7 +865,7 @@ static void level1_reads(struct l1row *R, int gi)
 			int i = i0 + j;
 			unsigned bad;
 
-			if (hp < nh && R->hits[hp].pix < i + 8) {
+			if ((hp < nh && R->hits[hp].pix < i + 8) || glow_within(R, i + 8)) {
 				for (int q = 0; q < 8; q++)
 					read_pixel(R, &G, i + q, w[j + q], &hp);
 				continue;
@@ -818,8 +890,9 @@ static void level1_reads(struct l1row *R, int gi)
  */
 static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 		   const struct ramp_key *k, uint32_t cell0, int n,
-		   const double *rate, int light, uint16_t *out, size_t plane,
-		   double *ch, float *own, size_t cplane, double *scratch)
+		   const double *rate, int light, const struct ramp_glow *glow,
+		   uint16_t *out, size_t plane, double *ch, float *own, size_t cplane,
+		   double *scratch)
 {
 	struct l1row R = {
 		.p = p, .d = d, .k = k, .cell0 = cell0, .n = n, .light = light,
@@ -841,6 +914,9 @@ static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 	R.D = R.mu + n;
 	R.Q = R.D + n + 512;
 	R.w = (uint32_t (*)[4])(R.D + n);
+	R.glow = light && glow && glow->n ? glow : NULL;
+	R.gD = R.Q + n;
+	R.gW = R.gD + n;
 	level1_start(&R, rate);
 	for (int gi = 0; gi < p->nres; gi++) {
 		level1_arrivals(&R, gi, prev);
@@ -854,7 +930,7 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 		     const double *rate, int light, uint16_t *out, size_t plane,
 		     double *scratch)
 {
-	level1(p, d, k, cell0, n, rate, light, out, plane, NULL, NULL, 0, scratch);
+	level1(p, d, k, cell0, n, rate, light, NULL, out, plane, NULL, NULL, 0, scratch);
 }
 
 void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
@@ -862,7 +938,15 @@ void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
 			const double *rate, double *ch, float *own, size_t cplane,
 			double *scratch)
 {
-	level1(p, d, k, cell0, n, rate, 1, NULL, 0, ch, own, cplane, scratch);
+	level1(p, d, k, cell0, n, rate, 1, NULL, NULL, 0, ch, own, cplane, scratch);
+}
+
+void ramp_level1_charge_glow(const struct ramp_pattern *p, const struct ramp_det *d,
+			     const struct ramp_key *k, uint32_t cell0, int n,
+			     const double *rate, const struct ramp_glow *glow, double *ch,
+			     float *own, size_t cplane, double *scratch)
+{
+	level1(p, d, k, cell0, n, rate, 1, glow, NULL, 0, ch, own, cplane, scratch);
 }
 
 /* IPC of one resultant at the pixels x0 .. x1-1 (none at the row's ends),

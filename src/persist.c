@@ -39,6 +39,7 @@
 
 #include "data.h"
 #include "err.h"
+#include "exposure.h"
 #include "persist.h"
 #include "tempfile.h"
 
@@ -288,6 +289,24 @@ int persist_begin(struct persist *p, const char *name, double mjd, double exptim
 	for (int s = 0; s < WFS_NSCA; s++)
 		p->next[s].n = 0;
 	return 0;
+}
+
+int persist_check_dates(struct persist *p, const struct exposure *x, int n, double exptime,
+			struct err *e)
+{
+	double last = p->last_end, t0 = p->t0, t1 = p->t1;
+	int have = p->have_last, rc = 0;
+
+	for (int i = 0; i < n && rc == 0; i++) {
+		rc = persist_begin(p, x[i].name, x[i].date, exptime, e);
+		p->last_end = p->t1;
+		p->have_last = 1;
+	}
+	p->last_end = last;
+	p->have_last = have;
+	p->t0 = t0;
+	p->t1 = t1;
+	return rc;
 }
 
 size_t persist_row(const struct persist *p, int sca, int y, size_t *first)

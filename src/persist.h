@@ -27,6 +27,7 @@
 #include "instrument.h"
 
 struct err;
+struct exposure;
 
 /* romancal's DQ bit for a pixel affected by persistence (2^5). */
 #define PERSIST_DQ (1u << 5)
@@ -106,6 +107,12 @@ double persist_scale(const struct persist *p, double x);
  * refused (exit 1). */
 int persist_begin(struct persist *p, const char *name, double mjd, double exptime,
 		  struct err *e);
+
+/* Refuse, before anything is drawn, exposures x[0 .. n) (each lasting
+ * exptime) whose dates would make persist_begin() fail; the state is left
+ * as it was.  0 or -1 with persist_begin()'s message. */
+int persist_check_dates(struct persist *p, const struct exposure *x, int n, double exptime,
+			struct err *e);
 
 /* The entries of science row y of SCA sca in the state: indices
  * [*first, *first + return value) of p->now[sca - 1]. */

@@ -475,7 +475,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 			mask |= x[i].sca_mask;
 		if (!(persist = persist_new(mask, o->row_first ? o->row_first - 1 : 0,
 					    o->row_first ? o->row_last : WFS_NPIX, o->settings, e)) ||
-		    (o->persistence_state && persist_load(persist, o->persistence_state, e) < 0))
+		    (o->persistence_state && persist_load(persist, o->persistence_state, e) < 0) ||
+		    persist_check_dates(persist, x, n, o->exptime, e) < 0)
 			goto out;
 		for (int i = 0; i < n; i++)
 			x[i].persist = persist;

@@ -209,9 +209,27 @@ struct persist *persist_new(unsigned sca_mask, int ylo, int yhi,
 	    knob(settings, "persistence-reference", 1e3, 1e7, &ref, e) < 0)
 		goto fail;
 	p->ref_response = fermi(p, ref);
-	for (int s = 1; s <= WFS_NSCA; s++)
-		if ((sca_mask >> (s - 1) & 1) && persist_curve_get(s, &p->curve[s - 1], e) < 0)
+	for (int s = 1; s <= WFS_NSCA; s++) {
+		double g, lo = 0, hi = 1e12;
+
+		if (!(sca_mask >> (s - 1) & 1))
+			continue;
+		if (persist_curve_get(s, &p->curve[s - 1], e) < 0)
 			goto fail;
+		/* the fluence at the floor, by bisection (the amplitude rises
+		 * with the fluence), a little low so that the exact test of
+		 * persist_add() decides at the edge */
+		g = curve_at(&p->curve[s - 1], LAG_KEEP);
+		for (int i = 0; i < 200 && hi - lo > 1e-6 * hi; i++) {
+			double mid = 0.5 * (lo + hi);
+
+			if (persist_scale(p, mid) * g < p->floor)
+				lo = mid;
+			else
+				hi = mid;
+		}
+		p->x_keep[s - 1] = 0.999 * lo;
+	}
 	return p;
 fail:
 	free(p);
@@ -332,12 +350,12 @@ size_t persist_row(const struct persist *p, int sca, int y, size_t *first)
 int persist_add(struct persist *p, int sca, int y, int x0, int n, const double *fluence)
 {
 	struct persist_list *l = &p->next[sca - 1];
-	double g = curve_at(&p->curve[sca - 1], LAG_KEEP);
+	double g = curve_at(&p->curve[sca - 1], LAG_KEEP), xk = p->x_keep[sca - 1];
 
 	for (int i = 0; i < n; i++) {
 		double s;
 
-		if (!(fluence[i] > 0))
+		if (!(fluence[i] >= xk))
 			continue;
 		s = persist_scale(p, fluence[i]);
 		if (s * g < p->floor)

@@ -55,6 +55,9 @@ struct persist {
 	int ylo, yhi;           /* the science rows [ylo, yhi) it covers */
 	struct persist_list now[WFS_NSCA], next[WFS_NSCA];
 	struct persist_curve curve[WFS_NSCA];
+	/* per SCA the least fluence (e-) whose current 30 s after its
+	 * exposure reaches the floor: below it persist_add() keeps nothing */
+	double x_keep[WFS_NSCA];
 	/* the fermi model: x0, dx, alpha, half well (e-); its response to the
 	 * reference fluence */
 	double x0, dx, alpha, half_well, ref_response;

@@ -466,8 +466,11 @@ static int strip_light(struct sca_pass *w, struct strip *s, struct err *e)
 				row[x] += L->background;
 		}
 		w->light[k] = row;
-		/* the exposure's stimulus: the strip's own rows, once each */
-		if (L->persist && k >= 1 && k <= s->ny) {
+		/* the exposure's stimulus: the strip's own rows, once each,
+		 * and the row either side of the part written (--rows), whose
+		 * charge IPC shares with its edge rows, so that a part's
+		 * afterglow is that of the whole SCA */
+		if (L->persist && ((k >= 1 && k <= s->ny) || sy == L->ylo - 1 || sy == L->yhi)) {
 			double T = L->pat->exptime, dark = L->det->dark;
 
 			for (int x = 0; x < WFS_NPIX; x++)

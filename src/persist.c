@@ -586,8 +586,8 @@ int persist_load(struct persist *p, const char *path, struct err *e)
 		l->n = n;
 		for (size_t i = 0; i < n; i++)
 			if ((i && l->pix[i] <= l->pix[i - 1]) ||
-			    l->pix[i] / WFS_NPIX < (uint32_t)p->ylo ||
-			    l->pix[i] / WFS_NPIX >= (uint32_t)p->yhi ||
+			    l->pix[i] / WFS_NPIX + 1 < (uint32_t)p->ylo ||
+			    l->pix[i] / WFS_NPIX > (uint32_t)p->yhi ||
 			    !(l->scale[i] >= 0) || !isfinite(l->tend[i]))
 				goto bad;
 		nlist++;

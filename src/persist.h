@@ -52,7 +52,9 @@ struct persist_list {
 
 struct persist {
 	unsigned sca_mask;      /* the SCAs the state is of */
-	int ylo, yhi;           /* the science rows [ylo, yhi) it covers */
+	int ylo, yhi;           /* the science rows [ylo, yhi) of the run;
+	                           at levels 1 and 2 it holds the row either
+	                           side too (IPC brings their charge in) */
 	struct persist_list now[WFS_NSCA], next[WFS_NSCA];
 	struct persist_curve curve[WFS_NSCA];
 	/* per SCA the least fluence (e-) whose current 30 s after its

@@ -126,6 +126,33 @@ test_expect_success 'a state carried across runs gives the bytes of one run, for
 	cmp s1_a.fits l1_a.fits && cmp s2_b.fits l1_b.fits
 '
 
+test_expect_success 'runs split by rows through the star give the whole run, merged' '
+	"$WFS" --filter F129 --sca 1 --allow-sun-angle --background 0.54 --rows 1950-2040 \
+		--level 1 --pointings pts.txt -o "p1_%s.fits" bright.csv &&
+	"$WFS" --filter F129 --sca 1 --allow-sun-angle --background 0.54 --rows 2041-2150 \
+		--level 1 --pointings pts.txt --threads 1 -o "p2_%s.fits" bright.csv &&
+	$PY -c "
+import numpy as np
+from astropy.io import fits
+p = [fits.open(f)[1].data for f in (\"p1_b.fits\", \"p2_b.fits\")]
+w = fits.open(\"l1_b.fits\")[1].data
+assert (np.concatenate(p, axis=1) == w).all(), \"the parts are the whole\"
+" &&
+	"$WFS" --filter F129 --sca 1 --allow-sun-angle --background 0.54 --rows 1950-2040 \
+		--level 2 --pointings pts.txt -o "q1_%s.fits" bright.csv &&
+	"$WFS" --filter F129 --sca 1 --allow-sun-angle --background 0.54 --rows 2041-2150 \
+		--level 2 --pointings pts.txt --tile 64 -o "q2_%s.fits" bright.csv &&
+	$PY -c "
+import numpy as np
+from astropy.io import fits
+p = [fits.open(f) for f in (\"q1_b.fits\", \"q2_b.fits\")]
+w = fits.open(\"l2_b.fits\")
+for k in range(1, 6):
+    c = np.concatenate([x[k].data for x in p], axis=0)
+    assert (c == w[k].data).all(), w[k].name
+"
+'
+
 test_expect_success 'a state of other SCAs or rows is refused, naming the file; nothing written' '
 	rm -f state.bin &&
 	run --level 1 --pointings pts-a.txt --persistence-state state.bin -o "s1_%s.fits" bright.csv &&

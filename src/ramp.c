@@ -354,12 +354,11 @@ struct l1row {
 	double normal_above;
 	struct cr_hit *hits;    /* CR_MAX of them, nh in pixel order */
 	int nh;
-	/* the afterglow (NULL: none), and per glow pixel the arrivals of
-	 * the group gD and their sum over its reads gW (as D and W); gp the
-	 * next glow pixel read_pixel() looks for */
+	/* the afterglow (NULL: none), and per pixel its arrivals in the
+	 * group Dx and their sum over the group's reads Wx (as D and W),
+	 * zero where there is none */
 	const struct ramp_glow *glow;
-	double *gD, *gW;
-	int gp;
+	double *Dx, *Wx;
 };
 
 /* Before the first read: the rates (the dark current added where light
@@ -425,40 +424,54 @@ static void scale_row(const double *r, double a, double b, double *out, int n)
  * The afterglow of the reads prev + 1 .. last[gi]: a Poisson count per
  * read and glow pixel of the charge the curve releases since the read
  * before, those of the reads skipped before the group into S, those of the
- * group's reads into gD (their sum) and gW (each counted in the group's
+ * group's reads into Dx (their sum) and Wx (each counted in the group's
  * reads from its own on, as W counts the light's arrivals).
  */
 static void level1_glow(struct l1row *R, int gi, int prev)
 {
 	const struct ramp_glow *gl = R->glow;
+	const struct persist_curve *c = gl->curve;
 	const struct ramp_key *k = R->k;
 	int a = R->p->first[gi], b = R->p->last[gi];
 	double dt = R->p->read_time;
+	/* the two exponentials' factors from one read to the next */
+	double qa = exp(-c->b * dt), qd = exp(-c->e * dt);
+	double ka = c->a / c->b * -expm1(-c->b * dt), kd = c->d / c->e * -expm1(-c->e * dt);
 
-	for (int q = 0; q < gl->n; q++)
-		R->gD[q] = R->gW[q] = 0;
-	for (int j = prev + 1; j <= b; j++) {
-		struct rng g;
+	for (int q = 0; q < gl->n; q++) {
+		int i = (int)(gl->pix[q] - gl->base);
+		double lag = gl->t0 - gl->tend[q], s = gl->scale[q], D = 0, W = 0;
+		/* the curve's integral over read j's interval, (lag + (j - 1) dt,
+		 * lag + j dt], by the exponentials' recurrence while the
+		 * interval is within the curve, exactly (persist_charge) at
+		 * its end */
+		double ea = exp(-c->b * (lag + prev * dt)), ed = exp(-c->e * (lag + prev * dt));
 
-		rng_init(&g, k->seed, domain(k, DOM_GLOW, j));
-		for (int q = 0; q < gl->n; q++) {
-			int i = (int)(gl->pix[q] - gl->base);
-			double lag = gl->t0 - gl->tend[q];
-			double m = persist_charge(gl->curve, gl->scale[q], lag + (j - 1) * dt,
-						  lag + j * dt), c;
+		for (int j = prev + 1; j <= b; j++, ea *= qa, ed *= qd) {
+			double m, cnt;
+			struct rng g;
 			struct rng_cell cell;
 
+			if (lag + j * dt <= c->tmax && lag + (j - 1) * dt >= 0)
+				m = s * (ka * ea + kd * ed + c->c * dt);
+			else
+				m = persist_charge(c, s, lag + (j - 1) * dt, lag + j * dt);
 			if (!(m > 0))
 				continue;
-			rng_cell_init(&cell, &g, R->cell0 + (uint32_t)i, 0);
-			c = rng_poisson(m, &cell);
+			/* read j's numbers: its low 8 bits in the domain, the
+			 * rest in the draw (tables of up to 309 reads) */
+			rng_init(&g, k->seed, domain(k, DOM_GLOW, j));
+			rng_cell_init(&cell, &g, R->cell0 + (uint32_t)i, (uint32_t)(j >> 8) << 16);
+			cnt = rng_poisson(m, &cell);
 			if (j < a) {
-				R->S[i] += c;
+				R->S[i] += cnt;
 			} else {
-				R->gD[q] += c;
-				R->gW[q] += c * (b - j + 1);
+				D += cnt;
+				W += cnt * (b - j + 1);
 			}
 		}
+		R->Dx[i] = D;
+		R->Wx[i] = W;
 	}
 }
 
@@ -604,14 +617,8 @@ static inline void read_pixel(struct l1row *R, const struct l1grp *G, int i,
 		}
 	/* the afterglow's arrivals, as a cosmic ray's */
 	if (R->glow) {
-		const struct ramp_glow *gl = R->glow;
-
-		for (; R->gp < gl->n && gl->pix[R->gp] - gl->base < (uint32_t)i; R->gp++)
-			;
-		if (R->gp < gl->n && gl->pix[R->gp] - gl->base == (uint32_t)i) {
-			W += R->gW[R->gp];
-			Di += R->gD[R->gp];
-		}
+		W += R->Wx[i];
+		Di += R->Dx[i];
 	}
 	send = s0 + Di;
 	if (send < d->sat_true) {
@@ -728,6 +735,12 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, W, _CMP_GT_OQ), W);
 		W = _mm512_mask_mov_pd(W, nrm, c);
 	}
+	/* the afterglow's arrivals, after the light's split, as read_pixel()
+	 * adds them */
+	if (R->glow) {
+		W = _mm512_add_pd(W, _mm512_loadu_pd(R->Wx + i));
+		Di = _mm512_add_pd(Di, _mm512_loadu_pd(R->Dx + i));
+	}
 	/* saturation within the group: read_pixel() */
 	bad |= _mm512_cmp_pd_mask(_mm512_add_pd(s0, Di), _mm512_set1_pd(d->sat_true), _CMP_NLT_UQ);
 	x = _mm512_add_pd(s0, _mm512_mul_pd(W, _mm512_set1_pd(G->inv_n)));
@@ -796,15 +809,6 @@ __attribute__((target("avx512f,avx512dq"))) static void sq_avx512(double *sq, do
 }
 #endif
 
-/* Whether a glow pixel at or after read_pixel()'s place is before pixel
- * end (those go through read_pixel()). */
-static inline int glow_within(const struct l1row *R, int end)
-{
-	const struct ramp_glow *gl = R->glow;
-
-	return gl && R->gp < gl->n && gl->pix[R->gp] - gl->base < (uint32_t)end;
-}
-
 /* Resultant gi of every pixel from its arrivals D (read_pixel()), eight
  * at a time where the machine has AVX-512.  The row's hot loop. */
 static void level1_reads(struct l1row *R, int gi)
@@ -825,7 +829,6 @@ static void level1_reads(struct l1row *R, int gi)
 	G.bk = d->beta * G.kvar * G.inv_n * G.inv_n;
 	G.exact_max = R->exact_max;
 	G.inv_g = 1 / d->gain;
-	R->gp = 0;
 #ifdef RAMP_AVX2
 	wide = (simd_flags() & SIMD_AVX512) != 0;
 #endif
@@ -865,7 +868,7 @@ static void level1_reads(struct l1row *R, int gi)
 			int i = i0 + j;
 			unsigned bad;
 
-			if ((hp < nh && R->hits[hp].pix < i + 8) || glow_within(R, i + 8)) {
+			if (hp < nh && R->hits[hp].pix < i + 8) {
 				for (int q = 0; q < 8; q++)
 					read_pixel(R, &G, i + q, w[j + q], &hp);
 				continue;
@@ -915,8 +918,12 @@ static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 	R.Q = R.D + n + 512;
 	R.w = (uint32_t (*)[4])(R.D + n);
 	R.glow = light && glow && glow->n ? glow : NULL;
-	R.gD = R.Q + n;
-	R.gW = R.gD + n;
+	R.Dx = R.Q + n;
+	R.Wx = R.Dx + n;
+	if (R.glow) {
+		memset(R.Dx, 0, (size_t)n * sizeof(*R.Dx));
+		memset(R.Wx, 0, (size_t)n * sizeof(*R.Wx));
+	}
 	level1_start(&R, rate);
 	for (int gi = 0; gi < p->nres; gi++) {
 		level1_arrivals(&R, gi, prev);

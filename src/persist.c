@@ -300,7 +300,8 @@ int persist_begin(struct persist *p, const char *name, double mjd, double exptim
 	if (p->have_last && t0 < p->last_end - 1e-6)
 		return err_set(e, EXIT_INPUT, "persistence: exposure%s%s begins %.3f s before "
 			       "the previous one ends: the exposures of a series must be in "
-			       "date order, each after the one before", name && *name ? " " : "",
+			       "date order, each after the one before (or leave persistence "
+			       "out: --detector none)", name && *name ? " " : "",
 			       name ? name : "", p->last_end - t0);
 	p->t0 = t0;
 	p->t1 = t0 + exptime;

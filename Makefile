@@ -179,7 +179,7 @@ check: deps
 ## unit: build the C unit tests
 unit: $(UNIT_BIN)
 
-## demo-bulge: a season of a small bulge field with a microlensing event, its light curve measured back
+## demo-bulge: SCA 4 of a bulge field (10^6 stars) at a 15-minute cadence, level 2 with persistence: a light curve and the afterglow
 demo-bulge: all
 	$(Q)WFS_BUILD=$(B) sh contrib/demo-bulge/run.sh
 

@@ -15,9 +15,44 @@
 #include "err.h"
 #include "instrument.h"
 #include "levels.h"
+#include "persist.h"
 #include "pool.h"
 #include "scene.h"
 #include "sky.h"
+
+int detector_parse(const char *s, unsigned *parts, struct err *e)
+{
+	static const struct {
+		const char *name;
+		unsigned bit;
+	} part[] = {
+		{ "persistence", DETECTOR_PERSISTENCE },
+	};
+	const char *p = s;
+
+	*parts = 0;
+	if (!strcmp(s, "all")) {
+		*parts = DETECTOR_ALL;
+		return 0;
+	}
+	if (!strcmp(s, "none"))
+		return 0;
+	while (*p) {
+		size_t len = strcspn(p, ","), i;
+
+		for (i = 0; i < sizeof(part) / sizeof(part[0]); i++)
+			if (strlen(part[i].name) == len && !strncmp(p, part[i].name, len))
+				break;
+		if (i == sizeof(part) / sizeof(part[0]))
+			return err_set(e, EXIT_INPUT, "--detector: unknown part '%.*s' in '%s' "
+				       "(all, none, or a list of: persistence)", (int)len, p, s);
+		*parts |= part[i].bit;
+		p += len;
+		if (*p == ',')
+			p++;
+	}
+	return 0;
+}
 
 int detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x,
 		  struct err *e)
@@ -27,6 +62,8 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 	d->level = x->level;
 	d->sky = NULL;
 	d->poisson_normal = 0;
+	d->persist = NULL;
+	d->exptime = o->exptime;
 	/* --set poisson-normal=N (the last one given wins) */
 	for (const char *const *kv = o->settings; kv && *kv; kv++) {
 		static const char key[] = "poisson-normal=";
@@ -52,8 +89,17 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 	}
 	if (d->level != DETECTOR_SCENE) {
 		d->active = 1;
-		return ramp_pattern_get(o->ma_table, &d->pattern, e);
+		if (ramp_pattern_get(o->ma_table, &d->pattern, e) < 0)
+			return -1;
+		d->exptime = d->pattern.exptime;
 	}
+	if (x->persist) {
+		if (persist_begin(x->persist, x->name, x->date, d->exptime, e) < 0)
+			return -1;
+		d->persist = x->persist;
+	}
+	if (d->level != DETECTOR_SCENE)
+		return 0;
 	d->noise = (struct noise_opts){
 		.stages = o->noise, .exptime = o->exptime,
 		.poisson_normal = d->poisson_normal,
@@ -64,7 +110,7 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 	/* With no noise, no background and counts/s, the stage is the
 	 * identity and the tiles never drawn on are never allocated.  (Every
 	 * SCA has a background or none does, so that split runs agree.) */
-	d->active = o->noise || any_bkg || o->bunit_counts;
+	d->active = o->noise || any_bkg || o->bunit_counts || d->persist;
 	return 0;
 }
 
@@ -112,6 +158,59 @@ static void detector_tile(void *arg, int wid, size_t tx)
 		atomic_store(&j->failed, 1);
 }
 
+/*
+ * Persistence at the scene level, on the calling thread before the noise:
+ * each pixel's fluence (its light, background included, times the
+ * exposure time) is the exposure's stimulus, row by row in order, and the
+ * afterglow of the state's pixels is added as its mean rate over the
+ * exposure, which the noise stages then treat as light.
+ */
+static int strip_persist(const struct detector *d, int sca, int y0, int ny,
+			 double *const *tiles, int ntx, int T)
+{
+	struct persist *P = d->persist;
+	const struct persist_list *l = &P->now[sca - 1];
+	const struct persist_curve *c = &P->curve[sca - 1];
+	const struct geom_sca *geo = d->sky ? &d->sky->sca[sca - 1].geo : NULL;
+	double sky = d->bkg_sky[sca - 1], thermal = d->bkg_pixel[sca - 1];
+	double *flu = malloc(2 * WFS_NPIX * sizeof(double)), *area = flu + WFS_NPIX;
+
+	if (!flu)
+		return -1;
+	for (int y = 0; y < ny; y++) {
+		size_t first, n;
+
+		if (y0 + y < P->ylo || y0 + y >= P->yhi)
+			continue;
+		if (geo && geo->kind == GEOM_SIAF && sky != 0)
+			geom_area_row(geo, y0 + y, 0, WFS_NPIX, area);
+		else
+			for (int x = 0; x < WFS_NPIX; x++)
+				area[x] = 1;
+		for (int tx = 0; tx < ntx; tx++) {
+			int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+			const double *r = tiles[tx] + (size_t)y * T;
+
+			for (int x = 0; x < nx; x++)
+				flu[x0 + x] = (r[x] + sky * area[x0 + x] + thermal) * d->exptime;
+		}
+		if (persist_add(P, sca, y0 + y, 0, WFS_NPIX, flu) < 0) {
+			free(flu);
+			return -1;
+		}
+		n = persist_row(P, sca, y0 + y, &first);
+		for (size_t k = first; k < first + n; k++) {
+			int x = (int)(l->pix[k] - (uint32_t)(y0 + y) * WFS_NPIX);
+			double lag = P->t0 - l->tend[k];
+
+			tiles[x / T][(size_t)y * T + x % T] +=
+				persist_charge(c, l->scale[k], lag, lag + d->exptime) / d->exptime;
+		}
+	}
+	free(flu);
+	return 0;
+}
+
 int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
 		   double *const *tiles, int ntx, int T)
 {
@@ -119,6 +218,8 @@ int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0,
 
 	if (!d->active)
 		return 0;
+	if (d->persist && strip_persist(d, sca, y0, ny, tiles, ntx, T) < 0)
+		return -1;
 	atomic_init(&j.failed, 0);
 	pool_run(pool, detector_tile, &j, ntx);
 	return atomic_load(&j.failed) ? -1 : 0;
@@ -132,4 +233,5 @@ void detector_level_setup(const struct detector *d, int sca, struct level_sca *L
 	L->geo = geo && geo->kind == GEOM_SIAF ? geo : NULL;
 	L->bkg_sky = d->bkg_sky[sca - 1];
 	L->key.poisson_normal = d->poisson_normal;
+	L->persist = d->persist;
 }

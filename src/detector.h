@@ -55,7 +55,26 @@ struct detector {
 	 * count is the skew-corrected normal (rng_poisson_normal), at every
 	 * level; 0 for the defaults (NOISE_POISSON_NORMAL, RAMP_POISSON_NORMAL). */
 	double poisson_normal;
+	/* The run's persistence state (NULL: none), begun for this exposure
+	 * by detector_init(): the afterglow of earlier exposures, and this
+	 * one's stimulus added to it strip by strip (scene level) or row by
+	 * row (levels.c) */
+	struct persist *persist;
+	double exptime;         /* s: the scene's --exptime or the last read */
 };
+
+/* The named parts of the detector model that can be turned off
+ * (--detector); each in wfiscene(1), DETECTOR MODEL, with its source. */
+enum detector_part {
+	/* trapped charge from earlier exposures of the series released as
+	 * an afterglow (persist.c) */
+	DETECTOR_PERSISTENCE = 1 << 0,
+	DETECTOR_ALL = DETECTOR_PERSISTENCE,
+};
+
+/* Parse a --detector value: "all", "none" or a comma-separated list of
+ * parts ("persistence"), into *parts.  0 or -1 with a message. */
+int detector_parse(const char *s, unsigned *parts, struct err *e);
 
 struct level_sca;
 
@@ -64,7 +83,9 @@ struct level_sca;
  * the ramp's approximations, into L. */
 void detector_level_setup(const struct detector *d, int sca, struct level_sca *L);
 
-/* The detector stage of exposure x of a run with options o. */
+/* The detector stage of exposure x of a run with options o.  With a
+ * persistence state (x->persist), the exposure is begun in it
+ * (persist_begin; the caller ends it with persist_end once written). */
 int detector_init(struct detector *d, const struct scene_opts *o, const struct exposure *x,
 		  struct err *e);
 

@@ -38,6 +38,9 @@ struct exposure {
 	 * the name, %% a '%'), owned by the exposure, NULL when not asked for. */
 	const char *output;
 	char *placed, *report;
+	/* The run's persistence state (persist.h), shared by its exposures
+	 * and taken forward in their order; NULL without persistence. */
+	struct persist *persist;
 };
 
 /* The exposures of a run: one from the options, or one per line of

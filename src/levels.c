@@ -11,6 +11,7 @@
 #include "geometry.h"
 #include "instrument.h"
 #include "levels.h"
+#include "persist.h"
 #include "pool.h"
 
 #define FRAME 4096              /* the array with its reference border */
@@ -75,12 +76,46 @@ static void strip_charge(void *arg, int wid, size_t task)
 	struct level_sca *L = s->L;
 	int sy = s->sy0 + s->c0 - 1 + (int)task;
 
+	struct ramp_glow glow = { 0 };
+
 	if (!s->ch[task])
 		return;
-	ramp_level1_charge(L->pat, L->det, &L->key,
-			   (uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX,
-			   s->light[s->c0 + task], s->ch[task], s->own[task], WFS_NPIX,
-			   s->scr[wid]);
+	if (L->persist) {
+		const struct persist *P = L->persist;
+		const struct persist_list *l = &P->now[L->key.sca - 1];
+		size_t first;
+
+		glow.n = (int)persist_row(P, L->key.sca, sy, &first);
+		glow.pix = l->pix + first;
+		glow.base = (uint32_t)sy * WFS_NPIX;
+		glow.scale = l->scale + first;
+		glow.tend = l->tend + first;
+		glow.t0 = P->t0;
+		glow.curve = &P->curve[L->key.sca - 1];
+	}
+	ramp_level1_charge_glow(L->pat, L->det, &L->key,
+				(uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX,
+				s->light[s->c0 + task], &glow, s->ch[task], s->own[task],
+				WFS_NPIX, s->scr[wid]);
+}
+
+/* DQ PERSISTENCE on science row sy's pixels (dq[0 .. 4088)) whose
+ * afterglow over the exposure reaches the flag's fraction of the read
+ * noise of one read. */
+static void strip_persist_dq(const struct level_sca *L, int sy, uint32_t *dq)
+{
+	const struct persist *P = L->persist;
+	const struct persist_list *l = &P->now[L->key.sca - 1];
+	const struct persist_curve *c = &P->curve[L->key.sca - 1];
+	double limit = P->flag * L->det->read_noise, T = L->pat->exptime;
+	size_t first, n = persist_row(P, L->key.sca, sy, &first);
+
+	for (size_t k = first; k < first + n; k++) {
+		double lag = P->t0 - l->tend[k];
+
+		if (persist_charge(c, l->scale[k], lag, lag + T) >= limit)
+			dq[l->pix[k] - (uint32_t)sy * WFS_NPIX] |= PERSIST_DQ;
+	}
 }
 
 /* The second pass: a frame row's resultants, IPC acting on the charge,
@@ -139,6 +174,8 @@ static void strip_row(void *arg, int wid, size_t ctask)
 				s->dq[o + x] = f->dq;
 			}
 		}
+		if (L->persist && light)
+			strip_persist_dq(L, sy, s->dq + task * WFS_NPIX);
 	}
 }
 
@@ -307,7 +344,7 @@ struct sca_pass {
 	struct strip st[2];
 	int nthr;
 	int S;                  /* frame rows a strip */
-	double *lightbuf, *pixarea;
+	double *lightbuf, *pixarea, *fluence;
 	const double **light;
 	/* the charge of a chunk and its margins: one set, as one chunk at a
 	 * time is computed */
@@ -332,12 +369,13 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 	w->lightbuf = malloc((size_t)(S + 2) * WFS_NPIX * sizeof(double));
 	w->light = calloc((size_t)S + 2, sizeof(*w->light));
 	w->pixarea = malloc(WFS_NPIX * sizeof(double));
+	w->fluence = malloc(WFS_NPIX * sizeof(double));
 	w->chbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(double));
 	w->ownbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(float));
 	w->ch = calloc((size_t)CHUNK + 2, sizeof(*w->ch));
 	w->own = calloc((size_t)CHUNK + 2, sizeof(*w->own));
 	if (!st[0].scr || !st[0].dnrow || !w->lightbuf || !w->light || !w->pixarea ||
-	    !w->chbuf || !w->ownbuf || !w->ch || !w->own)
+	    !w->chbuf || !w->ownbuf || !w->ch || !w->own || !w->fluence)
 		return -1;
 	for (int i = 0; i < nthr; i++)
 		if (!(st[0].scr[i] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
@@ -394,6 +432,7 @@ static void sca_pass_free(struct sca_pass *w)
 	free(w->own);
 	free(w->light);
 	free(w->pixarea);
+	free(w->fluence);
 	ramp_fit_plan_free(&w->fp);
 }
 
@@ -427,6 +466,18 @@ static int strip_light(struct sca_pass *w, struct strip *s, struct err *e)
 				row[x] += L->background;
 		}
 		w->light[k] = row;
+		/* the exposure's stimulus: the strip's own rows, once each,
+		 * and the row either side of the part written (--rows), whose
+		 * charge IPC shares with its edge rows, so that a part's
+		 * afterglow is that of the whole SCA */
+		if (L->persist && ((k >= 1 && k <= s->ny) || sy == L->ylo - 1 || sy == L->yhi)) {
+			double T = L->pat->exptime, dark = L->det->dark;
+
+			for (int x = 0; x < WFS_NPIX; x++)
+				w->fluence[x] = (row[x] + dark) * T;
+			if (persist_add(L->persist, L->key.sca, sy, 0, WFS_NPIX, w->fluence) < 0)
+				return err_sys(e, "persistence state");
+		}
 	}
 	return 0;
 }

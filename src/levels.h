@@ -55,6 +55,12 @@ struct level_sca {
 	const char *cards;
 	int ncards;
 	struct pool *pool;
+	/* The run's persistence state (NULL: none), begun for the exposure:
+	 * the afterglow of its pixels goes into the ramp read by read, the
+	 * SCA's light (with the dark current) times the exposure time is
+	 * the exposure's stimulus, and level 2 flags DQ PERSISTENCE where the
+	 * afterglow's charge reaches the state's flag times the read noise. */
+	struct persist *persist;
 	/* out: CPU-independent wall seconds spent, for --report */
 	double t_ramp, t_write;
 };

@@ -13,6 +13,7 @@
 #include "catalog.h"
 #include "commands.h"
 #include "date.h"
+#include "detector.h"
 #include "err.h"
 #include "instrument.h"
 #include "levels.h"
@@ -42,7 +43,7 @@ struct scene_cmd {
 
 static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
 	set_model_int, set_model_word, set_flux_unit, set_psf, set_background, set_noise,
-	set_seed, set_version, set_date, set_exptime, set_level, set_ma_table;
+	set_seed, set_version, set_date, set_exptime, set_level, set_ma_table, set_detector;
 
 static const char *const refs[] = { "wfi01", "boresight", NULL };
 /* in the order of enum wfs_geometry */
@@ -157,6 +158,10 @@ static const struct opt scene_options[] = {
 	  set_level, OFF(o.level)) },
 	{ OPT("ma-table", 0, "N", "4", "MultiAccum table of levels 1 and 2 (3-17, 109, 110)",
 	  set_ma_table, OFF(o.ma_table)), .lo = 1, .hi = 999 },
+	{ OPT("detector", 0, "LIST", "all at levels 1, 2", "parts of the detector model: all, "
+	  "none, or persistence", set_detector, OFF(o.detector)), .flags = OPT_SHOW_DEFAULT },
+	{ OPT("persistence-state", 0, "FILE", NULL, "carry persistence across runs: read "
+	  "FILE if it exists, write it at the end", opt_string, OFF(o.persistence_state)) },
 	OPT_SECTION("Running:"),
 	{ OPT("threads", 0, "N", "all cores", "worker threads", opt_int, OFF(o.threads)),
 	  .lo = 0, .hi = 1024, .flags = OPT_SHOW_DEFAULT },
@@ -353,6 +358,14 @@ static int set_level(const struct opt_arg *a, struct err *e)
 	return level_parse(a->value, a->field, e);
 }
 
+static int set_detector(const struct opt_arg *a, struct err *e)
+{
+	struct scene_cmd *c = a->base;
+
+	c->o.detector_given = 1;
+	return detector_parse(a->value, a->field, e);
+}
+
 static int set_noise(const struct opt_arg *a, struct err *e)
 {
 	return noise_parse(a->value, a->field, e);
@@ -455,6 +468,14 @@ static int check_options(struct scene_opts *o, struct err *e)
 			return err_set(e, EXIT_INPUT, "-o - with --level %s: the planes are "
 				       "written side by side and need a file, not stdout", lv);
 	}
+	/* the parts of the detector model: all the data supports at levels
+	 * 1 and 2, none at the scene level, unless --detector says */
+	if (!o->detector_given)
+		o->detector = o->level != LEVEL_SCENE ? DETECTOR_ALL : 0;
+	if (o->persistence_state && !(o->detector & DETECTOR_PERSISTENCE))
+		return err_set(e, EXIT_INPUT, "--persistence-state without persistence: it is "
+			       "on by default at --level 1 and 2; at the scene level give "
+			       "--detector persistence");
 	if (o->xbright_limit > o->bright_limit)
 		return err_set(e, EXIT_INPUT, "--xbright-limit %g is fainter than "
 			       "--bright-limit %g", o->xbright_limit, o->bright_limit);

@@ -56,6 +56,7 @@
 
 #include "data.h"
 #include "err.h"
+#include "persist.h"
 #include "ramp.h"
 #include "ramp_pois.h"
 #include "rng.h"
@@ -75,6 +76,7 @@ enum {
 	DOM_SPLIT_N = 0x46,
 	DOM_READ = 0x47,
 	DOM_GAP = 0x48,
+	DOM_GLOW = 0x49,
 };
 
 #define RATE_MAX 1e12           /* e-/s: beyond this a pixel is as saturated */
@@ -352,6 +354,11 @@ struct l1row {
 	double normal_above;
 	struct cr_hit *hits;    /* CR_MAX of them, nh in pixel order */
 	int nh;
+	/* the afterglow (NULL: none), and per pixel its arrivals in the
+	 * group Dx and their sum over the group's reads Wx (as D and W),
+	 * zero where there is none */
+	const struct ramp_glow *glow;
+	double *Dx, *Wx;
 };
 
 /* Before the first read: the rates (the dark current added where light
@@ -413,6 +420,61 @@ static void scale_row(const double *r, double a, double b, double *out, int n)
 		out[i] = r[i] * a * b;
 }
 
+/*
+ * The afterglow of the reads prev + 1 .. last[gi]: a Poisson count per
+ * read and glow pixel of the charge the curve releases since the read
+ * before, those of the reads skipped before the group into S, those of the
+ * group's reads into Dx (their sum) and Wx (each counted in the group's
+ * reads from its own on, as W counts the light's arrivals).
+ */
+static void level1_glow(struct l1row *R, int gi, int prev)
+{
+	const struct ramp_glow *gl = R->glow;
+	const struct persist_curve *c = gl->curve;
+	const struct ramp_key *k = R->k;
+	int a = R->p->first[gi], b = R->p->last[gi];
+	double dt = R->p->read_time;
+	/* the two exponentials' factors from one read to the next */
+	double qa = exp(-c->b * dt), qd = exp(-c->e * dt);
+	double ka = c->a / c->b * -expm1(-c->b * dt), kd = c->d / c->e * -expm1(-c->e * dt);
+
+	for (int q = 0; q < gl->n; q++) {
+		int i = (int)(gl->pix[q] - gl->base);
+		double lag = gl->t0 - gl->tend[q], s = gl->scale[q], D = 0, W = 0;
+		/* the curve's integral over read j's interval, (lag + (j - 1) dt,
+		 * lag + j dt], by the exponentials' recurrence while the
+		 * interval is within the curve, exactly (persist_charge) at
+		 * its end */
+		double ea = exp(-c->b * (lag + prev * dt)), ed = exp(-c->e * (lag + prev * dt));
+
+		for (int j = prev + 1; j <= b; j++, ea *= qa, ed *= qd) {
+			double m, cnt;
+			struct rng g;
+			struct rng_cell cell;
+
+			if (lag + j * dt <= c->tmax && lag + (j - 1) * dt >= 0)
+				m = s * (ka * ea + kd * ed + c->c * dt);
+			else
+				m = persist_charge(c, s, lag + (j - 1) * dt, lag + j * dt);
+			if (!(m > 0))
+				continue;
+			/* read j's numbers: its low 8 bits in the domain, the
+			 * rest in the draw (tables of up to 309 reads) */
+			rng_init(&g, k->seed, domain(k, DOM_GLOW, j));
+			rng_cell_init(&cell, &g, R->cell0 + (uint32_t)i, (uint32_t)(j >> 8) << 16);
+			cnt = rng_poisson(m, &cell);
+			if (j < a) {
+				R->S[i] += cnt;
+			} else {
+				D += cnt;
+				W += cnt * (b - j + 1);
+			}
+		}
+		R->Dx[i] = D;
+		R->Wx[i] = W;
+	}
+}
+
 static void level1_arrivals(struct l1row *R, int gi, int prev)
 {
 	const struct ramp_key *k = R->k;
@@ -437,6 +499,8 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 	} else {
 		memset(D, 0, (size_t)n * sizeof(*D));
 	}
+	if (R->glow && R->glow->n)
+		level1_glow(R, gi, prev);
 }
 
 /*
@@ -551,6 +615,11 @@ static inline void read_pixel(struct l1row *R, const struct l1grp *G, int i,
 			W += hits[*hp].e * (b - hits[*hp].read + 1);
 			Di += hits[*hp].e;
 		}
+	/* the afterglow's arrivals, as a cosmic ray's */
+	if (R->glow) {
+		W += R->Wx[i];
+		Di += R->Dx[i];
+	}
 	send = s0 + Di;
 	if (send < d->sat_true) {
 		mm = ramp_nl(d, s0 + W * G->inv_n) + G->bk * Di * Di;
@@ -665,6 +734,12 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, Di, _CMP_LT_OQ), Di);
 		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, W, _CMP_GT_OQ), W);
 		W = _mm512_mask_mov_pd(W, nrm, c);
+	}
+	/* the afterglow's arrivals, after the light's split, as read_pixel()
+	 * adds them */
+	if (R->glow) {
+		W = _mm512_add_pd(W, _mm512_loadu_pd(R->Wx + i));
+		Di = _mm512_add_pd(Di, _mm512_loadu_pd(R->Dx + i));
 	}
 	/* saturation within the group: read_pixel() */
 	bad |= _mm512_cmp_pd_mask(_mm512_add_pd(s0, Di), _mm512_set1_pd(d->sat_true), _CMP_NLT_UQ);
@@ -818,8 +893,9 @@ static void level1_reads(struct l1row *R, int gi)
  */
 static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 		   const struct ramp_key *k, uint32_t cell0, int n,
-		   const double *rate, int light, uint16_t *out, size_t plane,
-		   double *ch, float *own, size_t cplane, double *scratch)
+		   const double *rate, int light, const struct ramp_glow *glow,
+		   uint16_t *out, size_t plane, double *ch, float *own, size_t cplane,
+		   double *scratch)
 {
 	struct l1row R = {
 		.p = p, .d = d, .k = k, .cell0 = cell0, .n = n, .light = light,
@@ -841,6 +917,13 @@ static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 	R.D = R.mu + n;
 	R.Q = R.D + n + 512;
 	R.w = (uint32_t (*)[4])(R.D + n);
+	R.glow = light && glow && glow->n ? glow : NULL;
+	R.Dx = R.Q + n;
+	R.Wx = R.Dx + n;
+	if (R.glow) {
+		memset(R.Dx, 0, (size_t)n * sizeof(*R.Dx));
+		memset(R.Wx, 0, (size_t)n * sizeof(*R.Wx));
+	}
 	level1_start(&R, rate);
 	for (int gi = 0; gi < p->nres; gi++) {
 		level1_arrivals(&R, gi, prev);
@@ -854,7 +937,7 @@ void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 		     const double *rate, int light, uint16_t *out, size_t plane,
 		     double *scratch)
 {
-	level1(p, d, k, cell0, n, rate, light, out, plane, NULL, NULL, 0, scratch);
+	level1(p, d, k, cell0, n, rate, light, NULL, out, plane, NULL, NULL, 0, scratch);
 }
 
 void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
@@ -862,7 +945,15 @@ void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
 			const double *rate, double *ch, float *own, size_t cplane,
 			double *scratch)
 {
-	level1(p, d, k, cell0, n, rate, 1, NULL, 0, ch, own, cplane, scratch);
+	level1(p, d, k, cell0, n, rate, 1, NULL, NULL, 0, ch, own, cplane, scratch);
+}
+
+void ramp_level1_charge_glow(const struct ramp_pattern *p, const struct ramp_det *d,
+			     const struct ramp_key *k, uint32_t cell0, int n,
+			     const double *rate, const struct ramp_glow *glow, double *ch,
+			     float *own, size_t cplane, double *scratch)
+{
+	level1(p, d, k, cell0, n, rate, 1, glow, NULL, 0, ch, own, cplane, scratch);
 }
 
 /* IPC of one resultant at the pixels x0 .. x1-1 (none at the row's ends),

@@ -114,7 +114,7 @@ struct ramp_key {
  * RAMP_TAB_DOUBLES each (ramp_pois.h's struct pois_tab fits). */
 #define RAMP_TAB_DOUBLES 260
 #define RAMP_TABS ((RAMP_MAX_RES + 1) * 2 * RAMP_TAB_DOUBLES)
-#define RAMP_SCRATCH(n) ((size_t)(n) * 6 + 512 + RAMP_TABS)
+#define RAMP_SCRATCH(n) ((size_t)(n) * 8 + 512 + RAMP_TABS)
 /* Before its first use, scratch must be set up by ramp_scratch_init() (it
  * keeps tables across calls; they change the speed, never the numbers). */
 void ramp_scratch_init(double *scratch);
@@ -136,6 +136,32 @@ void ramp_level1_charge(const struct ramp_pattern *p, const struct ramp_det *d,
 			const struct ramp_key *k, uint32_t cell0, int n,
 			const double *rate, double *ch, float *own, size_t cplane,
 			double *scratch);
+
+/*
+ * The afterglow of persistence (persist.h) in a row of light pixels: n of
+ * them, science pixels pix[0 .. n) ascending (pix - base their offset in
+ * the row call), each releasing scale[k] times the SCA's decay curve from
+ * tend[k] on; the exposure's reset at t0 (s, the clock of tend).  Each
+ * read's share of it is a Poisson count of the charge the curve releases
+ * between that read and the one before (the reset for read 1), keyed by
+ * (seed, read, pixel), so a pixel's afterglow is the same whoever asks.
+ */
+struct persist_curve;
+struct ramp_glow {
+	int n;
+	const uint32_t *pix;
+	uint32_t base;
+	const float *scale;
+	const double *tend;
+	double t0;
+	const struct persist_curve *curve;
+};
+
+/* ramp_level1_charge() with the afterglow glow (NULL or n = 0: none). */
+void ramp_level1_charge_glow(const struct ramp_pattern *p, const struct ramp_det *d,
+			     const struct ramp_key *k, uint32_t cell0, int n,
+			     const double *rate, const struct ramp_glow *glow, double *ch,
+			     float *own, size_t cplane, double *scratch);
 
 /*
  * The resultants (DN) of a row from ramp_level1_charge()'s parts: the

@@ -20,11 +20,13 @@
 
 #include "catalog.h"
 #include "clock.h"
+#include "detector.h"
 #include "engine.h"
 #include "err.h"
 #include "fftconv.h"
 #include "into.h"
 #include "noise.h"
+#include "persist.h"
 #include "pool.h"
 #include "tree.h"
 
@@ -296,7 +298,8 @@ static int finish(struct engine *g, struct timespec t0)
 {
 	struct timespec t1;
 
-	if (write_exposure(g) < 0 || placed_close(g, 1) < 0)
+	if (write_exposure(g) < 0 || placed_close(g, 1) < 0 ||
+	    (g->x->persist && persist_end(g->x->persist, g->e) < 0))
 		return -1;
 	clock_gettime(CLOCK_MONOTONIC, &t1);
 	g->t_total = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
@@ -401,6 +404,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	struct exposure *x = NULL;
 	struct pool *pool = NULL, *place_pool = NULL;
 	struct into *into = NULL;
+	struct persist *persist = NULL;
 	struct timespec t0;
 	int n = 0, per, nthreads, rc = -1;
 
@@ -422,6 +426,22 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	/* With --into, the image says where the SCAs look (into.h). */
 	if (into)
 		into_pointing(into, &x[0].ra, &x[0].dec, &x[0].pa, &x[0].boresight);
+	/* Persistence: one state for the run's exposures, taken in their
+	 * order (persist.h); needless for one exposure without a state to
+	 * carry on. */
+	if ((o->detector & DETECTOR_PERSISTENCE) && (n > 1 || o->persistence_state)) {
+		unsigned mask = 0;
+
+		for (int i = 0; i < n; i++)
+			mask |= x[i].sca_mask;
+		if (!(persist = persist_new(mask, o->row_first ? o->row_first - 1 : 0,
+					    o->row_first ? o->row_last : WFS_NPIX, o->settings, e)) ||
+		    (o->persistence_state && persist_load(persist, o->persistence_state, e) < 0) ||
+		    persist_check_dates(persist, x, n, o->exptime, e) < 0)
+			goto out;
+		for (int i = 0; i < n; i++)
+			x[i].persist = persist;
+	}
 	per = series_per_pass(o, x, n);
 	if (per < n) {
 		for (char *const *cat = catalogs; *cat; cat++)
@@ -452,8 +472,11 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 			goto out;
 	if (into && into_compose(into, x[0].output, e) < 0)
 		goto out;
+	if (persist && o->persistence_state && persist_save(persist, o->persistence_state, e) < 0)
+		goto out;
 	rc = 0;
 out:
+	persist_free(persist);
 	into_free(into);
 	pool_free(pool);
 	pool_free(place_pool);

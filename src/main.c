@@ -18,8 +18,10 @@
 #include "levels.h"
 #include "names.h"
 #include "noise.h"
+#include "geometry.h"
 #include "options.h"
 #include "pool.h"
+#include "product.h"
 #include "scene.h"
 #include "tempfile.h"
 
@@ -42,7 +44,7 @@ struct scene_cmd {
 
 static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
 	set_model_int, set_model_word, set_flux_unit, set_psf, set_background, set_noise,
-	set_seed, set_version, set_date, set_exptime, set_level, set_ma_table;
+	set_seed, set_version, set_date, set_exptime, set_level, set_ma_table, set_format;
 
 static const char *const refs[] = { "wfi01", "boresight", NULL };
 /* in the order of enum wfs_geometry */
@@ -54,12 +56,16 @@ static const char *const methods[] = { "quick", "precise", NULL };
 static const char *const meanings[] = { "total", "ie", NULL };
 static const char *const yesno[] = { "yes", "no", NULL };
 static const char *const compressions[] = { "none", "rice", "gzip", NULL };
+static const char *const formats[] = { "fits", "asdf", NULL };     /* enum product_format */
 static const char *const norms[] = { "project", "etc", NULL };    /* enum bkg_norm */
 
 static const struct opt scene_options[] = {
 	OPT_SECTION("Scene:"),
-	{ OPT("output", 'o', "FILE", NULL, "output FITS ('-' stdout; '%d' in FILE: one per SCA)",
-	  opt_string, OFF(o.output)) },
+	{ OPT("output", 'o', "FILE", NULL, "output FITS or ASDF ('-' stdout; '%d' in FILE: one "
+	  "per SCA)", opt_string, OFF(o.output)) },
+	{ OPT("format", 0, "F", "by -o", "fits or asdf (Roman's levels 1 and 2); by default "
+	  "asdf for -o *.asdf", set_format, OFF(o.format)), .words = formats,
+	  .flags = OPT_SHOW_DEFAULT },
 	{ OPT("filter", 0, "F", NULL, "F062 F087 F106 F129 F158 F184 F213 F146 (required)",
 	  set_filter, OFF(o.filter)) },
 	{ OPT("sca", 0, "LIST", "1", "SCAs: 1, 1-18, 2,5,9, WFI05", set_sca, OFF(o.sca_mask)) },
@@ -344,6 +350,14 @@ static int set_ma_table(const struct opt_arg *a, struct err *e)
 	return opt_int(a, e);
 }
 
+static int set_format(const struct opt_arg *a, struct err *e)
+{
+	struct scene_cmd *c = a->base;
+
+	c->o.format_given = 1;
+	return opt_choice(a, e);
+}
+
 static int set_level(const struct opt_arg *a, struct err *e)
 {
 	return level_parse(a->value, a->field, e);
@@ -395,6 +409,28 @@ static int fail(const struct err *e)
 	return opt_fail(&scene_cmd_line, OPT_PARSE_FAIL, e);
 }
 
+/* What an ASDF output allows: the Roman pipeline's products of a whole SCA
+ * in Roman's own geometry, one file per SCA, written at offsets. */
+static int check_asdf(const struct scene_opts *o, struct err *e)
+{
+	if (o->level == LEVEL_SCENE)
+		return err_set(e, EXIT_INPUT, "-o %s: ASDF holds Roman's level 1 or 2 products; "
+			       "add --level 1 or --level 2 (or write FITS)", o->output);
+	if (!strcmp(o->output, "-"))
+		return err_set(e, EXIT_INPUT, "-o - with ASDF: the blocks are written at "
+			       "offsets and need a file, not stdout");
+	if (o->row_first)
+		return err_set(e, EXIT_INPUT, "--rows with ASDF: a Roman product holds the "
+			       "whole SCA (write FITS parts and merge them)");
+	if (o->geometry != GEOM_SIAF)
+		return err_set(e, EXIT_INPUT, "--geometry stips with ASDF: a Roman product's "
+			       "WCS is the SIAF's (use --geometry siaf)");
+	if (o->into)
+		return err_set(e, EXIT_INPUT, "--into with ASDF output: injection writes the "
+			       "image it reads");
+	return 0;
+}
+
 /* What the options allow only together. */
 static int check_options(struct scene_opts *o, struct err *e)
 {
@@ -413,6 +449,10 @@ static int check_options(struct scene_opts *o, struct err *e)
 		o->output = "-";
 	}
 	if (check_names(o, e) < 0)
+		return -1;
+	if (!o->format_given)
+		o->format = product_format_of(o->output);
+	if (o->format == FORMAT_ASDF && check_asdf(o, e) < 0)
 		return -1;
 	if (strcmp(o->compress, "none") && !strcmp(o->output, "-"))
 		return err_set(e, EXIT_INPUT, "--compress %s: stdout cannot be tile-compressed "

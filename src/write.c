@@ -272,7 +272,7 @@ int write_exposure(struct engine *g)
 {
 	const struct scene_opts *o = g->o;
 	const struct exposure *x = g->x;
-	const struct writer_ops *ops = &writer_fits;
+	const struct writer_ops *ops = o->format == FORMAT_ASDF ? &writer_asdf : &writer_fits;
 	struct detector d;
 	int per_sca = (name_fields(x->output) & NAME_SCA) != 0;
 	float *strip = malloc((size_t)g->tile * WFS_NPIX * sizeof(float));

@@ -47,6 +47,15 @@ static void put(struct asdf_tree *t, struct fy_node *map, const char *key, struc
 	}
 }
 
+void asdf_put(struct asdf_tree *t, struct fy_node *map, const char *key, struct fy_node *v)
+{
+	if (!map || !v) {
+		t->bad = 1;
+		return;
+	}
+	put(t, map, key, v);
+}
+
 struct fy_node *asdf_map(struct asdf_tree *t, struct fy_node *map, const char *key,
 			 const char *tag)
 {
@@ -149,6 +158,25 @@ static void seq_add(struct asdf_tree *t, struct fy_node *seq, struct fy_node *v)
 		t->bad = 1;
 }
 
+void asdf_seq_add(struct asdf_tree *t, struct fy_node *seq, struct fy_node *v)
+{
+	if (!v)
+		t->bad = 1;
+	seq_add(t, seq, v);
+}
+
+struct fy_node *asdf_node_yaml(struct asdf_tree *t, const char *yaml)
+{
+	char *c = strdup(yaml);
+	struct fy_node *n = NULL;
+
+	if (c && !(n = fy_node_build_from_malloc_string(t->d, c, strlen(c))))
+		free(c);
+	if (!n)
+		t->bad = 1;
+	return n;
+}
+
 struct fy_node *asdf_root(struct asdf_tree *t)
 {
 	return fy_document_root(t->d);
@@ -179,14 +207,8 @@ void asdf_seq_int(struct asdf_tree *t, struct fy_node *seq, long long v)
 
 void asdf_yaml(struct asdf_tree *t, struct fy_node *map, const char *key, const char *yaml)
 {
-	char *c;
-	struct fy_node *n = NULL;
-
-	if (!map)
-		return;
-	if ((c = strdup(yaml)) && !(n = fy_node_build_from_malloc_string(t->d, c, strlen(c))))
-		free(c);
-	put(t, map, key, n);
+	if (map)
+		put(t, map, key, asdf_node_yaml(t, yaml));
 }
 
 static int little_endian(void)
@@ -207,6 +229,25 @@ void asdf_ndarray(struct asdf_tree *t, struct fy_node *map, const char *key, int
 	s = asdf_seq(t, a, "shape");
 	for (int i = 0; i < ndim; i++)
 		asdf_seq_int(t, s, shape[i]);
+}
+
+struct fy_node *asdf_inline(struct asdf_tree *t, const double *v, int rows, int cols)
+{
+	struct fy_node *a = asdf_map(t, NULL, NULL, "!core/ndarray-1.1.0"), *d, *s;
+
+	d = asdf_seq(t, a, "data");
+	for (int r = 0; r < (rows ? rows : 1); r++) {
+		struct fy_node *row = rows ? asdf_seq_seq(t, d) : d;
+
+		for (int c = 0; c < cols; c++)
+			asdf_seq_num(t, row, v[r * cols + c]);
+	}
+	asdf_str(t, a, "datatype", "float64");
+	s = asdf_seq(t, a, "shape");
+	if (rows)
+		asdf_seq_int(t, s, rows);
+	asdf_seq_int(t, s, cols);
+	return a;
 }
 
 void asdf_time(struct asdf_tree *t, struct fy_node *map, const char *key, double mjd)

@@ -74,6 +74,13 @@ void asdf_null(struct asdf_tree *t, struct fy_node *map, const char *key);
 struct fy_node *asdf_root(struct asdf_tree *t);
 /* Append a new sequence to sequence seq. */
 struct fy_node *asdf_seq_seq(struct asdf_tree *t, struct fy_node *seq);
+/* Append node v (made with map NULL and key NULL, or asdf_node_yaml) to
+ * sequence seq. */
+void asdf_seq_add(struct asdf_tree *t, struct fy_node *seq, struct fy_node *v);
+/* Put detached node v under key of map. */
+void asdf_put(struct asdf_tree *t, struct fy_node *map, const char *key, struct fy_node *v);
+/* A detached node of YAML text. */
+struct fy_node *asdf_node_yaml(struct asdf_tree *t, const char *yaml);
 /* Append a number to a sequence. */
 void asdf_seq_num(struct asdf_tree *t, struct fy_node *seq, double v);
 void asdf_seq_int(struct asdf_tree *t, struct fy_node *seq, long long v);
@@ -83,6 +90,9 @@ void asdf_yaml(struct asdf_tree *t, struct fy_node *map, const char *key, const 
  * machine's byte order, shape[0 .. ndim). */
 void asdf_ndarray(struct asdf_tree *t, struct fy_node *map, const char *key, int block,
 		  int dtype, int ndim, const long *shape);
+/* A detached inline ndarray of n doubles, shape rows x cols (rows 0: a
+ * vector of cols). */
+struct fy_node *asdf_inline(struct asdf_tree *t, const double *v, int rows, int cols);
 /* A time (time-1.2.0) of an MJD in UTC, as an ISO string. */
 void asdf_time(struct asdf_tree *t, struct fy_node *map, const char *key, double mjd);
 

@@ -26,6 +26,7 @@
 
 #include "amp33.h"
 #include "asdf.h"
+#include "asdf_gwcs.h"
 #include "date.h"
 #include "detector.h"
 #include "engine.h"
@@ -501,7 +502,11 @@ static int asdf_sca_begin(struct writer *w, const struct product *p, struct err 
 	meta_common(aw, &t, meta);
 	if (aw->level == DETECTOR_L2) {
 		meta_photometry(aw, &t, meta);
-		asdf_null(&t, meta, "wcs");
+		struct gwcs_params gp = { .ap = geom_aperture(p->sca) };
+
+		v23_sky(p->g, gp.ap->v2ref, gp.ap->v3ref, &gp.ra_ref, &gp.dec_ref, &gp.roll_ref);
+		if (asdf_gwcs(&t, meta, &gp) < 0)
+			t.bad = 1;
 	}
 	for (int k = 0; k < aw->narr; k++) {
 		asdf_ndarray(&t, roman, aw->arr[k].name, k, aw->arr[k].dtype, aw->arr[k].ndim,

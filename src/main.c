@@ -22,6 +22,7 @@
 #include "options.h"
 #include "pool.h"
 #include "product.h"
+#include "into_asdf.h"
 #include "scene.h"
 #include "tempfile.h"
 
@@ -431,6 +432,24 @@ static int check_asdf(const struct scene_opts *o, struct err *e)
 	return 0;
 }
 
+/* --into a Roman level-2 ASDF file: the engine draws a scene in counts/s
+ * (written as FITS under the output's name), which into_asdf.c turns into
+ * the image with the light added, an ASDF file whatever -o's name. */
+static int check_into_asdf(struct scene_opts *o, struct err *e)
+{
+	if (o->level != LEVEL_SCENE)
+		return err_set(e, EXIT_INPUT, "--into %s with --level: the sources are added to "
+			       "the level-2 image as a rate (leave --level out)", o->into);
+	if (o->bunit_counts)
+		return err_set(e, EXIT_INPUT, "--into %s with --bunit counts: the image is in "
+			       "DN/s", o->into);
+	if (o->geometry != GEOM_SIAF)
+		return err_set(e, EXIT_INPUT, "--into %s with --geometry stips: a Roman image is "
+			       "placed through the SIAF", o->into);
+	o->format = FORMAT_FITS;
+	return 0;
+}
+
 /* What the options allow only together. */
 static int check_options(struct scene_opts *o, struct err *e)
 {
@@ -452,6 +471,8 @@ static int check_options(struct scene_opts *o, struct err *e)
 		return -1;
 	if (!o->format_given)
 		o->format = product_format_of(o->output);
+	if (o->into && into_is_asdf(o->into) && check_into_asdf(o, e) < 0)
+		return -1;
 	if (o->format == FORMAT_ASDF && check_asdf(o, e) < 0)
 		return -1;
 	if (strcmp(o->compress, "none") && !strcmp(o->output, "-"))

@@ -62,6 +62,46 @@ test_expect_success 'the same bytes with one thread, and with --format asdf for 
 	test_cmp l1.asdf b/l1.asdf
 '
 
+test_expect_success '--into a level 2 ASDF: the star in DN/s where the gwcs puts it, the rest kept' '
+	printf "ra,dec,flux\n90.02,0.02,1e4\n" > inj.csv &&
+	"$WFS" --filter F129 --into l2.asdf -o inj.asdf --placed placed.csv inj.csv &&
+	"$PY" "$TOP/tests/asdf_into_check.py" l2.asdf inj.asdf placed.csv 2 90.02 0.02 > out &&
+	say "$(cat out)" && test_grep "^ok" out &&
+	if [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image inj.asdf; fi
+'
+
+# broken copies of l2.asdf for --into, each refused with the file named
+# and nothing written (python rewrites bytes: sed would do for the text)
+test_expect_success '--into refuses a level 1 file, another model, an old standard' '
+	inj() { "$WFS" --filter F129 --into "$1" -o out.asdf inj.csv; } &&
+	test_must_fail --status 1 inj l1.asdf 2> err && test_grep "l1.asdf: a level 1 file" err &&
+	LC_ALL=C sed "s|roman/tags/wfi_image-2.1.0|roman/tags/wfi_mosaic-2.1.0|" l2.asdf > m.asdf &&
+	test_must_fail --status 1 inj m.asdf 2> err && test_grep "m.asdf: .roman. is wfi_mosaic" err &&
+	LC_ALL=C sed "s|^#ASDF_STANDARD 1.6.0|#ASDF_STANDARD 1.5.0|" l2.asdf > old.asdf &&
+	test_must_fail --status 1 inj old.asdf 2> err && test_grep "old.asdf: ASDF Standard 1.5.0" err &&
+	LC_ALL=C sed "s|^roman: |romax: |" l2.asdf > nor.asdf &&
+	test_must_fail --status 1 inj nor.asdf 2> err && test_grep "nor.asdf: the tree has no .roman." err &&
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 2 --into l2.asdf -o out.asdf inj.csv 2> err &&
+	test_grep "holds WFI01: give --sca 1" err &&
+	! ls -a | grep -q "out\.asdf"
+'
+
+test_expect_success '--into refuses a truncated file, a wrong block size or checksum' '
+	inj() { "$WFS" --filter F129 --into "$1" -o out.asdf inj.csv; } &&
+	head -c 100000000 l2.asdf > cut.asdf &&
+	test_must_fail --status 1 inj cut.asdf 2> err && test_grep "cut.asdf: block .*truncated" err &&
+	"$PY" "$TOP/tests/asdf_break.py" l2.asdf size.asdf size 0 &&
+	test_must_fail --status 1 inj size.asdf 2> err && test_grep "size.asdf: block 0" err &&
+	"$PY" "$TOP/tests/asdf_break.py" l2.asdf sum.asdf md5 0 &&
+	test_must_fail --status 1 inj sum.asdf 2> err && test_grep "sum.asdf: block 0: its MD5" err &&
+	"$PY" "$TOP/tests/asdf_break.py" l2.asdf good.asdf md5-right 0 &&
+	inj good.asdf &&
+	"$PY" "$TOP/tests/asdf_checksum.py" out.asdf &&
+	"$PY" "$TOP/tests/asdf_break.py" out.asdf bad2.asdf md5 0 &&
+	test_must_fail "$PY" "$TOP/tests/asdf_checksum.py" bad2.asdf 2> /dev/null && rm out.asdf &&
+	! ls -a | grep -q "out\.asdf"
+'
+
 test_expect_success 'what an ASDF file does not hold is refused, nothing written' '
 	test_must_fail --status 1 run -o s.asdf stars.csv 2> err &&
 	test_grep "add --level 1 or --level 2" err &&

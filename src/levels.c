@@ -12,6 +12,7 @@
 #include "levels.h"
 #include "pool.h"
 #include "product.h"
+#include "ramp_stats.h"
 
 #define FRAME 4096              /* the array with its reference border */
 #define BORDER 4
@@ -59,10 +60,12 @@ struct strip {
 	/* per worker */
 	double **scr;
 	uint16_t **dnrow;
+	double **sscr;          /* ramp_stats_row's, with L->ramp_stats */
 	/* out */
 	uint16_t *l1;           /* [nres][ny][FRAME] */
 	float *rt, *er, *vp, *vr;       /* [ny][WFS_NPIX] */
 	uint32_t *dq;
+	float *chisq, *dumo;            /* with L->ramp_stats */
 };
 
 /* The first pass: the charge of the strip's science rows and of the one
@@ -138,6 +141,9 @@ static void strip_row(void *arg, int wid, size_t ctask)
 				s->vr[o + x] = (float)f->var_rnoise;
 				s->dq[o + x] = f->dq;
 			}
+			if (s->chisq)
+				ramp_stats_row(s->fp, out + BORDER + x0, plane, fit, m,
+					       s->sscr[wid], s->chisq + o, s->dumo + o);
 		}
 	}
 }
@@ -160,6 +166,8 @@ static int strip_write(const struct level_sca *L, const struct strip *s, struct 
 		out.dq = s->dq + o;
 		out.var_poisson = s->vp + o;
 		out.var_rnoise = s->vr + o;
+		out.chisq = s->chisq ? s->chisq + o : NULL;
+		out.dumo = s->dumo ? s->dumo + o : NULL;
 	}
 	return L->put(L->put_arg, &out, e);
 }
@@ -212,8 +220,16 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 			return -1;
 		else
 			ramp_scratch_init(st[0].scr[i]);
+	if (L->level == LEVEL_2 && L->ramp_stats) {
+		if (!(st[0].sscr = calloc((size_t)nthr, sizeof(*st[0].sscr))))
+			return -1;
+		for (int i = 0; i < nthr; i++)
+			if (!(st[0].sscr[i] = malloc(RAMP_STATS_SCRATCH(256) * sizeof(double))))
+				return -1;
+	}
 	st[1].scr = st[0].scr;
 	st[1].dnrow = st[0].dnrow;
+	st[1].sscr = st[0].sscr;
 	for (int b = 0; b < 2; b++) {
 		struct strip *s = &st[b];
 
@@ -231,6 +247,10 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 			   !(s->vr = malloc(area * sizeof(float))) ||
 			   !(s->dq = malloc(area * sizeof(uint32_t)))))
 			return -1;
+		if (L->level == LEVEL_2 && L->ramp_stats &&
+		    (!(s->chisq = malloc(area * sizeof(float))) ||
+		     !(s->dumo = malloc(area * sizeof(float)))))
+			return -1;
 	}
 	return 0;
 }
@@ -245,6 +265,9 @@ static void sca_pass_free(struct sca_pass *w)
 	}
 	free(st[0].scr);
 	free(st[0].dnrow);
+	for (int i = 0; st[0].sscr && i < w->nthr; i++)
+		free(st[0].sscr[i]);
+	free(st[0].sscr);
 	for (int b = 0; b < 2; b++) {
 		free(st[b].l1);
 		free(st[b].rt);
@@ -252,6 +275,8 @@ static void sca_pass_free(struct sca_pass *w)
 		free(st[b].vp);
 		free(st[b].vr);
 		free(st[b].dq);
+		free(st[b].chisq);
+		free(st[b].dumo);
 	}
 	free(w->lightbuf);
 	free(w->chbuf);

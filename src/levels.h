@@ -55,6 +55,7 @@ struct level_sca {
 	int (*put)(void *arg, const struct level_strip *s, struct err *e);
 	void *put_arg;
 	int keep_l1;
+	int ramp_stats;         /* level 2: chisq and dumo too (ramp_stats.h) */
 	struct pool *pool;
 	/* out: CPU-independent wall seconds spent, for --report */
 	double t_ramp, t_write;

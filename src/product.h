@@ -48,6 +48,8 @@ struct level_strip {
 	int sy0, nsy;
 	const float *rate, *err, *var_poisson, *var_rnoise;
 	const uint32_t *dq;
+	/* with writer_ops.ramp_stats: ramp_stats.h's chisq and dumo (DN/s) */
+	const float *chisq, *dumo;
 };
 
 struct writer;
@@ -56,8 +58,10 @@ struct writer_ops {
 	const char *name;               /* "FITS", "ASDF" */
 	/* An SCA per file: -o needs %d when the exposure has several. */
 	int one_sca_per_file;
-	/* Level 2 also hands the writer the resultants (level_strip.l1). */
+	/* Level 2 also hands the writer the resultants (level_strip.l1), and
+	 * chisq and dumo. */
 	int l1_at_l2;
+	int ramp_stats;
 	/* Open path (after names.h's expansion) for the exposure of g: the
 	 * file is written beside it and renamed by commit.  NULL on error. */
 	struct writer *(*open)(struct engine *g, const char *path, struct err *e);

@@ -205,6 +205,7 @@ static int write_slot_level(struct engine *g, struct writer *w, int s, const str
 		.background = d->bkg_sky[sca - 1] + d->bkg_pixel[sca - 1],
 		.rate_row = level_rate_row, .arg = &rows, .pool = g->pool,
 		.put = level_put, .put_arg = w, .keep_l1 = w->ops->l1_at_l2,
+		.ramp_stats = w->ops->ramp_stats,
 	};
 	struct product p = { .g = g, .slot = s, .sca = sca, .level = d->level,
 			     .ylo = g->ylo, .yhi = g->yhi, .pat = &d->pattern, .det = &det };

@@ -11,7 +11,7 @@
  * Level 2 (wfi_image-2.1.0): the ramp fit in DN/s (the FITS product's
  * counts/s over the gain): data float32, dq uint32, err, var_poisson,
  * var_rnoise float16 ((DN/s)^2 for the variances); chisq and dumo float16
- * (ramp_stats, below); amp33 as at level 1; the reference border's
+ * (ramp_stats.h); amp33 as at level 1; the reference border's
  * resultants as float32 DN (border_ref_pix_left/right (n, 4096, 4),
  * top/bottom (n, 4, 4096)) and their DQ, uint32, zero.
  *
@@ -36,6 +36,7 @@
 #include "levels.h"
 #include "motion.h"
 #include "product.h"
+#include "simd.h"
 
 #define FRAME 4096
 #define BORDER 4
@@ -80,8 +81,6 @@ struct asdf_writer {
 	uint16_t *amp;
 	int amp_rows;           /* rows amp holds */
 	double *scratch;
-	float *lin;             /* level 2: true e- of each DN (the fit's
-	                           non-linearity correction), for ramp_stats */
 };
 
 /* ---- what the scene knows, as RAD meta ---- */
@@ -461,16 +460,6 @@ static struct writer *asdf_open(struct engine *g, const char *path, struct err *
 	return &aw->w;
 }
 
-/* The true charge (e-) of each DN, as the ramp fit corrects it. */
-static int lin_table(struct asdf_writer *aw)
-{
-	if (!(aw->lin = malloc(65536 * sizeof(float))))
-		return -1;
-	for (int dn = 0; dn < 65536; dn++)
-		aw->lin[dn] = (float)ramp_nl_inverse(aw->det, dn * aw->det->gain);
-	return 0;
-}
-
 static int asdf_sca_begin(struct writer *w, const struct product *p, struct err *e)
 {
 	struct asdf_writer *aw = (struct asdf_writer *)w;
@@ -490,8 +479,7 @@ static int asdf_sca_begin(struct writer *w, const struct product *p, struct err 
 				     .sca = p->sca };
 	aw->rows_done = 0;
 	arrays(aw);
-	if (!(aw->scratch = malloc(AMP33_SCRATCH * sizeof(double))) ||
-	    (aw->level == DETECTOR_L2 && lin_table(aw) < 0))
+	if (!(aw->scratch = malloc(AMP33_SCRATCH * sizeof(double))))
 		return err_sys(e, "%s", aw->path);
 	ramp_scratch_init(aw->scratch);
 	if (asdf_tree_new(&t) < 0)
@@ -571,55 +559,31 @@ static int put_amp33(struct asdf_writer *aw, int k, const struct level_strip *s,
 	return put_planes(aw, k, s->fy0, s->ny, AMP33_COLS, aw->amp, sizeof(uint16_t), e);
 }
 
-/*
- * The ramp's statistics the FITS product lacks, of a science pixel whose
- * resultants are dn[r * plane] and whose fitted rate (dark included) is
- * rate e-/s; each resultant through the fit's non-linearity correction,
- * those below saturation used:
- *   dumo: the slope of uniform weights (least squares of the resultants
- *     against their mean read times) minus the fitted rate, DN/s;
- *   chisq: of the differences of consecutive resultants against the
- *     fitted rate, each of variance rate dt + read_noise^2 (1/n_i +
- *     1/n_{i+1}) (the resultants' covariance left out), over their number
- *     less one; NaN with fewer than two differences.
- */
-static void ramp_stats(const struct asdf_writer *aw, const uint16_t *dn, size_t plane,
-		       double rate, float *chisq, float *dumo)
+/* n floats to IEEE halves (asdf_half's rounding), eight at a time by
+ * F16C where the machine has it (every AVX2 machine does): the same bits */
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+__attribute__((target("avx2,f16c"))) static void half8(const float *f, uint16_t *h, size_t n)
 {
-	const struct ramp_pattern *p = aw->pat;
-	const struct ramp_det *d = aw->det;
-	double x[RAMP_MAX_RES], st = 0, sx = 0, stt = 0, stx = 0, c2 = 0;
-	int m = 0, nd = 0;
+	for (size_t i = 0; i + 8 <= n; i += 8)
+		_mm_storeu_si128((__m128i *)(h + i),
+				 _mm256_cvtps_ph(_mm256_loadu_ps(f + i),
+						 _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+}
+#endif
 
-	for (int r = 0; r < p->nres; r++) {
-		uint16_t v = dn[(size_t)r * plane];
+static void to_half(const float *f, uint16_t *h, size_t n)
+{
+	size_t i = 0;
 
-		if (v >= d->saturation)
-			break;
-		x[r] = aw->lin[v];
-		st += p->tbar[r];
-		sx += x[r];
-		stt += p->tbar[r] * p->tbar[r];
-		stx += p->tbar[r] * x[r];
-		m++;
+#if defined(__x86_64__) && defined(__GNUC__)
+	if (simd_flags() & SIMD_AVX2) {
+		half8(f, h, n);
+		i = n / 8 * 8;
 	}
-	for (int r = 0; r + 1 < m; r++) {
-		double dt = p->tbar[r + 1] - p->tbar[r];
-		double v = (rate > 0 ? rate : 0) * dt + d->read_noise * d->read_noise *
-			   (1.0 / p->nread[r] + 1.0 / p->nread[r + 1]);
-		double q = x[r + 1] - x[r] - rate * dt;
-
-		c2 += q * q / v;
-		nd++;
-	}
-	*chisq = nd >= 2 ? (float)(c2 / (nd - 1)) : NAN;
-	if (m >= 2) {
-		double den = m * stt - st * st;
-
-		*dumo = (float)(((m * stx - st * sx) / den - rate) / d->gain);
-	} else {
-		*dumo = NAN;
-	}
+#endif
+	for (; i < n; i++)
+		h[i] = asdf_half(f[i]);
 }
 
 static int strip_l2(struct asdf_writer *aw, const struct level_strip *s, struct err *e)
@@ -630,10 +594,12 @@ static int strip_l2(struct asdf_writer *aw, const struct level_strip *s, struct 
 	float *f;
 	uint16_t *h;
 
-	if (grow(aw, (size_t)aw->nres * (size_t)s->ny * FRAME * sizeof(float) + 64, e) < 0)
+	/* floats for a strip's planes; halves after the first 2 npx floats */
+	if (grow(aw, (size_t)(aw->nres > 3 ? aw->nres : 3) * (size_t)s->ny * FRAME *
+		 sizeof(float), e) < 0)
 		return -1;
 	f = aw->buf;
-	h = aw->buf;
+	h = (uint16_t *)(f + 2 * npx);
 	if (s->nsy > 0) {
 		const float *src[3] = { s->err, s->var_poisson, s->var_rnoise };
 		const double scale[3] = { 1 / gain, 1 / g2, 1 / g2 };
@@ -645,34 +611,16 @@ static int strip_l2(struct asdf_writer *aw, const struct level_strip *s, struct 
 			return -1;
 		for (int k = 0; k < 3; k++) {
 			for (size_t i = 0; i < npx; i++)
-				h[i] = asdf_half((float)(src[k][i] * scale[k]));
+				f[i] = (float)(src[k][i] * scale[k]);
+			to_half(f, h, npx);
 			if (asdf_out_put(aw->out, L2_ERR + k, off * 2, h, npx * 2, e) < 0)
 				return -1;
 		}
-		{
-			uint16_t *hc = h, *hd = h + npx;
-			int a = s->sy0 + BORDER - s->fy0;
-
-			for (int y = 0; y < s->nsy; y++)
-				for (int x = 0; x < WFS_NPIX; x++) {
-					size_t i = (size_t)y * WFS_NPIX + (size_t)x;
-					float c, d;
-					double rate = (s->dq[i] & RAMP_DO_NOT_USE) ? NAN :
-						      s->rate[i] + aw->det->dark;
-
-					if (isnan(rate)) {
-						c = d = NAN;
-					} else {
-						ramp_stats(aw, s->l1 + (size_t)(a + y) * FRAME +
-							   BORDER + (size_t)x, plane, rate, &c, &d);
-					}
-					hc[i] = asdf_half(c);
-					hd[i] = asdf_half(d);
-				}
-			if (asdf_out_put(aw->out, L2_CHISQ, off * 2, hc, npx * 2, e) < 0 ||
-			    asdf_out_put(aw->out, L2_DUMO, off * 2, hd, npx * 2, e) < 0)
-				return -1;
-		}
+		to_half(s->chisq, h, npx);
+		to_half(s->dumo, h + npx, npx);
+		if (asdf_out_put(aw->out, L2_CHISQ, off * 2, h, npx * 2, e) < 0 ||
+		    asdf_out_put(aw->out, L2_DUMO, off * 2, h + npx, npx * 2, e) < 0)
+			return -1;
 	}
 	/* the border's resultants as float DN: left and right columns of
 	 * every frame row, then the bottom and top rows */
@@ -740,7 +688,6 @@ static void asdf_free(struct asdf_writer *aw)
 	free(aw->buf);
 	free(aw->amp);
 	free(aw->scratch);
-	free(aw->lin);
 	free(aw->path);
 	free(aw);
 }
@@ -768,6 +715,7 @@ const struct writer_ops writer_asdf = {
 	.name = "ASDF",
 	.one_sca_per_file = 1,
 	.l1_at_l2 = 1,
+	.ramp_stats = 1,
 	.open = asdf_open,
 	.sca_begin = asdf_sca_begin,
 	.strip = asdf_strip,

@@ -13,7 +13,7 @@
 #include "ramp.h"
 
 /* Doubles of scratch for a row of n pixels. */
-#define RAMP_STATS_SCRATCH(n) (8 * (size_t)(n))
+#define RAMP_STATS_SCRATCH(n) (10 * (size_t)(n))
 
 /*
  * The n pixels of a row, resultant r of pixel x at dn[r * plane + x] (DN),

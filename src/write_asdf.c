@@ -6,7 +6,9 @@
  *
  * Level 1 (wfi_science_raw-2.1.0): data, the resultants in DN with the
  * reference border, uint16 (n_resultants, 4096, 4096); amp33, the 33rd
- * amplifier's channel (amp33.h), uint16 (n_resultants, 4096, 128).
+ * amplifier's channel (amp33.h), uint16 (n_resultants, 4096, 128);
+ * reference_read, the read after the reset (ramp_reference_row), uint16
+ * (4096, 4096).
  *
  * Level 2 (wfi_image-2.1.0): the ramp fit in DN/s (the FITS product's
  * counts/s over the gain): data float32, dq uint32, err, var_poisson,
@@ -49,7 +51,7 @@
 #define TAG_IMAGE "!<asdf://stsci.edu/datamodels/roman/tags/wfi_image-2.1.0>"
 
 /* The blocks of the two levels, in the order of their schemas. */
-enum { L1_DATA, L1_AMP33, L1_N };
+enum { L1_DATA, L1_AMP33, L1_REF, L1_N };
 enum {
 	L2_DATA, L2_DQ, L2_ERR, L2_VP, L2_VR, L2_CHISQ, L2_DUMO, L2_AMP33,
 	L2_LEFT, L2_RIGHT, L2_TOP, L2_BOTTOM, L2_DQ_LEFT, L2_DQ_RIGHT, L2_DQ_TOP,
@@ -409,6 +411,7 @@ static void arrays(struct asdf_writer *aw)
 	if (aw->level == DETECTOR_L1) {
 		a[L1_DATA] = (struct array){ "data", ASDF_U16, 3, { n, FRAME, FRAME } };
 		a[L1_AMP33] = (struct array){ "amp33", ASDF_U16, 3, { n, FRAME, AMP33_COLS } };
+		a[L1_REF] = (struct array){ "reference_read", ASDF_U16, 2, { FRAME, FRAME } };
 		aw->narr = L1_N;
 		return;
 	}
@@ -479,7 +482,8 @@ static int asdf_sca_begin(struct writer *w, const struct product *p, struct err 
 				     .sca = p->sca };
 	aw->rows_done = 0;
 	arrays(aw);
-	if (!(aw->scratch = malloc(AMP33_SCRATCH * sizeof(double))))
+	if (!(aw->scratch = malloc((AMP33_SCRATCH > 2 * FRAME ? AMP33_SCRATCH : 2 * FRAME) *
+				   sizeof(double))))
 		return err_sys(e, "%s", aw->path);
 	ramp_scratch_init(aw->scratch);
 	if (asdf_tree_new(&t) < 0)
@@ -666,9 +670,15 @@ static int asdf_strip(struct writer *w, const struct level_strip *s, struct err 
 			       s->fy0, aw->rows_done);
 	aw->rows_done += s->ny;
 	if (aw->level == DETECTOR_L1) {
-		if (put_planes(aw, L1_DATA, s->fy0, s->ny, FRAME, s->l1, sizeof(uint16_t), e) < 0)
+		if (put_planes(aw, L1_DATA, s->fy0, s->ny, FRAME, s->l1, sizeof(uint16_t), e) < 0 ||
+		    put_amp33(aw, L1_AMP33, s, e) < 0 || grow(aw, (size_t)s->ny * FRAME * 2, e) < 0)
 			return -1;
-		return put_amp33(aw, L1_AMP33, s, e);
+		/* the reference read: the reset level the resultants start from */
+		for (int i = 0; i < s->ny; i++)
+			ramp_reference_row(aw->det, &aw->key, (uint32_t)(s->fy0 + i) * FRAME, FRAME,
+					   (uint16_t *)aw->buf + (size_t)i * FRAME, aw->scratch);
+		return asdf_out_put(aw->out, L1_REF, (uint64_t)s->fy0 * FRAME * 2, aw->buf,
+				    (size_t)s->ny * FRAME * 2, e);
 	}
 	return strip_l2(aw, s, e);
 }

@@ -4,7 +4,8 @@ level, seed and SCA.
     asdf_arrays.py 1|2 PRODUCT.asdf PRODUCT.fits SCA
 
 Level 1: data is the FITS cube; amp33 (n, 4096, 128) has the reference
-pixels' level and read noise.  Level 2: data x gain is the FITS rate, dq
+pixels' level and read noise; reference_read is the reset level the
+border's resultants start from.  Level 2: data x gain is the FITS rate, dq
 the FITS DQ, err and the variances the FITS planes over the gain (squared)
 as float16; chisq, dumo, amp33 and the border arrays have their RAD
 shapes.  Debian's asdf 2.14 lacks float16: it is added as newer asdf has
@@ -36,6 +37,13 @@ with asdf.open(apath, copy_arrays=True) as af:
         assert d.dtype == np.uint16 and d.shape == (nres, 4096, 4096), (d.dtype, d.shape)
         assert np.array_equal(d, h[name].data), "data differs from the FITS cube"
         ref = d[:, :4, :].astype(float)
+        # the reference read is the reset level the resultants start from:
+        # the border's first resultant less it is read noise about zero
+        rr = np.asarray(r["reference_read"])
+        assert rr.dtype == np.uint16 and rr.shape == (4096, 4096), (rr.dtype, rr.shape)
+        diff = ref[0] - rr[:4].astype(float)
+        print("data[0] - reference_read on the border: %.3f +- %.3f DN" % (diff.mean(), diff.std()))
+        assert abs(diff.mean()) < 0.5 and diff.std() < 1.5 * ref[0].std()
     else:
         g = float(h[name].header["GAIN"])
         d = np.asarray(r["data"])

@@ -64,8 +64,8 @@ static const struct opt scene_options[] = {
 	OPT_SECTION("Scene:"),
 	{ OPT("output", 'o', "FILE", NULL, "output FITS or ASDF ('-' stdout; '%d' in FILE: one "
 	  "per SCA)", opt_string, OFF(o.output)) },
-	{ OPT("format", 0, "F", "by -o", "fits or asdf (Roman's levels 1 and 2); by default "
-	  "asdf for -o *.asdf", set_format, OFF(o.format)), .words = formats,
+	{ OPT("format", 0, "F", "asdf for -o *.asdf, else fits", "fits or asdf (Roman's "
+	  "levels 1 and 2)", set_format, OFF(o.format)), .words = formats,
 	  .flags = OPT_SHOW_DEFAULT },
 	{ OPT("filter", 0, "F", NULL, "F062 F087 F106 F129 F158 F184 F213 F146 (required)",
 	  set_filter, OFF(o.filter)) },

@@ -59,7 +59,9 @@ test_expect_success 'the same bytes with one thread, and with --format asdf for 
 	mkdir -p b &&
 	run --level 1 --ma-table 3 --threads 1 --tile 128 --format asdf -o b/l1.fits stars.csv &&
 	LC_ALL=C sed "s/\"l1.fits\"/\"l1.asdf\"/" b/l1.fits > b/l1.asdf &&
-	test_cmp l1.asdf b/l1.asdf
+	test_cmp l1.asdf b/l1.asdf &&
+	run --level 2 --threads 1 --tile 512 -o b/l2.asdf stars.csv &&
+	test_cmp l2.asdf b/l2.asdf
 '
 
 test_expect_success '--into a level 2 ASDF: the star in DN/s where the gwcs puts it, the rest kept' '

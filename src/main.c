@@ -429,6 +429,9 @@ static int check_asdf(const struct scene_opts *o, struct err *e)
 	if (o->into)
 		return err_set(e, EXIT_INPUT, "--into with ASDF output: injection writes the "
 			       "image it reads");
+	if ((o->sca_mask & (o->sca_mask - 1)) && !(name_fields(o->output) & NAME_SCA))
+		return err_set(e, EXIT_INPUT, "-o %s: an ASDF file holds one SCA; put %%d in "
+			       "the name for one file per SCA (-o NAME_WFI%%02d.asdf)", o->output);
 	return 0;
 }
 

@@ -122,6 +122,10 @@ struct engine {
 	pthread_mutex_t grid_lock;
 	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
 	struct psf_build_opts pbo;
+	/* colour (spectrum.h): the filter's colour tables, made for the
+	 * first chunk with a spectrum column */
+	struct colour *colour;
+	int colour_band;                /* --set colour-counts=band: no colour term */
 
 	struct plugins plugins;
 	struct wfs_host host;

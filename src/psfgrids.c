@@ -20,6 +20,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "names.h"
+#include "spectrum.h"
 
 const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls)
 {
@@ -169,4 +170,5 @@ void psfgrids_free(struct engine *g)
 			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
 				psf_grid_free(g->grid[s][c]);
 	psf_grid_free(g->user_grid);
+	colour_free(g->colour);
 }

@@ -1,0 +1,153 @@
+#!/bin/sh
+# Colour: a source's spectrum (teff, beta or an AB colour) in its counts.
+#
+#  - a row without a spectrum, and a flat f_nu (beta 0), keep the bytes of
+#    a catalog without spectrum columns;
+#  - an AB magnitude or a flux in Jy is f_nu at the filter's pivot: its
+#    counts are the flat source's times sum(A S / lam) / sum(A / lam),
+#    computed here independently from data/throughput.tsv; counts/s are
+#    counts whatever the spectrum;
+#  - a colour gives the slope beta = colour / (2.5 log10(l1 / l2));
+#  - bad spectra are refused naming file, row and column, exit 1, no file.
+. "$(dirname "$0")/lib.sh"
+require_python
+
+cat > plain.csv <<EOF
+x,y,flux
+1000,1000,18
+1200,1300,19
+EOF
+cat > spec.csv <<EOF
+x,y,flux,teff,beta,color_f106_f158
+1000,1000,18,,,
+1200,1300,19,,0,
+EOF
+test_expect_success 'no spectrum, or a flat f_nu: the same bytes as no spectrum columns' '
+	"$WFS" --filter F146 --flux-unit abmag -o plain.fits plain.csv &&
+	"$WFS" --filter F146 --flux-unit abmag -o spec.fits spec.csv &&
+	cmp plain.fits spec.fits
+'
+
+# the colour term from the throughput table, by the sums spectrum.h states
+cat > term.py <<'EOF'
+import math, sys
+filt, sca, kind, v = sys.argv[1], int(sys.argv[2]), sys.argv[3], float(sys.argv[4])
+piv = {}
+for line in open(sys.argv[5] + "/filters.tsv"):
+    f = line.rstrip("\n").split("\t")
+    if f[0].startswith("F"):
+        piv[f[0]] = float(f[4])
+lp = piv[filt]
+def fnu(l):
+    if kind == "beta":
+        return (l / lp) ** -v
+    c2 = 14387.77
+    return (lp / l) ** 3 * math.expm1(c2 / (lp * v)) / math.expm1(c2 / (l * v))
+sa = sas = 0
+for line in open(sys.argv[5] + "/throughput.tsv"):
+    f = line.split()
+    if f and f[0] == filt:
+        l, a = float(f[1]), float(f[1 + sca])
+        sa += a / l
+        sas += a * fnu(l) / l
+print("%.9g" % (sas / sa))
+EOF
+cat > one.csv <<EOF
+x,y,flux,teff
+500,500,20,3000
+600,600,20,30000
+EOF
+test_expect_success 'AB magnitudes through a blackbody: the flat counts times the colour term' '
+	"$WFS" --filter F146 --sca 7 --flux-unit abmag --placed p.csv -o one.fits one.csv &&
+	"$WFS" --filter F146 --sca 7 --flux-unit abmag --placed flat.csv -o flat.fits plain.csv &&
+	flat=$(sed -n 2p flat.csv | cut -d, -f5) &&
+	k3=$("$PY" term.py F146 7 teff 3000 "$TOP/data") &&
+	k30=$("$PY" term.py F146 7 teff 30000 "$TOP/data") &&
+	got3=$(sed -n 2p p.csv | cut -d, -f5) && got30=$(sed -n 3p p.csv | cut -d, -f5) &&
+	say "flat $flat, 3000 K x$k3 -> $got3, 30000 K x$k30 -> $got30" &&
+	"$PY" -c "
+f, a, b, ka, kb = map(float, \"$flat $got3 $got30 $k3 $k30\".split())
+# flat is the 18 mag row: the 20 mag rows are 10^-0.8 of it
+f *= 10 ** -0.8
+assert abs(a / (f * ka) - 1) < 2e-5 and abs(b / (f * kb) - 1) < 2e-5, (a, f * ka, b, f * kb)
+assert ka < 0.95 < 1.1 < kb
+"
+'
+
+cat > jy.csv <<EOF
+x,y,flux,beta
+500,500,1e-5,2
+600,600,1e-5,-2
+700,700,1e-5,0
+EOF
+test_expect_success 'Jy through a power law; counts/s keep their value' '
+	"$WFS" --filter F129 --flux-unit jy --placed pj.csv -o jy.fits jy.csv &&
+	kb=$("$PY" term.py F129 1 beta 2 "$TOP/data") && kr=$("$PY" term.py F129 1 beta -2 "$TOP/data") &&
+	"$PY" -c "
+import csv
+r = [float(x[\"flux\"]) for x in csv.DictReader(open(\"pj.csv\"))]
+assert abs(r[0] / r[2] / $kb - 1) < 2e-5 and abs(r[1] / r[2] / $kr - 1) < 2e-5, (r, $kb, $kr)
+" &&
+	"$WFS" --filter F129 --placed pc.csv -o c.fits jy.csv &&
+	test "$(cut -d, -f5 pc.csv | sort -u | sed -n 1p)" = "1e-05"
+'
+
+cat > colour.csv <<EOF
+x,y,flux,color_f106_f158
+500,500,20,-0.5
+EOF
+cat > beta.csv <<EOF
+x,y,flux,beta
+500,500,20,BETA
+EOF
+test_expect_success 'an AB colour is the power law it implies' '
+	beta=$("$PY" -c "
+import math
+p = {}
+for l in open(\"$TOP/data/filters.tsv\"):
+    f = l.split(\"\t\")
+    if f[0].startswith(\"F\"): p[f[0]] = float(f[4])
+print(repr(-0.5 / (2.5 * math.log10(p[\"F106\"] / p[\"F158\"]))))") &&
+	say "color_f106_f158 = -0.5 is beta $beta" &&
+	sed "s/BETA/$beta/" beta.csv > b.csv &&
+	"$WFS" --filter F146 --flux-unit abmag --placed pa.csv -o a.fits colour.csv &&
+	"$WFS" --filter F146 --flux-unit abmag --placed pb.csv -o b.fits b.csv &&
+	test_cmp pa.csv pb.csv
+'
+
+test_expect_success 'colour-counts=band: the spectrum leaves the counts alone' '
+	"$WFS" --filter F146 --flux-unit abmag --set colour-counts=band --placed pband.csv \
+		-o band.fits one.csv &&
+	printf "x,y,flux\n500,500,20\n" > flat20.csv &&
+	"$WFS" --filter F146 --flux-unit abmag --placed pf20.csv -o f20.fits flat20.csv &&
+	test "$(cut -d, -f5 pband.csv | sed 1d | sort -u)" = "$(sed -n 2p pf20.csv | cut -d, -f5)" &&
+	test_must_fail --status 1 "$WFS" --filter F146 --set colour-counts=x -o x.fits one.csv 2>err &&
+	test_grep "colour-counts: expected pivot or band, not .x." err && test ! -e x.fits
+'
+
+# refused NAME MESSAGE: the catalog NAME.csv is refused with MESSAGE, exit
+# 1, nothing written
+refused() {
+	name=$1 msg=$2
+	test_expect_success "refused: $name" '
+		test_must_fail --status 1 "$WFS" --filter F146 --flux-unit abmag -o out.fits $name.csv 2>err &&
+		grep -F -e "$msg" err >/dev/null || { cat err; false; } &&
+		test ! -e out.fits && test -z "$(ls -A | grep "^out.fits")"
+	'
+}
+printf 'x,y,flux,teff\n1,1,20,5000\n1,1,20,999\n' > cold.csv
+refused cold "cold.csv:3: column 'teff': 999 K is outside 1000 to 100000 K"
+printf 'x,y,flux,teff\n1,1,20,100001\n' > hot.csv
+refused hot "hot.csv:2: column 'teff': 100001 K is outside 1000 to 100000 K"
+printf 'x,y,flux,beta\n1,1,20,1\n1,1,20,inf\n' > inf.csv
+refused inf "inf.csv:3: column 'beta': not a finite number: 'inf'"
+printf 'x,y,flux,color_f106_f999\n1,1,20,0.5\n' > unk.csv
+refused unk "unk.csv:1: column 'color_f106_f999': want color_F1_F2 with two different filters"
+printf 'x,y,flux,color_f158_f158\n1,1,20,0.5\n' > same.csv
+refused same "same.csv:1: column 'color_f158_f158': want color_F1_F2"
+printf 'x,y,flux,teff,beta\n1,1,20,5000,\n1,1,20,5000,1\n' > both.csv
+refused both "both.csv:3: columns 'teff' and 'beta': give one spectrum per row"
+printf 'x,y,flux,color_f106_f158\n1,1,20,1e308\n' > huge.csv
+refused huge "huge.csv:2: column 'color_f106_f158': not a finite slope: '1e308'"
+
+test_done

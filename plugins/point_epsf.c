@@ -9,6 +9,29 @@
 
 #include "point.h"
 
+/* Colour: the source's spectral class (model.h, wfs_source.colour), or -1
+ * for the scene's default spectrum (and hosts without classes).  A source
+ * with a class is blended from its own class's nodes (psf-blend=source):
+ * the cells are the default spectrum's. */
+static int colour_of(const struct point *p, const struct wfs_source *src)
+{
+	if (!WFS_HAS(p->host->size, struct wfs_host, epsf_colour) ||
+	    !WFS_HAS(p->host->source_size, struct wfs_source, colour))
+		return -1;
+	return src->colour;
+}
+
+/* The host's ePSF at src, of its spectrum. */
+static int src_epsf(const struct point *p, const struct wfs_source *src, struct wfs_epsf *e)
+{
+	int c = colour_of(p, src);
+
+	if (c >= 0)
+		return p->host->epsf_colour(p->host->ctx, src->sca, src->x, src->y,
+					    src->psf_class, c, e);
+	return p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, e);
+}
+
 /* The arrays a source reads and their weights times its flux: the four
  * nodes of its position (blend = BLEND_SOURCE), or its cell's blend.
  * Returns how many, or -1. */
@@ -24,7 +47,7 @@ static int source_polys(const struct point *p, const struct wfs_source *src, int
 		wn[0] = src->flux;
 		return 1;
 	}
-	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+	if (src_epsf(p, src, &e) < 0)
 		return -1;
 	for (int k = 0; k < 4; k++)
 		if (e.weight[k] != 0) {
@@ -72,7 +95,7 @@ static int core_correction(const struct point *p, const struct wfs_source *src,
  * cell off the detector) is blended per source too. */
 static int source_blend(const struct point *p, const struct wfs_source *src)
 {
-	if (p->blend == BLEND_SOURCE ||
+	if (p->blend == BLEND_SOURCE || colour_of(p, src) >= 0 ||
 	    (p->blend == BLEND_CORE && src->psf_class != WFS_PSF_NORMAL) || !cell_in_range(p, src))
 		return BLEND_SOURCE;
 	return p->blend;
@@ -327,7 +350,7 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 		/* the source's nodes: the cell's copies when the cell was
 		 * blended from them (their weights go to aux[4..7] in the
 		 * cell's order), else copies made here */
-		if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+		if (src_epsf(p, src, &e) < 0)
 			return -1;
 		for (int k = 0; k < 4; k++) {
 			const struct poly *q = NULL;

@@ -207,6 +207,11 @@ static int fill_source(const struct engine *g, const struct rows *r, size_t i,
 	src->param = param;
 	src->flux_meaning = g->flux_meaning;
 	src->mjd = g->x->date;
+	/* the spectral class of the row's effective wavelength (psf.h) */
+	src->colour = -1;
+	if (r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT && g->classes)
+		src->colour = psf_classes_index(g->classes, sca, colour_lam_eff(
+			g->colour, sca, &(struct spectrum){ r->spec_kind[i], r->spec_value[i] }));
 	return flux_check(g, r, i, src, NULL, e);
 }
 
@@ -901,7 +906,7 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 			return err_set(g->e, EXIT_INPUT, "colour-counts: expected pivot or "
 				       "band, not '%s'", cc);
 		g->colour_band = cc && !strcmp(cc, "band");
-		if (!(g->colour = colour_new(g->o->filter, g->e)))
+		if (!(g->colour = colour_new(g->o->filter, g->e)) || psfgrids_colour_init(g) < 0)
 			return -1;
 	}
 	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)

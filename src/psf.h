@@ -99,6 +99,13 @@ struct psf_build_opts {
 	int pixgrid;            /* enum psf_pixgrid; 0 (square) by default */
 	int verbose;
 	int built, loaded;      /* out: grids built and loaded from the cache */
+	/* The source's spectrum for the wavelength weights (spectrum.h):
+	 * SPEC_DEFAULT (0), the 5700 K blackbody, or a blackbody of
+	 * spec_value K or a power law of slope spec_value.  A grid of
+	 * another spectrum than the default is cached under a key of its
+	 * own, and its file named ...-spec-KEY.fits. */
+	int spec_kind;
+	double spec_value;
 };
 struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 			     struct psf_build_opts *o, struct err *e);
@@ -115,5 +122,34 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 #define PSF_HALO_MAX 1024
 struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid, int kind,
 				  struct psf_build_opts *o, struct err *e);
+
+/*
+ * Spectral classes (psfclass.c).  A filter's classes are n power-law
+ * spectra (f_nu ~ nu^beta[k]) whose effective wavelengths on SCA 1 are
+ * evenly spaced from the bluest to the reddest of beta = 3, -3 and the
+ * 50000 and 2500 K blackbodies; lam[sca - 1][k] is class k's effective
+ * wavelength on each SCA (spectrum.h).  A source's ePSF is the blend of
+ * the grids of the two classes about its own effective wavelength,
+ * linear in it, rounded to one of `steps` steps between two classes: the
+ * colour index j = round(u steps), u the fractional class (0 .. n - 1),
+ * is class j / steps blended with the next at (j % steps) / steps.
+ * Spectra beyond the span take the end class.
+ */
+#define PSF_COLOUR_MAX 16
+#define PSF_COLOUR_STEPS_MAX 64
+struct colour;
+struct psf_classes {
+	int filter, n, steps;
+	double beta[PSF_COLOUR_MAX];
+	double lam[18][PSF_COLOUR_MAX];
+};
+int psf_default_classes(int filter);
+#define PSF_COLOUR_STEPS 8
+int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n, int steps,
+		     struct err *e);
+/* The fractional class u of effective wavelength lam on SCA sca, and the
+ * colour index round(u steps). */
+double psf_classes_u(const struct psf_classes *pc, int sca, double lam);
+int psf_classes_index(const struct psf_classes *pc, int sca, double lam);
 
 #endif

@@ -143,6 +143,130 @@ int psfgrids_need(struct engine *g, int sca, int cls, struct err *e)
 }
 
 
+/* A whole number setting from lo to hi, or fallback when unset. */
+static int int_setting(struct engine *g, const char *key, int lo, int hi, int fallback,
+		       int *out)
+{
+	const char *v = host_setting(g, key);
+	char *end;
+	long n;
+
+	*out = fallback;
+	if (!v)
+		return 0;
+	n = strtol(v, &end, 10);
+	if (*end || end == v || n < lo || n > hi)
+		return err_set(g->e, EXIT_INPUT, "%s: expected a whole number %d to %d, not '%s'",
+			       key, lo, hi, v);
+	*out = (int)n;
+	return 0;
+}
+
+int psfgrids_colour_init(struct engine *g)
+{
+	int n, steps;
+
+	if (g->classes || strcmp(g->o->psf, "builtin"))
+		return 0;
+	if (int_setting(g, "psf-colour-classes", 2, PSF_COLOUR_MAX,
+			psf_default_classes(g->o->filter), &n) < 0 ||
+	    int_setting(g, "psf-colour-steps", 1, PSF_COLOUR_STEPS_MAX, PSF_COLOUR_STEPS,
+			&steps) < 0)
+		return -1;
+	if (!(g->classes = malloc(sizeof(*g->classes))))
+		return err_set(g->e, EXIT_SYSTEM, "out of memory");
+	if (psf_classes_make(g->classes, g->colour, g->o->filter, n, steps, g->e) < 0)
+		return -1;
+	g->ncgrid = (n - 1) * steps + 1;
+	if (!(g->cgrid = calloc((size_t)WFS_NSCA * 3 * g->ncgrid, sizeof(*g->cgrid))))
+		return err_set(g->e, EXIT_SYSTEM, "out of memory");
+	for (int k = 0; k < n; k++)
+		host_log(g, 1, "PSF spectral class %d of %s: beta %.4f, effective wavelength "
+			 "%.4f micron on SCA 1", k, g->filter_name, g->classes->beta[k],
+			 g->classes->lam[0][k]);
+	return 0;
+}
+
+static struct psf_grid **cslot(const struct engine *g, int sca, int cls, int j)
+{
+	return &g->cgrid[((size_t)(sca - 1) * 3 + cls) * g->ncgrid + j];
+}
+
+const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int j)
+{
+	return __atomic_load_n(cslot(g, sca, cls, j), __ATOMIC_ACQUIRE);
+}
+
+/* Load colour grid j of (sca, cls), grid_lock held: a class's own grid,
+ * built or read from the cache like the default's, or the blend of the
+ * two classes about it. */
+static int cload(struct engine *g, int sca, int cls, int j, struct err *e)
+{
+	const struct psf_classes *pc = g->classes;
+	int k = j / pc->steps, r = j % pc->steps;
+	struct psf_grid *grid;
+
+	if (psfgrids_colour_get(g, sca, cls, j))
+		return 0;
+	if (r == 0) {
+		struct psf_build_opts bo = g->pbo;
+
+		bo.built = bo.loaded = 0;
+		bo.spec_kind = SPEC_POWER;
+		bo.spec_value = pc->beta[k];
+		host_log(g, 1, "ePSF grid for %s SCA %d, %d samples, spectral class %d "
+			 "(beta %.4f): building or loading", g->filter_name, sca,
+			 psf_class_n[cls], k, pc->beta[k]);
+		if (!(grid = psf_builtin(g->o->filter, sca, cls, g->o->level ? PSF_EPSF_NOIPC :
+					 PSF_EPSF, &bo, e)))
+			return -1;
+		g->pbo.built += bo.built;
+		g->pbo.loaded += bo.loaded;
+	} else {
+		const struct psf_grid *a, *b;
+		float f = (float)r / pc->steps;
+		size_t nn;
+
+		if (cload(g, sca, cls, k * pc->steps, e) < 0 ||
+		    cload(g, sca, cls, (k + 1) * pc->steps, e) < 0)
+			return -1;
+		a = psfgrids_colour_get(g, sca, cls, k * pc->steps);
+		b = psfgrids_colour_get(g, sca, cls, (k + 1) * pc->steps);
+		if (!(grid = psf_grid_new(a->n, a->over, a->nx, a->ny)) ||
+		    (a->jac && !(grid->jac = malloc(sizeof(double) * 4 * a->nx * a->ny)))) {
+			psf_grid_free(grid);
+			return err_set(e, EXIT_SYSTEM, "out of memory");
+		}
+		memcpy(grid->xs, a->xs, sizeof(double) * a->nx);
+		memcpy(grid->ys, a->ys, sizeof(double) * a->ny);
+		if (a->jac)
+			memcpy(grid->jac, a->jac, sizeof(double) * 4 * a->nx * a->ny);
+		nn = (size_t)a->nx * a->ny * a->n * a->n;
+		for (size_t i = 0; i < nn; i++)
+			grid->data[i] = (1 - f) * a->data[i] + f * b->data[i];
+		grid->pixscale = a->pixscale;
+		grid->sca = a->sca;
+		grid->filter = a->filter;
+		grid->kind = a->kind;
+		grid->pixgrid = a->pixgrid;
+		snprintf(grid->origin, sizeof(grid->origin), "%s", a->origin);
+	}
+	__atomic_store_n(cslot(g, sca, cls, j), grid, __ATOMIC_RELEASE);
+	return 0;
+}
+
+int psfgrids_colour_need(struct engine *g, int sca, int cls, int j, struct err *e)
+{
+	int rc;
+
+	if (psfgrids_colour_get(g, sca, cls, j))
+		return 0;
+	pthread_mutex_lock(&g->grid_lock);
+	rc = cload(g, sca, cls, j, e);
+	pthread_mutex_unlock(&g->grid_lock);
+	return rc;
+}
+
 /* --psf FILE without %d: one grid read up front for every SCA. */
 int psfgrids_open_user(struct engine *g)
 {
@@ -170,5 +294,9 @@ void psfgrids_free(struct engine *g)
 			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
 				psf_grid_free(g->grid[s][c]);
 	psf_grid_free(g->user_grid);
+	for (size_t i = 0; g->cgrid && i < (size_t)WFS_NSCA * 3 * g->ncgrid; i++)
+		psf_grid_free(g->cgrid[i]);
+	free(g->cgrid);
+	free(g->classes);
 	colour_free(g->colour);
 }

@@ -335,7 +335,30 @@ int report_write(struct engine *g)
 				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, gr->n, lo);
 			first = 0;
 		}
-	fprintf(f, "\n  ]},\n  \"error_budget\": {\"largest_truncation_loss\": %.8f, "
+	fprintf(f, "\n  ]");
+	/* the spectral classes (psf.h) and the colour grids drawn with */
+	if (g->classes) {
+		const struct psf_classes *pc = g->classes;
+
+		fprintf(f, ", \"spectral_classes\": {\"steps\": %d, \"classes\": [", pc->steps);
+		for (int k = 0; k < pc->n; k++)
+			fprintf(f, "%s{\"beta\": %.6f, \"lam_eff_sca1\": %.6f}", k ? ", " : "",
+				pc->beta[k], pc->lam[0][k]);
+		fprintf(f, "], \"grids\": [");
+		first = 1;
+		for (int s = 0; s < WFS_NSCA; s++)
+			for (int c = 0; c < 3; c++)
+				for (int j = 0; j < g->ncgrid; j++)
+					if (psfgrids_colour_get(g, s + 1, c, j)) {
+						fprintf(f, "%s\n    {\"sca\": %d, \"class\": %d, "
+							"\"colour\": %d, \"spectral_class\": %.4f}",
+							first ? "" : ",", s + 1, c, j,
+							(double)j / pc->steps);
+						first = 0;
+					}
+		fprintf(f, "]}");
+	}
+	fprintf(f, "},\n  \"error_budget\": {\"largest_truncation_loss\": %.8f, "
 		"\"psf_grid\": \"%dx%d nodes, bilinear in position\", ",
 		worst_loss, g->user_grid ? g->user_grid->nx : 3, g->user_grid ? g->user_grid->ny : 3);
 	/* the noise per pixel that models drawing down to a fraction of it

@@ -125,10 +125,11 @@ extern "C" {
  * version above stays): 1 the first; 2 reach(), settings, column_size,
  * setting_size, wfs_host.source_size, wfs_source.flux_meaning; 3 the
  * exposure's time, wfs_source.mjd and wfs_model.drawn_by; 4 wfs_model.flags
- * (WFS_PARALLEL_PREPARE).  A plugin MAY test
+ * (WFS_PARALLEL_PREPARE); 5 wfs_source.colour and
+ * wfs_host.epsf_colour.  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
-#define WFS_ABI_EDITION 4
+#define WFS_ABI_EDITION 5
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -193,6 +194,14 @@ struct wfs_source {
 	double mjd;             /* the exposure's date, a Modified Julian Date
 	                           (UTC, leap seconds ignored) of its start;
 	                           NaN when the exposure has none */
+
+	/* Edition 5; present when WFS_HAS(host->source_size, struct
+	 * wfs_source, colour) (older hosts: -1). */
+	int colour;             /* the source's spectral class for
+	                           host->epsf_colour(), from its catalog
+	                           spectrum (wfiscene-catalog(5) SPECTRA);
+	                           -1 for the scene's default spectrum, whose
+	                           ePSF host->epsf() gives */
 };
 
 /*
@@ -267,6 +276,16 @@ struct wfs_host {
 	 * appended fields of a source exist.  Absent in older hosts (check
 	 * WFS_HAS(host->size, struct wfs_host, source_size) first). */
 	uint32_t source_size;
+
+	/* Edition 5.  The ePSF of a source's own spectrum: as epsf(), for
+	 * the spectral class `colour` (wfs_source.colour, >= 0; -1 is
+	 * epsf()).  The same rules of loading apply: ask in prepare() or
+	 * footprint() first.  The halo (class 3) is the default
+	 * spectrum's for every colour.  Absent in older hosts (check
+	 * WFS_HAS(host->size, struct wfs_host, epsf_colour)): draw with
+	 * epsf(). */
+	int (*epsf_colour)(void *ctx, int sca, double x, double y, int cls, int colour,
+			   struct wfs_epsf *out);
 };
 
 /*

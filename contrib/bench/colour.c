@@ -1,0 +1,191 @@
+/*
+ * colour.c - the spectral classes of the built-in PSF against the exact
+ * polychromatic ePSF of each spectrum (BENCHMARKS.md "Colour").
+ *
+ * For a filter, at the centre of SCA 1 (one node, 177 samples, 4 per
+ * pixel): the exact ePSF of blackbodies of 2500-50000 K and power laws of
+ * beta -3..3 (the wavelength weights of each spectrum, wfiscene(1)
+ * BUILT-IN PSF), and the ePSF interpolated between the grids of the two
+ * classes about its effective wavelength, with n classes and s steps
+ * between two (s = 0: no rounding).  Prints the worst |difference| over
+ * the array as a fraction of the exact ePSF's peak, for each n and s, and
+ * the build time of one class grid.  Then the FWHM and EE(0.1") of the
+ * optical PSF (jitter included, no pixel) of a 3000 K and a 30000 K star
+ * and their ratios.  Run by hand:
+ *
+ * cc -O2 -Isrc -Iinclude contrib/bench/colour.c build/libwfs.a \
+ *    $(pkg-config --libs cfitsio wcslib fftw3 libzstd zlib) -lfftw3_threads -lltdl -lm \
+ *    -lpthread -o build/colour && build/colour F146 [F129 ...]
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "err.h"
+#include "instrument.h"
+#include "optics.h"
+#include "psf.h"
+#include "spectrum.h"
+
+#define N 177
+
+static double now(void)
+{
+	struct timespec ts;
+
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* The one-node grid of spectrum s (kind SPEC_DEFAULT for 5700 K). */
+static float *grid_of(int filter, int kind, double value, int psfkind, double *secs)
+{
+	struct psf_build_opts o = { .cache_dir = "", .grid = 1, .spec_kind = kind,
+				    .spec_value = value, .verbose = -1 };
+	struct err e = { 0 };
+	double t0 = now();
+	struct psf_grid *g = psf_build_one(filter, 1, N, 4, psfkind, &o, &e);
+	float *d;
+
+	if (!g) {
+		fprintf(stderr, "colour: %s\n", e.msg);
+		exit(2);
+	}
+	if (secs)
+		*secs = now() - t0;
+	d = malloc(sizeof(float) * N * N);
+	memcpy(d, g->data, sizeof(float) * N * N);
+	psf_grid_free(g);
+	return d;
+}
+
+/* FWHM (from the area above half the peak, the image bilinear between
+ * samples, 8 x 8 points per sample) and EE within 0.1" (each sample's
+ * square cut by the circle in 8 x 8 sub-squares) of an optical PSF at
+ * 0.0275" samples. */
+static void stats(const float *p, double *fwhm, double *ee)
+{
+	double peak = 0, tot = 0, area = 0, in = 0, d = 0.11 / 4;
+	int c = (N - 1) / 2;
+
+	for (int i = 0; i < N * N; i++) {
+		peak = fmax(peak, p[i]);
+		tot += p[i];
+	}
+	for (int y = 0; y < N - 1; y++)
+		for (int x = 0; x < N - 1; x++) {
+			double v00 = p[y * N + x], v01 = p[y * N + x + 1];
+			double v10 = p[(y + 1) * N + x], v11 = p[(y + 1) * N + x + 1];
+
+			if (fmax(fmax(v00, v01), fmax(v10, v11)) > 0.5 * peak)
+				for (int b = 0; b < 8; b++)
+					for (int a = 0; a < 8; a++) {
+						double tx = (a + 0.5) / 8, ty = (b + 0.5) / 8;
+						double v = (1 - ty) * ((1 - tx) * v00 + tx * v01) +
+							   ty * ((1 - tx) * v10 + tx * v11);
+						area += (v > 0.5 * peak) * d * d / 64;
+					}
+		}
+	for (int y = 0; y < N; y++)
+		for (int x = 0; x < N; x++) {
+			double f = 0;
+
+			for (int b = 0; b < 8; b++)
+				for (int a = 0; a < 8; a++) {
+					double dx = (x - c + (a + 0.5) / 8 - 0.5) * d;
+					double dy = (y - c + (b + 0.5) / 8 - 0.5) * d;
+					f += dx * dx + dy * dy < 0.01;
+				}
+			in += p[y * N + x] * f / 64;
+		}
+	*fwhm = 2 * sqrt(area / M_PI);
+	*ee = in / tot;
+}
+
+int main(int argc, char **argv)
+{
+	struct err e = { 0 };
+	static const double temps[] = { 2500, 3000, 4000, 5700, 8000, 12000, 20000, 30000, 50000 };
+	static const double betas[] = { -3, -2, -1, 0, 1, 2, 3 };
+	enum { NT = sizeof(temps) / sizeof(*temps), NB = sizeof(betas) / sizeof(*betas) };
+	static const int ns[] = { 2, 3, 4, 5, 6, 8 };
+	static const int steps[] = { 0, 8, 16, 64 };
+
+	if (instrument_init(&e))
+		return fprintf(stderr, "%s\n", e.msg), 2;
+	for (int a = 1; a < argc; a++) {
+		int filter = filter_lookup(argv[a]);
+		struct colour *c = colour_new(filter, &e);
+		float *exact[NT + NB];
+		double lam[NT + NB], t_build = 0;
+		double worst[6][4] = { { 0 } };
+
+		if (!c)
+			return fprintf(stderr, "%s\n", e.msg), 2;
+		for (int i = 0; i < NT + NB; i++) {
+			struct spectrum s = i < NT ? (struct spectrum){ SPEC_BLACKBODY, temps[i] }
+						   : (struct spectrum){ SPEC_POWER, betas[i - NT] };
+			exact[i] = grid_of(filter, s.kind, s.value, PSF_EPSF, &t_build);
+			lam[i] = colour_lam_eff(c, 1, &s);
+		}
+		for (int in = 0; in < 6; in++) {
+			struct psf_classes pc;
+			float *cls[PSF_COLOUR_MAX];
+
+			if (psf_classes_make(&pc, c, filter, ns[in], 1, &e))
+				return fprintf(stderr, "%s\n", e.msg), 2;
+			for (int k = 0; k < pc.n; k++)
+				cls[k] = grid_of(filter, SPEC_POWER, pc.beta[k], PSF_EPSF, NULL);
+			for (int i = 0; i < NT + NB; i++) {
+				double u = psf_classes_u(&pc, 1, lam[i]), peak = 0;
+
+				for (int p = 0; p < N * N; p++)
+					peak = fmax(peak, exact[i][p]);
+				for (int is = 0; is < 4; is++) {
+					double v = steps[is] ? round(u * steps[is]) / steps[is] : u;
+					int k = (int)floor(v);
+					double f, d = 0;
+
+					if (k > pc.n - 2)
+						k = pc.n - 2;
+					f = v - k;
+					for (int p = 0; p < N * N; p++)
+						d = fmax(d, fabs((1 - f) * cls[k][p] + f * cls[k + 1][p] -
+								 exact[i][p]));
+					worst[in][is] = fmax(worst[in][is], d / peak);
+					if (is == 0 && in == 3)
+						printf("%s %s %-6g lam_eff %.4f u %.3f: %.2e of the peak\n",
+						       argv[a], i < NT ? "T" : "beta",
+						       i < NT ? temps[i] : betas[i - NT], lam[i], u, d / peak);
+				}
+			}
+			for (int k = 0; k < pc.n; k++)
+				free(cls[k]);
+		}
+		printf("%s: one class grid (1 node, 177 samples) %.2f s\n", argv[a], t_build);
+		printf("%s: worst over 2500-50000 K and beta -3..3, fraction of the peak\n", argv[a]);
+		printf("classes  exact-u   steps 8   steps 16  steps 64\n");
+		for (int in = 0; in < 6; in++)
+			printf("%7d  %.2e  %.2e  %.2e  %.2e\n", ns[in], worst[in][0], worst[in][1],
+			       worst[in][2], worst[in][3]);
+		{
+			float *cool = grid_of(filter, SPEC_BLACKBODY, 3000, PSF_OPTICAL, NULL);
+			float *hot = grid_of(filter, SPEC_BLACKBODY, 30000, PSF_OPTICAL, NULL);
+			double fc, ec, fh, eh;
+
+			stats(cool, &fc, &ec);
+			stats(hot, &fh, &eh);
+			printf("%s optical PSF: 3000 K FWHM %.4f\" EE(0.1\") %.4f; 30000 K FWHM %.4f\" "
+			       "EE %.4f; ratio 3000/30000: FWHM %.4f, EE %.4f\n", argv[a], fc, ec,
+			       fh, eh, fc / fh, ec / eh);
+			free(cool);
+			free(hot);
+		}
+		for (int i = 0; i < NT + NB; i++)
+			free(exact[i]);
+		colour_free(c);
+	}
+	return 0;
+}

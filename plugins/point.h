@@ -94,8 +94,8 @@ struct geom {
 struct draw {
 	int nn, ncor, keys;
 	int cell;               /* one blended cell (psf-blend=cell or core) */
-	const struct poly *pl[4];
-	double wn[4];
+	const struct poly *pl[8];       /* 8: two spectral classes' nodes */
+	double wn[8];
 	const struct poly *cp[8];
 	double cw[8];
 	struct geom g;

@@ -11,9 +11,10 @@
 
 /* Colour: the source's spectral class (model.h, wfs_source.colour), or -1
  * for the scene's default spectrum (and hosts without classes).  A source
- * with a class is blended from its own class's nodes (psf-blend=source):
- * the cells are the default spectrum's. */
-static int colour_of(const struct point *p, const struct wfs_source *src)
+ * with one is blended per source from the four nodes of each of its two
+ * classes (psf-blend=source for it): the cells are the default
+ * spectrum's. */
+static double colour_of(const struct point *p, const struct wfs_source *src)
 {
 	if (!WFS_HAS(p->host->size, struct wfs_host, epsf_colour) ||
 	    !WFS_HAS(p->host->source_size, struct wfs_source, colour))
@@ -21,25 +22,37 @@ static int colour_of(const struct point *p, const struct wfs_source *src)
 	return src->colour;
 }
 
-/* The host's ePSF at src, of its spectrum. */
-static int src_epsf(const struct point *p, const struct wfs_source *src, struct wfs_epsf *e)
+/* The host's ePSFs at src: e[0] with weight wc[0], and e[1] with wc[1]
+ * for a source between two spectral classes.  Returns how many, or -1. */
+static int src_epsf(const struct point *p, const struct wfs_source *src, struct wfs_epsf e[2],
+		    double wc[2])
 {
-	int c = colour_of(p, src);
+	double c = colour_of(p, src);
+	int k = (int)floor(c), n;
 
-	if (c >= 0)
-		return p->host->epsf_colour(p->host->ctx, src->sca, src->x, src->y,
-					    src->psf_class, c, e);
-	return p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, e);
+	wc[0] = 1;
+	if (!(c >= 0))
+		return p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class,
+				     &e[0]) < 0 ? -1 : 1;
+	wc[1] = c - k;
+	wc[0] = 1 - wc[1];
+	n = wc[1] > 0 ? 2 : 1;
+	for (int i = 0; i < n; i++)
+		if (p->host->epsf_colour(p->host->ctx, src->sca, src->x, src->y, src->psf_class,
+					 k + i, &e[i]) < 0)
+			return -1;
+	return n;
 }
 
 /* The arrays a source reads and their weights times its flux: the four
  * nodes of its position (blend = BLEND_SOURCE), or its cell's blend.
  * Returns how many, or -1. */
 static int source_polys(const struct point *p, const struct wfs_source *src, int blend,
-			const struct poly *pl[4], double wn[4])
+			const struct poly *pl[8], double wn[8])
 {
-	struct wfs_epsf e;
-	int nn = 0;
+	struct wfs_epsf es[2];
+	double wc[2];
+	int nn = 0, ne;
 
 	if (blend != BLEND_SOURCE) {
 		if (!(pl[0] = poly_find(p, cell_key(p, src))))
@@ -47,14 +60,15 @@ static int source_polys(const struct point *p, const struct wfs_source *src, int
 		wn[0] = src->flux;
 		return 1;
 	}
-	if (src_epsf(p, src, &e) < 0)
+	if ((ne = src_epsf(p, src, es, wc)) < 0)
 		return -1;
-	for (int k = 0; k < 4; k++)
-		if (e.weight[k] != 0) {
-			if (!(pl[nn] = poly_find(p, (uint64_t)(uintptr_t)e.node[k])))
-				return p->host->error(p->host->ctx, "ePSF node not prepared");
-			wn[nn++] = e.weight[k] * src->flux;
-		}
+	for (int i = 0; i < ne; i++)
+		for (int k = 0; k < 4; k++)
+			if (es[i].weight[k] != 0) {
+				if (!(pl[nn] = poly_find(p, (uint64_t)(uintptr_t)es[i].node[k])))
+					return p->host->error(p->host->ctx, "ePSF node not prepared");
+				wn[nn++] = wc[i] * es[i].weight[k] * src->flux;
+			}
 	return nn;
 }
 
@@ -314,7 +328,7 @@ static double flux_factor(double t, double k, double u)
 /* The light of the source (the blend at it, or its cell's) in a box of
  * half-width H but not in that of half-width h (ee_table), absolute. */
 static double beyond(const struct wfs_source *src, const struct poly *cell, int blend,
-		     const struct poly *const node[4], const double w[4], int nn, int H, int h)
+		     const struct poly *const node[8], const double w[8], int nn, int H, int h)
 {
 	double out = blend == BLEND_CELL ? src->flux * (cell->ee[H] - cell->ee[h]) : 0;
 
@@ -336,10 +350,10 @@ static double beyond(const struct wfs_source *src, const struct poly *cell, int 
  */
 int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 {
-	struct wfs_epsf e;
+	struct wfs_epsf es[2];
 	struct draw d;
-	const struct poly *node[4];
-	double w[4], half, t = 0, t_all = 0, whole;
+	const struct poly *node[8];
+	double w[8], wc[2], half, t = 0, t_all = 0, whole;
 	struct poly *cell = NULL;
 	int nn = 0, blend = source_blend(p, src), same = blend == BLEND_CORE;
 
@@ -350,25 +364,31 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 		/* the source's nodes: the cell's copies when the cell was
 		 * blended from them (their weights go to aux[4..7] in the
 		 * cell's order), else copies made here */
-		if (src_epsf(p, src, &e) < 0)
+		int ne = src_epsf(p, src, es, wc);
+
+		if (ne < 0)
 			return -1;
+		for (int i = 0; i < ne; i++)
 		for (int k = 0; k < 4; k++) {
+			const struct wfs_epsf *e = &es[i];
 			const struct poly *q = NULL;
 
-			if (e.weight[k] == 0)
+			if (e->weight[k] == 0)
 				continue;
 			for (int j = 0; cell && j < 4 && !q; j++)
-				if (cell->cnode[j] == e.node[k] && cell->cpoly[j]) {
+				if (cell->cnode[j] == e->node[k] && cell->cpoly[j]) {
 					q = cell->cpoly[j];
-					src->aux[4 + j] += e.weight[k];
+					src->aux[4 + j] += e->weight[k];
 				}
 			if (!q) {
 				same = 0;
-				if (!(q = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over)))
+				if (!(q = poly_add(p, (uint64_t)(uintptr_t)e->node[k], e->node[k], e->n,
+						   e->over)))
 					return -1;
 			}
 			node[nn] = q;
-			w[nn++] = e.weight[k];
+			/* times 1 for the default spectrum: the same bytes */
+			w[nn++] = wc[i] * e->weight[k];
 		}
 	}
 	if (!same)
@@ -552,8 +572,8 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 	const struct geom *g = &d->g;
 	int nn = d->nn;
 	long X = win->x0, Y = win->y0;
-	float wt[16];
-	const float *tap0[64];  /* [array][y tap][x tap] at the window's first pixel */
+	float wt[32];
+	const float *tap0[128]; /* [array][y tap][x tap] at the window's first pixel */
 	float acc[MAX_ROW + 8];
 	double dv[MAX_ROW + 4], tv[MAX_ROW + 4];
 	int core = !zone_empty(d->core);

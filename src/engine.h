@@ -128,7 +128,7 @@ struct engine {
 	int colour_band;                /* --set colour-counts=band: no colour term */
 	/* the spectral classes of the built-in PSF (psf.h), NULL for none
 	 * (no spectrum yet, or --psf FILE), and their grids: cgrid[((sca -
-	 * 1) * 3 + cls) * ncgrid + j] for colour index j, published under
+	 * 1) * 3 + cls) * ncgrid + k] for spectral class k, published under
 	 * grid_lock as the others (psfgrids.c) */
 	struct psf_classes *classes;
 	struct psf_grid **cgrid;
@@ -205,11 +205,11 @@ int psfgrids_need(struct engine *g, int sca, int cls, struct err *e);
 int psfgrids_open_user(struct engine *g);
 void psfgrids_free(struct engine *g);
 /* The spectral classes for a scene with spectra (the builtin PSF only):
- * made once, from the settings psf-colour-classes and psf-colour-steps.
+ * made once, from the setting psf-colour-classes.
  * Returns 0 or -1. */
 int psfgrids_colour_init(struct engine *g);
-const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int j);
-int psfgrids_colour_need(struct engine *g, int sca, int cls, int j, struct err *e);
+const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int k);
+int psfgrids_colour_need(struct engine *g, int sca, int cls, int k, struct err *e);
 
 /* place.c */
 double *tile_alloc(int T);

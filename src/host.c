@@ -125,26 +125,29 @@ static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 	return 0;
 }
 
-/* The ePSF of colour index j (psfgrids.c, the spectral classes), loaded
- * as host_epsf() loads the default's; the halo is the default's. */
-static int host_epsf_colour(void *ctx, int sca, double x, double y, int cls, int j,
+/* The ePSF of spectral class k (psfgrids.c), loaded as host_epsf() loads
+ * the default's; the halo is the default's. */
+static int host_epsf_colour(void *ctx, int sca, double x, double y, int cls, int k,
 			    struct wfs_epsf *out)
 {
 	struct engine *g = ctx;
 	struct worker *w = current_worker && current_worker->g == g ? current_worker : NULL;
 	const struct psf_grid *grid;
 
-	if (j < 0 || cls == 3 || !g->classes)
+	if (cls == 3)
 		return host_epsf(ctx, sca, x, y, cls, out);
-	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2 || j >= g->ncgrid)
-		return host_error(ctx, "no ePSF for SCA %d class %d colour %d", sca, cls, j);
-	if (!(grid = psfgrids_colour_get(g, sca, cls, j))) {
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2 || !g->classes || k < 0 ||
+	    k >= g->ncgrid)
+		return host_error(ctx, "no ePSF for SCA %d class %d spectral class %d", sca,
+				  cls, k);
+	if (!(grid = psfgrids_colour_get(g, sca, cls, k))) {
 		if (w ? !w->place : !pthread_equal(pthread_self(), g->main_thread))
-			return host_error(ctx, "ePSF of SCA %d class %d colour %d asked for in "
-					  "render() but not in prepare() or footprint()", sca, cls, j);
-		if (psfgrids_colour_need(g, sca, cls, j, w ? &w->err : g->e) < 0)
+			return host_error(ctx, "ePSF of SCA %d class %d spectral class %d asked "
+					  "for in render() but not in prepare() or footprint()",
+					  sca, cls, k);
+		if (psfgrids_colour_need(g, sca, cls, k, w ? &w->err : g->e) < 0)
 			return -1;
-		grid = psfgrids_colour_get(g, sca, cls, j);
+		grid = psfgrids_colour_get(g, sca, cls, k);
 	}
 	psf_grid_at(grid, x, y, out);
 	return 0;

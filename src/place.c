@@ -210,8 +210,8 @@ static int fill_source(const struct engine *g, const struct rows *r, size_t i,
 	/* the spectral class of the row's effective wavelength (psf.h) */
 	src->colour = -1;
 	if (r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT && g->classes)
-		src->colour = psf_classes_index(g->classes, sca, colour_lam_eff(
-			g->colour, sca, &(struct spectrum){ r->spec_kind[i], r->spec_value[i] }));
+		src->colour = psf_classes_of(g->classes, g->colour, sca, &(struct spectrum){
+						     r->spec_kind[i], r->spec_value[i] });
 	return flux_check(g, r, i, src, NULL, e);
 }
 

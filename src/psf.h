@@ -124,32 +124,34 @@ struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid, int
 				  struct psf_build_opts *o, struct err *e);
 
 /*
- * Spectral classes (psfclass.c).  A filter's classes are n power-law
- * spectra (f_nu ~ nu^beta[k]) whose effective wavelengths on SCA 1 are
- * evenly spaced from the bluest to the reddest of beta = 3, -3 and the
- * 50000 and 2500 K blackbodies; lam[sca - 1][k] is class k's effective
- * wavelength on each SCA (spectrum.h).  A source's ePSF is the blend of
- * the grids of the two classes about its own effective wavelength,
- * linear in it, rounded to one of `steps` steps between two classes: the
- * colour index j = round(u steps), u the fractional class (0 .. n - 1),
- * is class j / steps blended with the next at (j % steps) / steps.
- * Spectra beyond the span take the end class.
+ * Spectral classes (psfclass.c).  A filter has two families of n classes,
+ * one ePSF grid each: power laws (f_nu ~ nu^beta[k], for the beta and
+ * colour columns) and blackbodies (teff[k], for teff), whose effective
+ * wavelengths on SCA 1 are evenly spaced over the family's span: beta 3
+ * to -3, 50000 to 2500 K (the span of both for power laws, so a colour
+ * between the two is covered too).  lam[sca - 1][fam][k] is each class's
+ * effective wavelength on each SCA (spectrum.h).  Class k of family fam
+ * is spectral class fam n + k; a source of effective wavelength l on an
+ * SCA is class fam n + u, u the fraction of the way from class floor(u)
+ * to the next by effective wavelength, its ePSF the blend of the two
+ * (model.h wfs_source.colour).  Beyond its family's span a source takes
+ * the end class.
  */
 #define PSF_COLOUR_MAX 16
-#define PSF_COLOUR_STEPS_MAX 64
 struct colour;
+struct spectrum;
 struct psf_classes {
-	int filter, n, steps;
-	double beta[PSF_COLOUR_MAX];
-	double lam[18][PSF_COLOUR_MAX];
+	int filter, n;
+	double beta[PSF_COLOUR_MAX], teff[PSF_COLOUR_MAX];
+	double lam[18][2][PSF_COLOUR_MAX];
 };
 int psf_default_classes(int filter);
-#define PSF_COLOUR_STEPS 8
-int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n, int steps,
+int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n,
 		     struct err *e);
-/* The fractional class u of effective wavelength lam on SCA sca, and the
- * colour index round(u steps). */
-double psf_classes_u(const struct psf_classes *pc, int sca, double lam);
-int psf_classes_index(const struct psf_classes *pc, int sca, double lam);
+/* The spectral class (fam n + u) of spectrum s on SCA sca. */
+double psf_classes_of(const struct psf_classes *pc, struct colour *c, int sca,
+		      const struct spectrum *s);
+/* The spectrum of spectral class k (0 .. 2 n - 1) into kind and value. */
+void psf_classes_spectrum(const struct psf_classes *pc, int k, int *kind, double *value);
 
 #endif

@@ -201,9 +201,9 @@ static int sca_name(char *buf, size_t n, const char *file, int sca)
 }
 
 /* --report: the filter's spectral classes (psf.h) on each SCA of the list,
- * as a table on standard output: SCA, class, beta, effective wavelength,
- * and the spectrum's own effective wavelength and fractional class with
- * --teff or --beta. */
+ * as a table on standard output: SCA, class, spectrum, effective
+ * wavelength, and with --teff or --beta that spectrum's own (fractional)
+ * class and effective wavelength. */
 static int report_classes(const struct psf_cmd *c)
 {
 	struct err e = { 0 };
@@ -215,26 +215,31 @@ static int report_classes(const struct psf_cmd *c)
 	if (instrument_init(&e) || (filter = filter_lookup(c->filter)) < 0 ||
 	    sca_parse_list(c->sca, &mask, &e) || !(col = colour_new(filter, &e)) ||
 	    psf_classes_make(&pc, col, filter, c->classes > 0 ? c->classes :
-			     psf_default_classes(filter), PSF_COLOUR_STEPS, &e)) {
+			     psf_default_classes(filter), &e)) {
 		fprintf(stderr, "wfiscene psf: --report: %s\n", e.msg[0] ? e.msg : "unknown filter");
 		colour_free(col);
 		return EXIT_INPUT;
 	}
-	printf("# spectral classes of %s (psf-colour-classes %d, psf-colour-steps %d)\n",
-	       c->filter, pc.n, pc.steps);
-	printf("sca\tclass\tbeta\tlam_eff\n");
+	printf("# spectral classes of %s (psf-colour-classes %d)\n", c->filter, pc.n);
+	printf("sca\tclass\tspectrum\tlam_eff\n");
 	for (int s = 1; s <= WFS_NSCA; s++) {
 		if (!((mask >> (s - 1)) & 1))
 			continue;
-		for (int k = 0; k < pc.n; k++)
-			printf("%d\t%d\t%.6f\t%.6f\n", s, k, pc.beta[k], pc.lam[s - 1][k]);
+		for (int k = 0; k < 2 * pc.n; k++) {
+			int kind;
+			double v;
+
+			psf_classes_spectrum(&pc, k, &kind, &v);
+			printf("%d\t%d\t%s %.6g\t%.6f\n", s, k, kind == SPEC_POWER ? "beta" : "teff",
+			       v, pc.lam[s - 1][k >= pc.n][k % pc.n]);
+		}
 		if (!isnan(c->teff) || !isnan(c->beta)) {
 			struct spectrum sp = { isnan(c->teff) ? SPEC_POWER : SPEC_BLACKBODY,
 					       isnan(c->teff) ? c->beta : c->teff };
-			double l = colour_lam_eff(col, s, &sp);
 
-			printf("%d\t%.4f\t%s %.6g\t%.6f\n", s, psf_classes_u(&pc, s, l),
-			       isnan(c->teff) ? "beta" : "teff", sp.value, l);
+			printf("%d\t%.4f\t%s %.6g\t%.6f\n", s, psf_classes_of(&pc, col, s, &sp),
+			       isnan(c->teff) ? "beta" : "teff", sp.value,
+			       colour_lam_eff(col, s, &sp));
 		}
 	}
 	colour_free(col);

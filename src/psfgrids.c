@@ -164,105 +164,73 @@ static int int_setting(struct engine *g, const char *key, int lo, int hi, int fa
 
 int psfgrids_colour_init(struct engine *g)
 {
-	int n, steps;
+	int n;
 
 	if (g->classes || strcmp(g->o->psf, "builtin"))
 		return 0;
 	if (int_setting(g, "psf-colour-classes", 2, PSF_COLOUR_MAX,
-			psf_default_classes(g->o->filter), &n) < 0 ||
-	    int_setting(g, "psf-colour-steps", 1, PSF_COLOUR_STEPS_MAX, PSF_COLOUR_STEPS,
-			&steps) < 0)
+			psf_default_classes(g->o->filter), &n) < 0)
 		return -1;
 	if (!(g->classes = malloc(sizeof(*g->classes))))
 		return err_set(g->e, EXIT_SYSTEM, "out of memory");
-	if (psf_classes_make(g->classes, g->colour, g->o->filter, n, steps, g->e) < 0)
+	if (psf_classes_make(g->classes, g->colour, g->o->filter, n, g->e) < 0)
 		return -1;
-	g->ncgrid = (n - 1) * steps + 1;
+	g->ncgrid = 2 * n;
 	if (!(g->cgrid = calloc((size_t)WFS_NSCA * 3 * g->ncgrid, sizeof(*g->cgrid))))
 		return err_set(g->e, EXIT_SYSTEM, "out of memory");
-	for (int k = 0; k < n; k++)
-		host_log(g, 1, "PSF spectral class %d of %s: beta %.4f, effective wavelength "
-			 "%.4f micron on SCA 1", k, g->filter_name, g->classes->beta[k],
-			 g->classes->lam[0][k]);
+	for (int k = 0; k < 2 * n; k++) {
+		int kind;
+		double v;
+
+		psf_classes_spectrum(g->classes, k, &kind, &v);
+		host_log(g, 1, "PSF spectral class %d of %s: %s %.6g, effective wavelength "
+			 "%.4f micron on SCA 1", k, g->filter_name, kind == SPEC_POWER ? "beta" :
+			 "teff", v, g->classes->lam[0][k >= n][k % n]);
+	}
 	return 0;
 }
 
-static struct psf_grid **cslot(const struct engine *g, int sca, int cls, int j)
+static struct psf_grid **cslot(const struct engine *g, int sca, int cls, int k)
 {
-	return &g->cgrid[((size_t)(sca - 1) * 3 + cls) * g->ncgrid + j];
+	return &g->cgrid[((size_t)(sca - 1) * 3 + cls) * g->ncgrid + k];
 }
 
-const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int j)
+const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int k)
 {
-	return __atomic_load_n(cslot(g, sca, cls, j), __ATOMIC_ACQUIRE);
+	return __atomic_load_n(cslot(g, sca, cls, k), __ATOMIC_ACQUIRE);
 }
 
-/* Load colour grid j of (sca, cls), grid_lock held: a class's own grid,
- * built or read from the cache like the default's, or the blend of the
- * two classes about it. */
-static int cload(struct engine *g, int sca, int cls, int j, struct err *e)
+/* Load spectral class k's grid of (sca, cls), grid_lock held: built or
+ * read from the cache like the default's. */
+static int cload(struct engine *g, int sca, int cls, int k, struct err *e)
 {
-	const struct psf_classes *pc = g->classes;
-	int k = j / pc->steps, r = j % pc->steps;
+	struct psf_build_opts bo = g->pbo;
 	struct psf_grid *grid;
 
-	if (psfgrids_colour_get(g, sca, cls, j))
+	if (psfgrids_colour_get(g, sca, cls, k))
 		return 0;
-	if (r == 0) {
-		struct psf_build_opts bo = g->pbo;
-
-		bo.built = bo.loaded = 0;
-		bo.spec_kind = SPEC_POWER;
-		bo.spec_value = pc->beta[k];
-		host_log(g, 1, "ePSF grid for %s SCA %d, %d samples, spectral class %d "
-			 "(beta %.4f): building or loading", g->filter_name, sca,
-			 psf_class_n[cls], k, pc->beta[k]);
-		if (!(grid = psf_builtin(g->o->filter, sca, cls, g->o->level ? PSF_EPSF_NOIPC :
-					 PSF_EPSF, &bo, e)))
-			return -1;
-		g->pbo.built += bo.built;
-		g->pbo.loaded += bo.loaded;
-	} else {
-		const struct psf_grid *a, *b;
-		float f = (float)r / pc->steps;
-		size_t nn;
-
-		if (cload(g, sca, cls, k * pc->steps, e) < 0 ||
-		    cload(g, sca, cls, (k + 1) * pc->steps, e) < 0)
-			return -1;
-		a = psfgrids_colour_get(g, sca, cls, k * pc->steps);
-		b = psfgrids_colour_get(g, sca, cls, (k + 1) * pc->steps);
-		if (!(grid = psf_grid_new(a->n, a->over, a->nx, a->ny)) ||
-		    (a->jac && !(grid->jac = malloc(sizeof(double) * 4 * a->nx * a->ny)))) {
-			psf_grid_free(grid);
-			return err_set(e, EXIT_SYSTEM, "out of memory");
-		}
-		memcpy(grid->xs, a->xs, sizeof(double) * a->nx);
-		memcpy(grid->ys, a->ys, sizeof(double) * a->ny);
-		if (a->jac)
-			memcpy(grid->jac, a->jac, sizeof(double) * 4 * a->nx * a->ny);
-		nn = (size_t)a->nx * a->ny * a->n * a->n;
-		for (size_t i = 0; i < nn; i++)
-			grid->data[i] = (1 - f) * a->data[i] + f * b->data[i];
-		grid->pixscale = a->pixscale;
-		grid->sca = a->sca;
-		grid->filter = a->filter;
-		grid->kind = a->kind;
-		grid->pixgrid = a->pixgrid;
-		snprintf(grid->origin, sizeof(grid->origin), "%s", a->origin);
-	}
-	__atomic_store_n(cslot(g, sca, cls, j), grid, __ATOMIC_RELEASE);
+	bo.built = bo.loaded = 0;
+	psf_classes_spectrum(g->classes, k, &bo.spec_kind, &bo.spec_value);
+	host_log(g, 1, "ePSF grid for %s SCA %d, %d samples, spectral class %d (%s %.6g): "
+		 "building or loading", g->filter_name, sca, psf_class_n[cls], k,
+		 bo.spec_kind == SPEC_POWER ? "beta" : "teff", bo.spec_value);
+	if (!(grid = psf_builtin(g->o->filter, sca, cls, g->o->level ? PSF_EPSF_NOIPC :
+				 PSF_EPSF, &bo, e)))
+		return -1;
+	g->pbo.built += bo.built;
+	g->pbo.loaded += bo.loaded;
+	__atomic_store_n(cslot(g, sca, cls, k), grid, __ATOMIC_RELEASE);
 	return 0;
 }
 
-int psfgrids_colour_need(struct engine *g, int sca, int cls, int j, struct err *e)
+int psfgrids_colour_need(struct engine *g, int sca, int cls, int k, struct err *e)
 {
 	int rc;
 
-	if (psfgrids_colour_get(g, sca, cls, j))
+	if (psfgrids_colour_get(g, sca, cls, k))
 		return 0;
 	pthread_mutex_lock(&g->grid_lock);
-	rc = cload(g, sca, cls, j, e);
+	rc = cload(g, sca, cls, k, e);
 	pthread_mutex_unlock(&g->grid_lock);
 	return rc;
 }

@@ -336,27 +336,30 @@ int report_write(struct engine *g)
 			first = 0;
 		}
 	fprintf(f, "\n  ]");
-	/* the spectral classes (psf.h) and the colour grids drawn with */
+	/* the spectral classes (psf.h) and the grids of them drawn with */
 	if (g->classes) {
 		const struct psf_classes *pc = g->classes;
 
-		fprintf(f, ", \"spectral_classes\": {\"steps\": %d, \"classes\": [", pc->steps);
-		for (int k = 0; k < pc->n; k++)
-			fprintf(f, "%s{\"beta\": %.6f, \"lam_eff_sca1\": %.6f}", k ? ", " : "",
-				pc->beta[k], pc->lam[0][k]);
-		fprintf(f, "], \"grids\": [");
-		first = 1;
-		for (int s = 0; s < WFS_NSCA; s++)
-			for (int c = 0; c < 3; c++)
-				for (int j = 0; j < g->ncgrid; j++)
-					if (psfgrids_colour_get(g, s + 1, c, j)) {
-						fprintf(f, "%s\n    {\"sca\": %d, \"class\": %d, "
-							"\"colour\": %d, \"spectral_class\": %.4f}",
-							first ? "" : ",", s + 1, c, j,
-							(double)j / pc->steps);
+		fprintf(f, ", \"spectral_classes\": [");
+		for (int k = 0; k < 2 * pc->n; k++) {
+			int kind;
+			double v;
+
+			psf_classes_spectrum(pc, k, &kind, &v);
+			fprintf(f, "%s\n    {\"class\": %d, \"%s\": %.6g, \"lam_eff_sca1\": %.6f, "
+				"\"grids\": [", k ? "," : "", k, k < pc->n ? "beta" : "teff", v,
+				pc->lam[0][k >= pc->n][k % pc->n]);
+			first = 1;
+			for (int s = 0; s < WFS_NSCA; s++)
+				for (int c = 0; c < 3; c++)
+					if (psfgrids_colour_get(g, s + 1, c, k)) {
+						fprintf(f, "%s{\"sca\": %d, \"samples\": %d}",
+							first ? "" : ", ", s + 1, psf_class_n[c]);
 						first = 0;
 					}
-		fprintf(f, "]}");
+			fprintf(f, "]}");
+		}
+		fprintf(f, "\n  ]");
 	}
 	fprintf(f, "},\n  \"error_budget\": {\"largest_truncation_loss\": %.8f, "
 		"\"psf_grid\": \"%dx%d nodes, bilinear in position\", ",

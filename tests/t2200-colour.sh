@@ -20,12 +20,21 @@ EOF
 cat > spec.csv <<EOF
 x,y,flux,teff,beta,color_f106_f158
 1000,1000,18,,,
+1200,1300,19,,,
+EOF
+cat > beta0.csv <<EOF
+x,y,flux,teff,beta,color_f106_f158
+1000,1000,18,,,
 1200,1300,19,,0,
 EOF
-test_expect_success 'no spectrum, or a flat f_nu: the same bytes as no spectrum columns' '
-	"$WFS" --filter F146 --flux-unit abmag -o plain.fits plain.csv &&
+test_expect_success 'rows without a spectrum: the same bytes as no spectrum columns' '
+	"$WFS" --filter F146 --flux-unit abmag --placed p0.csv -o plain.fits plain.csv &&
 	"$WFS" --filter F146 --flux-unit abmag -o spec.fits spec.csv &&
 	cmp plain.fits spec.fits
+'
+test_expect_success 'a flat f_nu (beta 0) keeps the counts of the AB zeropoint' '
+	"$WFS" --filter F146 --flux-unit abmag --placed pflat.csv -o beta0.fits beta0.csv &&
+	test_cmp p0.csv pflat.csv
 '
 
 # the colour term from the throughput table, by the sums spectrum.h states
@@ -123,6 +132,76 @@ test_expect_success 'colour-counts=band: the spectrum leaves the counts alone' '
 	test "$(cut -d, -f5 pband.csv | sed 1d | sort -u)" = "$(sed -n 2p pf20.csv | cut -d, -f5)" &&
 	test_must_fail --status 1 "$WFS" --filter F146 --set colour-counts=x -o x.fits one.csv 2>err &&
 	test_grep "colour-counts: expected pivot or band, not .x." err && test ! -e x.fits
+'
+
+# The PSF of a source's spectrum: a red (3000 K) and a blue (30000 K) star
+# of the same counts/s in F146, drawn from the spectral classes, against
+# each star drawn alone with the exact ePSF grid of its own spectrum
+# (wfiscene psf --teff, given as --psf, blended per source as the colour
+# stars are): within 1e-3 of the peak, with all their light, the red one
+# wider.
+cat > rb.csv <<EOF
+x,y,flux,teff
+1001,1001,2000,3000
+1501,1501,2000,30000
+EOF
+printf 'x,y,flux\n1001,1001,2000\n' > red.csv
+printf 'x,y,flux\n1501,1501,2000\n' > blue.csv
+cat > widths.py <<'EOF'
+import sys
+import numpy as np
+from astropy.io import fits
+img = fits.open(sys.argv[1])[1].data.astype(float)
+red = fits.open(sys.argv[2])[1].data.astype(float)
+blue = fits.open(sys.argv[3])[1].data.astype(float)
+ref = red + blue
+peak = ref.max()
+d = np.abs(img - ref).max() / peak
+def width(im, c):
+    y, x = np.mgrid[c - 6:c + 7, c - 6:c + 7]
+    s = im[c - 6:c + 7, c - 6:c + 7]
+    return np.sqrt((s * ((x - c) ** 2 + (y - c) ** 2)).sum() / s.sum()), s.max()
+wr, pr = width(img, 1000)
+wb, pb = width(img, 1500)
+print("# max |colour - exact| %.2e of the peak; r.m.s. radius within 6 px: red %.4f, "
+      "blue %.4f px (ratio %.4f); peak pixel red %.2f, blue %.2f" % (d, wr, wb, wr / wb, pr, pb))
+print("# light: colour %.6f, exact %.6f" % (img.sum(), ref.sum()))
+assert d < 1e-3, d
+assert wr / wb > 1.02 and pr < 0.97 * pb
+assert abs(img.sum() / ref.sum() - 1) < 1e-4
+EOF
+test_expect_success 'a red and a blue star of the same counts: drawn with the ePSF of each spectrum' '
+	"$WFS" --filter F146 --set psf-extent=stips -o rb.fits rb.csv &&
+	"$WFS" psf --filter F146 --sca 1 --teff 3000 -o t3000.fits &&
+	"$WFS" psf --filter F146 --sca 1 --teff 30000 -o t30000.fits &&
+	"$WFS" --filter F146 --psf t3000.fits --set psf-blend=source --set psf-extent=stips \
+		-o red.fits red.csv &&
+	"$WFS" --filter F146 --psf t30000.fits --set psf-blend=source --set psf-extent=stips \
+		-o blue.fits blue.csv &&
+	"$PY" widths.py rb.fits red.fits blue.fits
+'
+
+test_expect_success 'wfiscene psf --report: the classes, and the class of a spectrum' '
+	"$WFS" psf --filter F146 --sca 1,9 --report --teff 3000 > rep.tsv &&
+	test "$(grep -c "^1	[0-9]	" rep.tsv)" = 8 && test "$(grep -c "^9	[0-9]	" rep.tsv)" = 8 &&
+	grep "^1	0	beta 3	" rep.tsv && grep "^1	7	teff 2500	" rep.tsv &&
+	grep "^1	6\.[0-9]*	teff 3000	" rep.tsv &&
+	"$WFS" psf --filter F146 --sca 1 --report --classes 3 > rep3.tsv &&
+	test "$(grep -c "^1	[0-9]	" rep3.tsv)" = 6 &&
+	test_must_fail --status 1 "$WFS" psf --filter F146 --sca 1 --teff 900 -o x.fits 2>err &&
+	test_grep "teff: want a temperature from 1000 to 100000 K" err && test ! -e x.fits
+'
+
+test_expect_success 'the JSON report lists the spectral classes and the grids drawn with' '
+	"$WFS" --filter F146 --report r.json -o rb2.fits rb.csv &&
+	"$PY" -c "
+import json
+c = json.load(open(\"r.json\"))[\"psf_grids\"][\"spectral_classes\"]
+assert len(c) == 8 and c[0][\"beta\"] == 3 and c[7][\"teff\"] == 2500, c
+used = [k[\"class\"] for k in c if k[\"grids\"]]
+assert set(used) <= {4, 5, 6, 7} and len(used) >= 2, used
+print(\"# classes drawn with:\", used)
+"
 '
 
 # refused NAME MESSAGE: the catalog NAME.csv is refused with MESSAGE, exit

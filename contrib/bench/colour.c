@@ -6,10 +6,10 @@
  * pixel): the exact ePSF of blackbodies of 2500-50000 K and power laws of
  * beta -3..3 (the wavelength weights of each spectrum, wfiscene(1)
  * BUILT-IN PSF), and the ePSF interpolated between the grids of the two
- * classes about its effective wavelength, with n classes and s steps
- * between two (s = 0: no rounding).  Prints the worst |difference| over
- * the array as a fraction of the exact ePSF's peak, for each n and s, and
- * the build time of one class grid.  Then the FWHM and EE(0.1") of the
+ * classes of its family about its effective wavelength, with n classes per
+ * family.  Prints the worst |difference| over the array as a fraction of
+ * the exact ePSF's peak, for each n, and the build time of one class
+ * grid.  Then the FWHM and EE(0.1") of the
  * optical PSF (jitter included, no pixel) of a 3000 K and a 30000 K star
  * and their ratios.  Run by hand:
  *
@@ -108,10 +108,10 @@ int main(int argc, char **argv)
 {
 	struct err e = { 0 };
 	static const double temps[] = { 2500, 3000, 4000, 5700, 8000, 12000, 20000, 30000, 50000 };
-	static const double betas[] = { -3, -2, -1, 0, 1, 2, 3 };
+	static const double betas[] = { -3, -2.5, -2, -1, 0, 1, 2, 2.5, 3 };
 	enum { NT = sizeof(temps) / sizeof(*temps), NB = sizeof(betas) / sizeof(*betas) };
-	static const int ns[] = { 2, 3, 4, 5, 6, 8 };
-	static const int steps[] = { 0, 8, 16, 64 };
+	static const int ns[] = { 2, 3, 4, 5, 6 };
+	enum { NN = sizeof(ns) / sizeof(*ns) };
 
 	if (instrument_init(&e))
 		return fprintf(stderr, "%s\n", e.msg), 2;
@@ -119,69 +119,74 @@ int main(int argc, char **argv)
 		int filter = filter_lookup(argv[a]);
 		struct colour *c = colour_new(filter, &e);
 		float *exact[NT + NB];
-		double lam[NT + NB], t_build = 0;
-		double worst[6][4] = { { 0 } };
+		double t_build = 0, worst[NN][2] = { { 0 } };
+		struct spectrum sp[NT + NB];
 
 		if (!c)
 			return fprintf(stderr, "%s\n", e.msg), 2;
 		for (int i = 0; i < NT + NB; i++) {
-			struct spectrum s = i < NT ? (struct spectrum){ SPEC_BLACKBODY, temps[i] }
-						   : (struct spectrum){ SPEC_POWER, betas[i - NT] };
-			exact[i] = grid_of(filter, s.kind, s.value, PSF_EPSF, &t_build);
-			lam[i] = colour_lam_eff(c, 1, &s);
+			sp[i] = i < NT ? (struct spectrum){ SPEC_BLACKBODY, temps[i] }
+				       : (struct spectrum){ SPEC_POWER, betas[i - NT] };
+			exact[i] = grid_of(filter, sp[i].kind, sp[i].value, PSF_EPSF, &t_build);
 		}
-		for (int in = 0; in < 6; in++) {
+		for (int in = 0; in < NN; in++) {
 			struct psf_classes pc;
-			float *cls[PSF_COLOUR_MAX];
+			float *cls[2 * PSF_COLOUR_MAX];
 
-			if (psf_classes_make(&pc, c, filter, ns[in], 1, &e))
+			if (psf_classes_make(&pc, c, filter, ns[in], &e))
 				return fprintf(stderr, "%s\n", e.msg), 2;
-			for (int k = 0; k < pc.n; k++)
-				cls[k] = grid_of(filter, SPEC_POWER, pc.beta[k], PSF_EPSF, NULL);
+			for (int k = 0; k < 2 * pc.n; k++) {
+				int kind;
+				double v;
+
+				psf_classes_spectrum(&pc, k, &kind, &v);
+				cls[k] = grid_of(filter, kind, v, PSF_EPSF, NULL);
+			}
 			for (int i = 0; i < NT + NB; i++) {
-				double u = psf_classes_u(&pc, 1, lam[i]), peak = 0;
+				double u = psf_classes_of(&pc, c, 1, &sp[i]), peak = 0, d = 0;
+				int k = (int)floor(u);
+				double f = u - k;
 
 				for (int p = 0; p < N * N; p++)
 					peak = fmax(peak, exact[i][p]);
-				for (int is = 0; is < 4; is++) {
-					double v = steps[is] ? round(u * steps[is]) / steps[is] : u;
-					int k = (int)floor(v);
-					double f, d = 0;
-
-					if (k > pc.n - 2)
-						k = pc.n - 2;
-					f = v - k;
-					for (int p = 0; p < N * N; p++)
-						d = fmax(d, fabs((1 - f) * cls[k][p] + f * cls[k + 1][p] -
-								 exact[i][p]));
-					worst[in][is] = fmax(worst[in][is], d / peak);
-					if (is == 0 && in == 3)
-						printf("%s %s %-6g lam_eff %.4f u %.3f: %.2e of the peak\n",
-						       argv[a], i < NT ? "T" : "beta",
-						       i < NT ? temps[i] : betas[i - NT], lam[i], u, d / peak);
-				}
+				for (int p = 0; p < N * N; p++)
+					d = fmax(d, fabs((1 - f) * cls[k][p] + (f > 0 ? f * cls[k + 1][p] : 0) -
+							 exact[i][p]));
+				worst[in][i >= NT] = fmax(worst[in][i >= NT], d / peak);
+				printf("%s n=%d %s %-6g lam_eff %.4f class %.3f: %.2e of the peak\n",
+				       argv[a], ns[in], i < NT ? "T" : "beta", sp[i].value,
+				       colour_lam_eff(c, 1, &sp[i]), u, d / peak);
 			}
-			for (int k = 0; k < pc.n; k++)
+			for (int k = 0; k < 2 * pc.n; k++)
 				free(cls[k]);
 		}
 		printf("%s: one class grid (1 node, 177 samples) %.2f s\n", argv[a], t_build);
-		printf("%s: worst over 2500-50000 K and beta -3..3, fraction of the peak\n", argv[a]);
-		printf("classes  exact-u   steps 8   steps 16  steps 64\n");
-		for (int in = 0; in < 6; in++)
-			printf("%7d  %.2e  %.2e  %.2e  %.2e\n", ns[in], worst[in][0], worst[in][1],
-			       worst[in][2], worst[in][3]);
+		printf("%s: worst |interpolated - exact| over the array, fraction of the peak\n",
+		       argv[a]);
+		printf("classes per family  2500-50000 K  beta -3..3\n");
+		for (int in = 0; in < NN; in++)
+			printf("%19d  %.2e      %.2e\n", ns[in], worst[in][0], worst[in][1]);
 		{
 			float *cool = grid_of(filter, SPEC_BLACKBODY, 3000, PSF_OPTICAL, NULL);
 			float *hot = grid_of(filter, SPEC_BLACKBODY, 30000, PSF_OPTICAL, NULL);
+			float *ecool = grid_of(filter, SPEC_BLACKBODY, 3000, PSF_EPSF, NULL);
+			float *ehot = grid_of(filter, SPEC_BLACKBODY, 30000, PSF_EPSF, NULL);
 			double fc, ec, fh, eh;
 
 			stats(cool, &fc, &ec);
 			stats(hot, &fh, &eh);
-			printf("%s optical PSF: 3000 K FWHM %.4f\" EE(0.1\") %.4f; 30000 K FWHM %.4f\" "
-			       "EE %.4f; ratio 3000/30000: FWHM %.4f, EE %.4f\n", argv[a], fc, ec,
-			       fh, eh, fc / fh, ec / eh);
+			printf("%s optical PSF (jitter, no pixel): 3000 K FWHM %.4f\" EE(0.1\") %.4f; "
+			       "30000 K FWHM %.4f\" EE %.4f; ratio 3000/30000: FWHM %.4f, EE %.4f\n",
+			       argv[a], fc, ec, fh, eh, fc / fh, ec / eh);
+			stats(ecool, &fc, &ec);
+			stats(ehot, &fh, &eh);
+			printf("%s ePSF (pixel, IPC): 3000 K FWHM %.4f\" EE(0.1\") %.4f; 30000 K FWHM "
+			       "%.4f\" EE %.4f; ratio FWHM %.4f, EE %.4f\n", argv[a], fc, ec, fh, eh,
+			       fc / fh, ec / eh);
 			free(cool);
 			free(hot);
+			free(ecool);
+			free(ehot);
 		}
 		for (int i = 0; i < NT + NB; i++)
 			free(exact[i]);

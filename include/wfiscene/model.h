@@ -197,11 +197,15 @@ struct wfs_source {
 
 	/* Edition 5; present when WFS_HAS(host->source_size, struct
 	 * wfs_source, colour) (older hosts: -1). */
-	int colour;             /* the source's spectral class for
-	                           host->epsf_colour(), from its catalog
-	                           spectrum (wfiscene-catalog(5) SPECTRA);
-	                           -1 for the scene's default spectrum, whose
-	                           ePSF host->epsf() gives */
+	double colour;          /* the source's spectral class, from its
+	                           catalog spectrum (wfiscene-catalog(5)
+	                           SPECTRA): with i = floor(colour) and
+	                           f = colour - i, its ePSF is (1 - f) times
+	                           class i's plus f times class i + 1's
+	                           (host->epsf_colour(); f is 0 at the end of
+	                           a family of classes); negative for the
+	                           scene's default spectrum, whose ePSF
+	                           host->epsf() gives */
 };
 
 /*
@@ -277,14 +281,14 @@ struct wfs_host {
 	 * WFS_HAS(host->size, struct wfs_host, source_size) first). */
 	uint32_t source_size;
 
-	/* Edition 5.  The ePSF of a source's own spectrum: as epsf(), for
-	 * the spectral class `colour` (wfs_source.colour, >= 0; -1 is
-	 * epsf()).  The same rules of loading apply: ask in prepare() or
-	 * footprint() first.  The halo (class 3) is the default
-	 * spectrum's for every colour.  Absent in older hosts (check
+	/* Edition 5.  The ePSF of spectral class `spectral` (a whole number
+	 * from 0, see wfs_source.colour) at (x, y), as epsf() gives the
+	 * default spectrum's.  The same rules of loading apply: ask in
+	 * prepare() or footprint() first.  The halo (class 3) is the default
+	 * spectrum's for every spectral class.  Absent in older hosts (check
 	 * WFS_HAS(host->size, struct wfs_host, epsf_colour)): draw with
 	 * epsf(). */
-	int (*epsf_colour)(void *ctx, int sca, double x, double y, int cls, int colour,
+	int (*epsf_colour)(void *ctx, int sca, double x, double y, int cls, int spectral,
 			   struct wfs_epsf *out);
 };
 

@@ -16,7 +16,7 @@
  * spectrum's. */
 static double colour_of(const struct point *p, const struct wfs_source *src)
 {
-	if (!WFS_HAS(p->host->size, struct wfs_host, epsf_colour) ||
+	if (!WFS_HAS(p->host->size, struct wfs_host, epsf_colour) || !p->host->epsf_colour ||
 	    !WFS_HAS(p->host->source_size, struct wfs_source, colour))
 		return -1;
 	return src->colour;

@@ -132,6 +132,7 @@ struct engine {
 	 * grid_lock as the others (psfgrids.c) */
 	struct psf_classes *classes;
 	struct psf_grid **cgrid;
+	char classes_str[16];           /* setting "spectral-classes": 2 n */
 	int ncgrid;
 
 	struct plugins plugins;

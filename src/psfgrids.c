@@ -176,6 +176,7 @@ int psfgrids_colour_init(struct engine *g)
 	if (psf_classes_make(g->classes, g->colour, g->o->filter, n, g->e) < 0)
 		return -1;
 	g->ncgrid = 2 * n;
+	snprintf(g->classes_str, sizeof(g->classes_str), "%d", 2 * n);
 	if (!(g->cgrid = calloc((size_t)WFS_NSCA * 3 * g->ncgrid, sizeof(*g->cgrid))))
 		return err_set(g->e, EXIT_SYSTEM, "out of memory");
 	for (int k = 0; k < 2 * n; k++) {

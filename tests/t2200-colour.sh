@@ -181,6 +181,41 @@ test_expect_success 'a red and a blue star of the same counts: drawn with the eP
 	"$PY" widths.py rb.fits red.fits blue.fits
 '
 
+# Colour sources in blended cells (psf-colour-steps, default 1) against
+# each blended at the source (0): 400 stars of random temperature and
+# slope, faint and bright; the same light for each (so a faint and a
+# bright star keep the same fraction of theirs), the images within 1e-3
+# of the brightest peak, and the same bytes on 1 and 3 threads.
+"$PY" - > field.csv <<'EOF'
+import random
+random.seed(3)
+print("x,y,flux,teff")
+for i in range(400):
+    t = "%.0f" % (2500 * 20 ** random.random()) if i % 4 else ""
+    print("%.3f,%.3f,%.4g,%s" % (random.uniform(20, 4068), random.uniform(20, 4068),
+                                 10 ** random.uniform(0, 4), t))
+EOF
+test_expect_success 'colour cells: the same light and within 1e-3 of the peak of per-source blends' '
+	"$WFS" --filter F146 --report rc.json -o cells.fits field.csv &&
+	"$WFS" --filter F146 --set psf-colour-steps=0 --report rs.json -o src.fits field.csv &&
+	"$PY" -c "
+import json, numpy as np
+from astropy.io import fits
+a = fits.open(\"cells.fits\")[1].data.astype(float)
+b = fits.open(\"src.fits\")[1].data.astype(float)
+d = np.abs(a - b).max() / b.max()
+fa = json.load(open(\"rc.json\"))[\"flux\"]
+fb = json.load(open(\"rs.json\"))[\"flux\"]
+print(\"# max |cells - per source| %.2e of the peak; light %.6f %.6f\" % (d, a.sum(), b.sum()))
+assert d < 1e-3, d
+assert abs(a.sum() / b.sum() - 1) < 1e-5
+" &&
+	"$WFS" --filter F146 --threads 1 -o t1.fits field.csv &&
+	"$WFS" --filter F146 --threads 3 --tile 300 -o t3.fits field.csv &&
+	"$PY" "$TOP/tests/fitsinfo.py" --same t1.fits t3.fits &&
+	"$PY" "$TOP/tests/fitsinfo.py" --same t1.fits cells.fits
+'
+
 test_expect_success 'wfiscene psf --report: the classes, and the class of a spectrum' '
 	"$WFS" psf --filter F146 --sca 1,9 --report --teff 3000 > rep.tsv &&
 	test "$(grep -c "^1	[0-9]	" rep.tsv)" = 8 && test "$(grep -c "^9	[0-9]	" rep.tsv)" = 8 &&

@@ -86,6 +86,10 @@
  *                types below), "quick" or "precise"
  *   mjd          the exposure's date as an MJD, "%.17g"; NULL when the run
  *                has no date (hosts before edition 3: always NULL)
+ *   spectral-classes  the number of spectral classes of the built-in PSF
+ *                (wfs_source.colour, host->epsf_colour: two families of
+ *                half of them), "%d"; NULL before the scene's first row
+ *                with a spectrum, and without classes (edition 5)
  *
  * and every KEY of --set KEY=VALUE (the value as typed, the last one given
  * winning); NULL for a key that is not set.  A model reads the keys it

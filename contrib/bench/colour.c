@@ -9,7 +9,9 @@
  * classes of its family about its effective wavelength, with n classes per
  * family.  Prints the worst |difference| over the array as a fraction of
  * the exact ePSF's peak, for each n, and the build time of one class
- * grid.  Then the FWHM and EE(0.1") of the
+ * grid; for the default n the same with the blend rounded to 1/q beyond
+ * the 4-pixel core and exact in it (the point model's colour cells,
+ * psf-colour-steps = q).  Then the FWHM and EE(0.1") of the
  * optical PSF (jitter included, no pixel) of a 3000 K and a 30000 K star
  * and their ratios.  Run by hand:
  *
@@ -119,7 +121,8 @@ int main(int argc, char **argv)
 		int filter = filter_lookup(argv[a]);
 		struct colour *c = colour_new(filter, &e);
 		float *exact[NT + NB];
-		double t_build = 0, worst[NN][2] = { { 0 } };
+		double t_build = 0, worst[NN][2] = { { 0 } }, wq[4][2] = { { 0 } };
+		static const int qs[4] = { 1, 2, 4, 8 };
 		struct spectrum sp[NT + NB];
 
 		if (!c)
@@ -153,6 +156,23 @@ int main(int argc, char **argv)
 					d = fmax(d, fabs((1 - f) * cls[k][p] + (f > 0 ? f * cls[k + 1][p] : 0) -
 							 exact[i][p]));
 				worst[in][i >= NT] = fmax(worst[in][i >= NT], d / peak);
+				/* blended cells: the class pair's blend rounded to
+				 * 1/q outside the 4-pixel core, exact inside it */
+				for (int iq = 0; ns[in] == psf_default_classes(filter) && iq < 4; iq++) {
+					double ph = round(f * qs[iq]) / qs[iq], dq = 0;
+					int cc = (N - 1) / 2;
+
+					for (int y = 0; y < N; y++)
+						for (int x = 0; x < N; x++) {
+							int p = y * N + x, in_core = abs(x - cc) < 16 &&
+										      abs(y - cc) < 16;
+							double ff = in_core ? f : ph;
+							double v = (1 - ff) * cls[k][p] +
+								   (ff > 0 ? ff * cls[k + 1][p] : 0);
+							dq = fmax(dq, fabs(v - exact[i][p]));
+						}
+					wq[iq][i >= NT] = fmax(wq[iq][i >= NT], dq / peak);
+				}
 				printf("%s n=%d %s %-6g lam_eff %.4f class %.3f: %.2e of the peak\n",
 				       argv[a], ns[in], i < NT ? "T" : "beta", sp[i].value,
 				       colour_lam_eff(c, 1, &sp[i]), u, d / peak);
@@ -166,6 +186,10 @@ int main(int argc, char **argv)
 		printf("classes per family  2500-50000 K  beta -3..3\n");
 		for (int in = 0; in < NN; in++)
 			printf("%19d  %.2e      %.2e\n", ns[in], worst[in][0], worst[in][1]);
+		printf("%s, %d classes: the blend rounded to 1/q beyond the 4-pixel core\n",
+		       argv[a], psf_default_classes(filter));
+		for (int iq = 0; iq < 4; iq++)
+			printf("q %d  %.2e      %.2e\n", qs[iq], wq[iq][0], wq[iq][1]);
 		{
 			float *cool = grid_of(filter, SPEC_BLACKBODY, 3000, PSF_OPTICAL, NULL);
 			float *hot = grid_of(filter, SPEC_BLACKBODY, 30000, PSF_OPTICAL, NULL);

@@ -216,6 +216,33 @@ assert abs(a.sum() / b.sum() - 1) < 1e-5
 	"$PY" "$TOP/tests/fitsinfo.py" --same t1.fits cells.fits
 '
 
+# Spectra beyond the classes' span take the end class: the coolest and
+# hottest temperatures, slopes beyond the colour tables (|beta| > 8,
+# summed per row); every star drawn, finite, with its ePSF's light.
+cat > extreme.csv <<EOF
+x,y,flux,teff,beta
+300,300,18,1000,
+600,600,18,100000,
+900,900,18,,-20
+1200,1200,18,,20
+1500,1500,18,,8
+1800,1800,18,,-8
+EOF
+test_expect_success 'extreme spectra: drawn with the end classes, all their light' '
+	"$WFS" --filter F146 --flux-unit abmag --placed pe.csv --report re.json -o ext.fits extreme.csv &&
+	test "$(sed 1d pe.csv | wc -l)" = 6 &&
+	"$WFS" --filter F146 --flux-unit abmag --set psf-colour-steps=0 -o ext0.fits extreme.csv &&
+	"$PY" -c "
+import csv, json, numpy as np
+from astropy.io import fits
+a = fits.open(\"ext.fits\")[1].data.astype(float)
+b = fits.open(\"ext0.fits\")[1].data.astype(float)
+assert np.isfinite(a).all() and abs(a.sum() / b.sum() - 1) < 1e-5, (a.sum(), b.sum())
+f = [float(r[\"flux\"]) for r in csv.DictReader(open(\"pe.csv\"))]
+assert all(np.isfinite(f)) and f[2] > f[5] > 0 and f[3] > f[4] > 0, f
+"
+'
+
 test_expect_success 'wfiscene psf --report: the classes, and the class of a spectrum' '
 	"$WFS" psf --filter F146 --sca 1,9 --report --teff 3000 > rep.tsv &&
 	test "$(grep -c "^1	[0-9]	" rep.tsv)" = 8 && test "$(grep -c "^9	[0-9]	" rep.tsv)" = 8 &&

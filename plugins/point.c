@@ -77,6 +77,12 @@
  *                                     psf-interp=bicubic the whole box); per
  *                                     source everywhere (16 streams); or per
  *                                     cell everywhere
+ *   psf-colour-steps=N                a source with a spectrum (the host's
+ *                                     spectral classes, wfs_source.colour):
+ *                                     its cell blended from its class pair's
+ *                                     eight nodes at the pair's blend rounded
+ *                                     to 1/N (default 1), the core corrected
+ *                                     to its own exact blend; 0: per source
  *
  * Files: this one holds the settings, init/fini and the callbacks;
  * point_epsf.c a source's ePSF box, point_poly.c the polyphase copies,

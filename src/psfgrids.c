@@ -9,6 +9,11 @@
  * grid_lock, each published whole (a release store that psfgrids_get()'s
  * acquire load pairs with), so a thread that finds a grid sees all of it.
  * Render workers only read grids already loaded.
+ *
+ * A scene with spectra (spectrum.h) has spectral classes too (psf.h,
+ * psfclass.c): their grids are built or loaded the same way, from the
+ * class's spectrum, the first time a model asks for one
+ * (host->epsf_colour).
  */
 #include <limits.h>
 #include <pthread.h>

@@ -243,6 +243,30 @@ assert all(np.isfinite(f)) and f[2] > f[5] > 0 and f[3] > f[4] > 0, f
 "
 '
 
+# Galaxies are convolved with the ePSF of their spectrum's nearest class:
+# a compact galaxy of 3000 K against the same galaxy drawn with the exact
+# grid of 3000 K (--psf), and with the default spectrum's.
+cat > gal.csv <<EOF
+x,y,flux,type,n,re,phi,ratio,teff
+1001,1001,2000,sersic,1,1.5,30,0.7,3000
+EOF
+printf 'x,y,flux,type,n,re,phi,ratio\n1001,1001,2000,sersic,1,1.5,30,0.7\n' > gal0.csv
+test_expect_success 'a galaxy with a spectrum: convolved with its nearest class' '
+	"$WFS" --filter F146 --sersic precise -o gc.fits gal.csv &&
+	"$WFS" --filter F146 --sersic precise --psf t3000.fits -o ge.fits gal0.csv &&
+	"$WFS" --filter F146 --sersic precise -o gd.fits gal0.csv &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+c, e, d = (fits.open(f)[1].data.astype(float) for f in (\"gc.fits\", \"ge.fits\", \"gd.fits\"))
+pk = e.max()
+print(\"# galaxy: nearest class %.2e, default spectrum %.2e of the peak\" %
+      (np.abs(c - e).max() / pk, np.abs(d - e).max() / pk))
+assert np.abs(c - e).max() < 0.5 * np.abs(d - e).max()
+assert abs(c.sum() / e.sum() - 1) < 1e-3
+"
+'
+
 test_expect_success 'wfiscene psf --report: the classes, and the class of a spectrum' '
 	"$WFS" psf --filter F146 --sca 1,9 --report --teff 3000 > rep.tsv &&
 	test "$(grep -c "^1	[0-9]	" rep.tsv)" = 8 && test "$(grep -c "^9	[0-9]	" rep.tsv)" = 8 &&

@@ -121,7 +121,7 @@ int main(int argc, char **argv)
 		int filter = filter_lookup(argv[a]);
 		struct colour *c = colour_new(filter, &e);
 		float *exact[NT + NB];
-		double t_build = 0, worst[NN][2] = { { 0 } }, wq[4][2] = { { 0 } };
+		double t_build = 0, worst[NN][2] = { { 0 } }, wq[4][2] = { { 0 } }, wn[2] = { 0 };
 		static const int qs[4] = { 1, 2, 4, 8 };
 		struct spectrum sp[NT + NB];
 
@@ -156,6 +156,15 @@ int main(int argc, char **argv)
 					d = fmax(d, fabs((1 - f) * cls[k][p] + (f > 0 ? f * cls[k + 1][p] : 0) -
 							 exact[i][p]));
 				worst[in][i >= NT] = fmax(worst[in][i >= NT], d / peak);
+				/* the nearest class alone (galaxies) */
+				if (ns[in] == psf_default_classes(filter)) {
+					int kn = (int)lround(u);
+					double dn = 0;
+
+					for (int p = 0; p < N * N; p++)
+						dn = fmax(dn, fabs(cls[kn][p] - exact[i][p]));
+					wn[i >= NT] = fmax(wn[i >= NT], dn / peak);
+				}
 				/* blended cells: the class pair's blend rounded to
 				 * 1/q outside the 4-pixel core, exact inside it */
 				for (int iq = 0; ns[in] == psf_default_classes(filter) && iq < 4; iq++) {
@@ -190,6 +199,8 @@ int main(int argc, char **argv)
 		       argv[a], psf_default_classes(filter));
 		for (int iq = 0; iq < 4; iq++)
 			printf("q %d  %.2e      %.2e\n", qs[iq], wq[iq][0], wq[iq][1]);
+		printf("%s, %d classes, the nearest class alone: %.2e      %.2e\n", argv[a],
+		       psf_default_classes(filter), wn[0], wn[1]);
 		{
 			float *cool = grid_of(filter, SPEC_BLACKBODY, 3000, PSF_OPTICAL, NULL);
 			float *hot = grid_of(filter, SPEC_BLACKBODY, 30000, PSF_OPTICAL, NULL);

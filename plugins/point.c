@@ -77,6 +77,12 @@
  *                                     psf-interp=bicubic the whole box); per
  *                                     source everywhere (16 streams); or per
  *                                     cell everywhere
+ *   psf-colour-steps=N                a source with a spectrum (the host's
+ *                                     spectral classes, wfs_source.colour):
+ *                                     its cell blended from its class pair's
+ *                                     eight nodes at the pair's blend rounded
+ *                                     to 1/N (default 1), the core corrected
+ *                                     to its own exact blend; 0: per source
  *
  * Files: this one holds the settings, init/fini and the callbacks;
  * point_epsf.c a source's ePSF box, point_poly.c the polyphase copies,
@@ -119,6 +125,9 @@ static const struct wfs_setting point_settings[] = {
 	  "let a faint source's box shrink toward its drawing radius, down to this" },
 	{ "psf-extent-cut", "0.1", "number >= 0",
 	  "a faint source's box shrinks to where less than this fraction of the noise per pixel of its light lies beyond, scaled up so its flux is whole (0: the class's box)" },
+	{ "psf-colour-steps", "1", "whole number 0 to 64",
+	  "sources with a spectrum: their two spectral classes' blend per cell rounded to "
+	  "1/N beyond the core, exact in it (0: blended per source everywhere)" },
 	{ "psf-halo-power", "3", "number >= 2.5", "power-law index of the far tail" },
 	{ "psf-halo-taper", "16", "number >= 0",
 	  "pixels over which the halo array hands over to the tail" },
@@ -248,7 +257,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	static const char *const extent[] = { "noise", "stips" };
 	static const char *const far[] = { "spikes", "disc" };
 	struct point *p = calloc(1, sizeof(*p));
-	double cell = 0;
+	double cell = 0, csteps = 1;
 
 	if (!p)
 		return host->error(host->ctx, "out of memory");
@@ -297,6 +306,20 @@ static int point_init(const struct wfs_host *host, void **state)
 		goto fail;
 	}
 	p->cell = (int)cell;
+	if (setting_number(host, "psf-colour-steps", 0, 0, &csteps) < 0)
+		goto fail;
+	if (csteps != floor(csteps) || csteps > 64) {
+		host->error(host->ctx, "psf-colour-steps: expected a whole number 0 to 64, not '%s'",
+			    setting_value(host, "psf-colour-steps"));
+		goto fail;
+	}
+	p->colour_steps = (int)csteps;
+	/* the classes the host has (none before the scene's first spectrum):
+	 * room for the cells of every step between them */
+	if (host->setting(host->ctx, "spectral-classes"))
+		p->nclasses = atoi(host->setting(host->ctx, "spectral-classes"));
+	if (p->colour_steps > 0 && p->nclasses >= 4)
+		p->colour_cells = (p->colour_steps + 1) * p->nclasses;
 	if (poly_table_init(p) < 0)
 		goto fail;
 	if (p->adaptive && !(p->sigma > 0)) {

@@ -63,9 +63,9 @@ struct poly {
 	double *ee;             /* ee[h], h = 1..nee: see ee_table() */
 	/* a blended cell: the nodes and weights it was blended from, and
 	 * (psf-blend=core) the nodes' own polyphase copies */
-	const float *cnode[4];
-	double cweight[4];
-	const struct poly *cpoly[4];
+	const float *cnode[8];  /* 8: two spectral classes' nodes */
+	double cweight[8];
+	const struct poly *cpoly[8];
 };
 
 /* Pixels [x0, x1) x [y0, y1), 0-based; empty when x0 >= x1 or y0 >= y1. */
@@ -94,8 +94,8 @@ struct geom {
 struct draw {
 	int nn, ncor, keys;
 	int cell;               /* one blended cell (psf-blend=cell or core) */
-	const struct poly *pl[4];
-	double wn[4];
+	const struct poly *pl[8];       /* 8: two spectral classes' nodes */
+	double wn[8];
 	const struct poly *cp[8];
 	double cw[8];
 	struct geom g;
@@ -186,6 +186,12 @@ struct point {
 	double sigma;           /* noise per pixel, counts/s (psf-box-sigma) */
 	int blend;              /* psf-blend */
 	int cell;               /* psf-cell: side of a blended cell, pixels */
+	int colour_steps;       /* psf-colour-steps: a colour source's cell blends
+				 * its two classes rounded to 1/colour_steps */
+	int colour_cells;       /* blended cells kept per position for colour
+				 * sources (0: they are blended per source) */
+	int nclasses;           /* the host's spectral classes, two families of
+				 * nclasses / 2 (setting spectral-classes) */
 	int extent;             /* psf-extent: EXTENT_NOISE or EXTENT_STIPS */
 	double extent_noise;    /* psf-extent-noise: fraction of sigma */
 	double extent_max;      /* psf-extent-max: largest radius, pixels */
@@ -215,6 +221,31 @@ struct point {
 	long cell_hi;           /* the cells kept per SCA and class along each
 				 * axis, -1 .. cell_hi (cell_in_range) */
 };
+
+/* The source's spectral class (model.h, wfs_source.colour), or -1 for
+ * the scene's default spectrum (and hosts without classes). */
+static inline double point_colour(const struct point *p, const struct wfs_source *src)
+{
+	if (!WFS_HAS(p->host->size, struct wfs_host, epsf_colour) || !p->host->epsf_colour ||
+	    !WFS_HAS(p->host->source_size, struct wfs_source, colour))
+		return -1;
+	return src->colour;
+}
+
+/* A colour source's pair of classes a, a + 1 of one family and its
+ * fraction f of the way from a to a + 1 (a source on the last class of a
+ * family is f = 1 of the pair before it).  Needs p->nclasses. */
+static inline void point_pair(const struct point *p, double c, int *a, double *f)
+{
+	int n = p->nclasses / 2;
+
+	*a = (int)c;
+	*f = c - *a;
+	if (n > 1 && *a % n == n - 1) {
+		--*a;
+		*f += 1;
+	}
+}
 
 /* floor(x) and ceil(x) for |x| < 2^62, without a library call (the
  * plugin's baseline build has no rounding instruction) */

@@ -9,14 +9,52 @@
 
 #include "point.h"
 
+/* Colour: the source's spectral class (model.h, wfs_source.colour), or -1
+ * for the scene's default spectrum (and hosts without classes).  A source
+ * with one reads the four nodes of each of its two classes: per source, or
+ * (psf-colour-steps > 0) a cell blended from them at its class pair
+ * rounded to 1/psf-colour-steps, with psf-blend=core's correction to its
+ * own blend in the core (point_poly.c, cell_add). */
+static double colour_of(const struct point *p, const struct wfs_source *src)
+{
+	return point_colour(p, src);
+}
+
+/* The host's ePSFs at src: e[0] with weight wc[0], and e[1] with wc[1]
+ * for a source between two spectral classes.  Returns how many, or -1. */
+static int src_epsf(const struct point *p, const struct wfs_source *src, struct wfs_epsf e[2],
+		    double wc[2])
+{
+	double c = colour_of(p, src), f, w2[2];
+	int k, n = 0;
+
+	wc[0] = 1;
+	if (!(c >= 0))
+		return p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class,
+				     &e[0]) < 0 ? -1 : 1;
+	/* the classes of the pair (point_pair) with a weight */
+	point_pair(p, c, &k, &f);
+	w2[0] = 1 - f;
+	w2[1] = f;
+	for (int i = 0; i < 2; i++)
+		if (w2[i] > 0) {
+			if (p->host->epsf_colour(p->host->ctx, src->sca, src->x, src->y,
+						 src->psf_class, k + i, &e[n]) < 0)
+				return -1;
+			wc[n++] = w2[i];
+		}
+	return n;
+}
+
 /* The arrays a source reads and their weights times its flux: the four
  * nodes of its position (blend = BLEND_SOURCE), or its cell's blend.
  * Returns how many, or -1. */
 static int source_polys(const struct point *p, const struct wfs_source *src, int blend,
-			const struct poly *pl[4], double wn[4])
+			const struct poly *pl[8], double wn[8])
 {
-	struct wfs_epsf e;
-	int nn = 0;
+	struct wfs_epsf es[2];
+	double wc[2];
+	int nn = 0, ne;
 
 	if (blend != BLEND_SOURCE) {
 		if (!(pl[0] = poly_find(p, cell_key(p, src))))
@@ -24,14 +62,15 @@ static int source_polys(const struct point *p, const struct wfs_source *src, int
 		wn[0] = src->flux;
 		return 1;
 	}
-	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+	if ((ne = src_epsf(p, src, es, wc)) < 0)
 		return -1;
-	for (int k = 0; k < 4; k++)
-		if (e.weight[k] != 0) {
-			if (!(pl[nn] = poly_find(p, (uint64_t)(uintptr_t)e.node[k])))
-				return p->host->error(p->host->ctx, "ePSF node not prepared");
-			wn[nn++] = e.weight[k] * src->flux;
-		}
+	for (int i = 0; i < ne; i++)
+		for (int k = 0; k < 4; k++)
+			if (es[i].weight[k] != 0) {
+				if (!(pl[nn] = poly_find(p, (uint64_t)(uintptr_t)es[i].node[k])))
+					return p->host->error(p->host->ctx, "ePSF node not prepared");
+				wn[nn++] = wc[i] * es[i].weight[k] * src->flux;
+			}
 	return nn;
 }
 
@@ -47,7 +86,7 @@ static int core_correction(const struct point *p, const struct wfs_source *src,
 
 	if (n < 0)
 		return -1;
-	for (int j = 0; j < 4; j++) {
+	for (int j = 0; j < 8; j++) {
 		uint64_t key = (uint64_t)(uintptr_t)cell->cnode[j];
 		int k;
 
@@ -72,7 +111,7 @@ static int core_correction(const struct point *p, const struct wfs_source *src,
  * cell off the detector) is blended per source too. */
 static int source_blend(const struct point *p, const struct wfs_source *src)
 {
-	if (p->blend == BLEND_SOURCE ||
+	if (p->blend == BLEND_SOURCE || (colour_of(p, src) >= 0 && !p->colour_cells) ||
 	    (p->blend == BLEND_CORE && src->psf_class != WFS_PSF_NORMAL) || !cell_in_range(p, src))
 		return BLEND_SOURCE;
 	return p->blend;
@@ -243,19 +282,43 @@ static void cell_correction(const struct poly *cell, double flux, const double w
 		}
 }
 
+/* The same for a colour source in its pair's cell: the cell's nodes of
+ * class a (0..3) and a + 1 (4..7), the source's own weights (1 - f) w and
+ * f w of them. */
+static void cell_correction_colour(const struct point *p, const struct wfs_source *src,
+				   const struct poly *cell, const double w[4], struct draw *d)
+{
+	double f, flux = src->flux;
+	int a;
+
+	point_pair(p, colour_of(p, src), &a, &f);
+	d->ncor = 0;
+	for (int k = 0; k < 8; k++)
+		if (cell->cpoly[k]) {
+			d->cp[d->ncor] = cell->cpoly[k];
+			d->cw[d->ncor++] = flux * (k < 4 ? 1 - f : f) * w[k & 3] -
+					   flux * cell->cweight[k];
+		}
+}
+
 /* How src is drawn in render(), its box and what prepare() found in aux:
  * which arrays, and the zones.  Returns 0 or -1. */
 static int plan(const struct point *p, const struct wfs_source *src, struct draw *d)
 {
 	int blend = source_blend(p, src);
 
+	/* a colour source whose cell's nodes are not all its own (prepare) */
+	if (colour_of(p, src) >= 0 && src->aux[3] < 0)
+		blend = BLEND_SOURCE;
 	d->ncor = 0;
 	if (blend != BLEND_SOURCE && !isnan(src->aux[4])) {
 		/* the cell found by prepare(), and its nodes are the source's */
 		d->nn = 1;
 		d->pl[0] = &p->slot[(size_t)src->aux[3]];
 		d->wn[0] = src->flux;
-		if (blend == BLEND_CORE)
+		if (blend == BLEND_CORE && colour_of(p, src) >= 0)
+			cell_correction_colour(p, src, d->pl[0], src->aux + 4, d);
+		else if (blend == BLEND_CORE)
 			cell_correction(d->pl[0], src->flux, src->aux + 4, d);
 	} else {
 		if ((d->nn = source_polys(p, src, blend, d->pl, d->wn)) < 0)
@@ -291,7 +354,7 @@ static double flux_factor(double t, double k, double u)
 /* The light of the source (the blend at it, or its cell's) in a box of
  * half-width H but not in that of half-width h (ee_table), absolute. */
 static double beyond(const struct wfs_source *src, const struct poly *cell, int blend,
-		     const struct poly *const node[4], const double w[4], int nn, int H, int h)
+		     const struct poly *const node[8], const double w[8], int nn, int H, int h)
 {
 	double out = blend == BLEND_CELL ? src->flux * (cell->ee[H] - cell->ee[h]) : 0;
 
@@ -313,10 +376,10 @@ static double beyond(const struct wfs_source *src, const struct poly *cell, int 
  */
 int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 {
-	struct wfs_epsf e;
+	struct wfs_epsf es[2];
 	struct draw d;
-	const struct poly *node[4];
-	double w[4], half, t = 0, t_all = 0, whole;
+	const struct poly *node[8];
+	double w[8], wc[2], half, t = 0, t_all = 0, whole;
 	struct poly *cell = NULL;
 	int nn = 0, blend = source_blend(p, src), same = blend == BLEND_CORE;
 
@@ -327,29 +390,61 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 		/* the source's nodes: the cell's copies when the cell was
 		 * blended from them (their weights go to aux[4..7] in the
 		 * cell's order), else copies made here */
-		if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e) < 0)
+		int ne = src_epsf(p, src, es, wc);
+
+		if (ne < 0)
 			return -1;
+		for (int i = 0; i < ne; i++)
 		for (int k = 0; k < 4; k++) {
+			const struct wfs_epsf *e = &es[i];
 			const struct poly *q = NULL;
 
-			if (e.weight[k] == 0)
+			if (e->weight[k] == 0)
 				continue;
-			for (int j = 0; cell && j < 4 && !q; j++)
-				if (cell->cnode[j] == e.node[k] && cell->cpoly[j]) {
+			/* the position weights (aux[4..7], the cell's node
+			 * order) from the source's first class: a colour
+			 * cell holds both classes' nodes in one order */
+			for (int j = 0; cell && j < 8 && !q; j++)
+				if (cell->cnode[j] == e->node[k] && cell->cpoly[j]) {
 					q = cell->cpoly[j];
-					src->aux[4 + j] += e.weight[k];
+					if (i == 0)
+						src->aux[4 + (j & 3)] += e->weight[k];
 				}
 			if (!q) {
 				same = 0;
-				if (!(q = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over)))
+				if (!(q = poly_add(p, (uint64_t)(uintptr_t)e->node[k], e->node[k], e->n,
+						   e->over)))
 					return -1;
 			}
 			node[nn] = q;
-			w[nn++] = e.weight[k];
+			/* times 1 for the default spectrum: the same bytes */
+			w[nn++] = wc[i] * e->weight[k];
+		}
+	}
+	if (cell && colour_of(p, src) >= 0 && !same) {
+		/* psf-blend=core's correction reads the source's arrays and
+		 * the cell's (at most 8 together, draw.cp): a cell whose
+		 * nodes are not all the source's (a node line between the
+		 * source and its cell's centre) is left for a blend of the
+		 * source's own */
+		int extra = 0;
+
+		for (int j = 0; blend == BLEND_CORE && j < 8; j++) {
+			int k;
+
+			for (k = 0; k < nn && cell->cnode[j] && node[k]->key !=
+				     (uint64_t)(uintptr_t)cell->cnode[j]; k++)
+				;
+			extra += cell->cnode[j] && k == nn;
+		}
+		if (nn + extra > 8) {
+			blend = BLEND_SOURCE;
+			cell = NULL;
 		}
 	}
 	if (!same)
 		src->aux[4] = NAN;
+	src->aux[3] = -1;
 	/* the arrays render() reads */
 	d.nn = 0;
 	if (cell) {
@@ -357,7 +452,7 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 		d.pl[d.nn] = cell;
 		d.wn[d.nn++] = src->flux;
 	} else
-		for (int k = 0; k < nn; k++) {
+		for (int k = 0; k < nn && k < 8; k++) {
 			d.pl[d.nn] = node[k];
 			d.wn[d.nn++] = w[k] * src->flux;
 		}
@@ -529,8 +624,8 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 	const struct geom *g = &d->g;
 	int nn = d->nn;
 	long X = win->x0, Y = win->y0;
-	float wt[16];
-	const float *tap0[64];  /* [array][y tap][x tap] at the window's first pixel */
+	float wt[32];
+	const float *tap0[128]; /* [array][y tap][x tap] at the window's first pixel */
 	float acc[MAX_ROW + 8];
 	double dv[MAX_ROW + 4], tv[MAX_ROW + 4];
 	int core = !zone_empty(d->core);

@@ -224,7 +224,7 @@ static size_t slots_wanted(const struct point *p, long c)
 {
 	size_t side = (size_t)cell_last(c) + 2;
 	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * SCA_COUNT *
-		       (p->blend == BLEND_CELL ? 3 : 1);
+		       (p->blend == BLEND_CELL ? 3 : 1) * (1 + (size_t)p->colour_cells);
 
 	return 2 * (cells + POLY_NODES);
 }
@@ -273,12 +273,30 @@ int cell_in_range(const struct point *p, const struct wfs_source *src)
 }
 
 /* The key of the blended cell holding (x, y): odd, so never a node's. */
+/* A colour source's cell: its class pair k, k + 1 (point_pair) and the
+ * step j of 1/steps (0 .. steps) between them its colour rounds to; the
+ * cell's index among the colour cells of its position, or -1 for the
+ * default spectrum. */
+static long colour_cell(const struct point *p, const struct wfs_source *src, int *k, int *j)
+{
+	double c = point_colour(p, src), f;
+
+	if (!(c >= 0) || !p->colour_cells)
+		return -1;
+	point_pair(p, c, k, &f);
+	*j = (int)lround(f * p->colour_steps);
+	return (long)*k * (p->colour_steps + 1) + *j;
+}
+
 uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 {
 	uint64_t cx = (uint64_t)(int64_t)floor(src->x / p->cell) & 0xffff;
 	uint64_t cy = (uint64_t)(int64_t)floor(src->y / p->cell) & 0xffff;
+	int k, j;
+	uint64_t q = (uint64_t)(colour_cell(p, src, &k, &j) + 1) & 0x7fff;
 
-	return 1 | (uint64_t)src->sca << 1 | (uint64_t)src->psf_class << 8 | cx << 16 | cy << 32;
+	return 1 | (uint64_t)src->sca << 1 | (uint64_t)src->psf_class << 8 | cx << 16 | cy << 32 |
+	       q << 48;
 }
 
 /* psf-blend=cell: the ePSF blended once at the centre of the source's cell
@@ -292,24 +310,48 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
 	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
 	struct poly *c = (struct poly *)poly_find(p, key), made;
-	const float *cnode[4];
-	const struct poly *cpoly[4];
+	const float *cnode[8], *node[8];
+	const struct poly *cpoly[8];
+	double w[8];
 	float *mix;
 	size_t nn;
-	int rc;
+	int rc, ck, cj, nw = 0;
 
 	if (c)
 		return c;
-	if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
-		return NULL;
+	if (colour_cell(p, src, &ck, &cj) >= 0) {
+		/* a colour cell: the class pair's nodes, the pair's blend
+		 * rounded to cj / colour_steps */
+		double f = (double)cj / p->colour_steps;
+
+		for (int i = 0; i < 2; i++) {
+			if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class,
+						 ck + i, &e) < 0)
+				return NULL;
+			for (int k = 0; k < 4; k++) {
+				node[nw] = e.node[k];
+				w[nw++] = (i ? f : 1 - f) * e.weight[k];
+			}
+		}
+	} else {
+		if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
+			return NULL;
+		for (int k = 0; k < 4; k++) {
+			node[nw] = e.node[k];
+			w[nw++] = e.weight[k];
+		}
+	}
 	/* what the cell is blended from, for the core's correction
 	 * (psf-blend=core): the nodes' own polyphase copies too, made
 	 * first, so that the cell is published whole */
-	for (int k = 0; k < 4; k++) {
-		cnode[k] = e.weight[k] != 0 ? e.node[k] : NULL;
+	/* a colour cell keeps both classes' nodes of every position weight
+	 * (a class's weight may be 0: psf-blend=core's correction reads
+	 * them for the sources in the cell) */
+	for (int k = 0; k < 8; k++) {
+		cnode[k] = k < nw && (w[k] != 0 || (nw == 8 && w[k ^ 4] != 0)) ? node[k] : NULL;
 		cpoly[k] = NULL;
 		if (p->blend == BLEND_CORE && cnode[k] &&
-		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)e.node[k], e.node[k], e.n, e.over)))
+		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)node[k], node[k], e.n, e.over)))
 			return NULL;
 	}
 	nn = (size_t)e.n * e.n;
@@ -320,18 +362,18 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 	for (size_t i = 0; i < nn; i++) {
 		double v = 0;
 
-		for (int k = 0; k < 4; k++)
-			if (e.weight[k] != 0)
-				v += e.weight[k] * e.node[k][i];
+		for (int k = 0; k < nw; k++)
+			if (w[k] != 0)
+				v += w[k] * node[k][i];
 		mix[i] = (float)v;
 	}
 	rc = poly_build(p, key, mix, e.n, e.over, &made);
 	free(mix);
 	if (rc < 0)
 		return NULL;
-	for (int k = 0; k < 4; k++) {
+	for (int k = 0; k < 8; k++) {
 		made.cnode[k] = cnode[k];
-		made.cweight[k] = cnode[k] ? e.weight[k] : 0;
+		made.cweight[k] = cnode[k] ? w[k] : 0;
 		made.cpoly[k] = cpoly[k];
 	}
 	return poly_insert(p, &made);

@@ -652,6 +652,20 @@ static double sersic_rect_rel(const struct sersic_gal *g, double x0, double x1, 
 	return v;
 }
 
+/* The ePSF a galaxy is convolved with: its spectrum's nearest spectral
+ * class (model.h, wfs_source.colour; wfiscene(1) "Spectral classes"),
+ * else the scene's default spectrum.  Every call for one source gives the
+ * same arrays. */
+static inline int sersic_epsf(const struct wfs_host *host, const struct wfs_source *src,
+			      struct wfs_epsf *e)
+{
+	if (WFS_HAS(host->size, struct wfs_host, epsf_colour) && host->epsf_colour &&
+	    WFS_HAS(host->source_size, struct wfs_source, colour) && src->colour >= 0)
+		return host->epsf_colour(host->ctx, src->sca, src->x, src->y, src->psf_class,
+					 (int)floor(src->colour + 0.5), e);
+	return host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, e);
+}
+
 /* Rendering through the ePSF, which needs the above. */
 #include "sersic_render.h"
 
@@ -793,7 +807,7 @@ static int sersic_footprint_common(const struct wfs_host *host, const struct wfs
 	sersic_halfbox(&g, &hx, &hy);
 	if (convolve) {
 		struct wfs_epsf e;
-		if (host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, &e))
+		if (sersic_epsf(host, src, &e))
 			return -1;
 		hp = sersic_psf_drawn(&e, src);
 	}

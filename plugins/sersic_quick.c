@@ -617,7 +617,7 @@ static int quick_psf_cut(struct quick *p, struct wfs_source *src)
 
 	if (!p->convolve || !(p->psf_cut > 0) || !(p->sigma > 0) || !(src->flux > 0))
 		return 0;
-	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class, &e))
+	if (sersic_epsf(p->host, src, &e))
 		return -1;
 	hp = sersic_psf_half(&e);
 	if (hp > PSF_HMAX)

@@ -744,7 +744,7 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 		sersic_render_pixels(&st.g, win, m, gx0, gx1, gy0, gy1);
 		return 0;
 	}
-	if (host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, &st.e))
+	if (sersic_epsf(host, src, &st.e))
 		return -1;
 	st.hp = sersic_psf_drawn(&st.e, src);
 	st.psf_all = st.hp < sersic_psf_half(&st.e) && src->aux[AUX_PSFALL] > 0 ? src->aux[AUX_PSFALL] : 0;

@@ -18,6 +18,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "motion.h"
+#include "spectrum.h"
 #include "table.h"
 #include "tree.h"
 
@@ -73,6 +74,14 @@ struct catalog {
 	int motion;
 	int c_pmra, c_pmdec, c_plx, c_epoch;
 	double *pmra, *pmdec, *plx, *epoch;
+	/* the spectrum (spectrum.h): the teff, beta and color_F1_F2 columns,
+	 * or -1; spectral is 1 when any exists.  A colour's filters and the
+	 * factor that turns it into beta. */
+	int spectral;
+	int c_teff, c_beta, c_colour;
+	double colour_to_beta;
+	unsigned char *spec_kind;
+	double *spec_value;
 };
 
 /* Exact powers of ten: every one up to 1e22 is a double without rounding. */
@@ -355,7 +364,10 @@ static int alloc_rows(struct catalog *c, struct err *e)
 	c->pmdec = malloc(n * sizeof(double));
 	c->plx = malloc(n * sizeof(double));
 	c->epoch = malloc(n * sizeof(double));
-	if (!c->ra || !c->dec || !c->x || !c->y || !c->flux || !c->sca ||
+	c->spec_kind = malloc(n);
+	c->spec_value = malloc(n * sizeof(double));
+	if (!c->spec_kind || !c->spec_value ||
+	    !c->ra || !c->dec || !c->x || !c->y || !c->flux || !c->sca ||
 	    !c->unit || !c->type || !c->id || !c->re_num || !c->re_text ||
 	    !c->pmra || !c->pmdec || !c->plx || !c->epoch)
 		return err_set(e, EXIT_SYSTEM, "out of memory");
@@ -550,6 +562,45 @@ static int plan_numbers(struct catalog *c, const char *where, struct err *e)
 	return 0;
 }
 
+/*
+ * The spectrum's columns (wfiscene-catalog(5) SPECTRA): teff, beta, or one
+ * color_F1_F2, the AB colour m(F1) - m(F2) of two filters (F1 != F2),
+ * which gives beta = colour / (2.5 log10(l1 / l2)) with l the filters'
+ * pivot wavelengths.  A column name that starts "color_" but names no two
+ * known filters is an error, not a column left unread.
+ */
+static int spectrum_plan(struct catalog *c, const char *where, struct err *e)
+{
+	struct table *t = c->t;
+
+	c->c_teff = col_of(t, "teff");
+	c->c_beta = col_of(t, "beta");
+	c->c_colour = -1;
+	for (int i = 0; i < table_ncol(t); i++) {
+		const char *n = table_colname(t, i);
+		char f1[8], f2[8];
+		int a, b, len = 0;
+
+		if (strncmp(n, "color_", 6))
+			continue;
+		if (c->c_colour >= 0)
+			return err_set(e, EXIT_INPUT, "%s%s: columns '%s' and '%s': give one "
+				       "colour column", table_name(t), where,
+				       table_colname(t, c->c_colour), n);
+		if (sscanf(n + 6, "%7[^_]_%7[^_]%n", f1, f2, &len) != 2 || n[6 + len] ||
+		    (a = filter_lookup(f1)) < 0 || (b = filter_lookup(f2)) < 0 || a == b)
+			return err_set(e, EXIT_INPUT, "%s%s: column '%s': want color_F1_F2 "
+				       "with two different filters of F062 F087 F106 F129 F158 "
+				       "F184 F213 F146, e.g. color_f106_f158", table_name(t),
+				       where, n);
+		c->c_colour = i;
+		c->colour_to_beta = 1 / (2.5 * log10(filter_get(a)->pivot /
+						      filter_get(b)->pivot));
+	}
+	c->spectral = c->c_teff >= 0 || c->c_beta >= 0 || c->c_colour >= 0;
+	return 0;
+}
+
 /* Decide what the columns mean.  The header is known; no row is read. */
 static int catalog_plan(struct catalog *c, struct err *e)
 {
@@ -579,6 +630,8 @@ static int catalog_plan(struct catalog *c, struct err *e)
 	c->c_plx = col_of(t, "parallax");
 	c->c_epoch = col_of(t, "epoch");
 	c->motion = c->c_pmra >= 0 || c->c_pmdec >= 0 || c->c_plx >= 0;
+	if (spectrum_plan(c, where, e) < 0)
+		return -1;
 	for (n = 0; fname[n] && n + 1 < sizeof(lc); n++)
 		lc[n] = (char)tolower((unsigned char)fname[n]);
 	lc[n] = 0;
@@ -1008,6 +1061,42 @@ static int read_motion(struct catalog *c, const struct table_chunk *ch, size_t i
 	return 0;
 }
 
+/* Row i's spectrum: at most one of its teff, beta and colour cells. */
+static int read_spectrum(struct catalog *c, const struct table_chunk *ch, size_t i,
+			 struct err *e)
+{
+	const int col[3] = { c->c_teff, c->c_beta, c->c_colour };
+	int given = -1;
+
+	c->spec_kind[i] = SPEC_DEFAULT;
+	c->spec_value[i] = 0;
+	for (int k = 0; k < 3; k++) {
+		const char *name = col[k] >= 0 ? table_colname(c->t, col[k]) : "";
+		double v;
+
+		if (col[k] < 0 || (ch->text[col[k]][i] && is_empty(ch->text[col[k]][i])))
+			continue;
+		if (given >= 0)
+			return err_set(e, EXIT_INPUT, "%s:%ld: columns '%s' and '%s': give one "
+				       "spectrum per row", ch->file, ch->line[i],
+				       table_colname(c->t, col[given]), name);
+		given = k;
+		if (cell_number(ch, col[k], i, name, &v, e) < 0)
+			return -1;
+		if (k == 0 && !(v >= SPEC_TEFF_MIN && v <= SPEC_TEFF_MAX))
+			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': %.40s K is outside "
+				       "%g to %g K", ch->file, ch->line[i], name,
+				       table_text(ch, col[k], i), SPEC_TEFF_MIN, SPEC_TEFF_MAX);
+		c->spec_kind[i] = k == 0 ? SPEC_BLACKBODY : SPEC_POWER;
+		c->spec_value[i] = k == 2 ? v * c->colour_to_beta : v;
+		if (!isfinite(c->spec_value[i]))
+			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': not a finite "
+				       "slope: '%.40s'", ch->file, ch->line[i], name,
+				       table_text(ch, col[k], i));
+	}
+	return 0;
+}
+
 /* Hand the chunk's n rows to r. */
 static void rows_fill(struct catalog *c, struct rows *r, const struct table_chunk *ch,
 		      long n)
@@ -1029,6 +1118,10 @@ static void rows_fill(struct catalog *c, struct rows *r, const struct table_chun
 		r->pmdec = c->pmdec;
 		r->parallax = c->plx;
 		r->epoch = c->epoch;
+	}
+	if (c->spectral) {
+		r->spec_kind = c->spec_kind;
+		r->spec_value = c->spec_value;
 	}
 	r->sersic_ie = c->stips == STIPS_INTERNAL || c->stips == STIPS_MIXED ||
 		c->stips == STIPS_MULTI;
@@ -1085,6 +1178,8 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 		}
 		if (c->motion && read_motion(c, &ch, i, e) < 0)
 			return -1;
+		if (c->spectral && read_spectrum(c, &ch, i, e) < 0)
+			return -1;
 	}
 	c->nrows += (unsigned long long)n;
 	rows_fill(c, r, &ch, n);
@@ -1138,5 +1233,7 @@ void catalog_close(struct catalog *c)
 	free(c->pmdec);
 	free(c->plx);
 	free(c->epoch);
+	free(c->spec_kind);
+	free(c->spec_value);
 	free(c);
 }

@@ -70,6 +70,11 @@ struct rows {
 	 * has none of the pmra, pmdec, parallax columns, else all set (empty
 	 * cells 0, the epoch catalog_opts.epoch). */
 	double *pmra, *pmdec, *parallax, *epoch;
+	/* The spectrum (spectrum.h): both NULL when the catalog has none of
+	 * the teff, beta and color_F1_F2 columns, else enum spec_kind and
+	 * teff or beta of each row (SPEC_DEFAULT for an empty row). */
+	unsigned char *spec_kind;
+	double *spec_value;
 	int sersic_ie;          /* 1 when this catalog's Sersic fluxes are the
 	                           surface brightness at re (STIPS internal) */
 	int sky_angle_col;      /* column whose angles are position angles on

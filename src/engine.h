@@ -124,6 +124,18 @@ struct engine {
 	pthread_mutex_t grid_lock;
 	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
 	struct psf_build_opts pbo;
+	/* colour (spectrum.h): the filter's colour tables, made for the
+	 * first chunk with a spectrum column */
+	struct colour *colour;
+	int colour_band;                /* --set colour-counts=band: no colour term */
+	/* the spectral classes of the built-in PSF (psf.h), NULL for none
+	 * (no spectrum yet, or --psf FILE), and their grids: cgrid[((sca -
+	 * 1) * 3 + cls) * ncgrid + k] for spectral class k, published under
+	 * grid_lock as the others (psfgrids.c) */
+	struct psf_classes *classes;
+	struct psf_grid **cgrid;
+	char classes_str[16];           /* setting "spectral-classes": 2 n */
+	int ncgrid;
 
 	struct plugins plugins;
 	struct wfs_host host;
@@ -201,6 +213,12 @@ const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls);
 int psfgrids_need(struct engine *g, int sca, int cls, struct err *e);
 int psfgrids_open_user(struct engine *g);
 void psfgrids_free(struct engine *g);
+/* The spectral classes for a scene with spectra (the builtin PSF only):
+ * made once, from the setting psf-colour-classes.
+ * Returns 0 or -1. */
+int psfgrids_colour_init(struct engine *g);
+const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int k);
+int psfgrids_colour_need(struct engine *g, int sca, int cls, int k, struct err *e);
 
 /* tile.c: the memory of one tile of T x T doubles, zeroed */
 double *tile_alloc(int T);

@@ -44,6 +44,34 @@ static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 	return 0;
 }
 
+/* The ePSF of spectral class k (psfgrids.c), loaded as host_epsf() loads
+ * the default's; the halo is the default's. */
+static int host_epsf_colour(void *ctx, int sca, double x, double y, int cls, int k,
+			    struct wfs_epsf *out)
+{
+	struct engine *g = ctx;
+	struct worker *w = host_current(g);
+	const struct psf_grid *grid;
+
+	if (cls == 3)
+		return host_epsf(ctx, sca, x, y, cls, out);
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2 || !g->classes || k < 0 ||
+	    k >= g->ncgrid)
+		return host_error(ctx, "no ePSF for SCA %d class %d spectral class %d", sca,
+				  cls, k);
+	if (!(grid = psfgrids_colour_get(g, sca, cls, k))) {
+		if (w ? !w->place : !pthread_equal(pthread_self(), g->main_thread))
+			return host_error(ctx, "ePSF of SCA %d class %d spectral class %d asked "
+					  "for in render() but not in prepare() or footprint()",
+					  sca, cls, k);
+		if (psfgrids_colour_need(g, sca, cls, k, w ? &w->err : g->e) < 0)
+			return -1;
+		grid = psfgrids_colour_get(g, sca, cls, k);
+	}
+	psf_grid_at(grid, x, y, out);
+	return 0;
+}
+
 static void *host_scratch(void *thread, size_t bytes)
 {
 	struct worker *w = thread;
@@ -80,6 +108,6 @@ void host_init(struct engine *g)
 		.abi = WFS_ABI_VERSION, .size = sizeof(struct wfs_host), .ctx = g,
 		.error = host_error, .log = host_log, .setting = host_setting,
 		.epsf = host_epsf, .scratch = host_scratch, .convolve = host_convolve,
-		.source_size = sizeof(struct wfs_source),
+		.source_size = sizeof(struct wfs_source), .epsf_colour = host_epsf_colour,
 	};
 }

@@ -18,6 +18,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "optics.h"
+#include "spectrum.h"
 
 #define NFP 5                   /* field points per SCA */
 #define MAXWAVE 32              /* table wavelengths (21 in Cycle 9) */
@@ -479,6 +480,12 @@ static double bb_photons(double lam, double temp)
 int optics_weights(const struct optics *o, int filter, int sca, int nwave,
 		   double *lam, double *w, struct err *e)
 {
+	return optics_weights_spec(o, filter, sca, nwave, NULL, lam, w, e);
+}
+
+int optics_weights_spec(const struct optics *o, int filter, int sca, int nwave,
+			const struct spectrum *spec, double *lam, double *w, struct err *e)
+{
 	if (filter < 0 || filter >= WFS_NFILTER || sca < 1 || sca > WFS_NSCA ||
 	    o->nthr[filter] < 2 || nwave < 1)
 		return err_set(e, EXIT_INPUT, "no throughput for filter %d SCA %d",
@@ -513,8 +520,10 @@ int optics_weights(const struct optics *o, int filter, int sca, int nwave,
 		int m = 200;    /* midpoint rule, sub-nm steps */
 		for (int i = 0; i < m; i++) {
 			double x = a0 + (a1 - a0) * (i + 0.5) / m;
+			/* photons per unit wavelength: f_nu / (h lam) */
 			double v = area_at(o, filter, sca, x) *
-				   bb_photons(x, OPTICS_BB_TEMP);
+				   (spec ? spec_fnu(spec, x, 1.0) / x :
+				    bb_photons(x, OPTICS_BB_TEMP));
 			s += v;
 			sl += v * x;
 		}

@@ -81,6 +81,12 @@ void optics_zernike(const struct optics *o, int sca, double x, double y,
 int optics_weights(const struct optics *o, int filter, int sca, int nwave,
 		   double *lam, double *w, struct err *e);
 
+/* The same for the photons of spectrum spec (spectrum.h) instead of the
+ * 5700 K blackbody; spec NULL is optics_weights(). */
+struct spectrum;
+int optics_weights_spec(const struct optics *o, int filter, int sca, int nwave,
+			const struct spectrum *spec, double *lam, double *w, struct err *e);
+
 /* The largest wavelength optics_weights can return for a filter, micron. */
 double optics_lam_max(const struct optics *o, int filter);
 

@@ -22,6 +22,7 @@
 #include "err.h"
 #include "motion.h"
 #include "pool.h"
+#include "spectrum.h"
 
 
 static int grow(void **p, size_t *cap, size_t need, size_t size)
@@ -107,16 +108,23 @@ double place_zeropoint(const struct engine *g, int sca)
 			      : filter_get(g->o->filter)->zp_ab[sca - 1];
 }
 
-/* The row's flux in counts/s on SCA sca. */
+/* The row's flux in counts/s on SCA sca: a magnitude or flux density
+ * (f_nu at the filter's pivot wavelength) through the row's spectrum and
+ * the SCA's throughput (spectrum.h), a flat f_nu without one. */
 static double counts_on(const struct engine *g, const struct rows *r, size_t i, int sca)
 {
-	double v = r->flux[i];
+	double v = r->flux[i], k = 1;
 
+	/* times 1 is exact: a row without a spectrum keeps its bytes */
+	if (r->unit[i] != UNIT_COUNTS && r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT &&
+	    !g->colour_band)
+		k = colour_factor(g->colour, sca, &(struct spectrum){ r->spec_kind[i],
+								       r->spec_value[i] });
 	switch (r->unit[i]) {
 	case UNIT_COUNTS:
 		return v;
 	case UNIT_ABMAG:
-		return pow(10.0, -0.4 * (v - place_zeropoint(g, sca)));
+		return pow(10.0, -0.4 * (v - place_zeropoint(g, sca))) * k;
 	default:
 		/* unit_to_counts() goes through the SCA's RTI zeropoint, as
 		 * 1 / PHOTFNU; STIPS's fixed zeropoint zs gives PHOTFNU's
@@ -124,8 +132,8 @@ static double counts_on(const struct engine *g, const struct rows *r, size_t i, 
 		if (g->o->zp_stips)
 			return v * unit_to_counts(g->o->filter, sca, r->unit[i]) *
 			       pow(10.0, 0.4 * (filter_stips_zp(g->o->filter) -
-						filter_get(g->o->filter)->zp_ab[sca - 1]));
-		return v * unit_to_counts(g->o->filter, sca, r->unit[i]);
+						filter_get(g->o->filter)->zp_ab[sca - 1])) * k;
+		return v * unit_to_counts(g->o->filter, sca, r->unit[i]) * k;
 	}
 }
 
@@ -181,6 +189,11 @@ static int fill_source(const struct engine *g, const struct rows *r, size_t i,
 	src->param = param;
 	src->flux_meaning = g->flux_meaning;
 	src->mjd = g->x->date;
+	/* the spectral class of the row's effective wavelength (psf.h) */
+	src->colour = -1;
+	if (r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT && g->classes)
+		src->colour = psf_classes_of(g->classes, g->colour, sca, &(struct spectrum){
+						     r->spec_kind[i], r->spec_value[i] });
 	return flux_check(g, r, i, src, NULL, e);
 }
 
@@ -868,6 +881,16 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	struct err stopped;
 
 	b->n = b->nparam = 0;
+	if (r->spec_kind && !g->colour) {
+		const char *cc = host_setting(g, "colour-counts");
+
+		if (cc && strcmp(cc, "pivot") && strcmp(cc, "band"))
+			return err_set(g->e, EXIT_INPUT, "colour-counts: expected pivot or "
+				       "band, not '%s'", cc);
+		g->colour_band = cc && !strcmp(cc, "band");
+		if (!(g->colour = colour_new(g->o->filter, g->e)) || psfgrids_colour_init(g) < 0)
+			return -1;
+	}
 	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)
 		return err_sys(g->e, "rows");
 	/* all per-row arrays share cap_rows: grow them together (a failed

@@ -99,6 +99,13 @@ struct psf_build_opts {
 	int pixgrid;            /* enum psf_pixgrid; 0 (square) by default */
 	int verbose;
 	int built, loaded;      /* out: grids built and loaded from the cache */
+	/* The source's spectrum for the wavelength weights (spectrum.h):
+	 * SPEC_DEFAULT (0), the 5700 K blackbody, or a blackbody of
+	 * spec_value K or a power law of slope spec_value.  A grid of
+	 * another spectrum than the default is cached under a key of its
+	 * own, and its file named ...-spec-KEY.fits. */
+	int spec_kind;
+	double spec_value;
 };
 struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 			     struct psf_build_opts *o, struct err *e);
@@ -115,5 +122,36 @@ struct psf_grid *psf_builtin(int filter, int sca, int cls, int kind,
 #define PSF_HALO_MAX 1024
 struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid, int kind,
 				  struct psf_build_opts *o, struct err *e);
+
+/*
+ * Spectral classes (psfclass.c).  A filter has two families of n classes,
+ * one ePSF grid each: power laws (f_nu ~ nu^beta[k], for the beta and
+ * colour columns) and blackbodies (teff[k], for teff), whose effective
+ * wavelengths on SCA 1 are evenly spaced over the family's span: beta 3
+ * to -3, 50000 to 2500 K (the span of both for power laws, so a colour
+ * between the two is covered too).  lam[sca - 1][fam][k] is each class's
+ * effective wavelength on each SCA (spectrum.h).  Class k of family fam
+ * is spectral class fam n + k; a source of effective wavelength l on an
+ * SCA is class fam n + u, u the fraction of the way from class floor(u)
+ * to the next by effective wavelength, its ePSF the blend of the two
+ * (model.h wfs_source.colour).  Beyond its family's span a source takes
+ * the end class.
+ */
+#define PSF_COLOUR_MAX 16
+struct colour;
+struct spectrum;
+struct psf_classes {
+	int filter, n;
+	double beta[PSF_COLOUR_MAX], teff[PSF_COLOUR_MAX];
+	double lam[18][2][PSF_COLOUR_MAX];
+};
+int psf_default_classes(int filter);
+int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n,
+		     struct err *e);
+/* The spectral class (fam n + u) of spectrum s on SCA sca. */
+double psf_classes_of(const struct psf_classes *pc, struct colour *c, int sca,
+		      const struct spectrum *s);
+/* The spectrum of spectral class k (0 .. 2 n - 1) into kind and value. */
+void psf_classes_spectrum(const struct psf_classes *pc, int k, int *kind, double *value);
 
 #endif

@@ -33,6 +33,7 @@
 #include "instrument.h"
 #include "optics.h"
 #include "psf.h"
+#include "spectrum.h"
 
 /* The code's part of the key: a version to bump by hand, and a checksum
  * of the sources that compute a grid (optics.c, psf.c, psfbuild.c and
@@ -97,7 +98,7 @@ static void table_sums_load(void)
 }
 
 static uint64_t cache_key(int filter, int sca, int n, int over, int kind, int nwave,
-			  int pupil_n, int grid, const double *jac)
+			  int pupil_n, int grid, const double *jac, const struct spectrum *spec)
 {
 	char buf[512];
 	uint64_t h = 0xcbf29ce484222325ULL;
@@ -114,6 +115,11 @@ static uint64_t cache_key(int filter, int sca, int n, int over, int kind, int nw
 	 * grid adds nothing, so its keys are those of before) */
 	for (int k = 0; jac && k < 4 * grid * grid; k++) {
 		snprintf(buf, sizeof(buf), "|J%.12g", jac[k]);
+		h = fnv(h, buf, strlen(buf));
+	}
+	/* another spectrum than the default (which adds nothing) */
+	if (spec) {
+		snprintf(buf, sizeof(buf), "|S%d:%.17g", spec->kind, spec->value);
 		h = fnv(h, buf, strlen(buf));
 	}
 	return h;
@@ -308,7 +314,8 @@ fail:
  * is given on the SCA's own. */
 static struct psf_grid *build(const struct optics *o, int filter, int sca,
 			      int n, int over, int kind, int nwave, int pupil_n, int grid,
-			      double jit, int threads, const double *jac, struct err *e)
+			      double jit, int threads, const double *jac,
+			      const struct spectrum *spec, struct err *e)
 {
 	const struct filter_info *fi = filter_get(filter);
 	double lam[64], wt[64];
@@ -318,7 +325,7 @@ static struct psf_grid *build(const struct optics *o, int filter, int sca,
 
 	if (nwave > 64)
 		nwave = 64;
-	if (optics_weights(o, filter, sca, nwave, lam, wt, e))
+	if (optics_weights_spec(o, filter, sca, nwave, spec, lam, wt, e))
 		return NULL;
 	if (!(g = psf_grid_new(n, over, grid, grid)) ||
 	    !(zern = malloc(sizeof(double) * npos * nwave * OPTICS_NZ)) ||
@@ -398,6 +405,16 @@ fail:
 	return NULL;
 }
 
+/* The spectrum o asks for, in *sp, or NULL for the default. */
+static const struct spectrum *spec_of(const struct psf_build_opts *o, struct spectrum *sp)
+{
+	if (!o || o->spec_kind == SPEC_DEFAULT)
+		return NULL;
+	sp->kind = o->spec_kind;
+	sp->value = o->spec_value;
+	return sp;
+}
+
 /* A grid of n samples per side at `over` per pixel, from the cache or
  * built and kept; what psf_builtin() and psf_builtin_halo() share. */
 static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
@@ -443,16 +460,18 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 
 	if (o->pixgrid == PSF_PIX_SIAF && !(jac = node_jacobians(sca, grid, e)))
 		return NULL;
-	uint64_t key = cache_key(filter, sca, n, over, kind, nwave, pupil_n, grid, jac);
+	struct spectrum sp;
+	const struct spectrum *spec = spec_of(o, &sp);
+	uint64_t key = cache_key(filter, sca, n, over, kind, nwave, pupil_n, grid, jac, spec);
 	const char *fname = filter_get(filter)->name;
 
 	cache_dir(o->cache_dir, dir, sizeof(dir));
 	if (dir[0]) {
 		/* the SIAF's grids under a name of their own beside stips' */
-		snprintf(path, sizeof(path), "%s/psf-%s-sca%02d-%d-%s%s-%016llx.fits",
+		snprintf(path, sizeof(path), "%s/psf-%s-sca%02d-%d-%s%s%s-%016llx.fits",
 			 dir, fname, sca, n, kind == PSF_EPSF ? "epsf" :
 			 kind == PSF_EPSF_NOIPC ? "epsf-noipc" : "psf",
-			 jac ? "-siaf" : "", (unsigned long long)key);
+			 jac ? "-siaf" : "", spec ? "-spec" : "", (unsigned long long)key);
 		double t0 = now();
 		if ((g = cache_load(path, key, n, over, kind, grid, jac != NULL))) {
 			free(jac);
@@ -475,7 +494,7 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 	}
 	double t0 = now();
 	g = build(optics_tables, filter, sca, n, over, kind, nwave, pupil_n,
-		  grid, OPTICS_JITTER, o->threads, jac, e);
+		  grid, OPTICS_JITTER, o->threads, jac, spec, e);
 	free(jac);
 	if (!g) {
 		err_prefix(e, "PSF %s SCA%02d", fname, sca);
@@ -498,8 +517,12 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 			 "m at the longest wavelength", pupil_n);
 		snprintf(cards[3], 81, "JITRSIGM= %g / Gaussian sigma for jitter, "
 			 "per axis [arcsec]", OPTICS_JITTER);
-		snprintf(cards[4], 81, "SRCTEMP = %g / [K] Blackbody source for "
-			 "the wavelength weights", OPTICS_BB_TEMP);
+		if (!spec || spec->kind == SPEC_BLACKBODY)
+			snprintf(cards[4], 81, "SRCTEMP = %.10g / [K] Blackbody source for "
+				 "the wavelength weights", spec ? spec->value : OPTICS_BB_TEMP);
+		else
+			snprintf(cards[4], 81, "SRCBETA = %.10g / Source f_nu ~ nu^beta for "
+				 "the wavelength weights", spec->value);
 		snprintf(cards[5], 81, "PSFCODE = '%s' / wfiscene PSF code "
 			 "version", PSF_CODE_VERSION);
 		for (int i = 0; i < 6; i++)
@@ -521,6 +544,8 @@ struct psf_grid *psf_build_uncached(int filter, int sca, int cls, int kind,
 				    const struct psf_build_opts *o,
 				    double jitter, struct err *e)
 {
+	struct spectrum sp;
+
 	if (filter < 0 || filter >= WFS_NFILTER || sca < 1 || sca > WFS_NSCA ||
 	    cls < 0 || cls > 2) {
 		err_set(e, EXIT_INPUT, "no such PSF: filter %d SCA %d class %d",
@@ -541,7 +566,7 @@ struct psf_grid *psf_build_uncached(int filter, int sca, int cls, int kind,
 	struct psf_grid *g = build(optics_tables, filter, sca, psf_class_n[cls], PSF_OVER,
 				   kind, o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
 				   o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
-				   grid, jitter, o->threads, jac, e);
+				   grid, jitter, o->threads, jac, spec_of(o, &sp), e);
 	free(jac);
 	return g;
 }
@@ -549,6 +574,8 @@ struct psf_grid *psf_build_uncached(int filter, int sca, int cls, int kind,
 struct psf_grid *psf_build_one(int filter, int sca, int n, int over, int kind,
 			       const struct psf_build_opts *o, struct err *e)
 {
+	struct spectrum sp;
+
 	if (filter < 0 || filter >= WFS_NFILTER || sca < 1 || sca > WFS_NSCA ||
 	    n < 3 || n % 2 == 0 || (over != 2 && over != 4)) {
 		err_set(e, EXIT_INPUT, "no such PSF: filter %d SCA %d, %d samples at %d per pixel",
@@ -569,7 +596,7 @@ struct psf_grid *psf_build_one(int filter, int sca, int n, int over, int kind,
 	struct psf_grid *g = build(optics_tables, filter, sca, n, over, kind,
 				   o->nwave > 0 ? o->nwave : psf_default_nwave(filter),
 				   o->pupil_n > 0 ? o->pupil_n : DEFAULT_PUPIL_N,
-				   grid, OPTICS_JITTER, o->threads, jac, e);
+				   grid, OPTICS_JITTER, o->threads, jac, spec_of(o, &sp), e);
 	free(jac);
 	return g;
 }

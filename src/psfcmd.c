@@ -3,6 +3,7 @@
  * gridded format, so that photutils' GriddedPSFModel, STIPS or a later
  * `wfiscene --psf FILE` can read them.
  */
+#include <math.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,6 +19,7 @@
 #include "optics.h"
 #include "options.h"
 #include "psf.h"
+#include "spectrum.h"
 
 #define STR_(x) #x
 #define STR(x) STR_(x)
@@ -31,6 +33,9 @@ struct psf_cmd {
 	double jitter;          /* arcsec; -1: the default, through the cache */
 	int halo;               /* --halo R: the halo of +-R pixels, 0 for none */
 	int geometry;           /* enum wfs_geometry */
+	double teff, beta;      /* NaN: not given */
+	int report;             /* --report: list the spectral classes */
+	int classes;            /* --classes N for --report; 0: the default */
 };
 
 #define OFF(f) offsetof(struct psf_cmd, f)
@@ -38,7 +43,8 @@ struct psf_cmd {
 /* in the order of enum wfs_geometry */
 static const char *const geometries[] = { "siaf", "stips", NULL };
 
-static opt_set_fn set_count, set_kind, set_size, set_jitter, set_no_cache;
+static opt_set_fn set_count, set_kind, set_size, set_jitter, set_no_cache, set_teff,
+	set_beta;
 
 static const struct opt psf_options[] = {
 	{ OPT("filter", 'f', "F", NULL, "F062 F087 F106 F129 F158 F184 F213 F146",
@@ -55,6 +61,16 @@ static const struct opt psf_options[] = {
 	{ OPT("geometry", 'G', "G", "siaf", "the pixels the PSF is sampled on: siaf (each "
 	  "SCA's own, through the SIAF's local Jacobian at each node) or stips (0.11\" "
 	  "square)", opt_choice, OFF(geometry)), .words = geometries },
+	{ OPT("teff", 0, "T", NULL, "the PSF of a blackbody of T K (1000 to 100000) instead "
+	  "of the default 5700 K", set_teff, OFF(teff)) },
+	{ OPT("beta", 0, "B", NULL, "the PSF of a power law f_nu ~ nu^B", set_beta,
+	  OFF(beta)) },
+	{ OPT("report", 0, NULL, NULL, "list the spectral classes of the filter on each SCA "
+	  "(their slopes and effective wavelengths) on standard output", opt_count,
+	  OFF(report)) },
+	{ OPT("classes", 0, "N", "measured per filter", "spectral classes for --report, as "
+	  "--set psf-colour-classes", opt_int, OFF(classes)), .lo = 2, .hi = PSF_COLOUR_MAX,
+	  .flags = OPT_SHOW_DEFAULT },
 	{ OPT("grid", 0, "N", "3", "nodes per axis", set_count, OFF(bo.grid)),
 	  .flags = OPT_SHOW_DEFAULT },
 	{ OPT("nwave", 0, "N", "measured per filter", "wavelengths", set_count,
@@ -141,6 +157,29 @@ static int set_jitter(const struct opt_arg *a, struct err *e)
 	return 0;
 }
 
+static int set_teff(const struct opt_arg *a, struct err *e)
+{
+	char *end;
+	double v = strtod(a->value, &end);
+
+	if (*end || end == a->value || !(v >= SPEC_TEFF_MIN && v <= SPEC_TEFF_MAX))
+		return err_set(e, EXIT_INPUT, "--teff: want a temperature from %g to %g K, "
+			       "not '%s'", SPEC_TEFF_MIN, SPEC_TEFF_MAX, a->value);
+	*(double *)a->field = v;
+	return 0;
+}
+
+static int set_beta(const struct opt_arg *a, struct err *e)
+{
+	char *end;
+	double v = strtod(a->value, &end);
+
+	if (*end || end == a->value || !isfinite(v))
+		return err_set(e, EXIT_INPUT, "--beta: want a finite slope, not '%s'", a->value);
+	*(double *)a->field = v;
+	return 0;
+}
+
 static int set_no_cache(const struct opt_arg *a, struct err *e)
 {
 	*(const char **)a->field = "";
@@ -161,9 +200,55 @@ static int sca_name(char *buf, size_t n, const char *file, int sca)
 	return r < 0 || (size_t)r >= n ? -1 : 0;
 }
 
+/* --report: the filter's spectral classes (psf.h) on each SCA of the list,
+ * as a table on standard output: SCA, class, spectrum, effective
+ * wavelength, and with --teff or --beta that spectrum's own (fractional)
+ * class and effective wavelength. */
+static int report_classes(const struct psf_cmd *c)
+{
+	struct err e = { 0 };
+	struct psf_classes pc;
+	struct colour *col = NULL;
+	unsigned mask;
+	int filter;
+
+	if (instrument_init(&e) || (filter = filter_lookup(c->filter)) < 0 ||
+	    sca_parse_list(c->sca, &mask, &e) || !(col = colour_new(filter, &e)) ||
+	    psf_classes_make(&pc, col, filter, c->classes > 0 ? c->classes :
+			     psf_default_classes(filter), &e)) {
+		fprintf(stderr, "wfiscene psf: --report: %s\n", e.msg[0] ? e.msg : "unknown filter");
+		colour_free(col);
+		return EXIT_INPUT;
+	}
+	printf("# spectral classes of %s (psf-colour-classes %d)\n", c->filter, pc.n);
+	printf("sca\tclass\tspectrum\tlam_eff\n");
+	for (int s = 1; s <= WFS_NSCA; s++) {
+		if (!((mask >> (s - 1)) & 1))
+			continue;
+		for (int k = 0; k < 2 * pc.n; k++) {
+			int kind;
+			double v;
+
+			psf_classes_spectrum(&pc, k, &kind, &v);
+			printf("%d\t%d\t%s %.6g\t%.6f\n", s, k, kind == SPEC_POWER ? "beta" : "teff",
+			       v, pc.lam[s - 1][k >= pc.n][k % pc.n]);
+		}
+		if (!isnan(c->teff) || !isnan(c->beta)) {
+			struct spectrum sp = { isnan(c->teff) ? SPEC_POWER : SPEC_BLACKBODY,
+					       isnan(c->teff) ? c->beta : c->teff };
+
+			printf("%d\t%.4f\t%s %.6g\t%.6f\n", s, psf_classes_of(&pc, col, s, &sp),
+			       isnan(c->teff) ? "beta" : "teff", sp.value,
+			       colour_lam_eff(col, s, &sp));
+		}
+	}
+	colour_free(col);
+	return EXIT_OK;
+}
+
 int psf_main(int argc, char **argv)
 {
-	struct psf_cmd c = { .jitter = -1 };
+	struct psf_cmd c = { .jitter = -1, .teff = NAN, .beta = NAN };
 	struct psf_build_opts *bo = &c.bo;
 	struct err e = { 0 };
 	const char *out;
@@ -179,6 +264,8 @@ int psf_main(int argc, char **argv)
 		fprintf(stderr, "wfiscene psf: unexpected argument '%s'\n", argv[first]);
 		return EXIT_INPUT;
 	}
+	if (c.report && c.filter && c.sca && !c.out)
+		return report_classes(&c);
 	if (!c.filter || !c.sca || !c.out) {
 		fprintf(stderr, "wfiscene psf: --filter, --sca and -o are required\n");
 		opt_help(&psf_cmd_line, stderr);
@@ -206,6 +293,21 @@ int psf_main(int argc, char **argv)
 		goto fail;
 	}
 	bo->pixgrid = c.geometry == GEOM_SIAF ? PSF_PIX_SIAF : PSF_PIX_SQUARE;
+	if (!isnan(c.teff) && !isnan(c.beta)) {
+		err_set(&e, EXIT_INPUT, "--teff and --beta: give one spectrum");
+		goto fail;
+	}
+	if (!isnan(c.teff) || !isnan(c.beta)) {
+		if (c.halo) {
+			err_set(&e, EXIT_INPUT, "--halo is the default spectrum's: no --teff or "
+				"--beta with it");
+			goto fail;
+		}
+		bo->spec_kind = isnan(c.teff) ? SPEC_POWER : SPEC_BLACKBODY;
+		bo->spec_value = isnan(c.teff) ? c.beta : c.teff;
+	}
+	if (c.report && report_classes(&c) != EXIT_OK)
+		return EXIT_INPUT;
 	int nsca = 0;
 	for (int s = 0; s < WFS_NSCA; s++)
 		nsca += (mask >> s) & 1;
@@ -245,8 +347,13 @@ int psf_main(int argc, char **argv)
 			 psf_default_nwave(filter));
 		snprintf(c2, sizeof(c2), "JITRSIGM= %g / Gaussian sigma for jitter, "
 			 "per axis [arcsec]", c.jitter >= 0 ? c.jitter : OPTICS_JITTER);
-		snprintf(c3, sizeof(c3), "SRCTEMP = %g / [K] Blackbody source for "
-			 "the wavelength weights", OPTICS_BB_TEMP);
+		if (bo->spec_kind == SPEC_POWER)
+			snprintf(c3, sizeof(c3), "SRCBETA = %.10g / Source f_nu ~ nu^beta for "
+				 "the wavelength weights", bo->spec_value);
+		else
+			snprintf(c3, sizeof(c3), "SRCTEMP = %.10g / [K] Blackbody source for "
+				 "the wavelength weights", bo->spec_kind ? bo->spec_value :
+				 OPTICS_BB_TEMP);
 		snprintf(c4, sizeof(c4), "GEOMETRY= '%s' / %s", geom_name(c.geometry),
 			 c.geometry == GEOM_SIAF ? "sampled on the SCA's own pixels (SIAF)" :
 			 "sampled on 0.11\" square pixels (STIPS)");

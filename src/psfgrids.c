@@ -9,6 +9,11 @@
  * grid_lock, each published whole (a release store that psfgrids_get()'s
  * acquire load pairs with), so a thread that finds a grid sees all of it.
  * Render workers only read grids already loaded.
+ *
+ * A scene with spectra (spectrum.h) has spectral classes too (psf.h,
+ * psfclass.c): their grids are built or loaded the same way, from the
+ * class's spectrum, the first time a model asks for one
+ * (host->epsf_colour).
  */
 #include <limits.h>
 #include <pthread.h>
@@ -20,6 +25,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "names.h"
+#include "spectrum.h"
 
 const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls)
 {
@@ -142,6 +148,99 @@ int psfgrids_need(struct engine *g, int sca, int cls, struct err *e)
 }
 
 
+/* A whole number setting from lo to hi, or fallback when unset. */
+static int int_setting(struct engine *g, const char *key, int lo, int hi, int fallback,
+		       int *out)
+{
+	const char *v = host_setting(g, key);
+	char *end;
+	long n;
+
+	*out = fallback;
+	if (!v)
+		return 0;
+	n = strtol(v, &end, 10);
+	if (*end || end == v || n < lo || n > hi)
+		return err_set(g->e, EXIT_INPUT, "%s: expected a whole number %d to %d, not '%s'",
+			       key, lo, hi, v);
+	*out = (int)n;
+	return 0;
+}
+
+int psfgrids_colour_init(struct engine *g)
+{
+	int n;
+
+	if (g->classes || strcmp(g->o->psf, "builtin"))
+		return 0;
+	if (int_setting(g, "psf-colour-classes", 2, PSF_COLOUR_MAX,
+			psf_default_classes(g->o->filter), &n) < 0)
+		return -1;
+	if (!(g->classes = malloc(sizeof(*g->classes))))
+		return err_set(g->e, EXIT_SYSTEM, "out of memory");
+	if (psf_classes_make(g->classes, g->colour, g->o->filter, n, g->e) < 0)
+		return -1;
+	g->ncgrid = 2 * n;
+	snprintf(g->classes_str, sizeof(g->classes_str), "%d", 2 * n);
+	if (!(g->cgrid = calloc((size_t)WFS_NSCA * 3 * g->ncgrid, sizeof(*g->cgrid))))
+		return err_set(g->e, EXIT_SYSTEM, "out of memory");
+	for (int k = 0; k < 2 * n; k++) {
+		int kind;
+		double v;
+
+		psf_classes_spectrum(g->classes, k, &kind, &v);
+		host_log(g, 1, "PSF spectral class %d of %s: %s %.6g, effective wavelength "
+			 "%.4f micron on SCA 1", k, g->filter_name, kind == SPEC_POWER ? "beta" :
+			 "teff", v, g->classes->lam[0][k >= n][k % n]);
+	}
+	return 0;
+}
+
+static struct psf_grid **cslot(const struct engine *g, int sca, int cls, int k)
+{
+	return &g->cgrid[((size_t)(sca - 1) * 3 + cls) * g->ncgrid + k];
+}
+
+const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int k)
+{
+	return __atomic_load_n(cslot(g, sca, cls, k), __ATOMIC_ACQUIRE);
+}
+
+/* Load spectral class k's grid of (sca, cls), grid_lock held: built or
+ * read from the cache like the default's. */
+static int cload(struct engine *g, int sca, int cls, int k, struct err *e)
+{
+	struct psf_build_opts bo = g->pbo;
+	struct psf_grid *grid;
+
+	if (psfgrids_colour_get(g, sca, cls, k))
+		return 0;
+	bo.built = bo.loaded = 0;
+	psf_classes_spectrum(g->classes, k, &bo.spec_kind, &bo.spec_value);
+	host_log(g, 1, "ePSF grid for %s SCA %d, %d samples, spectral class %d (%s %.6g): "
+		 "building or loading", g->filter_name, sca, psf_class_n[cls], k,
+		 bo.spec_kind == SPEC_POWER ? "beta" : "teff", bo.spec_value);
+	if (!(grid = psf_builtin(g->o->filter, sca, cls, g->o->level ? PSF_EPSF_NOIPC :
+				 PSF_EPSF, &bo, e)))
+		return -1;
+	g->pbo.built += bo.built;
+	g->pbo.loaded += bo.loaded;
+	__atomic_store_n(cslot(g, sca, cls, k), grid, __ATOMIC_RELEASE);
+	return 0;
+}
+
+int psfgrids_colour_need(struct engine *g, int sca, int cls, int k, struct err *e)
+{
+	int rc;
+
+	if (psfgrids_colour_get(g, sca, cls, k))
+		return 0;
+	pthread_mutex_lock(&g->grid_lock);
+	rc = cload(g, sca, cls, k, e);
+	pthread_mutex_unlock(&g->grid_lock);
+	return rc;
+}
+
 /* --psf FILE without %d: one grid read up front for every SCA. */
 int psfgrids_open_user(struct engine *g)
 {
@@ -169,4 +268,9 @@ void psfgrids_free(struct engine *g)
 			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
 				psf_grid_free(g->grid[s][c]);
 	psf_grid_free(g->user_grid);
+	for (size_t i = 0; g->cgrid && i < (size_t)WFS_NSCA * 3 * g->ncgrid; i++)
+		psf_grid_free(g->cgrid[i]);
+	free(g->cgrid);
+	free(g->classes);
+	colour_free(g->colour);
 }

@@ -253,6 +253,37 @@ static void report_work(FILE *f, struct engine *g)
 
 /* "psf_grids": the grids built and loaded and each one's least enclosed
  * light; returns the largest truncation loss among them. */
+/* The spectral classes (psf.h) and the grids of them drawn with, inside
+ * "psf_grids"; nothing when the scene had no source with a spectrum. */
+static void report_spectral_classes(FILE *f, struct engine *g)
+{
+	const struct psf_classes *pc = g->classes;
+	int first;
+
+	if (!pc)
+		return;
+	fprintf(f, ", \"spectral_classes\": [");
+	for (int k = 0; k < 2 * pc->n; k++) {
+		int kind;
+		double v;
+
+		psf_classes_spectrum(pc, k, &kind, &v);
+		fprintf(f, "%s\n    {\"class\": %d, \"%s\": %.6g, \"lam_eff_sca1\": %.6f, "
+			"\"grids\": [", k ? "," : "", k, k < pc->n ? "beta" : "teff", v,
+			pc->lam[0][k >= pc->n][k % pc->n]);
+		first = 1;
+		for (int s = 0; s < WFS_NSCA; s++)
+			for (int c = 0; c < 3; c++)
+				if (psfgrids_colour_get(g, s + 1, c, k)) {
+					fprintf(f, "%s{\"sca\": %d, \"samples\": %d}",
+						first ? "" : ", ", s + 1, psf_class_n[c]);
+					first = 0;
+				}
+		fprintf(f, "]}");
+	}
+	fprintf(f, "\n  ]");
+}
+
 static double report_psf_grids(FILE *f, struct engine *g)
 {
 	double worst_loss = 0;
@@ -278,7 +309,9 @@ static double report_psf_grids(FILE *f, struct engine *g)
 				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, gr->n, lo);
 			first = 0;
 		}
-	fputs("\n  ]},\n", f);
+	fputs("\n  ]", f);
+	report_spectral_classes(f, g);
+	fputs("},\n", f);
 	return worst_loss;
 }
 

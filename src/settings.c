@@ -131,6 +131,8 @@ const char *host_setting(void *ctx, const char *key)
 		return g->sigma_str;
 	if (!strcmp(key, "mjd"))
 		return isnan(g->x->date) ? NULL : g->mjd_str;
+	if (!strcmp(key, "spectral-classes"))
+		return g->classes ? g->classes_str : NULL;
 	/* --set key=value: the last one given wins */
 	const char *hit = NULL;
 	size_t n = strlen(key);

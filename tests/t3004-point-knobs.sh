@@ -157,12 +157,14 @@ assert b[\"psf-box-sigma\"] == \"0.1\" and b[\"psf-cell\"] == \"512\", b
 assert list(b) == [\"psf-interp\", \"psf-core\", \"psf-wing\", \"psf-box\",
                    \"psf-box-noise\", \"psf-box-sigma\", \"psf-blend\", \"psf-cell\",
                    \"psf-extent\", \"psf-extent-noise\", \"psf-extent-max\",
-                   \"psf-extent-min\", \"psf-extent-cut\", \"psf-halo-power\", \"psf-halo-taper\",
+                   \"psf-extent-min\", \"psf-extent-cut\", \"psf-colour-steps\",
+                   \"psf-halo-power\", \"psf-halo-taper\",
                    \"psf-halo-far\"], b
 "
 '
 for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-box-noise=0 \
-	psf-box-sigma=x psf-blend=tile psf-cell=0 psf-cell=10.5 psf-extent-cut=-1 psf-extent-cut=x; do
+	psf-box-sigma=x psf-blend=tile psf-cell=0 psf-cell=10.5 psf-extent-cut=-1 psf-extent-cut=x \
+	psf-colour-steps=2.5 psf-colour-steps=65; do
 	key=${kv%%=*}
 	test_expect_success "--set $kv is refused, naming $key" "
 		test_must_fail --status 3 run bad.fits --set $kv 2> err &&

@@ -103,6 +103,10 @@
  *                draws a noiseless image as the mean of a noisy one.  Hosts
  *                before edition 5 MAY answer NULL: work it out from
  *                exptime, background, readnoise and noise then.
+ *   spectral-classes  the number of spectral classes of the built-in PSF
+ *                (wfs_source.colour, host->epsf_colour: two families of
+ *                half of them), "%d"; NULL before the scene's first row
+ *                with a spectrum, and without classes (edition 5)
  *
  * and every KEY of --set KEY=VALUE (the value as typed, the last one given
  * winning); NULL for a key that is not set.  A model reads the keys it
@@ -162,10 +166,11 @@ extern "C" {
  * version above stays): 1 the first; 2 reach(), settings, column_size,
  * setting_size, wfs_host.source_size, wfs_source.flux_meaning; 3 the
  * exposure's time, wfs_source.mjd and wfs_model.drawn_by; 4 wfs_model.flags
- * (WFS_PARALLEL_PREPARE); 5 no member, but what the built-in models relied
- * on stated here: WFS_SCA_SIDE, WFS_SCA_COUNT, WFS_MAX_COLUMNS,
- * WFS_PSF_HALO, WFS_PRINTF, the setting pixel-sigma, thread_start()'s
- * return value.  A plugin MAY test
+ * (WFS_PARALLEL_PREPARE); 5 wfs_source.colour, wfs_host.epsf_colour and
+ * the setting spectral-classes, and what the built-in models relied on
+ * stated here: WFS_SCA_SIDE, WFS_SCA_COUNT, WFS_MAX_COLUMNS, WFS_PSF_HALO,
+ * WFS_PRINTF, the setting pixel-sigma, thread_start()'s return value.  A
+ * plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
 #define WFS_ABI_EDITION 5
@@ -269,6 +274,18 @@ struct wfs_source {
 	double mjd;             /* the exposure's date, a Modified Julian Date
 	                           (UTC, leap seconds ignored) of its start;
 	                           NaN when the exposure has none */
+
+	/* Edition 5; present when WFS_HAS(host->source_size, struct
+	 * wfs_source, colour) (older hosts: -1). */
+	double colour;          /* the source's spectral class, from its
+	                           catalog spectrum (wfiscene-catalog(5)
+	                           SPECTRA): with i = floor(colour) and
+	                           f = colour - i, its ePSF is (1 - f) times
+	                           class i's plus f times class i + 1's
+	                           (host->epsf_colour(); f is 0 at the end of
+	                           a family of classes); negative for the
+	                           scene's default spectrum, whose ePSF
+	                           host->epsf() gives */
 };
 
 /*
@@ -344,6 +361,16 @@ struct wfs_host {
 	 * appended fields of a source exist.  Absent in older hosts (check
 	 * WFS_HAS(host->size, struct wfs_host, source_size) first). */
 	uint32_t source_size;
+
+	/* Edition 5.  The ePSF of spectral class `spectral` (a whole number
+	 * from 0, see wfs_source.colour) at (x, y), as epsf() gives the
+	 * default spectrum's.  The same rules of loading apply: ask in
+	 * prepare() or footprint() first.  The halo (class 3) is the default
+	 * spectrum's for every spectral class.  Absent in older hosts (check
+	 * WFS_HAS(host->size, struct wfs_host, epsf_colour)): draw with
+	 * epsf(). */
+	int (*epsf_colour)(void *ctx, int sca, double x, double y, int cls, int spectral,
+			   struct wfs_epsf *out);
 };
 
 /*

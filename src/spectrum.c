@@ -1,0 +1,243 @@
+/* spectrum.c - spectra, the colour term and effective wavelengths; see spectrum.h. */
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "data.h"
+#include "err.h"
+#include "instrument.h"
+#include "optics.h"
+#include "spectrum.h"
+
+/* c2 = h c / k in micron K */
+#define C2 14387.77
+
+double spec_fnu(const struct spectrum *s, double lam, double lam_ref)
+{
+	switch (s->kind) {
+	case SPEC_POWER:
+		/* f_nu ~ nu^beta ~ lam^-beta */
+		return pow(lam / lam_ref, -s->value);
+	case SPEC_BLACKBODY:
+		/* B_nu ~ nu^3 / (exp(h nu / k T) - 1) */
+		return pow(lam_ref / lam, 3) * expm1(C2 / (lam_ref * s->value)) /
+		       expm1(C2 / (lam * s->value));
+	default:
+		return 1;
+	}
+}
+
+#define BETA_LO (-8.0)
+#define BETA_HI 8.0
+#define BETA_STEP (1.0 / 64)
+#define NBETA 1025              /* (BETA_HI - BETA_LO) / BETA_STEP + 1 */
+#define U_LO 0.01               /* 1000 K / T */
+#define U_HI 1.0
+#define U_STEP (1.0 / 1024)
+#define NU 1016                 /* (U_HI - U_LO) / U_STEP + 2, rounded down */
+
+struct sca_tables {
+	pthread_mutex_t lock;
+	int done;               /* read with acquire, set with release */
+	double lnf_beta[NBETA], lam_beta[NBETA];
+	double lnf_bb[NU], lam_bb[NU];
+};
+
+struct colour {
+	int filter;
+	double pivot;
+	int n;                  /* throughput samples */
+	double *lam;            /* micron */
+	double *area;           /* [k * WFS_NSCA + sca - 1], m^2 */
+	struct sca_tables t[WFS_NSCA];
+};
+
+void colour_exact(const struct colour *c, int sca, const struct spectrum *s,
+		  double *factor, double *lam_eff)
+{
+	double sa = 0, sas = 0, sasl = 0;
+
+	for (int k = 0; k < c->n; k++) {
+		double a = c->area[k * WFS_NSCA + sca - 1], l = c->lam[k];
+		double v = s->kind == SPEC_DEFAULT ? 1 : spec_fnu(s, l, c->pivot);
+
+		sa += a / l;
+		sas += a * v / l;
+		sasl += a * v;
+	}
+	*factor = sas / sa;
+	*lam_eff = sasl / sas;
+}
+
+static void tables_fill(struct colour *c, int sca)
+{
+	struct sca_tables *t = &c->t[sca - 1];
+	struct spectrum s = { SPEC_POWER, 0 };
+
+	for (int i = 0; i < NBETA; i++) {
+		double f;
+
+		s.value = BETA_LO + i * BETA_STEP;
+		colour_exact(c, sca, &s, &f, &t->lam_beta[i]);
+		t->lnf_beta[i] = log(f);
+	}
+	s.kind = SPEC_BLACKBODY;
+	for (int i = 0; i < NU; i++) {
+		double f;
+
+		s.value = 1000.0 / (U_LO + i * U_STEP);
+		colour_exact(c, sca, &s, &f, &t->lam_bb[i]);
+		t->lnf_bb[i] = log(f);
+	}
+}
+
+struct colour *colour_new(int filter, struct err *e)
+{
+	struct colour *c;
+	struct tsv t;
+	int cf, cw, cs[WFS_NSCA];
+	char name[16];
+
+	if (instrument_init(e))
+		return NULL;
+	if (filter < 0 || filter >= WFS_NFILTER)
+		return err_set(e, EXIT_INPUT, "unknown filter %d", filter), NULL;
+	if (!(c = calloc(1, sizeof(*c))))
+		return err_set(e, EXIT_SYSTEM, "out of memory"), NULL;
+	c->filter = filter;
+	c->pivot = filter_get(filter)->pivot;
+	if (tsv_parse(&t, "throughput.tsv")) {
+		free(c);
+		return err_set(e, EXIT_SYSTEM, "broken build: no throughput.tsv"), NULL;
+	}
+	cf = tsv_col(&t, "filter");
+	cw = tsv_col(&t, "wave");
+	for (int s = 0; s < WFS_NSCA; s++) {
+		snprintf(name, sizeof(name), "sca%02d", s + 1);
+		if ((cs[s] = tsv_col(&t, name)) < 0)
+			cf = -1;
+	}
+	if (cf >= 0 && cw >= 0) {
+		c->lam = malloc(sizeof(double) * t.nrow);
+		c->area = malloc(sizeof(double) * t.nrow * WFS_NSCA);
+	}
+	if (!c->lam || !c->area) {
+		tsv_free(&t);
+		free(c->lam);
+		free(c->area);
+		free(c);
+		return err_set(e, EXIT_SYSTEM, "%s", cf < 0 || cw < 0 ?
+			       "broken build: malformed throughput.tsv" : "out of memory"), NULL;
+	}
+	for (int r = 1; r < t.nrow; r++) {
+		if (filter_lookup(t.cell[r][cf]) != filter)
+			continue;
+		c->lam[c->n] = atof(t.cell[r][cw]);
+		for (int s = 0; s < WFS_NSCA; s++)
+			c->area[c->n * WFS_NSCA + s] = atof(t.cell[r][cs[s]]);
+		c->n++;
+	}
+	tsv_free(&t);
+	for (int s = 0; s < WFS_NSCA; s++)
+		pthread_mutex_init(&c->t[s].lock, NULL);
+	if (c->n < 2) {
+		colour_free(c);
+		return err_set(e, EXIT_SYSTEM, "broken build: no throughput for %s",
+			       filter_get(filter)->name), NULL;
+	}
+	return c;
+}
+
+void colour_free(struct colour *c)
+{
+	if (!c)
+		return;
+	free(c->lam);
+	free(c->area);
+	for (int s = 0; s < WFS_NSCA; s++)
+		pthread_mutex_destroy(&c->t[s].lock);
+	free(c);
+}
+
+/* SCA sca's tables, filled by the first thread that wants them. */
+static const struct sca_tables *tables(struct colour *c, int sca)
+{
+	struct sca_tables *t = &c->t[sca - 1];
+
+	if (!__atomic_load_n(&t->done, __ATOMIC_ACQUIRE)) {
+		pthread_mutex_lock(&t->lock);
+		if (!t->done) {
+			tables_fill(c, sca);
+			__atomic_store_n(&t->done, 1, __ATOMIC_RELEASE);
+		}
+		pthread_mutex_unlock(&t->lock);
+	}
+	return t;
+}
+
+/* Catmull-Rom through tab[] (n uniform nodes) at fractional index u. */
+static double spline(const double *tab, int n, double u)
+{
+	int i = (int)floor(u);
+
+	if (i < 1)
+		i = 1;
+	if (i > n - 3)
+		i = n - 3;
+	double t = u - i, p0 = tab[i - 1], p1 = tab[i], p2 = tab[i + 1], p3 = tab[i + 2];
+
+	return p1 + 0.5 * t * (p2 - p0 + t * (2 * p0 - 5 * p1 + 4 * p2 - p3 +
+					      t * (3 * (p1 - p2) + p3 - p0)));
+}
+
+/* The table value of s: ln factor (which = 0) or lam_eff (1); 0 with *out
+ * set, or -1 when s is outside the tables. */
+static int table_value(struct colour *c, int sca, const struct spectrum *s, int which,
+		       double *out)
+{
+	const struct sca_tables *t;
+
+	if (s->kind == SPEC_POWER && s->value >= BETA_LO && s->value <= BETA_HI) {
+		t = tables(c, sca);
+		*out = spline(which ? t->lam_beta : t->lnf_beta, NBETA,
+			      (s->value - BETA_LO) / BETA_STEP);
+		return 0;
+	}
+	if (s->kind == SPEC_BLACKBODY) {
+		double u = 1000.0 / s->value;
+
+		if (u >= U_LO && u <= U_HI) {
+			t = tables(c, sca);
+			*out = spline(which ? t->lam_bb : t->lnf_bb, NU, (u - U_LO) / U_STEP);
+			return 0;
+		}
+	}
+	return -1;
+}
+
+double colour_factor(struct colour *c, int sca, const struct spectrum *s)
+{
+	double v, lam;
+
+	if (s->kind == SPEC_DEFAULT || (s->kind == SPEC_POWER && s->value == 0))
+		return 1;
+	if (!table_value(c, sca, s, 0, &v))
+		return exp(v);
+	colour_exact(c, sca, s, &v, &lam);
+	return v;
+}
+
+double colour_lam_eff(struct colour *c, int sca, const struct spectrum *s)
+{
+	struct spectrum bb = { SPEC_BLACKBODY, OPTICS_BB_TEMP };
+	double v, f;
+
+	if (s->kind == SPEC_DEFAULT)
+		s = &bb;
+	if (!table_value(c, sca, s, 1, &v))
+		return v;
+	colour_exact(c, sca, s, &f, &v);
+	return v;
+}

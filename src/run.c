@@ -335,7 +335,7 @@ static int finish(struct engine *g, struct timespec t0)
 {
 	struct timespec t1;
 
-	if (write_exposure(g) < 0 || placed_close(g, 1) < 0)
+	if (render_spread(g) < 0 || write_exposure(g) < 0 || placed_close(g, 1) < 0)
 		return -1;
 	clock_gettime(CLOCK_MONOTONIC, &t1);
 	g->t_total = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);

@@ -1,0 +1,420 @@
+/*
+ * point_far.c - psf-diffuse=grid: the light a source's drawing leaves out
+ * (a faint star's wings beyond its box, a bright one's beyond its radius),
+ * gathered on a coarse grid per SCA and spread once per tile, so that every
+ * star places the same fraction of its PSF's light (the halo model's
+ * total, halo.h) and a crowded field's diffuse light lands where it falls.
+ *
+ * Gathering.  prepare() adds the light left out of a source, L, to the
+ * four cells of side s (psf-diffuse-cell) nearest it, with bilinear
+ * ("cloud in cell") weights, into its thread's own grid.  The grids hold
+ * integers, so that their sum does not depend on the order the sources
+ * were prepared in nor on the threads: a deposit v is split into a whole
+ * number of FAR_HI counts/s and a remainder in units of FAR_LO, summed in
+ * separate 64-bit counters (exact; no carry is needed since each counter
+ * only grows by its own part).
+ *
+ * The wing's shape.  K(p, q), the share of unit light that a source at
+ * the centre of a cell sends into the cell (p, q) away: the halo model
+ * (halo.h) summed over the cell's pixels outside the faint class's box,
+ * over the model's light outside the box.  Cells that meet the box, or lie
+ * within FAR_EXACT cells, are summed pixel by pixel; nearer than 512 pixels
+ * on a 4 x 4 lattice of sub-blocks, beyond on 2 x 2 (the wing is smooth
+ * there on the scale of a cell, its spikes a few pixels wide apart).
+ *
+ * Spreading.  gather() convolves each SCA's grid with K once (the host's
+ * FFT): the light in each cell.  spread() adds to each pixel the bilinear
+ * interpolation of that light per pixel between the cells' centres, whose
+ * sum over the pixels is the cells' light; what falls off the SCA is lost,
+ * as for a drawn wing.
+ *
+ * A star with a halo is drawn out to its radius rounded up to a ladder of
+ * FAR_STEPS radii per octave from 22 pixels (far_radius: a few per cent
+ * more pixels, its wing no less), and the light beyond (with
+ * psf-halo-far=spikes also the baseline between its base radius and its
+ * radius, below the level in every pixel) is spread with the wing beyond
+ * that radius: one list per thread of such deposits, binned at gather()
+ * into a grid per radius present, each convolved with its own K (the
+ * box's K with the disc taken out), in order of radius.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "point.h"
+
+#define FAR_HI 1024.0                   /* counts/s per unit of the high counter */
+#define FAR_LO (1.0 / 1073741824.0)     /* counts/s per unit of the low one, 2^-30 */
+#define FAR_EXACT 3                     /* cells summed pixel by pixel, at least */
+#define FAR_MARGIN 96                   /* pixels of grid beyond each SCA edge */
+#define FAR_STEPS 4                     /* halo radii per octave */
+#define FAR_R0 22.0                     /* the ladder's first radius */
+
+/* The grid: n x n cells of side s, cell a's pixels [org + a s, org + (a + 1) s). */
+void far_geometry(struct point *p)
+{
+	int s = p->far_cell, m = s * ((FAR_MARGIN + s - 1) / s);
+
+	p->far_org = -m;
+	p->far_n = (SCA_SIDE + 2 * m + s - 1) / s;
+}
+
+/* Cell coordinate of pixel position x: cell a's centre is at a. */
+static inline double far_u(const struct point *p, double x)
+{
+	return (x - p->far_org - 0.5 * (p->far_cell - 1)) / p->far_cell;
+}
+
+double far_radius(const struct point *p, double r)
+{
+	double k, q;
+
+	if (p->diffuse != DIFFUSE_GRID || !(r > FAR_R0))
+		return r;
+	k = ceil(FAR_STEPS * log2(r / FAR_R0) - 1e-9);
+	q = ceil(FAR_R0 * exp2(k / FAR_STEPS));
+	return q < p->extent_max ? q : p->extent_max > r ? p->extent_max : r;
+}
+
+/* v counts/s into cell c of the counters hi and lo */
+static inline void far_add(int64_t *hi, int64_t *lo, size_t c, double v)
+{
+	double h = floor(v / FAR_HI);
+
+	hi[c] += (int64_t)h;
+	lo[c] += (int64_t)llround((v - h * FAR_HI) / FAR_LO);
+}
+
+/* The four cells about (x, y) and their bilinear weights. */
+static void far_cic(const struct point *p, double x, double y, size_t c[4], double w[4])
+{
+	int n = p->far_n;
+	double u = far_u(p, x), v = far_u(p, y), fx, fy;
+	long a, b;
+
+	/* beyond the grid's margin, the edge cells */
+	u = u < 0 ? 0 : u > n - 1 ? n - 1 : u;
+	v = v < 0 ? 0 : v > n - 1 ? n - 1 : v;
+	a = lfloor(u);
+	b = lfloor(v);
+	a = a > n - 2 ? n - 2 : a;
+	b = b > n - 2 ? n - 2 : b;
+	fx = u - a;
+	fy = v - b;
+	w[0] = (1 - fx) * (1 - fy);
+	w[1] = fx * (1 - fy);
+	w[2] = (1 - fx) * fy;
+	w[3] = fx * fy;
+	for (int k = 0; k < 4; k++)
+		c[k] = (size_t)(b + (k >> 1)) * n + a + (k & 1);
+}
+
+int far_deposit(struct point *p, const struct wfs_source *src, double light, double r)
+{
+	struct tally *t = tally_of(p);
+	int n = p->far_n, sca = src->sca;
+	size_t c[4];
+	double w[4];
+
+	if (!t)
+		return p->host->error(p->host->ctx, "out of memory");
+	if (!(light > 0))
+		return 0;
+	if (!(light < 1e21))
+		return p->host->error(p->host->ctx, "light left out of one source, %g counts/s, "
+				      "is more than the diffuse grid holds (1e21); "
+				      "--set psf-diffuse=none", light);
+	t->spread += light;
+	if (r > 0) {
+		if (t->ndep == t->capdep) {
+			size_t cap = t->capdep ? 2 * t->capdep : 256;
+			struct far_dep *d = realloc(t->dep, cap * sizeof(*d));
+
+			if (!d)
+				return p->host->error(p->host->ctx, "out of memory");
+			t->dep = d;
+			t->capdep = cap;
+		}
+		t->dep[t->ndep++] = (struct far_dep){ sca, r, src->x, src->y, light };
+		return 0;
+	}
+	if (!t->hi[sca]) {
+		if (!(t->hi[sca] = calloc((size_t)2 * n * n, sizeof(int64_t))))
+			return p->host->error(p->host->ctx, "out of memory");
+		t->lo[sca] = t->hi[sca] + (size_t)n * n;
+	}
+	far_cic(p, src->x, src->y, c, w);
+	for (int k = 0; k < 4; k++)
+		far_add(t->hi[sca], t->lo[sca], c[k], light * w[k]);
+	return 0;
+}
+
+/* The model's value at pixel offset (dx, dy) outside the box of half-width
+ * hb (|dx| < hb and |dy| < hb inside), else 0. */
+static inline double wing_at(const struct halo *h, double dx, double dy, double hb)
+{
+	if (fabs(dx) < hb && fabs(dy) < hb)
+		return 0;
+	return halo_value(h, dx, dy);
+}
+
+/* The sum of the wing over the s x s pixels of the cell (p, q) away from
+ * a source at a cell's centre, on a k x k lattice of sub-blocks (k = s:
+ * every pixel).  s is even, so a source at a cell's centre sits on a
+ * pixel corner and its pixels are at half-integer offsets. */
+static double cell_sum(const struct halo *h, int s, long p, long q, int k, double hb)
+{
+	double b = (double)s / k, sum = 0;
+
+	for (int j = 0; j < k; j++)
+		for (int i = 0; i < k; i++)
+			sum += wing_at(h, p * s - 0.5 * s + (i + 0.5) * b, q * s - 0.5 * s + (j + 0.5) * b, hb);
+	return sum * b * b;
+}
+
+/* The wing outside the box of half-width hb summed over each cell of a
+ * kernel ((2n - 1)^2 cells, centre at (n - 1, n - 1)) into raw; returns
+ * the model's light outside the box (its total less what it puts in the
+ * box for a source on a pixel corner), or -1 after an error. */
+static double far_kernel_box(struct point *p, const struct halo *h, double hb, double *raw)
+{
+	int s = p->far_cell, n = p->far_n, H = n - 1, kn = 2 * n - 1;
+	long near = (long)ceil(hb / s) + FAR_EXACT;
+	double inbox = 0, out;
+
+	for (double dy = 0.5 - ceil(hb); dy < hb; dy++)
+		for (double dx = 0.5 - ceil(hb); dx < hb; dx++)
+			inbox += halo_value(h, dx, dy);
+	out = h->total - inbox;
+	if (!(out > 0))
+		return p->host->error(p->host->ctx, "the halo holds no light outside a %g-pixel box",
+				      2 * hb);
+	for (long q = -H; q <= H; q++)
+		for (long pp = -H; pp <= H; pp++) {
+			double d = s * sqrt((double)(pp * pp + q * q));
+			int k = labs(pp) <= near && labs(q) <= near ? s : d < 512 ? 4 : 2;
+
+			raw[(size_t)(q + H) * kn + pp + H] = cell_sum(h, s, pp, q, k < s ? k : s, hb);
+		}
+	return out;
+}
+
+/* K of the wing beyond radius r (and outside the box) into kern,
+ * normalised to the model's light there, from the box's raw sums: a cell
+ * wholly beyond r keeps its sum, one wholly within is nought, one that r
+ * crosses is summed pixel by pixel.  Returns 0, or -1 after an error. */
+static int far_kernel_disc(struct point *p, const struct halo *h, double hb, double outbox,
+			   double r, const double *raw, double *kern)
+{
+	int s = p->far_cell, n = p->far_n, H = n - 1, kn = 2 * n - 1;
+	double out, r2 = r * r;
+
+	if (r >= h->R)
+		out = h->atot * pow(r, 2 - h->alpha) / (h->alpha - 2);
+	else {
+		/* the box's light less what lies outside the box within r */
+		double in = 0;
+		long m = (long)ceil(r);
+
+		for (double dy = 0.5 - m; dy < m; dy++)
+			for (double dx = 0.5 - m; dx < m; dx++)
+				if (dx * dx + dy * dy <= r2)
+					in += wing_at(h, dx, dy, hb);
+		out = outbox - in;
+	}
+	if (!(out > 0))
+		return p->host->error(p->host->ctx, "the halo holds no light beyond %g pixels", r);
+	for (long q = -H; q <= H; q++)
+		for (long pp = -H; pp <= H; pp++) {
+			/* the cell's nearest and farthest points */
+			double ax = fabs((double)pp * s) - 0.5 * s, ay = fabs((double)q * s) - 0.5 * s;
+			double bx = ax + s, by = ay + s, v;
+			size_t c = (size_t)(q + H) * kn + pp + H;
+
+			ax = ax > 0 ? ax : 0;
+			ay = ay > 0 ? ay : 0;
+			if (ax * ax + ay * ay > r2)
+				v = raw[c];
+			else if (bx * bx + by * by <= r2)
+				v = 0;
+			else {
+				v = 0;
+				for (int j = 0; j < s; j++)
+					for (int i = 0; i < s; i++) {
+						double dx = pp * s - 0.5 * s + i + 0.5;
+						double dy = q * s - 0.5 * s + j + 0.5;
+
+						if (dx * dx + dy * dy > r2)
+							v += wing_at(h, dx, dy, hb);
+					}
+			}
+			kern[c] = v / out;
+		}
+	return 0;
+}
+
+static int dep_cmp(const void *a, const void *b)
+{
+	double x = ((const struct far_dep *)a)->r, y = ((const struct far_dep *)b)->r;
+
+	return (x > y) - (x < y);
+}
+
+/* The deposits of SCA sca of every thread, sorted by radius (*nd of
+ * them; NULL with *nd 0 when none, or after an error). */
+static struct far_dep *deposits_of(struct point *p, int sca, size_t *nd)
+{
+	struct far_dep *d;
+	size_t n = 0;
+
+	*nd = 0;
+	for (struct tally *t = p->tallies; t; t = t->next)
+		for (size_t i = 0; i < t->ndep; i++)
+			n += t->dep[i].sca == sca;
+	if (!n || !(d = malloc(n * sizeof(*d))))
+		return NULL;
+	for (struct tally *t = p->tallies; t; t = t->next)
+		for (size_t i = 0; i < t->ndep; i++)
+			if (t->dep[i].sca == sca)
+				d[(*nd)++] = t->dep[i];
+	qsort(d, n, sizeof(*d), dep_cmp);
+	return d;
+}
+
+int far_gather(void *state, void *thread, int sca)
+{
+	struct point *p = state;
+	int n = p->far_n, kn = 2 * n - 1, dense = 0, rc = -1;
+	size_t nc = (size_t)n * n, nd = 0;
+	int64_t *hi = NULL, *lo;
+	double *c = NULL, *g = NULL, *raw = NULL, *kern = NULL, outbox;
+	double hb = p->chalf[sca][WFS_PSF_NORMAL] > 0 ? p->chalf[sca][WFS_PSF_NORMAL] : 21;
+	struct far_dep *dep = NULL;
+	const struct halo *h = &p->halo[sca];
+
+	if (p->diffuse != DIFFUSE_GRID || !atomic_load(&p->halo_ready[sca]))
+		return 0;
+	for (struct tally *t = p->tallies; t; t = t->next)
+		dense |= t->hi[sca] != NULL;
+	for (struct tally *t = p->tallies; t; t = t->next)
+		for (size_t i = 0; i < t->ndep; i++)
+			nd += t->dep[i].sca == sca;
+	if (!dense && !nd)
+		return 0;
+	if (!(hi = calloc(2 * nc, sizeof(int64_t))) || !(c = calloc(nc, sizeof(double))) ||
+	    !(g = malloc(nc * sizeof(double))) ||
+	    !(raw = malloc((size_t)kn * kn * sizeof(double))) ||
+	    !(kern = malloc((size_t)kn * kn * sizeof(double))) ||
+	    (nd && !(dep = deposits_of(p, sca, &nd)))) {
+		p->host->error(p->host->ctx, "out of memory for the diffuse light");
+		goto out;
+	}
+	lo = hi + nc;
+	if ((outbox = far_kernel_box(p, h, hb, raw)) < 0)
+		goto out;
+	/* the faint sources' grid: integer sums, the same in any order */
+	if (dense) {
+		for (struct tally *t = p->tallies; t; t = t->next)
+			if (t->hi[sca])
+				for (size_t i = 0; i < nc; i++) {
+					hi[i] += t->hi[sca][i];
+					lo[i] += t->lo[sca][i];
+				}
+		for (size_t i = 0; i < nc; i++)
+			c[i] = (double)hi[i] * FAR_HI + (double)lo[i] * FAR_LO;
+		for (size_t i = 0; i < (size_t)kn * kn; i++)
+			kern[i] = raw[i] / outbox;
+		if (p->host->convolve(p->host->ctx, thread, c, n, n, kern, kn) < 0)
+			goto out;
+	}
+	/* each radius's grid, in order of radius */
+	for (size_t i = 0; i < nd;) {
+		size_t j = i;
+		double r = dep[i].r;
+
+		memset(hi, 0, 2 * nc * sizeof(int64_t));
+		for (; j < nd && dep[j].r == r; j++) {
+			size_t cc[4];
+			double w[4];
+
+			far_cic(p, dep[j].x, dep[j].y, cc, w);
+			for (int k = 0; k < 4; k++)
+				far_add(hi, lo, cc[k], dep[j].light * w[k]);
+		}
+		for (size_t k = 0; k < nc; k++)
+			g[k] = (double)hi[k] * FAR_HI + (double)lo[k] * FAR_LO;
+		if (far_kernel_disc(p, h, hb, outbox, r, raw, kern) < 0 ||
+		    p->host->convolve(p->host->ctx, thread, g, n, n, kern, kn) < 0)
+			goto out;
+		for (size_t k = 0; k < nc; k++)
+			c[k] += g[k];
+		i = j;
+	}
+	/* light per pixel at the cells' centres */
+	for (size_t i = 0; i < nc; i++)
+		c[i] /= (double)p->far_cell * p->far_cell;
+	p->far[sca] = c;
+	c = NULL;
+	rc = 1;
+out:
+	free(hi);
+	free(c);
+	free(g);
+	free(raw);
+	free(kern);
+	free(dep);
+	return rc;
+}
+
+int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
+{
+	struct point *p = state;
+	const double *c = p->far[sca];
+	int n = p->far_n;
+	long *ia;
+	double *fx, *rv;
+	long a0, a1;
+
+	if (!c)
+		return 0;
+	if (!(ia = p->host->scratch(thread, (size_t)win->nx * (sizeof(long) + sizeof(double)) +
+				    (size_t)n * sizeof(double))))
+		return p->host->error(p->host->ctx, "out of scratch memory");
+	fx = (double *)(ia + win->nx);
+	rv = fx + win->nx;
+	for (int i = 0; i < win->nx; i++) {
+		double u = far_u(p, win->x0 + i);
+		long a = lfloor(u);
+
+		a = a < 0 ? 0 : a > n - 2 ? n - 2 : a;
+		ia[i] = a;
+		fx[i] = u - a;
+	}
+	a0 = ia[0];
+	a1 = ia[win->nx - 1] + 1;
+	for (int j = 0; j < win->ny; j++) {
+		double v = far_u(p, win->y0 + j), fy;
+		long b = lfloor(v);
+		double *row = win->pix + (ptrdiff_t)j * win->stride;
+		const double *c0, *c1;
+
+		b = b < 0 ? 0 : b > n - 2 ? n - 2 : b;
+		fy = v - b;
+		c0 = c + (size_t)b * n;
+		c1 = c0 + n;
+		for (long a = a0; a <= a1; a++)
+			rv[a] = c0[a] + fy * (c1[a] - c0[a]);
+		for (int i = 0; i < win->nx; i++)
+			row[i] += rv[ia[i]] + fx[i] * (rv[ia[i] + 1] - rv[ia[i]]);
+	}
+	return 0;
+}
+
+void far_free(struct point *p)
+{
+	for (int s = 0; s < 19; s++) {
+		free(p->far[s]);
+		p->far[s] = NULL;
+	}
+}

@@ -19,8 +19,9 @@
  * (halo.h) summed over the cell's pixels outside the faint class's box,
  * over the model's light outside the box.  Cells that meet the box, or lie
  * within FAR_EXACT cells, are summed pixel by pixel; nearer than 512 pixels
- * on a 4 x 4 lattice of sub-blocks, beyond on 2 x 2 (the wing is smooth
- * there on the scale of a cell, its spikes a few pixels wide apart).
+ * every other pixel, nearer than 1024 on 2 x 2 points, beyond at one
+ * (the wing is smooth there on the scale of a cell, its spikes a few
+ * pixels wide apart: see cell_sum).
  *
  * Spreading.  gather() convolves each SCA's grid with K once (the host's
  * FFT): the light in each cell.  spread() adds to each pixel the bilinear
@@ -162,26 +163,116 @@ static inline double wing_at(const struct halo *h, double dx, double dy, double 
 /* The sum of the wing over the s x s pixels of the cell (p, q) away from
  * a source at a cell's centre, on a k x k lattice of sub-blocks (k = s:
  * every pixel).  s is even, so a source at a cell's centre sits on a
- * pixel corner and its pixels are at half-integer offsets. */
+ * pixel corner and its pixels are at half-integer offsets.  A lattice
+ * coarser than 4 pixels is shifted within its sub-blocks by an amount that
+ * changes from cell to cell (the golden ratio's multiples), so that a
+ * diffraction spike, a few pixels wide, is not caught by every cell along
+ * it or by none: the cells' sums along a spike then hold its light on
+ * average. */
 static double cell_sum(const struct halo *h, int s, long p, long q, int k, double hb)
 {
-	double b = (double)s / k, sum = 0;
+	double b = (double)s / k, sum = 0, ox = 0.5, oy = 0.5;
 
+	if (b > 4) {
+		ox = fmod(0.5 + 0.6180339887 * (double)(p * 7 + q * 13), 1.0);
+		oy = fmod(0.5 + 0.7548776662 * (double)(p * 11 + q * 5), 1.0);
+		ox += ox < 0;
+		oy += oy < 0;
+	}
 	for (int j = 0; j < k; j++)
 		for (int i = 0; i < k; i++)
-			sum += wing_at(h, p * s - 0.5 * s + (i + 0.5) * b, q * s - 0.5 * s + (j + 0.5) * b, hb);
+			sum += wing_at(h, p * s - 0.5 * s + (i + ox) * b, q * s - 0.5 * s + (j + oy) * b, hb);
 	return sum * b * b;
+}
+
+/* The light per unit length along each spike of the tail, at unit
+ * distance: lam[k] for the spike of direction h->spk[k].  A spike's profile
+ * across is narrowed by rb / d and raised by d / rb (halo_tail), so its
+ * integral across at distance d is (2 pi / NT) d^(1 - alpha) times the sum
+ * of S over its bins. */
+static void spike_lambda(const struct halo *h, double *lam)
+{
+	int n = 0;
+
+	for (int k = 0; k < HALO_NT && n < h->nspk; k++) {
+		double sum = 0;
+
+		if (h->cen[k] != k)
+			continue;
+		for (int j = -HALO_SW; j <= HALO_SW; j++) {
+			int b = (k + j + HALO_NT) % HALO_NT;
+
+			if (h->cen[b] == k)
+				sum += h->S[b];
+		}
+		lam[n++] = sum * 2 * M_PI / HALO_NT;
+	}
+}
+
+/* The light of the tail's spikes in the rectangle [x0, x1] x [y0, y1]
+ * (wholly in the tail): each spike's ray clipped to it, and its light per
+ * unit length integrated along the piece.  A spike whose line leaves the
+ * rectangle's four corners on one side misses it. */
+static double spikes_in(const struct halo *h, const double *lam, double x0, double x1,
+			double y0, double y1)
+{
+	double sum = 0;
+
+	for (int k = 0; k < h->nspk; k++) {
+		double c = h->spk[k][0], sn = h->spk[k][1], lo = 0, hi = HUGE_VAL, a, b;
+		double e0 = c * y0 - sn * x0, e1 = c * y0 - sn * x1;
+		double e2 = c * y1 - sn * x0, e3 = c * y1 - sn * x1;
+
+		if ((e0 > 0 && e1 > 0 && e2 > 0 && e3 > 0) || (e0 < 0 && e1 < 0 && e2 < 0 && e3 < 0))
+			continue;
+		/* the ray l (c, sn), l > 0, within the slabs */
+		if (fabs(c) > 1e-12) {
+			a = x0 / c;
+			b = x1 / c;
+			if (a > b) {
+				double t = a;
+
+				a = b;
+				b = t;
+			}
+			lo = a > lo ? a : lo;
+			hi = b < hi ? b : hi;
+		} else if (x0 > 0 || x1 < 0)
+			continue;
+		if (fabs(sn) > 1e-12) {
+			a = y0 / sn;
+			b = y1 / sn;
+			if (a > b) {
+				double t = a;
+
+				a = b;
+				b = t;
+			}
+			lo = a > lo ? a : lo;
+			hi = b < hi ? b : hi;
+		} else if (y0 > 0 || y1 < 0)
+			continue;
+		if (hi > lo && lo > 0)
+			sum += lam[k] * (h->alpha == 3 ? 1 / lo - 1 / hi :
+					 (pow(lo, 2 - h->alpha) - pow(hi, 2 - h->alpha)) / (h->alpha - 2));
+	}
+	return sum;
 }
 
 /* The wing outside the box of half-width hb summed over each cell of a
  * kernel ((2n - 1)^2 cells, centre at (n - 1, n - 1)) into raw; returns
  * the model's light outside the box (its total less what it puts in the
- * box for a source on a pixel corner), or -1 after an error. */
+ * box for a source on a pixel corner), or -1 after an error.  Cells that
+ * meet the box or lie within FAR_EXACT cells of it are summed pixel by
+ * pixel, cells the halo's array reaches every other pixel; cells wholly in
+ * the tail take its baseline at their centre and its spikes' light along
+ * the piece of each spike in them (spikes_in), or with too many spikes to
+ * keep apart, 4 x 4 points. */
 static double far_kernel_box(struct point *p, const struct halo *h, double hb, double *raw)
 {
 	int s = p->far_cell, n = p->far_n, H = n - 1, kn = 2 * n - 1;
 	long near = (long)ceil(hb / s) + FAR_EXACT;
-	double inbox = 0, out;
+	double inbox = 0, out, lam[HALO_MAXSPK];
 
 	for (double dy = 0.5 - ceil(hb); dy < hb; dy++)
 		for (double dx = 0.5 - ceil(hb); dx < hb; dx++)
@@ -190,12 +281,25 @@ static double far_kernel_box(struct point *p, const struct halo *h, double hb, d
 	if (!(out > 0))
 		return p->host->error(p->host->ctx, "the halo holds no light outside a %g-pixel box",
 				      2 * hb);
+	spike_lambda(h, lam);
 	for (long q = -H; q <= H; q++)
 		for (long pp = -H; pp <= H; pp++) {
-			double d = s * sqrt((double)(pp * pp + q * q));
-			int k = labs(pp) <= near && labs(q) <= near ? s : d < 512 ? 4 : 2;
+			double x0 = (pp - 0.5) * s, y0 = (q - 0.5) * s, v;
+			double ax = fabs((double)pp * s) - 0.5 * s, ay = fabs((double)q * s) - 0.5 * s;
 
-			raw[(size_t)(q + H) * kn + pp + H] = cell_sum(h, s, pp, q, k < s ? k : s, hb);
+			ax = ax > 0 ? ax : 0;
+			ay = ay > 0 ? ay : 0;
+			if (labs(pp) <= near && labs(q) <= near)
+				v = cell_sum(h, s, pp, q, s, hb);
+			else if (ax * ax + ay * ay < (h->R + 1) * (h->R + 1))
+				v = cell_sum(h, s, pp, q, s / 2, hb);
+			else if (h->nspk < 0)
+				v = cell_sum(h, s, pp, q, 4, hb);
+			else {
+				v = s * s * halo_tail_base(h, pp * s, q * s) +
+				    spikes_in(h, lam, x0, x0 + s, y0, y0 + s);
+			}
+			raw[(size_t)(q + H) * kn + pp + H] = v;
 		}
 	return out;
 }

@@ -101,7 +101,8 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	struct wfs_source fs;
 	struct tally *t;
 	double r, half, c, cap, fl = src->flux, drawn = 0, left;
-	int faint;
+	struct zone box;
+	int faint, cut;
 
 	if (!(h = halo_of(p, src)) || (c = core_scale(p, src, h)) < 0)
 		return -1;
@@ -121,7 +122,11 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	 * no halo may have its box cut by psf-extent-cut, which puts the
 	 * light beyond the cut back into the box. */
 	faint = r <= cap && fl * halo_envelope(h, cap - 1) < 0.5 * p->extent_noise * p->sigma;
-	if (epsf_prepare(p, &fs, cap, faint, &drawn) < 0)
+	/* A box the SCA's edge crosses is not cut: the light put back would
+	 * land on the SCA where the whole box's would partly fall off it */
+	box = square(src->x, src->y, cap);
+	cut = faint && box.x0 >= 0 && box.y0 >= 0 && box.x1 <= SCA_SIDE && box.y1 <= SCA_SIDE;
+	if (epsf_prepare(p, &fs, cap, cut, &drawn) < 0)
 		return -1;
 	memcpy(src->aux, fs.aux, sizeof(src->aux));
 	half = fs.aux[0];

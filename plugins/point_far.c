@@ -209,54 +209,16 @@ static void spike_lambda(const struct halo *h, double *lam)
 	}
 }
 
-/* The light of the tail's spikes in the rectangle [x0, x1] x [y0, y1]
- * (wholly in the tail): each spike's ray clipped to it, and its light per
- * unit length integrated along the piece.  A spike whose line leaves the
- * rectangle's four corners on one side misses it. */
-static double spikes_in(const struct halo *h, const double *lam, double x0, double x1,
-			double y0, double y1)
+/* Whether the cell (p, q) away is wholly in the tail and summed there
+ * from the tail's parts (far_kernel_box). */
+static int tail_cell(const struct halo *h, int s, long near, long p, long q)
 {
-	double sum = 0;
+	double ax = fabs((double)p * s) - 0.5 * s, ay = fabs((double)q * s) - 0.5 * s;
 
-	for (int k = 0; k < h->nspk; k++) {
-		double c = h->spk[k][0], sn = h->spk[k][1], lo = 0, hi = HUGE_VAL, a, b;
-		double e0 = c * y0 - sn * x0, e1 = c * y0 - sn * x1;
-		double e2 = c * y1 - sn * x0, e3 = c * y1 - sn * x1;
-
-		if ((e0 > 0 && e1 > 0 && e2 > 0 && e3 > 0) || (e0 < 0 && e1 < 0 && e2 < 0 && e3 < 0))
-			continue;
-		/* the ray l (c, sn), l > 0, within the slabs */
-		if (fabs(c) > 1e-12) {
-			a = x0 / c;
-			b = x1 / c;
-			if (a > b) {
-				double t = a;
-
-				a = b;
-				b = t;
-			}
-			lo = a > lo ? a : lo;
-			hi = b < hi ? b : hi;
-		} else if (x0 > 0 || x1 < 0)
-			continue;
-		if (fabs(sn) > 1e-12) {
-			a = y0 / sn;
-			b = y1 / sn;
-			if (a > b) {
-				double t = a;
-
-				a = b;
-				b = t;
-			}
-			lo = a > lo ? a : lo;
-			hi = b < hi ? b : hi;
-		} else if (y0 > 0 || y1 < 0)
-			continue;
-		if (hi > lo && lo > 0)
-			sum += lam[k] * (h->alpha == 3 ? 1 / lo - 1 / hi :
-					 (pow(lo, 2 - h->alpha) - pow(hi, 2 - h->alpha)) / (h->alpha - 2));
-	}
-	return sum;
+	ax = ax > 0 ? ax : 0;
+	ay = ay > 0 ? ay : 0;
+	return h->nspk >= 0 && !(labs(p) <= near && labs(q) <= near) &&
+	       ax * ax + ay * ay >= (h->R + 1) * (h->R + 1);
 }
 
 /* The wing outside the box of half-width hb summed over each cell of a
@@ -264,15 +226,18 @@ static double spikes_in(const struct halo *h, const double *lam, double x0, doub
  * the model's light outside the box (its total less what it puts in the
  * box for a source on a pixel corner), or -1 after an error.  Cells that
  * meet the box or lie within FAR_EXACT cells of it are summed pixel by
- * pixel, cells the halo's array reaches every other pixel; cells wholly in
- * the tail take its baseline at their centre and its spikes' light along
- * the piece of each spike in them (spikes_in), or with too many spikes to
- * keep apart, 4 x 4 points. */
+ * pixel, cells the halo's array reaches every other pixel (with too many
+ * spikes to keep apart, the rest on 4 x 4 points).  A cell wholly in the
+ * tail takes the tail's baseline at its centre, and the light of the
+ * spikes that cross it: each spike's ray is followed a pixel at a time,
+ * the light of each step (per unit length the integral of the tail's
+ * spike part across, spike_lambda, times d^(1 - alpha)) going to the
+ * cell its middle lies in. */
 static double far_kernel_box(struct point *p, const struct halo *h, double hb, double *raw)
 {
 	int s = p->far_cell, n = p->far_n, H = n - 1, kn = 2 * n - 1;
 	long near = (long)ceil(hb / s) + FAR_EXACT;
-	double inbox = 0, out, lam[HALO_MAXSPK];
+	double inbox = 0, out, lam[HALO_MAXSPK], lmax = (H + 1) * s * M_SQRT2;
 
 	for (double dy = 0.5 - ceil(hb); dy < hb; dy++)
 		for (double dx = 0.5 - ceil(hb); dx < hb; dx++)
@@ -281,11 +246,9 @@ static double far_kernel_box(struct point *p, const struct halo *h, double hb, d
 	if (!(out > 0))
 		return p->host->error(p->host->ctx, "the halo holds no light outside a %g-pixel box",
 				      2 * hb);
-	spike_lambda(h, lam);
 	for (long q = -H; q <= H; q++)
 		for (long pp = -H; pp <= H; pp++) {
-			double x0 = (pp - 0.5) * s, y0 = (q - 0.5) * s, v;
-			double ax = fabs((double)pp * s) - 0.5 * s, ay = fabs((double)q * s) - 0.5 * s;
+			double ax = fabs((double)pp * s) - 0.5 * s, ay = fabs((double)q * s) - 0.5 * s, v;
 
 			ax = ax > 0 ? ax : 0;
 			ay = ay > 0 ? ay : 0;
@@ -295,11 +258,23 @@ static double far_kernel_box(struct point *p, const struct halo *h, double hb, d
 				v = cell_sum(h, s, pp, q, s / 2, hb);
 			else if (h->nspk < 0)
 				v = cell_sum(h, s, pp, q, 4, hb);
-			else {
-				v = s * s * halo_tail_base(h, pp * s, q * s) +
-				    spikes_in(h, lam, x0, x0 + s, y0, y0 + s);
-			}
+			else
+				v = s * s * halo_tail_base(h, pp * s, q * s);
 			raw[(size_t)(q + H) * kn + pp + H] = v;
+		}
+	if (h->nspk <= 0)
+		return out;
+	spike_lambda(h, lam);
+	for (int k = 0; k < h->nspk; k++)
+		for (double l = floor(h->R); l < lmax; l++) {
+			double m = l + 0.5, x = h->spk[k][0] * m, y = h->spk[k][1] * m;
+			long pp = lround(x / s), q = lround(y / s);
+
+			if (labs(pp) > H || labs(q) > H || !tail_cell(h, s, near, pp, q))
+				continue;
+			raw[(size_t)(q + H) * kn + pp + H] +=
+				lam[k] * (h->alpha == 3 ? 1 / l - 1 / (l + 1) :
+					  (pow(l, 2 - h->alpha) - pow(l + 1, 2 - h->alpha)) / (h->alpha - 2));
 		}
 	return out;
 }
@@ -477,16 +452,17 @@ int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
 	const double *c = p->far[sca];
 	int n = p->far_n;
 	long *ia;
-	double *fx, *rv;
+	double *fx, *rv, *tmp;
 	long a0, a1;
 
 	if (!c)
 		return 0;
-	if (!(ia = p->host->scratch(thread, (size_t)win->nx * (sizeof(long) + sizeof(double)) +
+	if (!(ia = p->host->scratch(thread, (size_t)win->nx * (sizeof(long) + 2 * sizeof(double)) +
 				    (size_t)n * sizeof(double))))
 		return p->host->error(p->host->ctx, "out of scratch memory");
 	fx = (double *)(ia + win->nx);
-	rv = fx + win->nx;
+	tmp = fx + win->nx;
+	rv = tmp + win->nx;
 	for (int i = 0; i < win->nx; i++) {
 		double u = far_u(p, win->x0 + i);
 		long a = lfloor(u);
@@ -509,8 +485,21 @@ int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
 		c1 = c0 + n;
 		for (long a = a0; a <= a1; a++)
 			rv[a] = c0[a] + fy * (c1[a] - c0[a]);
+		/* a run of pixels between two cells' centres at a time, so
+		 * that the loops vectorise */
+		for (int i = 0; i < win->nx;) {
+			long a = ia[i];
+			double r0 = rv[a], dr = rv[a + 1] - rv[a];
+			int e = i;
+
+			while (e < win->nx && ia[e] == a)
+				e++;
+			for (int k = i; k < e; k++)
+				tmp[k] = r0 + fx[k] * dr;
+			i = e;
+		}
 		for (int i = 0; i < win->nx; i++)
-			row[i] += rv[ia[i]] + fx[i] * (rv[ia[i] + 1] - rv[ia[i]]);
+			row[i] += tmp[i];
 	}
 	return 0;
 }

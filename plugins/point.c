@@ -128,7 +128,7 @@ static const struct wfs_setting point_settings[] = {
 	{ "psf-diffuse", "grid", "grid|none",
 	  "psf-extent=noise: the light a source's drawing leaves out, spread on a coarse grid "
 	  "per SCA so every star keeps the halo's total, or left out" },
-	{ "psf-diffuse-cell", "32", "8, 16, 32, 64 or 128",
+	{ "psf-diffuse-cell", "16", "8, 16, 32, 64 or 128",
 	  "psf-diffuse=grid: side of a grid cell, pixels" },
 };
 #define NSETTINGS ((int)(sizeof(point_settings) / sizeof(point_settings[0])))
@@ -254,7 +254,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	static const char *const far[] = { "spikes", "disc" };
 	static const char *const diffuse[] = { "grid", "none" };
 	struct point *p = calloc(1, sizeof(*p));
-	double cell = 0, dcell = 32;
+	double cell = 0, dcell = 16;
 
 	if (!p)
 		return host->error(host->ctx, "out of memory");

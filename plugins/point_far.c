@@ -51,14 +51,59 @@
 #define FAR_MARGIN 96                   /* pixels of grid beyond each SCA edge */
 #define FAR_STEPS 4                     /* halo radii per octave */
 #define FAR_R0 22.0                     /* the ladder's first radius */
+#define FAR_COARSE 4                    /* coarse cells a side, in fine ones */
+#define FAR_NEAR 8                      /* coarse cells the fine kernel reaches */
 
-/* The grid: n x n cells of side s, cell a's pixels [org + a s, org + (a + 1) s). */
+/* The fine grid: n x n cells of side s, cell a's pixels [org + a s,
+ * org + (a + 1) s); the coarse one, cells of FAR_COARSE s, over the same
+ * pixels.  The fine kernel reaches FAR_NEAR coarse cells, the coarse one
+ * the rest (far_level). */
 void far_geometry(struct point *p)
 {
-	int s = p->far_cell, m = s * ((FAR_MARGIN + s - 1) / s);
+	int s = p->far_cell, m = s * FAR_COARSE * ((FAR_MARGIN + s * FAR_COARSE - 1) /
+						   (s * FAR_COARSE));
 
 	p->far_org = -m;
-	p->far_n = (SCA_SIDE + 2 * m + s - 1) / s;
+	p->far_n = (SCA_SIDE + 2 * m + s * FAR_COARSE - 1) / (s * FAR_COARSE) * FAR_COARSE;
+}
+
+/* One level of the grid: cells of side s from pixel org, n a side; its
+ * kernel (2 H + 1)^2 cells; the square its kernel leaves to the level
+ * below, |dx|, |dy| < hole (the box for the fine level, the fine
+ * kernel's reach for the coarse one); exact, the rings of cells about the
+ * hole summed pixel by pixel (every other pixel on the coarse level). */
+struct level {
+	int s, n, H, exact, step;
+	long org;
+	double hole;
+};
+
+static void far_level(const struct point *p, int coarse, double box, struct level *l)
+{
+	int s = p->far_cell, hn = FAR_NEAR * FAR_COARSE;
+
+	l->org = p->far_org;
+	if (!coarse) {
+		l->s = s;
+		l->n = p->far_n;
+		l->H = hn;
+		l->hole = box;
+		l->exact = FAR_EXACT;
+		l->step = 1;
+	} else {
+		l->s = s * FAR_COARSE;
+		l->n = p->far_n / FAR_COARSE;
+		l->H = l->n - 1;
+		l->hole = (hn + 0.5) * s;
+		l->exact = 1;
+		l->step = 2;
+	}
+}
+
+/* Cell coordinate of pixel position x on level l: cell a's centre is at a. */
+static inline double level_u(const struct level *l, double x)
+{
+	return (x - l->org - 0.5 * (l->s - 1)) / l->s;
 }
 
 /* Cell coordinate of pixel position x: cell a's centre is at a. */
@@ -209,11 +254,11 @@ static void spike_lambda(const struct halo *h, double *lam)
 	}
 }
 
-/* Whether the cell (p, q) away is wholly in the tail and summed there
- * from the tail's parts (far_kernel_box). */
-static int tail_cell(const struct halo *h, int s, long near, long p, long q)
+/* Whether the cell (p, q) away on level l is wholly in the tail and
+ * summed there from the tail's parts (level_kernel). */
+static int tail_cell(const struct halo *h, const struct level *l, long near, long p, long q)
 {
-	double ax = fabs((double)p * s) - 0.5 * s, ay = fabs((double)q * s) - 0.5 * s;
+	double ax = fabs((double)p * l->s) - 0.5 * l->s, ay = fabs((double)q * l->s) - 0.5 * l->s;
 
 	ax = ax > 0 ? ax : 0;
 	ay = ay > 0 ? ay : 0;
@@ -221,31 +266,36 @@ static int tail_cell(const struct halo *h, int s, long near, long p, long q)
 	       ax * ax + ay * ay >= (h->R + 1) * (h->R + 1);
 }
 
-/* The wing outside the box of half-width hb summed over each cell of a
- * kernel ((2n - 1)^2 cells, centre at (n - 1, n - 1)) into raw; returns
- * the model's light outside the box (its total less what it puts in the
- * box for a source on a pixel corner), or -1 after an error.  Cells that
- * meet the box or lie within FAR_EXACT cells of it are summed pixel by
- * pixel, cells the halo's array reaches every other pixel (with too many
- * spikes to keep apart, the rest on 4 x 4 points).  A cell wholly in the
- * tail takes the tail's baseline at its centre, and the light of the
- * spikes that cross it: each spike's ray is followed a pixel at a time,
- * the light of each step (per unit length the integral of the tail's
- * spike part across, spike_lambda, times d^(1 - alpha)) going to the
- * cell its middle lies in. */
-static double far_kernel_box(struct point *p, const struct halo *h, double hb, double *raw)
+/* The model's light outside the box of half-width hb: its total less what
+ * it puts in the box for a source on a pixel corner. */
+static double light_outside(const struct halo *h, double hb)
 {
-	int s = p->far_cell, n = p->far_n, H = n - 1, kn = 2 * n - 1;
-	long near = (long)ceil(hb / s) + FAR_EXACT;
-	double inbox = 0, out, lam[HALO_MAXSPK], lmax = (H + 1) * s * M_SQRT2;
+	double inbox = 0;
 
 	for (double dy = 0.5 - ceil(hb); dy < hb; dy++)
 		for (double dx = 0.5 - ceil(hb); dx < hb; dx++)
 			inbox += halo_value(h, dx, dy);
-	out = h->total - inbox;
-	if (!(out > 0))
-		return p->host->error(p->host->ctx, "the halo holds no light outside a %g-pixel box",
-				      2 * hb);
+	return h->total - inbox;
+}
+
+/*
+ * Level l's kernel: the wing outside its hole summed over each of its
+ * cells, into raw ((2 H + 1)^2, centre at (H, H)).  Cells that meet the
+ * hole or lie within l->exact rings of it are summed pixel by pixel (every
+ * l->step pixels), cells the halo's array reaches every other pixel (with
+ * too many spikes to keep apart, the rest on 4 x 4 points).  A cell wholly
+ * in the tail takes the tail's baseline at its centre, and the light of
+ * the spikes that cross it: each spike's ray is followed a pixel at a
+ * time, the light of each step (per unit length the integral of the
+ * tail's spike part across, spike_lambda, times d^(1 - alpha)) going to
+ * the cell its middle lies in.
+ */
+static void level_kernel(const struct halo *h, const struct level *l, double *raw)
+{
+	int s = l->s, H = l->H, kn = 2 * H + 1;
+	long near = (long)ceil(l->hole / s) + l->exact;
+	double lam[HALO_MAXSPK], lmax = (H + 1) * s * M_SQRT2;
+
 	for (long q = -H; q <= H; q++)
 		for (long pp = -H; pp <= H; pp++) {
 			double ax = fabs((double)pp * s) - 0.5 * s, ay = fabs((double)q * s) - 0.5 * s, v;
@@ -253,57 +303,62 @@ static double far_kernel_box(struct point *p, const struct halo *h, double hb, d
 			ax = ax > 0 ? ax : 0;
 			ay = ay > 0 ? ay : 0;
 			if (labs(pp) <= near && labs(q) <= near)
-				v = cell_sum(h, s, pp, q, s, hb);
+				v = cell_sum(h, s, pp, q, s / l->step, l->hole);
 			else if (ax * ax + ay * ay < (h->R + 1) * (h->R + 1))
-				v = cell_sum(h, s, pp, q, s / 2, hb);
+				v = cell_sum(h, s, pp, q, s / 2, l->hole);
 			else if (h->nspk < 0)
-				v = cell_sum(h, s, pp, q, 4, hb);
+				v = cell_sum(h, s, pp, q, 4, l->hole);
 			else
-				v = s * s * halo_tail_base(h, pp * s, q * s);
+				v = (double)s * s * halo_tail_base(h, pp * s, q * s);
 			raw[(size_t)(q + H) * kn + pp + H] = v;
 		}
 	if (h->nspk <= 0)
-		return out;
+		return;
 	spike_lambda(h, lam);
 	for (int k = 0; k < h->nspk; k++)
-		for (double l = floor(h->R); l < lmax; l++) {
-			double m = l + 0.5, x = h->spk[k][0] * m, y = h->spk[k][1] * m;
+		for (double d = floor(h->R); d < lmax; d++) {
+			double m = d + 0.5, x = h->spk[k][0] * m, y = h->spk[k][1] * m;
 			long pp = lround(x / s), q = lround(y / s);
 
-			if (labs(pp) > H || labs(q) > H || !tail_cell(h, s, near, pp, q))
+			if (labs(pp) > H || labs(q) > H || !tail_cell(h, l, near, pp, q))
 				continue;
 			raw[(size_t)(q + H) * kn + pp + H] +=
-				lam[k] * (h->alpha == 3 ? 1 / l - 1 / (l + 1) :
-					  (pow(l, 2 - h->alpha) - pow(l + 1, 2 - h->alpha)) / (h->alpha - 2));
+				lam[k] * (h->alpha == 3 ? 1 / d - 1 / (d + 1) :
+					  (pow(d, 2 - h->alpha) - pow(d + 1, 2 - h->alpha)) / (h->alpha - 2));
 		}
-	return out;
 }
 
-/* K of the wing beyond radius r (and outside the box) into kern,
- * normalised to the model's light there, from the box's raw sums: a cell
- * wholly beyond r keeps its sum, one wholly within is nought, one that r
- * crosses is summed pixel by pixel.  Returns 0, or -1 after an error. */
-static int far_kernel_disc(struct point *p, const struct halo *h, double hb, double outbox,
-			   double r, const double *raw, double *kern)
+/* The model's light beyond radius r and outside the box of half-width
+ * hb, given outbox, its light outside the box. */
+static double light_beyond(const struct halo *h, double hb, double outbox, double r)
 {
-	int s = p->far_cell, n = p->far_n, H = n - 1, kn = 2 * n - 1;
-	double out, r2 = r * r;
+	double in = 0, r2 = r * r;
+	long m = (long)ceil(r);
 
 	if (r >= h->R)
-		out = h->atot * pow(r, 2 - h->alpha) / (h->alpha - 2);
-	else {
-		/* the box's light less what lies outside the box within r */
-		double in = 0;
-		long m = (long)ceil(r);
+		return h->atot * pow(r, 2 - h->alpha) / (h->alpha - 2);
+	for (double dy = 0.5 - m; dy < m; dy++)
+		for (double dx = 0.5 - m; dx < m; dx++)
+			if (dx * dx + dy * dy <= r2)
+				in += wing_at(h, dx, dy, hb);
+	return outbox - in;
+}
 
-		for (double dy = 0.5 - m; dy < m; dy++)
-			for (double dx = 0.5 - m; dx < m; dx++)
-				if (dx * dx + dy * dy <= r2)
-					in += wing_at(h, dx, dy, hb);
-		out = outbox - in;
+/* Level l's kernel of the wing beyond radius r (r = 0: all of it) from its
+ * raw sums into kern, over out: a cell wholly beyond r keeps its sum, one
+ * wholly within is nought, one that r crosses is summed pixel by pixel
+ * (every l->step pixels). */
+static void level_disc(const struct halo *h, const struct level *l, double r, double out,
+		       const double *raw, double *kern)
+{
+	int s = l->s, H = l->H, kn = 2 * H + 1, st = l->step;
+	double r2 = r * r;
+
+	if (r <= 0) {
+		for (size_t c = 0; c < (size_t)kn * kn; c++)
+			kern[c] = raw[c] / out;
+		return;
 	}
-	if (!(out > 0))
-		return p->host->error(p->host->ctx, "the halo holds no light beyond %g pixels", r);
 	for (long q = -H; q <= H; q++)
 		for (long pp = -H; pp <= H; pp++) {
 			/* the cell's nearest and farthest points */
@@ -319,18 +374,18 @@ static int far_kernel_disc(struct point *p, const struct halo *h, double hb, dou
 				v = 0;
 			else {
 				v = 0;
-				for (int j = 0; j < s; j++)
-					for (int i = 0; i < s; i++) {
-						double dx = pp * s - 0.5 * s + i + 0.5;
-						double dy = q * s - 0.5 * s + j + 0.5;
+				for (int j = 0; j < s; j += st)
+					for (int i = 0; i < s; i += st) {
+						double dx = pp * s - 0.5 * s + i + 0.5 * st;
+						double dy = q * s - 0.5 * s + j + 0.5 * st;
 
 						if (dx * dx + dy * dy > r2)
-							v += wing_at(h, dx, dy, hb);
+							v += wing_at(h, dx, dy, l->hole);
 					}
+				v *= st * st;
 			}
 			kern[c] = v / out;
 		}
-	return 0;
 }
 
 static int dep_cmp(const void *a, const void *b)
@@ -361,16 +416,89 @@ static struct far_dep *deposits_of(struct point *p, int sca, size_t *nd)
 	return d;
 }
 
+/* What gather() works with: the two levels, their raw kernels, the
+ * kernel being convolved, the fine grid's light and the coarse one's. */
+struct work {
+	struct level l[2];
+	double *raw[2], *kern, *g, *gc;
+	double hb, outbox;
+};
+
+/* The light of the fine grid g (light per cell) spread with the wing
+ * beyond r (0: outside the box) over out, added to c: the fine level's
+ * kernel, and the coarse level's on g's cells moved to the coarse grid
+ * with bilinear weights, interpolated back to the fine cells' centres. */
+static int level_spread(struct point *p, void *thread, const struct halo *h, struct work *w,
+			double r, double out, double *c)
+{
+	const struct level *f = &w->l[0], *k = &w->l[1];
+	int n = f->n, m = k->n, kf = 2 * f->H + 1, kc = 2 * k->H + 1;
+	size_t nc = (size_t)n * n;
+	double *t = w->g + nc;  /* the fine grid's copy, convolved */
+
+	memcpy(t, w->g, nc * sizeof(double));
+	level_disc(h, f, r, out, w->raw[0], w->kern);
+	if (p->host->convolve(p->host->ctx, thread, t, n, n, w->kern, kf) < 0)
+		return -1;
+	for (size_t i = 0; i < nc; i++)
+		c[i] += t[i];
+	memset(w->gc, 0, (size_t)m * m * 2 * sizeof(double));
+	for (int b = 0; b < n; b++)
+		for (int a = 0; a < n; a++) {
+			double v = w->g[(size_t)b * n + a], u, z, fu, fz;
+			long ia, ib;
+
+			if (v == 0)
+				continue;
+			u = level_u(k, f->org + a * f->s + 0.5 * (f->s - 1));
+			z = level_u(k, f->org + b * f->s + 0.5 * (f->s - 1));
+			ia = lfloor(u);
+			ib = lfloor(z);
+			ia = ia < 0 ? 0 : ia > m - 2 ? m - 2 : ia;
+			ib = ib < 0 ? 0 : ib > m - 2 ? m - 2 : ib;
+			fu = u - ia;
+			fz = z - ib;
+			w->gc[(size_t)ib * m + ia] += v * (1 - fu) * (1 - fz);
+			w->gc[(size_t)ib * m + ia + 1] += v * fu * (1 - fz);
+			w->gc[(size_t)(ib + 1) * m + ia] += v * (1 - fu) * fz;
+			w->gc[(size_t)(ib + 1) * m + ia + 1] += v * fu * fz;
+		}
+	level_disc(h, k, r, out, w->raw[1], w->kern);
+	if (p->host->convolve(p->host->ctx, thread, w->gc, m, m, w->kern, kc) < 0)
+		return -1;
+	/* the coarse cells' light per fine cell, at the fine cells' centres */
+	for (int b = 0; b < n; b++) {
+		double z = level_u(k, f->org + b * f->s + 0.5 * (f->s - 1)), fz;
+		long ib = lfloor(z);
+
+		ib = ib < 0 ? 0 : ib > m - 2 ? m - 2 : ib;
+		fz = z - ib;
+		for (int a = 0; a < n; a++) {
+			double u = level_u(k, f->org + a * f->s + 0.5 * (f->s - 1)), fu;
+			long ia = lfloor(u);
+			const double *g0;
+
+			ia = ia < 0 ? 0 : ia > m - 2 ? m - 2 : ia;
+			fu = u - ia;
+			g0 = w->gc + (size_t)ib * m + ia;
+			c[(size_t)b * n + a] += ((1 - fz) * ((1 - fu) * g0[0] + fu * g0[1]) +
+						 fz * ((1 - fu) * g0[m] + fu * g0[m + 1])) /
+						(FAR_COARSE * FAR_COARSE);
+		}
+	}
+	return 0;
+}
+
 int far_gather(void *state, void *thread, int sca)
 {
 	struct point *p = state;
-	int n = p->far_n, kn = 2 * n - 1, dense = 0, rc = -1;
+	int n = p->far_n, dense = 0, rc = -1;
 	size_t nc = (size_t)n * n, nd = 0;
 	int64_t *hi = NULL, *lo;
-	double *c = NULL, *g = NULL, *raw = NULL, *kern = NULL, outbox;
-	double hb = p->chalf[sca][WFS_PSF_NORMAL] > 0 ? p->chalf[sca][WFS_PSF_NORMAL] : 21;
+	double *c = NULL;
 	struct far_dep *dep = NULL;
 	const struct halo *h = &p->halo[sca];
+	struct work w = { 0 };
 
 	if (p->diffuse != DIFFUSE_GRID || !atomic_load(&p->halo_ready[sca]))
 		return 0;
@@ -381,17 +509,33 @@ int far_gather(void *state, void *thread, int sca)
 			nd += t->dep[i].sca == sca;
 	if (!dense && !nd)
 		return 0;
-	if (!(hi = calloc(2 * nc, sizeof(int64_t))) || !(c = calloc(nc, sizeof(double))) ||
-	    !(g = malloc(nc * sizeof(double))) ||
-	    !(raw = malloc((size_t)kn * kn * sizeof(double))) ||
-	    !(kern = malloc((size_t)kn * kn * sizeof(double))) ||
-	    (nd && !(dep = deposits_of(p, sca, &nd)))) {
-		p->host->error(p->host->ctx, "out of memory for the diffuse light");
-		goto out;
+	w.hb = p->chalf[sca][WFS_PSF_NORMAL] > 0 ? p->chalf[sca][WFS_PSF_NORMAL] : 21;
+	far_level(p, 0, w.hb, &w.l[0]);
+	far_level(p, 1, w.hb, &w.l[1]);
+	{
+		size_t k0 = (size_t)(2 * w.l[0].H + 1) * (2 * w.l[0].H + 1);
+		size_t k1 = (size_t)(2 * w.l[1].H + 1) * (2 * w.l[1].H + 1);
+		size_t m2 = (size_t)w.l[1].n * w.l[1].n;
+
+		if (!(hi = calloc(2 * nc, sizeof(int64_t))) || !(c = calloc(nc, sizeof(double))) ||
+		    !(w.g = malloc(2 * nc * sizeof(double))) ||
+		    !(w.gc = malloc(2 * m2 * sizeof(double))) ||
+		    !(w.raw[0] = malloc(k0 * sizeof(double))) ||
+		    !(w.raw[1] = malloc(k1 * sizeof(double))) ||
+		    !(w.kern = malloc((k0 > k1 ? k0 : k1) * sizeof(double))) ||
+		    (nd && !(dep = deposits_of(p, sca, &nd)))) {
+			p->host->error(p->host->ctx, "out of memory for the diffuse light");
+			goto out;
+		}
 	}
 	lo = hi + nc;
-	if ((outbox = far_kernel_box(p, h, hb, raw)) < 0)
+	if (!((w.outbox = light_outside(h, w.hb)) > 0)) {
+		p->host->error(p->host->ctx, "the halo holds no light outside a %g-pixel box",
+			       2 * w.hb);
 		goto out;
+	}
+	level_kernel(h, &w.l[0], w.raw[0]);
+	level_kernel(h, &w.l[1], w.raw[1]);
 	/* the faint sources' grid: integer sums, the same in any order */
 	if (dense) {
 		for (struct tally *t = p->tallies; t; t = t->next)
@@ -401,33 +545,32 @@ int far_gather(void *state, void *thread, int sca)
 					lo[i] += t->lo[sca][i];
 				}
 		for (size_t i = 0; i < nc; i++)
-			c[i] = (double)hi[i] * FAR_HI + (double)lo[i] * FAR_LO;
-		for (size_t i = 0; i < (size_t)kn * kn; i++)
-			kern[i] = raw[i] / outbox;
-		if (p->host->convolve(p->host->ctx, thread, c, n, n, kern, kn) < 0)
+			w.g[i] = (double)hi[i] * FAR_HI + (double)lo[i] * FAR_LO;
+		if (level_spread(p, thread, h, &w, 0, w.outbox, c) < 0)
 			goto out;
 	}
 	/* each radius's grid, in order of radius */
 	for (size_t i = 0; i < nd;) {
 		size_t j = i;
-		double r = dep[i].r;
+		double r = dep[i].r, out;
 
 		memset(hi, 0, 2 * nc * sizeof(int64_t));
 		for (; j < nd && dep[j].r == r; j++) {
 			size_t cc[4];
-			double w[4];
+			double wt[4];
 
-			far_cic(p, dep[j].x, dep[j].y, cc, w);
+			far_cic(p, dep[j].x, dep[j].y, cc, wt);
 			for (int k = 0; k < 4; k++)
-				far_add(hi, lo, cc[k], dep[j].light * w[k]);
+				far_add(hi, lo, cc[k], dep[j].light * wt[k]);
 		}
 		for (size_t k = 0; k < nc; k++)
-			g[k] = (double)hi[k] * FAR_HI + (double)lo[k] * FAR_LO;
-		if (far_kernel_disc(p, h, hb, outbox, r, raw, kern) < 0 ||
-		    p->host->convolve(p->host->ctx, thread, g, n, n, kern, kn) < 0)
+			w.g[k] = (double)hi[k] * FAR_HI + (double)lo[k] * FAR_LO;
+		if (!((out = light_beyond(h, w.hb, w.outbox, r)) > 0)) {
+			p->host->error(p->host->ctx, "the halo holds no light beyond %g pixels", r);
 			goto out;
-		for (size_t k = 0; k < nc; k++)
-			c[k] += g[k];
+		}
+		if (level_spread(p, thread, h, &w, r, out, c) < 0)
+			goto out;
 		i = j;
 	}
 	/* light per pixel at the cells' centres */
@@ -439,9 +582,11 @@ int far_gather(void *state, void *thread, int sca)
 out:
 	free(hi);
 	free(c);
-	free(g);
-	free(raw);
-	free(kern);
+	free(w.g);
+	free(w.gc);
+	free(w.raw[0]);
+	free(w.raw[1]);
+	free(w.kern);
 	free(dep);
 	return rc;
 }

@@ -344,7 +344,7 @@ static void point_fini(void *state)
 		all.npoint += t->npoint;
 		all.spread += t->spread;
 		for (int s = 0; s < 19; s++)
-			free(t->hi[s]);
+			free(t->cnt[s]);
 		free(t->dep);
 		free(t);
 	}

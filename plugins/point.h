@@ -182,7 +182,7 @@ struct tally {
 	long long nhalo, npoint;
 	/* psf-diffuse=grid: per SCA, the thread's grid of light left out,
 	 * in two integer counters per cell (point_far.c); NULL until used */
-	int64_t *hi[19], *lo[19];
+	int64_t *cnt[19];
 	/* and the light beyond the radii of sources with a halo, each
 	 * spread with the wing beyond its own radius (far_deposit) */
 	struct far_dep *dep;

@@ -11,8 +11,8 @@
  * integers, so that their sum does not depend on the order the sources
  * were prepared in nor on the threads: a deposit v is split into a whole
  * number of FAR_HI counts/s and a remainder in units of FAR_LO, summed in
- * separate 64-bit counters (exact; no carry is needed since each counter
- * only grows by its own part).
+ * two 64-bit counters (exact; no carry is needed since each counter only
+ * grows by its own part).
  *
  * The wing's shape.  K(p, q), the share of unit light that a source at
  * the centre of a cell sends into the cell (p, q) away: the halo model
@@ -123,13 +123,21 @@ double far_radius(const struct point *p, double r)
 	return q < p->extent_max ? q : p->extent_max > r ? p->extent_max : r;
 }
 
-/* v counts/s into cell c of the counters hi and lo */
-static inline void far_add(int64_t *hi, int64_t *lo, size_t c, double v)
+/* v counts/s (>= 0) into cell c of the counters: cnt[2 c] its whole
+ * units of FAR_HI, cnt[2 c + 1] its remainder's of FAR_LO, side by side so
+ * that a deposit touches one cache line per cell */
+static inline void far_add(int64_t *cnt, size_t c, double v)
 {
 	double h = floor(v / FAR_HI);
 
-	hi[c] += (int64_t)h;
-	lo[c] += (int64_t)llround((v - h * FAR_HI) / FAR_LO);
+	cnt[2 * c] += (int64_t)h;
+	cnt[2 * c + 1] += (int64_t)((v - h * FAR_HI) / FAR_LO + 0.5);
+}
+
+/* The light of cell c of the counters cnt. */
+static inline double far_light(const int64_t *cnt, size_t c)
+{
+	return (double)cnt[2 * c] * FAR_HI + (double)cnt[2 * c + 1] * FAR_LO;
 }
 
 /* The four cells about (x, y) and their bilinear weights. */
@@ -185,14 +193,11 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 		t->dep[t->ndep++] = (struct far_dep){ sca, r, src->x, src->y, light };
 		return 0;
 	}
-	if (!t->hi[sca]) {
-		if (!(t->hi[sca] = calloc((size_t)2 * n * n, sizeof(int64_t))))
-			return p->host->error(p->host->ctx, "out of memory");
-		t->lo[sca] = t->hi[sca] + (size_t)n * n;
-	}
+	if (!t->cnt[sca] && !(t->cnt[sca] = calloc((size_t)2 * n * n, sizeof(int64_t))))
+		return p->host->error(p->host->ctx, "out of memory");
 	far_cic(p, src->x, src->y, c, w);
 	for (int k = 0; k < 4; k++)
-		far_add(t->hi[sca], t->lo[sca], c[k], light * w[k]);
+		far_add(t->cnt[sca], c[k], light * w[k]);
 	return 0;
 }
 
@@ -494,7 +499,7 @@ int far_gather(void *state, void *thread, int sca)
 	struct point *p = state;
 	int n = p->far_n, dense = 0, rc = -1;
 	size_t nc = (size_t)n * n, nd = 0;
-	int64_t *hi = NULL, *lo;
+	int64_t *cnt = NULL;
 	double *c = NULL;
 	struct far_dep *dep = NULL;
 	const struct halo *h = &p->halo[sca];
@@ -503,7 +508,7 @@ int far_gather(void *state, void *thread, int sca)
 	if (p->diffuse != DIFFUSE_GRID || !atomic_load(&p->halo_ready[sca]))
 		return 0;
 	for (struct tally *t = p->tallies; t; t = t->next)
-		dense |= t->hi[sca] != NULL;
+		dense |= t->cnt[sca] != NULL;
 	for (struct tally *t = p->tallies; t; t = t->next)
 		for (size_t i = 0; i < t->ndep; i++)
 			nd += t->dep[i].sca == sca;
@@ -517,7 +522,7 @@ int far_gather(void *state, void *thread, int sca)
 		size_t k1 = (size_t)(2 * w.l[1].H + 1) * (2 * w.l[1].H + 1);
 		size_t m2 = (size_t)w.l[1].n * w.l[1].n;
 
-		if (!(hi = calloc(2 * nc, sizeof(int64_t))) || !(c = calloc(nc, sizeof(double))) ||
+		if (!(cnt = calloc(2 * nc, sizeof(int64_t))) || !(c = calloc(nc, sizeof(double))) ||
 		    !(w.g = malloc(2 * nc * sizeof(double))) ||
 		    !(w.gc = malloc(2 * m2 * sizeof(double))) ||
 		    !(w.raw[0] = malloc(k0 * sizeof(double))) ||
@@ -528,7 +533,6 @@ int far_gather(void *state, void *thread, int sca)
 			goto out;
 		}
 	}
-	lo = hi + nc;
 	if (!((w.outbox = light_outside(h, w.hb)) > 0)) {
 		p->host->error(p->host->ctx, "the halo holds no light outside a %g-pixel box",
 			       2 * w.hb);
@@ -539,13 +543,11 @@ int far_gather(void *state, void *thread, int sca)
 	/* the faint sources' grid: integer sums, the same in any order */
 	if (dense) {
 		for (struct tally *t = p->tallies; t; t = t->next)
-			if (t->hi[sca])
-				for (size_t i = 0; i < nc; i++) {
-					hi[i] += t->hi[sca][i];
-					lo[i] += t->lo[sca][i];
-				}
+			if (t->cnt[sca])
+				for (size_t i = 0; i < 2 * nc; i++)
+					cnt[i] += t->cnt[sca][i];
 		for (size_t i = 0; i < nc; i++)
-			w.g[i] = (double)hi[i] * FAR_HI + (double)lo[i] * FAR_LO;
+			w.g[i] = far_light(cnt, i);
 		if (level_spread(p, thread, h, &w, 0, w.outbox, c) < 0)
 			goto out;
 	}
@@ -554,17 +556,17 @@ int far_gather(void *state, void *thread, int sca)
 		size_t j = i;
 		double r = dep[i].r, out;
 
-		memset(hi, 0, 2 * nc * sizeof(int64_t));
+		memset(cnt, 0, 2 * nc * sizeof(int64_t));
 		for (; j < nd && dep[j].r == r; j++) {
 			size_t cc[4];
 			double wt[4];
 
 			far_cic(p, dep[j].x, dep[j].y, cc, wt);
 			for (int k = 0; k < 4; k++)
-				far_add(hi, lo, cc[k], dep[j].light * wt[k]);
+				far_add(cnt, cc[k], dep[j].light * wt[k]);
 		}
 		for (size_t k = 0; k < nc; k++)
-			w.g[k] = (double)hi[k] * FAR_HI + (double)lo[k] * FAR_LO;
+			w.g[k] = far_light(cnt, k);
 		if (!((out = light_beyond(h, w.hb, w.outbox, r)) > 0)) {
 			p->host->error(p->host->ctx, "the halo holds no light beyond %g pixels", r);
 			goto out;
@@ -580,7 +582,7 @@ int far_gather(void *state, void *thread, int sca)
 	c = NULL;
 	rc = 1;
 out:
-	free(hi);
+	free(cnt);
 	free(c);
 	free(w.g);
 	free(w.gc);

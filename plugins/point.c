@@ -130,6 +130,9 @@ static const struct wfs_setting point_settings[] = {
 	  "per SCA so every star keeps the halo's total, or left out" },
 	{ "psf-diffuse-cell", "16", "8, 16, 32, 64 or 128",
 	  "psf-diffuse=grid: side of a grid cell, pixels" },
+	{ "psf-diffuse-floor", "0.001", "number >= 0",
+	  "psf-diffuse=grid: a tile no source touched gets the diffuse light where it "
+	  "reaches this fraction of the drawing level" },
 };
 #define NSETTINGS ((int)(sizeof(point_settings) / sizeof(point_settings[0])))
 
@@ -270,6 +273,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	p->extent_cut = 0.1;
 	p->halo_power = 3;
 	p->halo_taper = 16;
+	p->diffuse_floor = 0.001;
 	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
 	    setting_number(host, "psf-core", 0, 0, &p->core) < 0 ||
 	    setting_number(host, "psf-wing", 0, 0, &p->wing) < 0 ||
@@ -287,7 +291,8 @@ static int point_init(const struct wfs_host *host, void **state)
 	    setting_number(host, "psf-halo-taper", 0, 0, &p->halo_taper) < 0 ||
 	    setting_choice(host, "psf-halo-far", far, 2, &p->halo_far) < 0 ||
 	    setting_choice(host, "psf-diffuse", diffuse, 2, &p->diffuse) < 0 ||
-	    setting_number(host, "psf-diffuse-cell", 8, 0, &dcell) < 0)
+	    setting_number(host, "psf-diffuse-cell", 8, 0, &dcell) < 0 ||
+	    setting_number(host, "psf-diffuse-floor", 0, 0, &p->diffuse_floor) < 0)
 		goto fail;
 	if (dcell != 8 && dcell != 16 && dcell != 32 && dcell != 64 && dcell != 128) {
 		host->error(host->ctx, "psf-diffuse-cell: expected 8, 16, 32, 64 or 128, not '%s'",

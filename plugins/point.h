@@ -212,6 +212,7 @@ struct point {
 	int halo_far;           /* psf-halo-far: HALO_FAR_SPIKES or HALO_FAR_DISC */
 	int diffuse;            /* psf-diffuse: DIFFUSE_GRID or DIFFUSE_NONE */
 	int far_cell;           /* psf-diffuse-cell: side of a cell, pixels */
+	double diffuse_floor;   /* psf-diffuse-floor: of the drawing level */
 	long far_org;           /* the diffuse grid's first pixel (far_geometry) */
 	int far_n;              /* its cells along each axis */
 	double *far[19];        /* per SCA, gathered: light per pixel at the

@@ -53,6 +53,7 @@
 #define FAR_R0 22.0                     /* the ladder's first radius */
 #define FAR_COARSE 4                    /* coarse cells a side, in fine ones */
 #define FAR_NEAR 8                      /* coarse cells the fine kernel reaches */
+#define FAR_REL 1e-5                    /* a cell's share of the light kept at least */
 
 /* The fine grid: n x n cells of side s, cell a's pixels [org + a s,
  * org + (a + 1) s); the coarse one, cells of FAR_COARSE s, over the same
@@ -575,9 +576,23 @@ int far_gather(void *state, void *thread, int sca)
 			goto out;
 		i = j;
 	}
-	/* light per pixel at the cells' centres */
-	for (size_t i = 0; i < nc; i++)
-		c[i] /= (double)p->far_cell * p->far_cell;
+	/* light per pixel at the cells' centres; nought where it is below
+	 * both psf-diffuse-floor times the drawing level and FAR_REL of the
+	 * SCA's diffuse light in the cell, so that a tile whose cells are all
+	 * below need not be drawn (the same values for any tiling): a lone
+	 * faint star keeps its wing out to some 440 pixels, a crowded field
+	 * all of it */
+	{
+		double lev = p->diffuse_floor * p->extent_noise * p->sigma, all = 0, rel;
+
+		for (size_t i = 0; i < nc; i++)
+			all += c[i];
+		rel = FAR_REL * all / ((double)p->far_cell * p->far_cell);
+		for (size_t i = 0; i < nc; i++) {
+			c[i] /= (double)p->far_cell * p->far_cell;
+			c[i] = c[i] >= lev || c[i] >= rel ? c[i] : 0;
+		}
+	}
 	p->far[sca] = c;
 	c = NULL;
 	rc = 1;
@@ -604,6 +619,21 @@ int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
 
 	if (!c)
 		return 0;
+	if (!win->pix) {
+		/* worth a tile: a cell about it that is lit (far_gather) */
+		long xa = lfloor(far_u(p, win->x0)), xb = lceil(far_u(p, win->x0 + win->nx - 1));
+		long ya = lfloor(far_u(p, win->y0)), yb = lceil(far_u(p, win->y0 + win->ny - 1));
+
+		xa = xa < 0 ? 0 : xa;
+		ya = ya < 0 ? 0 : ya;
+		xb = xb > n - 1 ? n - 1 : xb;
+		yb = yb > n - 1 ? n - 1 : yb;
+		for (long b = ya; b <= yb; b++)
+			for (long a = xa; a <= xb; a++)
+				if (c[(size_t)b * n + a] > 0)
+					return 1;
+		return 0;
+	}
 	if (!(ia = p->host->scratch(thread, (size_t)win->nx * (sizeof(long) + 2 * sizeof(double)) +
 				    (size_t)n * sizeof(double))))
 		return p->host->error(p->host->ctx, "out of scratch memory");

@@ -164,6 +164,10 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	}
 	left = fl * h->total - drawn;
 	t->left += left;
+	/* a source whose box misses the SCA is dropped by the host, its
+	 * light with it */
+	if (box.x1 <= 0 || box.y1 <= 0 || box.x0 >= SCA_SIDE || box.y0 >= SCA_SIDE)
+		return 0;
 	return p->diffuse == DIFFUSE_GRID ? far_deposit(p, src, left, 0) : 0;
 }
 

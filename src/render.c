@@ -255,12 +255,19 @@ int render_spread(struct engine *g)
 			lit |= j->lit[s][m];
 		if (!lit)
 			continue;
-		/* every tile of the rows drawn */
+		/* the tiles of the rows drawn that a model lights */
 		for (int lt = 0; lt < g->ntile; lt++) {
-			int y0 = lt / g->ntx * T;
+			int x0 = lt % g->ntx * T, y0 = lt / g->ntx * T, want = 0;
+			struct wfs_window q = { NULL, T, x0, y0,
+						x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T,
+						y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T };
 
-			if (y0 + T > g->ylo - 1 && y0 < g->yhi + 1 && !g->slot[s].tile[lt] &&
-			    !(g->slot[s].tile[lt] = tile_alloc(T))) {
+			if (!(y0 + T > g->ylo - 1 && y0 < g->yhi + 1) || g->slot[s].tile[lt])
+				continue;
+			for (int m = 0; m < j->nmodel && !want; m++)
+				want = j->lit[s][m] && g->plugins.p[m].m->spread(g->plugins.p[m].state,
+										  NULL, g->slot[s].sca, &q) > 0;
+			if (want && !(g->slot[s].tile[lt] = tile_alloc(T))) {
 				free(j);
 				return err_sys(g->e, "tile memory");
 			}

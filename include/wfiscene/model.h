@@ -409,11 +409,14 @@ struct wfs_model {
 	 * sources' order).
 	 *
 	 * spread(state, thread, sca, win) is then called for every tile of
-	 * each SCA whose gather() returned 1, the tile's rows drawn as win
-	 * (the host allocates tiles no source touched), in worker threads,
-	 * tiles of one SCA on several threads at once: it adds the light
-	 * that falls in win, the same values for any tiling, and MUST NOT
-	 * allocate.  Returns 0, or -1 with an error recorded. */
+	 * each SCA whose gather() returned 1, the tile's rows drawn as win,
+	 * in worker threads, tiles of one SCA on several threads at once: it
+	 * adds the light that falls in win, the same values for any tiling,
+	 * and MUST NOT allocate.  Returns 0, or -1 with an error recorded.
+	 * For a tile no source touched the host first asks, on its main
+	 * thread, with win->pix NULL and thread NULL: 1 when the model would
+	 * add light there worth a tile's memory, 0 when not (the tile then
+	 * stays unallocated and gets nothing). */
 	int (*gather)(void *state, void *thread, int sca);
 	int (*spread)(void *state, void *thread, int sca, const struct wfs_window *win);
 };

@@ -308,7 +308,10 @@ static void level_kernel(const struct halo *h, const struct level *l, double *ra
 
 			ax = ax > 0 ? ax : 0;
 			ay = ay > 0 ? ay : 0;
-			if (labs(pp) <= near && labs(q) <= near)
+			if (fabs((double)pp * s) + 0.5 * s <= l->hole &&
+			    fabs((double)q * s) + 0.5 * s <= l->hole)
+				v = 0;  /* wholly in the hole */
+			else if (labs(pp) <= near && labs(q) <= near)
 				v = cell_sum(h, s, pp, q, s / l->step, l->hole);
 			else if (ax * ax + ay * ay < (h->R + 1) * (h->R + 1))
 				v = cell_sum(h, s, pp, q, s / 2, l->hole);

@@ -158,7 +158,7 @@ assert list(b) == [\"psf-interp\", \"psf-core\", \"psf-wing\", \"psf-box\",
                    \"psf-box-noise\", \"psf-box-sigma\", \"psf-blend\", \"psf-cell\",
                    \"psf-extent\", \"psf-extent-noise\", \"psf-extent-max\",
                    \"psf-extent-min\", \"psf-extent-cut\", \"psf-halo-power\", \"psf-halo-taper\",
-                   \"psf-halo-far\", \"psf-diffuse\", \"psf-diffuse-cell\"], b
+                   \"psf-halo-far\", \"psf-diffuse\", \"psf-diffuse-cell\", \"psf-diffuse-floor\"], b
 "
 '
 for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-box-noise=0 \

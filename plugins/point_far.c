@@ -10,9 +10,9 @@
  * ("cloud in cell") weights, into its thread's own grid.  The grids hold
  * integers, so that their sum does not depend on the order the sources
  * were prepared in nor on the threads: a deposit v is split into a whole
- * number of FAR_HI counts/s and a remainder in units of FAR_LO, summed in
- * two 64-bit counters (exact; no carry is needed since each counter only
- * grows by its own part).
+ * number of FAR_TOP counts/s, one of FAR_HI and a remainder in units of
+ * FAR_LO, summed in three 64-bit counters (exact; no carry is needed since
+ * each counter only grows by its own part).
  *
  * The wing's shape.  K(p, q), the share of unit light that a source at
  * the centre of a cell sends into the cell (p, q) away: the halo model
@@ -45,6 +45,7 @@
 
 #include "point.h"
 
+#define FAR_TOP 1125899906842624.0      /* counts/s per unit of the top counter, 2^50 */
 #define FAR_HI 1024.0                   /* counts/s per unit of the high counter */
 #define FAR_LO (1.0 / 1073741824.0)     /* counts/s per unit of the low one, 2^-30 */
 #define FAR_EXACT 3                     /* cells summed pixel by pixel, at least */
@@ -124,21 +125,27 @@ double far_radius(const struct point *p, double r)
 	return q < p->extent_max ? q : p->extent_max > r ? p->extent_max : r;
 }
 
-/* v counts/s (>= 0) into cell c of the counters: cnt[2 c] its whole
- * units of FAR_HI, cnt[2 c + 1] its remainder's of FAR_LO, side by side so
- * that a deposit touches one cache line per cell */
+/* v counts/s (>= 0) into cell c of the counters: cnt[3 c] its whole units
+ * of FAR_TOP, cnt[3 c + 1] the remainder's whole units of FAR_HI,
+ * cnt[3 c + 2] what is left in units of FAR_LO, side by side so that a
+ * deposit touches one cache line per cell (up to the 1e32 counts/s a
+ * source may have) */
 static inline void far_add(int64_t *cnt, size_t c, double v)
 {
-	double h = floor(v / FAR_HI);
+	double t = floor(v / FAR_TOP), h;
 
-	cnt[2 * c] += (int64_t)h;
-	cnt[2 * c + 1] += (int64_t)((v - h * FAR_HI) / FAR_LO + 0.5);
+	v -= t * FAR_TOP;
+	h = floor(v / FAR_HI);
+	cnt[3 * c] += (int64_t)t;
+	cnt[3 * c + 1] += (int64_t)h;
+	cnt[3 * c + 2] += (int64_t)((v - h * FAR_HI) / FAR_LO + 0.5);
 }
 
 /* The light of cell c of the counters cnt. */
 static inline double far_light(const int64_t *cnt, size_t c)
 {
-	return (double)cnt[2 * c] * FAR_HI + (double)cnt[2 * c + 1] * FAR_LO;
+	return (double)cnt[3 * c] * FAR_TOP + (double)cnt[3 * c + 1] * FAR_HI +
+	       (double)cnt[3 * c + 2] * FAR_LO;
 }
 
 /* The four cells about (x, y) and their bilinear weights. */
@@ -176,10 +183,6 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 		return p->host->error(p->host->ctx, "out of memory");
 	if (!(light > 0))
 		return 0;
-	if (!(light < 1e21))
-		return p->host->error(p->host->ctx, "light left out of one source, %g counts/s, "
-				      "is more than the diffuse grid holds (1e21); "
-				      "--set psf-diffuse=none", light);
 	t->spread += light;
 	if (r > 0) {
 		if (t->ndep == t->capdep) {
@@ -194,7 +197,7 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 		t->dep[t->ndep++] = (struct far_dep){ sca, r, src->x, src->y, light };
 		return 0;
 	}
-	if (!t->cnt[sca] && !(t->cnt[sca] = calloc((size_t)2 * n * n, sizeof(int64_t))))
+	if (!t->cnt[sca] && !(t->cnt[sca] = calloc((size_t)3 * n * n, sizeof(int64_t))))
 		return p->host->error(p->host->ctx, "out of memory");
 	far_cic(p, src->x, src->y, c, w);
 	for (int k = 0; k < 4; k++)
@@ -526,7 +529,7 @@ int far_gather(void *state, void *thread, int sca)
 		size_t k1 = (size_t)(2 * w.l[1].H + 1) * (2 * w.l[1].H + 1);
 		size_t m2 = (size_t)w.l[1].n * w.l[1].n;
 
-		if (!(cnt = calloc(2 * nc, sizeof(int64_t))) || !(c = calloc(nc, sizeof(double))) ||
+		if (!(cnt = calloc(3 * nc, sizeof(int64_t))) || !(c = calloc(nc, sizeof(double))) ||
 		    !(w.g = malloc(2 * nc * sizeof(double))) ||
 		    !(w.gc = malloc(2 * m2 * sizeof(double))) ||
 		    !(w.raw[0] = malloc(k0 * sizeof(double))) ||
@@ -548,7 +551,7 @@ int far_gather(void *state, void *thread, int sca)
 	if (dense) {
 		for (struct tally *t = p->tallies; t; t = t->next)
 			if (t->cnt[sca])
-				for (size_t i = 0; i < 2 * nc; i++)
+				for (size_t i = 0; i < 3 * nc; i++)
 					cnt[i] += t->cnt[sca][i];
 		for (size_t i = 0; i < nc; i++)
 			w.g[i] = far_light(cnt, i);
@@ -560,7 +563,7 @@ int far_gather(void *state, void *thread, int sca)
 		size_t j = i;
 		double r = dep[i].r, out;
 
-		memset(cnt, 0, 2 * nc * sizeof(int64_t));
+		memset(cnt, 0, 3 * nc * sizeof(int64_t));
 		for (; j < nd && dep[j].r == r; j++) {
 			size_t cc[4];
 			double wt[4];

@@ -137,6 +137,27 @@ out:
 	return h->alpha == 3 ? a / (d2 * d) : a * pow(d, -h->alpha);
 }
 
+/* The tail at (dx, dy) less its spikes' part: halo_tail() where no spike
+ * is kept apart, the baseline B alone where one is. */
+static inline double halo_tail_base(const struct halo *h, double dx, double dy)
+{
+	double d = sqrt(dx * dx + dy * dy), t = halo_bin(dy, dx);
+	int k = (int)t;
+	double f = t - k, a;
+
+	if (k >= HALO_NT) {
+		k = HALO_NT - 1;
+		f = 1;
+	} else if (k < 0) {
+		k = 0;
+		f = 0;
+	}
+	a = h->B[k] + f * (h->B[k + 1] - h->B[k]);
+	if (h->cen[k] < 0)
+		a += h->S[k] + f * (h->S[k + 1] - h->S[k]);
+	return h->alpha == 3 ? a / (d * d * d) : a * pow(d, -h->alpha);
+}
+
 /* The model's value of a pixel at offset (dx, dy) from the source. */
 static inline double halo_value(const struct halo *h, double dx, double dy)
 {

@@ -134,6 +134,14 @@ static const struct wfs_setting point_settings[] = {
 	{ "psf-halo-far", "spikes", "spikes|disc",
 	  "beyond where the halo away from its spikes sinks below the drawing level, "
 	  "draw only the spikes, or the whole disc" },
+	{ "psf-diffuse", "grid", "grid|none",
+	  "psf-extent=noise: the light a source's drawing leaves out, spread on a coarse grid "
+	  "per SCA so every star keeps the halo's total, or left out" },
+	{ "psf-diffuse-cell", "16", "8, 16, 32, 64 or 128",
+	  "psf-diffuse=grid: side of a grid cell, pixels" },
+	{ "psf-diffuse-floor", "0.001", "number >= 0",
+	  "psf-diffuse=grid: a tile no source touched gets the diffuse light where it "
+	  "reaches this fraction of the drawing level" },
 };
 #define NSETTINGS ((int)(sizeof(point_settings) / sizeof(point_settings[0])))
 
@@ -256,8 +264,9 @@ static int point_init(const struct wfs_host *host, void **state)
 	static const char *const blend[] = { "source", "cell", "core" };
 	static const char *const extent[] = { "noise", "stips" };
 	static const char *const far[] = { "spikes", "disc" };
+	static const char *const diffuse[] = { "grid", "none" };
 	struct point *p = calloc(1, sizeof(*p));
-	double cell = 0, csteps = 1;
+	double cell = 0, csteps = 1, dcell = 16;
 
 	if (!p)
 		return host->error(host->ctx, "out of memory");
@@ -273,6 +282,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	p->extent_cut = 0.1;
 	p->halo_power = 3;
 	p->halo_taper = 16;
+	p->diffuse_floor = 0.001;
 	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
 	    setting_number(host, "psf-core", 0, 0, &p->core) < 0 ||
 	    setting_number(host, "psf-wing", 0, 0, &p->wing) < 0 ||
@@ -288,8 +298,18 @@ static int point_init(const struct wfs_host *host, void **state)
 	    setting_number(host, "psf-extent-cut", 0, 0, &p->extent_cut) < 0 ||
 	    setting_number(host, "psf-halo-power", 2.5, 0, &p->halo_power) < 0 ||
 	    setting_number(host, "psf-halo-taper", 0, 0, &p->halo_taper) < 0 ||
-	    setting_choice(host, "psf-halo-far", far, 2, &p->halo_far) < 0)
+	    setting_choice(host, "psf-halo-far", far, 2, &p->halo_far) < 0 ||
+	    setting_choice(host, "psf-diffuse", diffuse, 2, &p->diffuse) < 0 ||
+	    setting_number(host, "psf-diffuse-cell", 8, 0, &dcell) < 0 ||
+	    setting_number(host, "psf-diffuse-floor", 0, 0, &p->diffuse_floor) < 0)
 		goto fail;
+	if (dcell != 8 && dcell != 16 && dcell != 32 && dcell != 64 && dcell != 128) {
+		host->error(host->ctx, "psf-diffuse-cell: expected 8, 16, 32, 64 or 128, not '%s'",
+			    setting_value(host, "psf-diffuse-cell"));
+		goto fail;
+	}
+	p->far_cell = (int)dcell;
+	far_geometry(p);
 	if (p->extent == EXTENT_NOISE && p->adaptive) {
 		host->error(host->ctx, "psf-box=adaptive goes with psf-extent=stips; "
 			    "psf-extent=noise sizes every box itself");
@@ -350,12 +370,18 @@ static void point_fini(void *state)
 		all.left += t->left;
 		all.nhalo += t->nhalo;
 		all.npoint += t->npoint;
+		all.spread += t->spread;
+		for (int s = 0; s < 19; s++)
+			free(t->cnt[s]);
+		free(t->dep);
 		free(t);
 	}
 	if (p->extent == EXTENT_NOISE && all.requested > 0)
-		p->host->log(p->host->ctx, 1, "point: %.6g of %.6g counts/s (%.3g%%) left beyond "
-			     "the drawn radii; %lld of %lld sources with a halo", all.left,
-			     all.requested, 100 * all.left / all.requested, all.nhalo, all.npoint);
+		p->host->log(p->host->ctx, 1, "point: %.6g of %.6g counts/s (%.3g%%) beyond "
+			     "the drawn radii, %.6g of it spread on the diffuse grid; %lld of "
+			     "%lld sources with a halo", all.left, all.requested,
+			     100 * all.left / all.requested, all.spread, all.nhalo, all.npoint);
+	far_free(p);
 	for (int s = 0; s < 19; s++)
 		halo_free(&p->halo[s]);
 	pthread_mutex_destroy(&p->lock);
@@ -382,7 +408,7 @@ static int point_prepare(void *state, struct wfs_source *src)
 {
 	struct point *p = state;
 
-	return p->extent == EXTENT_STIPS ? epsf_prepare(p, src, 0, 0) : noise_prepare(p, src);
+	return p->extent == EXTENT_STIPS ? epsf_prepare(p, src, 0, 0, NULL) : noise_prepare(p, src);
 }
 
 static int point_render(void *state, void *tstate, void *thread,
@@ -411,7 +437,7 @@ static int point_reach(void *state, const struct wfs_source *src, double *pixels
 		return 0;
 	if (!(h = halo_of(p, src)))
 		return -1;
-	r = halo_radius(h, p->extent_noise * p->sigma / src->flux, p->extent_max) + 1;
+	r = far_radius(p, halo_radius(h, p->extent_noise * p->sigma / src->flux, p->extent_max)) + 1;
 	if (r > *pixels)
 		*pixels = r;
 	return 0;
@@ -435,6 +461,8 @@ static const struct wfs_model point_model = {
 	.nsettings = NSETTINGS,
 	.reach = point_reach,
 	.flags = WFS_PARALLEL_PREPARE,
+	.gather = far_gather,
+	.spread = far_spread,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -10,6 +10,7 @@
  *   point_epsf.c     a source's ePSF box: its plan, flux factor and drawing
  *   point_kernels.c  the inner loops (plain and AVX2, the same bits)
  *   point_halo.c     psf-extent=noise: the halo beyond the box
+ *   point_far.c      psf-diffuse=grid: the light left out, spread per tile
  */
 #ifndef WFS_POINT_H
 #define WFS_POINT_H
@@ -113,6 +114,7 @@ enum { HALO_FAR_SPIKES, HALO_FAR_DISC };
 #define HALO_PACK 65536.0
 #define WFS_PSF_HALO 3          /* the host's class of the halo array */
 enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
+enum { DIFFUSE_GRID, DIFFUSE_NONE };
 
 /* One array, the whole window, straight into the tile: for each row j and
  * pixel i < nx,
@@ -169,9 +171,22 @@ struct core_args {
  * sources drawn with a halo and all of them.  Summed at fini (in the order
  * the threads first prepared, so the sums' last bits may vary; they are
  * only logged). */
+struct far_dep {
+	int sca;
+	double r, x, y, light;
+};
+
 struct tally {
 	double requested, left;
+	double spread;          /* of left, what went to the diffuse grid */
 	long long nhalo, npoint;
+	/* psf-diffuse=grid: per SCA, the thread's grid of light left out,
+	 * in two integer counters per cell (point_far.c); NULL until used */
+	int64_t *cnt[19];
+	/* and the light beyond the radii of sources with a halo, each
+	 * spread with the wing beyond its own radius (far_deposit) */
+	struct far_dep *dep;
+	size_t ndep, capdep;
 	pthread_t thread;
 	struct tally *next;
 };
@@ -201,6 +216,13 @@ struct point {
 	double halo_power;      /* psf-halo-power: the tail's power */
 	double halo_taper;      /* psf-halo-taper: pixels */
 	int halo_far;           /* psf-halo-far: HALO_FAR_SPIKES or HALO_FAR_DISC */
+	int diffuse;            /* psf-diffuse: DIFFUSE_GRID or DIFFUSE_NONE */
+	int far_cell;           /* psf-diffuse-cell: side of a cell, pixels */
+	double diffuse_floor;   /* psf-diffuse-floor: of the drawing level */
+	long far_org;           /* the diffuse grid's first pixel (far_geometry) */
+	int far_n;              /* its cells along each axis */
+	double *far[19];        /* per SCA, gathered: light per pixel at the
+				 * cells' centres (far_gather) */
 	/* prepare() runs on several threads (WFS_PARALLEL_PREPARE): what it
 	 * sets up on first use (the halos, the cores' scales, the polyphase
 	 * copies) is made under lock and then flagged ready with release
@@ -314,7 +336,7 @@ void poly_free_all(struct point *p);
 
 /* point_epsf.c: prepare() and render() of a source's ePSF box; a box of
  * half-width at most cap (0: the class's) */
-int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut);
+int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut, double *drawn);
 int epsf_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
 
 /* point.c: the calling thread's counters of p (NULL: out of memory) */
@@ -324,5 +346,16 @@ struct tally *tally_of(struct point *p);
 const struct halo *halo_of(struct point *p, const struct wfs_source *src);
 int noise_prepare(struct point *p, struct wfs_source *src);
 int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
+
+/* point_far.c: psf-diffuse=grid; far_deposit() adds light (counts/s) left
+ * out of src beyond its box (r = 0) or beyond its radius r to its
+ * thread's grid, from prepare(); far_radius() rounds a halo's radius up
+ * to the radii whose wings the grid spreads */
+void far_geometry(struct point *p);
+double far_radius(const struct point *p, double r);
+int far_deposit(struct point *p, const struct wfs_source *src, double light, double r);
+int far_gather(void *state, void *thread, int sca);
+int far_spread(void *state, void *thread, int sca, const struct wfs_window *win);
+void far_free(struct point *p);
 
 #endif

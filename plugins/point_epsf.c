@@ -373,8 +373,10 @@ static double beyond(const struct wfs_source *src, const struct poly *cell, int 
  *   aux[3]     the slot of the source's cell
  *   aux[4..7]  the source's weights of its cell's nodes (psf-blend=core),
  *              or NaN when render() must look the arrays up itself
+ *
+ * and *drawn (when not NULL) the light the box places, counts/s.
  */
-int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
+int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut, double *drawn)
 {
 	struct wfs_epsf es[2];
 	struct draw d;
@@ -550,6 +552,8 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut)
 		src->aux[1] = flux_factor(t_all, k, u);
 		src->aux[2] = 0;
 	}
+	if (drawn)
+		*drawn = t_all;         /* the light the box places */
 	return 0;
 }
 

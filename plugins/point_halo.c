@@ -100,8 +100,9 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	const struct halo *h;
 	struct wfs_source fs;
 	struct tally *t;
-	double r, half, c, cap, fl = src->flux;
-	int faint;
+	double r, half, c, cap, fl = src->flux, drawn = 0, left;
+	struct zone box;
+	int faint, cut;
 
 	if (!(h = halo_of(p, src)) || (c = core_scale(p, src, h)) < 0)
 		return -1;
@@ -121,7 +122,11 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	 * no halo may have its box cut by psf-extent-cut, which puts the
 	 * light beyond the cut back into the box. */
 	faint = r <= cap && fl * halo_envelope(h, cap - 1) < 0.5 * p->extent_noise * p->sigma;
-	if (epsf_prepare(p, &fs, cap, faint) < 0)
+	/* A box the SCA's edge crosses is not cut: the light put back would
+	 * land on the SCA where the whole box's would partly fall off it */
+	box = square(src->x, src->y, cap);
+	cut = faint && box.x0 >= 0 && box.y0 >= 0 && box.x1 <= SCA_SIDE && box.y1 <= SCA_SIDE;
+	if (epsf_prepare(p, &fs, cap, cut, &drawn) < 0)
 		return -1;
 	memcpy(src->aux, fs.aux, sizeof(src->aux));
 	half = fs.aux[0];
@@ -129,19 +134,41 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 		r = 0;
 	else if (r <= half)
 		r = half + 1;
+	r = far_radius(p, r);   /* psf-diffuse=grid: a radius of the ladder */
 	src->aux[0] = half + HALO_PACK * r;
 	if (!(t = tally_of(p)))
 		return p->host->error(p->host->ctx, "out of memory");
 	t->requested += fabs(fl);
 	t->npoint++;
 	t->nhalo += r > 0;
-	/* a cut box carries the light of the box before the cut */
-	t->left += fabs(fl) * (r > 0 ? halo_beyond(h, r) : halo_beyond(h, (faint ? cap : half) - 0.5));
-	/* beyond the base radius, the light away from the spikes */
-	if (r > 0 && psf_spikes(p))
-		t->left += fabs(fl) * halo_base_between(h, halo_base_radius(h, p->extent_noise *
-								    p->sigma / fl, r), r);
-	return 0;
+	/* The light left out: a faint source's, the model's total less what
+	 * its box places (a cut box places the light of the box before the
+	 * cut); a source with a halo, the light beyond its radius and,
+	 * beyond the base radius, the light away from the spikes */
+	if (r > 0) {
+		double base = 0, rb = r;
+
+		left = fl * halo_beyond(h, r);
+		if (psf_spikes(p)) {
+			rb = halo_base_radius(h, p->extent_noise * p->sigma / fl, r);
+			base = fl * halo_base_between(h, rb, r);
+		}
+		t->left += left + base;
+		/* psf-diffuse=grid: spread once per tile (point_far.c), the
+		 * baseline with the wing beyond the base radius */
+		if (p->diffuse == DIFFUSE_GRID &&
+		    (far_deposit(p, src, left, r) < 0 ||
+		     (base > 0 && far_deposit(p, src, base, far_radius(p, rb)) < 0)))
+			return -1;
+		return 0;
+	}
+	left = fl * h->total - drawn;
+	t->left += left;
+	/* a source whose box misses the SCA is dropped by the host, its
+	 * light with it */
+	if (box.x1 <= 0 || box.y1 <= 0 || box.x0 >= SCA_SIDE || box.y0 >= SCA_SIDE)
+		return 0;
+	return p->diffuse == DIFFUSE_GRID ? far_deposit(p, src, left, 0) : 0;
 }
 
 /* Whether the pixel at (dx, dy), in the tail, is drawn beyond the base

@@ -236,6 +236,10 @@ void render_tile(void *arg, int wid, size_t task);
  * cleared.  Main thread only. */
 void render_errors_collect(struct engine *g);
 int render_threads_init(struct engine *g);
+/* After the last chunk, before the detector stage: the light the models
+ * gathered (wfs_model gather, spread) added to every tile of the rows
+ * drawn.  Main thread, pool idle.  Returns 0 or -1. */
+int render_spread(struct engine *g);
 void render_threads_stop(struct engine *g);
 
 /* write.c */

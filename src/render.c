@@ -143,6 +143,145 @@ void render_tile(void *arg, int wid, size_t task)
 	g->t_render_cpu[wid] += thread_cpu() - c0;
 }
 
+/*
+ * After the last chunk: the light the models gathered while their sources
+ * were prepared (wfs_model gather and spread), added once per tile.  First
+ * every (SCA, model) pair is gathered, a task each; then every tile of the
+ * SCAs some model lit is spread, a task each (tiles no source touched are
+ * allocated here), each tile's models in model order, so the sums are the
+ * same for any number of threads.  The time counts as rendering.
+ */
+struct spread_job {
+	struct engine *g;
+	int nmodel;
+	unsigned char has[PLUGIN_MAX];  /* the model spreads */
+	unsigned char lit[WFS_NSCA][PLUGIN_MAX];
+	int ntask;              /* the tiles of the lit SCAs: slot, then tile */
+	int tslot[WFS_NSCA];    /* the lit slots */
+};
+
+static void gather_task(void *arg, int wid, size_t task)
+{
+	struct spread_job *j = arg;
+	struct engine *g = j->g;
+	struct worker *w = &g->w[wid];
+	int s = (int)(task / j->nmodel), m = (int)(task % j->nmodel);
+	struct plugin *pl = &g->plugins.p[m];
+	double t0 = engine_clock(), c0 = thread_cpu();
+	int r;
+
+	if (atomic_load(&g->failed) || !j->has[m])
+		return;
+	host_worker(w);
+	if ((r = pl->m->gather(pl->state, w, g->slot[s].sca)) < 0)
+		model_failed(w, task, pl->name, "gather() failed", NULL);
+	else
+		j->lit[s][m] = r > 0;
+	host_worker(NULL);
+	g->t_render[wid] += engine_clock() - t0;
+	g->t_render_cpu[wid] += thread_cpu() - c0;
+}
+
+static void spread_task(void *arg, int wid, size_t task)
+{
+	struct spread_job *j = arg;
+	struct engine *g = j->g;
+	struct worker *w = &g->w[wid];
+	int s = j->tslot[task / g->ntile], lt = (int)(task % g->ntile);
+	int T = g->tile, x0 = lt % g->ntx * T, y0 = lt / g->ntx * T;
+	/* the rows drawn, and with the detector levels the row on either
+	 * side of them (place.c's keep()) */
+	int margin = g->o->level ? 1 : 0;
+	int ya = y0 > g->ylo - margin ? y0 : g->ylo - margin;
+	int yb = y0 + T < g->yhi + margin ? y0 + T : g->yhi + margin;
+	double *tile = g->slot[s].tile[lt];
+	double t0 = engine_clock(), c0 = thread_cpu();
+	struct wfs_window win;
+
+	if (atomic_load(&g->failed) || !tile)
+		return;
+	ya = ya > 0 ? ya : 0;
+	yb = yb < WFS_NPIX ? yb : WFS_NPIX;
+	win.x0 = x0;
+	win.y0 = ya;
+	win.nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+	win.ny = yb - ya;
+	win.stride = T;
+	win.pix = tile + (size_t)(ya - y0) * T;
+	if (win.ny <= 0)
+		return;
+	host_worker(w);
+	for (int m = 0; m < j->nmodel; m++) {
+		struct plugin *pl = &g->plugins.p[m];
+
+		if (j->lit[s][m] && pl->m->spread(pl->state, w, g->slot[s].sca, &win) < 0) {
+			model_failed(w, task, pl->name, "spread() failed", NULL);
+			break;
+		}
+	}
+	host_worker(NULL);
+	g->t_render[wid] += engine_clock() - t0;
+	g->t_render_cpu[wid] += thread_cpu() - c0;
+}
+
+int render_spread(struct engine *g)
+{
+	struct spread_job *j;
+	int any = 0, T = g->tile;
+
+	if (!g->nslot || !(j = calloc(1, sizeof(*j))))
+		return g->nslot ? err_sys(g->e, "memory") : 0;
+	j->g = g;
+	j->nmodel = g->plugins.n;
+	for (int m = 0; m < g->plugins.n; m++) {
+		const struct plugin *pl = &g->plugins.p[m];
+
+		j->has[m] = pl->ready && WFS_HAS(pl->m->size, struct wfs_model, spread) &&
+			    pl->m->gather && pl->m->spread;
+		any |= j->has[m];
+	}
+	if (!any) {
+		free(j);
+		return 0;
+	}
+	pool_run(g->pool, gather_task, j, (size_t)g->nslot * j->nmodel);
+	render_errors_collect(g);
+	if (atomic_load(&g->failed) || g->e->code != EXIT_OK)
+		goto fail;
+	for (int s = 0; s < g->nslot; s++) {
+		int lit = 0;
+
+		for (int m = 0; m < j->nmodel; m++)
+			lit |= j->lit[s][m];
+		if (!lit)
+			continue;
+		/* the tiles of the rows drawn that a model lights */
+		for (int lt = 0; lt < g->ntile; lt++) {
+			int x0 = lt % g->ntx * T, y0 = lt / g->ntx * T, want = 0;
+			struct wfs_window q = { NULL, T, x0, y0,
+						x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T,
+						y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T };
+
+			if (!(y0 + T > g->ylo - 1 && y0 < g->yhi + 1) || g->slot[s].tile[lt])
+				continue;
+			for (int m = 0; m < j->nmodel && !want; m++)
+				want = j->lit[s][m] && g->plugins.p[m].m->spread(g->plugins.p[m].state,
+										  NULL, g->slot[s].sca, &q) > 0;
+			if (want && !(g->slot[s].tile[lt] = tile_alloc(T))) {
+				free(j);
+				return err_sys(g->e, "tile memory");
+			}
+		}
+		j->tslot[j->ntask++] = s;
+	}
+	if (j->ntask) {
+		pool_run(g->pool, spread_task, j, (size_t)j->ntask * g->ntile);
+		render_errors_collect(g);
+	}
+fail:
+	free(j);
+	return atomic_load(&g->failed) || g->e->code != EXIT_OK ? -1 : 0;
+}
 
 int render_threads_init(struct engine *g)
 {

@@ -298,7 +298,7 @@ static int finish(struct engine *g, struct timespec t0)
 {
 	struct timespec t1;
 
-	if (write_exposure(g) < 0 || placed_close(g, 1) < 0 ||
+	if (render_spread(g) < 0 || write_exposure(g) < 0 || placed_close(g, 1) < 0 ||
 	    (g->x->persist && persist_end(g->x->persist, g->e) < 0))
 		return -1;
 	clock_gettime(CLOCK_MONOTONIC, &t1);

@@ -37,7 +37,7 @@ assert r[\"settings\"][\"psf\"] == \"q\\\"b\\\\x.fits\", r[\"settings\"][\"psf\"
 '
 test_expect_success 'the report shows what a scene left out: models, FFT plans, tiles, noise' '
 	printf "x,y,flux\n100,100,50\n" > pt.csv &&
-	"$WFS" --filter F129 --psf "$PSF" --report w1.json -o w1.fits pt.csv &&
+	"$WFS" --filter F129 --psf "$PSF" --set psf-diffuse=none --report w1.json -o w1.fits pt.csv &&
 	printf "x,y,flux,type,n,re,phi,ratio\n300,300,50,sersic,1.5,3,20,0.6\n" > gal.csv &&
 	"$WFS" --filter F129 --psf "$PSF" --noise poisson,readnoise --exptime 100 --seed 3 \
 		--report w2.json -o w2.fits gal.csv &&

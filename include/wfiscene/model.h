@@ -38,6 +38,8 @@
  *                           the source may touch, so the host can bin it
  *                           by tile
  *   render(state, t, ...)   once per (source, tile) pair, in worker threads
+ *   gather(state, t, sca)   once per SCA after the last render(), workers
+ *   spread(state, t, ...)   once per tile of an SCA gather() lit, workers
  *   thread_stop(state, t)   per thread started (whose thread_start()
  *                           returned 0), on the main thread once the
  *                           workers are idle
@@ -166,11 +168,11 @@ extern "C" {
  * version above stays): 1 the first; 2 reach(), settings, column_size,
  * setting_size, wfs_host.source_size, wfs_source.flux_meaning; 3 the
  * exposure's time, wfs_source.mjd and wfs_model.drawn_by; 4 wfs_model.flags
- * (WFS_PARALLEL_PREPARE); 5 wfs_source.colour, wfs_host.epsf_colour and
- * the setting spectral-classes, and what the built-in models relied on
- * stated here: WFS_SCA_SIDE, WFS_SCA_COUNT, WFS_MAX_COLUMNS, WFS_PSF_HALO,
- * WFS_PRINTF, the setting pixel-sigma, thread_start()'s return value.  A
- * plugin MAY test
+ * (WFS_PARALLEL_PREPARE); 5 wfs_source.colour, wfs_host.epsf_colour,
+ * wfs_model.gather and spread, the setting spectral-classes, and what the
+ * built-in models relied on stated here: WFS_SCA_SIDE, WFS_SCA_COUNT,
+ * WFS_MAX_COLUMNS, WFS_PSF_HALO, WFS_PRINTF, the setting pixel-sigma,
+ * thread_start()'s return value.  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
 #define WFS_ABI_EDITION 5
@@ -501,6 +503,33 @@ struct wfs_model {
 	/* Edition 4.  What the model allows the host, WFS_PARALLEL_PREPARE or
 	 * 0; absent: 0. */
 	uint32_t flags;
+
+	/* Edition 5.  Light a model gathers while its sources are prepared
+	 * and adds once per tile after the last of them is drawn, where a
+	 * source's own window would not reach (the point model's far wings
+	 * of faint stars: the diffuse light of a crowded field).  Both MAY be
+	 * NULL (and absent: nothing is spread).
+	 *
+	 * gather(state, thread, sca) is called once per SCA of the exposure,
+	 * after the last render() of the exposure and before the detector
+	 * stage, in a worker thread (thread as for render(); SCAs on several
+	 * threads at once).  It returns 1 when the model has light for that
+	 * SCA, 0 when it has none, or -1 with an error recorded.  Its result
+	 * MUST NOT depend on the order in which the sources were prepared or
+	 * on the threads that prepared them (sum in integers, or keep the
+	 * sources' order).
+	 *
+	 * spread(state, thread, sca, win) is then called for every tile of
+	 * each SCA whose gather() returned 1, the tile's rows drawn as win,
+	 * in worker threads, tiles of one SCA on several threads at once: it
+	 * adds the light that falls in win, the same values for any tiling,
+	 * and MUST NOT allocate.  Returns 0, or -1 with an error recorded.
+	 * For a tile no source touched the host first asks, on its main
+	 * thread, with win->pix NULL and thread NULL: 1 when the model would
+	 * add light there worth a tile's memory, 0 when not (the tile then
+	 * stays unallocated and gets nothing). */
+	int (*gather)(void *state, void *thread, int sca);
+	int (*spread)(void *state, void *thread, int sca, const struct wfs_window *win);
 };
 
 /*

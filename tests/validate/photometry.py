@@ -9,9 +9,12 @@ Draws N point sources, magnitudes uniform in [15, 26] AB, at uniform random
 1-based pixel positions on SCA01 (kept 30 pixels from the edges so that
 every fit box is whole) in F129, with the paper's background and noise:
 
-    wfiscene --filter F129 --sca 1 --geometry stips --set psf-extent=stips
+    wfiscene --filter F129 --sca 1 --geometry stips --set psf-extent=E
         --background avg --noise all
         --exptime 139.8 --seed S --placed placed.csv
+
+(E is noise, the default, or stips with --extent stips; --noiseless draws
+no background and no noise, for the ePSF fit alone)
 
 and recovers them three ways, as the paper does:
 
@@ -34,6 +37,12 @@ and recovers them three ways, as the paper does:
           ePSF (bilinear between the four grid nodes, as wfiscene does) is
           built once per star, at its catalog position: it changes by far
           less than the noise over the fraction of a pixel the fit moves.
+          The grid is normalised within its box, as STIPS's; drawn to the
+          noise (psf-extent=noise), a star's box holds the optics' light
+          there and the rest lies beyond it, so the fitted fluxes are
+          divided by the fit's reading of noiseless bright stars
+          (calibrate(): 0.978 in F129, the aperture correction photometry
+          takes from bright stars); 1 with --extent stips.
 
 Truth is the --placed list: 1-based (x, y) and the flux in counts/s of each
 star on SCA01.  Residuals are recovered minus true: magnitudes
@@ -87,6 +96,42 @@ def run(cmd, **kw):
     return r
 
 
+def noise_opts(args):
+    if args.noiseless:
+        return ["--background", "none", "--noise", "none"]
+    return ["--background", "avg", "--noise", "all"]
+
+
+def calibrate(args, psf):
+    """The ePSF's light within its box as the point model draws it: the
+    fitted over the true flux of 25 noiseless 16 mag stars spread over the
+    SCA, the median.  The grids `wfiscene psf` writes are normalised within
+    their boxes (STIPS's convention); under psf-extent=noise the box holds
+    the optics' light there and the rest lies beyond, as on the sky, so an
+    ePSF fit reads every star by this factor, which photometry calibrates
+    on bright stars (an aperture correction).  1 with psf-extent=stips."""
+    if args.extent == "stips":
+        return 1.0
+    cat = os.path.join(args.dir, "cal.csv")
+    img = os.path.join(args.dir, "cal.fits")
+    placed = os.path.join(args.dir, "cal-placed.csv")
+    g = np.linspace(400, NPIX - 400, 5)
+    with open(cat, "w") as f:
+        f.write("id,x,y,mag\n")
+        k = 0
+        for yy in g:
+            for xx in g:
+                k += 1
+                f.write("%d,%.4f,%.4f,16\n" % (k, xx + 0.13 * k % 1, yy + 0.29 * k % 1))
+    run([args.wfs, "--filter", FILTER, "--sca", "1", "--geometry", "stips",
+         "--set", "psf-extent=" + args.extent, "--background", "none", "--noise", "none",
+         "--exptime", str(EXPTIME), "--placed", placed, "-o", img, cat])
+    t = np.genfromtxt(placed, delimiter=",", names=True, dtype=None, encoding="ascii")
+    data = load(img)[0]
+    f = method_epsf(data, np.ones_like(data), t, psf)[0]
+    return float(np.median(f / t["flux"]))
+
+
 def make_scene(args):
     rng = np.random.default_rng(args.seed)
     n = args.n
@@ -102,12 +147,12 @@ def make_scene(args):
     placed = os.path.join(args.dir, "placed.csv")
     psf = os.path.join(args.dir, "epsf.fits")
     t0 = time.time()
-    # the paper's setting: STIPS's geometry (a flat background per pixel)
-    # and STIPS's PSF boxes (each box holds the whole flux, as the ePSF the
-    # photometry fits is normalised)
+    # the paper's setting: STIPS's geometry (a flat background per pixel),
+    # with the point model's default extent (each star drawn to the noise,
+    # the light beyond spread as diffuse light) or STIPS's PSF boxes
     run([args.wfs, "--filter", FILTER, "--sca", "1", "--geometry", "stips",
-         "--set", "psf-extent=stips",
-         "--background", "avg", "--noise", "all", "--exptime", str(EXPTIME), "--seed", str(args.seed),
+         "--set", "psf-extent=" + args.extent] + noise_opts(args) +
+        ["--exptime", str(EXPTIME), "--seed", str(args.seed),
          "--placed", placed, "-o", img, cat])
     t1 = time.time()
     run([args.wfs, "psf", "--filter", FILTER, "--sca", "1", "--kind", "epsf",
@@ -360,6 +405,10 @@ def main():
     p.add_argument("--table", default=None)
     p.add_argument("--plot", default=None)
     p.add_argument("--json", default=None)
+    p.add_argument("--extent", choices=("noise", "stips"), default="noise",
+                   help="the point model's psf-extent (default noise)")
+    p.add_argument("--noiseless", action="store_true",
+                   help="no background and no noise (sep and gauss need them)")
     args = p.parse_args()
     if args.dir is None:
         import tempfile
@@ -368,16 +417,24 @@ def main():
 
     img, psf, truth, t_sim = make_scene(args)
     data, hdr = load(img)
-    import sep
-    bkg = sep.Background(data.astype(np.float32), bw=64, bh=64)
-    sub = data - bkg.back()
-    # Per-pixel noise for the fit weights: background rms, plus the star's
-    # own Poisson noise from the image itself (counts/s over t).
-    sigma = np.sqrt(bkg.rms().astype(np.float64) ** 2
-                    + np.clip(sub, 0, None) / EXPTIME)
+    if args.noiseless:
+        # nothing to subtract, every pixel weighed alike
+        sub = data
+        sigma = np.ones_like(data)
+        bkg = None
+    else:
+        import sep
+        bkg = sep.Background(data.astype(np.float32), bw=64, bh=64)
+        sub = data - bkg.back()
+        # Per-pixel noise for the fit weights: background rms, plus the
+        # star's own Poisson noise from the image itself (counts/s over t).
+        sigma = np.sqrt(bkg.rms().astype(np.float64) ** 2
+                        + np.clip(sub, 0, None) / EXPTIME)
+    scale = calibrate(args, psf) if "epsf" in args.methods.split(",") else 1.0
 
     summary = {"n": args.n, "seed": args.seed, "filter": FILTER, "exptime": EXPTIME,
-               "sim_seconds": round(t_sim, 2), "methods": {}}
+               "extent": args.extent, "noiseless": bool(args.noiseless),
+               "epsf_scale": scale, "sim_seconds": round(t_sim, 2), "methods": {}}
     res = {}
     for m in args.methods.split(","):
         t0 = time.process_time()
@@ -387,6 +444,7 @@ def main():
             f, x, y = method_gauss(sub, truth)
         elif m == "epsf":
             f, x, y = method_epsf(sub, sigma, truth, psf)
+            f = f / scale
         else:
             sys.exit("photometry.py: unknown method '%s'" % m)
         s, dm, dx, dy = stats(truth, f, x, y)

@@ -1,0 +1,182 @@
+#!/bin/sh
+# Every star keeps the same fraction of its PSF's light, whatever its
+# brightness (psf-extent=noise, the default, with psf-diffuse=grid): one
+# star at a time in F129 on SCA 1, 139.8 s, no noise, AB 6 to 28, at the
+# SCA's centre, 25 pixels from a corner and 12 from an edge, in both
+# geometries; the image's sum over the star's flux varies by at most 0.2%
+# (it was 0.968 for faint stars and 0.994 for bright ones when the light
+# beyond a faint star's box was left out).  --report's drawn light,
+# --placed's flux and the image agree; a crowded field keeps its light,
+# and its wing light shows beside the stars.
+. "$(dirname "$0")/lib.sh"
+require_python
+
+# one MAG X Y GEOM [extra]: the image sum over the flux requested
+one() {
+	m=$1 x=$2 y=$3 g=$4
+	shift 4
+	printf 'x,y,sca,flux\n%s,%s,1,%s\n' "$x" "$y" "$m" > one.csv &&
+	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag --geometry "$g" \
+		--report one.json -o one.fits "$@" one.csv &&
+	"$PY" -c '
+import json, sys
+from astropy.io import fits
+r = json.load(open("one.json"))["flux"][0]
+s = fits.getdata("one.fits", 1).astype(float).sum()
+# the report'"'"'s drawn light is the image'"'"'s sum
+assert abs(r["placed"] / s - 1) < 1e-6, (r, s)
+print("%.6f" % (s / r["requested"]))'
+}
+
+# sweep X Y GEOM: the ratios from AB 6 to 28, then max/min - 1 <= 0.002
+sweep() {
+	for m in 6 10 14 18 20 22 28; do
+		one $m "$1" "$2" "$3" >> "ratios.$1.$2.$3" || return 1
+	done
+	"$PY" -c '
+import sys
+v = [float(l) for l in open(sys.argv[1])]
+print(sys.argv[1], v, max(v) / min(v) - 1)
+assert max(v) / min(v) - 1 <= 0.002' "ratios.$1.$2.$3"
+}
+
+for g in siaf stips; do
+	for pos in "2044.5 2044.5" "25 25" "2044.5 12"; do
+		set -- $pos
+		test_expect_success "$g geometry at ($1, $2): the same fraction of light at AB 6-28" "
+			sweep $1 $2 $g
+		"
+	done
+done
+
+test_expect_success 'the fraction is the PSF light the model draws, about 0.994 in F129' '
+	"$PY" -c "
+v = [float(l) for l in open(\"ratios.2044.5.2044.5.siaf\")]
+assert all(0.990 < x < 0.996 for x in v), v"
+'
+
+test_expect_success 'psf-diffuse=none leaves a faint star its box: 0.96-0.975' '
+	v=$(one 24 2044.5 2044.5 siaf --set psf-diffuse=none) &&
+	"$PY" -c "assert 0.96 < $v < 0.975, $v"
+'
+
+test_expect_success 'a 16-22 mag catalog places at least 0.99 of its flux; --placed, --report and the image agree' '
+	"$PY" -c "
+import numpy as np
+r = np.random.default_rng(3)
+n = 2000
+print(\"id,x,y,flux\")
+for i, (x, y, m) in enumerate(zip(r.uniform(200, 3888, n), r.uniform(200, 3888, n), r.uniform(16, 22, n))):
+    print(\"%d,%.3f,%.3f,%.3f\" % (i + 1, x, y, m))
+" > mid.csv &&
+	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag --report mid.json \
+		--placed mid-placed.csv -o mid.fits mid.csv &&
+	"$PY" -c "
+import csv, json
+from astropy.io import fits
+r = json.load(open(\"mid.json\"))[\"flux\"][0]
+s = fits.getdata(\"mid.fits\", 1).astype(float).sum()
+placed = sum(float(row[\"flux\"]) for row in csv.DictReader(open(\"mid-placed.csv\")))
+print(r, s, placed)
+assert abs(placed / r[\"requested\"] - 1) < 1e-5
+assert abs(r[\"placed\"] / s - 1) < 1e-6
+assert s / placed >= 0.99, s / placed
+"
+'
+
+# A crowded field: 10^6 faint stars (AB 22-27) in x 1000-2000, y 1000-3088;
+# none within 1000 pixels of an SCA edge, so the light beyond that reach
+# (a few 1e-4) is all that falls off.
+test_expect_success 'a field of 10^6 faint stars keeps the fraction of a bright star' '
+	"$PY" -c "
+import numpy as np
+r = np.random.default_rng(7)
+n = 1000000
+x = r.uniform(1000, 2000, n); y = r.uniform(1000, 3088, n); m = r.uniform(22, 27, n)
+np.savetxt(\"crowd.csv\", np.c_[x, y, m], fmt=\"%.3f\", delimiter=\",\", header=\"x,y,flux\", comments=\"\")
+" &&
+	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag --report crowd.json \
+		-o crowd.fits crowd.csv &&
+	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag --set psf-diffuse=none \
+		-o crowd0.fits crowd.csv &&
+	f=$(one 12 1500.5 2044.5 siaf) &&
+	"$PY" -c "
+import json
+import numpy as np
+from astropy.io import fits
+f = $f
+r = json.load(open(\"crowd.json\"))[\"flux\"][0]
+a = fits.getdata(\"crowd.fits\", 1).astype(float)
+b = fits.getdata(\"crowd0.fits\", 1).astype(float)
+print(\"fraction of a bright star\", f, \"field\", a.sum() / r[\"requested\"], \"without the wings\", b.sum() / r[\"requested\"])
+assert abs(a.sum() / r[\"requested\"] / f - 1) < 1e-3
+# the wing light beside the field: nothing drawn there without it, and
+# with it a light that falls off with distance from the field
+s = [a[1200:2900, 2000 + d0:2000 + d1].mean() for d0, d1 in ((30, 60), (100, 200), (400, 600))]
+z = b[1200:2900, 2030:2600]
+print(\"beside the field\", s, \"without\", z.max())
+assert z.max() == 0 and s[0] > s[1] > s[2] > 0
+# between the stars: the field is lit by the wings, 2-3% of its light
+d = a[1100:2988, 1100:1900].sum() / b[1100:2988, 1100:1900].sum() - 1
+print(\"wing light inside the field\", d)
+assert 0.01 < d < 0.03
+"
+'
+
+test_expect_success 'the same bytes with one thread and another tile size' '
+	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag --threads 1 --tile 300 \
+		-o crowd1.fits crowd.csv &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+a = fits.getdata(\"crowd.fits\", 1); b = fits.getdata(\"crowd1.fits\", 1)
+assert np.array_equal(a, b), np.abs(a - b).max()
+"
+'
+
+# Aperture photometry calibrated on bright stars reads faint ones right:
+# 100 isolated AB 24 stars on a 400-pixel lattice against the same of AB
+# 16 (each field in its own image, so that the neighbours' light is the
+# same share of a star's), no noise, apertures of 10 to 100 pixels.  With
+# the wings beyond a faint star's box left out, faint stars read 0.015
+# mag too faint at 50 pixels.
+test_expect_success 'aperture photometry: faint and bright stars agree to 0.003 mag, 10-100 px' '
+	for m in 16 24; do
+		"$PY" -c "
+print(\"id,x,y,mag\")
+k = 0
+for j in range(10):
+    for i in range(10):
+        k += 1
+        print(\"%d,%.3f,%.3f,$m\" % (k, 250 + 400 * i + 0.37 * (k % 3), 250 + 400 * j + 0.61 * (k % 5)))
+" > lat$m.csv &&
+		"$WFS" --filter F129 --sca 1 --geometry stips --exptime 139.8 --flux-unit abmag \
+			--placed lat$m-placed.csv -o lat$m.fits lat$m.csv || return 1
+	done &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+def phot(m, R):
+    d = fits.getdata(\"lat%d.fits\" % m, 1).astype(float)
+    t = np.genfromtxt(\"lat%d-placed.csv\" % m, delimiter=\",\", names=True, dtype=None, encoding=\"ascii\")
+    yy, xx = np.mgrid[-R:R + 1, -R:R + 1]
+    dm = []
+    for x, y, f in zip(t[\"x\"] - 1, t[\"y\"] - 1, t[\"flux\"]):
+        ix, iy = int(round(x)), int(round(y))
+        a = np.hypot(xx + ix - x, yy + iy - y) <= R
+        dm.append(-2.5 * np.log10(d[iy - R:iy + R + 1, ix - R:ix + R + 1][a].sum() / f))
+    return np.median(dm)
+for R in (10, 30, 50, 100):
+    b, f = phot(16, R), phot(24, R)
+    print(R, b, f, f - b)
+    assert abs(f - b) <= 0.003
+"
+'
+
+test_expect_success 'psf-diffuse-cell: a bad value is refused, naming the key' '
+	test_must_fail --status 3 "$WFS" --filter F129 --sca 1 --set psf-diffuse-cell=20 \
+		-o bad.fits one.csv 2>err &&
+	grep "psf-diffuse-cell" err && ! test -e bad.fits
+'
+
+test_done

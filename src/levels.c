@@ -560,8 +560,8 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 
 	if (L->correlated) {
 		/* the white part per pixel; the fit's read noise that of a
-		 * corrected read: the white and the channel's own pink, which
-		 * the reference pixels of other channels do not see */
+		 * corrected read, the Project's CDS noise over sqrt 2 (the
+		 * calibration of data/readnoise.tsv) */
 		struct rnoise_par par;
 		struct ramp_det fd = *L->det;
 
@@ -569,8 +569,8 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 			return -1;
 		w.det = *L->det;
 		w.det.read_noise = par.white;
-		fd.read_noise = sqrt(par.white * par.white + par.upink * par.upink);
-		if (rnoise_init(&w.rn, L->pat, &par, &L->key, e) < 0)
+		fd.read_noise = par.cds / sqrt(2);
+		if (rnoise_init(&w.rn, L->pat, &par, &L->key, 0, e) < 0)
 			return -1;
 		L->det = &w.det;
 		if (L->level == LEVEL_2 &&

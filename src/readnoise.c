@@ -42,12 +42,13 @@ int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
 	snprintf(name, sizeof(name), "WFI%02d", sca);
 	if (tsv_parse(&t, "readnoise.tsv") < 0)
 		return e ? err_set(e, EXIT_SYSTEM, "readnoise.tsv: table missing from the build") : -1;
-	int cs = tsv_col(&t, "sca"), cw = tsv_col(&t, "white"), cp = tsv_col(&t, "ped"),
+	int cd = tsv_col(&t, "cds"), cs = tsv_col(&t, "sca"), cw = tsv_col(&t, "white"), cp = tsv_col(&t, "ped"),
 	    cc = tsv_col(&t, "cpink"), cu = tsv_col(&t, "upink"), ca = tsv_col(&t, "acn");
 
-	for (int r = 1; r < t.nrow && cs >= 0 && cw >= 0 && cp >= 0 && cc >= 0 && cu >= 0 && ca >= 0;
+	for (int r = 1; r < t.nrow && cs >= 0 && cw >= 0 && cp >= 0 && cc >= 0 && cu >= 0 && ca >= 0 && cd >= 0;
 	     r++)
 		if (!strcmp(t.cell[r][cs], name)) {
+			par->cds = strtod(t.cell[r][cd], NULL);
 			par->white = strtod(t.cell[r][cw], NULL);
 			par->ped = strtod(t.cell[r][cp], NULL);
 			par->cpink = strtod(t.cell[r][cc], NULL);
@@ -56,7 +57,7 @@ int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
 			found = 1;
 		}
 	tsv_free(&t);
-	if (!found || !(par->white >= 0) || !(par->ped >= 0) || !(par->cpink >= 0) ||
+	if (!found || !(par->cds > 0) || !(par->white >= 0) || !(par->ped >= 0) || !(par->cpink >= 0) ||
 	    !(par->upink >= 0) || !(par->acn >= 0))
 		return e ? err_set(e, EXIT_SYSTEM, "readnoise.tsv: no or bad row for %s", name) : -1;
 	return 0;
@@ -111,9 +112,9 @@ static int pink_series(const struct rng *g, long n, double sigma, double *out)
 }
 
 int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rnoise_par *par,
-		const struct ramp_key *k, struct err *e)
+		const struct ramp_key *k, int nlast, struct err *e)
 {
-	int last = p->last[p->nres - 1];
+	int last = nlast > p->last[p->nres - 1] ? nlast : p->last[p->nres - 1];
 	long n = (long)(last + 2) * RN_ROWS;
 	size_t plane = (size_t)RN_NCHAN * (RN_ROWS + 1);
 	double *shared = NULL, *own = NULL;

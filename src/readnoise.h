@@ -32,6 +32,7 @@ struct err;
 
 /* The per-read amplitudes (e-) of one SCA, data/readnoise.tsv. */
 struct rnoise_par {
+	double cds;             /* the Project's CDS noise the parts give */
 	double white;           /* per pixel and read, independent */
 	double ped;             /* per channel and read */
 	double cpink;           /* pink, shared by the channels */
@@ -57,11 +58,13 @@ struct rnoise {
 	double row_time;
 };
 
-/* The correlated noise of one exposure (pattern p) of the SCA of key k.
- * Costs 34 real FFTs of (last read + 1) x 4096 points.  0 or -1 (memory,
+/* The correlated noise of one exposure (pattern p) of the SCA of key k,
+ * its series long enough for reads up to nlast (0: p's last read; a larger
+ * value lets two patterns of one exposure share the series, as tests do).
+ * Costs 34 real FFTs of (nlast + 2) x 4096 points.  0 or -1 (memory,
  * message in e).  Free with rnoise_free(). */
 int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rnoise_par *par,
-		const struct ramp_key *k, struct err *e);
+		const struct ramp_key *k, int nlast, struct err *e);
 void rnoise_free(struct rnoise *R);
 
 /* The readout position (0 .. 127) of column x (0 .. 127) of channel c:

@@ -115,7 +115,23 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 		const struct ramp_key *k, int nlast, struct err *e)
 {
 	int last = nlast > p->last[p->nres - 1] ? nlast : p->last[p->nres - 1];
-	long n = (long)(last + 2) * RN_ROWS;
+	long m = last + 2, n;
+
+	/* frames enough for the reads and the next row start, rounded up to a
+	 * number of 2, 3 and 5 alone: a fast FFT length */
+	for (;; m++) {
+		long q = m;
+
+		while (q % 2 == 0)
+			q /= 2;
+		while (q % 3 == 0)
+			q /= 3;
+		while (q % 5 == 0)
+			q /= 5;
+		if (q == 1)
+			break;
+	}
+	n = m * RN_ROWS;
 	size_t plane = (size_t)RN_NCHAN * (RN_ROWS + 1);
 	double *shared = NULL, *own = NULL;
 	struct rng g;
@@ -196,14 +212,20 @@ void rnoise_add(const struct rnoise *R, int r, int c, int y, int x0, int n, floa
 {
 	const float *pk = R->pink + ((size_t)r * RN_NCHAN + c) * (RN_ROWS + 1) + y;
 	const float *of = R->off + ((size_t)r * RN_NCHAN + c) * 2;
-	float a = pk[0], b = pk[1] - pk[0];
-	const float step = 1.0f / (RN_COLS + RN_OVERHEAD);
+	/* the value at readout position j: a + b j; with x's column parity */
+	float b = (pk[1] - pk[0]) / (RN_COLS + RN_OVERHEAD), a = pk[0];
+	float v[2];
 
+	if (c & 1) {            /* j = 127 - x */
+		a += b * (RN_COLS - 1);
+		b = -b;
+	}
+	v[0] = a + of[0];
+	v[1] = a + of[1];
 	for (int i = 0; i < n; i++) {
 		int x = x0 + i;
-		float u = (float)rnoise_pos(c, x) * step;
 
-		dst[i] += a + u * b + of[x & 1];
+		dst[i] += v[x & 1] + b * (float)x;
 	}
 }
 
@@ -332,18 +354,24 @@ void rnoise_ref_free(struct rnoise_ref *C)
 void rnoise_ref_apply(const struct rnoise_ref *C, int y, uint16_t *dn, size_t plane, int nres)
 {
 	for (int r = 0; r < nres; r++) {
-		uint16_t *o = dn + (size_t)r * plane;
+		uint16_t *o = dn + (size_t)r * plane - 4;       /* o[fx] */
 		const double *tb = C->tb + (size_t)r * 64;
 		double sd = C->side[(size_t)r * RN_ROWS + y];
 
-		for (int fx = 4; fx < RN_ROWS - 4; fx++) {
-			uint16_t v = o[fx - 4];
-			double c;
+		for (int c = 0; c < 32; c++) {
+			/* floor(v - t + 0.5) = v - ceil(t - 0.5) for an integer v:
+			 * one integer a column parity */
+			int k[2], lo = c ? c * RN_COLS : 4;
+			int hi = c == 31 ? RN_ROWS - 4 : (c + 1) * RN_COLS;
 
-			if (v == 65535)     /* saturated or clipped: as it is */
-				continue;
-			c = floor(v - tb[(fx / RN_COLS) * 2 + (fx & 1)] - sd + 0.5);
-			o[fx - 4] = (uint16_t)(c < 0 ? 0 : c > 65534 ? 65534 : c);
+			for (int q = 0; q < 2; q++)
+				k[q] = (int)ceil(tb[c * 2 + q] + sd - 0.5);
+			for (int fx = lo; fx < hi; fx++) {
+				int v = o[fx], w = v - k[fx & 1];
+
+				/* saturated or clipped: as it is */
+				o[fx] = (uint16_t)(v == 65535 ? v : w < 0 ? 0 : w > 65534 ? 65534 : w);
+			}
 		}
 	}
 }

@@ -27,6 +27,20 @@ assert (np.concatenate(p, axis=1) == w).all(), \"the parts are the whole\"
 "
 '
 
+test_expect_success 'level 2: the same correction whoever asks: parts by rows are the whole' '
+	run --level 2 --detector correlated --rows 1-60 -o w2.fits &&
+	run --level 2 --detector correlated --rows 1-25 --threads 1 -o q1.fits &&
+	run --level 2 --detector correlated --rows 26-60 --tile 64 -o q2.fits &&
+	$PY -c "
+import numpy as np
+from astropy.io import fits
+p = [fits.open(f) for f in (\"q1.fits\", \"q2.fits\")]
+w = fits.open(\"w2.fits\")
+for k in range(1, 6):
+    assert (np.concatenate([q[k].data for q in p]) == w[k].data).all(), k
+"
+'
+
 test_expect_success 'off by default: the white noise bytes; on, the reference pixels move' '
 	run --level 1 --rows 1-60 -o d.fits &&
 	run --level 1 --detector persistence --rows 1-60 -o p.fits &&

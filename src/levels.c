@@ -265,8 +265,13 @@ static int hdu_cards(const struct level_sca *L, const char *extname, const char 
 		fits_card_str(c, key, val, "reads averaged into this resultant");
 		bad |= push(cards, n, c);
 	}
-	fits_card_dbl(c, "RDNOISE", L->det->read_noise, "read noise per read (e-)");
+	fits_card_dbl(c, "RDNOISE", L->det->read_noise, L->correlated ?
+		      "white read noise per read (e-)" : "read noise per read (e-)");
 	bad |= push(cards, n, c);
+	if (L->correlated) {
+		fits_card_bool(c, "RNCORR", 1, "+ read noise shared per channel (correlated)");
+		bad |= push(cards, n, c);
+	}
 	fits_card_dbl(c, "DARKCURR", L->det->dark, "dark current (e-/s)");
 	bad |= push(cards, n, c);
 	fits_card_dbl(c, "SATURATE", L->det->saturation, "saturation (DN, pedestal included)");

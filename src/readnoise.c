@@ -63,7 +63,8 @@ int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
 	return 0;
 }
 
-/* FFTW's planner is not thread-safe across modules without this. */
+/* The planner runs under this lock and FFTW's own (other modules plan in
+ * other threads: fftw_make_planner_thread_safe, as fftconv.c). */
 static pthread_mutex_t plan_lock = PTHREAD_MUTEX_INITIALIZER;
 
 /* One pink series of n samples, variance sigma^2, into out[0 .. n). */
@@ -95,6 +96,7 @@ static int pink_series(const struct rng *g, long n, double sigma, double *out)
 	if (h * 2 == n)
 		X[h][0] = z[2 * h] * sqrt(K / (double)h);
 	pthread_mutex_lock(&plan_lock);
+	fftw_make_planner_thread_safe();
 	pl = fftw_plan_dft_c2r_1d((int)n, X, out, FFTW_ESTIMATE);
 	pthread_mutex_unlock(&plan_lock);
 	if (!pl) {

@@ -26,7 +26,7 @@ VERSION    := 0.1.0
 CC         ?= cc
 PKG_CONFIG ?= pkg-config
 CFLAGS     ?= -O2 -g
-PKGS       := cfitsio wcslib fftw3 libzstd zlib libpng chealpix
+PKGS       := cfitsio wcslib fftw3 libzstd zlib libpng chealpix libfyaml
 
 Q = $(if $(filter 1,$(V)),,@)
 # The plugins' inner loops are worth the vectoriser's full effort.
@@ -115,6 +115,9 @@ $(B)/psf_src.h: $(PSF_SRC) | $(B)/obj
 	$(Q)printf '#define PSF_SRC_SUM "%s"\n' "$$(cat $(PSF_SRC) | cksum | tr ' ' -)" > $@.tmp && \
 		mv $@.tmp $@
 $(B)/obj/psfbuild.o: $(B)/psf_src.h
+# level 2's chisq and dumo: one loop per resultant along a row, for the
+# vectoriser (src/ramp_stats.c)
+$(B)/obj/ramp_stats.o: ALL_CFLAGS += -O3
 
 $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 	@echo "  EMBED   data/*.tsv"

@@ -17,6 +17,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "into.h"
+#include "into_asdf.h"
 #include "sky.h"
 #include "tempfile.h"
 
@@ -34,6 +35,7 @@ struct into {
 	struct into_hdu h[WFS_NSCA];
 	int nh;
 	int has_pointing;       /* the primary header gave one */
+	struct into_asdf *asdf; /* a Roman level-2 ASDF file (into_asdf.h) */
 	double ra, dec, pa;
 	int boresight;
 };
@@ -171,6 +173,15 @@ struct into *into_open(const char *spec, unsigned mask, struct err *e)
 		}
 	if (split_spec(in, spec, &hdu, e) < 0)
 		goto fail;
+	if (!hdu && into_is_asdf(in->path)) {
+		/* the SCAs keep the SIAF geometry, pointed by the file's meta */
+		if (!(in->asdf = into_asdf_open(in->path, mask, e)))
+			goto fail;
+		into_asdf_pointing(in->asdf, &in->ra, &in->dec, &in->pa);
+		in->boresight = 0;
+		in->has_pointing = 1;
+		return in;
+	}
 	if (fits_open_diskfile(&f, in->path, READONLY, &status) ||
 	    fits_get_num_hdus(f, &nhdu, &status)) {
 		err_fits(e, status, "--into %s", in->path);
@@ -369,6 +380,14 @@ int into_compose(const struct into *in, const char *path, struct err *e)
 	int status = 0, fd, rc = -1;
 	struct stat sb;
 
+	if (in->asdf) {
+		rc = into_asdf_compose(in->asdf, path, e);
+		/* as below: a failed run leaves nothing under the name */
+		if (rc < 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode))
+			unlink(path);
+		return rc;
+	}
+
 	/* The registered temporary (tempfile.h) proved the name free; cfitsio
 	 * creates the file itself, taking the name literally
 	 * (fits_create_diskfile: no "[ext]" or "!" parsing of a user's path). */
@@ -452,6 +471,7 @@ void into_free(struct into *in)
 		return;
 	for (int k = 0; k < in->nh; k++)
 		wcsfree(&in->h[k].wcs);
+	into_asdf_free(in->asdf);
 	free(in->path);
 	free(in->spec);
 	free(in);

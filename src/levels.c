@@ -7,12 +7,13 @@
 #include <time.h>
 
 #include "err.h"
-#include "fitsout.h"
 #include "geometry.h"
 #include "instrument.h"
 #include "levels.h"
 #include "persist.h"
 #include "pool.h"
+#include "product.h"
+#include "ramp_stats.h"
 #include "readnoise.h"
 
 #define FRAME 4096              /* the array with its reference border */
@@ -63,10 +64,12 @@ struct strip {
 	/* per worker */
 	double **scr;
 	uint16_t **dnrow;
+	double **sscr;          /* ramp_stats_row's, with L->ramp_stats */
 	/* out */
 	uint16_t *l1;           /* [nres][ny][FRAME] */
 	float *rt, *er, *vp, *vr;       /* [ny][WFS_NPIX] */
 	uint32_t *dq;
+	float *chisq, *dumo;            /* with L->ramp_stats */
 };
 
 /* The first pass: the charge of the strip's science rows and of the one
@@ -140,7 +143,7 @@ static void strip_row(void *arg, int wid, size_t ctask)
 	uint16_t *out;
 	size_t plane;
 
-	if (L->level == LEVEL_1) {
+	if (s->l1) {
 		plane = (size_t)s->ny * FRAME;
 		out = s->l1 + task * FRAME;
 	} else {
@@ -170,6 +173,17 @@ static void strip_row(void *arg, int wid, size_t ctask)
 	if (L->level == LEVEL_2) {
 		struct ramp_fit fit[256];
 
+		/* the reference correction before the fit, on a copy where
+		 * the level-1 resultants are kept (written as they are) */
+		if (s->ref && s->l1) {
+			uint16_t *cp = s->dnrow[wid];
+
+			for (int r = 0; r < p->nres; r++)
+				memcpy(cp + (size_t)r * FRAME, out + (size_t)r * plane,
+				       FRAME * sizeof(uint16_t));
+			out = cp;
+			plane = FRAME;
+		}
 		if (s->ref)
 			rnoise_ref_apply(s->ref, fy, out + BORDER, plane, p->nres);
 
@@ -177,7 +191,7 @@ static void strip_row(void *arg, int wid, size_t ctask)
 			int m = WFS_NPIX - x0 < 256 ? WFS_NPIX - x0 : 256;
 			size_t o = task * WFS_NPIX + (size_t)x0;
 
-			ramp_fit_row(s->fp, out + BORDER + x0, FRAME, m, fit);
+			ramp_fit_row(s->fp, out + BORDER + x0, plane, m, fit);
 			for (int x = 0; x < m; x++) {
 				const struct ramp_fit *f = &fit[x];
 				int dnu = !!(f->dq & RAMP_DO_NOT_USE);
@@ -190,170 +204,37 @@ static void strip_row(void *arg, int wid, size_t ctask)
 				s->vr[o + x] = (float)f->var_rnoise;
 				s->dq[o + x] = f->dq;
 			}
+			if (s->chisq)
+				ramp_stats_row(s->fp, out + BORDER + x0, plane, fit, m,
+					       s->sscr[wid], s->chisq + o, s->dumo + o);
 		}
 		if (L->persist && light)
 			strip_persist_dq(L, sy, s->dq + task * WFS_NPIX);
 	}
 }
 
-/* Append card c (80 characters) to the list. */
-static int push(char **cards, int *n, const char *c)
+/* Hand computed strip s to the writer. */
+static int strip_write(const struct level_sca *L, const struct strip *s, struct err *e)
 {
-	char *more = realloc(*cards, (size_t)(*n + 1) * 80 + 1);
+	struct level_strip out = { .fy0 = s->fy0, .ny = s->ny, .l1 = s->l1 };
 
-	if (!more)
-		return -1;
-	*cards = more;
-	memcpy(more + (size_t)*n * 80, c, 80);
-	(*n)++;
-	return 0;
-}
-
-/* The cards of one HDU: the SCA's without EXTNAME, BUNIT and EXPTIME,
- * CRPIXn moved by (dx, dy), then ours. */
-static int hdu_cards(const struct level_sca *L, const char *extname, const char *bunit,
-		     double dx, double dy, char **cards, int *n)
-{
-	const struct ramp_pattern *p = L->pat;
-	char c[81], key[16], val[32];
-	int bad = 0;
-
-	*cards = NULL;
-	*n = 0;
-	fits_card_str(c, "EXTNAME", extname, NULL);
-	bad |= push(cards, n, c);
-	if (bunit) {
-		fits_card_str(c, "BUNIT", bunit, NULL);
-		bad |= push(cards, n, c);
-	}
-	fits_card_dbl(c, "EXPTIME", p->exptime, "exposure time: last read (s)");
-	bad |= push(cards, n, c);
-	for (int i = 0; i < L->ncards; i++) {
-		const char *in = L->cards + (size_t)i * 80;
-
-		if (!strncmp(in, "EXTNAME ", 8) || !strncmp(in, "BUNIT   ", 8) ||
-		    !strncmp(in, "EXPTIME ", 8))
-			continue;
-		if ((!strncmp(in, "CRPIX1  =", 9) && dx) || (!strncmp(in, "CRPIX2  =", 9) && dy)) {
-			char k[9];
-
-			memcpy(k, in, 8);
-			k[8] = 0;
-			for (int j = 7; j >= 0 && k[j] == ' '; j--)
-				k[j] = 0;
-			fits_card_dbl(c, k, strtod(in + 10, NULL) + (in[5] == '1' ? dx : dy),
-				      "reference pixel (moved by the reference border)");
-			bad |= push(cards, n, c);
-			continue;
-		}
-		bad |= push(cards, n, in);
-	}
-	fits_card_str(c, "LEVEL", L->level == LEVEL_1 ? "1" : "2",
-		      "1: resultants, 2: ramp fit (wfiscene --level)");
-	bad |= push(cards, n, c);
-	fits_card_int(c, "MATABLE", p->table, "MultiAccum table");
-	bad |= push(cards, n, c);
-	fits_card_int(c, "NRESULT", p->nres, "resultants");
-	bad |= push(cards, n, c);
-	fits_card_dbl(c, "READTIME", p->read_time, "time between reads (s)");
-	bad |= push(cards, n, c);
-	fits_card_dbl(c, "GAIN", L->det->gain, "e-/DN");
-	bad |= push(cards, n, c);
-	for (int i = 0; i < p->nres; i++) {
-		snprintf(key, sizeof(key), "MAREAD%d", i + 1);
-		snprintf(val, sizeof(val), "%d-%d", p->first[i], p->last[i]);
-		fits_card_str(c, key, val, "reads averaged into this resultant");
-		bad |= push(cards, n, c);
-	}
-	fits_card_dbl(c, "RDNOISE", L->det->read_noise, L->correlated ?
-		      "white read noise per read (e-)" : "read noise per read (e-)");
-	bad |= push(cards, n, c);
-	if (L->correlated) {
-		fits_card_bool(c, "RNCORR", 1, "+ read noise shared per channel (correlated)");
-		bad |= push(cards, n, c);
-	}
-	fits_card_dbl(c, "DARKCURR", L->det->dark, "dark current (e-/s)");
-	bad |= push(cards, n, c);
-	fits_card_dbl(c, "SATURATE", L->det->saturation, "saturation (DN, pedestal included)");
-	bad |= push(cards, n, c);
-	fits_card_dbl(c, "NLBETA", L->det->beta, "measured = true + NLBETA true^2 (e-)");
-	bad |= push(cards, n, c);
-	fits_card_dbl(c, "PEDESTAL", L->det->pedestal, "reset level (e-)");
-	bad |= push(cards, n, c);
 	if (L->level == LEVEL_2) {
-		fits_card_str(c, "RAMPFIT", "OPTIMAL",
-			      "Casertano et al. 2022 weights, jumps split");
-		bad |= push(cards, n, c);
-		fits_card_dbl(c, "JUMPTHR", L->det->jump_threshold, "jump threshold (sigma)");
-		bad |= push(cards, n, c);
-	}
-	if (bad) {
-		free(*cards);
-		*cards = NULL;
-		return -1;
-	}
-	return 0;
-}
-
-/* Write the planes of computed strip s at their places in the file. */
-static int strip_write(const struct level_sca *L, const struct strip *s, int flo,
-		       struct fitsout *f, struct err *e)
-{
-	const struct ramp_pattern *p = L->pat;
-	int fy0 = s->fy0, ny = s->ny;
-
-	if (L->level == LEVEL_1) {
-		for (int g = 0; g < p->nres; g++)
-			if (fitsout_group_rows(f, 0, g, fy0 - flo, ny,
-					       s->l1 + (size_t)g * ny * FRAME, e) < 0)
-				return -1;
-	} else {
 		/* science rows only: the reference rows have no fit */
-		int a = fy0 < BORDER ? BORDER - fy0 : 0;
-		int b = fy0 + ny > BORDER + WFS_NPIX ? BORDER + WFS_NPIX - fy0 : ny;
-		long y0 = fy0 + a - BORDER - L->ylo;
+		int a = s->fy0 < BORDER ? BORDER - s->fy0 : 0;
+		int b = s->fy0 + s->ny > BORDER + WFS_NPIX ? BORDER + WFS_NPIX - s->fy0 : s->ny;
 		size_t o = (size_t)a * WFS_NPIX;
-		const void *plane[5] = { s->rt + o, s->er + o, s->dq + o, s->vp + o, s->vr + o };
 
-		for (int k = 0; k < 5 && b > a; k++)
-			if (fitsout_group_rows(f, k, 0, y0, b - a, plane[k], e) < 0)
-				return -1;
+		out.sy0 = s->fy0 + a - BORDER;
+		out.nsy = b > a ? b - a : 0;
+		out.rate = s->rt + o;
+		out.err = s->er + o;
+		out.dq = s->dq + o;
+		out.var_poisson = s->vp + o;
+		out.var_rnoise = s->vr + o;
+		out.chisq = s->chisq ? s->chisq + o : NULL;
+		out.dumo = s->dumo ? s->dumo + o : NULL;
 	}
-	return 0;
-}
-
-/* The HDUs of the SCA, their cards in cards[] (the caller frees them) and
- * their names in name[]: at level 1 one cube of resultants in DN, the
- * reference border included, rows [flo, fhi) of the frame; at level 2 the
- * five planes of the ramp fit, science pixels only, as the Roman pipeline
- * names them.  The number of HDUs, or -1 out of memory. */
-static int sca_hdus(const struct level_sca *L, int flo, int fhi, struct fitsout_hdu h[5],
-		    char *cards[5], char name[5][24])
-{
-	static const char *const suffix[5] = { "", "_ERR", "_DQ", "_VAR_POISSON",
-					       "_VAR_RNOISE" };
-	static const char *const unit[5] = { "counts/s", "counts/s", NULL,
-					     "(counts/s)^2", "(counts/s)^2" };
-	const struct ramp_pattern *p = L->pat;
-	int sca = L->key.sca, ncards;
-
-	if (L->level == LEVEL_1) {
-		snprintf(name[0], sizeof(name[0]), "WFI%02d", sca);
-		if (hdu_cards(L, name[0], "DN", BORDER, L->ylo == 0 ? BORDER : 0,
-			      &cards[0], &ncards) < 0)
-			return -1;
-		h[0] = (struct fitsout_hdu){ name[0], cards[0], ncards, 16, FRAME,
-					     fhi - flo, p->nres };
-		return 1;
-	}
-	for (int k = 0; k < 5; k++) {
-		snprintf(name[k], sizeof(name[k]), "WFI%02d%s", sca, suffix[k]);
-		if (hdu_cards(L, name[k], unit[k], 0, 0, &cards[k], &ncards) < 0)
-			return -1;
-		h[k] = (struct fitsout_hdu){ name[k], cards[k], ncards, k == 2 ? 32 : -32,
-					     WFS_NPIX, L->yhi - L->ylo, 1 };
-	}
-	return 5;
+	return L->put(L->put_arg, &out, e);
 }
 
 /* The buffers of one SCA's pass, shared by its strips. */
@@ -409,8 +290,16 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 			return -1;
 		else
 			ramp_scratch_init(st[0].scr[i]);
+	if (L->level == LEVEL_2 && L->ramp_stats) {
+		if (!(st[0].sscr = calloc((size_t)nthr, sizeof(*st[0].sscr))))
+			return -1;
+		for (int i = 0; i < nthr; i++)
+			if (!(st[0].sscr[i] = malloc(RAMP_STATS_SCRATCH(256) * sizeof(double))))
+				return -1;
+	}
 	st[1].scr = st[0].scr;
 	st[1].dnrow = st[0].dnrow;
+	st[1].sscr = st[0].sscr;
 	for (int b = 0; b < 2; b++) {
 		struct strip *s = &st[b];
 
@@ -421,16 +310,19 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 		s->own = w->own;
 		s->rn = L->correlated ? &w->rn : NULL;
 		s->ref = L->correlated && L->level == LEVEL_2 ? &w->ref : NULL;
-		if (L->level == LEVEL_1) {
-			if (!(s->l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
-				return -1;
-		} else if (!(s->rt = malloc(area * sizeof(float))) ||
+		if ((L->level == LEVEL_1 || L->keep_l1) &&
+		    !(s->l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
+			return -1;
+		if (L->level == LEVEL_2 && (!(s->rt = malloc(area * sizeof(float))) ||
 			   !(s->er = malloc(area * sizeof(float))) ||
 			   !(s->vp = malloc(area * sizeof(float))) ||
 			   !(s->vr = malloc(area * sizeof(float))) ||
-			   !(s->dq = malloc(area * sizeof(uint32_t)))) {
+			   !(s->dq = malloc(area * sizeof(uint32_t)))))
 			return -1;
-		}
+		if (L->level == LEVEL_2 && L->ramp_stats &&
+		    (!(s->chisq = malloc(area * sizeof(float))) ||
+		     !(s->dumo = malloc(area * sizeof(float)))))
+			return -1;
 	}
 	return 0;
 }
@@ -445,6 +337,9 @@ static void sca_pass_free(struct sca_pass *w)
 	}
 	free(st[0].scr);
 	free(st[0].dnrow);
+	for (int i = 0; st[0].sscr && i < w->nthr; i++)
+		free(st[0].sscr[i]);
+	free(st[0].sscr);
 	for (int b = 0; b < 2; b++) {
 		free(st[b].l1);
 		free(st[b].rt);
@@ -452,6 +347,8 @@ static void sca_pass_free(struct sca_pass *w)
 		free(st[b].vp);
 		free(st[b].vr);
 		free(st[b].dq);
+		free(st[b].chisq);
+		free(st[b].dumo);
 	}
 	free(w->lightbuf);
 	free(w->chbuf);
@@ -515,7 +412,7 @@ static int strip_light(struct sca_pass *w, struct strip *s, struct err *e)
  * and the fits.  The seconds spent writing in *t_write.  0 or -1 with a
  * message, the workers idle either way. */
 static int strip_compute(struct sca_pass *w, struct strip *s, const struct strip *prev,
-			 int flo, struct fitsout *f, double *t_write, struct err *e)
+			 double *t_write, struct err *e)
 {
 	struct level_sca *L = s->L;
 	size_t rowlen = (size_t)L->pat->nres * WFS_NPIX;
@@ -537,7 +434,7 @@ static int strip_compute(struct sca_pass *w, struct strip *s, const struct strip
 		if (c0 == 0 && prev) {
 			double t1 = now();
 
-			if (strip_write(L, prev, flo, f, e) < 0) {
+			if (strip_write(L, prev, e) < 0) {
 				pool_wait(L->pool);
 				return -1;
 			}
@@ -551,15 +448,13 @@ static int strip_compute(struct sca_pass *w, struct strip *s, const struct strip
 	return 0;
 }
 
-int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
+int level_write_sca(struct level_sca *L, struct err *e)
 {
 	int flo = L->ylo == 0 ? 0 : L->ylo + BORDER;
 	int fhi = L->yhi == WFS_NPIX ? FRAME : L->yhi + BORDER;
-	struct fitsout_hdu h[5];
-	char *cards[5] = { 0 }, name[5][24];
 	struct sca_pass w = { 0 };
 	struct strip *prev = NULL;
-	int nh, r = -1;
+	int r = -1;
 
 	const struct ramp_det *det0 = L->det;
 
@@ -589,10 +484,6 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 	} else if (L->level == LEVEL_2 && ramp_fit_plan_init(&w.fp, L->pat, L->det) < 0) {
 		goto nomem;
 	}
-	if ((nh = sca_hdus(L, flo, fhi, h, cards, name)) < 0)
-		goto nomem;
-	if (fitsout_group_begin(f, nh, h, e) < 0)
-		goto done;
 	if (sca_pass_alloc(&w, L) < 0)
 		goto nomem;
 	for (int fy0 = flo, b = 0; fy0 < fhi; fy0 += w.S, b ^= 1) {
@@ -602,7 +493,7 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 		s->fy0 = fy0;
 		s->ny = fhi - fy0 < w.S ? fhi - fy0 : w.S;
 		s->sy0 = fy0 - BORDER;
-		if (strip_light(&w, s, e) < 0 || strip_compute(&w, s, prev, flo, f, &t1, e) < 0)
+		if (strip_light(&w, s, e) < 0 || strip_compute(&w, s, prev, &t1, e) < 0)
 			goto done;
 		/* the wall time less the writing, which overlapped the ramp:
 		 * the two add up to the wall time of the loop */
@@ -612,11 +503,11 @@ int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e)
 	if (prev) {
 		double t1 = now();
 
-		if (strip_write(L, prev, flo, f, e) < 0)
+		if (strip_write(L, prev, e) < 0)
 			goto done;
 		L->t_write += now() - t1;
 	}
-	r = fitsout_group_end(f, e);
+	r = 0;
 	goto done;
 nomem:
 	err_sys(e, "detector level %d: memory", L->level);
@@ -627,7 +518,5 @@ done:
 		rnoise_ref_free(&w.ref);
 		L->det = det0;
 	}
-	for (int k = 0; k < 5; k++)
-		free(cards[k]);
 	return r;
 }

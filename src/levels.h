@@ -5,17 +5,16 @@
  * The rendered image of an SCA (counts/s, i.e. e-/s) plus the background
  * is the light; the detector's IPC kernel acts on it once (the ePSF of
  * these levels has no IPC: PSF_EPSF_NOIPC), then ramp.c reads it up the
- * ramp.  Each strip of rows is computed by the pool, row by row, and its
- * planes written at their places in the file (fitsout groups), so memory
+ * ramp.  Each strip of rows is computed by the pool, row by row, and
+ * handed to a writer (product.h), so memory
  * holds one strip of resultants whatever their number, and the bytes do
  * not depend on the threads, the strip height or --rows.
  *
- * Level 1: HDU WFInn, a cube of nres planes of 4096 x rows 16-bit DN (the
- * 4-pixel reference border included; with --rows, the rows of the part,
- * with the bottom or top border rows when the part reaches it).
- * Level 2: HDUs WFInn (rate, counts/s, the dark current subtracted),
- * WFInn_ERR, WFInn_DQ (32-bit, romancal's bits), WFInn_VAR_POISSON and
- * WFInn_VAR_RNOISE ((counts/s)^2), 4088 x rows.
+ * Level 1: nres planes of 4096 x rows 16-bit DN (the 4-pixel reference
+ * border included; with --rows, the rows of the part, with the bottom or
+ * top border rows when the part reaches it).  Level 2: the rate (counts/s,
+ * the dark current subtracted), its error, DQ (romancal's bits) and the
+ * Poisson and read-noise variances ((counts/s)^2), 4088 x rows.
  */
 #ifndef WFS_LEVELS_H
 #define WFS_LEVELS_H
@@ -23,8 +22,8 @@
 #include "ramp.h"
 
 struct err;
-struct fitsout;
 struct geom_sca;
+struct level_strip;
 struct pool;
 
 enum level { LEVEL_SCENE = 0, LEVEL_1 = 1, LEVEL_2 = 2 };
@@ -50,10 +49,13 @@ struct level_sca {
 	 * called on the calling thread only.  0 or -1 (message in e). */
 	int (*rate_row)(void *arg, int y, double *out, struct err *e);
 	void *arg;
-	/* The SCA's header cards (its EXTNAME is replaced; CRPIXn moved by
-	 * the reference border at level 1). */
-	const char *cards;
-	int ncards;
+	/* Where the computed strips go (product.h), in order of rows, on
+	 * the calling thread: 0 or -1 (message in e).  With keep_l1, level 2
+	 * hands over the resultants too. */
+	int (*put)(void *arg, const struct level_strip *s, struct err *e);
+	void *put_arg;
+	int keep_l1;
+	int ramp_stats;         /* level 2: chisq and dumo too (ramp_stats.h) */
 	struct pool *pool;
 	/* The run's persistence state (NULL: none), begun for the exposure:
 	 * the afterglow of its pixels goes into the ramp read by read, the
@@ -71,7 +73,8 @@ struct level_sca {
 	double t_ramp, t_write;
 };
 
-/* Write the HDUs of the SCA into f.  0 or -1 with a message. */
-int level_write_sca(struct level_sca *L, struct fitsout *f, struct err *e);
+/* Compute the SCA strip by strip, each handed to L->put.  0 or -1 with a
+ * message. */
+int level_write_sca(struct level_sca *L, struct err *e);
 
 #endif

@@ -19,8 +19,11 @@
 #include "levels.h"
 #include "names.h"
 #include "noise.h"
+#include "geometry.h"
 #include "options.h"
 #include "pool.h"
+#include "product.h"
+#include "into_asdf.h"
 #include "scene.h"
 #include "tempfile.h"
 
@@ -43,7 +46,8 @@ struct scene_cmd {
 
 static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
 	set_model_int, set_model_word, set_flux_unit, set_psf, set_background, set_noise,
-	set_seed, set_version, set_date, set_exptime, set_level, set_ma_table, set_detector;
+	set_seed, set_version, set_date, set_exptime, set_level, set_ma_table, set_detector,
+	set_format;
 
 static const char *const refs[] = { "wfi01", "boresight", NULL };
 /* in the order of enum wfs_geometry */
@@ -55,6 +59,7 @@ static const char *const methods[] = { "quick", "precise", NULL };
 static const char *const meanings[] = { "total", "ie", NULL };
 static const char *const yesno[] = { "yes", "no", NULL };
 static const char *const compressions[] = { "none", "rice", "gzip", NULL };
+static const char *const formats[] = { "fits", "asdf", NULL };     /* enum product_format */
 static const char *const norms[] = { "project", "etc", NULL };    /* enum bkg_norm */
 
 /* The filters --filter takes, as instrument.c names them, in its order:
@@ -63,8 +68,11 @@ static const char *const norms[] = { "project", "etc", NULL };    /* enum bkg_no
 
 static const struct opt scene_options[] = {
 	OPT_SECTION("Scene:"),
-	{ OPT("output", 'o', "FILE", NULL, "output FITS ('-' stdout; '%d' in FILE: one per SCA)",
-	  opt_string, OFF(o.output)) },
+	{ OPT("output", 'o', "FILE", NULL, "output FITS or ASDF ('-' stdout; '%d' in FILE: one "
+	  "per SCA)", opt_string, OFF(o.output)) },
+	{ OPT("format", 0, "F", "asdf for -o *.asdf, else fits", "fits or asdf (Roman's "
+	  "levels 1 and 2)", set_format, OFF(o.format)), .words = formats,
+	  .flags = OPT_SHOW_DEFAULT },
 	{ OPT("filter", 0, "F", NULL, FILTER_LIST " (required)",
 	  set_filter, OFF(o.filter)) },
 	{ OPT("sca", 0, "LIST", "1", "SCAs: 1, 1-18, 2,5,9, WFI05", set_sca, OFF(o.sca_mask)) },
@@ -353,6 +361,14 @@ static int set_ma_table(const struct opt_arg *a, struct err *e)
 	return opt_int(a, e);
 }
 
+static int set_format(const struct opt_arg *a, struct err *e)
+{
+	struct scene_cmd *c = a->base;
+
+	c->o.format_given = 1;
+	return opt_choice(a, e);
+}
+
 static int set_level(const struct opt_arg *a, struct err *e)
 {
 	return level_parse(a->value, a->field, e);
@@ -412,6 +428,49 @@ static int fail(const struct err *e)
 	return opt_fail(&scene_cmd_line, OPT_PARSE_FAIL, e);
 }
 
+/* What an ASDF output allows: the Roman pipeline's products of a whole SCA
+ * in Roman's own geometry, one file per SCA, written at offsets. */
+static int check_asdf(const struct scene_opts *o, struct err *e)
+{
+	if (o->level == LEVEL_SCENE)
+		return err_set(e, EXIT_INPUT, "-o %s: ASDF holds Roman's level 1 or 2 products; "
+			       "add --level 1 or --level 2 (or write FITS)", o->output);
+	if (!strcmp(o->output, "-"))
+		return err_set(e, EXIT_INPUT, "-o - with ASDF: the blocks are written at "
+			       "offsets and need a file, not stdout");
+	if (o->row_first)
+		return err_set(e, EXIT_INPUT, "--rows with ASDF: a Roman product holds the "
+			       "whole SCA (write FITS parts and merge them)");
+	if (o->geometry != GEOM_SIAF)
+		return err_set(e, EXIT_INPUT, "--geometry stips with ASDF: a Roman product's "
+			       "WCS is the SIAF's (use --geometry siaf)");
+	if (o->into)
+		return err_set(e, EXIT_INPUT, "--into with ASDF output: injection writes the "
+			       "image it reads");
+	if ((o->sca_mask & (o->sca_mask - 1)) && !(name_fields(o->output) & NAME_SCA))
+		return err_set(e, EXIT_INPUT, "-o %s: an ASDF file holds one SCA; put %%d in "
+			       "the name for one file per SCA (-o NAME_WFI%%02d.asdf)", o->output);
+	return 0;
+}
+
+/* --into a Roman level-2 ASDF file: the engine draws a scene in counts/s
+ * (written as FITS under the output's name), which into_asdf.c turns into
+ * the image with the light added, an ASDF file whatever -o's name. */
+static int check_into_asdf(struct scene_opts *o, struct err *e)
+{
+	if (o->level != LEVEL_SCENE)
+		return err_set(e, EXIT_INPUT, "--into %s with --level: the sources are added to "
+			       "the level-2 image as a rate (leave --level out)", o->into);
+	if (o->bunit_counts)
+		return err_set(e, EXIT_INPUT, "--into %s with --bunit counts: the image is in "
+			       "DN/s", o->into);
+	if (o->geometry != GEOM_SIAF)
+		return err_set(e, EXIT_INPUT, "--into %s with --geometry stips: a Roman image is "
+			       "placed through the SIAF", o->into);
+	o->format = FORMAT_FITS;
+	return 0;
+}
+
 /* What the options allow only together. */
 static int check_options(struct scene_opts *o, struct err *e)
 {
@@ -429,6 +488,12 @@ static int check_options(struct scene_opts *o, struct err *e)
 		o->output = "-";
 	}
 	if (check_names(o, e) < 0)
+		return -1;
+	if (!o->format_given)
+		o->format = product_format_of(o->output);
+	if (o->into && into_is_asdf(o->into) && check_into_asdf(o, e) < 0)
+		return -1;
+	if (o->format == FORMAT_ASDF && check_asdf(o, e) < 0)
 		return -1;
 	if (strcmp(o->compress, "none") && !strcmp(o->output, "-"))
 		return err_set(e, EXIT_INPUT, "--compress %s: stdout cannot be tile-compressed "

@@ -77,6 +77,7 @@ enum {
 	DOM_READ = 0x47,
 	DOM_GAP = 0x48,
 	DOM_GLOW = 0x49,
+	DOM_REFREAD = 0x4a,
 };
 
 #define RATE_MAX 1e12           /* e-/s: beyond this a pixel is as saturated */
@@ -1075,5 +1076,26 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 			v = round_even(v * inv_g);
 			dn[x] = (uint16_t)(v < 0 ? 0 : v > dnmax ? dnmax : v);
 		}
+	}
+}
+
+/* The reference read: the reset level the resultants start from (the
+ * same DOM_RESET numbers), through the non-linearity, with one read's
+ * noise of its own. */
+void ramp_reference_row(const struct ramp_det *d, const struct ramp_key *k, uint32_t cell0,
+			int n, uint16_t *out, double *scratch)
+{
+	struct rng g;
+	double *P = scratch, *z = scratch + n;
+
+	rng_init(&g, k->seed, domain(k, DOM_RESET, 0));
+	rng_normal_fill(&g, cell0, (size_t)n, P);
+	rng_init(&g, k->seed, domain(k, DOM_REFREAD, 0));
+	rng_normal_fill(&g, cell0, (size_t)n, z);
+	for (int i = 0; i < n; i++) {
+		double v = round_even((ramp_nl(d, d->pedestal + d->reset_noise * P[i]) +
+				       d->read_noise * z[i]) / d->gain);
+
+		out[i] = (uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
 	}
 }

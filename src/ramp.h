@@ -174,6 +174,16 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 			const double *row, const double *below, const float *own,
 			size_t cplane, uint16_t *out, size_t plane);
 
+/*
+ * The reference read of the n pixels cell0 .. cell0 + n - 1: the read
+ * right after the reset, before any light, in DN: the reset level the
+ * pixel's resultants start from, through the non-linearity, plus one
+ * read's noise (keyed apart from the resultants').  scratch: 2 n doubles.
+ * Level 1's optional reference_read of the ASDF product.  Thread-safe.
+ */
+void ramp_reference_row(const struct ramp_det *d, const struct ramp_key *k, uint32_t cell0,
+			int n, uint16_t *out, double *scratch);
+
 /* Weights of the unsegmented full ramp, one set per Casertano power;
  * computed once per pattern and detector, then shared by threads. */
 struct ramp_fit_plan {

@@ -44,6 +44,9 @@ struct scene_opts {
 	unsigned noise;                 /* enum noise_stage bits */
 	double readnoise, dark_current, cosmic_rate, cosmic_residual;
 	const char *output;             /* "-", a path, or a path with %d */
+	int format;                     /* enum product_format: --format, or
+	                                   -o's extension */
+	int format_given;
 	const char *placed;             /* --placed file or NULL */
 	const char *into;               /* --into IMAGE[.fits[HDU]] or NULL: add
 	                                   the sources to that image (into.h) */

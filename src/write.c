@@ -1,13 +1,14 @@
 /*
- * write.c - writing an exposure: FITS header cards and the image, strip by
- * strip.
+ * write.c - an exposure's products, made once and handed to a writer
+ * (product.h: write_fits.c or write_asdf.c).
  *
- * After the last chunk is drawn, each SCA's image is written one strip of
+ * After the last chunk is drawn, each SCA's image is made one strip of
  * tiles at a time: the strip's drawn light is summed for the report, the
  * detector stage (detector.c: background, exposure time, noise) runs on
  * its tiles in parallel, the tiles are converted to float32, checked for
- * values a float cannot hold, written through fitsout.c and freed.  So an exposure never
- * holds a second copy of its image.
+ * values a float cannot hold, given to the writer and freed.  So an
+ * exposure never holds a second copy of its image.  At levels 1 and 2 the
+ * SCA goes through levels.c, which hands the writer its strips.
  */
 #include <math.h>
 #include <stdatomic.h>
@@ -22,141 +23,11 @@
 #include "clock.h"
 #include "engine.h"
 #include "err.h"
-#include "fitsout.h"
 #include "names.h"
 #include "detector.h"
 #include "levels.h"
 #include "pool.h"
-
-static int add_card(char **cards, int *n, int *cap, const char *card)
-{
-	if (*n == *cap) {
-		char *more = realloc(*cards, (size_t)(*cap ? 2 * *cap : 64) * 80 + 1);
-
-		if (!more)
-			return -1;
-		*cards = more;
-		*cap = *cap ? 2 * *cap : 64;
-	}
-	memcpy(*cards + (size_t)*n * 80, card, 80);
-	(*n)++;
-	return 0;
-}
-
-static int primary_cards(struct engine *g, char **cards, int *n)
-{
-	const struct scene_opts *o = g->o;
-	const struct exposure *x = g->x;
-	char c[81], buf[64];
-	int cap = 0, bad = 0;
-	const char *epoch = getenv("SOURCE_DATE_EPOCH");
-	time_t now = epoch && *epoch ? (time_t)strtoll(epoch, NULL, 10) : time(NULL);
-	struct tm tm;
-
-	*cards = NULL;
-	*n = 0;
-#define CARD(fn, k, v, com) (fn(c, k, v, com), bad |= add_card(cards, n, &cap, c))
-	CARD(fits_card_str, "ORIGIN", "wfiscene", "Roman WFI scene simulator");
-	CARD(fits_card_str, "WFSVERS", WFS_VERSION, "wfiscene version");
-	gmtime_r(&now, &tm);
-	strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%S", &tm);
-	/* SOURCE_DATE_EPOCH pins the date, so two runs can give the same bytes */
-	CARD(fits_card_str, "DATE", buf, "file creation date (UTC)");
-	CARD(fits_card_str, "TELESCOP", "ROMAN", NULL);
-	CARD(fits_card_str, "INSTRUME", "WFI", NULL);
-	CARD(fits_card_str, "FILTER", g->filter_name, "optical element");
-	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
-	CARD(fits_card_dbl, "RA_TARG", g->sky.ra0, "pointing RA (deg)");
-	CARD(fits_card_dbl, "DEC_TARG", g->sky.dec0, "pointing Dec (deg)");
-	CARD(fits_card_dbl, "PA_APER", g->sky.pa0, "position angle of reference +y (deg E of N)");
-	CARD(fits_card_str, "POINTREF", x->boresight ? "BORESIGHT" : "WFI01",
-	     "what RA_TARG/DEC_TARG point at");
-	CARD(fits_card_str, "GEOMETRY", geom_name(o->geometry),
-	     o->geometry == GEOM_STIPS ? "0.11\" square aligned SCAs, TAN" : "Roman SIAF, TAN-SIP");
-	CARD(fits_card_int, "SEED", (long long)x->seed, "random seed");
-	CARD(fits_card_str, "PSFSRC", o->psf, "PSF source");
-	CARD(fits_card_str, "BUNIT", o->level == DETECTOR_L1 ? "DN" : o->bunit_counts ?
-	     "counts" : "counts/s", NULL);
-	if (o->level) {
-		CARD(fits_card_str, "LEVEL", o->level == DETECTOR_L1 ? "1" : "2",
-		     "detector level (--level)");
-		CARD(fits_card_int, "MATABLE", o->ma_table, "MultiAccum table (--ma-table)");
-	}
-	CARD(fits_card_str, "BKGRND", o->background_arg ? o->background_arg : "none",
-	     "background setting");
-	/* Only what every SCA shares: a run split by SCA has the same primary. */
-	if (o->bkg_model == BKG_AVG)
-		CARD(fits_card_dbl, "BKGRATE", x->background,
-		     "STIPS Table 1 (counts/s/px); per SCA in HDUs");
-	else if (o->bkg_model != BKG_SKY)
-		CARD(fits_card_dbl, "BKGRATE", x->background, "background (counts/s/pixel)");
-	if (o->bkg_model == BKG_SKY)
-		CARD(fits_card_str, "ZODINORM", background_norm_name(o->zodi_norm),
-		     "zodiacal light scale (--zodi)");
-	if (!isnan(x->date)) {
-		char when[32];
-
-		date_format(x->date, when, sizeof(when));
-		CARD(fits_card_str, "DATE-OBS", when, "exposure date (UTC)");
-		CARD(fits_card_dbl, "MJD-OBS", x->date, "exposure date (MJD, UTC)");
-		CARD(fits_card_dbl, "SUNANGLE", x->bkg.sun_angle, "boresight to Sun (deg)");
-	}
-	snprintf(buf, sizeof(buf), "%s%s%s%s%s", o->noise & NOISE_POISSON ? "P" : "",
-		 o->noise & NOISE_READ ? "R" : "", o->noise & NOISE_DARK ? "D" : "",
-		 o->noise & NOISE_FLAT ? "F" : "", o->noise & NOISE_COSMIC ? "C" : "");
-	CARD(fits_card_str, "NOISE", buf[0] ? buf : "NONE",
-	     "P poisson R read D dark F flat C cosmic");
-	if (o->noise & NOISE_READ)
-		CARD(fits_card_dbl, "RDNOISE", o->readnoise, "read noise (e-)");
-	CARD(fits_card_str, "ZPTABLE", o->zp_stips ? "STIPS" : "RTI-20240301",
-	     "AB zeropoints used");
-	CARD(fits_card_dbl, "BRIGHTLM", o->bright_limit, "bright ePSF box limit (AB)");
-	CARD(fits_card_dbl, "XBRITELM", o->xbright_limit, "extra-bright box limit (AB)");
-#undef CARD
-	return bad ? -1 : 0;
-}
-
-static int image_cards(struct engine *g, int s, char **cards, int *n)
-{
-	const struct scene_opts *o = g->o;
-	char c[81], name[16], *wcs = NULL;
-	int nwcs = 0, cap = 0, bad = 0, sca = g->slot[s].sca;
-	const struct bkg_part *bp = &g->x->bkg.sca[sca - 1];
-
-	*cards = NULL;
-	*n = 0;
-	if (sky_header(&g->sky, sca, g->ylo, &wcs, &nwcs, g->e) < 0)
-		return -1;
-	snprintf(name, sizeof(name), "WFI%02d", sca);
-#define CARD(fn, k, v, com) (fn(c, k, v, com), bad |= add_card(cards, n, &cap, c))
-	CARD(fits_card_str, "EXTNAME", name, "detector");
-	CARD(fits_card_str, "DETECTOR", name, NULL);
-	CARD(fits_card_str, "FILTER", g->filter_name, NULL);
-	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
-	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
-	CARD(fits_card_dbl, "PHOTZPAB", place_zeropoint(g, sca), "AB mag of 1 count/s");
-	CARD(fits_card_dbl, "PA_APER", g->sky.sca[sca - 1].pa, "position angle of +y (deg)");
-	CARD(fits_card_dbl, "RA_APER", g->sky.sca[sca - 1].ra, "detector centre RA");
-	CARD(fits_card_dbl, "DEC_APER", g->sky.sca[sca - 1].dec, "detector centre Dec");
-	CARD(fits_card_dbl, "BKGRATE", bp->total, "background (counts/s/pixel)");
-	if (o->bkg_model == BKG_AVG || o->bkg_model == BKG_SKY) {
-		CARD(fits_card_dbl, "BKGZODI", bp->zodi, "of which zodiacal light");
-		CARD(fits_card_dbl, "BKGTHERM", bp->thermal, "of which internal thermal");
-	}
-	CARD(fits_card_int, "NSOURCES", (long long)g->placed_on[sca - 1], "sources drawn on this SCA");
-	if (o->row_first) {
-		char rows[32];
-
-		snprintf(rows, sizeof(rows), "%d-%d", o->row_first, o->row_last);
-		CARD(fits_card_str, "ROWS", rows, "rows of the SCA in this part (--rows)");
-	}
-#undef CARD
-	for (int k = 0; k < nwcs; k++)
-		if (strncmp(wcs + 80 * k, "WCSAXES ", 8) && strncmp(wcs + 80 * k, "COMMENT", 7))
-			bad |= add_card(cards, n, &cap, wcs + 80 * k);
-	free(wcs);
-	return bad ? err_sys(g->e, "header") : 0;
-}
+#include "product.h"
 
 /* The first pixel of a[0 .. n-1] that is not a finite float, or -1. */
 /* The first of a[0 .. n-1] that is infinite or NaN (its exponent bits all
@@ -204,20 +75,15 @@ static double tile_sum(const double *t, int T, int y0, int y1, int nx)
 	return (s[0] + s[1]) + (s[2] + s[3]);
 }
 
-static int write_slot(struct engine *g, struct fitsout *f, int s, const struct detector *d,
+static int write_slot(struct engine *g, struct writer *w, int s, const struct detector *d,
 		      float *strip)
 {
 	int T = g->tile;
-	char *cards;
-	int ncards;
+	struct product p = { .g = g, .slot = s, .sca = g->slot[s].sca, .level = DETECTOR_SCENE,
+			     .ylo = g->ylo, .yhi = g->yhi };
 
-	if (image_cards(g, s, &cards, &ncards) < 0)
+	if (w->ops->sca_begin(w, &p, g->e) < 0)
 		return -1;
-	if (fitsout_image_begin(f, WFS_NPIX, g->yhi - g->ylo, cards, ncards, g->e) < 0) {
-		free(cards);
-		return -1;
-	}
-	free(cards);
 	/* The strips of tiles that hold the rows written, [ylo, yhi): all of
 	 * them but with --rows. */
 	for (int ty = g->ylo / T; ty * T < g->yhi; ty++) {
@@ -274,7 +140,7 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, const struct d
 					       "(3.4e38): the sources there sum to more than "
 					       "the image can hold", g->slot[s].sca, px, py);
 		}
-		if (fitsout_image_rows(f, strip, yb - ya, g->e) < 0)
+		if (w->ops->rows(w, strip, yb - ya, g->e) < 0)
 			return -1;
 		for (int tx = 0; tx < g->ntx; tx++) {
 			tile_free(row[tx], T);
@@ -283,7 +149,7 @@ static int write_slot(struct engine *g, struct fitsout *f, int s, const struct d
 		g->t_write += engine_clock() - t0;
 		engine_progress(g, "writing", 0);
 	}
-	return fitsout_image_end(f, g->e);
+	return w->ops->sca_end(w, g->e);
 }
 
 /* The rendered rate of science row y of the slot, for levels.c. */
@@ -317,9 +183,16 @@ static int level_rate_row(void *arg, int y, double *out, struct err *e)
 	return 0;
 }
 
+static int level_put(void *arg, const struct level_strip *s, struct err *e)
+{
+	struct writer *w = arg;
+
+	return w->ops->strip(w, s, e);
+}
+
 /* Levels 1 and 2: the whole SCA through levels.c, which reads the rendered
  * tiles row by row (with a row on either side, for IPC), then the tiles go. */
-static int write_slot_level(struct engine *g, struct fitsout *f, int s, const struct detector *d)
+static int write_slot_level(struct engine *g, struct writer *w, int s, const struct detector *d)
 {
 	const struct exposure *x = g->x;
 	int sca = g->slot[s].sca, T = g->tile, rc;
@@ -331,9 +204,11 @@ static int write_slot_level(struct engine *g, struct fitsout *f, int s, const st
 		.ylo = g->ylo, .yhi = g->yhi, .strip = T,
 		.background = d->bkg_sky[sca - 1] + d->bkg_pixel[sca - 1],
 		.rate_row = level_rate_row, .arg = &rows, .pool = g->pool,
+		.put = level_put, .put_arg = w, .keep_l1 = w->ops->l1_at_l2,
+		.ramp_stats = w->ops->ramp_stats,
 	};
-	char *cards;
-	int ncards;
+	struct product p = { .g = g, .slot = s, .sca = sca, .level = d->level,
+			     .ylo = g->ylo, .yhi = g->yhi, .pat = &d->pattern, .det = &det };
 
 	if (ramp_det_get(sca, &det, g->e) < 0)
 		return -1;
@@ -359,10 +234,8 @@ static int write_slot_level(struct engine *g, struct fitsout *f, int s, const st
 				L.key.split_exact_max = val > 0 ? val : -1;
 		}
 	}
-	if (image_cards(g, s, &cards, &ncards) < 0)
+	if (w->ops->sca_begin(w, &p, g->e) < 0)
 		return -1;
-	L.cards = cards;
-	L.ncards = ncards;
 	for (int k = 0; k < g->ntx * g->nty; k++) {
 		double *t = g->slot[s].tile[k];
 		int tx = k % g->ntx, ty = k / g->ntx;
@@ -377,8 +250,9 @@ static int write_slot_level(struct engine *g, struct fitsout *f, int s, const st
 			g->image_sum[sca - 1] += tile_sum(t, T, ya, yb, nx);
 	}
 	g->tiles += g->ntx * g->nty;
-	rc = level_write_sca(&L, f, g->e);
-	free(cards);
+	rc = level_write_sca(&L, g->e);
+	if (rc == 0)
+		rc = w->ops->sca_end(w, g->e);
 	g->t_noise += L.t_ramp;
 	g->t_write += L.t_write;
 	for (int k = 0; k < g->ntx * g->nty; k++) {
@@ -388,54 +262,58 @@ static int write_slot_level(struct engine *g, struct fitsout *f, int s, const st
 	return rc;
 }
 
+int product_format_of(const char *path)
+{
+	size_t n = strlen(path);
+
+	return n >= 5 && !strcmp(path + n - 5, ".asdf") ? FORMAT_ASDF : FORMAT_FITS;
+}
+
 int write_exposure(struct engine *g)
 {
 	const struct scene_opts *o = g->o;
 	const struct exposure *x = g->x;
+	const struct writer_ops *ops = o->format == FORMAT_ASDF ? &writer_asdf : &writer_fits;
 	struct detector d;
 	int per_sca = (name_fields(x->output) & NAME_SCA) != 0;
 	float *strip = malloc((size_t)g->tile * WFS_NPIX * sizeof(float));
-	struct fitsout *f = NULL;
-	char *cards = NULL;
-	int ncards;
+	struct writer *w = NULL;
 
 	if (!strip)
 		return err_sys(g->e, "output buffer");
 	if (detector_init(&d, o, x, g->e) < 0)
 		goto fail;
 	d.sky = &g->sky;
-	if (primary_cards(g, &cards, &ncards) < 0) {
-		err_sys(g->e, "header");
+	if (ops->one_sca_per_file && !per_sca && g->nslot > 1) {
+		err_set(g->e, EXIT_INPUT, "-o %s: an %s file holds one SCA; put %%d in the name "
+			"for one file per SCA (-o %s_WFI%%02d.asdf)", x->output, ops->name, "NAME");
 		goto fail;
 	}
 	for (int s = 0; s < g->nslot; s++) {
-		if (!f || per_sca) {
+		if (!w || per_sca) {
 			char path[PATH_MAX];
 
 			if (name_expand(path, sizeof(path), "-o", x->output, g->slot[s].sca,
 					x->name[0] ? x->name : NULL, g->e) < 0 ||
-			    !(f = fitsout_open(path, o->compress, g->e)) ||
-			    fitsout_primary(f, cards, ncards, g->e) < 0)
+			    !(w = ops->open(g, path, g->e)))
 				goto fail;
 		}
-		if ((d.level == DETECTOR_SCENE ? write_slot(g, f, s, &d, strip) :
-		     write_slot_level(g, f, s, &d)) < 0)
+		if ((d.level == DETECTOR_SCENE ? write_slot(g, w, s, &d, strip) :
+		     write_slot_level(g, w, s, &d)) < 0)
 			goto fail;
 		if (per_sca || s == g->nslot - 1) {
-			struct fitsout *done = f;
+			struct writer *done = w;
 
-			f = NULL;
-			if (fitsout_commit(done, g->e) < 0)
+			w = NULL;
+			if (ops->commit(done, g->e) < 0)
 				goto fail;
 		}
 	}
-	free(cards);
 	free(strip);
 	return 0;
 fail:
-	fitsout_abort(f);
-	free(cards);
+	if (w)
+		ops->abort(w);
 	free(strip);
 	return -1;
 }
-

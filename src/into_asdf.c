@@ -1,0 +1,549 @@
+/*
+ * into_asdf.c - injection into a Roman level-2 ASDF file (--into
+ * IMAGE.asdf); see into_asdf.h.
+ */
+#include <errno.h>
+#include <fcntl.h>
+#include <libfyaml.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <fitsio.h>
+
+#include "asdf.h"
+#include "asdf_read.h"
+#include "err.h"
+#include "geometry.h"
+#include "instrument.h"
+#include "into_asdf.h"
+#include "md5.h"
+#include "ramp.h"
+#include "tempfile.h"
+
+#define D2R (M_PI / 180)
+#define R2D (180 / M_PI)
+#define AS2R (M_PI / 180 / 3600)
+#define TAGS "asdf://stsci.edu/datamodels/roman/tags/"
+
+/* The arrays injection changes. */
+enum { A_DATA, A_VP, A_ERR, A_N };
+
+struct into_asdf {
+	struct asdf_in *in;
+	int sca;
+	double ra_ref, dec_ref, roll_ref, v2_ref, v3_ref;
+	double teff;            /* s: the Poisson variance's time */
+	int block[A_N];
+	int dtype[A_N];
+	int big[A_N];           /* big-endian */
+};
+
+int into_is_asdf(const char *path)
+{
+	char head[6] = "";
+	FILE *f = fopen(path, "rb");
+
+	if (!f)
+		return 0;
+	if (fread(head, 1, 5, f) != 5)
+		head[0] = 0;
+	fclose(f);
+	return !memcmp(head, "#ASDF", 5);
+}
+
+static struct fy_node *at(struct fy_node *root, const char *path)
+{
+	return root ? fy_node_by_path(root, path, FY_NT, FYNWF_DONT_FOLLOW) : NULL;
+}
+
+/* A number at path; 0 or -1 with a message. */
+static int number(struct asdf_in *a, const char *path, double *v, struct err *e)
+{
+	struct fy_node *n = at(asdf_in_root(a), path);
+	const char *s = n && fy_node_is_scalar(n) ? fy_node_get_scalar0(n) : NULL;
+	char *end;
+
+	if (!s)
+		return err_set(e, EXIT_INPUT, "%s: no %s in the tree", a->path, path);
+	*v = strtod(s, &end);
+	if (end == s || *end || !isfinite(*v))
+		return err_set(e, EXIT_INPUT, "%s: %s: not a number: '%s'", a->path, path, s);
+	return 0;
+}
+
+/* The ndarray roman.<name>: its block, datatype, byte order, checked
+ * against the shape want. */
+static int ndarray(struct into_asdf *ia, const char *name, int k, const long *want, int ndim,
+		   struct err *e)
+{
+	struct asdf_in *a = ia->in;
+	char path[64];
+	struct fy_node *n, *s, *src, *dt, *bo;
+	const char *tag, *v;
+	size_t tl;
+
+	snprintf(path, sizeof(path), "/roman/%s", name);
+	if (!(n = at(asdf_in_root(a), path)) || !fy_node_is_mapping(n))
+		return err_set(e, EXIT_INPUT, "%s: no array roman.%s", a->path, name);
+	tag = fy_node_get_tag(n, &tl);
+	if (!tag || tl < 35 || strncmp(tag, "tag:stsci.edu:asdf/core/ndarray-1.", 34))
+		return err_set(e, EXIT_INPUT, "%s: roman.%s is not an ndarray", a->path, name);
+	src = fy_node_mapping_lookup_by_string(n, "source", FY_NT);
+	dt = fy_node_mapping_lookup_by_string(n, "datatype", FY_NT);
+	bo = fy_node_mapping_lookup_by_string(n, "byteorder", FY_NT);
+	s = fy_node_mapping_lookup_by_string(n, "shape", FY_NT);
+	if (!src || !fy_node_is_scalar(src) || !dt || !fy_node_is_scalar(dt) || !s ||
+	    !fy_node_is_sequence(s))
+		return err_set(e, EXIT_INPUT, "%s: roman.%s: an ndarray without a block source, "
+			       "datatype or shape (an inline or external array is not read here)",
+			       a->path, name);
+	ia->block[k] = atoi(fy_node_get_scalar0(src));
+	v = fy_node_get_scalar0(dt);
+	if (!strcmp(v, "float32"))
+		ia->dtype[k] = ASDF_F32;
+	else if (!strcmp(v, "float16"))
+		ia->dtype[k] = ASDF_F16;
+	else
+		return err_set(e, EXIT_INPUT, "%s: roman.%s is %s, not float32 or float16",
+			       a->path, name, v);
+	ia->big[k] = bo && fy_node_is_scalar(bo) && !strcmp(fy_node_get_scalar0(bo), "big");
+	if (fy_node_sequence_item_count(s) != ndim)
+		return err_set(e, EXIT_INPUT, "%s: roman.%s has %d dimensions, not %d", a->path,
+			       name, fy_node_sequence_item_count(s), ndim);
+	for (int i = 0; i < ndim; i++) {
+		struct fy_node *d = fy_node_sequence_get_by_index(s, i);
+
+		if (!d || !fy_node_is_scalar(d) || atol(fy_node_get_scalar0(d)) != want[i])
+			return err_set(e, EXIT_INPUT, "%s: roman.%s is not %ld x %ld pixels",
+				       a->path, name, want[0], want[1]);
+	}
+	if (ia->block[k] < 0 || ia->block[k] >= a->nblock)
+		return err_set(e, EXIT_INPUT, "%s: roman.%s: block %d, and the file has %d "
+			       "(truncated?)", a->path, name, ia->block[k], a->nblock);
+	return 0;
+}
+
+/* The model of the tree's roman node, checked: a level-2 image. */
+static int check_model(struct asdf_in *a, struct err *e)
+{
+	struct fy_node *r = at(asdf_in_root(a), "/roman");
+	const char *tag;
+	size_t tl;
+	char name[128];
+
+	if (!r)
+		return err_set(e, EXIT_INPUT, "%s: the tree has no 'roman' node: not a Roman "
+			       "datamodel file", a->path);
+	tag = fy_node_get_tag(r, &tl);
+	if (!tag || tl <= strlen(TAGS) || strncmp(tag, TAGS, strlen(TAGS)))
+		return err_set(e, EXIT_INPUT, "%s: the tree's 'roman' node has no Roman "
+			       "datamodel tag", a->path);
+	snprintf(name, sizeof(name), "%.*s", (int)(tl - strlen(TAGS)), tag + strlen(TAGS));
+	if (!strncmp(name, "wfi_science_raw-", 16))
+		return err_set(e, EXIT_INPUT, "%s: a level 1 file (%s): --into adds sources to a "
+			       "level 2 image (wfi_image)", a->path, name);
+	if (strncmp(name, "wfi_image-", 10))
+		return err_set(e, EXIT_INPUT, "%s: 'roman' is %s, not a level 2 image "
+			       "(wfi_image)", a->path, name);
+	return 0;
+}
+
+struct into_asdf *into_asdf_open(const char *path, unsigned mask, struct err *e)
+{
+	struct into_asdf *ia = calloc(1, sizeof(*ia));
+	static const long shape[2] = { WFS_NPIX, WFS_NPIX };
+	struct fy_node *det;
+	const char *dn;
+
+	if (!ia) {
+		err_sys(e, "%s", path);
+		return NULL;
+	}
+	if (geom_init(e) < 0 || !(ia->in = asdf_in_open(path, e)))
+		goto fail;
+	if (ia->in->standard < 10600) {
+		err_set(e, EXIT_INPUT, "%s: ASDF Standard %d.%d.%d: Roman's datamodels need "
+			"1.6.0 or later", path, ia->in->standard / 10000, ia->in->standard / 100 % 100,
+			ia->in->standard % 100);
+		goto fail;
+	}
+	if (check_model(ia->in, e) < 0)
+		goto fail;
+	det = at(asdf_in_root(ia->in), "/roman/meta/instrument/detector");
+	dn = det && fy_node_is_scalar(det) ? fy_node_get_scalar0(det) : NULL;
+	if (!dn || strncmp(dn, "WFI", 3) || (ia->sca = atoi(dn + 3)) < 1 || ia->sca > WFS_NSCA) {
+		err_set(e, EXIT_INPUT, "%s: meta.instrument.detector is not WFI01 to WFI18", path);
+		goto fail;
+	}
+	if (mask != 1u << (ia->sca - 1)) {
+		err_set(e, EXIT_INPUT, "%s holds %s: give --sca %d (and that SCA only)", path, dn,
+			ia->sca);
+		goto fail;
+	}
+	if (number(ia->in, "/roman/meta/wcsinfo/ra_ref", &ia->ra_ref, e) < 0 ||
+	    number(ia->in, "/roman/meta/wcsinfo/dec_ref", &ia->dec_ref, e) < 0 ||
+	    number(ia->in, "/roman/meta/wcsinfo/roll_ref", &ia->roll_ref, e) < 0 ||
+	    number(ia->in, "/roman/meta/wcsinfo/v2_ref", &ia->v2_ref, e) < 0 ||
+	    number(ia->in, "/roman/meta/wcsinfo/v3_ref", &ia->v3_ref, e) < 0 ||
+	    number(ia->in, "/roman/meta/exposure/effective_exposure_time", &ia->teff, e) < 0)
+		goto fail;
+	if (!(ia->teff > 0)) {
+		err_set(e, EXIT_INPUT, "%s: meta.exposure.effective_exposure_time %g: not a "
+			"time", path, ia->teff);
+		goto fail;
+	}
+	if (ndarray(ia, "data", A_DATA, shape, 2, e) < 0 ||
+	    ndarray(ia, "var_poisson", A_VP, shape, 2, e) < 0 ||
+	    ndarray(ia, "err", A_ERR, shape, 2, e) < 0)
+		goto fail;
+	return ia;
+fail:
+	into_asdf_free(ia);
+	return NULL;
+}
+
+static void unit(double lon, double lat, double u[3])
+{
+	u[0] = cos(lat) * cos(lon);
+	u[1] = cos(lat) * sin(lon);
+	u[2] = sin(lat);
+}
+
+/* East and north unit vectors at (lon, lat) radians. */
+static void en(double lon, double lat, double e[3], double n[3])
+{
+	e[0] = -sin(lon);
+	e[1] = cos(lon);
+	e[2] = 0;
+	n[0] = -sin(lat) * cos(lon);
+	n[1] = -sin(lat) * sin(lon);
+	n[2] = cos(lat);
+}
+
+void into_asdf_pointing(const struct into_asdf *ia, double *ra, double *dec, double *pa)
+{
+	/* the attitude m of wcsinfo: (V2Ref, V3Ref) to (ra_ref, dec_ref),
+	 * +V3 at roll_ref there (and +V2 90 degrees east of it: the
+	 * attitude is a rotation) */
+	double u[3], e2[3], e3[3], s[3], ee[3], nn[3], N[3], E[3], m[3][3];
+	double r = ia->roll_ref * D2R;
+	const struct geom_aperture *ap = geom_aperture(1);
+	double a1[3], e21[3], e31[3], y1[3], s1[3], y1s[3], th = ap->v3idlyangle * D2R;
+
+	unit(ia->v2_ref * AS2R, ia->v3_ref * AS2R, u);
+	en(ia->v2_ref * AS2R, ia->v3_ref * AS2R, e2, e3);
+	unit(ia->ra_ref * D2R, ia->dec_ref * D2R, s);
+	en(ia->ra_ref * D2R, ia->dec_ref * D2R, ee, nn);
+	for (int k = 0; k < 3; k++) {
+		N[k] = cos(r) * nn[k] + sin(r) * ee[k];
+		E[k] = -sin(r) * nn[k] + cos(r) * ee[k];
+	}
+	for (int i = 0; i < 3; i++)
+		for (int j = 0; j < 3; j++)
+			m[i][j] = s[i] * u[j] + E[i] * e2[j] + N[i] * e3[j];
+	/* WFI01's reference point and its +y_idl on the sky: the pointing
+	 * that sky.c turns back into the same attitude */
+	unit(ap->v2ref * AS2R, ap->v3ref * AS2R, a1);
+	en(ap->v2ref * AS2R, ap->v3ref * AS2R, e21, e31);
+	for (int k = 0; k < 3; k++)
+		y1[k] = sin(th) * e21[k] + cos(th) * e31[k];
+	for (int i = 0; i < 3; i++) {
+		s1[i] = m[i][0] * a1[0] + m[i][1] * a1[1] + m[i][2] * a1[2];
+		y1s[i] = m[i][0] * y1[0] + m[i][1] * y1[1] + m[i][2] * y1[2];
+	}
+	*ra = fmod(atan2(s1[1], s1[0]) * R2D + 360, 360);
+	*dec = asin(s1[2]) * R2D;
+	en(*ra * D2R, *dec * D2R, ee, nn);
+	{
+		double de = 0, dn = 0;
+
+		for (int k = 0; k < 3; k++) {
+			de += y1s[k] * ee[k];
+			dn += y1s[k] * nn[k];
+		}
+		*pa = atan2(de, dn) * R2D;
+	}
+}
+
+int into_asdf_sca(const struct into_asdf *ia)
+{
+	return ia->sca;
+}
+
+static void swap_bytes(void *p, size_t n, size_t size)
+{
+	unsigned char *c = p;
+
+	for (size_t i = 0; i < n; i++, c += size)
+		for (size_t k = 0; k < size / 2; k++) {
+			unsigned char t = c[k];
+
+			c[k] = c[size - 1 - k];
+			c[size - 1 - k] = t;
+		}
+}
+
+static int little_endian(void)
+{
+	const uint16_t one = 1;
+
+	return *(const unsigned char *)&one == 1;
+}
+
+/* Array k of the image as floats (npx of them). */
+static int read_array(struct into_asdf *ia, int k, float *out, size_t npx, struct err *e)
+{
+	size_t es = ia->dtype[k] == ASDF_F32 ? 4 : 2;
+	void *raw = es == 4 ? (void *)out : malloc(npx * 2);
+
+	if (!raw)
+		return err_sys(e, "%s", ia->in->path);
+	if (asdf_in_block(ia->in, ia->block[k], raw, npx * es, e) < 0) {
+		if (raw != out)
+			free(raw);
+		return -1;
+	}
+	if (ia->big[k] == little_endian())
+		swap_bytes(raw, npx, es);
+	if (es == 2) {
+		const uint16_t *h = raw;
+
+		for (size_t i = 0; i < npx; i++)
+			out[i] = asdf_half_to_float(h[i]);
+		free(raw);
+	}
+	return 0;
+}
+
+/* Array k's bytes as the file stores them (its datatype and order). */
+static void *store(const struct into_asdf *ia, int k, const float *v, size_t npx)
+{
+	size_t es = ia->dtype[k] == ASDF_F32 ? 4 : 2;
+	void *p = malloc(npx * es);
+
+	if (!p)
+		return NULL;
+	if (es == 4) {
+		memcpy(p, v, npx * 4);
+	} else {
+		uint16_t *h = p;
+
+		for (size_t i = 0; i < npx; i++)
+			h[i] = asdf_half(v[i]);
+	}
+	if (ia->big[k] == little_endian())
+		swap_bytes(p, npx, es);
+	return p;
+}
+
+static int put(int fd, const void *p, size_t n, uint64_t *off, const char *path, struct err *e)
+{
+	const unsigned char *q = p;
+
+	while (n > 0) {
+		ssize_t w = pwrite(fd, q, n, (off_t)*off);
+
+		if (w < 0 && errno == EINTR)
+			continue;
+		if (w <= 0) {
+			if (w == 0)
+				errno = EIO;
+			return err_sys(e, "%s: write error", path);
+		}
+		q += w;
+		n -= (size_t)w;
+		*off += (uint64_t)w;
+	}
+	return 0;
+}
+
+/* Copy n bytes of the image from offset from to the output. */
+static int copy(struct into_asdf *ia, int fd, uint64_t from, uint64_t n, uint64_t *off,
+		const char *path, struct err *e)
+{
+	static const size_t chunk = 1 << 20;
+	char *b = malloc(chunk);
+
+	if (!b)
+		return err_sys(e, "%s", path);
+	while (n > 0) {
+		size_t k = n < chunk ? (size_t)n : chunk;
+		ssize_t r = pread(ia->in->fd, b, k, (off_t)from);
+
+		if (r < 0 && errno == EINTR)
+			continue;
+		if (r <= 0 || put(fd, b, (size_t)r, off, path, e) < 0) {
+			if (r <= 0)
+				err_sys(e, "%s: reading", ia->in->path);
+			free(b);
+			return -1;
+		}
+		from += (uint64_t)r;
+		n -= (uint64_t)r;
+	}
+	free(b);
+	return 0;
+}
+
+static void be64(unsigned char *p, uint64_t v)
+{
+	for (int i = 7; i >= 0; i--, v >>= 8)
+		p[i] = (unsigned char)v;
+}
+
+/* The image with the changed arrays, to fd: the header and tree as they
+ * were, each block copied but the changed ones (written uncompressed,
+ * their MD5 computed where the image had one), a new block index. */
+static int write_image(struct into_asdf *ia, int fd, void *const *data, const char *path,
+		       struct err *e)
+{
+	struct asdf_in *a = ia->in;
+	uint64_t off = 0, *where = calloc((size_t)a->nblock + 1, sizeof(*where));
+	FILE *m = NULL;
+	char *idx = NULL;
+	size_t ni = 0;
+	int r = -1;
+
+	if (!where)
+		return err_sys(e, "%s", path);
+	if (copy(ia, fd, 0, a->b ? a->b[0].off : a->blocks_end, &off, path, e) < 0)
+		goto done;
+	for (int k = 0; k < a->nblock; k++) {
+		const struct asdf_block *b = &a->b[k];
+		int changed = -1;
+
+		for (int j = 0; j < A_N; j++)
+			if (ia->block[j] == k)
+				changed = j;
+		where[k] = off;
+		if (changed < 0) {
+			if (copy(ia, fd, b->off, b->data_off - b->off + b->allocated, &off, path,
+				 e) < 0)
+				goto done;
+		} else {
+			unsigned char h[6 + 48] = { 0 };
+			uint64_t n = b->data;
+
+			memcpy(h, "\323BLK", 4);
+			h[5] = 48;
+			be64(h + 14, n);
+			be64(h + 22, n);
+			be64(h + 30, n);
+			if (memcmp(b->md5, (const unsigned char[16]){ 0 }, 16))
+				md5(data[changed], (size_t)n, h + 38);
+			if (put(fd, h, sizeof(h), &off, path, e) < 0 ||
+			    put(fd, data[changed], (size_t)n, &off, path, e) < 0)
+				goto done;
+		}
+	}
+	if (!(m = open_memstream(&idx, &ni))) {
+		err_sys(e, "%s", path);
+		goto done;
+	}
+	fputs("#ASDF BLOCK INDEX\n%YAML 1.1\n---\n", m);
+	for (int k = 0; k < a->nblock; k++)
+		fprintf(m, "- %llu\n", (unsigned long long)where[k]);
+	fputs("...\n", m);
+	if (fclose(m)) {
+		m = NULL;
+		err_sys(e, "%s", path);
+		goto done;
+	}
+	m = NULL;
+	if (a->nblock && put(fd, idx, ni, &off, path, e) < 0)
+		goto done;
+	if (ftruncate(fd, (off_t)off) || fsync(fd)) {
+		err_sys(e, "%s: write error", path);
+		goto done;
+	}
+	r = 0;
+done:
+	free(idx);
+	free(where);
+	return r;
+}
+
+int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e)
+{
+	size_t npx = (size_t)WFS_NPIX * WFS_NPIX;
+	float *add = NULL, *v[A_N] = { 0 };
+	void *data[A_N] = { 0 };
+	fitsfile *f = NULL;
+	char tmp[4200] = "", ext[16];
+	struct ramp_det det;
+	int status = 0, any, fd = -1, rc = -1;
+
+	/* the engine's light, counts/s (e-/s), from its scene */
+	snprintf(ext, sizeof(ext), "WFI%02d", ia->sca);
+	if (!(add = malloc(npx * sizeof(float)))) {
+		err_sys(e, "%s", path);
+		goto out;
+	}
+	if (fits_open_diskfile(&f, path, READONLY, &status) ||
+	    fits_movnam_hdu(f, IMAGE_HDU, ext, 0, &status) ||
+	    fits_read_img(f, TFLOAT, 1, (LONGLONG)npx, NULL, add, &any, &status)) {
+		err_fits(e, status, "%s", path);
+		goto out;
+	}
+	if (ramp_det_get(ia->sca, &det, e) < 0)
+		goto out;
+	for (int k = 0; k < A_N; k++)
+		if (!(v[k] = malloc(npx * sizeof(float))) ||
+		    read_array(ia, k, v[k], npx, e) < 0) {
+			if (!v[k])
+				err_sys(e, "%s", ia->in->path);
+			goto out;
+		}
+	/* DN/s = counts/s over the gain; the Poisson variance of a rate of
+	 * R DN/s measured over the effective time T is R / (gain T) */
+	for (size_t i = 0; i < npx; i++) {
+		double r = add[i] / det.gain, var = (r > 0 ? r : 0) / (det.gain * ia->teff);
+		double er = v[A_ERR][i];
+
+		v[A_DATA][i] = (float)(v[A_DATA][i] + r);
+		v[A_VP][i] = (float)(v[A_VP][i] + var);
+		v[A_ERR][i] = (float)sqrt((isfinite(er) ? er * er : 0) + var);
+	}
+	for (int k = 0; k < A_N; k++)
+		if (!(data[k] = store(ia, k, v[k], npx))) {
+			err_sys(e, "%s", path);
+			goto out;
+		}
+	if ((fd = tempfile_beside(path, tmp, sizeof(tmp), e)) < 0 ||
+	    write_image(ia, fd, data, path, e) < 0)
+		goto out;
+	if (close(fd)) {
+		fd = -1;
+		err_sys(e, "%s: write error", path);
+		goto out;
+	}
+	fd = -1;
+	if (tempfile_commit(tmp, path, e) < 0)
+		goto out;
+	rc = 0;
+out:
+	status = 0;
+	if (f)
+		fits_close_file(f, &status);
+	if (fd >= 0)
+		close(fd);
+	if (tmp[0])
+		tempfile_discard(tmp);
+	free(add);
+	for (int k = 0; k < A_N; k++) {
+		free(v[k]);
+		free(data[k]);
+	}
+	return rc;
+}
+
+void into_asdf_free(struct into_asdf *ia)
+{
+	if (!ia)
+		return;
+	asdf_in_free(ia->in);
+	free(ia);
+}

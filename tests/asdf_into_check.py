@@ -1,0 +1,42 @@
+"""Check an injection into a level-2 ASDF file.
+
+    asdf_into_check.py BEFORE.asdf AFTER.asdf PLACED.csv GAIN RA DEC
+
+The light added to data (DN/s) peaks at the placed position, which the
+file's gwcs gives for the source's RA and Dec within 0.01 pixel;
+var_poisson grows by the added rate over gain x effective exposure time
+(within float16's rounding); every other array is unchanged.
+"""
+import csv
+import sys
+import warnings
+
+import numpy as np
+import asdf
+import asdf.tags.core.ndarray as nd
+
+warnings.simplefilter("ignore")
+nd._datatype_names.setdefault("float16", "f2")
+
+before, after, placed = sys.argv[1:4]
+gain, ra0, dec0 = (float(v) for v in sys.argv[4:7])
+rows = list(csv.DictReader(open(placed)))
+assert len(rows) == 1, rows
+x0, y0 = float(rows[0]["x"]) - 1, float(rows[0]["y"]) - 1
+with asdf.open(before, copy_arrays=True) as a, asdf.open(after, copy_arrays=True) as b:
+    ra, rb = a.tree["roman"], b.tree["roman"]
+    d = np.asarray(rb["data"], float) - np.asarray(ra["data"], float)
+    y, x = np.unravel_index(np.argmax(d), d.shape)
+    assert abs(x - x0) <= 1 and abs(y - y0) <= 1, (x, y, x0, y0)
+    gx, gy = rb["meta"]["wcs"].invert(ra0, dec0)
+    assert np.hypot(gx - x0, gy - y0) < 0.01, (gx, gy, x0, y0)
+    t = rb["meta"]["exposure"]["effective_exposure_time"]
+    vp = np.asarray(rb["var_poisson"], float) - np.asarray(ra["var_poisson"], float)
+    want = np.clip(d, 0, None).sum() / (gain * t)
+    assert abs(vp.sum() / want - 1) < 0.01, (vp.sum(), want)
+    for k in ra:
+        if k in ("meta", "data", "var_poisson", "err"):
+            continue
+        assert np.array_equal(np.asarray(ra[k]), np.asarray(rb[k]), equal_nan=True), k
+    print("added %.1f DN/s at (%d, %d); var_poisson +%.3f" % (d.sum(), x, y, vp.sum()))
+print("ok")

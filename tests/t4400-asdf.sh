@@ -1,0 +1,122 @@
+#!/bin/sh
+# Roman ASDF products (-o NAME.asdf, --format asdf): levels 1 and 2 that
+# the Roman schemas (RAD 2.1.0) accept, their arrays those of the FITS
+# products of the same seed, the gwcs of level 2 against the FITS TAN-SIP
+# WCS, the same bytes for any threads, and the settings an ASDF file does
+# not go with refused, nothing written.
+. "$(dirname "$0")/lib.sh"
+require_python
+"$PY" -c 'import asdf, gwcs, asdf_astropy' 2>/dev/null ||
+	skip_all "python3-asdf, python3-asdf-astropy or python3-gwcs is absent"
+
+CHECK=$SHARED/tools/roman-asdf-check
+run() { "$WFS" --filter F129 --ra 90 --dec 0 --background 0.54 --date 2027-03-20T06:30 "$@"; }
+printf 'ra,dec,flux\n90,0,5e5\n90.01,0.01,3e4\n89.98,0.03,2e7\n' > stars.csv
+
+test_expect_success 'level 2: a wfi_image file, its arrays the FITS level 2 over the gain' '
+	run --level 2 -o l2.asdf stars.csv &&
+	run --level 2 -o l2.fits stars.csv &&
+	head -n 2 l2.asdf > head && printf "#ASDF 1.0.0\n#ASDF_STANDARD 1.6.0\n" > want &&
+	test_cmp want head &&
+	"$PY" "$TOP/tests/asdf_arrays.py" 2 l2.asdf l2.fits 1 > out && say "$(cat out)" &&
+	test_grep "^ok" out
+'
+
+if have_shared && [ -x "$CHECK" ]; then
+test_expect_success 'level 2 validates against RAD 2.1.0; a broken file does not' '
+	"$CHECK" --expect wfi_image l2.asdf &&
+	sed "s|roman/tags/wfi_image-2.1.0|roman/tags/wfi_science_raw-2.1.0|" l2.asdf > raw.asdf &&
+	test_must_fail "$CHECK" raw.asdf > out && test_grep INVALID out &&
+	sed "s|^      detector: \"WFI01\"|      detector: \"WFI19\"|" l2.asdf > bad.asdf &&
+	test_must_fail "$CHECK" bad.asdf > out && test_grep INVALID out
+'
+else
+test_skip 'level 2 validates against RAD 2.1.0' '../shared/tools/roman-asdf-check is absent'
+fi
+
+test_expect_success 'level 2: the gwcs within 0.01 pixel of the FITS WCS, three SCAs at dec 60' '
+	"$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --level 2 \
+		--ma-table 3 --sca 1,9,16 -o g_%02d.asdf stars.csv &&
+	"$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --sca 1,9,16 -o g.fits stars.csv &&
+	for s in 1 9 16; do
+		f=$(printf "g_%02d.asdf" $s) &&
+		"$PY" "$TOP/tests/asdf_gwcs_check.py" $f g.fits $s > out && say "WFI$s $(cat out)" &&
+		read x fits y inv z ref < out &&
+		awk -v a="$fits" -v b="$inv" "BEGIN { exit !(a < 0.01 && b < 0.01) }" || return 1
+		if [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image $f || return 1; fi
+	done
+'
+
+test_expect_success 'level 1: a wfi_science_raw file, data the FITS cube, amp33 as the border' '
+	run --level 1 --ma-table 3 -o l1.asdf stars.csv &&
+	run --level 1 --ma-table 3 -o l1.fits stars.csv &&
+	"$PY" "$TOP/tests/asdf_arrays.py" 1 l1.asdf l1.fits 1 > out && say "$(cat out)" &&
+	test_grep "^ok" out &&
+	if [ -x "$CHECK" ]; then "$CHECK" --expect wfi_science_raw l1.asdf; fi
+'
+
+test_expect_success 'the same bytes with one thread, and with --format asdf for any name' '
+	mkdir -p b &&
+	run --level 1 --ma-table 3 --threads 1 --tile 128 --format asdf -o b/l1.fits stars.csv &&
+	LC_ALL=C sed "s/\"l1.fits\"/\"l1.asdf\"/" b/l1.fits > b/l1.asdf &&
+	test_cmp l1.asdf b/l1.asdf &&
+	run --level 2 --threads 1 --tile 512 -o b/l2.asdf stars.csv &&
+	test_cmp l2.asdf b/l2.asdf
+'
+
+test_expect_success '--into a level 2 ASDF: the star in DN/s where the gwcs puts it, the rest kept' '
+	printf "ra,dec,flux\n90.02,0.02,1e4\n" > inj.csv &&
+	"$WFS" --filter F129 --into l2.asdf -o inj.asdf --placed placed.csv inj.csv &&
+	"$PY" "$TOP/tests/asdf_into_check.py" l2.asdf inj.asdf placed.csv 2 90.02 0.02 > out &&
+	say "$(cat out)" && test_grep "^ok" out &&
+	if [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image inj.asdf; fi
+'
+
+# broken copies of l2.asdf for --into, each refused with the file named
+# and nothing written (python rewrites bytes: sed would do for the text)
+test_expect_success '--into refuses a level 1 file, another model, an old standard' '
+	inj() { "$WFS" --filter F129 --into "$1" -o out.asdf inj.csv; } &&
+	test_must_fail --status 1 inj l1.asdf 2> err && test_grep "l1.asdf: a level 1 file" err &&
+	LC_ALL=C sed "s|roman/tags/wfi_image-2.1.0|roman/tags/wfi_mosaic-2.1.0|" l2.asdf > m.asdf &&
+	test_must_fail --status 1 inj m.asdf 2> err && test_grep "m.asdf: .roman. is wfi_mosaic" err &&
+	LC_ALL=C sed "s|^#ASDF_STANDARD 1.6.0|#ASDF_STANDARD 1.5.0|" l2.asdf > old.asdf &&
+	test_must_fail --status 1 inj old.asdf 2> err && test_grep "old.asdf: ASDF Standard 1.5.0" err &&
+	LC_ALL=C sed "s|^roman: |romax: |" l2.asdf > nor.asdf &&
+	test_must_fail --status 1 inj nor.asdf 2> err && test_grep "nor.asdf: the tree has no .roman." err &&
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 2 --into l2.asdf -o out.asdf inj.csv 2> err &&
+	test_grep "holds WFI01: give --sca 1" err &&
+	! ls -a | grep -q "out\.asdf"
+'
+
+test_expect_success '--into refuses a truncated file, a wrong block size or checksum' '
+	inj() { "$WFS" --filter F129 --into "$1" -o out.asdf inj.csv; } &&
+	head -c 100000000 l2.asdf > cut.asdf &&
+	test_must_fail --status 1 inj cut.asdf 2> err && test_grep "cut.asdf: block .*truncated" err &&
+	"$PY" "$TOP/tests/asdf_break.py" l2.asdf size.asdf size 0 &&
+	test_must_fail --status 1 inj size.asdf 2> err && test_grep "size.asdf: block 0" err &&
+	"$PY" "$TOP/tests/asdf_break.py" l2.asdf sum.asdf md5 0 &&
+	test_must_fail --status 1 inj sum.asdf 2> err && test_grep "sum.asdf: block 0: its MD5" err &&
+	"$PY" "$TOP/tests/asdf_break.py" l2.asdf good.asdf md5-right 0 &&
+	inj good.asdf &&
+	"$PY" "$TOP/tests/asdf_checksum.py" out.asdf &&
+	"$PY" "$TOP/tests/asdf_break.py" out.asdf bad2.asdf md5 0 &&
+	test_must_fail "$PY" "$TOP/tests/asdf_checksum.py" bad2.asdf 2> /dev/null && rm out.asdf &&
+	! ls -a | grep -q "out\.asdf"
+'
+
+test_expect_success 'what an ASDF file does not hold is refused, nothing written' '
+	test_must_fail --status 1 run -o s.asdf stars.csv 2> err &&
+	test_grep "add --level 1 or --level 2" err &&
+	test_must_fail --status 1 run --level 2 --rows 1-100 -o s.asdf stars.csv 2> err &&
+	test_grep "whole SCA" err &&
+	test_must_fail --status 1 run --level 2 --format asdf -o - stars.csv > /dev/null 2> err &&
+	test_grep "not stdout" err &&
+	test_must_fail --status 1 run --level 2 --geometry stips -o s.asdf stars.csv 2> err &&
+	test_grep "SIAF" err &&
+	test_must_fail --status 1 run --level 2 --sca 1,2 -o s.asdf stars.csv 2> err &&
+	test_grep "one SCA" err &&
+	test_must_fail --status 1 run --level 2 --format xml -o s.asdf stars.csv 2> err &&
+	! ls -a | grep -q "s\\.asdf"
+'
+
+test_done

@@ -27,6 +27,7 @@ int detector_parse(const char *s, unsigned *parts, struct err *e)
 		unsigned bit;
 	} part[] = {
 		{ "persistence", DETECTOR_PERSISTENCE },
+		{ "correlated", DETECTOR_CORRELATED },
 	};
 	const char *p = s;
 
@@ -45,7 +46,7 @@ int detector_parse(const char *s, unsigned *parts, struct err *e)
 				break;
 		if (i == sizeof(part) / sizeof(part[0]))
 			return err_set(e, EXIT_INPUT, "--detector: unknown part '%.*s' in '%s' "
-				       "(all, none, or a list of: persistence)", (int)len, p, s);
+				       "(all, none, or a list of: persistence, correlated)", (int)len, p, s);
 		*parts |= part[i].bit;
 		p += len;
 		if (*p == ',')
@@ -64,6 +65,7 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 	d->poisson_normal = 0;
 	d->persist = NULL;
 	d->exptime = o->exptime;
+	d->parts = o->detector;
 	/* --set poisson-normal=N (the last one given wins) */
 	for (const char *const *kv = o->settings; kv && *kv; kv++) {
 		static const char key[] = "poisson-normal=";
@@ -234,4 +236,5 @@ void detector_level_setup(const struct detector *d, int sca, struct level_sca *L
 	L->bkg_sky = d->bkg_sky[sca - 1];
 	L->key.poisson_normal = d->poisson_normal;
 	L->persist = d->persist;
+	L->correlated = !!(d->parts & DETECTOR_CORRELATED);
 }

@@ -61,6 +61,7 @@ struct detector {
 	 * row (levels.c) */
 	struct persist *persist;
 	double exptime;         /* s: the scene's --exptime or the last read */
+	unsigned parts;         /* enum detector_part bits (--detector) */
 };
 
 /* The named parts of the detector model that can be turned off
@@ -69,11 +70,18 @@ enum detector_part {
 	/* trapped charge from earlier exposures of the series released as
 	 * an afterglow (persist.c) */
 	DETECTOR_PERSISTENCE = 1 << 0,
-	DETECTOR_ALL = DETECTOR_PERSISTENCE,
+	/* the read noise's 1/f, pedestal and alternating-column parts per
+	 * readout channel, sampled by the reference pixels and corrected at
+	 * level 2 (readnoise.c) */
+	DETECTOR_CORRELATED = 1 << 1,
+	DETECTOR_ALL = DETECTOR_PERSISTENCE | DETECTOR_CORRELATED,
+	/* what levels 1 and 2 have without --detector: the parts whose
+	 * calibration holds (wfiscene(1), DETECTOR MODEL) */
+	DETECTOR_DEFAULT = DETECTOR_PERSISTENCE,
 };
 
 /* Parse a --detector value: "all", "none" or a comma-separated list of
- * parts ("persistence"), into *parts.  0 or -1 with a message. */
+ * parts ("persistence", "correlated"), into *parts.  0 or -1 with a message. */
 int detector_parse(const char *s, unsigned *parts, struct err *e);
 
 struct level_sca;

@@ -14,6 +14,7 @@
 #include "pool.h"
 #include "product.h"
 #include "ramp_stats.h"
+#include "readnoise.h"
 
 #define FRAME 4096              /* the array with its reference border */
 #define BORDER 4
@@ -48,6 +49,8 @@ static double now(void)
 struct strip {
 	struct level_sca *L;
 	struct ramp_fit_plan *fp;
+	const struct rnoise *rn;        /* NULL: white read noise only */
+	const struct rnoise_ref *ref;   /* level 2 with rn */
 	int fy0, ny;            /* frame rows [fy0, fy0 + ny) */
 	const double *const *light;     /* science row sy at light[sy - sy0 + 1] */
 	int sy0;
@@ -100,6 +103,10 @@ static void strip_charge(void *arg, int wid, size_t task)
 				(uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX,
 				s->light[s->c0 + task], &glow, s->ch[task], s->own[task],
 				WFS_NPIX, s->scr[wid]);
+	if (s->rn)
+		for (int r = 0; r < L->pat->nres; r++)
+			rnoise_add_frame(s->rn, r, sy + BORDER, BORDER, WFS_NPIX,
+					 s->own[task] + (size_t)r * WFS_NPIX);
 }
 
 /* DQ PERSISTENCE on science row sy's pixels (dq[0 .. 4088)) whose
@@ -156,8 +163,29 @@ static void strip_row(void *arg, int wid, size_t ctask)
 	}
 	ramp_level1_row(p, L->det, &L->key, cell0 + BORDER + WFS_NPIX, BORDER, NULL, 0,
 			out + BORDER + WFS_NPIX, plane, scr);
+	if (s->rn && light) {
+		rnoise_add_dn(s->rn, L->det->gain, fy, 0, BORDER, out, plane);
+		rnoise_add_dn(s->rn, L->det->gain, fy, BORDER + WFS_NPIX, BORDER,
+			      out + BORDER + WFS_NPIX, plane);
+	} else if (s->rn) {
+		rnoise_add_dn(s->rn, L->det->gain, fy, 0, FRAME, out, plane);
+	}
 	if (L->level == LEVEL_2) {
 		struct ramp_fit fit[256];
+
+		/* the reference correction before the fit, on a copy where
+		 * the level-1 resultants are kept (written as they are) */
+		if (s->ref && s->l1) {
+			uint16_t *cp = s->dnrow[wid];
+
+			for (int r = 0; r < p->nres; r++)
+				memcpy(cp + (size_t)r * FRAME, out + (size_t)r * plane,
+				       FRAME * sizeof(uint16_t));
+			out = cp;
+			plane = FRAME;
+		}
+		if (s->ref)
+			rnoise_ref_apply(s->ref, fy, out + BORDER, plane, p->nres);
 
 		for (int x0 = 0; x0 < WFS_NPIX; x0 += 256) {
 			int m = WFS_NPIX - x0 < 256 ? WFS_NPIX - x0 : 256;
@@ -225,6 +253,10 @@ struct sca_pass {
 	 * time is computed */
 	double *chbuf, **ch;
 	float *ownbuf, **own;
+	/* the correlated read noise and its correction (L->correlated) */
+	struct rnoise rn;
+	struct rnoise_ref ref;
+	struct ramp_det det;    /* L's constants with the white read noise */
 };
 
 /* Allocate the buffers of w (zeroed by the caller, fp set up at level 2)
@@ -276,6 +308,8 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 		s->light = w->light;
 		s->ch = w->ch;
 		s->own = w->own;
+		s->rn = L->correlated ? &w->rn : NULL;
+		s->ref = L->correlated && L->level == LEVEL_2 ? &w->ref : NULL;
 		if ((L->level == LEVEL_1 || L->keep_l1) &&
 		    !(s->l1 = malloc((size_t)p->nres * S * FRAME * sizeof(uint16_t))))
 			return -1;
@@ -422,8 +456,34 @@ int level_write_sca(struct level_sca *L, struct err *e)
 	struct strip *prev = NULL;
 	int r = -1;
 
-	if (L->level == LEVEL_2 && ramp_fit_plan_init(&w.fp, L->pat, L->det) < 0)
+	const struct ramp_det *det0 = L->det;
+
+	if (L->correlated) {
+		/* the white part per pixel; the fit's read noise that of a
+		 * corrected read, the Project's CDS noise over sqrt 2 (the
+		 * calibration of data/readnoise.tsv) */
+		struct rnoise_par par;
+		struct ramp_det fd = *L->det;
+
+		if (rnoise_par_get(L->key.sca, &par, e) < 0)
+			return -1;
+		w.det = *L->det;
+		w.det.read_noise = par.white;
+		fd.read_noise = par.cds / sqrt(2);
+		if (rnoise_init(&w.rn, L->pat, &par, &L->key, 0, e) < 0)
+			return -1;
+		L->det = &w.det;
+		if (L->level == LEVEL_2 &&
+		    (rnoise_ref_init(&w.ref, &w.rn, L->pat, &w.det, &L->key, e) < 0 ||
+		     ramp_fit_plan_init(&w.fp, L->pat, &fd) < 0)) {
+			rnoise_free(&w.rn);
+			rnoise_ref_free(&w.ref);
+			L->det = det0;
+			return err_sys(e, "detector level %d: memory", L->level);
+		}
+	} else if (L->level == LEVEL_2 && ramp_fit_plan_init(&w.fp, L->pat, L->det) < 0) {
 		goto nomem;
+	}
 	if (sca_pass_alloc(&w, L) < 0)
 		goto nomem;
 	for (int fy0 = flo, b = 0; fy0 < fhi; fy0 += w.S, b ^= 1) {
@@ -453,5 +513,10 @@ nomem:
 	err_sys(e, "detector level %d: memory", L->level);
 done:
 	sca_pass_free(&w);
+	if (L->correlated) {
+		rnoise_free(&w.rn);
+		rnoise_ref_free(&w.ref);
+		L->det = det0;
+	}
 	return r;
 }

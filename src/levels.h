@@ -63,6 +63,12 @@ struct level_sca {
 	 * the exposure's stimulus, and level 2 flags DQ PERSISTENCE where the
 	 * afterglow's charge reaches the state's flag times the read noise. */
 	struct persist *persist;
+	/* The correlated read noise (readnoise.h, --detector correlated):
+	 * the white part of the read noise becomes the SCA's white amplitude
+	 * in data/readnoise.tsv, the rest is drawn per channel, its
+	 * reference pixels sample it, and level 2 corrects the resultants
+	 * with them before the fit. */
+	int correlated;
 	/* out: CPU-independent wall seconds spent, for --report */
 	double t_ramp, t_write;
 };

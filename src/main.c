@@ -166,8 +166,8 @@ static const struct opt scene_options[] = {
 	  set_level, OFF(o.level)) },
 	{ OPT("ma-table", 0, "N", "4", "MultiAccum table of levels 1 and 2 (3-17, 109, 110)",
 	  set_ma_table, OFF(o.ma_table)), .lo = 1, .hi = 999 },
-	{ OPT("detector", 0, "LIST", "all at levels 1, 2", "parts of the detector model: all, "
-	  "none, or persistence", set_detector, OFF(o.detector)), .flags = OPT_SHOW_DEFAULT },
+	{ OPT("detector", 0, "LIST", "persistence at levels 1, 2", "parts of the detector model: all, "
+	  "none, or persistence,correlated", set_detector, OFF(o.detector)), .flags = OPT_SHOW_DEFAULT },
 	{ OPT("persistence-state", 0, "FILE", NULL, "carry persistence across runs: read "
 	  "FILE if it exists, write it at the end", opt_string, OFF(o.persistence_state)) },
 	OPT_SECTION("Running:"),
@@ -536,7 +536,7 @@ static int check_options(struct scene_opts *o, struct err *e)
 	/* the parts of the detector model: all the data supports at levels
 	 * 1 and 2, none at the scene level, unless --detector says */
 	if (!o->detector_given)
-		o->detector = o->level != LEVEL_SCENE ? DETECTOR_ALL : 0;
+		o->detector = o->level != LEVEL_SCENE ? DETECTOR_DEFAULT : 0;
 	if (o->persistence_state && !(o->detector & DETECTOR_PERSISTENCE))
 		return err_set(e, EXIT_INPUT, "--persistence-state without persistence: it is "
 			       "on by default at --level 1 and 2; at the scene level give "

@@ -1,0 +1,379 @@
+/*
+ * readnoise.c - correlated read noise (readnoise.h) and the reference
+ * correction of level 2.
+ *
+ * A pink series of N samples (N = (last read + 2) x 4096 rows) is the
+ * inverse real FFT of coefficients X_j = (a_j + i b_j) sqrt(K / j), j = 1
+ * .. N/2, a_j, b_j standard normal deviates keyed by (seed, filter, SCA,
+ * series) and j (rng_normal_fill: any slice gives the same numbers), X_0 =
+ * 0: power 1/f from 1/(N t_row) to the row rate's Nyquist frequency, and a
+ * sample's variance sum_j 4 K / j (the Nyquist term K / (N/2)), which sets
+ * K for the amplitude asked.  Read k of row y is sample k 4096 + y.
+ */
+#include <fftw3.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "data.h"
+#include "err.h"
+#include "readnoise.h"
+#include "rng.h"
+
+enum {
+	DOM_RN_PINK = 0x51,     /* group: the series, 0 shared, 1 + c own */
+	DOM_RN_OFF = 0x52,      /* cell: read * 64 + c * 2 + parity */
+};
+
+static uint32_t rn_domain(const struct ramp_key *k, int purpose, int group)
+{
+	return (uint32_t)purpose | (uint32_t)(k->filter & 0xff) << 8 |
+	       (uint32_t)(k->sca & 0xff) << 16 | (uint32_t)(group & 0xff) << 24;
+}
+
+int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
+{
+	struct tsv t;
+	char name[16];
+	int found = 0;
+
+	memset(par, 0, sizeof(*par));
+	snprintf(name, sizeof(name), "WFI%02d", sca);
+	if (tsv_parse(&t, "readnoise.tsv") < 0)
+		return e ? err_set(e, EXIT_SYSTEM, "readnoise.tsv: table missing from the build") : -1;
+	int cd = tsv_col(&t, "cds"), cs = tsv_col(&t, "sca"), cw = tsv_col(&t, "white"), cp = tsv_col(&t, "ped"),
+	    cc = tsv_col(&t, "cpink"), cu = tsv_col(&t, "upink"), ca = tsv_col(&t, "acn");
+
+	for (int r = 1; r < t.nrow && cs >= 0 && cw >= 0 && cp >= 0 && cc >= 0 && cu >= 0 && ca >= 0 && cd >= 0;
+	     r++)
+		if (!strcmp(t.cell[r][cs], name)) {
+			par->cds = strtod(t.cell[r][cd], NULL);
+			par->white = strtod(t.cell[r][cw], NULL);
+			par->ped = strtod(t.cell[r][cp], NULL);
+			par->cpink = strtod(t.cell[r][cc], NULL);
+			par->upink = strtod(t.cell[r][cu], NULL);
+			par->acn = strtod(t.cell[r][ca], NULL);
+			found = 1;
+		}
+	tsv_free(&t);
+	if (!found || !(par->cds > 0) || !(par->white >= 0) || !(par->ped >= 0) || !(par->cpink >= 0) ||
+	    !(par->upink >= 0) || !(par->acn >= 0))
+		return e ? err_set(e, EXIT_SYSTEM, "readnoise.tsv: no or bad row for %s", name) : -1;
+	return 0;
+}
+
+/* The planner runs under this lock and FFTW's own (other modules plan in
+ * other threads: fftw_make_planner_thread_safe, as fftconv.c). */
+static pthread_mutex_t plan_lock = PTHREAD_MUTEX_INITIALIZER;
+
+/* One pink series of n samples, variance sigma^2, into out[0 .. n). */
+static int pink_series(const struct rng *g, long n, double sigma, double *out)
+{
+	long h = n / 2;
+	fftw_complex *X = fftw_malloc(sizeof(fftw_complex) * (size_t)(h + 1));
+	double *z = malloc(sizeof(double) * (size_t)(2 * h + 2));
+	double sum = 0, K;
+	fftw_plan pl;
+
+	if (!X || !z) {
+		fftw_free(X);
+		free(z);
+		return -1;
+	}
+	for (long j = 1; j < h; j++)
+		sum += 4.0 / (double)j;
+	sum += 1.0 / (double)h;
+	K = sigma * sigma / sum;
+	rng_normal_fill(g, 0, (size_t)(2 * h + 2), z);
+	X[0][0] = X[0][1] = 0;
+	for (long j = 1; j <= h; j++) {
+		double s = sqrt(K / (double)j);
+
+		X[j][0] = z[2 * j] * s;
+		X[j][1] = j == h ? 0 : z[2 * j + 1] * s;
+	}
+	if (h * 2 == n)
+		X[h][0] = z[2 * h] * sqrt(K / (double)h);
+	pthread_mutex_lock(&plan_lock);
+	fftw_make_planner_thread_safe();
+	pl = fftw_plan_dft_c2r_1d((int)n, X, out, FFTW_ESTIMATE);
+	pthread_mutex_unlock(&plan_lock);
+	if (!pl) {
+		fftw_free(X);
+		free(z);
+		return -1;
+	}
+	fftw_execute(pl);       /* unnormalised: x_n = sum over the spectrum */
+	pthread_mutex_lock(&plan_lock);
+	fftw_destroy_plan(pl);
+	pthread_mutex_unlock(&plan_lock);
+	fftw_free(X);
+	free(z);
+	return 0;
+}
+
+int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rnoise_par *par,
+		const struct ramp_key *k, int nlast, struct err *e)
+{
+	int last = nlast > p->last[p->nres - 1] ? nlast : p->last[p->nres - 1];
+	long m = last + 2, n;
+
+	/* frames enough for the reads and the next row start, rounded up to a
+	 * number of 2, 3 and 5 alone: a fast FFT length */
+	for (;; m++) {
+		long q = m;
+
+		while (q % 2 == 0)
+			q /= 2;
+		while (q % 3 == 0)
+			q /= 3;
+		while (q % 5 == 0)
+			q /= 5;
+		if (q == 1)
+			break;
+	}
+	n = m * RN_ROWS;
+	size_t plane = (size_t)RN_NCHAN * (RN_ROWS + 1);
+	double *shared = NULL, *own = NULL;
+	struct rng g;
+
+	memset(R, 0, sizeof(*R));
+	R->par = *par;
+	R->nres = p->nres;
+	R->nsamp = n;
+	R->row_time = p->read_time / RN_ROWS;
+	R->pink = calloc((size_t)p->nres * plane, sizeof(float));
+	R->off = calloc((size_t)p->nres * RN_NCHAN * 2, sizeof(float));
+	shared = malloc(sizeof(double) * (size_t)n);
+	own = malloc(sizeof(double) * (size_t)n);
+	if (!R->pink || !R->off || !shared || !own)
+		goto nomem;
+	rng_init(&g, k->seed, rn_domain(k, DOM_RN_PINK, 0));
+	if (pink_series(&g, n, par->cpink, shared) < 0)
+		goto nomem;
+	for (int c = 0; c < RN_NCHAN; c++) {
+		rng_init(&g, k->seed, rn_domain(k, DOM_RN_PINK, 1 + c));
+		if (pink_series(&g, n, par->upink, own) < 0)
+			goto nomem;
+		for (int r = 0; r < p->nres; r++) {
+			float *dst = R->pink + (size_t)r * plane + (size_t)c * (RN_ROWS + 1);
+			double inv = 1.0 / (p->last[r] - p->first[r] + 1);
+
+			for (int y = 0; y <= RN_ROWS; y++) {
+				double s = 0;
+
+				for (int rd = p->first[r]; rd <= p->last[r]; rd++) {
+					long i = (long)rd * RN_ROWS + y;
+
+					s += shared[i] + own[i];
+				}
+				dst[y] = (float)(s * inv);
+			}
+		}
+	}
+	/* the offsets of each read: pedestal and alternating columns */
+	rng_init(&g, k->seed, rn_domain(k, DOM_RN_OFF, 0));
+	for (int r = 0; r < p->nres; r++) {
+		double inv = 1.0 / (p->last[r] - p->first[r] + 1);
+
+		for (int c = 0; c < RN_NCHAN; c++)
+			for (int par2 = 0; par2 < 2; par2++) {
+				double s = 0;
+
+				for (int rd = p->first[r]; rd <= p->last[r]; rd++) {
+					double z[2];
+
+					/* the pedestal, shared by the parities; the odd
+					 * columns acn z apart from the even ones */
+					rng_normal_fill(&g, ((uint64_t)rd * 64 + (uint64_t)c) * 2, 2, z);
+					s += par->ped * z[0] + par->acn * (par2 ? 0.5 : -0.5) * z[1];
+				}
+				R->off[((size_t)r * RN_NCHAN + c) * 2 + par2] = (float)(s * inv);
+			}
+	}
+	free(shared);
+	free(own);
+	return 0;
+nomem:
+	free(shared);
+	free(own);
+	rnoise_free(R);
+	return e ? err_sys(e, "correlated read noise: memory") : -1;
+}
+
+void rnoise_free(struct rnoise *R)
+{
+	free(R->pink);
+	free(R->off);
+	R->pink = NULL;
+	R->off = NULL;
+}
+
+void rnoise_add(const struct rnoise *R, int r, int c, int y, int x0, int n, float *dst)
+{
+	const float *pk = R->pink + ((size_t)r * RN_NCHAN + c) * (RN_ROWS + 1) + y;
+	const float *of = R->off + ((size_t)r * RN_NCHAN + c) * 2;
+	/* the value at readout position j: a + b j; with x's column parity */
+	float b = (pk[1] - pk[0]) / (RN_COLS + RN_OVERHEAD), a = pk[0];
+	float v[2];
+
+	if (c & 1) {            /* j = 127 - x */
+		a += b * (RN_COLS - 1);
+		b = -b;
+	}
+	v[0] = a + of[0];
+	v[1] = a + of[1];
+	for (int i = 0; i < n; i++) {
+		int x = x0 + i;
+
+		dst[i] += v[x & 1] + b * (float)x;
+	}
+}
+
+void rnoise_add_frame(const struct rnoise *R, int r, int y, int fx0, int n, float *dst)
+{
+	int fx = fx0, end = fx0 + n;
+
+	while (fx < end) {
+		int c = fx / RN_COLS, x = fx % RN_COLS;
+		int m = RN_COLS - x < end - fx ? RN_COLS - x : end - fx;
+
+		rnoise_add(R, r, c, y, x, m, dst + (fx - fx0));
+		fx += m;
+	}
+}
+
+void rnoise_add_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out,
+		   size_t plane)
+{
+	float v[RN_COLS * 2];
+
+	for (int r = 0; r < R->nres; r++)
+		for (int i0 = 0; i0 < n; i0 += RN_COLS * 2) {
+			int m = n - i0 < RN_COLS * 2 ? n - i0 : RN_COLS * 2;
+			uint16_t *o = out + (size_t)r * plane + i0;
+
+			memset(v, 0, sizeof(float) * (size_t)m);
+			rnoise_add_frame(R, r, y, fx0 + i0, m, v);
+			for (int i = 0; i < m; i++) {
+				double dn = floor(o[i] + v[i] / gain + 0.5);
+
+				o[i] = (uint16_t)(dn < 0 ? 0 : dn > 65535 ? 65535 : dn);
+			}
+		}
+}
+
+int rnoise_ref_init(struct rnoise_ref *C, const struct rnoise *R, const struct ramp_pattern *p,
+		    const struct ramp_det *d, const struct ramp_key *k, struct err *e)
+{
+	int nres = p->nres;
+	size_t plane = RN_ROWS;
+	uint16_t *row = malloc(sizeof(uint16_t) * (size_t)nres * plane);
+	double *scr = malloc(sizeof(double) * RAMP_SCRATCH(RN_ROWS));
+	double *side = malloc(sizeof(double) * (size_t)nres * RN_ROWS);
+	double tbm = 0;
+
+	memset(C, 0, sizeof(*C));
+	C->nres = nres;
+	C->tb = calloc((size_t)nres * 32 * 2, sizeof(double));
+	C->side = calloc((size_t)nres * RN_ROWS, sizeof(double));
+	if (!row || !scr || !side || !C->tb || !C->side) {
+		free(row);
+		free(scr);
+		free(side);
+		rnoise_ref_free(C);
+		return e ? err_sys(e, "reference correction: memory") : -1;
+	}
+	ramp_scratch_init(scr);
+	/* the top and bottom reference rows: per channel and parity */
+	for (int yy = 0; yy < 8; yy++) {
+		int y = yy < 4 ? yy : RN_ROWS - 8 + yy;
+
+		ramp_level1_row(p, d, k, (uint32_t)y * RN_ROWS, RN_ROWS, NULL, 0, row, plane, scr);
+		rnoise_add_dn(R, d->gain, y, 0, RN_ROWS, row, plane);
+		for (int r = 0; r < nres; r++)
+			for (int x = 0; x < RN_ROWS; x++)
+				C->tb[((size_t)r * 32 + x / RN_COLS) * 2 + (x & 1)] +=
+					row[(size_t)r * plane + x] / (8.0 * RN_COLS / 2);
+	}
+	/* the corrections keep the pedestal: their mean level stays */
+	for (size_t i = 0; i < (size_t)nres * 64; i++)
+		tbm += C->tb[i];
+	tbm /= (double)nres * 64;
+	for (size_t i = 0; i < (size_t)nres * 64; i++)
+		C->tb[i] -= tbm;
+	/* the left and right reference columns of every row, less the top and
+	 * bottom correction of their channel */
+	for (int y = 0; y < RN_ROWS; y++) {
+		uint16_t *o = row;
+		double level = tbm;
+
+		ramp_level1_row(p, d, k, (uint32_t)y * RN_ROWS, 4, NULL, 0, o, plane, scr);
+		ramp_level1_row(p, d, k, (uint32_t)y * RN_ROWS + RN_ROWS - 4, 4, NULL, 0, o + 4,
+				plane, scr);
+		rnoise_add_dn(R, d->gain, y, 0, 4, o, plane);
+		rnoise_add_dn(R, d->gain, y, RN_ROWS - 4, 4, o + 4, plane);
+		for (int r = 0; r < nres; r++) {
+			double s = 0;
+
+			for (int i = 0; i < 8; i++) {
+				int fx = i < 4 ? i : RN_ROWS - 8 + i;
+
+				s += o[(size_t)r * plane + i] - level -
+				     C->tb[((size_t)r * 32 + fx / RN_COLS) * 2 + (fx & 1)];
+			}
+			side[(size_t)r * RN_ROWS + y] = s / 8;
+		}
+	}
+	/* smoothed over rows: a running mean, shortened at the frame's ends */
+	for (int r = 0; r < nres; r++) {
+		const double *s = side + (size_t)r * RN_ROWS;
+
+		for (int y = 0; y < RN_ROWS; y++) {
+			int a = y - RN_SIDE_HALF < 0 ? 0 : y - RN_SIDE_HALF;
+			int b = y + RN_SIDE_HALF >= RN_ROWS ? RN_ROWS - 1 : y + RN_SIDE_HALF;
+			double m = 0;
+
+			for (int i = a; i <= b; i++)
+				m += s[i];
+			C->side[(size_t)r * RN_ROWS + y] = m / (b - a + 1);
+		}
+	}
+	free(row);
+	free(scr);
+	free(side);
+	return 0;
+}
+
+void rnoise_ref_free(struct rnoise_ref *C)
+{
+	free(C->tb);
+	free(C->side);
+	C->tb = C->side = NULL;
+}
+
+void rnoise_ref_apply(const struct rnoise_ref *C, int y, uint16_t *dn, size_t plane, int nres)
+{
+	for (int r = 0; r < nres; r++) {
+		uint16_t *o = dn + (size_t)r * plane - 4;       /* o[fx] */
+		const double *tb = C->tb + (size_t)r * 64;
+		double sd = C->side[(size_t)r * RN_ROWS + y];
+
+		for (int c = 0; c < 32; c++) {
+			/* floor(v - t + 0.5) = v - ceil(t - 0.5) for an integer v:
+			 * one integer a column parity */
+			int k[2], lo = c ? c * RN_COLS : 4;
+			int hi = c == 31 ? RN_ROWS - 4 : (c + 1) * RN_COLS;
+
+			for (int q = 0; q < 2; q++)
+				k[q] = (int)ceil(tb[c * 2 + q] + sd - 0.5);
+			for (int fx = lo; fx < hi; fx++) {
+				int v = o[fx], w = v - k[fx & 1];
+
+				/* saturated or clipped: as it is */
+				o[fx] = (uint16_t)(v == 65535 ? v : w < 0 ? 0 : w > 65534 ? 65534 : w);
+			}
+		}
+	}
+}

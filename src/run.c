@@ -106,6 +106,7 @@ static void engine_free(struct engine *g)
 		free(g->b[i].active);
 	}
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
+	free(g->param); free(g->model);
 	free(g->listed);
 	free(g->mra); free(g->mdec); free(g->moved);
 	sky_free(&g->sky);

@@ -17,6 +17,7 @@
 #include "catalog.h"
 #include "err.h"
 #include "instrument.h"
+#include "pool.h"
 #include "motion.h"
 #include "table.h"
 #include "tree.h"
@@ -1052,6 +1053,88 @@ static void rows_fill(struct catalog *c, struct rows *r, const struct table_chun
 	r->chunk = &c->ch;
 }
 
+/* Row i's cells into the chunk's arrays; each row writes only its own
+ * entries, so rows may be read on several threads. */
+static int read_row(struct catalog *c, const struct table_chunk *ch, size_t i, struct err *e)
+{
+	if (read_position(c, ch, i, e) < 0 || read_flux(c, ch, i, e) < 0)
+		return -1;
+	read_type(c, ch, i);
+	if (c->roman && c->c_hlr >= 0 && read_roman_re(c, ch, i, e) < 0)
+		return -1;
+	if (c->c_id >= 0 && (!ch->text[c->c_id][i] || !is_empty(ch->text[c->c_id][i]))) {
+		if (integer_value(ch, c->c_id, i, "id", &c->id[i], e) < 0)
+			return -1;
+	} else {
+		c->id[i] = (long long)(c->nrows + i + 1);
+	}
+	if (c->motion && read_motion(c, ch, i, e) < 0)
+		return -1;
+	return 0;
+}
+
+/*
+ * The chunk's n rows read, CELL_PART rows a task on the catalog's pool when
+ * it has one: the first failing row in order is reported, as by one thread
+ * going through them (a row after it may still be read; the chunk is
+ * dropped then).
+ */
+#define CELL_PART 8192
+
+struct cell_job {
+	struct catalog *c;
+	const struct table_chunk *ch;
+	size_t n;
+	size_t *failed;         /* per task: its failing row, or SIZE_MAX */
+	struct err *err;        /* per task */
+};
+
+static void cell_part(void *arg, int wid, size_t part)
+{
+	struct cell_job *j = arg;
+	size_t end = (part + 1) * CELL_PART < j->n ? (part + 1) * CELL_PART : j->n;
+
+	(void)wid;
+	j->failed[part] = SIZE_MAX;
+	for (size_t i = part * CELL_PART; i < end; i++)
+		if (read_row(j->c, j->ch, i, &j->err[part]) < 0) {
+			j->failed[part] = i;
+			return;
+		}
+}
+
+static int read_cells(struct catalog *c, const struct table_chunk *ch, size_t n,
+		      struct err *e)
+{
+	size_t parts = (n + CELL_PART - 1) / CELL_PART;
+	struct cell_job j = { .c = c, .ch = ch, .n = n };
+
+	/* text tables only: a FITS cell's text for a message is formatted
+	 * in the reader's own buffer */
+	if (!c->o.pool || parts < 2 || !ch->padded) {
+		for (size_t i = 0; i < n; i++)
+			if (read_row(c, ch, i, e) < 0)
+				return -1;
+		return 0;
+	}
+	j.failed = malloc(parts * sizeof(*j.failed));
+	j.err = calloc(parts, sizeof(*j.err));
+	if (!j.failed || !j.err) {
+		free(j.failed);
+		free(j.err);
+		return err_sys(e, "%s", ch->file);
+	}
+	pool_run(c->o.pool, cell_part, &j, parts);
+	for (size_t t = 0; t < parts; t++)
+		if (j.failed[t] != SIZE_MAX) {
+			err_set(e, j.err[t].code, "%s", j.err[t].msg);
+			break;
+		}
+	free(j.failed);
+	free(j.err);
+	return e->code != EXIT_OK ? -1 : 0;
+}
+
 long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 {
 	struct table_chunk ch;
@@ -1071,21 +1154,8 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 		r->file = c->t ? table_name(c->t) : c->dir ? c->dir : "";
 		return n;
 	}
-	for (size_t i = 0; i < (size_t)n; i++) {
-		if (read_position(c, &ch, i, e) < 0 || read_flux(c, &ch, i, e) < 0)
-			return -1;
-		read_type(c, &ch, i);
-		if (c->roman && c->c_hlr >= 0 && read_roman_re(c, &ch, i, e) < 0)
-			return -1;
-		if (c->c_id >= 0 && (!ch.text[c->c_id][i] || !is_empty(ch.text[c->c_id][i]))) {
-			if (integer_value(&ch, c->c_id, i, "id", &c->id[i], e) < 0)
-				return -1;
-		} else {
-			c->id[i] = (long long)(c->nrows + i + 1);
-		}
-		if (c->motion && read_motion(c, &ch, i, e) < 0)
-			return -1;
-	}
+	if (read_cells(c, &ch, (size_t)n, e) < 0)
+		return -1;
 	c->nrows += (unsigned long long)n;
 	rows_fill(c, r, &ch, n);
 	return n;

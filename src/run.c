@@ -190,7 +190,7 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
 				   .chunk_rows = o->chunk, .settings = o->settings,
-				   .epoch = o->epoch };
+				   .epoch = o->epoch, .pool = g[0]->place_pool };
 	struct engine *pending = NULL;  /* whose batch the pool is drawing */
 	struct tree_disc *disc = NULL;
 	int cur = 0, rc = -1;

@@ -624,7 +624,7 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
 struct slot_map {
 	struct engine *g;
 	const struct rows *r;
-	double band;                    /* project_sky_to_focal()'s */
+	double band;                    /* focal_band() */
 	double x0, x1, y0, y1, wx, wy;
 	uint32_t xm[SLOT_BINS], ym[SLOT_BINS];
 	unsigned long long *culled;     /* per task */
@@ -698,7 +698,7 @@ static unsigned long long slot_masks(const struct slot_map *sm, size_t a, size_t
 	return culled;
 }
 
-/* Task part of the focal-plane step: sky to focal plane (project_sky_to_focal
+/* Task part of the focal-plane step: sky to focal plane (focal_band()
  * below), then the slot masks, for ROW_PART rows.  Each row's result is its
  * own, so any split gives the same masks. */
 static void focal_part(void *arg, int wid, size_t part)
@@ -792,9 +792,10 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
 }
 
 /*
- * Sky to focal plane, for every sky row of the chunk: g->fx, g->fy in
- * arcsec from the pointing's reference (NaN for x/y rows and for rows that
- * cannot reach any requested SCA).
+ * The declination band (degrees) for sky to focal plane: sky_to_focal()
+ * gives every sky row of the chunk g->fx, g->fy in arcsec from the
+ * pointing's reference (NaN for x/y rows and for rows that cannot reach
+ * any requested SCA).
  *
  * Rows farther in declination from the pointing than any SCA's window
  * reaches are on no SCA: a row near slot s lies within rho = |(fx, fy)| of

@@ -17,7 +17,7 @@
 #include "catalog.h"
 #include "err.h"
 #include "instrument.h"
-#include "pool.h"
+#include "rowpool.h"
 #include "motion.h"
 #include "table.h"
 #include "tree.h"
@@ -1073,66 +1073,28 @@ static int read_row(struct catalog *c, const struct table_chunk *ch, size_t i, s
 	return 0;
 }
 
-/*
- * The chunk's n rows read, CELL_PART rows a task on the catalog's pool when
- * it has one: the first failing row in order is reported, as by one thread
- * going through them (a row after it may still be read; the chunk is
- * dropped then).
- */
-#define CELL_PART 8192
-
+/* rowpool_run()'s step: row i of the chunk being read. */
 struct cell_job {
 	struct catalog *c;
 	const struct table_chunk *ch;
-	size_t n;
-	size_t *failed;         /* per task: its failing row, or SIZE_MAX */
-	struct err *err;        /* per task */
 };
 
-static void cell_part(void *arg, int wid, size_t part)
+static int cell_row(void *arg, size_t i, struct err *e)
 {
 	struct cell_job *j = arg;
-	size_t end = (part + 1) * CELL_PART < j->n ? (part + 1) * CELL_PART : j->n;
 
-	(void)wid;
-	j->failed[part] = SIZE_MAX;
-	for (size_t i = part * CELL_PART; i < end; i++)
-		if (read_row(j->c, j->ch, i, &j->err[part]) < 0) {
-			j->failed[part] = i;
-			return;
-		}
+	return read_row(j->c, j->ch, i, e);
 }
 
+/* The chunk's n rows read, 8192 rows a task on the catalog's pool for a
+ * text table (a FITS cell's text for a message is formatted in the
+ * reader's own buffer); the first failing row in order is reported. */
 static int read_cells(struct catalog *c, const struct table_chunk *ch, size_t n,
 		      struct err *e)
 {
-	size_t parts = (n + CELL_PART - 1) / CELL_PART;
-	struct cell_job j = { .c = c, .ch = ch, .n = n };
+	struct cell_job j = { c, ch };
 
-	/* text tables only: a FITS cell's text for a message is formatted
-	 * in the reader's own buffer */
-	if (!c->o.pool || parts < 2 || !ch->padded) {
-		for (size_t i = 0; i < n; i++)
-			if (read_row(c, ch, i, e) < 0)
-				return -1;
-		return 0;
-	}
-	j.failed = malloc(parts * sizeof(*j.failed));
-	j.err = calloc(parts, sizeof(*j.err));
-	if (!j.failed || !j.err) {
-		free(j.failed);
-		free(j.err);
-		return err_sys(e, "%s", ch->file);
-	}
-	pool_run(c->o.pool, cell_part, &j, parts);
-	for (size_t t = 0; t < parts; t++)
-		if (j.failed[t] != SIZE_MAX) {
-			err_set(e, j.err[t].code, "%s", j.err[t].msg);
-			break;
-		}
-	free(j.failed);
-	free(j.err);
-	return e->code != EXIT_OK ? -1 : 0;
+	return rowpool_run(ch->padded ? c->o.pool : NULL, n, 8192, cell_row, &j, e);
 }
 
 long catalog_read(struct catalog *c, struct rows *r, struct err *e)

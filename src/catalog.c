@@ -17,6 +17,7 @@
 #include "catalog.h"
 #include "err.h"
 #include "instrument.h"
+#include "rowpool.h"
 #include "motion.h"
 #include "spectrum.h"
 #include "table.h"
@@ -1145,6 +1146,52 @@ static void rows_fill(struct catalog *c, struct rows *r, const struct table_chun
 	r->chunk = &c->ch;
 }
 
+/* Row i's cells into the chunk's arrays; each row writes only its own
+ * entries, so rows may be read on several threads. */
+static int read_row(struct catalog *c, const struct table_chunk *ch, size_t i, struct err *e)
+{
+	if (read_position(c, ch, i, e) < 0 || read_flux(c, ch, i, e) < 0)
+		return -1;
+	read_type(c, ch, i);
+	if (c->roman && c->c_hlr >= 0 && read_roman_re(c, ch, i, e) < 0)
+		return -1;
+	if (c->c_id >= 0 && (!ch->text[c->c_id][i] || !is_empty(ch->text[c->c_id][i]))) {
+		if (integer_value(ch, c->c_id, i, "id", &c->id[i], e) < 0)
+			return -1;
+	} else {
+		c->id[i] = (long long)(c->nrows + i + 1);
+	}
+	if (c->motion && read_motion(c, ch, i, e) < 0)
+		return -1;
+	if (c->spectral && read_spectrum(c, ch, i, e) < 0)
+		return -1;
+	return 0;
+}
+
+/* rowpool_run()'s step: row i of the chunk being read. */
+struct cell_job {
+	struct catalog *c;
+	const struct table_chunk *ch;
+};
+
+static int cell_row(void *arg, size_t i, struct err *e)
+{
+	struct cell_job *j = arg;
+
+	return read_row(j->c, j->ch, i, e);
+}
+
+/* The chunk's n rows read, 8192 rows a task on the catalog's pool for a
+ * text table (a FITS cell's text for a message is formatted in the
+ * reader's own buffer); the first failing row in order is reported. */
+static int read_cells(struct catalog *c, const struct table_chunk *ch, size_t n,
+		      struct err *e)
+{
+	struct cell_job j = { c, ch };
+
+	return rowpool_run(ch->padded ? c->o.pool : NULL, n, 8192, cell_row, &j, e);
+}
+
 long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 {
 	struct table_chunk ch;
@@ -1164,23 +1211,8 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 		r->file = c->t ? table_name(c->t) : c->dir ? c->dir : "";
 		return n;
 	}
-	for (size_t i = 0; i < (size_t)n; i++) {
-		if (read_position(c, &ch, i, e) < 0 || read_flux(c, &ch, i, e) < 0)
-			return -1;
-		read_type(c, &ch, i);
-		if (c->roman && c->c_hlr >= 0 && read_roman_re(c, &ch, i, e) < 0)
-			return -1;
-		if (c->c_id >= 0 && (!ch.text[c->c_id][i] || !is_empty(ch.text[c->c_id][i]))) {
-			if (integer_value(&ch, c->c_id, i, "id", &c->id[i], e) < 0)
-				return -1;
-		} else {
-			c->id[i] = (long long)(c->nrows + i + 1);
-		}
-		if (c->motion && read_motion(c, &ch, i, e) < 0)
-			return -1;
-		if (c->spectral && read_spectrum(c, &ch, i, e) < 0)
-			return -1;
-	}
+	if (read_cells(c, &ch, (size_t)n, e) < 0)
+		return -1;
 	c->nrows += (unsigned long long)n;
 	rows_fill(c, r, &ch, n);
 	return n;

@@ -47,6 +47,7 @@ struct catalog_opts {
 	const char *const *settings;    /* "key=value", NULL-ended, or NULL */
 	double epoch;           /* Julian epoch of positions without an 'epoch'
 	                           cell; 0 for MOTION_EPOCH_DEFAULT */
+	struct pool *pool;      /* threads that parse a chunk's cells, or NULL */
 };
 
 /*

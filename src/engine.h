@@ -163,6 +163,9 @@ struct engine {
 	double *fx, *fy, *px, *py, *reach;
 	uint32_t *cand;
 	uint32_t *mask;                 /* slots the row may reach */
+	double *param;                  /* the row's columns, MAX_COLUMNS a row */
+	int *model;                     /* the row's model */
+	size_t cap_cand;                /* cand, px, py: all slots' candidates */
 	unsigned char *listed;          /* row already in a romanisim --placed */
 	double *mra, *mdec;             /* rows moved to the exposure's date */
 	size_t cap_rows;

@@ -631,10 +631,20 @@ static int row_reach(struct engine *g, const struct rows *r, size_t i, int m,
  * gives.
  */
 #define SLOT_BINS 64
+#define ROW_PART 16384          /* rows a task of the parallel steps */
 
-static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
-{
+/* The focal-plane map of a chunk's slots: the slot_masks() tables. */
+struct slot_map {
+	struct engine *g;
+	const struct rows *r;
+	double band;                    /* focal_band() */
+	double x0, x1, y0, y1, wx, wy;
 	uint32_t xm[SLOT_BINS], ym[SLOT_BINS];
+	unsigned long long *culled;     /* per task */
+};
+
+static void slot_map_init(struct engine *g, struct slot_map *sm, double maxreach)
+{
 	/* widened a little, so that a row passing the exact test within an
 	 * ulp of a window's edge is still inside the window's bins */
 #define LIM(ss) (((ss)->half + maxreach + 2.0) * (1 + 1e-9) + 1e-6)
@@ -651,8 +661,8 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 	}
 	wx = (x1 - x0) / SLOT_BINS;
 	wy = (y1 - y0) / SLOT_BINS;
-	memset(xm, 0, sizeof(xm));
-	memset(ym, 0, sizeof(ym));
+	memset(sm->xm, 0, sizeof(sm->xm));
+	memset(sm->ym, 0, sizeof(sm->ym));
 	for (int s = 0; s < g->nslot; s++) {
 		const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
 		double lim = LIM(ss);
@@ -660,20 +670,31 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 		int c = (int)((ss->fy - lim - y0) / wy), d = (int)((ss->fy + lim - y0) / wy);
 
 		for (int k = a < 0 ? 0 : a; k <= b && k < SLOT_BINS; k++)
-			xm[k] |= 1u << s;
+			sm->xm[k] |= 1u << s;
 		for (int k = c < 0 ? 0 : c; k <= d && k < SLOT_BINS; k++)
-			ym[k] |= 1u << s;
+			sm->ym[k] |= 1u << s;
 	}
-	for (size_t i = 0; i < r->n; i++) {
+	sm->x0 = x0; sm->x1 = x1; sm->y0 = y0; sm->y1 = y1; sm->wx = wx; sm->wy = wy;
+#undef LIM
+}
+
+/* Rows [a, b) of the chunk: their masks (g->fx, g->fy set). */
+static unsigned long long slot_masks(const struct slot_map *sm, size_t a, size_t b)
+{
+	struct engine *g = sm->g;
+	const struct rows *r = sm->r;
+	unsigned long long culled = 0;
+
+	for (size_t i = a; i < b; i++) {
 		double fx = g->fx[i], fy = g->fy[i];
 		uint32_t m = 0, c;
 
 		/* also false for NaN: x/y rows and rows far from the pointing */
-		if (fx >= x0 && fx < x1 && fy >= y0 && fy < y1) {
-			int bx = (int)((fx - x0) / wx), by = (int)((fy - y0) / wy);
+		if (fx >= sm->x0 && fx < sm->x1 && fy >= sm->y0 && fy < sm->y1) {
+			int bx = (int)((fx - sm->x0) / sm->wx), by = (int)((fy - sm->y0) / sm->wy);
 
-			c = xm[bx < SLOT_BINS ? bx : SLOT_BINS - 1] &
-			    ym[by < SLOT_BINS ? by : SLOT_BINS - 1];
+			c = sm->xm[bx < SLOT_BINS ? bx : SLOT_BINS - 1] &
+			    sm->ym[by < SLOT_BINS ? by : SLOT_BINS - 1];
 			while (c) {
 				int s = __builtin_ctz(c);
 				const struct sky_sca *ss = &g->sky.sca[g->slot[s].sca - 1];
@@ -685,9 +706,36 @@ static void slot_masks(struct engine *g, const struct rows *r, double maxreach)
 			}
 		}
 		g->mask[i] = m;
-		g->culled += !isnan(r->ra[i]) && !m;
+		culled += !isnan(r->ra[i]) && !m;
 	}
-#undef LIM
+	return culled;
+}
+
+/* Task part of the focal-plane step: sky to focal plane (focal_band()
+ * below), then the slot masks, for ROW_PART rows.  Each row's result is its
+ * own, so any split gives the same masks. */
+static void focal_part(void *arg, int wid, size_t part)
+{
+	struct slot_map *sm = arg;
+	size_t a = part * ROW_PART, b = a + ROW_PART;
+
+	(void)wid;
+	if (b > sm->r->n)
+		b = sm->r->n;
+	sky_to_focal(&sm->g->sky, b - a, sm->r->ra + a, sm->r->dec + a, sm->band,
+		     sm->g->fx + a, sm->g->fy + a);
+	sm->culled[part] = slot_masks(sm, a, b);
+}
+
+/* fn for tasks 0 .. ntasks-1: on place_pool's threads when there is one
+ * and more than one task, else here in order. */
+static void place_parallel(struct engine *g, pool_fn fn, void *arg, size_t ntasks)
+{
+	if (g->place_pool && ntasks > 1)
+		pool_run(g->place_pool, fn, arg, ntasks);
+	else
+		for (size_t t = 0; t < ntasks; t++)
+			fn(arg, 0, t);
 }
 
 /* The values of the columns model m reads for row i, into v. */
@@ -757,9 +805,10 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
 }
 
 /*
- * Sky to focal plane, for every sky row of the chunk: g->fx, g->fy in
- * arcsec from the pointing's reference (NaN for x/y rows and for rows that
- * cannot reach any requested SCA).
+ * The declination band (degrees) for sky to focal plane: sky_to_focal()
+ * gives every sky row of the chunk g->fx, g->fy in arcsec from the
+ * pointing's reference (NaN for x/y rows and for rows that cannot reach
+ * any requested SCA).
  *
  * Rows farther in declination from the pointing than any SCA's window
  * reaches are on no SCA: a row near slot s lies within rho = |(fx, fy)| of
@@ -767,7 +816,7 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
  * which is at least its declination offset.  Those rows skip the
  * trigonometry of the projection.
  */
-static void project_sky_to_focal(struct engine *g, const struct rows *r, double maxreach)
+static double focal_band(struct engine *g, double maxreach)
 {
 	double band = 0;
 
@@ -777,41 +826,111 @@ static void project_sky_to_focal(struct engine *g, const struct rows *r, double 
 
 		band = fmax(band, hypot(fabs(ss->fx) + lim, fabs(ss->fy) + lim));
 	}
-	band = band / 3600 * (1 + 1e-9) + 1e-9;
-	sky_to_focal(&g->sky, r->n, r->ra, r->dec, band, g->fx, g->fy);
+	return band / 3600 * (1 + 1e-9) + 1e-9;
 }
 
 /*
- * Sky to pixels of one SCA: ra[k], dec[k] (degrees) to x[k], y[k], 0-based
- * pixels of SCA sca (NaN when off the projection), for n points; the
- * outputs may be the inputs.  The one place the engine turns sky positions
- * into detector pixels.
+ * The focal-plane step for the whole chunk: g->fx, g->fy (above) and the
+ * slot masks, ROW_PART rows a task on place_pool's threads, and the rows
+ * near no slot counted as culled.
  */
-static int project_sky_to_pixel(struct engine *g, int sca, size_t n, const double *ra,
-				const double *dec, double *x, double *y)
+static int focal_step(struct engine *g, const struct rows *r, double maxreach)
 {
-	return sky_to_pixel(&g->sky, sca, n, ra, dec, x, y, g->e);
+	size_t parts = (r->n + ROW_PART - 1) / ROW_PART;
+	struct slot_map sm = { .g = g, .r = r, .band = focal_band(g, maxreach) };
+
+	if (!(sm.culled = malloc((parts ? parts : 1) * sizeof(*sm.culled))))
+		return err_sys(g->e, "rows");
+	slot_map_init(g, &sm, maxreach);
+	place_parallel(g, focal_part, &sm, parts);
+	for (size_t t = 0; t < parts; t++)
+		g->culled += sm.culled[t];
+	free(sm.culled);
+	return 0;
+}
+
+/*
+ * Sky to pixels, slot by slot: the candidates of all slots in one pass over
+ * the masks (slot s's rows, in catalog order, at g->cand[off[s] ..
+ * off[s + 1]]), then each slot's exact pixels (g->px, g->py; NaN off the
+ * projection), one slot a task.  sky_to_pixel() of a slot's rows is the
+ * one place the engine turns sky positions into detector pixels; a slot's
+ * failure is kept in its own err, reported when placing reaches it.
+ */
+struct pixel_job {
+	struct engine *g;
+	const size_t *off;
+	struct err *err;                /* per slot */
+};
+
+static void pixel_part(void *arg, int wid, size_t s)
+{
+	struct pixel_job *j = arg;
+	struct engine *g = j->g;
+	size_t a = j->off[s], n = j->off[s + 1] - a;
+
+	(void)wid;
+	sky_to_pixel(&g->sky, g->slot[s].sca, n, g->px + a, g->py + a, g->px + a, g->py + a,
+		     &j->err[s]);
+}
+
+static int pixel_step(struct engine *g, const struct rows *r, size_t *off, struct err *err)
+{
+	struct pixel_job j = { .g = g, .off = off, .err = err };
+	int wcs = 0;
+
+	memset(off, 0, (g->nslot + 1) * sizeof(*off));
+	for (size_t i = 0; i < r->n; i++)
+		for (uint32_t m = g->mask[i]; m; m &= m - 1)
+			off[__builtin_ctz(m) + 1]++;
+	for (int s = 0; s < g->nslot; s++)
+		off[s + 1] += off[s];
+	if (grow((void **)&g->cand, &g->cap_cand, off[g->nslot] + 1, sizeof(uint32_t)) < 0 ||
+	    resize((void **)&g->px, g->cap_cand * sizeof(double)) < 0 ||
+	    resize((void **)&g->py, g->cap_cand * sizeof(double)) < 0)
+		return err_sys(g->e, "rows");
+	{
+		size_t at[32];
+
+		memcpy(at, off, g->nslot * sizeof(*at));
+		for (size_t i = 0; i < r->n; i++)
+			for (uint32_t m = g->mask[i]; m; m &= m - 1) {
+				size_t k = at[__builtin_ctz(m)]++;
+
+				g->cand[k] = i;
+				g->px[k] = r->ra[i];
+				g->py[k] = r->dec[i];
+			}
+	}
+	for (int s = 0; s < g->nslot; s++) {
+		err_clear(&err[s]);
+		wcs |= g->sky.sca[g->slot[s].sca - 1].geo.kind != GEOM_SIAF;
+	}
+	/* wcslib's projection (STIPS's geometry) sets itself up on first use:
+	 * on this thread then */
+	if (wcs)
+		for (int s = 0; s < g->nslot; s++)
+			pixel_part(&j, 0, s);
+	else
+		place_parallel(g, pixel_part, &j, g->nslot);
+	return 0;
 }
 
 /* The placements of the chunk's rows on slot s, in catalog order: sky rows
- * whose mask names s at their exact pixels, x/y rows of its SCA as given. */
+ * whose mask names s at their exact pixels (pixel_step), x/y rows of its
+ * SCA as given. */
 static int place_on_slot(struct engine *g, const struct rows *r, struct batch *b, int s,
-			 const int *model, const double *param, size_t nxy)
+			 const int *model, const double *param, size_t nxy, const size_t *off,
+			 struct err *err)
 {
-	size_t nc = 0, k = 0;
+	size_t k = off[s], nc = off[s + 1];
 
-	/* Sky rows whose reach touches this SCA, then their exact pixels. */
-	for (size_t i = 0; i < r->n; i++)
-		if (g->mask[i] >> s & 1)
-			g->cand[nc++] = i;
-	for (k = 0; k < nc; k++) {
-		g->px[k] = r->ra[g->cand[k]];
-		g->py[k] = r->dec[g->cand[k]];
-	}
-	if (project_sky_to_pixel(g, g->slot[s].sca, nc, g->px, g->py, g->px, g->py) < 0)
+	if (err[s].code != EXIT_OK) {
+		*g->e = err[s];
 		return -1;
+	}
 	if (!nxy) {
-		for (k = 0; k < nc; k++) {
+		for (; k < nc; k++) {
 			size_t i = g->cand[k];
 
 			if (!isnan(g->px[k]) &&
@@ -822,7 +941,6 @@ static int place_on_slot(struct engine *g, const struct rows *r, struct batch *b
 		return 0;
 	}
 	/* Pixel rows for this SCA are merged in catalog order. */
-	k = 0;
 	for (size_t i = 0; i < r->n; i++) {
 		double x, y;
 
@@ -875,10 +993,10 @@ static const struct rows *moved_rows(struct engine *g, const struct rows *r)
 /* Turn one chunk of rows into the placements of batch b. */
 int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 {
-	double *param = NULL, maxreach = 0;
-	size_t nxy = 0, n = 0;
-	int *model = NULL, rc = -1, pended = 0;
-	struct err stopped;
+	double *param, maxreach = 0;
+	size_t nxy = 0, n = 0, off[33];
+	int *model, rc = -1, pended = 0;
+	struct err stopped, *perr;
 
 	b->n = b->nparam = 0;
 	if (r->spec_kind && !g->colour) {
@@ -896,11 +1014,10 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	/* all per-row arrays share cap_rows: grow them together (a failed
 	 * one keeps its block, which engine_free() releases) */
 	if (resize((void **)&g->fy, g->cap_rows * sizeof(double)) < 0 ||
-	    resize((void **)&g->px, g->cap_rows * sizeof(double)) < 0 ||
-	    resize((void **)&g->py, g->cap_rows * sizeof(double)) < 0 ||
 	    resize((void **)&g->reach, g->cap_rows * sizeof(double)) < 0 ||
-	    resize((void **)&g->cand, g->cap_rows * sizeof(uint32_t)) < 0 ||
 	    resize((void **)&g->mask, g->cap_rows * sizeof(uint32_t)) < 0 ||
+	    resize((void **)&g->model, g->cap_rows * sizeof(int)) < 0 ||
+	    resize((void **)&g->param, g->cap_rows * MAX_COLUMNS * sizeof(double)) < 0 ||
 	    resize((void **)&g->listed, g->cap_rows) < 0 ||
 	    resize((void **)&g->mra, g->cap_rows * sizeof(double)) < 0 ||
 	    resize((void **)&g->mdec, g->cap_rows * sizeof(double)) < 0)
@@ -912,18 +1029,18 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	g->flux_meaning = g->o->sersic_flux ? strcmp(g->o->sersic_flux, "ie") == 0
 			: r->sersic_ie;
 
-	/* Parameters of all rows are kept in one array, MAX_COLUMNS a row. */
-	if (!(param = malloc(r->n * MAX_COLUMNS * sizeof(double))) ||
-	    !(model = malloc(r->n * sizeof(int)))) {
-		err_sys(g->e, "rows");
+	/* Parameters of all rows are kept in one array, MAX_COLUMNS a row;
+	 * kept from chunk to chunk (a fresh block each chunk costs the kernel
+	 * zeroing its pages every time). */
+	param = g->param;
+	model = g->model;
+	if (!(perr = malloc(g->nslot * sizeof(*perr))))
+		return err_sys(g->e, "rows");
+	if (read_models(g, r, model, param, &nxy, &maxreach) < 0 ||
+	    focal_step(g, r, maxreach) < 0 || pixel_step(g, r, off, perr) < 0)
 		goto out;
-	}
-	if (read_models(g, r, model, param, &nxy, &maxreach) < 0)
-		goto out;
-	project_sky_to_focal(g, r, maxreach);
-	slot_masks(g, r, maxreach);
 	for (int s = 0; s < g->nslot && !pended; s++)
-		if (place_on_slot(g, r, b, s, model, param, nxy) < 0) {
+		if (place_on_slot(g, r, b, s, model, param, nxy, off, perr) < 0) {
 			/* reported only if no placement before it fails */
 			pended = -1;
 			stopped = *g->e;
@@ -948,8 +1065,7 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	b->n = n;
 	rc = 0;
 out:
-	free(param);
-	free(model);
+	free(perr);
 	return rc;
 }
 

@@ -108,6 +108,7 @@ static void engine_free(struct engine *g)
 		free(g->b[i].active);
 	}
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);
+	free(g->param); free(g->model);
 	free(g->listed);
 	free(g->mra); free(g->mdec); free(g->moved);
 	sky_free(&g->sky);
@@ -191,7 +192,7 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
 				   .chunk_rows = o->chunk, .settings = o->settings,
-				   .epoch = o->epoch };
+				   .epoch = o->epoch, .pool = g[0]->place_pool };
 	struct engine *pending = NULL;  /* whose batch the pool is drawing */
 	struct tree_disc *disc = NULL;
 	int cur = 0, rc = -1;

@@ -125,7 +125,8 @@ static int read_blocks(struct asdf_in *a, uint64_t off, struct err *e)
 			return err_set(e, EXIT_INPUT, "%s: block %d: uncompressed, yet its data size "
 				       "%llu is not its used size %llu", a->path, a->nblock,
 				       (unsigned long long)b->data, (unsigned long long)b->used);
-		if (b->data_off + b->allocated > a->size || b->data_off + b->allocated < off)
+		/* compared without adding: a size near 2^64 must not wrap */
+		if (b->data_off > a->size || b->allocated > a->size - b->data_off)
 			return err_set(e, EXIT_INPUT, "%s: block %d: %llu bytes from offset %llu, "
 				       "beyond the file's end at %llu (truncated)", a->path, a->nblock,
 				       (unsigned long long)b->allocated,

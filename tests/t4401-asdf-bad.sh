@@ -1,0 +1,29 @@
+#!/bin/sh
+# --into IMAGE.asdf given broken or foreign files beyond t4400's: each
+# refused with exit 1 and the file named, nothing written.
+. "$(dirname "$0")/lib.sh"
+require_python
+
+run() { "$WFS" --filter F129 --ra 90 --dec 0 --date 2027-03-20T06:30 "$@"; }
+inj() { "$WFS" --filter F129 --into "$1" -o out.asdf inj.csv; }
+printf 'ra,dec,flux\n90.02,0.02,1e4\n' > inj.csv
+
+test_expect_success 'an empty file or a FITS file named .asdf: not ASDF' '
+	: > empty.asdf &&
+	test_must_fail --status 1 inj empty.asdf 2> err &&
+	test_grep "empty.asdf: not an ASDF file" err &&
+	run -o scene.fits inj.csv && cp scene.fits fits.asdf &&
+	test_must_fail --status 1 inj fits.asdf 2> err &&
+	test_grep "fits.asdf: not an ASDF file" err &&
+	! ls -a | grep -q "out\.asdf"
+'
+
+test_expect_success 'a block whose sizes wrap around 2^64: beyond the end, no allocation' '
+	run --level 2 -o l2.asdf inj.csv &&
+	"$PY" "$TOP/tests/asdf_break.py" l2.asdf wrap.asdf wrap 3 &&
+	test_must_fail --status 1 inj wrap.asdf 2> err &&
+	test_grep "wrap.asdf: block 3: .* beyond the file.s end" err &&
+	! ls -a | grep -q "out\.asdf"
+'
+
+test_done

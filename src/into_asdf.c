@@ -44,9 +44,14 @@ struct into_asdf {
 int into_is_asdf(const char *path)
 {
 	char head[6] = "";
-	FILE *f = fopen(path, "rb");
+	size_t n = strlen(path);
+	FILE *f;
 
-	if (!f)
+	/* by its name too: an empty or foreign file called .asdf is refused
+	 * as not ASDF, not opened as FITS */
+	if (n >= 5 && !strcmp(path + n - 5, ".asdf"))
+		return 1;
+	if (!(f = fopen(path, "rb")))
 		return 0;
 	if (fread(head, 1, 5, f) != 5)
 		head[0] = 0;

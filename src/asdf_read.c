@@ -142,6 +142,7 @@ struct asdf_in *asdf_in_open(const char *path, struct err *e)
 {
 	struct asdf_in *a = calloc(1, sizeof(*a));
 	struct fy_parse_cfg cfg = { .flags = FYPCF_QUIET };
+	struct fy_diag_cfg dcfg;
 	struct stat st;
 	char line[256];
 	size_t cap = 1 << 16, n = 0, lines = 0;
@@ -220,11 +221,28 @@ struct asdf_in *asdf_in_open(const char *path, struct err *e)
 		goto fail;
 	}
 	a->tree_end = (uint64_t)(end - a->text) + (end[4] == '\r' ? 6 : 5);
-	if (!(a->d = fy_document_build_from_string(&cfg, a->text + a->tree_off,
-						   (size_t)(a->tree_end - a->tree_off)))) {
-		err_set(e, EXIT_INPUT, "%s: the ASDF tree is not valid YAML", path);
+	/* libfyaml's errors collected, not printed: the first one is told
+	 * with its line in the file */
+	fy_diag_cfg_default(&dcfg);
+	dcfg.fp = NULL;
+	if (!(cfg.diag = fy_diag_create(&dcfg)))
+		goto nomem;
+	fy_diag_set_collect_errors(cfg.diag, true);
+	a->d = fy_document_build_from_string(&cfg, a->text + a->tree_off,
+					     (size_t)(a->tree_end - a->tree_off));
+	if (!a->d) {
+		void *it = NULL;
+		struct fy_diag_error *de = fy_diag_errors_iterate(cfg.diag, &it);
+
+		if (de && de->msg)
+			err_set(e, EXIT_INPUT, "%s:%zu:%d: the ASDF tree is not valid YAML: %s",
+				path, lines + (size_t)de->line, de->column, de->msg);
+		else
+			err_set(e, EXIT_INPUT, "%s: the ASDF tree is not valid YAML", path);
+		fy_diag_destroy(cfg.diag);
 		goto fail;
 	}
+	fy_diag_destroy(cfg.diag);
 	if (read_blocks(a, a->tree_end, e) < 0)
 		goto fail;
 	return a;

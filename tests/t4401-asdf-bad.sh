@@ -18,6 +18,15 @@ test_expect_success 'an empty file or a FITS file named .asdf: not ASDF' '
 	! ls -a | grep -q "out\.asdf"
 '
 
+test_expect_success 'a tree that is not YAML: its line and column in the file, no noise' '
+	printf "#ASDF 1.0.0\n#ASDF_STANDARD 1.6.0\n%%YAML 1.1\n--- !core/asdf-1.1.0\nroman: [\n...\n" \
+		> yaml.asdf &&
+	test_must_fail --status 1 inj yaml.asdf 2> err &&
+	test_grep "^wfiscene: yaml.asdf:6:1: the ASDF tree is not valid YAML: " err &&
+	test "$(wc -l < err)" -eq 1 &&
+	! ls -a | grep -q "out\.asdf"
+'
+
 test_expect_success 'a block whose sizes wrap around 2^64: beyond the end, no allocation' '
 	run --level 2 -o l2.asdf inj.csv &&
 	"$PY" "$TOP/tests/asdf_break.py" l2.asdf wrap.asdf wrap 3 &&

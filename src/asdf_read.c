@@ -7,6 +7,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <libfyaml.h>
+#include <md5.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,7 +17,6 @@
 
 #include "asdf_read.h"
 #include "err.h"
-#include "md5.h"
 
 #define BLOCK_MAGIC "\323BLK"
 #define TREE_MAX (256u << 20)   /* a tree larger than this is refused */
@@ -296,7 +296,11 @@ int asdf_in_block(struct asdf_in *a, int k, void *out, size_t n, struct err *e)
 	}
 	/* the checksum is of the used (stored) data */
 	if (memcmp(b->md5, zero, 16)) {
-		md5(raw, (size_t)b->used, sum);
+		MD5_CTX c;
+
+		MD5Init(&c);
+		MD5Update(&c, raw, (size_t)b->used);
+		MD5Final(sum, &c);
 		if (memcmp(sum, b->md5, 16)) {
 			err_set(e, EXIT_INPUT, "%s: block %d: its MD5 checksum does not match its "
 				"data", a->path, k);

@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <libfyaml.h>
 #include <math.h>
+#include <md5.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,7 +20,6 @@
 #include "geometry.h"
 #include "instrument.h"
 #include "into_asdf.h"
-#include "md5.h"
 #include "ramp.h"
 #include "tempfile.h"
 
@@ -437,8 +437,13 @@ static int write_image(struct into_asdf *ia, int fd, void *const *data, const ch
 			be64(h + 14, n);
 			be64(h + 22, n);
 			be64(h + 30, n);
-			if (memcmp(b->md5, (const unsigned char[16]){ 0 }, 16))
-				md5(data[changed], (size_t)n, h + 38);
+			if (memcmp(b->md5, (const unsigned char[16]){ 0 }, 16)) {
+				MD5_CTX c;
+
+				MD5Init(&c);
+				MD5Update(&c, data[changed], (size_t)n);
+				MD5Final(h + 38, &c);
+			}
 			if (put(fd, h, sizeof(h), &off, path, e) < 0 ||
 			    put(fd, data[changed], (size_t)n, &off, path, e) < 0)
 				goto done;

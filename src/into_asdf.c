@@ -88,7 +88,9 @@ static int ndarray(struct into_asdf *ia, const char *name, int k, const long *wa
 	char path[64];
 	struct fy_node *n, *s, *src, *dt, *bo;
 	const char *tag, *v;
+	char *end;
 	size_t tl;
+	long b;
 
 	snprintf(path, sizeof(path), "/roman/%s", name);
 	if (!(n = at(asdf_in_root(a), path)) || !fy_node_is_mapping(n))
@@ -105,7 +107,19 @@ static int ndarray(struct into_asdf *ia, const char *name, int k, const long *wa
 		return err_set(e, EXIT_INPUT, "%s: roman.%s: an ndarray without a block source, "
 			       "datatype or shape (an inline or external array is not read here)",
 			       a->path, name);
-	ia->block[k] = atoi(fy_node_get_scalar0(src));
+	/* a block's number; a string is an external file, not read here */
+	v = fy_node_get_scalar0(src);
+	errno = 0;
+	b = strtol(v, &end, 10);
+	if (end == v || *end || errno || b < 0 || b >= a->nblock)
+		return err_set(e, EXIT_INPUT, "%s: roman.%s: source '%s' is not one of the "
+			       "file's %d blocks (truncated, or an external array?)", a->path,
+			       name, v, a->nblock);
+	for (int j = 0; j < k; j++)
+		if (ia->block[j] == (int)b)
+			return err_set(e, EXIT_INPUT, "%s: roman.%s: block %ld is another "
+				       "array's too", a->path, name, b);
+	ia->block[k] = (int)b;
 	v = fy_node_get_scalar0(dt);
 	if (!strcmp(v, "float32"))
 		ia->dtype[k] = ASDF_F32;
@@ -125,9 +139,6 @@ static int ndarray(struct into_asdf *ia, const char *name, int k, const long *wa
 			return err_set(e, EXIT_INPUT, "%s: roman.%s is not %ld x %ld pixels",
 				       a->path, name, want[0], want[1]);
 	}
-	if (ia->block[k] < 0 || ia->block[k] >= a->nblock)
-		return err_set(e, EXIT_INPUT, "%s: roman.%s: block %d, and the file has %d "
-			       "(truncated?)", a->path, name, ia->block[k], a->nblock);
 	return 0;
 }
 

@@ -35,4 +35,16 @@ test_expect_success 'a block whose sizes wrap around 2^64: beyond the end, no al
 	! ls -a | grep -q "out\.asdf"
 '
 
+test_expect_success 'an array whose source is another array.s block, or not a block' '
+	grep -n -a -A1 "^  err: !core/ndarray" l2.asdf | grep -q "source: 2" &&
+	LC_ALL=C sed "/^  err: !core\/ndarray/,/source:/s/source: 2/source: 3/" l2.asdf > share.asdf &&
+	test_must_fail --status 1 inj share.asdf 2> err &&
+	test_grep "share.asdf: roman.err: block 3 is another array.s too" err &&
+	LC_ALL=C sed "/^  data: !core\/ndarray/,/source:/s/source: 0/source: \"x.asdf\"/" \
+		l2.asdf > ext.asdf &&
+	test_must_fail --status 1 inj ext.asdf 2> err &&
+	test_grep "ext.asdf: roman.data: source .x.asdf. is not one of the file.s" err &&
+	! ls -a | grep -q "out\.asdf"
+'
+
 test_done

@@ -22,7 +22,7 @@
 # python3-asdf-astropy and python3-gwcs open the ASDF products (t4400:
 # the Roman schemas' validation, the gwcs against the FITS WCS).
 set -e
-build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev libchealpix-dev libfyaml-dev zstd perl"
+build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev libchealpix-dev libfyaml-dev libmd-dev zstd perl"
 tests="gzip time python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc
 	bsdutils util-linux parallel slurmctld slurmd slurm-client munge clang libclang-rt-dev valgrind
 	python3-asdf python3-asdf-astropy python3-gwcs"
@@ -35,7 +35,7 @@ bench) extra="gnuplot-nox" ;;
 esac
 if ! command -v dpkg-query > /dev/null 2>&1; then
 	echo "wfiscene: not a Debian system; packages not checked (the build needs" \
-		"cc, make, pkg-config and cfitsio, wcslib, fftw3, libltdl, zstd, zlib, libpng, libfyaml)" >&2
+		"cc, make, pkg-config and cfitsio, wcslib, fftw3, libltdl, zstd, zlib, libpng, libfyaml, libmd)" >&2
 	exit 0
 fi
 missing() {

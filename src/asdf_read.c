@@ -7,6 +7,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <libfyaml.h>
+#include <md5.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,7 +17,6 @@
 
 #include "asdf_read.h"
 #include "err.h"
-#include "md5.h"
 
 #define BLOCK_MAGIC "\323BLK"
 #define TREE_MAX (256u << 20)   /* a tree larger than this is refused */
@@ -125,7 +125,8 @@ static int read_blocks(struct asdf_in *a, uint64_t off, struct err *e)
 			return err_set(e, EXIT_INPUT, "%s: block %d: uncompressed, yet its data size "
 				       "%llu is not its used size %llu", a->path, a->nblock,
 				       (unsigned long long)b->data, (unsigned long long)b->used);
-		if (b->data_off + b->allocated > a->size || b->data_off + b->allocated < off)
+		/* compared without adding: a size near 2^64 must not wrap */
+		if (b->data_off > a->size || b->allocated > a->size - b->data_off)
 			return err_set(e, EXIT_INPUT, "%s: block %d: %llu bytes from offset %llu, "
 				       "beyond the file's end at %llu (truncated)", a->path, a->nblock,
 				       (unsigned long long)b->allocated,
@@ -141,6 +142,7 @@ struct asdf_in *asdf_in_open(const char *path, struct err *e)
 {
 	struct asdf_in *a = calloc(1, sizeof(*a));
 	struct fy_parse_cfg cfg = { .flags = FYPCF_QUIET };
+	struct fy_diag_cfg dcfg;
 	struct stat st;
 	char line[256];
 	size_t cap = 1 << 16, n = 0, lines = 0;
@@ -219,11 +221,28 @@ struct asdf_in *asdf_in_open(const char *path, struct err *e)
 		goto fail;
 	}
 	a->tree_end = (uint64_t)(end - a->text) + (end[4] == '\r' ? 6 : 5);
-	if (!(a->d = fy_document_build_from_string(&cfg, a->text + a->tree_off,
-						   (size_t)(a->tree_end - a->tree_off)))) {
-		err_set(e, EXIT_INPUT, "%s: the ASDF tree is not valid YAML", path);
+	/* libfyaml's errors collected, not printed: the first one is told
+	 * with its line in the file */
+	fy_diag_cfg_default(&dcfg);
+	dcfg.fp = NULL;
+	if (!(cfg.diag = fy_diag_create(&dcfg)))
+		goto nomem;
+	fy_diag_set_collect_errors(cfg.diag, true);
+	a->d = fy_document_build_from_string(&cfg, a->text + a->tree_off,
+					     (size_t)(a->tree_end - a->tree_off));
+	if (!a->d) {
+		void *it = NULL;
+		struct fy_diag_error *de = fy_diag_errors_iterate(cfg.diag, &it);
+
+		if (de && de->msg)
+			err_set(e, EXIT_INPUT, "%s:%zu:%d: the ASDF tree is not valid YAML: %s",
+				path, lines + (size_t)de->line, de->column, de->msg);
+		else
+			err_set(e, EXIT_INPUT, "%s: the ASDF tree is not valid YAML", path);
+		fy_diag_destroy(cfg.diag);
 		goto fail;
 	}
+	fy_diag_destroy(cfg.diag);
 	if (read_blocks(a, a->tree_end, e) < 0)
 		goto fail;
 	return a;
@@ -277,7 +296,11 @@ int asdf_in_block(struct asdf_in *a, int k, void *out, size_t n, struct err *e)
 	}
 	/* the checksum is of the used (stored) data */
 	if (memcmp(b->md5, zero, 16)) {
-		md5(raw, (size_t)b->used, sum);
+		MD5_CTX c;
+
+		MD5Init(&c);
+		MD5Update(&c, raw, (size_t)b->used);
+		MD5Final(sum, &c);
 		if (memcmp(sum, b->md5, 16)) {
 			err_set(e, EXIT_INPUT, "%s: block %d: its MD5 checksum does not match its "
 				"data", a->path, k);

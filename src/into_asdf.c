@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <libfyaml.h>
 #include <math.h>
+#include <md5.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,7 +20,6 @@
 #include "geometry.h"
 #include "instrument.h"
 #include "into_asdf.h"
-#include "md5.h"
 #include "ramp.h"
 #include "tempfile.h"
 
@@ -44,9 +44,14 @@ struct into_asdf {
 int into_is_asdf(const char *path)
 {
 	char head[6] = "";
-	FILE *f = fopen(path, "rb");
+	size_t n = strlen(path);
+	FILE *f;
 
-	if (!f)
+	/* by its name too: an empty or foreign file called .asdf is refused
+	 * as not ASDF, not opened as FITS */
+	if (n >= 5 && !strcmp(path + n - 5, ".asdf"))
+		return 1;
+	if (!(f = fopen(path, "rb")))
 		return 0;
 	if (fread(head, 1, 5, f) != 5)
 		head[0] = 0;
@@ -83,7 +88,9 @@ static int ndarray(struct into_asdf *ia, const char *name, int k, const long *wa
 	char path[64];
 	struct fy_node *n, *s, *src, *dt, *bo;
 	const char *tag, *v;
+	char *end;
 	size_t tl;
+	long b;
 
 	snprintf(path, sizeof(path), "/roman/%s", name);
 	if (!(n = at(asdf_in_root(a), path)) || !fy_node_is_mapping(n))
@@ -100,7 +107,19 @@ static int ndarray(struct into_asdf *ia, const char *name, int k, const long *wa
 		return err_set(e, EXIT_INPUT, "%s: roman.%s: an ndarray without a block source, "
 			       "datatype or shape (an inline or external array is not read here)",
 			       a->path, name);
-	ia->block[k] = atoi(fy_node_get_scalar0(src));
+	/* a block's number; a string is an external file, not read here */
+	v = fy_node_get_scalar0(src);
+	errno = 0;
+	b = strtol(v, &end, 10);
+	if (end == v || *end || errno || b < 0 || b >= a->nblock)
+		return err_set(e, EXIT_INPUT, "%s: roman.%s: source '%s' is not one of the "
+			       "file's %d blocks (truncated, or an external array?)", a->path,
+			       name, v, a->nblock);
+	for (int j = 0; j < k; j++)
+		if (ia->block[j] == (int)b)
+			return err_set(e, EXIT_INPUT, "%s: roman.%s: block %ld is another "
+				       "array's too", a->path, name, b);
+	ia->block[k] = (int)b;
 	v = fy_node_get_scalar0(dt);
 	if (!strcmp(v, "float32"))
 		ia->dtype[k] = ASDF_F32;
@@ -120,9 +139,6 @@ static int ndarray(struct into_asdf *ia, const char *name, int k, const long *wa
 			return err_set(e, EXIT_INPUT, "%s: roman.%s is not %ld x %ld pixels",
 				       a->path, name, want[0], want[1]);
 	}
-	if (ia->block[k] < 0 || ia->block[k] >= a->nblock)
-		return err_set(e, EXIT_INPUT, "%s: roman.%s: block %d, and the file has %d "
-			       "(truncated?)", a->path, name, ia->block[k], a->nblock);
 	return 0;
 }
 
@@ -432,8 +448,13 @@ static int write_image(struct into_asdf *ia, int fd, void *const *data, const ch
 			be64(h + 14, n);
 			be64(h + 22, n);
 			be64(h + 30, n);
-			if (memcmp(b->md5, (const unsigned char[16]){ 0 }, 16))
-				md5(data[changed], (size_t)n, h + 38);
+			if (memcmp(b->md5, (const unsigned char[16]){ 0 }, 16)) {
+				MD5_CTX c;
+
+				MD5Init(&c);
+				MD5Update(&c, data[changed], (size_t)n);
+				MD5Final(h + 38, &c);
+			}
 			if (put(fd, h, sizeof(h), &off, path, e) < 0 ||
 			    put(fd, data[changed], (size_t)n, &off, path, e) < 0)
 				goto done;

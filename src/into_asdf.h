@@ -21,7 +21,7 @@
 struct err;
 struct into_asdf;
 
-/* The file begins "#ASDF". */
+/* The file begins "#ASDF", or its name ends in ".asdf". */
 int into_is_asdf(const char *path);
 
 /* Open and check path for the SCAs of mask (which must be the file's

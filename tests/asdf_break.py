@@ -1,10 +1,12 @@
 """Write a copy of an ASDF file with one block's header changed.
 
-    asdf_break.py IN OUT size|md5|md5-right K
+    asdf_break.py IN OUT size|wrap|md5|md5-right K
 
-size: block K's used size made larger than its allocated size; md5: a
-checksum that is not its data's; md5-right: its data's true MD5 (a file
-that must still be read).
+size: block K's used size made larger than its allocated size; wrap: its
+allocated and used sizes 2^64 - 1, a zlib block (offset plus size wraps
+around, a reader that adds them sees a block that ends inside the file);
+md5: a checksum that is not its data's; md5-right: its data's true MD5 (a
+file that must still be read).
 """
 import hashlib
 import struct
@@ -21,6 +23,9 @@ hs = struct.unpack(">H", b[pos + 4:pos + 6])[0]
 used = struct.unpack(">Q", b[pos + 22:pos + 30])[0]
 if what == "size":
     b[pos + 22:pos + 30] = struct.pack(">Q", used + 8)
+elif what == "wrap":
+    b[pos + 10:pos + 14] = b"zlib"
+    b[pos + 14:pos + 30] = struct.pack(">QQ", 2**64 - 1, 2**64 - 1)
 elif what == "md5":
     b[pos + 38:pos + 54] = bytes(range(1, 17))
 else:

@@ -96,6 +96,23 @@ static inline double halo_bin(double y, double x)
 	return (t + M_PI) * (HALO_NT / (2 * M_PI));
 }
 
+/* The bin k of angle t (halo_bin()) and the fraction f toward bin k + 1,
+ * held to the table's ends. */
+static inline int halo_bin_at(double t, double *f)
+{
+	int k = (int)t;
+
+	*f = t - k;
+	if (k >= HALO_NT) {
+		k = HALO_NT - 1;
+		*f = 1;
+	} else if (k < 0) {
+		k = 0;
+		*f = 0;
+	}
+	return k;
+}
+
 /*
  * The tail at (dx, dy): (B(t) + S(t') d / rb) d^-alpha.  A spike keeps its
  * width in pixels as it goes out, as the optics' do (a strut's edge
@@ -105,17 +122,9 @@ static inline double halo_bin(double y, double x)
  */
 static inline double halo_tail(const struct halo *h, double dx, double dy)
 {
-	double d2 = dx * dx + dy * dy, t = halo_bin(dy, dx), d = sqrt(d2);
-	int k = (int)t;
-	double f = t - k, a;
+	double d2 = dx * dx + dy * dy, t = halo_bin(dy, dx), d = sqrt(d2), f, a;
+	int k = halo_bin_at(t, &f);
 
-	if (k >= HALO_NT) {
-		k = HALO_NT - 1;
-		f = 1;
-	} else if (k < 0) {
-		k = 0;
-		f = 0;
-	}
 	a = h->B[k] + f * (h->B[k + 1] - h->B[k]);
 	if (h->cen[k] < 0)      /* no spike here: the rest of A as it is */
 		a += h->S[k] + f * (h->S[k + 1] - h->S[k]);
@@ -141,17 +150,9 @@ out:
  * is kept apart, the baseline B alone where one is. */
 static inline double halo_tail_base(const struct halo *h, double dx, double dy)
 {
-	double d = sqrt(dx * dx + dy * dy), t = halo_bin(dy, dx);
-	int k = (int)t;
-	double f = t - k, a;
+	double d = sqrt(dx * dx + dy * dy), t = halo_bin(dy, dx), f, a;
+	int k = halo_bin_at(t, &f);
 
-	if (k >= HALO_NT) {
-		k = HALO_NT - 1;
-		f = 1;
-	} else if (k < 0) {
-		k = 0;
-		f = 0;
-	}
 	a = h->B[k] + f * (h->B[k + 1] - h->B[k]);
 	if (h->cen[k] < 0)
 		a += h->S[k] + f * (h->S[k + 1] - h->S[k]);

@@ -203,20 +203,193 @@ static void observer(double mjd, double pos_km[3], double vel_kms[3])
 	}
 }
 
-static void meta_common(struct asdf_writer *aw, struct asdf_tree *t, struct fy_node *meta)
+/* guide_star: no guider in a simulation; the schema's fields, none */
+static void meta_guide_star(struct asdf_tree *t, struct fy_node *meta)
 {
-	struct engine *g = aw->g;
-	const struct exposure *x = g->x;
-	const struct geom_aperture *ap = geom_aperture(aw->sca), *ref;
-	struct fy_node *n, *crds, *dither;
-	double mid = start_mjd(g) + aw->pat->exptime / 2 / 86400, pos[3], vel[3];
-	double ra, dec, pa_v3, u[3], beta[3], ub = 0, s[3], nn = 0;
-	char name[32], *base = strrchr(aw->path, '/');
+	struct fy_node *n;
+
+	n = asdf_map(t, meta, "guide_star", NULL);
+	asdf_str(t, n, "guide_window_id", "none");
+	asdf_str(t, n, "guide_mode", "none");
+	asdf_int(t, n, "window_xstart", 0);
+	asdf_int(t, n, "window_ystart", 0);
+	asdf_int(t, n, "window_xstop", 0);
+	asdf_int(t, n, "window_ystop", 0);
+	asdf_str(t, n, "guide_star_id", "none");
+	asdf_str(t, n, "epoch", "none");
+}
+
+/* observation: a --pointings name is the observation's id; the numbers
+ * default to 1, the exposure to its place in the run */
+static void meta_observation(struct asdf_tree *t, struct fy_node *meta,
+			     const struct exposure *x)
+{
+	struct fy_node *n;
+	char vid[24];
+
+	n = asdf_map(t, meta, "observation", NULL);
+	asdf_str(t, n, "observation_id", x->name[0] ? x->name : "wfiscene");
+	snprintf(vid, sizeof(vid), "%05d%02d%03d%03d%03d%03d", 1, 1, 1, 1, 1, 1);
+	asdf_str(t, n, "visit_id", vid);
+	asdf_int(t, n, "program", 1);
+	asdf_int(t, n, "execution_plan", 1);
+	asdf_int(t, n, "pass", 1);
+	asdf_int(t, n, "segment", 1);
+	asdf_int(t, n, "observation", 1);
+	asdf_int(t, n, "visit", 1);
+	asdf_int(t, n, "visit_file_group", 1);
+	asdf_int(t, n, "visit_file_sequence", 1);
+	asdf_str(t, n, "visit_file_activity", "01");
+	asdf_int(t, n, "exposure", x->index + 1);
+	asdf_bool(t, n, "wfi_parallel", 0);
+}
+
+/* pointing: V1 (V2 = V3 = 0) and the reference aperture */
+static void meta_pointing(struct engine *g, struct asdf_tree *t, struct fy_node *meta)
+{
+	const struct geom_aperture *ref;
+	struct fy_node *n;
+	double ra, dec, pa_v3;
+
+	n = asdf_map(t, meta, "pointing", NULL);
+	ref = geom_aperture(g->sky.boresight ? 0 : 1);
+	asdf_num(t, n, "pa_aperture", g->sky.pa0);
+	asdf_str(t, n, "pointing_engineering_source", "CALCULATED");
+	v23_sky(g, 0, 0, &ra, &dec, &pa_v3);
+	asdf_num(t, n, "ra_v1", ra);
+	asdf_num(t, n, "dec_v1", dec);
+	asdf_num(t, n, "pa_v3", pa_v3);
+	asdf_str(t, n, "target_aperture", ref->sca ? "WFI01_FULL" : "WFI_CEN");
+	asdf_num(t, n, "target_ra", g->sky.ra0);
+	asdf_num(t, n, "target_dec", g->sky.dec0);
+}
+
+/* program, ref_file and rcs: no proposal, no CRDS, no calibration
+ * source in a simulation; documented defaults (wfiscene(1)) */
+static void meta_bookkeeping(struct asdf_tree *t, struct fy_node *meta)
+{
 	static const char *const refs[] = {
 		"apcorr", "dark", "darkdecaysignal", "distortion", "epsf", "mask", "flat",
 		"gain", "readnoise", "linearity", "inverselinearity", "integralnonlinearity",
 		"photom", "area", "saturation", "refpix",
 	};
+	struct fy_node *n, *crds;
+
+	n = asdf_map(t, meta, "program", NULL);
+	asdf_str(t, n, "title", "wfiscene simulation");
+	asdf_str(t, n, "investigator_name", "none");
+	asdf_str(t, n, "category", "none");
+	asdf_str(t, n, "subcategory", "none");
+	asdf_str(t, n, "science_category", "none");
+
+	n = asdf_map(t, meta, "ref_file", NULL);
+	crds = asdf_map(t, n, "crds", NULL);
+	asdf_str(t, crds, "version", "none");
+	asdf_str(t, crds, "context", "none");
+	for (size_t i = 0; i < sizeof(refs) / sizeof(refs[0]); i++)
+		asdf_str(t, n, refs[i], "N/A");
+
+	n = asdf_map(t, meta, "rcs", NULL);
+	asdf_bool(t, n, "active", 0);
+	asdf_null(t, n, "electronics");
+	asdf_null(t, n, "bank");
+	asdf_null(t, n, "led");
+	asdf_int(t, n, "counts", 0);
+}
+
+/* velocity aberration of the SCA's reference point: the apparent
+ * direction of u seen moving at beta = v / c is u + beta less its
+ * part along u, to first order; the plate scale grows by 1 + u.beta */
+static void meta_aberration(struct engine *g, const struct geom_aperture *ap,
+			    const double vel[3], struct asdf_tree *t, struct fy_node *meta)
+{
+	struct fy_node *n;
+	double ra, dec, pa_v3, u[3], beta[3], ub = 0, s[3], nn = 0, ra_a, dec_a;
+
+	v23_sky(g, ap->v2ref, ap->v3ref, &ra, &dec, &pa_v3);
+	u[0] = cos(dec * D2R) * cos(ra * D2R);
+	u[1] = cos(dec * D2R) * sin(ra * D2R);
+	u[2] = sin(dec * D2R);
+	for (int k = 0; k < 3; k++) {
+		beta[k] = vel[k] / C_KMS;
+		ub += u[k] * beta[k];
+	}
+	for (int k = 0; k < 3; k++) {
+		s[k] = u[k] + beta[k] - ub * u[k];
+		nn += s[k] * s[k];
+	}
+	for (int k = 0; k < 3; k++)
+		s[k] /= sqrt(nn);
+	n = asdf_map(t, meta, "velocity_aberration", NULL);
+	radec(s, &ra_a, &dec_a);
+	asdf_num(t, n, "ra_reference", ra_a);
+	asdf_num(t, n, "dec_reference", dec_a);
+	asdf_num(t, n, "scale_factor", 1 + ub);
+}
+
+/* visit: one exposure of general astrophysics, no dither named */
+static void meta_visit(struct engine *g, struct asdf_tree *t, struct fy_node *meta)
+{
+	struct fy_node *n, *dither;
+
+	n = asdf_map(t, meta, "visit", NULL);
+	dither = asdf_map(t, n, "dither", NULL);
+	asdf_null(t, dither, "primary_name");
+	asdf_null(t, dither, "subpixel_name");
+	asdf_null(t, dither, "executed_pattern");
+	asdf_str(t, n, "type", "GENERAL_ASTROPHYSICS");
+	asdf_time(t, n, "start_time", start_mjd(g));
+	asdf_int(t, n, "nexposures", 1);
+	asdf_bool(t, n, "internal_target", 0);
+}
+
+/* wcsinfo: the SCA's aperture, its reference point on the sky and the
+ * science pixels' corners */
+static void meta_wcsinfo(struct asdf_writer *aw, struct asdf_tree *t, struct fy_node *meta)
+{
+	struct engine *g = aw->g;
+	const struct geom_aperture *ap = geom_aperture(aw->sca);
+	struct fy_node *n;
+	double ra, dec, pa_v3;
+	char name[32];
+
+	v23_sky(g, ap->v2ref, ap->v3ref, &ra, &dec, &pa_v3);
+	n = asdf_map(t, meta, "wcsinfo", NULL);
+	snprintf(name, sizeof(name), "WFI%02d_FULL", aw->sca);
+	asdf_str(t, n, "aperture_name", name);
+	asdf_num(t, n, "v2_ref", ap->v2ref);
+	asdf_num(t, n, "v3_ref", ap->v3ref);
+	asdf_int(t, n, "vparity", ap->parity < 0 ? -1 : 1);
+	asdf_num(t, n, "v3yangle", ap->v3idlyangle);
+	asdf_num(t, n, "ra_ref", ra);
+	asdf_num(t, n, "dec_ref", dec);
+	asdf_num(t, n, "roll_ref", pa_v3);
+	{
+		/* the corners of the science pixels, counterclockwise */
+		static const double cx[4] = { -0.5, WFS_NPIX - 0.5, WFS_NPIX - 0.5, -0.5 };
+		static const double cy[4] = { -0.5, -0.5, WFS_NPIX - 0.5, WFS_NPIX - 0.5 };
+		struct geom_sca *geo = &g->sky.sca[aw->sca - 1].geo;
+		char poly[256];
+		int k = snprintf(poly, sizeof(poly), "POLYGON ICRS");
+
+		for (int c = 0; c < 4; c++) {
+			double a, d;
+
+			geom_pix_to_sky(geo, cx[c], cy[c], &a, &d);
+			k += snprintf(poly + k, sizeof(poly) - (size_t)k, " %.9f %.9f", a, d);
+		}
+		asdf_str(t, n, "s_region", poly);
+	}
+}
+
+static void meta_common(struct asdf_writer *aw, struct asdf_tree *t, struct fy_node *meta)
+{
+	struct engine *g = aw->g;
+	const struct exposure *x = g->x;
+	const struct geom_aperture *ap = geom_aperture(aw->sca);
+	struct fy_node *n;
+	double mid = start_mjd(g) + aw->pat->exptime / 2 / 86400, pos[3], vel[3];
+	char name[32], *base = strrchr(aw->path, '/');
 
 	asdf_str(t, meta, "calibration_software_name", "wfiscene");
 	asdf_str(t, meta, "calibration_software_version", WFS_VERSION);
@@ -249,15 +422,7 @@ static void meta_common(struct asdf_writer *aw, struct asdf_tree *t, struct fy_n
 
 	meta_exposure(aw, t, meta);
 
-	n = asdf_map(t, meta, "guide_star", NULL);
-	asdf_str(t, n, "guide_window_id", "none");
-	asdf_str(t, n, "guide_mode", "none");
-	asdf_int(t, n, "window_xstart", 0);
-	asdf_int(t, n, "window_ystart", 0);
-	asdf_int(t, n, "window_xstop", 0);
-	asdf_int(t, n, "window_ystop", 0);
-	asdf_str(t, n, "guide_star_id", "none");
-	asdf_str(t, n, "epoch", "none");
+	meta_guide_star(t, meta);
 
 	n = asdf_map(t, meta, "instrument", NULL);
 	snprintf(name, sizeof(name), "WFI%02d", aw->sca);
@@ -265,125 +430,17 @@ static void meta_common(struct asdf_writer *aw, struct asdf_tree *t, struct fy_n
 	asdf_str(t, n, "optical_element", g->filter_name);
 	asdf_str(t, n, "name", "WFI");
 
-	n = asdf_map(t, meta, "observation", NULL);
-	{
-		/* a --pointings name is the observation's id; the numbers
-		 * default to 1, the exposure to its place in the run */
-		char vid[24];
+	meta_observation(t, meta, x);
 
-		asdf_str(t, n, "observation_id", x->name[0] ? x->name : "wfiscene");
-		snprintf(vid, sizeof(vid), "%05d%02d%03d%03d%03d%03d", 1, 1, 1, 1, 1, 1);
-		asdf_str(t, n, "visit_id", vid);
-		asdf_int(t, n, "program", 1);
-		asdf_int(t, n, "execution_plan", 1);
-		asdf_int(t, n, "pass", 1);
-		asdf_int(t, n, "segment", 1);
-		asdf_int(t, n, "observation", 1);
-		asdf_int(t, n, "visit", 1);
-		asdf_int(t, n, "visit_file_group", 1);
-		asdf_int(t, n, "visit_file_sequence", 1);
-		asdf_str(t, n, "visit_file_activity", "01");
-		asdf_int(t, n, "exposure", x->index + 1);
-		asdf_bool(t, n, "wfi_parallel", 0);
-	}
+	meta_pointing(g, t, meta);
 
-	/* the pointing: V1 (V2 = V3 = 0) and the reference aperture */
-	n = asdf_map(t, meta, "pointing", NULL);
-	ref = geom_aperture(g->sky.boresight ? 0 : 1);
-	asdf_num(t, n, "pa_aperture", g->sky.pa0);
-	asdf_str(t, n, "pointing_engineering_source", "CALCULATED");
-	v23_sky(g, 0, 0, &ra, &dec, &pa_v3);
-	asdf_num(t, n, "ra_v1", ra);
-	asdf_num(t, n, "dec_v1", dec);
-	asdf_num(t, n, "pa_v3", pa_v3);
-	asdf_str(t, n, "target_aperture", ref->sca ? "WFI01_FULL" : "WFI_CEN");
-	asdf_num(t, n, "target_ra", g->sky.ra0);
-	asdf_num(t, n, "target_dec", g->sky.dec0);
+	meta_bookkeeping(t, meta);
 
-	n = asdf_map(t, meta, "program", NULL);
-	asdf_str(t, n, "title", "wfiscene simulation");
-	asdf_str(t, n, "investigator_name", "none");
-	asdf_str(t, n, "category", "none");
-	asdf_str(t, n, "subcategory", "none");
-	asdf_str(t, n, "science_category", "none");
+	meta_aberration(g, ap, vel, t, meta);
 
-	n = asdf_map(t, meta, "ref_file", NULL);
-	crds = asdf_map(t, n, "crds", NULL);
-	asdf_str(t, crds, "version", "none");
-	asdf_str(t, crds, "context", "none");
-	for (size_t i = 0; i < sizeof(refs) / sizeof(refs[0]); i++)
-		asdf_str(t, n, refs[i], "N/A");
+	meta_visit(g, t, meta);
 
-	n = asdf_map(t, meta, "rcs", NULL);
-	asdf_bool(t, n, "active", 0);
-	asdf_null(t, n, "electronics");
-	asdf_null(t, n, "bank");
-	asdf_null(t, n, "led");
-	asdf_int(t, n, "counts", 0);
-
-	/* velocity aberration of the SCA's reference point: the apparent
-	 * direction of u seen moving at beta = v / c is u + beta less its
-	 * part along u, to first order; the plate scale grows by 1 + u.beta */
-	v23_sky(g, ap->v2ref, ap->v3ref, &ra, &dec, &pa_v3);
-	u[0] = cos(dec * D2R) * cos(ra * D2R);
-	u[1] = cos(dec * D2R) * sin(ra * D2R);
-	u[2] = sin(dec * D2R);
-	for (int k = 0; k < 3; k++) {
-		beta[k] = vel[k] / C_KMS;
-		ub += u[k] * beta[k];
-	}
-	for (int k = 0; k < 3; k++) {
-		s[k] = u[k] + beta[k] - ub * u[k];
-		nn += s[k] * s[k];
-	}
-	for (int k = 0; k < 3; k++)
-		s[k] /= sqrt(nn);
-	n = asdf_map(t, meta, "velocity_aberration", NULL);
-	{
-		double ra_a, dec_a;
-
-		radec(s, &ra_a, &dec_a);
-		asdf_num(t, n, "ra_reference", ra_a);
-		asdf_num(t, n, "dec_reference", dec_a);
-		asdf_num(t, n, "scale_factor", 1 + ub);
-	}
-
-	n = asdf_map(t, meta, "visit", NULL);
-	dither = asdf_map(t, n, "dither", NULL);
-	asdf_null(t, dither, "primary_name");
-	asdf_null(t, dither, "subpixel_name");
-	asdf_null(t, dither, "executed_pattern");
-	asdf_str(t, n, "type", "GENERAL_ASTROPHYSICS");
-	asdf_time(t, n, "start_time", start_mjd(g));
-	asdf_int(t, n, "nexposures", 1);
-	asdf_bool(t, n, "internal_target", 0);
-
-	n = asdf_map(t, meta, "wcsinfo", NULL);
-	snprintf(name, sizeof(name), "WFI%02d_FULL", aw->sca);
-	asdf_str(t, n, "aperture_name", name);
-	asdf_num(t, n, "v2_ref", ap->v2ref);
-	asdf_num(t, n, "v3_ref", ap->v3ref);
-	asdf_int(t, n, "vparity", ap->parity < 0 ? -1 : 1);
-	asdf_num(t, n, "v3yangle", ap->v3idlyangle);
-	asdf_num(t, n, "ra_ref", ra);
-	asdf_num(t, n, "dec_ref", dec);
-	asdf_num(t, n, "roll_ref", pa_v3);
-	{
-		/* the corners of the science pixels, counterclockwise */
-		static const double cx[4] = { -0.5, WFS_NPIX - 0.5, WFS_NPIX - 0.5, -0.5 };
-		static const double cy[4] = { -0.5, -0.5, WFS_NPIX - 0.5, WFS_NPIX - 0.5 };
-		struct geom_sca *geo = &g->sky.sca[aw->sca - 1].geo;
-		char poly[256];
-		int k = snprintf(poly, sizeof(poly), "POLYGON ICRS");
-
-		for (int c = 0; c < 4; c++) {
-			double a, d;
-
-			geom_pix_to_sky(geo, cx[c], cy[c], &a, &d);
-			k += snprintf(poly + k, sizeof(poly) - (size_t)k, " %.9f %.9f", a, d);
-		}
-		asdf_str(t, n, "s_region", poly);
-	}
+	meta_wcsinfo(aw, t, meta);
 }
 
 /* Level 2's photometry: the zeropoint (AB mag of 1 counts/s) gives the

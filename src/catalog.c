@@ -442,40 +442,15 @@ static int spectrum_plan(struct catalog *c, const char *where, struct err *e)
 	return 0;
 }
 
-/* Decide what the columns mean.  The header is known; no row is read. */
-static int catalog_plan(struct catalog *c, struct err *e)
+/* STIPS's catalog types (the table's metadata 'type'): which it is, and
+ * the columns and metadata each needs (wfiscene-catalog(5) STIPS CATALOG
+ * TYPES).  lc is the scene's filter in lower case. */
+static int stips_plan(struct catalog *c, const char *type, const char *lc,
+		      const char *where, struct err *e)
 {
 	struct table *t = c->t;
 	const char *name = table_name(t);
-	long hl = table_header_line(t);
-	const char *type = table_meta(t, "type");
 	const char *fname = filter_get(c->o.filter)->name;
-	char where[64] = "";
-	char lc[16];
-	size_t n;
-
-	if (hl > 0)
-		snprintf(where, sizeof(where), ":%ld", hl);
-	c->c_ra = col_of(t, "ra");
-	c->c_dec = col_of(t, "dec");
-	c->c_x = col_of(t, "x");
-	c->c_y = col_of(t, "y");
-	c->c_sca = col_of(t, "sca");
-	c->c_flux = col_of(t, "flux");
-	c->c_mag = col_of(t, "mag");
-	c->c_units = col_of(t, "units");
-	c->c_type = col_of(t, "type");
-	c->c_id = col_of(t, "id");
-	c->c_pmra = col_of(t, "pmra");
-	c->c_pmdec = col_of(t, "pmdec");
-	c->c_plx = col_of(t, "parallax");
-	c->c_epoch = col_of(t, "epoch");
-	c->motion = c->c_pmra >= 0 || c->c_pmdec >= 0 || c->c_plx >= 0;
-	if (spectrum_plan(c, where, e) < 0)
-		return -1;
-	for (n = 0; fname[n] && n + 1 < sizeof(lc); n++)
-		lc[n] = (char)tolower((unsigned char)fname[n]);
-	lc[n] = 0;
 
 	c->stips = STIPS_NONE;
 	if (type && *type) {
@@ -530,6 +505,46 @@ static int catalog_plan(struct catalog *c, struct err *e)
 				       "%s%s: catalog type 'generic' needs a 'flux' or '%s' column",
 				       name, where, lc);
 	}
+	return 0;
+}
+
+/* Decide what the columns mean.  The header is known; no row is read. */
+static int catalog_plan(struct catalog *c, struct err *e)
+{
+	struct table *t = c->t;
+	const char *name = table_name(t);
+	long hl = table_header_line(t);
+	const char *type = table_meta(t, "type");
+	const char *fname = filter_get(c->o.filter)->name;
+	char where[64] = "";
+	char lc[16];
+	size_t n;
+
+	if (hl > 0)
+		snprintf(where, sizeof(where), ":%ld", hl);
+	c->c_ra = col_of(t, "ra");
+	c->c_dec = col_of(t, "dec");
+	c->c_x = col_of(t, "x");
+	c->c_y = col_of(t, "y");
+	c->c_sca = col_of(t, "sca");
+	c->c_flux = col_of(t, "flux");
+	c->c_mag = col_of(t, "mag");
+	c->c_units = col_of(t, "units");
+	c->c_type = col_of(t, "type");
+	c->c_id = col_of(t, "id");
+	c->c_pmra = col_of(t, "pmra");
+	c->c_pmdec = col_of(t, "pmdec");
+	c->c_plx = col_of(t, "parallax");
+	c->c_epoch = col_of(t, "epoch");
+	c->motion = c->c_pmra >= 0 || c->c_pmdec >= 0 || c->c_plx >= 0;
+	if (spectrum_plan(c, where, e) < 0)
+		return -1;
+	for (n = 0; fname[n] && n + 1 < sizeof(lc); n++)
+		lc[n] = (char)tolower((unsigned char)fname[n]);
+	lc[n] = 0;
+
+	if (stips_plan(c, type, lc, where, e) < 0)
+		return -1;
 
 	if (roman_plan(c, lc, where, e) < 0)
 		return -1;

@@ -246,6 +246,57 @@ static int report_classes(const struct psf_cmd *c)
 	return EXIT_OK;
 }
 
+/* Build SCA s's grid as the command line asks (halo, optical PSF with its
+ * own jitter, or the built-in ePSF) and write it to path with the cards
+ * that say how it was made.  0, or -1 with e set. */
+static int write_grid(struct psf_cmd *c, int filter, int s, const char *path,
+		      struct err *e)
+{
+	struct psf_build_opts *bo = &c->bo;
+	struct psf_grid *g;
+
+	if (c->halo && (c->kind == PSF_OPTICAL || (c->jitter >= 0 && c->jitter != OPTICS_JITTER))) {
+		err_set(e, EXIT_INPUT, "--halo is the built-in ePSF: no --kind psf or "
+			"--jitter with it");
+		return -1;
+	}
+	if (c->halo)
+		g = psf_builtin_halo(filter, s, c->halo, bo->grid, c->kind, bo, e);
+	else if (c->jitter >= 0 && c->jitter != OPTICS_JITTER)
+		g = psf_build_uncached(filter, s, c->cls, c->kind, bo, c->jitter, e);
+	else
+		g = psf_builtin(filter, s, c->cls, c->kind, bo, e);
+	if (!g)
+		return -1;
+	char c1[81], c2[81], c3[81], c4[81];
+	snprintf(c1, sizeof(c1), "NWAVES  = %d / Number of wavelengths used "
+		 "in calculation", bo->nwave > 0 ? bo->nwave :
+		 psf_default_nwave(filter));
+	snprintf(c2, sizeof(c2), "JITRSIGM= %g / Gaussian sigma for jitter, "
+		 "per axis [arcsec]", c->jitter >= 0 ? c->jitter : OPTICS_JITTER);
+	if (bo->spec_kind == SPEC_POWER)
+		snprintf(c3, sizeof(c3), "SRCBETA = %.10g / Source f_nu ~ nu^beta for "
+			 "the wavelength weights", bo->spec_value);
+	else
+		snprintf(c3, sizeof(c3), "SRCTEMP = %.10g / [K] Blackbody source for "
+			 "the wavelength weights", bo->spec_kind ? bo->spec_value :
+			 OPTICS_BB_TEMP);
+	snprintf(c4, sizeof(c4), "GEOMETRY= '%s' / %s", geom_name(c->geometry),
+		 c->geometry == GEOM_SIAF ? "sampled on the SCA's own pixels (SIAF)" :
+		 "sampled on 0.11\" square pixels (STIPS)");
+	const char *cards[] = {
+		c1, c2, c3, c4,
+		"COMMENT Built-in Roman WFI PSF of wfiscene: Cycle-9 pupil and",
+		"COMMENT Zernikes; planes in STPSF order, positions in DET_YX*",
+		"COMMENT (4096-pixel frame); see wfiscene(1), wfiscene psf.",
+		NULL
+	};
+	int rc = psf_grid_write(path, g, cards, e);
+
+	psf_grid_free(g);
+	return rc ? -1 : 0;
+}
+
 int psf_main(int argc, char **argv)
 {
 	struct psf_cmd c = { .jitter = -1, .teff = NAN, .beta = NAN };
@@ -313,7 +364,6 @@ int psf_main(int argc, char **argv)
 		nsca += (mask >> s) & 1;
 	for (int s = 1; s <= WFS_NSCA; s++) {
 		char path[4200];
-		struct psf_grid *g;
 
 		if (!((mask >> (s - 1)) & 1))
 			continue;
@@ -328,45 +378,7 @@ int psf_main(int argc, char **argv)
 				goto fail;
 			}
 		}
-		if (c.halo && (c.kind == PSF_OPTICAL || (c.jitter >= 0 && c.jitter != OPTICS_JITTER))) {
-			err_set(&e, EXIT_INPUT, "--halo is the built-in ePSF: no --kind psf or "
-				"--jitter with it");
-			goto fail;
-		}
-		if (c.halo)
-			g = psf_builtin_halo(filter, s, c.halo, bo->grid, c.kind, bo, &e);
-		else if (c.jitter >= 0 && c.jitter != OPTICS_JITTER)
-			g = psf_build_uncached(filter, s, c.cls, c.kind, bo, c.jitter, &e);
-		else
-			g = psf_builtin(filter, s, c.cls, c.kind, bo, &e);
-		if (!g)
-			goto fail;
-		char c1[81], c2[81], c3[81], c4[81];
-		snprintf(c1, sizeof(c1), "NWAVES  = %d / Number of wavelengths used "
-			 "in calculation", bo->nwave > 0 ? bo->nwave :
-			 psf_default_nwave(filter));
-		snprintf(c2, sizeof(c2), "JITRSIGM= %g / Gaussian sigma for jitter, "
-			 "per axis [arcsec]", c.jitter >= 0 ? c.jitter : OPTICS_JITTER);
-		if (bo->spec_kind == SPEC_POWER)
-			snprintf(c3, sizeof(c3), "SRCBETA = %.10g / Source f_nu ~ nu^beta for "
-				 "the wavelength weights", bo->spec_value);
-		else
-			snprintf(c3, sizeof(c3), "SRCTEMP = %.10g / [K] Blackbody source for "
-				 "the wavelength weights", bo->spec_kind ? bo->spec_value :
-				 OPTICS_BB_TEMP);
-		snprintf(c4, sizeof(c4), "GEOMETRY= '%s' / %s", geom_name(c.geometry),
-			 c.geometry == GEOM_SIAF ? "sampled on the SCA's own pixels (SIAF)" :
-			 "sampled on 0.11\" square pixels (STIPS)");
-		const char *cards[] = {
-			c1, c2, c3, c4,
-			"COMMENT Built-in Roman WFI PSF of wfiscene: Cycle-9 pupil and",
-			"COMMENT Zernikes; planes in STPSF order, positions in DET_YX*",
-			"COMMENT (4096-pixel frame); see wfiscene(1), wfiscene psf.",
-			NULL
-		};
-		int rc = psf_grid_write(path, g, cards, &e);
-		psf_grid_free(g);
-		if (rc)
+		if (write_grid(&c, filter, s, path, &e) < 0)
 			goto fail;
 	}
 	return EXIT_OK;

@@ -155,6 +155,56 @@ static void read_pointing(struct into *in, fitsfile *f)
 	in->has_pointing = 1;
 }
 
+/* Without an HDU in --into: the HDU named WFInn for each SCA of mask;
+ * else the file's only image, for a scene of one SCA.  0, or -1 with e
+ * set. */
+static int read_by_name(struct into *in, fitsfile *f, int nhdu, unsigned mask, int nscas,
+			const char *spec, struct err *e)
+{
+	int found[WFS_NSCA + 1] = { 0 }, images = 0, last = 0, status = 0;
+
+	for (int k = 1; k <= nhdu; k++) {
+		char name[FLEN_VALUE] = "";
+		int type, naxis = 0, s;
+
+		if (fits_movabs_hdu(f, k, &type, &status)) {
+			err_fits(e, status, "--into %s", in->path);
+			return -1;
+		}
+		if (type != IMAGE_HDU)
+			continue;
+		fits_get_img_dim(f, &naxis, &status);
+		if (naxis == 2)
+			images++, last = k;
+		if (fits_read_key(f, TSTRING, "EXTNAME", name, NULL, &status)) {
+			status = 0;
+			fits_clear_errmsg();
+			continue;
+		}
+		if (strlen(name) == 5 && !strncasecmp(name, "WFI", 3) &&
+		    isdigit((unsigned char)name[3]) && isdigit((unsigned char)name[4]) &&
+		    (s = atoi(name + 3)) >= 1 && s <= WFS_NSCA && !found[s])
+			found[s] = k;
+	}
+	for (int s = 1; s <= WFS_NSCA; s++) {
+		if (!(mask & (1u << (s - 1))))
+			continue;
+		if (found[s]) {
+			if (read_hdu(in, f, found[s], s, e) < 0)
+				return -1;
+		} else if (nscas == 1 && images == 1) {
+			if (read_hdu(in, f, last, s, e) < 0)
+				return -1;
+		} else {
+			err_set(e, EXIT_INPUT, "--into %s: no image HDU 'WFI%02d' for SCA %d "
+				"(name one HDU with %s[N] for a scene of one SCA)",
+				spec, s, s, in->path);
+			return -1;
+		}
+	}
+	return 0;
+}
+
 struct into *into_open(const char *spec, unsigned mask, struct err *e)
 {
 	struct into *in = calloc(1, sizeof(*in));
@@ -217,49 +267,8 @@ struct into *into_open(const char *spec, unsigned mask, struct err *e)
 		}
 		if (read_hdu(in, f, (int)n + 1, one, e) < 0)
 			goto fail;
-	} else {
-		/* WFInn for each SCA; else the file's only image, for one SCA */
-		int found[WFS_NSCA + 1] = { 0 }, images = 0, last = 0;
-
-		for (int k = 1; k <= nhdu; k++) {
-			char name[FLEN_VALUE] = "";
-			int type, naxis = 0, s;
-
-			if (fits_movabs_hdu(f, k, &type, &status)) {
-				err_fits(e, status, "--into %s", in->path);
-				goto fail;
-			}
-			if (type != IMAGE_HDU)
-				continue;
-			fits_get_img_dim(f, &naxis, &status);
-			if (naxis == 2)
-				images++, last = k;
-			if (fits_read_key(f, TSTRING, "EXTNAME", name, NULL, &status)) {
-				status = 0;
-				fits_clear_errmsg();
-				continue;
-			}
-			if (strlen(name) == 5 && !strncasecmp(name, "WFI", 3) &&
-			    isdigit((unsigned char)name[3]) && isdigit((unsigned char)name[4]) &&
-			    (s = atoi(name + 3)) >= 1 && s <= WFS_NSCA && !found[s])
-				found[s] = k;
-		}
-		for (int s = 1; s <= WFS_NSCA; s++) {
-			if (!(mask & (1u << (s - 1))))
-				continue;
-			if (found[s]) {
-				if (read_hdu(in, f, found[s], s, e) < 0)
-					goto fail;
-			} else if (nscas == 1 && images == 1) {
-				if (read_hdu(in, f, last, s, e) < 0)
-					goto fail;
-			} else {
-				err_set(e, EXIT_INPUT, "--into %s: no image HDU 'WFI%02d' for SCA %d "
-					"(name one HDU with %s[N] for a scene of one SCA)",
-					spec, s, s, in->path);
-				goto fail;
-			}
-		}
+	} else if (read_by_name(in, f, nhdu, mask, nscas, spec, e) < 0) {
+		goto fail;
 	}
 	fits_close_file(f, &status);
 	free(hdu);

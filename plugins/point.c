@@ -463,6 +463,7 @@ static const struct wfs_model point_model = {
 	.flags = WFS_PARALLEL_PREPARE,
 	.gather = far_gather,
 	.spread = far_spread,
+	.roman_type = "PSF",
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

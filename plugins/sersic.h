@@ -66,6 +66,12 @@ static const struct wfs_column sersic_columns[SERSIC_NCOL] = {
 	{ "ratio", 1.0, 0, "axis ratio b/a, in (0, 1]" },
 };
 
+/* ... and what they are to the host (model.h, enum wfs_column_role): the
+ * shape it writes in romanisim's convention and reshapes to the SIAF. */
+static const int sersic_roles[SERSIC_NCOL] = {
+	WFS_ROLE_SERSIC_INDEX, WFS_ROLE_HALF_LIGHT, WFS_ROLE_ANGLE, WFS_ROLE_AXIS_RATIO
+};
+
 /* Supported index range.  Below 0.05 the profile is a flat-topped box whose
  * edge sharpens as rho^(1/n); above 20 the truncation radius passes 1e6 r_e. */
 #define SERSIC_N_MIN 0.05

@@ -714,6 +714,8 @@ static const struct wfs_model quick_model = {
 	.nsettings = (int)(sizeof(quick_settings) / sizeof(quick_settings[0])),
 	.reach = quick_reach,
 	.flags = WFS_PARALLEL_PREPARE,
+	.roman_type = "SER",
+	.column_roles = sersic_roles,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -52,4 +52,8 @@ double unit_to_counts(int filter, int sca, int unit);
 /* STIPS 2.3's fixed AB zeropoint of a filter (for --zeropoints stips). */
 double filter_stips_zp(int filter);
 
+/* The AB magnitude giving 1 count/s in filter on SCA sca: the SCA's own
+ * zeropoint, or with stips (--zeropoints stips) STIPS's fixed one. */
+double filter_zeropoint(int filter, int sca, int stips);
+
 #endif

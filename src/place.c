@@ -109,12 +109,6 @@ static int model_columns(struct engine *g, const struct rows *r, int m)
 	return 0;
 }
 
-double place_zeropoint(const struct engine *g, int sca)
-{
-	return g->o->zp_stips ? filter_stips_zp(g->o->filter)
-			      : filter_get(g->o->filter)->zp_ab[sca - 1];
-}
-
 /* The row's flux in counts/s on SCA sca: a magnitude or flux density
  * (f_nu at the filter's pivot wavelength) through the row's spectrum and
  * the SCA's throughput (spectrum.h), a flat f_nu without one. */
@@ -131,7 +125,8 @@ static double counts_on(const struct engine *g, const struct rows *r, size_t i, 
 	case UNIT_COUNTS:
 		return v;
 	case UNIT_ABMAG:
-		return pow(10.0, -0.4 * (v - place_zeropoint(g, sca))) * k;
+		return pow(10.0, -0.4 * (v - filter_zeropoint(g->o->filter, sca,
+							      g->o->zp_stips))) * k;
 	default:
 		/* unit_to_counts() goes through the SCA's RTI zeropoint, as
 		 * 1 / PHOTFNU; STIPS's fixed zeropoint zs gives PHOTFNU's
@@ -190,7 +185,7 @@ static int fill_source(const struct engine *g, const struct rows *r, size_t i,
 	src->y = y;
 	src->sca = sca;
 	src->flux = counts_on(g, r, i, sca);
-	src->mag = place_zeropoint(g, sca) - 2.5 * log10(src->flux);
+	src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
 	src->psf_class = psf_class_of(g, src->mag);
 	src->id = r->id[i];
 	src->param = param;
@@ -252,7 +247,7 @@ static int source_at(struct engine *g, const struct rows *r, size_t i, int m,
 	if (!isfinite(src->x) || !isfinite(src->y))
 		return err_set(g->e, EXIT_PLUGIN, "%s:%ld: model '%s' moved the source to "
 			       "(%g, %g)", r->file, r->line[i], pl->m->name, src->x, src->y);
-	src->mag = place_zeropoint(g, sca) - 2.5 * log10(src->flux);
+	src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
 	src->psf_class = psf_class_of(g, src->mag);
 	src->param = param + pl->m->ncolumns;
 	return 0;

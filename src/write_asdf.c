@@ -449,7 +449,7 @@ static void meta_common(struct asdf_writer *aw, struct asdf_tree *t, struct fy_n
 static void meta_photometry(struct asdf_writer *aw, struct asdf_tree *t, struct fy_node *meta)
 {
 	struct fy_node *n = asdf_map(t, meta, "photometry", NULL);
-	double zp = place_zeropoint(aw->g, aw->sca);
+	double zp = filter_zeropoint(aw->g->o->filter, aw->sca, aw->g->o->zp_stips);
 	double area = WFS_PIXSCALE * WFS_PIXSCALE * ARCSEC_SR;
 
 	asdf_num(t, n, "conversion_megajanskys",

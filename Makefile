@@ -127,7 +127,8 @@ $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 $(B)/obj/data_tables.o: $(B)/data_tables.c
 	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
 
-# Plugins see nothing of the host but include/wfiscene/model.h, and
+# Plugins see nothing of the host but include/wfiscene/model.h (and
+# src/simd.h, all static inline: the one switch of the vector code), and
 # -Wl,-z,defs fails the link if one needs a symbol of the host (or any that
 # libc and libm do not define).  A plugin plugins/foo_bar.c becomes
 # build/plugins/foo-bar.so, the model 'foo-bar'; but a plugin of several
@@ -135,7 +136,7 @@ $(B)/obj/data_tables.o: $(B)/data_tables.c
 # is plugins/point.c and plugins/point_*.c), linked into one foo.so.
 define plugin_rule
 $(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c $(call plugin_units,plugins/$(1)) \
-		include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
+		include/wfiscene/model.h src/simd.h $(wildcard plugins/*.h) | $(B)/plugins
 	@echo "  PLUGIN  $$@"
 	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) $(FP_FLAGS) -Iinclude \
 		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(PLUGIN_OPT) $(LDFLAGS) \
@@ -144,7 +145,7 @@ endef
 $(foreach p,$(basename $(notdir $(PLUGIN_MAIN))),$(eval $(call plugin_rule,$(p))))
 
 # Two unit tests compile plugin code in: its sources are theirs too.
-$(B)/tests/sersic_rows: plugins/sersic_quick.c $(wildcard plugins/*.h)
+$(B)/tests/sersic_rows: plugins/sersic_quick.c $(wildcard plugins/*.h) src/simd.h
 $(B)/tests/vmath: plugins/vmath.h
 $(B)/tests/%: tests/unit/%.c tests/unit/tap.h $(B)/libwfs.a | $(B)/tests
 	@echo "  CC      $@"

@@ -23,6 +23,7 @@
 
 #include "wfiscene/model.h"
 #include "halo.h"
+#include "../src/simd.h"
 
 /* Polyphase copies of the ePSF nodes, found by the node's address (the
  * host's arrays stay put until fini), and of blended cells, found by an odd

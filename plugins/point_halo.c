@@ -294,10 +294,7 @@ static void halo_render(const struct halo *h, double flux, double x, double y, d
  * Built twice, for AVX2 and for any x86-64, and chosen at load time, as
  * point_render was before the split (without, a 2-mag star's render took
  * 1.3 times as long); not under the sanitizers (see epsf_render). */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
-	!defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-__attribute__((target_clones("avx2,fma", "default")))
-#endif
+SIMD_CLONES("avx2,fma", "default")
 int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win)
 {
 	struct wfs_source fs = *src;

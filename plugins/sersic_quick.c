@@ -29,6 +29,7 @@
 
 #include "sersic.h"
 #include "vmath.h"
+#include "../src/simd.h"
 
 #define QUICK_TRUNC 1e-3
 #define QUICK_STEP 0.5
@@ -367,7 +368,7 @@ static void quick_profile_plain(int n, const double *restrict r2, double b, doub
 	quick_profile_loop(n, r2, b, h, lni0, p, in);
 }
 
-#if defined(__GNUC__) && defined(__x86_64__)
+#ifdef SIMD_X86
 __attribute__((target("avx2,fma"))) static void
 quick_profile_avx2(int n, const double *restrict r2, double b, double h, double lni0,
 		   double *restrict p, double *restrict in)
@@ -461,10 +462,8 @@ static pthread_once_t quick_profile_once = PTHREAD_ONCE_INIT;
 
 static void quick_profile_choose(void)
 {
-#if defined(__GNUC__) && defined(__x86_64__)
-	__builtin_cpu_init();
-	if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-	    !getenv("WFISCENE_NO_SIMD"))
+#ifdef SIMD_X86
+	if ((simd_flags() & (SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX2 | SIMD_FMA))
 		quick_profile = quick_profile_avx2;
 #endif
 }

@@ -14,11 +14,6 @@
 #include "ramp.h"
 #include "simd.h"
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RAMP_AVX2 1
-#endif
-
 static const double cas_power[6] = { 0, 0.4, 1, 3, 6, 10 };
 
 /* Fixsen et al. (2000) / Casertano et al. (2022): the weighting power for a
@@ -345,7 +340,7 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
  * ramp_fit_pixel(); otherwise the numbers are the very ones it computes:
  * the same operations in the same order.
  */
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 /*
  * ramp_fit_row()'s common case for the eight pixels dn[0..8) with
  * AVX-512: the same operations in the same order on each lane, so the
@@ -429,7 +424,7 @@ void ramp_fit_row(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t pla
 	double vb = fp->var_read[0] + fp->var_read[nres - 1], jump2 = fp->jump2;
 	int x = 0;
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 	if (nres >= 2 && (simd_flags() & SIMD_AVX512))
 		for (; x + 8 <= n; x += 8) {
 			unsigned bad = fit8_avx512(fp, dn + x, plane, lim, vb, out + x);

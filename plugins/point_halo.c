@@ -11,7 +11,7 @@
 #include "point.h"
 
 /* The centre pixel of an SCA (model.h's coordinates). */
-#define SCA_CENTRE ((SCA_SIDE - 1) / 2.0)
+#define SCA_CENTRE ((WFS_SCA_SIDE - 1) / 2.0)
 
 /* The halo of SCA sca, set up on first use by one thread under the lock. */
 const struct halo *halo_of(struct point *p, const struct wfs_source *src)
@@ -125,7 +125,7 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	/* A box the SCA's edge crosses is not cut: the light put back would
 	 * land on the SCA where the whole box's would partly fall off it */
 	box = square(src->x, src->y, cap);
-	cut = faint && box.x0 >= 0 && box.y0 >= 0 && box.x1 <= SCA_SIDE && box.y1 <= SCA_SIDE;
+	cut = faint && box.x0 >= 0 && box.y0 >= 0 && box.x1 <= WFS_SCA_SIDE && box.y1 <= WFS_SCA_SIDE;
 	if (epsf_prepare(p, &fs, cap, cut, &drawn) < 0)
 		return -1;
 	memcpy(src->aux, fs.aux, sizeof(src->aux));
@@ -166,7 +166,7 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	t->left += left;
 	/* a source whose box misses the SCA is dropped by the host, its
 	 * light with it */
-	if (box.x1 <= 0 || box.y1 <= 0 || box.x0 >= SCA_SIDE || box.y0 >= SCA_SIDE)
+	if (box.x1 <= 0 || box.y1 <= 0 || box.x0 >= WFS_SCA_SIDE || box.y0 >= WFS_SCA_SIDE)
 		return 0;
 	return p->diffuse == DIFFUSE_GRID ? far_deposit(p, src, left, 0) : 0;
 }

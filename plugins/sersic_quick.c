@@ -249,7 +249,7 @@ static double quick_cell(const struct sersic_gal *g, const void *opt,
 			    &taylor, &gx, &gy);
 }
 
-/* A wing pixel (sersic_method.wing): quick_cell and the smoothness test
+/* A wing pixel quick_wing_row does not take in its vector run: quick_cell and the smoothness test
  * and gradient of sersic_render_common in one pass, sharing rho_min, the
  * length scale at it and, for the Taylor form, the profile at the centre. */
 static int quick_wing(const struct sersic_gal *g, const void *opt, double x0, double x1,
@@ -663,7 +663,7 @@ static int quick_render(void *state, void *tstate, void *thread,
 			const struct wfs_source *src, const struct wfs_window *win)
 {
 	struct quick *p = state;
-	struct sersic_method m = { quick_cell, p, p->convolve, p->psf_core, p->core_k, quick_wing,
+	struct sersic_method m = { quick_cell, p, p->convolve, p->psf_core, p->core_k,
 				   quick_block, (int)p->wing_block, quick_wing_row, quick_stamp_setup,
 				   p->moment_cut * p->sigma };
 

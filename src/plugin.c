@@ -247,11 +247,9 @@ static int read_roles(struct plugin *pl, struct err *e)
 			for (int j = 1; j < PLUGIN_ROLES; j++)
 				if (name && !strcasecmp(name, legacy[j]))
 					k = j;
-		if (k == WFS_ROLE_NONE)
+		/* a role of a later edition is one this host does not use */
+		if (k <= WFS_ROLE_NONE || k >= PLUGIN_ROLES)
 			continue;
-		if (k < 0 || k >= PLUGIN_ROLES)
-			return refuse(pl, e, "column %d of the descriptor has role %d, "
-				      "not one of enum wfs_column_role", c + 1, k);
 		if (pl->role[k] >= 0)
 			return refuse(pl, e, "columns %d and %d of the descriptor have "
 				      "one role, %d", pl->role[k] + 1, c + 1, k);

@@ -64,6 +64,9 @@
  *                       stride (absent or 0: the first edition's 32 bytes on
  *                       LP64), so a grown wfs_column keeps old plugins readable.
  *   struct wfs_setting  an array in the plugin: wfs_model.setting_size.
+ *   column_roles        an array of int in the plugin, one per column:
+ *                       FROZEN; a later edition adds values, and a host
+ *                       ignores a role it does not know.
  *   struct wfs_host     the host's: its size field.
  *   struct wfs_source   the host's, read and partly written by the plugin:
  *                       wfs_host.source_size.  A plugin MUST NOT read an
@@ -378,10 +381,10 @@ struct wfs_host {
 
 /*
  * What a column is to the host beyond the model's own drawing
- * (wfs_model.column_roles, edition 6): the shape of an elliptical source, which
- * the host turns into another convention's and back.  A model gives each
- * role to at most one column, and gives these roles only to columns that
- * mean exactly this:
+ * (wfs_model.column_roles, edition 6): the shape of an elliptical source,
+ * which the host turns into another convention's and back.  A model gives
+ * each role to at most one column (the host refuses a model that gives
+ * one twice), and only to a column that means exactly this:
  *
  *   WFS_ROLE_SERSIC_INDEX  the Sérsic index n
  *   WFS_ROLE_HALF_LIGHT    the half-light radius along the major axis, in

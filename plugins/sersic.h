@@ -112,6 +112,16 @@ struct sersic_gal {
 	double method_lo2, method_hi2;
 };
 
+/* A helper here that the compiler should keep as one function of each
+ * unit, not copy into its callers: sersic_rho_min, inlined into the cell
+ * loops of sersic-quick, made it run 9% more instructions (callgrind, 500
+ * galaxies); `unused' for the units that do not call it. */
+#if defined(__GNUC__)
+#define SERSIC_OUT_OF_LINE __attribute__((noinline, unused))
+#else
+#define SERSIC_OUT_OF_LINE
+#endif
+
 /* rho^2 at offset (dx, dy), through u and v: for a needle the quadratic
  * form's terms are each 1/(q r_e)^2 times larger than their sum along the
  * major axis, and would cancel to noise; v carries only its own rounding. */
@@ -195,8 +205,8 @@ static inline int sersic_near_centre(double x0, double x1, double y0, double y1,
  * so a cell beside a needle (q -> 0) is seen to be dark however close it
  * is in pixels.
  */
-static inline double sersic_rho_min(const struct sersic_gal *g, double x0, double x1,
-				    double y0, double y1)
+SERSIC_OUT_OF_LINE static double sersic_rho_min(const struct sersic_gal *g, double x0, double x1,
+						double y0, double y1)
 {
 	double m = INFINITY;
 

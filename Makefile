@@ -68,7 +68,10 @@ LIB_OBJ  := $(patsubst src/%.c,$(B)/obj/%.o,$(LIB_SRC)) $(B)/obj/data_tables.o
 # plugins/foo.c with plugins/foo_*.c is one plugin (see plugin_rule below)
 plugin_units = $(filter-out $(1).c,$(wildcard $(1)_*.c))
 PLUGIN_UNITS := $(foreach f,$(wildcard plugins/*.c),$(call plugin_units,$(basename $(f))))
-PLUGIN_MAIN  := $(filter-out $(PLUGIN_UNITS),$(wildcard plugins/*.c))
+# units several plugins link in: the Sersic code both Sersic plugins share
+SERSIC_UNITS := plugins/sersic_core.c plugins/sersic_render.c
+shared_units = $(if $(filter sersic_quick sersic_precise,$(1)),$(SERSIC_UNITS))
+PLUGIN_MAIN  := $(filter-out $(PLUGIN_UNITS) $(SERSIC_UNITS),$(wildcard plugins/*.c))
 PLUGINS  := $(patsubst plugins/%.c,$(B)/plugins/%.so,$(subst _,-,$(PLUGIN_MAIN)))
 UNIT_SRC := $(wildcard tests/unit/*.c)
 UNIT_BIN := $(patsubst tests/unit/%.c,$(B)/tests/%,$(UNIT_SRC))
@@ -127,24 +130,26 @@ $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 $(B)/obj/data_tables.o: $(B)/data_tables.c
 	$(Q)$(CC) $(ALL_CFLAGS) -c -o $@ $<
 
-# Plugins see nothing of the host but include/wfiscene/model.h, and
+# Plugins see nothing of the host but include/wfiscene/model.h (and
+# src/simd.h, all static inline: the one switch of the vector code), and
 # -Wl,-z,defs fails the link if one needs a symbol of the host (or any that
 # libc and libm do not define).  A plugin plugins/foo_bar.c becomes
 # build/plugins/foo-bar.so, the model 'foo-bar'; but a plugin of several
 # files is plugins/foo.c with its units plugins/foo_*.c beside it (point.so
 # is plugins/point.c and plugins/point_*.c), linked into one foo.so.
 define plugin_rule
-$(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c $(call plugin_units,plugins/$(1)) \
-		include/wfiscene/model.h $(wildcard plugins/*.h) | $(B)/plugins
+$(B)/plugins/$(subst _,-,$(1)).so: plugins/$(1).c $(call plugin_units,plugins/$(1)) $(call shared_units,$(1)) \
+		include/wfiscene/model.h src/simd.h $(wildcard plugins/*.h) | $(B)/plugins
 	@echo "  PLUGIN  $$@"
 	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) $(FP_FLAGS) -Iinclude \
 		-fPIC -shared -fvisibility=hidden $(CFLAGS) $(PLUGIN_OPT) $(LDFLAGS) \
-		-Wl,-z,defs -o $$@ plugins/$(1).c $(call plugin_units,plugins/$(1)) -lm
+		-Wl,-z,defs -o $$@ plugins/$(1).c $(call plugin_units,plugins/$(1)) \
+		$(call shared_units,$(1)) -lm
 endef
 $(foreach p,$(basename $(notdir $(PLUGIN_MAIN))),$(eval $(call plugin_rule,$(p))))
 
 # Two unit tests compile plugin code in: its sources are theirs too.
-$(B)/tests/sersic_rows: plugins/sersic_quick.c $(wildcard plugins/*.h)
+$(B)/tests/sersic_rows: plugins/sersic_quick.c $(SERSIC_UNITS) $(wildcard plugins/*.h) src/simd.h
 $(B)/tests/vmath: plugins/vmath.h
 $(B)/tests/%: tests/unit/%.c tests/unit/tap.h $(B)/libwfs.a | $(B)/tests
 	@echo "  CC      $@"

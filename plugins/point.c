@@ -266,7 +266,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	static const char *const far[] = { "spikes", "disc" };
 	static const char *const diffuse[] = { "grid", "none" };
 	struct point *p = calloc(1, sizeof(*p));
-	double cell = 0, csteps = 1, dcell = 16;
+	double cell = 0, csteps = 0, dcell = 0;
 
 	if (!p)
 		return host->error(host->ctx, "out of memory");
@@ -274,15 +274,10 @@ static int point_init(const struct wfs_host *host, void **state)
 	pthread_mutex_init(&p->lock, NULL);
 	p->serial = atomic_fetch_add(&serials, 1) + 1;
 	kernels_choose(p);
+	/* the defaults are point_settings' (setting_value); the two derived
+	 * from the scene are set here: the noise, and -1 for "the class's box" */
 	p->sigma = scene_sigma(host);
-	p->extent = EXTENT_NOISE;
-	p->extent_noise = 0.1;
-	p->extent_max = 8192;
 	p->extent_min = -1;
-	p->extent_cut = 0.1;
-	p->halo_power = 3;
-	p->halo_taper = 16;
-	p->diffuse_floor = 0.001;
 	if (setting_choice(host, "psf-interp", interp, 3, &p->interp) < 0 ||
 	    setting_number(host, "psf-core", 0, 0, &p->core) < 0 ||
 	    setting_number(host, "psf-wing", 0, 0, &p->wing) < 0 ||
@@ -371,7 +366,7 @@ static void point_fini(void *state)
 		all.nhalo += t->nhalo;
 		all.npoint += t->npoint;
 		all.spread += t->spread;
-		for (int s = 0; s < 19; s++)
+		for (int s = 0; s < SCA_SLOTS; s++)
 			free(t->cnt[s]);
 		free(t->dep);
 		free(t);
@@ -382,7 +377,7 @@ static void point_fini(void *state)
 			     "%lld sources with a halo", all.left, all.requested,
 			     100 * all.left / all.requested, all.spread, all.nhalo, all.npoint);
 	far_free(p);
-	for (int s = 0; s < 19; s++)
+	for (int s = 0; s < SCA_SLOTS; s++)
 		halo_free(&p->halo[s]);
 	pthread_mutex_destroy(&p->lock);
 	free(p);
@@ -432,7 +427,7 @@ static int point_reach(void *state, const struct wfs_source *src, double *pixels
 	const struct halo *h;
 	double r;
 
-	*pixels = 88;
+	*pixels = XBRIGHT_HALF;
 	if (p->extent == EXTENT_STIPS || !(src->flux > 0))
 		return 0;
 	if (!(h = halo_of(p, src)))
@@ -463,6 +458,7 @@ static const struct wfs_model point_model = {
 	.flags = WFS_PARALLEL_PREPARE,
 	.gather = far_gather,
 	.spread = far_spread,
+	.roman_type = "PSF",
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

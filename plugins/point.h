@@ -23,6 +23,7 @@
 
 #include "wfiscene/model.h"
 #include "halo.h"
+#include "../src/simd.h"
 
 /* Polyphase copies of the ePSF nodes, found by the node's address (the
  * host's arrays stay put until fini), and of blended cells, found by an odd
@@ -30,9 +31,12 @@
  * table's size is set once in init from psf-cell (poly_table_init). */
 #define POLY_NODES 4096         /* room kept for node copies besides the cells */
 #define POLY_SLOTS_MAX (1u << 19)
-/* An SCA's pixels a side and the SCAs there are (model.h, Coordinates). */
-#define SCA_SIDE 4088
-#define SCA_COUNT 18
+/* Arrays per SCA are indexed by its number, 1 to WFS_SCA_COUNT (model.h):
+ * SCA_SLOTS of them, the first unused. */
+#define SCA_SLOTS (WFS_SCA_COUNT + 1)
+/* The extra-bright class's half-width: STIPS's 176-pixel box, the farthest
+ * a source of psf-extent=stips reaches. */
+#define XBRIGHT_HALF 88
 #define MAX_ROW 1024            /* widest window row of the general path */
 /* Planes carry PAD zero samples on each side, so that the Keys taps (one
  * sample before, two after) of any pixel inside the box stay inside the
@@ -112,7 +116,6 @@ enum { HALO_FAR_SPIKES, HALO_FAR_DISC };
 /* aux[0] holds the box's half-width plus HALO_PACK times the halo's radius
  * (both whole numbers of pixels) */
 #define HALO_PACK 65536.0
-#define WFS_PSF_HALO 3          /* the host's class of the halo array */
 enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
 enum { DIFFUSE_GRID, DIFFUSE_NONE };
 
@@ -182,7 +185,7 @@ struct tally {
 	long long nhalo, npoint;
 	/* psf-diffuse=grid: per SCA, the thread's grid of light left out,
 	 * in two integer counters per cell (point_far.c); NULL until used */
-	int64_t *cnt[19];
+	int64_t *cnt[SCA_SLOTS];
 	/* and the light beyond the radii of sources with a halo, each
 	 * spread with the wing beyond its own radius (far_deposit) */
 	struct far_dep *dep;
@@ -221,18 +224,18 @@ struct point {
 	double diffuse_floor;   /* psf-diffuse-floor: of the drawing level */
 	long far_org;           /* the diffuse grid's first pixel (far_geometry) */
 	int far_n;              /* its cells along each axis */
-	double *far[19];        /* per SCA, gathered: light per pixel at the
+	double *far[SCA_SLOTS]; /* per SCA, gathered: light per pixel at the
 				 * cells' centres (far_gather) */
 	/* prepare() runs on several threads (WFS_PARALLEL_PREPARE): what it
 	 * sets up on first use (the halos, the cores' scales, the polyphase
 	 * copies) is made under lock and then flagged ready with release
 	 * order; its counters are per thread (struct tally) */
 	pthread_mutex_t lock;
-	struct halo halo[19];   /* per SCA, set up in prepare() */
-	_Atomic int halo_ready[19];
-	double cfac[19][3];     /* per SCA and class: the core's scale */
-	int chalf[19][3];       /* and the box's half-width (core_scale) */
-	_Atomic int cfac_ready[19][3];
+	struct halo halo[SCA_SLOTS]; /* per SCA, set up in prepare() */
+	_Atomic int halo_ready[SCA_SLOTS];
+	double cfac[SCA_SLOTS][3]; /* per SCA and class: the core's scale */
+	int chalf[SCA_SLOTS][3]; /* and the box's half-width (core_scale) */
+	_Atomic int cfac_ready[SCA_SLOTS][3];
 	unsigned long serial;   /* this state's number among all made */
 	struct tally *tallies;  /* one per thread that prepared */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);

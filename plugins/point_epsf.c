@@ -722,10 +722,7 @@ static inline __attribute__((always_inline)) int render_many(const struct draw *
 /* Not under the sanitizers: the clones' resolver runs while the plugin is
  * being relocated, before the instrumentation it calls can be reached (a
  * ThreadSanitizer build jumped to a bad address in dlopen). */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
-	!defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-__attribute__((target_clones("avx2,fma", "default")))
-#endif
+SIMD_CLONES("avx2,fma", "default")
 int epsf_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win)
 {
 	struct draw d;

@@ -66,7 +66,7 @@ void far_geometry(struct point *p)
 						   (s * FAR_COARSE));
 
 	p->far_org = -m;
-	p->far_n = (SCA_SIDE + 2 * m + s * FAR_COARSE - 1) / (s * FAR_COARSE) * FAR_COARSE;
+	p->far_n = (WFS_SCA_SIDE + 2 * m + s * FAR_COARSE - 1) / (s * FAR_COARSE) * FAR_COARSE;
 }
 
 /* One level of the grid: cells of side s from pixel org, n a side; its
@@ -689,7 +689,7 @@ int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
 
 void far_free(struct point *p)
 {
-	for (int s = 0; s < 19; s++) {
+	for (int s = 0; s < SCA_SLOTS; s++) {
 		free(p->far[s]);
 		p->far[s] = NULL;
 	}

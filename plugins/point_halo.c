@@ -11,7 +11,7 @@
 #include "point.h"
 
 /* The centre pixel of an SCA (model.h's coordinates). */
-#define SCA_CENTRE ((SCA_SIDE - 1) / 2.0)
+#define SCA_CENTRE ((WFS_SCA_SIDE - 1) / 2.0)
 
 /* The halo of SCA sca, set up on first use by one thread under the lock. */
 const struct halo *halo_of(struct point *p, const struct wfs_source *src)
@@ -125,7 +125,7 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	/* A box the SCA's edge crosses is not cut: the light put back would
 	 * land on the SCA where the whole box's would partly fall off it */
 	box = square(src->x, src->y, cap);
-	cut = faint && box.x0 >= 0 && box.y0 >= 0 && box.x1 <= SCA_SIDE && box.y1 <= SCA_SIDE;
+	cut = faint && box.x0 >= 0 && box.y0 >= 0 && box.x1 <= WFS_SCA_SIDE && box.y1 <= WFS_SCA_SIDE;
 	if (epsf_prepare(p, &fs, cap, cut, &drawn) < 0)
 		return -1;
 	memcpy(src->aux, fs.aux, sizeof(src->aux));
@@ -166,7 +166,7 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	t->left += left;
 	/* a source whose box misses the SCA is dropped by the host, its
 	 * light with it */
-	if (box.x1 <= 0 || box.y1 <= 0 || box.x0 >= SCA_SIDE || box.y0 >= SCA_SIDE)
+	if (box.x1 <= 0 || box.y1 <= 0 || box.x0 >= WFS_SCA_SIDE || box.y0 >= WFS_SCA_SIDE)
 		return 0;
 	return p->diffuse == DIFFUSE_GRID ? far_deposit(p, src, left, 0) : 0;
 }
@@ -294,10 +294,7 @@ static void halo_render(const struct halo *h, double flux, double x, double y, d
  * Built twice, for AVX2 and for any x86-64, and chosen at load time, as
  * point_render was before the split (without, a 2-mag star's render took
  * 1.3 times as long); not under the sanitizers (see epsf_render). */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
-	!defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-__attribute__((target_clones("avx2,fma", "default")))
-#endif
+SIMD_CLONES("avx2,fma", "default")
 int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win)
 {
 	struct wfs_source fs = *src;

@@ -36,9 +36,7 @@ static void sum_rows_plain(double *pix, ptrdiff_t stride, int nx, int ny,
 	}
 }
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define HAVE_ROWS_AVX2 1
+#ifdef SIMD_X86
 
 /* out[0..8) += v */
 #define ADD8(out, v) do { \
@@ -200,7 +198,7 @@ static double core_plain(const struct core_args *a, float *kvb)
 	return (ks[0] + ks[1]) + (ks[2] + ks[3]);
 }
 
-#ifdef HAVE_ROWS_AVX2
+#ifdef SIMD_X86
 __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_args *a, float *kvb)
 {
 	__m256d ks = _mm256_setzero_pd();
@@ -264,9 +262,8 @@ void kernels_choose(struct point *p)
 {
 	p->sum_rows = sum_rows_plain;
 	p->core_rows = core_plain;
-#ifdef HAVE_ROWS_AVX2
-	if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-	    !getenv("WFISCENE_NO_SIMD")) {
+#ifdef SIMD_X86
+	if ((simd_flags() & (SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX2 | SIMD_FMA)) {
 		p->sum_rows = sum_rows_avx2;
 		p->core_rows = core_avx2;
 	}

@@ -216,14 +216,14 @@ struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, i
  * cover the detector and one cell beyond each edge. */
 static long cell_last(long c)
 {
-	return (SCA_SIDE + c - 1) / c;
+	return (WFS_SCA_SIDE + c - 1) / c;
 }
 
 /* The slots wanted for psf-cell c (twice the cells and nodes kept). */
 static size_t slots_wanted(const struct point *p, long c)
 {
 	size_t side = (size_t)cell_last(c) + 2;
-	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * SCA_COUNT *
+	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * WFS_SCA_COUNT *
 		       (p->blend == BLEND_CELL ? 3 : 1) * (1 + (size_t)p->colour_cells);
 
 	return 2 * (cells + POLY_NODES);

@@ -1,9 +1,11 @@
 /*
- * sersic.h - the Sérsic mathematics shared by sersic_quick.c and
- * sersic_precise.c: b_n, normalisation, truncation and pixel integration;
- * rendering through the ePSF is sersic_render.h, which this file includes.
- * Every function is static; each plugin includes this file once and
- * differs only in how it integrates a cell (struct sersic_method).  Only
+ * sersic.h - what sersic_quick.c and sersic_precise.c share: the profile
+ * of one galaxy (struct sersic_gal) and the small functions of it their
+ * inner loops call (static inline here), and the two compiled units both
+ * plugins link in: sersic_core.c (b_n, normalisation, truncation, exact
+ * pixel integrals, prepare() and footprint(), settings) and
+ * sersic_render.c (rendering through the ePSF).  The plugins differ only
+ * in how they integrate a cell (struct sersic_method).  Only
  * <wfiscene/model.h> and libc/libm.
  *
  * The profile.  With (u, v) the offsets from the centre along the major and
@@ -56,15 +58,11 @@
 /* The catalog columns of both plugins, in this order in src->param. */
 enum { SERSIC_N, SERSIC_RE, SERSIC_PHI, SERSIC_RATIO, SERSIC_NCOL };
 
-/* n and re are required: wfiscene refuses an empty cell of them (and one
- * that says nan) before prepare() runs; their fallback is NaN, which
- * prepare() refuses too, for a host that passes one. */
-static const struct wfs_column sersic_columns[SERSIC_NCOL] = {
-	{ "n", NAN, 1, "Sérsic index, 0.05 to 20 (1 exponential disc, 4 de Vaucouleurs)" },
-	{ "re", NAN, 1, "half-light radius along the major axis, pixels" },
-	{ "phi", 0.0, 0, "orientation, degrees: 0 = major axis along +y, increasing toward -x" },
-	{ "ratio", 1.0, 0, "axis ratio b/a, in (0, 1]" },
-};
+/* Their names and fallbacks (sersic_core.c), and what they are to the host
+ * (model.h, enum wfs_column_role): the shape it writes in romanisim's
+ * convention and reshapes to the SIAF. */
+extern const struct wfs_column sersic_columns[SERSIC_NCOL];
+extern const int sersic_roles[SERSIC_NCOL];
 
 /* Supported index range.  Below 0.05 the profile is a flat-topped box whose
  * edge sharpens as rho^(1/n); above 20 the truncation radius passes 1e6 r_e. */
@@ -92,162 +90,6 @@ enum {
 };
 
 /* ------------------------------------------------------------------ */
-/* Regularised incomplete gamma functions.                             */
-
-/* ln Gamma(a), a > 0.  lgamma() stores the sign in the global signgam, a
- * data race between the workers that render galaxies at once; lgamma_r
- * keeps it in a local. */
-static inline double sersic_lgamma(double a)
-{
-	int sign;
-
-	return lgamma_r(a, &sign);
-}
-
-/*
- * P(a, x) and Q(a, x) = 1 - P, each computed directly (never as 1 minus the
- * other) so the small one keeps full relative precision: the power series
- *   P = x^a e^-x / Gamma(a + 1) sum_k x^k / ((a + 1) ... (a + k))
- * converges fast for x < a + 1, and the continued fraction
- *   Q = x^a e^-x / Gamma(a) * 1 / (x + 1 - a - 1(1 - a) / (x + 3 - a - ...))
- * (evaluated by the modified Lentz method) for x >= a + 1.
- */
-static double sersic_gamma_series(double a, double x, double lga)
-{
-	double term = 1.0 / a, sum = term;
-
-	for (int k = 1; k < 10000; k++) {
-		term *= x / (a + k);
-		sum += term;
-		if (fabs(term) < fabs(sum) * 1e-17)
-			break;
-	}
-	return sum * exp(a * log(x) - x - lga);
-}
-
-static double sersic_gamma_cfrac(double a, double x, double lga)
-{
-	const double tiny = 1e-300;
-	double b = x + 1.0 - a, c = 1.0 / tiny, d = 1.0 / b, h = d;
-
-	for (int i = 1; i < 10000; i++) {
-		double an = -i * (i - a);
-		b += 2.0;
-		d = an * d + b;
-		if (fabs(d) < tiny)
-			d = tiny;
-		c = b + an / c;
-		if (fabs(c) < tiny)
-			c = tiny;
-		d = 1.0 / d;
-		double del = d * c;
-		h *= del;
-		/* two ulp: for x above ~1e16, b = x + 1 - a has lost its 1 and
-		 * del never reaches 1 exactly (a 1e-16 test ran 10^4 steps) */
-		if (fabs(del - 1.0) < 2.5e-16)
-			break;
-	}
-	return exp(a * log(x) - x - lga) * h;
-}
-
-static double sersic_gamma_p_lg(double a, double lga, double x)
-{
-	if (!(x > 0))
-		return 0.0;
-	if (isinf(x))
-		return 1.0;
-	return x < a + 1.0 ? sersic_gamma_series(a, x, lga) : 1.0 - sersic_gamma_cfrac(a, x, lga);
-}
-
-/* Q(a, x), given lga = ln Gamma(a) (a galaxy's 2n is the same in every
- * call: struct sersic_gal keeps it). */
-static double sersic_gamma_q_lg(double a, double lga, double x)
-{
-	if (!(x > 0))
-		return 1.0;
-	if (isinf(x))
-		return 0.0;
-	return x < a + 1.0 ? 1.0 - sersic_gamma_series(a, x, lga) : sersic_gamma_cfrac(a, x, lga);
-}
-
-static double sersic_gamma_q(double a, double x)
-{
-	return sersic_gamma_q_lg(a, sersic_lgamma(a), x);
-}
-
-/* d P(a, x) / dx = x^(a-1) e^-x / Gamma(a). */
-static double sersic_gamma_pdf_lg(double a, double lga, double x)
-{
-	return x > 0 ? exp((a - 1.0) * log(x) - x - lga) : 0.0;
-}
-
-/*
- * Solve P(a, x) = p (p <= 1/2) or Q(a, x) = 1 - p (p > 1/2) for x: Newton's
- * method on the smaller of the two tails, in logarithms (so the step is
- * well scaled even where the tail is 1e-12), kept inside a bracket that
- * shrinks with every evaluation and bisected when Newton leaves it.
- * x0 is the starting guess.  Converges to a few ulp in < 10 steps from the
- * series starting points used below.
- */
-static double sersic_gamma_inv(double a, double tail, int upper, double x0)
-{
-	/* Q(a, a + 60 + 60 sqrt(a)) < 1e-25, below any tail asked for. */
-	double lo = 0.0, hi = a + 60.0 + 60.0 * sqrt(a), x = x0;
-	double target = log(tail), lga = sersic_lgamma(a);      /* once, not twice a step */
-
-	if (!(x > lo && x < hi))
-		x = 0.5 * (lo + hi);
-	for (int it = 0; it < 200; it++) {
-		double t = upper ? sersic_gamma_q_lg(a, lga, x) : sersic_gamma_p_lg(a, lga, x);
-		double f = log(t) - target;
-		/* P rises and Q falls with x: move the bracket. */
-		if ((f > 0) == !upper)
-			hi = x;
-		else
-			lo = x;
-		double dlog = sersic_gamma_pdf_lg(a, lga, x) / t * (upper ? -1.0 : 1.0);
-		double nx = x - f / dlog;
-		if (!(nx > lo && nx < hi) || !isfinite(nx))
-			nx = 0.5 * (lo + hi);
-		if (fabs(nx - x) <= 1e-15 * x || hi - lo <= 1e-15 * hi)
-			return nx;
-		x = nx;
-	}
-	return x;
-}
-
-/*
- * b_n: the root of P(2n, b) = 1/2.  Start from the asymptotic series of
- * Ciotti & Bertin (1999), b ~ 2n - 1/3 + 4/(405 n) + 46/(25515 n^2)
- * + 131/(1148175 n^3), which is good to 1e-6 above n = 0.36, and below that
- * from the polynomial fit of MacArthur, Courteau & Holtzman (2003); then
- * solve exactly.  Both are only starting points.
- */
-static double sersic_bn(double n)
-{
-	double b0;
-
-	if (n > 0.36)
-		b0 = 2 * n - 1.0 / 3 + 4 / (405 * n) + 46 / (25515 * n * n)
-		     + 131 / (1148175 * n * n * n);
-	else
-		b0 = 0.01945 - 0.8902 * n + 10.95 * n * n - 19.67 * n * n * n
-		     + 13.43 * n * n * n * n;
-	if (!(b0 > 0))
-		b0 = 1e-3;
-	return sersic_gamma_inv(2 * n, 0.5, 0, b0);
-}
-
-/* x_t with Q(2n, x_t) = eps: start a few standard deviations (sqrt(2n))
- * beyond the mean 2n of the gamma distribution. */
-static double sersic_trunc_x(double n, double eps)
-{
-	double a = 2 * n, z = sqrt(-2.0 * log(eps));
-
-	return sersic_gamma_inv(a, eps, 1, a + z * sqrt(a) + z * z / 3.0 + 1.0);
-}
-
-/* ------------------------------------------------------------------ */
 /* One galaxy, unpacked for integration.                               */
 
 struct sersic_gal {
@@ -266,63 +108,19 @@ struct sersic_gal {
 	 * (dx, dy), A dx^2 + 2 B dx dy + C dy^2, only for its ratios */
 	double ia2, ib2;
 	double qa, qb, qc;
-	/* for a method's own use, set by its stamp_setup (sersic_render.h) */
+	/* for a method's own use, set by its stamp_setup (struct sersic_method) */
 	double method_lo2, method_hi2;
 };
 
-/*
- * The semi-axes a galaxy is drawn with: r_e and q r_e, each at least
- * SERSIC_AXIS_MIN pixels.  Below that nothing of the profile can be seen
- * or even represented: the light farther than 0.01 pixel from the centre
- * (or from the major axis) of a galaxy 1e-9 pixel across is below 3e-9 of
- * its flux at n = 20 and 1e-22 at n <= 10, so it is a point (or a line)
- * on the pixel grid whether its axis is 1e-9 or 1e-300 pixel; and a
- * pixel's offset along the minor axis carries a rounding error of 1e-16
- * of its distance from the centre (1e-12 pixel across an SCA), which a
- * narrower needle's 1/(q r_e) would magnify into darkness.  q r_e is
- * formed in logarithms, so that 1e-300 x 1e-300 does not underflow on the
- * way.
- */
-#define SERSIC_AXIS_MIN 1e-9
-
-static void sersic_axes(double re, double q, double *major, double *minor)
-{
-	*major = fmax(re, SERSIC_AXIS_MIN);
-	*minor = fmin(fmax(exp(log(q) + log(re)), SERSIC_AXIS_MIN), *major);
-}
-
-static void sersic_unpack(const struct wfs_source *src, struct sersic_gal *g)
-{
-	double th = (src->param[SERSIC_PHI] + 90.0) * (M_PI / 180.0);
-
-	g->xc = src->x;
-	g->yc = src->y;
-	g->n = src->param[SERSIC_N];
-	g->inv_n = 1.0 / g->n;
-	sersic_axes(src->param[SERSIC_RE], src->param[SERSIC_RATIO], &g->re, &g->minor);
-	g->ct = cos(th);
-	g->st = sin(th);
-	g->b = src->aux[AUX_B];
-	g->lni0 = src->aux[AUX_LNI0];
-	g->rho_t = src->aux[AUX_RHO_T];
-	g->rho_t2 = g->rho_t * g->rho_t;
-	g->xt = g->b * exp(log(g->rho_t) / src->param[SERSIC_N]);
-	g->lg2n = sersic_lgamma(2 * g->n);
-	g->finf = src->aux[AUX_FINF];
-	g->pt = src->aux[AUX_PT];
-	g->qt = src->aux[AUX_QT];
-	g->flux = fabs(src->flux);
-	g->rt = fmin(g->rho_t * g->re, SERSIC_RT_MAX);
-	g->rtb = fmin(g->rho_t * g->minor, g->rt);
-	/* u = c dx + s dy, v = -s dx + c dy, rho^2 = u^2 / a^2 + v^2 / b^2
-	 * with a, b the semi-axes (a 1/a^2 below 1e-308 is 0: flat) */
-	double ia2 = 1.0 / (g->re * g->re), ib2 = 1.0 / (g->minor * g->minor);
-	g->ia2 = ia2;
-	g->ib2 = ib2;
-	g->qa = g->ct * g->ct * ia2 + g->st * g->st * ib2;
-	g->qc = g->st * g->st * ia2 + g->ct * g->ct * ib2;
-	g->qb = g->ct * g->st * (ia2 - ib2);
-}
+/* A helper here that the compiler should keep as one function of each
+ * unit, not copy into its callers: sersic_rho_min, inlined into the cell
+ * loops of sersic-quick, made it run 9% more instructions (callgrind, 500
+ * galaxies); `unused' for the units that do not call it. */
+#if defined(__GNUC__)
+#define SERSIC_OUT_OF_LINE __attribute__((noinline, unused))
+#else
+#define SERSIC_OUT_OF_LINE
+#endif
 
 /* rho^2 at offset (dx, dy), through u and v: for a needle the quadratic
  * form's terms are each 1/(q r_e)^2 times larger than their sum along the
@@ -369,19 +167,6 @@ static inline void sersic_grad(const struct sersic_gal *g, double dx, double dy,
 }
 
 /*
- * Half-widths (pixels) of the box around the truncation ellipse: an
- * ellipse with semi-axes a, b turned by theta spans
- * sqrt(a^2 cos^2 + b^2 sin^2) along x and sqrt(a^2 sin^2 + b^2 cos^2) along y.
- */
-static void sersic_halfbox(const struct sersic_gal *g, double *hx, double *hy)
-{
-	double a = g->rt, b = g->rtb;
-
-	*hx = sqrt(a * a * g->ct * g->ct + b * b * g->st * g->st);
-	*hy = sqrt(a * a * g->st * g->st + b * b * g->ct * g->ct);
-}
-
-/*
  * The local length scale (pixels) over which ln I changes by one, at
  * elliptical radius rho, taken along the minor axis (the short way):
  * with s1 = |d lnI / d rho| = (b/n) rho^(1/n - 1) and
@@ -389,7 +174,7 @@ static void sersic_halfbox(const struct sersic_gal *g, double *hx, double *hy)
  * ell = q r_e / sqrt(s1^2 + s2).  It sets the sub-sampling of quick and
  * the 2-point shortcut of precise: midpoint error ~ h^2 / (24 ell^2).
  */
-static double sersic_scale(const struct sersic_gal *g, double rho)
+static inline double sersic_scale(const struct sersic_gal *g, double rho)
 {
 	rho = fmax(rho, 1e-12);
 	double p = exp((g->inv_n - 1.0) * log(rho));
@@ -420,8 +205,8 @@ static inline int sersic_near_centre(double x0, double x1, double y0, double y1,
  * so a cell beside a needle (q -> 0) is seen to be dark however close it
  * is in pixels.
  */
-static double sersic_rho_min(const struct sersic_gal *g, double x0, double x1,
-			     double y0, double y1)
+SERSIC_OUT_OF_LINE static double sersic_rho_min(const struct sersic_gal *g, double x0, double x1,
+						double y0, double y1)
 {
 	double m = INFINITY;
 
@@ -454,8 +239,8 @@ static inline double sersic_rho2_max(const struct sersic_gal *g, double x0, doub
 }
 
 /* The midpoint rule on an n x n grid over the box. */
-static double sersic_midpoint(const struct sersic_gal *g, double x0, double x1,
-			      double y0, double y1, int n)
+static inline double sersic_midpoint(const struct sersic_gal *g, double x0, double x1,
+				     double y0, double y1, int n)
 {
 	double sx = (x1 - x0) / n, sy = (y1 - y0) / n, s = 0;
 
@@ -477,181 +262,6 @@ static inline double sersic_cell_scale(const struct sersic_gal *g, double rmin,
 	return l;
 }
 
-/* ------------------------------------------------------------------ */
-/* Exact integral over a rectangle by wedges from the centre.          */
-
-/*
- * Any polygon's integral is the signed sum over its edges of the wedge
- * (centre, edge).  In the circularised (s, t) frame the wedge of an edge at
- * distance d from the centre, seen over angles psi from its foot, reaches
- * rho_e(psi) = d / cos(psi), and its radial integral is closed-form (see
- * the top of this file):
- *
- *   wedge = F_inf / (2 pi) int f(rho_e(psi)) dpsi,  f(rho) = P(2n, b min(rho, rho_t)^(1/n)).
- *
- * Writing f = P_t - g, g(rho) = Q(2n, b rho^(1/n)) - eps (zero beyond rho_t),
- * a rectangle's integral is F_inf / (2 pi) sum_edges (P_t sweep_e - int g),
- * whose P_t sweep terms add to 2 pi P_t = 2 pi flux / F_inf when the
- * centre is inside and to 0 when outside.  Integrating g, which is small
- * far out, instead of f keeps a far cell's small integral from being a
- * difference of large wedges.  An edge on a line through the centre sweeps
- * zero area and is skipped.
- *
- * This is exact for the cusp at the centre (n > 1) and for any r_e, down to
- * a galaxy far smaller than the cell, and for needles (q -> 0): only the
- * smooth one-dimensional g(rho_e(psi)) is integrated numerically, by
- * adaptive 7/15-point Gauss-Kronrod to the relative tolerance tol.
- */
-static const double gk_x[8] = {
-	0.991455371120812639206854697526329, 0.949107912342758524526189684047851,
-	0.864864423359769072789712788640926, 0.741531185599394439863864773280788,
-	0.586087235467691130294144845693013, 0.405845151377397166906606412076961,
-	0.207784955007898467600689403773245, 0.0 };
-static const double gk_wk[8] = {
-	0.022935322010529224963732008058970, 0.063092092629978553290700663189204,
-	0.104790010322250183839876322541518, 0.140653259715525918745189590510238,
-	0.169004726639267902826583426598550, 0.190350578064785409913256402421014,
-	0.204432940075298892414161999234649, 0.209482141084727828012999174891714 };
-static const double gk_wg[4] = {   /* Gauss 7 weights at gk_x[1], [3], [5], [7] */
-	0.129484966168869693270611432679082, 0.279705391489276667901467771423780,
-	0.381830050505118944950369775488975, 0.417959183673469387755102040816327 };
-
-static inline double sersic_wedge_g(const struct sersic_gal *g, double d, double psi)
-{
-	double c = cos(psi);
-	if (c <= 0)
-		return 0.0;
-	double rho = d / c;
-	if (rho >= g->rho_t)
-		return 0.0;
-	double x = g->b * exp(g->inv_n * log(rho));
-	return fmax(sersic_gamma_q_lg(2 * g->n, g->lg2n, x) - g->qt, 0.0);
-}
-
-static double sersic_gk(const struct sersic_gal *g, double d, double a, double b,
-			double tol, int depth)
-{
-	double m = 0.5 * (a + b), h = 0.5 * (b - a), fc = sersic_wedge_g(g, d, m);
-	double k = gk_wk[7] * fc, gs = gk_wg[3] * fc;
-
-	for (int i = 0; i < 7; i++) {
-		double f1 = sersic_wedge_g(g, d, m - h * gk_x[i]);
-		double f2 = sersic_wedge_g(g, d, m + h * gk_x[i]);
-		k += gk_wk[i] * (f1 + f2);
-		if (i & 1)
-			gs += gk_wg[i / 2] * (f1 + f2);
-	}
-	k *= h;
-	gs *= h;
-	if (fabs(k - gs) <= tol || depth >= 40 || h < 1e-15 || !isfinite(k))
-		return k;
-	return sersic_gk(g, d, a, m, 0.5 * tol, depth + 1)
-	       + sersic_gk(g, d, m, b, 0.5 * tol, depth + 1);
-}
-
-/*
- * The 3-point Gauss rule and its 7-point Kronrod extension over [a, b]
- * first: where they agree within tol, the Kronrod sum (its own error is far
- * below their difference), for 7 evaluations instead of sersic_gk's 15;
- * else sersic_gk over [a, b].  Worth it where tol is loose (sersic-quick's
- * cells next to the centre of a galaxy below the noise); at 1e-4 of a
- * cell's light the two rarely agree and the 7 are lost.
- */
-static const double gk7_x[3] = {
-	0.960491268708020283423507092629080, 0.774596669241483377035853079956480,
-	0.434243749346802558002071502844628 };
-static const double gk7_wk[4] = {
-	0.104656226026467265193823857192073, 0.268488089868333440728569280666710,
-	0.401397414775962222905051818618432, 0.450916538658474142345110087045571 };
-
-static double sersic_gk7(const struct sersic_gal *g, double d, double a, double b, double tol)
-{
-	double m = 0.5 * (a + b), h = 0.5 * (b - a), fc = sersic_wedge_g(g, d, m);
-	double k = gk7_wk[3] * fc, gs = 8.0 / 9 * fc;
-
-	for (int i = 0; i < 3; i++) {
-		double f = sersic_wedge_g(g, d, m - h * gk7_x[i]) + sersic_wedge_g(g, d, m + h * gk7_x[i]);
-
-		k += gk7_wk[i] * f;
-		if (i == 1)
-			gs += 5.0 / 9 * f;
-	}
-	k *= h;
-	gs *= h;
-	if (fabs(k - gs) <= tol && isfinite(k))
-		return k;
-	return sersic_gk(g, d, a, b, tol, 0);
-}
-
-/*
- * Integral of the profile over [x0, x1] x [y0, y1] (offsets from the centre,
- * pixels) by wedges.  tol is the absolute tolerance as a fraction of the
- * galaxy's flux; k7: each edge tries sersic_gk7 first.
- */
-static double sersic_rect_polar(const struct sersic_gal *g, double x0, double x1,
-				double y0, double y1, double tol, int k7)
-{
-	double vx[4] = { x0, x1, x1, x0 }, vy[4] = { y0, y0, y1, y1 };
-	double s[4], t[4], sum = 0;
-	double ire = 1.0 / g->re, iqre = 1.0 / g->minor;
-
-	for (int k = 0; k < 4; k++) {
-		double u = g->ct * vx[k] + g->st * vy[k];
-		double v = -g->st * vx[k] + g->ct * vy[k];
-		s[k] = u * ire;
-		t[k] = v * iqre;
-	}
-	/* The per-edge tolerance on int g, in units of 2 pi / F_inf. */
-	double etol = 0.25 * tol * 2 * M_PI * g->pt;
-	for (int k = 0; k < 4; k++) {
-		int j = (k + 1) & 3;
-		double ax = s[k], ay = t[k], bx = s[j], by = t[j];
-		double ex = bx - ax, ey = by - ay, len = hypot(ex, ey);
-		if (!(len > 0))
-			continue;
-		double cross = ax * by - ay * bx;       /* twice the signed wedge area */
-		double d = fabs(cross) / len;
-		double ra = hypot(ax, ay), rb = hypot(bx, by);
-		if (d <= 1e-14 * fmax(ra, rb))
-			continue;
-		double sweep = atan2(cross, ax * bx + ay * by);
-		/* Angles from the foot of the perpendicular: psi = atan(along / d). */
-		double ux = ex / len, uy = ey / len;
-		double pa = atan2(ax * ux + ay * uy, d), pb = atan2(bx * ux + by * uy, d);
-		double gi = k7 ? sersic_gk7(g, d, fmin(pa, pb), fmax(pa, pb), etol)
-			       : sersic_gk(g, d, fmin(pa, pb), fmax(pa, pb), etol, 0);
-		sum += (sweep > 0 ? 1.0 : -1.0) * (g->pt * fabs(sweep) - gi);
-	}
-	return g->finf / (2 * M_PI) * sum;
-}
-
-/*
- * The same integral to a relative tolerance rel of the cell's own light
- * (or an absolute floor atol, a fraction of the flux).  rmin is the cell's
- * sersic_rho_min.  The first pass asks for rel times a bound on the light,
- * I(rho_min) times the area; where the light turns out far below that
- * bound (a needle crossing the cell, a far cell whose wedges nearly
- * cancel) the integral is redone to rel of what the first pass found,
- * at most twice more.  k7: where atol is the looser (a floor set by the
- * noise), the edges try sersic_gk7 first.
- */
-static double sersic_rect_rel(const struct sersic_gal *g, double x0, double x1, double y0,
-			      double y1, double rmin, double rel, double atol, int k7)
-{
-	double bound = exp(g->lni0 - g->b * pow(rmin, g->inv_n)) * (x1 - x0) * (y1 - y0) / g->flux;
-	double t = fmax(rel * fmin(bound, 1.0), atol);
-	double v = sersic_rect_polar(g, x0, x1, y0, y1, t, k7 && atol >= rel * fmin(bound, 1.0));
-
-	for (int k = 0; k < 2; k++) {
-		double want = fmax(0.5 * rel * fabs(v) / g->flux, atol);
-		if (!(want < 0.25 * t))
-			break;
-		t = want;
-		v = sersic_rect_polar(g, x0, x1, y0, y1, t, 0);
-	}
-	return v;
-}
-
 /* The ePSF a galaxy is convolved with: its spectrum's nearest spectral
  * class (model.h, wfs_source.colour; wfiscene(1) "Spectral classes"),
  * else the scene's default spectrum.  Every call for one source gives the
@@ -666,190 +276,75 @@ static inline int sersic_epsf(const struct wfs_host *host, const struct wfs_sour
 	return host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, e);
 }
 
-/* Rendering through the ePSF, which needs the above. */
-#include "sersic_render.h"
+/*
+ * How a plugin integrates the profile over an axis-aligned cell
+ * [x0, x1] x [y0, y1] (offsets from the centre).  h is the cell's nominal
+ * size (1 for pixels, 1/over for sub-pixel cells).
+ */
+typedef double (*sersic_cell_fn)(const struct sersic_gal *g, const void *opt,
+				 double x0, double x1, double y0, double y1, double h);
 
-/* ------------------------------------------------------------------ */
-/* prepare() and footprint(), shared.                                  */
-
-/* v as the shortest of %.15g, %.16g, %.17g that reads back as v, so a
- * message quotes the value the row holds ("1.0000001", not "1"). */
-static const char *sersic_num(char buf[32], double v)
-{
-	for (int p = 15; p <= 17; p++) {
-		snprintf(buf, 32, "%.*g", p, v);
-		if (isnan(v) || strtod(buf, NULL) == v)
-			break;
-	}
-	return buf;
-}
+struct sersic_method {
+	sersic_cell_fn cell;
+	const void *opt;
+	int convolve;           /* 0: pixel integrals only (no PSF) */
+	double psf_core;        /* radius of the cubic ePSF core, pixels */
+	int core_k;             /* half-width of the sub-pixel core, pixels */
+	/* Optional: a block of block x block wing pixels
+	 * ([x0, x1] x [y0, y1], offsets) at once.  Returns -1 when the block
+	 * is dark (no light in any of its pixels), 1 when its light is faint
+	 * and smooth enough to be spread over its pixels from its integral *v
+	 * and the gradient (*gx, *gy) at its centre, 0 when its pixels must be
+	 * taken one by one. */
+	int (*block_fn)(const struct sersic_gal *g, const void *opt, double x0, double x1,
+			double y0, double y1, double *v, double *gx, double *gy);
+	int block;
+	/* Optional: the wing pixels xa..xb of row y at once, what
+	 * sersic_wing_pixel gives each of them one by one (the integral, the
+	 * gradient where the light is smooth over the pixel, the same tests),
+	 * pixel xa + k into img[k], gxi[k], gyi[k] and lpi[k] (the smooth
+	 * part: img where the light is smooth, else 0), *any and *rough as
+	 * sersic_wing_pixel sets them; so that the work of a row can be shared
+	 * and run in vector code.  NULL: sersic_wing_pixel. */
+	void (*wing_row)(const struct sersic_gal *g, const void *opt, int y, int xa, int xb,
+			 double *img, double *gxi, double *gyi, double *lpi, int *any, int *rough);
+	/* Optional: called once a stamp, after the galaxy is unpacked. */
+	void (*stamp_setup)(struct sersic_gal *g, const void *opt);
+	/* The first-moment terms (the gradient planes through the ePSF's
+	 * gradient) are left out of a stamp where a bound on what they add
+	 * to any pixel is at most this, counts/s (sersic-moment-cut times
+	 * the pixel noise; 0: always drawn). */
+	double moment_level;
+};
 
 /*
- * Validate a row and fill src->aux.  eps is the truncation fraction.  With
- * flux meaning "ie", src->flux is the intensity at r_e and is replaced by
- * the total, q included.
+ * The core is the (2K+1)^2 block of pixels around the centre drawn on
+ * sub-pixel cells; K is the setting sersic-core (default SERSIC_CORE).
+ * Outside it the pixel grid with the sharpened ePSF is accurate to second
+ * order in the pixel size over the profile's length scale; inside it sits
+ * the cusp (n > 1) and any structure finer than a pixel.  Measured against
+ * K = 8 (contrib/sersic-bench.py), K = 1 is within 0.3% per pixel for
+ * every galaxy of the benchmark grid and costs (4(2K+1)+1)^2 cells times
+ * (2K+1+2 h)^2 pixels of direct sums, about 0.3 ms.
  */
-static int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
-				 double eps, double noise)
+#define SERSIC_CORE 1
+
+/* Pixels whose light varies on a scale below this (pixels) get no
+ * second-order correction (see sersic_wings_integrate). */
+#define SERSIC_SMOOTH 0.1
+
+/* A wing pixel's integral v and gradient (gx, gy) into the planes at k:
+ * the smooth part lpi is v where the light is smooth over the pixel (the
+ * second-order terms hold there), else 0 and the pixel is rough. */
+static inline void sersic_wing_put(double *img, double *gxi, double *gyi, double *lpi, size_t k,
+				   double v, double gx, double gy, int smooth, int *any, int *rough)
 {
-	double n = src->param[SERSIC_N], re = src->param[SERSIC_RE];
-	double phi = src->param[SERSIC_PHI], q = src->param[SERSIC_RATIO];
-
-	char num[32];
-
-	if (isnan(n))
-		return host->error(host->ctx, "column 'n': empty; a Sérsic row needs its index");
-	if (n <= 0)
-		return host->error(host->ctx, "column 'n': Sérsic index must be > 0, got %s", sersic_num(num, n));
-	if (n < SERSIC_N_MIN || n > SERSIC_N_MAX)
-		return host->error(host->ctx, "column 'n': Sérsic index %s is outside the supported range %g to %g",
-				   sersic_num(num, n), SERSIC_N_MIN, SERSIC_N_MAX);
-	if (isnan(re))
-		return host->error(host->ctx, "column 're': empty; a Sérsic row needs its half-light radius");
-	if (re <= 0 || isinf(re))
-		return host->error(host->ctx, "column 're': half-light radius must be > 0 pixels, got %s",
-				   sersic_num(num, re));
-	if (isnan(q) || q <= 0 || q > 1)
-		return host->error(host->ctx, "column 'ratio': axis ratio must be in (0, 1], got %s",
-				   sersic_num(num, q));
-	if (!isfinite(phi))
-		return host->error(host->ctx, "column 'phi': orientation must be a finite angle in degrees, got %s",
-				   sersic_num(num, phi));
-	if (!isfinite(src->flux) || src->flux < 0)
-		return host->error(host->ctx, "column 'flux': a galaxy's flux must be finite and >= 0, got %s",
-				   sersic_num(num, src->flux));
-
-	double b = sersic_bn(n), a = 2 * n, ra, rb;
-	/* ln of F_inf / I0 = 2 pi n q re^2 Gamma(2n) / b^(2n), in logs so n = 20
-	 * (Gamma(40) ~ 1e46), re = 0.01 and re = 1e300 stay in range: first
-	 * for the row's own re and q (the total of --sersic-flux ie), then for
-	 * the semi-axes the galaxy is drawn with. */
-	double lng = log(2 * M_PI * n) + sersic_lgamma(a) - a * log(b);
-	sersic_axes(re, q, &ra, &rb);
-	double lnk = lng + log(ra) + log(rb);
-
-	/* What the flux column means is a fact of the catalog, in the source;
-	 * a host older than that field passed it as the setting sersic-flux. */
-	const char *meaning = NULL;
-	if (WFS_HAS(host->size, struct wfs_host, source_size) &&
-	    WFS_HAS(host->source_size, struct wfs_source, flux_meaning))
-		meaning = src->flux_meaning == WFS_FLUX_IE ? "ie" : "total";
-	else if (host->setting)
-		meaning = host->setting(host->ctx, "sersic-flux");
-	if (meaning && !strcmp(meaning, "ie")) {
-		/* flux column = I(r_e) = I0 e^-b: total = Ie e^b F_inf / I0. */
-		double ie = src->flux;
-		src->flux = ie * exp(b + lng + log(q) + 2 * log(re));
-		if (!isfinite(src->flux))
-			return host->error(host->ctx, "column 'flux': surface brightness %s gives an infinite total",
-					   sersic_num(num, ie));
-	} else if (meaning && strcmp(meaning, "total")) {
-		return host->error(host->ctx, "setting sersic-flux: '%s' is neither 'total' nor 'ie'", meaning);
-	}
-
-	/* The cut by the noise (sersic-noise-cut, quick only): where the
-	 * untruncated surface brightness falls below noise (counts/s per
-	 * pixel), I0 e^(-x) = noise at x = ln I0 - ln noise, the light beyond
-	 * is Q(2n, x); the cut is made there when that is more than eps, but
-	 * never beyond SERSIC_NOISE_EPS of the light, which the
-	 * renormalisation below puts back into the galaxy (so its flux stays
-	 * whole and its pixels rise by at most that fraction). */
-	if (noise > 0 && src->flux > 0) {
-		double x = log(src->flux) - lnk - log(noise);
-		double en = x > 0 ? sersic_gamma_q(a, x) : 1.0;
-		eps = fmax(eps, fmin(en, SERSIC_NOISE_EPS));
-	}
-	double xt = sersic_trunc_x(n, eps);
-	double qt, pt;
-	double rho_t = exp(n * log(xt / b));
-	/* Never cut inside the central 5 x 5 pixels, whose values the accuracy
-	 * targets are about: the cut ellipse's minor semi-axis is at least
-	 * SERSIC_RT_MIN pixels (or its major one 10 x that for needles). */
-	double rho_floor = fmin(SERSIC_RT_MIN / rb, 10 * SERSIC_RT_MIN / ra);
-	if (rho_t < rho_floor)
-		rho_t = rho_floor;
-	/* A cut beyond SERSIC_RT_MAX pixels is made there instead; the light
-	 * beyond is off any SCA, so the profile is not renormalised for it
-	 * (for re = 1e300 that light is nearly all of it). */
-	int beyond = rho_t * ra > SERSIC_RT_MAX;
-	if (beyond)
-		rho_t = SERSIC_RT_MAX / ra;
-	xt = b * exp(log(rho_t) / n);
-	qt = sersic_gamma_q(a, xt);
-	pt = 1.0 - qt;
-	/* renormalised: the flux inside rho_t is the row's */
-	double finf = beyond ? src->flux : src->flux / pt;
-
-	src->aux[AUX_B] = b;
-	src->aux[AUX_LNI0] = src->flux > 0 ? log(finf) - lnk : -INFINITY;
-	src->aux[AUX_RHO_T] = rho_t;
-	src->aux[AUX_FINF] = finf;
-	src->aux[AUX_PT] = pt;
-	src->aux[AUX_QT] = qt;
-	src->aux[AUX_PSFH] = 0;
-	src->aux[AUX_PSFALL] = 0;
-	return 0;
-}
-
-/* The pixels the galaxy touches: the truncation ellipse's box plus the
- * ePSF's half-width drawn, and the pixels its core block (core_k about
- * the centre pixel) reaches through that ePSF (sersic_core_add), which
- * a needle lying across an axis, or a large core, puts beyond the box;
- * clamped so distant or huge galaxies stay in int. */
-static int sersic_footprint_common(const struct wfs_host *host, const struct wfs_source *src,
-				   struct wfs_box *box, int convolve, int core_k)
-{
-	struct sersic_gal g;
-	double hx, hy;
-	int hp = 0;
-
-	sersic_unpack(src, &g);
-	sersic_halfbox(&g, &hx, &hy);
-	if (convolve) {
-		struct wfs_epsf e;
-		if (sersic_epsf(host, src, &e))
-			return -1;
-		hp = sersic_psf_drawn(&e, src);
-	}
-	const double lim = 1e8;
-	double x0 = fmax(floor(g.xc - hx + 0.5) - hp, -lim), x1 = fmin(floor(g.xc + hx + 0.5) + hp + 1, lim);
-	double y0 = fmax(floor(g.yc - hy + 0.5) - hp, -lim), y1 = fmin(floor(g.yc + hy + 0.5) + hp + 1, lim);
-	if (convolve) {
-		/* the core's reach: K + hp + 1 about the centre pixel */
-		double icx = floor(g.xc + 0.5), icy = floor(g.yc + 0.5), k = core_k + hp + 1;
-
-		x0 = fmax(fmin(x0, icx - k), -lim);
-		x1 = fmin(fmax(x1, icx + k + 1), lim);
-		y0 = fmax(fmin(y0, icy - k), -lim);
-		y1 = fmin(fmax(y1, icy + k + 1), lim);
-	}
-	/* A central surface brightness below the least double (e^-745 per
-	 * pixel; r_e = 1e300, or no flux) puts nothing in any pixel. */
-	if (!(x0 < x1) || !(y0 < y1) || !(g.lni0 > -745))
-		x0 = x1 = y0 = y1 = 0;  /* far out of range: an empty box */
-	box->x0 = (int)x0;
-	box->x1 = (int)x1;
-	box->y0 = (int)y0;
-	box->y1 = (int)y1;
-	return 0;
-}
-
-/* The reach (model.h) of a galaxy: the extent about its centre of the box
- * footprint() gives it at the origin of the SCA src names, plus 2 pixels
- * for the rounding of the box's edges.  prepare() is run on a copy, so src
- * keeps its aux. */
-static int sersic_reach_common(const struct wfs_host *host, const struct wfs_source *src,
-			       double eps, int convolve, int core_k, double *pixels)
-{
-	struct wfs_source at = *src;
-	struct wfs_box box;
-
-	at.x = at.y = 0;
-	if (sersic_prepare_common(host, &at, eps, 0) < 0 ||
-	    sersic_footprint_common(host, &at, &box, convolve, core_k) < 0)
-		return -1;
-	*pixels = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1)) + 2;
-	return 0;
+	img[k] = v;
+	gxi[k] = gx;
+	gyi[k] = gy;
+	lpi[k] = smooth ? v : 0;
+	*any |= v != 0;
+	*rough |= lpi[k] != v;
 }
 
 /* A number as text, for the defaults in a wfs_setting table. */
@@ -868,49 +363,44 @@ static int sersic_reach_common(const struct wfs_host *host, const struct wfs_sou
 	  "half-width of the sub-sampled core, pixels" }, \
 	{ "sersic-convolve", "yes", "yes|no", "convolve with the ePSF" }
 
-/* Parse a number setting; fallback when unset; -1 with an error when bad. */
-static int sersic_setting_num(const struct wfs_host *host, const char *key, double lo,
-			      double hi, double fallback, double *out)
-{
-	const char *s = host->setting ? host->setting(host->ctx, key) : NULL;
-	char *end;
+/* ------------------------------------------------------------------ */
+/* sersic_core.c                                                      */
 
-	*out = fallback;
-	if (!s)
-		return 0;
-	double v = strtod(s, &end);
-	if (end == s || *end || !(v >= lo && v <= hi))
-		return host->error(host->ctx, "setting %s: '%s' is not a number from %g to %g", key, s, lo, hi);
-	*out = v;
-	return 0;
-}
+/* Unpack src (prepare()'s aux) into g, for integration. */
+void sersic_unpack(const struct wfs_source *src, struct sersic_gal *g);
+/* Half-widths (pixels) of the box around the truncation ellipse. */
+void sersic_halfbox(const struct sersic_gal *g, double *hx, double *hy);
+/* The exact integral over [x0, x1] x [y0, y1] (offsets from the centre)
+ * to a relative tolerance rel of the cell's own light, or the floor atol
+ * (a fraction of the flux); rmin is the cell's sersic_rho_min; k7: try the
+ * 7-point rule first where atol is the looser. */
+double sersic_rect_rel(const struct sersic_gal *g, double x0, double x1, double y0,
+		       double y1, double rmin, double rel, double atol, int k7);
+/* prepare(), footprint() and reach() of both plugins (see sersic_core.c):
+ * eps the truncation fraction, noise the pixel noise of the cut. */
+int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
+			  double eps, double noise);
+int sersic_footprint_common(const struct wfs_host *host, const struct wfs_source *src,
+			    struct wfs_box *box, int convolve, int core_k);
+int sersic_reach_common(const struct wfs_host *host, const struct wfs_source *src,
+			double eps, int convolve, int core_k, double *pixels);
+/* The settings: a number from lo to hi (fallback when unset), sersic-core,
+ * sersic-convolve.  0, or -1 with an error. */
+int sersic_setting_num(const struct wfs_host *host, const char *key, double lo,
+		       double hi, double fallback, double *out);
+int sersic_setting_core(const struct wfs_host *host, int *out);
+int sersic_setting_convolve(const struct wfs_host *host, int *out);
 
-/* sersic-core: the core half-width K, 0 to 16 pixels. */
-static int sersic_setting_core(const struct wfs_host *host, int *out)
-{
-	double v;
+/* ------------------------------------------------------------------ */
+/* sersic_render.c                                                    */
 
-	if (sersic_setting_num(host, "sersic-core", 0, 16, SERSIC_CORE, &v))
-		return -1;
-	*out = (int)v;
-	if (*out != v)
-		return host->error(host->ctx, "setting sersic-core: %g is not a whole number of pixels", v);
-	return 0;
-}
-
-/* sersic-convolve: yes (default) or no. */
-static int sersic_setting_convolve(const struct wfs_host *host, int *out)
-{
-	const char *s = host->setting ? host->setting(host->ctx, "sersic-convolve") : NULL;
-
-	*out = 1;
-	if (!s || !strcmp(s, "yes") || !strcmp(s, "1"))
-		return 0;
-	if (!strcmp(s, "no") || !strcmp(s, "0")) {
-		*out = 0;
-		return 0;
-	}
-	return host->error(host->ctx, "setting sersic-convolve: '%s' is neither 'yes' nor 'no'", s);
-}
+/* The ePSF's half-width in whole pixels, and the half-width drawn for src
+ * (sersic-psf-cut, aux AUX_PSFH). */
+int sersic_psf_half(const struct wfs_epsf *e);
+int sersic_psf_drawn(const struct wfs_epsf *e, const struct wfs_source *src);
+/* Add the galaxy src to window win, its cells integrated by method m. */
+int sersic_render_common(const struct wfs_host *host, void *thread,
+			 const struct wfs_source *src, const struct wfs_window *win,
+			 const struct sersic_method *m);
 
 #endif

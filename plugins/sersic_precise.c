@@ -218,6 +218,8 @@ static const struct wfs_model precise_model = {
 	.nsettings = (int)(sizeof(precise_settings) / sizeof(precise_settings[0])),
 	.reach = precise_reach,
 	.flags = WFS_PARALLEL_PREPARE,
+	.roman_type = "SER",
+	.column_roles = sersic_roles,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

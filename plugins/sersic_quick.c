@@ -29,6 +29,7 @@
 
 #include "sersic.h"
 #include "vmath.h"
+#include "../src/simd.h"
 
 #define QUICK_TRUNC 1e-3
 #define QUICK_STEP 0.5
@@ -248,7 +249,7 @@ static double quick_cell(const struct sersic_gal *g, const void *opt,
 			    &taylor, &gx, &gy);
 }
 
-/* A wing pixel (sersic_method.wing): quick_cell and the smoothness test
+/* A wing pixel quick_wing_row does not take in its vector run: quick_cell and the smoothness test
  * and gradient of sersic_render_common in one pass, sharing rho_min, the
  * length scale at it and, for the Taylor form, the profile at the centre. */
 static int quick_wing(const struct sersic_gal *g, const void *opt, double x0, double x1,
@@ -367,7 +368,7 @@ static void quick_profile_plain(int n, const double *restrict r2, double b, doub
 	quick_profile_loop(n, r2, b, h, lni0, p, in);
 }
 
-#if defined(__GNUC__) && defined(__x86_64__)
+#ifdef SIMD_X86
 __attribute__((target("avx2,fma"))) static void
 quick_profile_avx2(int n, const double *restrict r2, double b, double h, double lni0,
 		   double *restrict p, double *restrict in)
@@ -461,10 +462,8 @@ static pthread_once_t quick_profile_once = PTHREAD_ONCE_INIT;
 
 static void quick_profile_choose(void)
 {
-#if defined(__GNUC__) && defined(__x86_64__)
-	__builtin_cpu_init();
-	if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-	    !getenv("WFISCENE_NO_SIMD"))
+#ifdef SIMD_X86
+	if ((simd_flags() & (SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX2 | SIMD_FMA))
 		quick_profile = quick_profile_avx2;
 #endif
 }
@@ -664,7 +663,7 @@ static int quick_render(void *state, void *tstate, void *thread,
 			const struct wfs_source *src, const struct wfs_window *win)
 {
 	struct quick *p = state;
-	struct sersic_method m = { quick_cell, p, p->convolve, p->psf_core, p->core_k, quick_wing,
+	struct sersic_method m = { quick_cell, p, p->convolve, p->psf_core, p->core_k,
 				   quick_block, (int)p->wing_block, quick_wing_row, quick_stamp_setup,
 				   p->moment_cut * p->sigma };
 
@@ -714,6 +713,8 @@ static const struct wfs_model quick_model = {
 	.nsettings = (int)(sizeof(quick_settings) / sizeof(quick_settings[0])),
 	.reach = quick_reach,
 	.flags = WFS_PARALLEL_PREPARE,
+	.roman_type = "SER",
+	.column_roles = sersic_roles,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -835,6 +835,11 @@ static int read_flux(struct catalog *c, const struct table_chunk *ch, size_t i,
 	return 0;
 }
 
+const char *catalog_roman_type(const char *t)
+{
+	return !strcasecmp(t, "psf") ? "point" : !strcasecmp(t, "ser") ? "sersic" : NULL;
+}
+
 /* Row i's model name, lower-case ("point" by default). */
 static void read_type(struct catalog *c, const struct table_chunk *ch, size_t i)
 {
@@ -845,10 +850,8 @@ static void read_type(struct catalog *c, const struct table_chunk *ch, size_t i)
 
 		lower_trim(&s);
 		c->type[i] = *s ? s : "point";
-		if (c->roman && !strcmp(s, "psf"))
-			c->type[i] = "point";
-		else if (c->roman && !strcmp(s, "ser"))
-			c->type[i] = "sersic";
+		if (c->roman && catalog_roman_type(s))
+			c->type[i] = catalog_roman_type(s);
 	} else {
 		c->type[i] = "point";
 	}

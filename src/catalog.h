@@ -121,6 +121,10 @@ int rows_column(const struct rows *r, const char *name);
 int rows_number(const struct rows *r, int col, size_t i, double fallback,
 		double *out, struct err *e);
 
+/* The type a romanisim catalog's type t (case ignored) is read as: "point"
+ * for PSF, "sersic" for SER, NULL for any other (read as itself). */
+const char *catalog_roman_type(const char *t);
+
 /* Parse s (blanks around it allowed) as a decimal number, correctly
  * rounded.  Returns 0 with *out, 1 when s is not a number, 2 when it is
  * NaN or infinite.  (Used by rows_number; public for plugins' hosts and

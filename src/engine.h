@@ -228,7 +228,6 @@ double *tile_alloc(int T);
 void tile_free(double *p, int T);
 
 /* place.c */
-double place_zeropoint(const struct engine *g, int sca);
 int place_batch(struct engine *g, const struct rows *r, struct batch *b);
 int place_bin(struct engine *g, struct batch *b);
 

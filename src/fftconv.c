@@ -196,8 +196,7 @@ static void axpy_plain(double *restrict out, const double *restrict k, double v,
 		out[i] += v * k[i];
 }
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
+#ifdef SIMD_X86
 __attribute__((target("avx2"))) static void axpy_avx2(double *restrict out,
 							const double *restrict k, double v, int n)
 {
@@ -214,7 +213,7 @@ __attribute__((target("avx2"))) static void axpy_avx2(double *restrict out,
 
 static void (*axpy_choose(void))(double *restrict, const double *restrict, double, int)
 {
-#if defined(__x86_64__) && defined(__GNUC__)
+#ifdef SIMD_X86
 	if (simd_flags() & SIMD_AVX2)
 		return axpy_avx2;
 #endif

@@ -13,11 +13,6 @@
 #include "instrument.h"
 #include "simd.h"
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define GEOM_AVX512 1
-#endif
-
 #define D2R (M_PI / 180.0)
 #define AS2R (M_PI / 180.0 / 3600.0)
 
@@ -577,7 +572,7 @@ static void row_jacobian(const struct geom_aperture *ap, double v, double d[4][G
 		}
 }
 
-#ifdef GEOM_AVX512
+#ifdef SIMD_X86
 /* The Horner loop of geom_area_row() for eight pixels at a time: the same
  * operations in the same order on each, so the same areas.  Returns the
  * pixels done. */
@@ -620,7 +615,7 @@ void geom_area_row(const struct geom_sca *g, int y, int x0, int n, double *area)
 			c[p + q] += d[0][p] * d[3][q] - d[1][p] * d[2][q];
 	nominal = WFS_PIXSCALE * WFS_PIXSCALE;
 	u0 = x0 + 1 - ap->xref;
-#ifdef GEOM_AVX512
+#ifdef SIMD_X86
 	if (simd_flags() & SIMD_AVX512)
 		i0 = area_avx512(c, u0, nominal, n, area);
 #endif

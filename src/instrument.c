@@ -116,6 +116,11 @@ double filter_stips_zp(int filter)
 	return stips_zp[filter];
 }
 
+double filter_zeropoint(int filter, int sca, int stips)
+{
+	return stips ? stips_zp[filter] : filters[filter].zp_ab[sca - 1];
+}
+
 /* One SCA number: "5", "05", "WFI05", "SCA5" (any case). */
 static int parse_one_sca(const char *s, const char *end)
 {

@@ -16,6 +16,10 @@ enum wfs_filter {
 	F062, F087, F106, F129, F158, F184, F213, F146, WFS_NFILTER
 };
 
+/* The filters --filter takes, in the enum's order: the one spelling of the
+ * list in the commands' --help and messages. */
+#define FILTER_LIST "F062 F087 F106 F129 F158 F184 F213 F146"
+
 struct filter_info {
 	const char *name;       /* "F129" */
 	double lam_min, lam_max;/* band edges, micron */
@@ -51,5 +55,9 @@ double unit_to_counts(int filter, int sca, int unit);
 
 /* STIPS 2.3's fixed AB zeropoint of a filter (for --zeropoints stips). */
 double filter_stips_zp(int filter);
+
+/* The AB magnitude giving 1 count/s in filter on SCA sca: the SCA's own
+ * zeropoint, or with stips (--zeropoints stips) STIPS's fixed one. */
+double filter_zeropoint(int filter, int sca, int stips);
 
 #endif

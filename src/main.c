@@ -62,10 +62,6 @@ static const char *const compressions[] = { "none", "rice", "gzip", NULL };
 static const char *const formats[] = { "fits", "asdf", NULL };     /* enum product_format */
 static const char *const norms[] = { "project", "etc", NULL };    /* enum bkg_norm */
 
-/* The filters --filter takes, as instrument.c names them, in its order:
- * the one spelling of the list in --help and the messages. */
-#define FILTER_LIST "F062 F087 F106 F129 F158 F184 F213 F146"
-
 static const struct opt scene_options[] = {
 	OPT_SECTION("Scene:"),
 	{ OPT("output", 'o', "FILE", NULL, "output FITS or ASDF ('-' stdout; '%d' in FILE: one "

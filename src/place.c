@@ -56,19 +56,26 @@ static int resize(void **p, size_t bytes)
 /* The model drawing rows of type name: the model of that name, or, when
  * the scene has a setting of that name (--sersic, --set T=M), the model
  * name-setting of that family (model.h, "Resolving a catalog type"). */
-static int resolve_type(struct engine *g, const char *name)
+static void type_model(struct engine *g, const char *name, char *real, size_t size)
 {
 	const char *method;
+
+	if ((method = host_setting(g, name)) && *method)
+		snprintf(real, size, "%s-%s", name, method);
+	else
+		snprintf(real, size, "%s", name);
+}
+
+/* The index of the model drawing rows of type name, loaded on first use. */
+static int resolve_type(struct engine *g, const char *name)
+{
 	char real[64];
 	int m;
 
 	for (int i = 0; i < g->ntypes; i++)
 		if (!strcmp(g->types[i].name, name))
 			return g->types[i].model;
-	if ((method = host_setting(g, name)) && *method)
-		snprintf(real, sizeof(real), "%s-%s", name, method);
-	else
-		snprintf(real, sizeof(real), "%s", name);
+	type_model(g, name, real, sizeof(real));
 	if ((m = plugins_get(&g->plugins, real, g->e)) < 0)
 		return -1;
 	if (g->ntypes < PLUGIN_MAX) {
@@ -102,12 +109,6 @@ static int model_columns(struct engine *g, const struct rows *r, int m)
 	return 0;
 }
 
-double place_zeropoint(const struct engine *g, int sca)
-{
-	return g->o->zp_stips ? filter_stips_zp(g->o->filter)
-			      : filter_get(g->o->filter)->zp_ab[sca - 1];
-}
-
 /* The row's flux in counts/s on SCA sca: a magnitude or flux density
  * (f_nu at the filter's pivot wavelength) through the row's spectrum and
  * the SCA's throughput (spectrum.h), a flat f_nu without one. */
@@ -124,7 +125,8 @@ static double counts_on(const struct engine *g, const struct rows *r, size_t i, 
 	case UNIT_COUNTS:
 		return v;
 	case UNIT_ABMAG:
-		return pow(10.0, -0.4 * (v - place_zeropoint(g, sca))) * k;
+		return pow(10.0, -0.4 * (v - filter_zeropoint(g->o->filter, sca,
+							      g->o->zp_stips))) * k;
 	default:
 		/* unit_to_counts() goes through the SCA's RTI zeropoint, as
 		 * 1 / PHOTFNU; STIPS's fixed zeropoint zs gives PHOTFNU's
@@ -183,7 +185,7 @@ static int fill_source(const struct engine *g, const struct rows *r, size_t i,
 	src->y = y;
 	src->sca = sca;
 	src->flux = counts_on(g, r, i, sca);
-	src->mag = place_zeropoint(g, sca) - 2.5 * log10(src->flux);
+	src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
 	src->psf_class = psf_class_of(g, src->mag);
 	src->id = r->id[i];
 	src->param = param;
@@ -245,7 +247,7 @@ static int source_at(struct engine *g, const struct rows *r, size_t i, int m,
 	if (!isfinite(src->x) || !isfinite(src->y))
 		return err_set(g->e, EXIT_PLUGIN, "%s:%ld: model '%s' moved the source to "
 			       "(%g, %g)", r->file, r->line[i], pl->m->name, src->x, src->y);
-	src->mag = place_zeropoint(g, sca) - 2.5 * log10(src->flux);
+	src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
 	src->psf_class = psf_class_of(g, src->mag);
 	src->param = param + pl->m->ncolumns;
 	return 0;
@@ -294,39 +296,41 @@ static double north_pa(const struct engine *g, double ra, double dec)
 	return atan2(dx, dy) * (180.0 / M_PI);
 }
 
-/* Parameter `name' of a row of model md, or fallback. */
-static double param_named(const struct wfs_model *md, const double *param,
-			  const char *name, double fallback)
+/* The column of role k (model.h, enum wfs_column_role) of a row of model
+ * pl, or fallback when the model has none. */
+static double param_role(const struct plugin *pl, const double *param, int k, double fallback)
 {
-	for (int c = 0; c < md->ncolumns; c++)
-		if (!strcasecmp(md->columns[c].name, name))
-			return param[c];
-	return fallback;
+	return pl->role[k] >= 0 ? param[pl->role[k]] : fallback;
 }
 
 /* One row of a --placed list in romanisim's convention (see
  * wfiscene-catalog(5)): the source as a romanisim catalog would give it,
- * read back to the same image.  Returns fprintf's sign. */
+ * read back to the same image: under the model's roman_type when a row of
+ * that type would be drawn by this model, its shape from the columns of
+ * the shape roles.  Returns fprintf's sign. */
 static int placed_roman_row(struct engine *g, const struct rows *r, size_t i,
-			    const struct wfs_model *md, const double *param,
+			    const struct plugin *pl, const double *param,
 			    const struct wfs_source *src)
 {
 	double maggies = pow(10.0, -0.4 * src->mag);
-	const char *type = md->name;
+	const char *type = pl->m->name, *back;
 	double n = -1, hlr = 0, pa = 0, ba = 1;
+	char real[64];
 
-	if (!strcmp(md->name, "point"))
-		type = "PSF";
-	else if (!strncmp(md->name, "sersic", 6)) {
-		type = !strcmp(md->name + 6, "") ||
-		       !strcmp(md->name + 6, g->o->sersic[0] == 'p' ? "-precise" : "-quick")
-		       ? "SER" : md->name;
-		n = param_named(md, param, "n", -1);
-		ba = param_named(md, param, "ratio", 1);
+	if (pl->roman_type && (back = catalog_roman_type(pl->roman_type))) {
+		type_model(g, back, real, sizeof(real));
+		if (!strcmp(real, pl->m->name))
+			type = pl->roman_type;
+	}
+	if (pl->role[WFS_ROLE_SERSIC_INDEX] >= 0 || pl->role[WFS_ROLE_HALF_LIGHT] >= 0 ||
+	    pl->role[WFS_ROLE_AXIS_RATIO] >= 0 || pl->role[WFS_ROLE_ANGLE] >= 0) {
+		n = param_role(pl, param, WFS_ROLE_SERSIC_INDEX, -1);
+		ba = param_role(pl, param, WFS_ROLE_AXIS_RATIO, 1);
 		/* romanisim's half_light_radius is the circularised one,
 		 * sqrt(a b), where re is along the major axis a */
-		hlr = param_named(md, param, "re", 0) * WFS_PIXSCALE * sqrt(ba > 0 ? ba : 1);
-		pa = param_named(md, param, "phi", 0);
+		hlr = param_role(pl, param, WFS_ROLE_HALF_LIGHT, 0) * WFS_PIXSCALE *
+		      sqrt(ba > 0 ? ba : 1);
+		pa = param_role(pl, param, WFS_ROLE_ANGLE, 0);
 		if (!isnan(r->ra[i]))
 			pa += north_pa(g, r->ra[i], r->dec[i]);
 		pa = fmod(pa, 360.0);
@@ -348,21 +352,16 @@ static int placed_roman_row(struct engine *g, const struct rows *r, size_t i,
 static int sky_shape(struct engine *g, const struct rows *r, size_t i, int m,
 		     const double *param, int sca, double x, double y, double *out)
 {
-	const struct wfs_model *md = g->plugins.p[m].m;
+	const struct plugin *pl = &g->plugins.p[m];
 	struct geom_sca *geo = &g->sky.sca[sca - 1].geo;
-	int cre = -1, cq = -1, cphi = -1;
+	int cre = pl->role[WFS_ROLE_HALF_LIGHT], cq = pl->role[WFS_ROLE_AXIS_RATIO],
+	    cphi = pl->role[WFS_ROLE_ANGLE];
 
 	if (r->sky_angle_col < 0 || isnan(r->ra[i]) || geo->kind != GEOM_SIAF)
 		return 0;
-	for (int c = 0; c < md->ncolumns; c++) {
-		const char *n = md->columns[c].name;
-		cre = strcasecmp(n, "re") ? cre : c;
-		cq = strcasecmp(n, "ratio") ? cq : c;
-		cphi = strcasecmp(n, "phi") ? cphi : c;
-	}
 	if (cre < 0 || cq < 0 || cphi < 0 || g->colidx[m][cphi] != r->sky_angle_col)
 		return 0;
-	memcpy(out, param, md->ncolumns * sizeof(double));
+	memcpy(out, param, pl->m->ncolumns * sizeof(double));
 	geom_sky_ellipse(geo, x, y, param[cre] * WFS_PIXSCALE, param[cq],
 			 param[cphi] + north_pa(g, r->ra[i], r->dec[i]),
 			 &out[cre], &out[cq], &out[cphi]);
@@ -560,7 +559,7 @@ static int keep(struct engine *g, struct batch *b, const struct rows *r, size_t 
 				      (p->from != p->model ? md->ncolumns : 0);
 
 		g->listed[i] = 1;
-		if (placed_roman_row(g, r, i, md, param, src) < 0)
+		if (placed_roman_row(g, r, i, &g->plugins.p[p->from], param, src) < 0)
 			return err_sys(g->e, "%s", g->o->placed);
 	}
 	/* With --rows, counted and listed as in a run of the whole SCA (the

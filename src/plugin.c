@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -225,6 +226,38 @@ static int open_bound(struct plugin *pl, struct err *e)
 	return 0;
 }
 
+/* The column of each role (model.h, wfs_model.column_roles): as the model
+ * declares them, or, for a plugin of an edition before roles, by the names
+ * hosts before edition 6 went by. */
+static int read_roles(struct plugin *pl, struct err *e)
+{
+	static const char *const legacy[PLUGIN_ROLES] = { NULL, "n", "re", "ratio", "phi" };
+	const struct wfs_model *m = pl->m;
+	int declared = WFS_HAS(m->size, struct wfs_model, column_roles);
+
+	for (int k = 0; k < PLUGIN_ROLES; k++)
+		pl->role[k] = -1;
+	for (int c = 0; c < m->ncolumns; c++) {
+		const char *name = plugin_column(pl, c)->name;
+		int k = WFS_ROLE_NONE;
+
+		if (declared)
+			k = m->column_roles ? m->column_roles[c] : WFS_ROLE_NONE;
+		else
+			for (int j = 1; j < PLUGIN_ROLES; j++)
+				if (name && !strcasecmp(name, legacy[j]))
+					k = j;
+		/* a role of a later edition is one this host does not use */
+		if (k <= WFS_ROLE_NONE || k >= PLUGIN_ROLES)
+			continue;
+		if (pl->role[k] >= 0)
+			return refuse(pl, e, "columns %d and %d of the descriptor have "
+				      "one role, %d", pl->role[k] + 1, c + 1, k);
+		pl->role[k] = c;
+	}
+	return 0;
+}
+
 /* Read the descriptor's appended members (model.h), each only when the
  * descriptor's size covers it, and check them. */
 static int read_appended(struct plugin *pl, struct err *e)
@@ -259,7 +292,9 @@ static int read_appended(struct plugin *pl, struct err *e)
 		pl->reach = m->reach;
 	if (WFS_HAS(m->size, struct wfs_model, flags))
 		pl->flags = m->flags & WFS_PARALLEL_PREPARE;
-	return 0;
+	if (WFS_HAS(m->size, struct wfs_model, roman_type))
+		pl->roman_type = m->roman_type;
+	return read_roles(pl, e);
 }
 
 /* The model that draws pl's sources (model.h, drawn_by): loaded, not

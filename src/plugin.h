@@ -25,6 +25,7 @@ struct err;
 
 #define PLUGIN_MAX 64
 #define PLUGIN_COLUMNS_MAX WFS_MAX_COLUMNS /* catalog columns one model may read */
+#define PLUGIN_ROLES (WFS_ROLE_ANGLE + 1)    /* enum wfs_column_role's values */
 
 struct plugin {
 	char name[64];
@@ -42,6 +43,9 @@ struct plugin {
 	int (*reach)(void *state, const struct wfs_source *src, double *pixels);
 	int drawer;             /* index of the drawn_by model, or -1 */
 	uint32_t flags;         /* WFS_PARALLEL_PREPARE or 0 */
+	int role[PLUGIN_ROLES]; /* the column of each enum wfs_column_role
+	                           (role[WFS_ROLE_NONE] unused), or -1 */
+	const char *roman_type; /* wfs_model.roman_type, or NULL */
 };
 
 /* Column c of pl's model, through the plugin's own stride. */

@@ -47,7 +47,7 @@ static opt_set_fn set_count, set_kind, set_size, set_jitter, set_no_cache, set_t
 	set_beta;
 
 static const struct opt psf_options[] = {
-	{ OPT("filter", 'f', "F", NULL, "F062 F087 F106 F129 F158 F184 F213 F146",
+	{ OPT("filter", 'f', "F", NULL, FILTER_LIST,
 	  opt_string, OFF(filter)) },
 	{ OPT("sca", 's', "LIST", NULL, "SCAs; with more than one, FILE gets _wfiNN before "
 	  "its .fits suffix, one file per SCA", opt_string, OFF(sca)) },
@@ -336,7 +336,7 @@ int psf_main(int argc, char **argv)
 	int filter = filter_lookup(c.filter);
 	if (filter < 0) {
 		fprintf(stderr, "wfiscene psf: --filter: unknown filter '%s' "
-			"(F062 F087 F106 F129 F158 F184 F213 F146)\n", c.filter);
+			"(" FILTER_LIST ")\n", c.filter);
 		return EXIT_INPUT;
 	}
 	if (sca_parse_list(c.sca, &mask, &e)) {

@@ -27,9 +27,13 @@
 #include "names.h"
 #include "spectrum.h"
 
+/* The size classes a source may have (model.h, enum wfs_psf_class): 0 to
+ * SOURCE_CLASSES - 1, the halo's class WFS_PSF_HALO the next. */
+#define SOURCE_CLASSES WFS_PSF_HALO
+
 const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls)
 {
-	if (g->user_grid && cls < 3)
+	if (g->user_grid && cls < SOURCE_CLASSES)
 		return g->user_grid;
 	return __atomic_load_n(&g->grid[sca - 1][cls], __ATOMIC_ACQUIRE);
 }
@@ -67,7 +71,7 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 /* The halo's default radius (psf-halo-radius), pixels */
 #define HALO_RADIUS 256
 
-/* The halo (class 3): always the built-in optics' (a --psf file's core is
+/* The halo (class WFS_PSF_HALO): always the built-in optics' (a --psf file's core is
  * scaled to join it by the point model). */
 static int need_halo(struct engine *g, int sca, struct err *e)
 {
@@ -87,7 +91,7 @@ static int need_halo(struct engine *g, int sca, struct err *e)
 	if (!(grid = psf_builtin_halo(g->o->filter, sca, (int)rad, 1,
 				      g->o->level ? PSF_EPSF_NOIPC : PSF_EPSF, &g->pbo, e)))
 		return -1;
-	publish(g, sca, 3, grid);
+	publish(g, sca, WFS_PSF_HALO, grid);
 	return 0;
 }
 
@@ -99,7 +103,7 @@ static int load(struct engine *g, int sca, int cls, struct err *e)
 
 	if (psfgrids_get(g, sca, cls))
 		return 0;       /* another thread loaded it first */
-	if (cls == 3)
+	if (cls == WFS_PSF_HALO)
 		return need_halo(g, sca, e);
 	if (strcmp(o->psf, "builtin")) {
 		/* A user file: per SCA when the name holds %d, and then its one
@@ -182,7 +186,7 @@ int psfgrids_colour_init(struct engine *g)
 		return -1;
 	g->ncgrid = 2 * n;
 	snprintf(g->classes_str, sizeof(g->classes_str), "%d", 2 * n);
-	if (!(g->cgrid = calloc((size_t)WFS_NSCA * 3 * g->ncgrid, sizeof(*g->cgrid))))
+	if (!(g->cgrid = calloc((size_t)WFS_NSCA * SOURCE_CLASSES * g->ncgrid, sizeof(*g->cgrid))))
 		return err_set(g->e, EXIT_SYSTEM, "out of memory");
 	for (int k = 0; k < 2 * n; k++) {
 		int kind;
@@ -198,7 +202,7 @@ int psfgrids_colour_init(struct engine *g)
 
 static struct psf_grid **cslot(const struct engine *g, int sca, int cls, int k)
 {
-	return &g->cgrid[((size_t)(sca - 1) * 3 + cls) * g->ncgrid + k];
+	return &g->cgrid[((size_t)(sca - 1) * SOURCE_CLASSES + cls) * g->ncgrid + k];
 }
 
 const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int k)
@@ -264,11 +268,11 @@ int psfgrids_open_user(struct engine *g)
 void psfgrids_free(struct engine *g)
 {
 	for (int s = 0; s < WFS_NSCA; s++)
-		for (int c = 0; c < 4; c++)
+		for (int c = 0; c <= WFS_PSF_HALO; c++)
 			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
 				psf_grid_free(g->grid[s][c]);
 	psf_grid_free(g->user_grid);
-	for (size_t i = 0; g->cgrid && i < (size_t)WFS_NSCA * 3 * g->ncgrid; i++)
+	for (size_t i = 0; g->cgrid && i < (size_t)WFS_NSCA * SOURCE_CLASSES * g->ncgrid; i++)
 		psf_grid_free(g->cgrid[i]);
 	free(g->cgrid);
 	free(g->classes);

@@ -62,11 +62,6 @@
 #include "rng.h"
 #include "simd.h"
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RAMP_AVX2 1
-#endif
-
 enum {
 	DOM_RESET = 0x41,
 	DOM_CR = 0x42,
@@ -393,7 +388,7 @@ static void level1_start(struct l1row *R, const double *rate)
  * the previous group (the last read prev), Poisson counts and cosmic rays;
  * into D the Poisson count of each pixel's arrivals during the group's
  * reads, which level1_reads() spreads over them. */
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 __attribute__((target("avx512f"))) static int
 scale_row_avx512(const double *r, double a, double b, double *out, int n)
 {
@@ -413,7 +408,7 @@ static void scale_row(const double *r, double a, double b, double *out, int n)
 {
 	int i = 0;
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 	if (simd_flags() & SIMD_AVX512)
 		i = scale_row_avx512(r, a, b, out, n);
 #endif
@@ -656,7 +651,7 @@ static inline void read_pixel(struct l1row *R, const struct l1grp *G, int i,
 		(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
 }
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 /*
  * read_pixel() for the eight pixels i .. i+7, none hit by a cosmic ray,
  * with AVX-512: the same operations in the same order on each lane (no
@@ -830,13 +825,13 @@ static void level1_reads(struct l1row *R, int gi)
 	G.bk = d->beta * G.kvar * G.inv_n * G.inv_n;
 	G.exact_max = R->exact_max;
 	G.inv_g = 1 / d->gain;
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 	wide = (simd_flags() & SIMD_AVX512) != 0;
 #endif
 	/* the split's normal: the square root of a count's variance, the
 	 * very one it would compute, without the wait for a root per pixel
 	 * (eight at a time where the machine can: the same roots) */
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 	if (wide)
 		sq_avx512(G.sq, G.kvar);
 	else
@@ -863,7 +858,7 @@ static void level1_reads(struct l1row *R, int gi)
 		int m = n - i0 < 256 ? n - i0 : 256, j = 0;
 
 		rng_bits_n(&G.g, cell0 + (uint32_t)i0, 0, (size_t)m, w);
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 		/* eight at a time but where a cosmic ray hits */
 		for (; wide && j + 8 <= m; j += 8) {
 			int i = i0 + j;
@@ -979,7 +974,7 @@ static void ipc_span(const double *const src[3], const double kr[3][3], const fl
 	}
 }
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 /* ipc_span() eight pixels at a time with AVX2, the same operations in the
  * same order (no fused multiply-add), so the same DN; returns the first
  * pixel it left to the caller. */
@@ -1030,7 +1025,7 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 	double inv_g = 1 / d->gain, dnmax = 65535, kr[3][3];
 	int avx2 = 0;
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 	avx2 = (simd_flags() & SIMD_AVX2) != 0;
 #endif
 	/* kernel row dy + 1 acts on rows[1 - dy] */
@@ -1046,7 +1041,7 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 
 		for (int j = 0; j < 3; j++)
 			src[j] = (rows[2 - j] ? rows[2 - j] : row) + o;
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 		if (avx2 && n > 2)
 			xa = ipc_span_avx2(src, kr, ow, d->sat_e, inv_g, 1, n - 1, dn);
 #endif

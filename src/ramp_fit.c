@@ -14,23 +14,19 @@
 #include "ramp.h"
 #include "simd.h"
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RAMP_AVX2 1
-#endif
-
 static const double cas_power[6] = { 0, 0.4, 1, 3, 6, 10 };
+/* ... and the edges of its signal-to-noise bins, squared */
+static const double snr_edge2[5] = { 25, 100, 400, 2500, 10000 };
 
 /* Fixsen et al. (2000) / Casertano et al. (2022): the weighting power for a
  * ramp of signal-to-noise snr. */
 static int power_index(double sig, double var)
 {
 	/* snr = sig / sqrt(var) against the edges, squared */
-	static const double edge2[5] = { 25, 100, 400, 2500, 10000 };
 	double s2 = sig * sig;
 	int i = 0;
 
-	while (i < 5 && !(s2 < edge2[i] * var))
+	while (i < 5 && !(s2 < snr_edge2[i] * var))
 		i++;
 	return i;
 }
@@ -235,11 +231,7 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 				f = (s[i - 1] - s[i - 2]) / (p->tbar[i - 1] - p->tbar[i - 2]);
 				from = s[i - 1];
 				tfrom = p->tbar[i - 1];
-			} else if (i == 1) {
-				f = (s[0] - d->pedestal) / p->tbar[0];
-				from = s[0];
-				tfrom = p->tbar[0];
-			} else {
+			} else {        /* one or two resultants: from the pedestal */
 				f = (s[0] - d->pedestal) / p->tbar[0];
 				from = s[0];
 				tfrom = p->tbar[0];
@@ -345,7 +337,7 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
  * ramp_fit_pixel(); otherwise the numbers are the very ones it computes:
  * the same operations in the same order.
  */
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 /*
  * ramp_fit_row()'s common case for the eight pixels dn[0..8) with
  * AVX-512: the same operations in the same order on each lane, so the
@@ -356,7 +348,6 @@ __attribute__((target("avx512f,avx512dq"))) static unsigned
 fit8_avx512(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t plane, int lim,
 	    double vb, struct ramp_fit *out)
 {
-	static const double edge2[5] = { 25, 100, 400, 2500, 10000 };
 	int nres = fp->nres;
 	__m512d s[RAMP_MAX_RES], sig, var, s2, f, fj, zero = _mm512_setzero_pd();
 	__m512i pi = _mm512_setzero_si512(), one = _mm512_set1_epi64(1), wi;
@@ -380,7 +371,7 @@ fit8_avx512(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t plane, in
 	s2 = _mm512_mul_pd(sig, sig);
 	for (int e = 0; e < 5; e++)
 		pi = _mm512_mask_add_epi64(pi, _mm512_cmp_pd_mask(s2, _mm512_mul_pd(
-						   _mm512_set1_pd(edge2[e]), var), _CMP_NLT_UQ), pi, one);
+						   _mm512_set1_pd(snr_edge2[e]), var), _CMP_NLT_UQ), pi, one);
 	f = zero;
 	if (_mm512_cmpeq_epi64_mask(pi, _mm512_set1_epi64(pi[0])) == 0xff) {
 		/* one power for the eight (a sky): its weights as they are */
@@ -429,7 +420,7 @@ void ramp_fit_row(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t pla
 	double vb = fp->var_read[0] + fp->var_read[nres - 1], jump2 = fp->jump2;
 	int x = 0;
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 	if (nres >= 2 && (simd_flags() & SIMD_AVX512))
 		for (; x + 8 <= n; x += 8) {
 			unsigned bad = fit8_avx512(fp, dn + x, plane, lim, vb, out + x);

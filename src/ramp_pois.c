@@ -7,11 +7,6 @@
 #include "rng.h"
 #include "simd.h"
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RAMP_AVX2 1
-#endif
-
 /*
  * Poisson counts of a row from one Philox call per pixel (draw 0 of its
  * cell in generator g), whose four words all serve:
@@ -157,7 +152,7 @@ static inline double pois_small(double v, const uint32_t w[4], struct pois_tab *
 	return k;
 }
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 /*
  * pois_small() for the eight means v[0..8) with AVX-512, when each is
  * below POIS_INV and its m0 is 0 or one of the two tables' (the sky's):
@@ -290,7 +285,7 @@ void ramp_pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
 				 .victim = t[0].mu == -1 ? 0 : 1 };
 	int wide = 0;
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 	wide = (simd_flags() & SIMD_AVX512) != 0;
 #endif
 	for (int i0 = 0; i0 < n; i0 += 256) {
@@ -301,7 +296,7 @@ void ramp_pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
 			int i = i0 + j;
 			double v = mu[i];
 
-#ifdef RAMP_AVX2
+#ifdef SIMD_X86
 			if (wide && !(j & 7) && j + 8 <= m &&
 			    pois8_avx512(mu + i, w + j, t, &st, out + i)) {
 				j += 7;

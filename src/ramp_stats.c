@@ -2,13 +2,12 @@
 #include <math.h>
 
 #include "ramp_stats.h"
+#include "simd.h"
 
 /* The loops are along the row, each pixel on its own: vectorised (the
  * Makefile compiles this file with -O3), one clone a vector width, with
  * the same bytes in each (no fused or reordered arithmetic). */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
-__attribute__((target_clones("avx512f", "avx2", "default")))
-#endif
+SIMD_CLONES("avx512f", "avx2", "default")
 void ramp_stats_row(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t plane,
 		    const struct ramp_fit *fit, int n, double *scratch, float *chisq,
 		    float *dumo)

@@ -8,12 +8,6 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-/* RNG_NO_AVX2 builds the portable paths only (the tests use it to check
- * that they give the same numbers). */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(RNG_NO_AVX2)
-#include <immintrin.h>
-#define RNG_AVX2 1
-#endif
 
 /*
  * Philox4x32: each round multiplies words 0 and 2 by two constants (32x32 ->
@@ -142,7 +136,7 @@ static void philox8(const struct rng *g, uint32_t cell0, uint32_t draw,
 }
 #endif
 
-#ifdef RNG_AVX2
+#ifdef SIMD_X86
 /*
  * Sixteen calls with AVX2, the same arithmetic as philox8 on eight lanes
  * per register, chosen at run time (the results are the same integers, so
@@ -214,7 +208,7 @@ philox16_avx2(const struct rng *g, uint32_t cell0, uint32_t draw, uint32_t out[1
 }
 #endif
 
-#ifdef RNG_AVX2
+#ifdef SIMD_X86
 /*
  * Calls with AVX-512, a counter word in the low half of each 64-bit lane:
  * the 32 x 32 -> 64 bit multiplication then gives a lane's high and low
@@ -295,7 +289,7 @@ void rng_bits_n(const struct rng *g, uint32_t cell0, uint32_t draw, size_t n,
 {
 	size_t i = 0;
 
-#ifdef RNG_AVX2
+#ifdef SIMD_X86
 	if (n >= 16 && (simd_flags() & SIMD_AVX512)) {
 		for (; i + 8 * PHILOX_SETS <= n; i += 8 * PHILOX_SETS)
 			philox_avx512(g, cell0 + (uint32_t)i, draw, out + i);
@@ -579,7 +573,7 @@ static void ptrs_first(struct ptrs_cols *q, size_t n)
 		ptrs_first_one(q, i);
 }
 
-#ifdef RNG_AVX2
+#ifdef SIMD_X86
 /* The same, four pixels at a time; sqrt, division and floor are exactly
  * rounded in both. */
 __attribute__((target("avx2"))) static void ptrs_first_avx2(struct ptrs_cols *q, size_t n)
@@ -670,7 +664,7 @@ void rng_poisson_fill_approx(const struct rng *g, uint32_t cell0, size_t n,
 			 (mu[i] < normal_above);
 	}
 	if (nptrs) {
-#ifdef RNG_AVX2
+#ifdef SIMD_X86
 		if (simd_flags() & SIMD_AVX2)
 			ptrs_first_avx2(&q, n);
 		else

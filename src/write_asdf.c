@@ -449,7 +449,7 @@ static void meta_common(struct asdf_writer *aw, struct asdf_tree *t, struct fy_n
 static void meta_photometry(struct asdf_writer *aw, struct asdf_tree *t, struct fy_node *meta)
 {
 	struct fy_node *n = asdf_map(t, meta, "photometry", NULL);
-	double zp = place_zeropoint(aw->g, aw->sca);
+	double zp = filter_zeropoint(aw->g->o->filter, aw->sca, aw->g->o->zp_stips);
 	double area = WFS_PIXSCALE * WFS_PIXSCALE * ARCSEC_SR;
 
 	asdf_num(t, n, "conversion_megajanskys",
@@ -622,8 +622,7 @@ static int put_amp33(struct asdf_writer *aw, int k, const struct level_strip *s,
 
 /* n floats to IEEE halves (asdf_half's rounding), eight at a time by
  * F16C where the machine has it (every AVX2 machine does): the same bits */
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
+#ifdef SIMD_X86
 __attribute__((target("avx2,f16c"))) static void half8(const float *f, uint16_t *h, size_t n)
 {
 	for (size_t i = 0; i + 8 <= n; i += 8)
@@ -637,7 +636,7 @@ static void to_half(const float *f, uint16_t *h, size_t n)
 {
 	size_t i = 0;
 
-#if defined(__x86_64__) && defined(__GNUC__)
+#ifdef SIMD_X86
 	if (simd_flags() & SIMD_AVX2) {
 		half8(f, h, n);
 		i = n / 8 * 8;

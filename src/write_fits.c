@@ -132,7 +132,8 @@ static int image_cards(struct engine *g, int s, char **cards, int *n)
 	CARD(fits_card_str, "FILTER", g->filter_name, NULL);
 	CARD(fits_card_dbl, "EXPTIME", o->exptime, "exposure time (s)");
 	CARD(fits_card_str, "BUNIT", o->bunit_counts ? "counts" : "counts/s", NULL);
-	CARD(fits_card_dbl, "PHOTZPAB", place_zeropoint(g, sca), "AB mag of 1 count/s");
+	CARD(fits_card_dbl, "PHOTZPAB", filter_zeropoint(o->filter, sca, o->zp_stips),
+	     "AB mag of 1 count/s");
 	CARD(fits_card_dbl, "PA_APER", g->sky.sca[sca - 1].pa, "position angle of +y (deg)");
 	CARD(fits_card_dbl, "RA_APER", g->sky.sca[sca - 1].ra, "detector centre RA");
 	CARD(fits_card_dbl, "DEC_APER", g->sky.sca[sca - 1].dec, "detector centre Dec");

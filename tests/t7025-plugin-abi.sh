@@ -5,7 +5,8 @@
 # model's settings as the model declares them; a plugin built against the
 # first edition of model.h still loads and draws the same pixels; a plugin
 # with an unresolved symbol is refused when loaded, not mid-run; a type
-# with a setting of its name resolves to that family's model.
+# with a setting of its name resolves to that family's model; a model's
+# rows are written in romanisim's convention by what it declares.
 . "$(dirname "$0")/lib.sh"
 require_python
 
@@ -135,5 +136,31 @@ assert r[\"rows\"][\"by_model\"] == {\"counts-alt\": 12}, r[\"rows\"]
 " &&
 	test_must_fail --status 1 run --set counts=nosuch -o no.fits counts-sky.csv counts-pix.csv 2> err &&
 	test_grep "no model plugin .counts-nosuch.so." err
+'
+# The counting model as a user's sersic-quick, ahead of the built-in one
+# on the plugin path, with shape columns of its own names (model.h,
+# column_roles, roman_type).
+placed_rows() { grep -v "^#" "$1" | sed 1d | cut -d, -f7-11; }
+test_expect_success 'a model that declares its shape and romanisim type is written as SER' '
+	mkdir shaped && build ../shaped/sersic-quick counts "$TOP/include" \
+		-DCOUNTS_NAME="\"sersic-quick\"" -DCOUNTS_SHAPE &&
+	printf "x,y,sca,flux,type,side,index,hl,q,angle\n" > shape.csv &&
+	printf "500,600,1,300,TYPE,3,2.5,4,0.25,-30\n" >> shape.csv &&
+	sed s/TYPE/sersic/ shape.csv > shape-ser.csv &&
+	"$WFS" --filter F158 --sca 1 --ra 10 --dec 20 --plugin-path "$TRASH/shaped" \
+		--set placed=romanisim --placed ser.ecsv -o ser.fits shape-ser.csv &&
+	test "$(placed_rows ser.ecsv)" = "SER,2.5,0.22,330,0.25"
+'
+test_expect_success '... under its own name when SER would be drawn by another model' '
+	sed s/TYPE/sersic-quick/ shape.csv > shape-own.csv &&
+	"$WFS" --filter F158 --sca 1 --ra 10 --dec 20 --plugin-path "$TRASH/shaped" \
+		--sersic precise --set placed=romanisim --placed own.ecsv -o own.fits shape-own.csv &&
+	test "$(placed_rows own.ecsv)" = "sersic-quick,2.5,0.22,330,0.25"
+'
+test_expect_success '... and without the declarations, no type and no shape of romanisim' '
+	build ../shaped/sersic-quick counts "$TOP/include" -DCOUNTS_NAME="\"sersic-quick\"" &&
+	"$WFS" --filter F158 --sca 1 --ra 10 --dec 20 --plugin-path "$TRASH/shaped" \
+		--set placed=romanisim --placed bare.ecsv -o bare.fits shape-ser.csv &&
+	test "$(placed_rows bare.ecsv)" = "sersic-quick,-1,0,0,1"
 '
 test_done

@@ -42,11 +42,15 @@ declared_keys() {
 }
 
 # The files of the plugin whose main file is $1 (plugins/foo.c): its units
-# plugins/foo_*.c (as the Makefile links them) and the headers of the
-# directory they include.
+# plugins/foo_*.c and shared units (as the Makefile links them) and the
+# headers of the directory they include.
 plugin_files() {
 	dir=$(dirname "$1") base=$(basename "$1" .c)
 	set -- "$1" $(ls "$dir/${base}"_*.c 2> /dev/null)
+	# the units both Sersic plugins link in (the Makefile's SERSIC_UNITS)
+	case $base in sersic_quick|sersic_precise)
+		set -- "$@" "$dir/sersic_core.c" "$dir/sersic_render.c" ;;
+	esac
 	${CC:-cc} -MM -I"$TOP/include" "$@" | tr ' \\' '\n\n' |
 		grep "^$dir/.*\.[ch]\$" | sort -u
 }

@@ -15,34 +15,14 @@ import math
 import os
 import sys
 
+from roman_files import ecsv_rows, manifest, source
+
 roman = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
     os.path.dirname(__file__), "..", "..", "..", "shared", "roman")
 out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(
     os.path.dirname(__file__), "..", "..", "data")
 
 READ_TIME = 3.16247  # s, romanisim parameters.read_time
-
-
-def manifest():
-    """File name -> (repository, path, commit) from MANIFEST.tsv."""
-    rows = {}
-    for line in open(os.path.join(roman, "MANIFEST.tsv")):
-        f = line.rstrip("\n").split("\t")
-        if len(f) >= 6 and not line.startswith("#"):
-            rows[f[0]] = (f[3], f[4], f[5])
-    return rows
-
-
-def ecsv_rows(path):
-    """The data rows of a simple comma-separated ECSV as lists of strings."""
-    lines = [l.rstrip("\n") for l in open(path) if not l.startswith("#")]
-    head = lines[0].split(",")
-    return head, [l.split(",") for l in lines[1:] if l.strip()]
-
-
-def source(m, name):
-    repo, path, commit = m[name]
-    return "%s %s@%s" % (repo, path, commit[:12])
 
 
 def ma_tables(m):
@@ -128,6 +108,6 @@ def detector(m):
             o.write("dark\tWFI%02d\t%.3f\te-/s\tmean dark current\n" % (n, drk[n]))
 
 
-m = manifest()
+m = manifest(roman)
 ma_tables(m)
 detector(m)

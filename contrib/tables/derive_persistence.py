@@ -16,32 +16,15 @@ reads ../shared.
 import os
 import sys
 
+from roman_files import ecsv_rows, manifest, source
+
 roman = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
     os.path.dirname(__file__), "..", "..", "..", "shared", "roman")
 out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(
     os.path.dirname(__file__), "..", "..", "data")
 
 
-def manifest():
-    rows = {}
-    for line in open(os.path.join(roman, "MANIFEST.tsv")):
-        f = line.rstrip("\n").split("\t")
-        if len(f) >= 6 and not line.startswith("#"):
-            rows[f[0]] = (f[3], f[4], f[5])
-    return rows
-
-
-def ecsv_rows(path):
-    lines = [l.rstrip("\n") for l in open(path) if not l.startswith("#")]
-    return lines[0].split(","), [l.split(",") for l in lines[1:] if l.strip()]
-
-
-def source(m, name):
-    repo, path, commit = m[name]
-    return "%s %s@%s" % (repo, path, commit[:12])
-
-
-m = manifest()
+m = manifest(roman)
 head, fits = ecsv_rows(os.path.join(roman, "WFI_Persistence_exp_fits.ecsv"))
 assert head == ["SCU", "a", "b", "c", "d", "e"], head
 shead, summ = ecsv_rows(os.path.join(roman, "WFI_Persistence_summary.ecsv"))

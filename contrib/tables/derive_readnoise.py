@@ -29,6 +29,8 @@ import math
 import os
 import sys
 
+from roman_files import ecsv_rows, manifest
+
 roman = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
     os.path.dirname(__file__), "..", "..", "..", "shared", "roman")
 out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(
@@ -38,26 +40,14 @@ CAL = 1.075
 RATIO = {"ped": 1.0, "cpink": 0.75, "upink": 0.25, "acn": 0.125}
 
 
-def manifest():
-    rows = {}
-    for line in open(os.path.join(roman, "MANIFEST.tsv")):
-        f = line.rstrip("\n").split("\t")
-        if len(f) >= 6 and not line.startswith("#"):
-            rows[f[0]] = (f[3], f[4], f[5])
-    return rows
-
-
 def main():
     name = "WFI_CDS_Noise_summary.ecsv"
-    m = manifest()
+    m = manifest(roman)
     repo, path, commit = m[name]
-    lines = [l.rstrip("\n") for l in open(os.path.join(roman, name))
-             if not l.startswith("#")]
-    head = lines[0].split(",")
+    head, cells = ecsv_rows(os.path.join(roman, name))
     cds_col = head.index("CDS Noise - Median")
     rows = []
-    for l in lines[1:]:
-        f = l.split(",")
+    for f in cells:
         if not f[0].isdigit():
             continue
         w0 = float(f[cds_col]) / math.sqrt(2)

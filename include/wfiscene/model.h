@@ -64,6 +64,9 @@
  *                       stride (absent or 0: the first edition's 32 bytes on
  *                       LP64), so a grown wfs_column keeps old plugins readable.
  *   struct wfs_setting  an array in the plugin: wfs_model.setting_size.
+ *   column_roles        an array of int in the plugin, one per column:
+ *                       FROZEN; a later edition adds values, and a host
+ *                       ignores a role it does not know.
  *   struct wfs_host     the host's: its size field.
  *   struct wfs_source   the host's, read and partly written by the plugin:
  *                       wfs_host.source_size.  A plugin MUST NOT read an
@@ -135,13 +138,13 @@
  * model usually draws like another one, a point source: it then names that
  * model in wfs_model.drawn_by and does not draw at all (see drawn_by).
  *
- * Known by name.  Two things the host still does by a model's name or its
- * columns' names, which no field here lets a model say for itself yet:
- * --set placed=romanisim writes "point" rows as romanisim's PSF and
- * "sersic" rows as its SER (n, re and ratio, phi), other models' rows with
- * their model's name and no shape; and a romanisim catalog's galaxy (its
- * pa on the sky) is reshaped to the SIAF's pixels through the columns
- * named "re", "ratio" and "phi" of any model that has all three.
+ * Another convention.  --set placed=romanisim writes the placed sources
+ * as a romanisim catalog would give them (wfiscene-catalog(5)), and a
+ * romanisim catalog's galaxy, given on the sky, is reshaped into each
+ * SCA's own pixels.  The host does both from what a model declares
+ * (edition 6), never from its name or its columns' names: the type its
+ * rows take there (wfs_model.roman_type) and which of its columns are
+ * the shape of its source (wfs_model.column_roles).
  *
  * Resolving a catalog type.  A row of type T is drawn by the model T, except
  * when the scene has a setting T (an option of that name, or --set T=M):
@@ -172,10 +175,11 @@ extern "C" {
  * wfs_model.gather and spread, the setting spectral-classes, and what the
  * built-in models relied on stated here: WFS_SCA_SIDE, WFS_SCA_COUNT,
  * WFS_MAX_COLUMNS, WFS_PSF_HALO, WFS_PRINTF, the setting pixel-sigma,
- * thread_start()'s return value.  A plugin MAY test
+ * thread_start()'s return value; 6 wfs_model.column_roles
+ * (enum wfs_column_role) and roman_type.  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
-#define WFS_ABI_EDITION 5
+#define WFS_ABI_EDITION 6
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -376,6 +380,39 @@ struct wfs_host {
 };
 
 /*
+ * What a column is to the host beyond the model's own drawing
+ * (wfs_model.column_roles, edition 6): the shape of an elliptical source,
+ * which the host turns into another convention's and back.  A model gives
+ * each role to at most one column (the host refuses a model that gives
+ * one twice), and only to a column that means exactly this:
+ *
+ *   WFS_ROLE_SERSIC_INDEX  the Sérsic index n
+ *   WFS_ROLE_HALF_LIGHT    the half-light radius along the major axis, in
+ *                          pixels of the nominal 0.11 arcsec
+ *   WFS_ROLE_AXIS_RATIO    the axis ratio b/a, in (0, 1]
+ *   WFS_ROLE_ANGLE         the major axis's angle on the detector, degrees
+ *                          from +y toward -x
+ *
+ * With the last three a model draws an ellipse the host can reshape: a
+ * galaxy of a romanisim catalog (its pa on the sky) lands on the SIAF's
+ * pixels, which are neither square nor 0.11 arcsec, so the host maps its
+ * ellipse on the sky into each SCA's pixels and hands the model the
+ * radius, ratio and angle it has there.  A romanisim catalog's
+ * half_light_radius, ba and pa are read as the columns re, ratio and phi
+ * (wfiscene-catalog(5)), so a model whose shape columns have those names
+ * is given them.  The --placed list in romanisim's convention writes a
+ * source's n, half_light_radius, pa and ba from its columns of these
+ * roles (-1, 0, 0 and 1 without them).
+ */
+enum wfs_column_role {
+	WFS_ROLE_NONE = 0,
+	WFS_ROLE_SERSIC_INDEX = 1,
+	WFS_ROLE_HALF_LIGHT = 2,
+	WFS_ROLE_AXIS_RATIO = 3,
+	WFS_ROLE_ANGLE = 4
+};
+
+/*
  * A catalog column a model reads.  The host reads it case-insensitively by
  * name from any catalog format.  A required column missing from a catalog
  * that has a row of this model is an error naming the column, and so is an
@@ -530,6 +567,24 @@ struct wfs_model {
 	 * stays unallocated and gets nothing). */
 	int (*gather)(void *state, void *thread, int sca);
 	int (*spread)(void *state, void *thread, int sca, const struct wfs_window *win);
+
+	/* Edition 6.  The type this model's rows have in romanisim's
+	 * catalogs ("PSF" for a point source, "SER" for a Sérsic galaxy), or
+	 * NULL (and absent).  The --placed list in romanisim's convention
+	 * writes a row under this type when a romanisim catalog's row of
+	 * that type is drawn by this very model (wfiscene-catalog(5):
+	 * PSF is type point, SER type sersic, resolved as below), so that
+	 * the list read back gives the same image; otherwise, and without
+	 * it, under the model's own name. */
+	const char *roman_type;
+
+	/* Edition 6.  The enum wfs_column_role of each column, ncolumns of
+	 * them in the order of columns (WFS_ROLE_NONE for a column that is
+	 * only the model's), or NULL: no column has a role.  Absent (a
+	 * plugin of an older edition): the host takes the columns named n,
+	 * re, ratio and phi as the four roles, as hosts before edition 6
+	 * did by name. */
+	const int *column_roles;
 };
 
 /*

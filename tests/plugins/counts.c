@@ -9,6 +9,12 @@
  * settings declared, and against the first edition of the header
  * (tests/plugins/abi1/), which has neither; the #ifdef is what an author
  * keeping one source for both would write.  COUNTS_NAME names the model.
+ *
+ * With COUNTS_SHAPE (edition 6 on) it also reads four columns it does not
+ * draw with, index, hl, q and angle, and declares them the shape of its
+ * source (column_roles) and its rows romanisim's SER (roman_type), so that
+ * a test can see the host write them in romanisim's convention by what
+ * the model declares, whatever the columns' names.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -28,7 +34,20 @@ struct counts {
 
 static const struct wfs_column columns[] = {
 	{ "side", 5.0, 0, "side of the square, pixels (odd, 1 to 99)" },
+#ifdef COUNTS_SHAPE
+	{ "index", 1.0, 0, "the Sérsic index it would have" },
+	{ "hl", 1.0, 0, "half-light radius along the major axis, pixels" },
+	{ "q", 1.0, 0, "axis ratio b/a" },
+	{ "angle", 0.0, 0, "major axis, degrees from +y toward -x" },
+#endif
 };
+
+#ifdef COUNTS_SHAPE
+static const int roles[] = {
+	WFS_ROLE_NONE, WFS_ROLE_SERSIC_INDEX, WFS_ROLE_HALF_LIGHT, WFS_ROLE_AXIS_RATIO,
+	WFS_ROLE_ANGLE
+};
+#endif
 
 static int init(const struct wfs_host *host, void **state)
 {
@@ -113,7 +132,7 @@ static const struct wfs_model model = {
 	.name = COUNTS_NAME,
 	.summary = "test: a uniform square that counts the host's calls",
 	.columns = columns,
-	.ncolumns = 1,
+	.ncolumns = sizeof(columns) / sizeof(columns[0]),
 	.init = init,
 	.fini = fini,
 	.prepare = prepare,
@@ -125,6 +144,10 @@ static const struct wfs_model model = {
 	.settings = settings,
 	.nsettings = 1,
 	.reach = reach,
+#endif
+#ifdef COUNTS_SHAPE
+	.roman_type = "SER",
+	.column_roles = roles,
 #endif
 };
 

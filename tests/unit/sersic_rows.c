@@ -7,10 +7,13 @@
  * vmath.h's, the pixel's libm's), the same gradient and the same smooth
  * part; and sersic_rect_rel's 7-point first pass (sersic-centre-cut) taken
  * where the noise floor is the looser tolerance, and only there.  The
- * plugin's source is compiled in, so its static functions are reachable.
+ * plugin's sources are compiled in, so their static functions are
+ * reachable.
  */
 #include "tap.h"
 #include "../../plugins/sersic_quick.c"
+#include "../../plugins/sersic_core.c"
+#include "../../plugins/sersic_render.c"
 
 static double uniform(unsigned long long *s)
 {

@@ -1,66 +1,16 @@
 /*
- * sersic_render.h - rendering a Sérsic galaxy through the ePSF, shared by
- * sersic_quick.c and sersic_precise.c: the wings integrated per pixel and
- * convolved by FFT with second-order corrections, the core drawn on
- * sub-pixel cells at the galaxy's own phase.  The profile and its
- * integrals are sersic.h's; this is its second half, included by it once
- * struct sersic_gal and the cell helpers are defined, and not on its own.
+ * sersic_render.c - rendering a Sérsic galaxy through the ePSF, linked
+ * into both Sérsic plugins: the wings integrated per pixel and convolved
+ * by FFT with second-order corrections, the core drawn on sub-pixel cells
+ * at the galaxy's own phase.  The profile and its integrals are sersic.h's
+ * and sersic_core.c's; a plugin's own cell integral comes in through
+ * struct sersic_method.
  */
-#ifndef WFS_SERSIC_RENDER_H
-#define WFS_SERSIC_RENDER_H
-
-#ifndef WFS_SERSIC_H
-#error "sersic_render.h is part of sersic.h: include that"
-#endif
-
+#include <math.h>
 #include <stddef.h>
+#include <string.h>
 
-/*
- * How a plugin integrates the profile over an axis-aligned cell
- * [x0, x1] x [y0, y1] (offsets from the centre).  h is the cell's nominal
- * size (1 for pixels, 1/over for sub-pixel cells).
- */
-typedef double (*sersic_cell_fn)(const struct sersic_gal *g, const void *opt,
-				 double x0, double x1, double y0, double y1, double h);
-
-struct sersic_method {
-	sersic_cell_fn cell;
-	const void *opt;
-	int convolve;           /* 0: pixel integrals only (no PSF) */
-	double psf_core;        /* radius of the cubic ePSF core, pixels */
-	int core_k;             /* half-width of the sub-pixel core, pixels */
-	/* Optional: a wing pixel's integral *v and, where the light is
-	 * smooth over it (sersic_cell_scale at its nearest point at least
-	 * SERSIC_SMOOTH; the return value says so), the profile's gradient
-	 * at its centre (*gx, *gy; else 0), in one pass, sharing the work
-	 * of the two.  NULL: cell(), then that test and sersic_grad(). */
-	int (*wing)(const struct sersic_gal *g, const void *opt, double x0, double x1,
-		    double y0, double y1, double *v, double *gx, double *gy);
-	/* Optional, with wing: a block of block x block wing pixels
-	 * ([x0, x1] x [y0, y1], offsets) at once.  Returns -1 when the block
-	 * is dark (no light in any of its pixels), 1 when its light is faint
-	 * and smooth enough to be spread over its pixels from its integral *v
-	 * and the gradient (*gx, *gy) at its centre, 0 when its pixels must be
-	 * taken one by one. */
-	int (*block_fn)(const struct sersic_gal *g, const void *opt, double x0, double x1,
-			double y0, double y1, double *v, double *gx, double *gy);
-	int block;
-	/* Optional, with wing: the wing pixels xa..xb of row y at once (what
-	 * wing() gives each of them, and the same tests), pixel xa + k into
-	 * img[k], gxi[k], gyi[k] and lpi[k] (the smooth part: img where wing()
-	 * would return 1, else 0), *any and *rough as sersic_wing_pixel sets
-	 * them; so that the work of a row can be shared and run in vector
-	 * code. */
-	void (*wing_row)(const struct sersic_gal *g, const void *opt, int y, int xa, int xb,
-			 double *img, double *gxi, double *gyi, double *lpi, int *any, int *rough);
-	/* Optional: called once a stamp, after the galaxy is unpacked. */
-	void (*stamp_setup)(struct sersic_gal *g, const void *opt);
-	/* The first-moment terms (the gradient planes through the ePSF's
-	 * gradient) are left out of a stamp where a bound on what they add
-	 * to any pixel is at most this, counts/s (sersic-moment-cut times
-	 * the pixel noise; 0: always drawn). */
-	double moment_level;
-};
+#include "sersic.h"
 
 /* The ePSF samples at the galaxy: blend of four nodes at sample (ix, iy),
  * zero outside the array. */
@@ -142,30 +92,14 @@ static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, 
 	}
 }
 
-/*
- * The core is the (2K+1)^2 block of pixels around the centre drawn on
- * sub-pixel cells; K is the setting sersic-core (default SERSIC_CORE).
- * Outside it the pixel grid with the sharpened ePSF is accurate to second
- * order in the pixel size over the profile's length scale; inside it sits
- * the cusp (n > 1) and any structure finer than a pixel.  Measured against
- * K = 8 (contrib/sersic-bench.py), K = 1 is within 0.3% per pixel for
- * every galaxy of the benchmark grid and costs (4(2K+1)+1)^2 cells times
- * (2K+1+2 h)^2 pixels of direct sums, about 0.3 ms.
- */
-#define SERSIC_CORE 1
-
-/* Pixels whose light varies on a scale below this (pixels) get no
- * second-order correction (see sersic_wings_integrate). */
-#define SERSIC_SMOOTH 0.1
-
 /* The ePSF half-width in whole pixels. */
-static int sersic_psf_half(const struct wfs_epsf *e)
+int sersic_psf_half(const struct wfs_epsf *e)
 {
 	return e->centre / e->over;
 }
 
 /* The half-width drawn for src: prepare()'s cut (AUX_PSFH), or all of it. */
-static int sersic_psf_drawn(const struct wfs_epsf *e, const struct wfs_source *src)
+int sersic_psf_drawn(const struct wfs_epsf *e, const struct wfs_source *src)
 {
 	int hp = sersic_psf_half(e);
 	double h = src->aux[AUX_PSFH];
@@ -317,20 +251,6 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	return 0;
 }
 
-/* A wing pixel's integral v and gradient (gx, gy) into the planes at k:
- * the smooth part lpi is v where the light is smooth over the pixel (the
- * second-order terms hold there), else 0 and the pixel is rough. */
-static inline void sersic_wing_put(double *img, double *gxi, double *gyi, double *lpi, size_t k,
-				   double v, double gx, double gy, int smooth, int *any, int *rough)
-{
-	img[k] = v;
-	gxi[k] = gx;
-	gyi[k] = gy;
-	lpi[k] = smooth ? v : 0;
-	*any |= v != 0;
-	*rough |= lpi[k] != v;
-}
-
 /* One wing pixel (x, y), outside Q, into the stamp planes at offset o:
  * its integral, and the gradient at its centre where the light is smooth
  * over it. */
@@ -346,15 +266,11 @@ static inline void sersic_wing_pixel(const struct sersic_stamp *st, const struct
 	/* The corrections are a Taylor expansion over the pixel: only where
 	 * the light is smooth on it (a needle, q -> 0, is not, and would go
 	 * negative). */
-	if (m->wing) {
-		smooth = m->wing(g, m->opt, x0, x1, y0, y1, &v, &gx, &gy);
-	} else {
-		v = m->cell(g, m->opt, x0, x1, y0, y1, 1.0);
-		if (v != 0 && sersic_cell_scale(g, sersic_rho_min(g, x0, x1, y0, y1),
-						x0, x1, y0, y1) >= SERSIC_SMOOTH) {
-			sersic_grad(g, x - g->xc, y - g->yc, &gx, &gy);
-			smooth = 1;
-		}
+	v = m->cell(g, m->opt, x0, x1, y0, y1, 1.0);
+	if (v != 0 && sersic_cell_scale(g, sersic_rho_min(g, x0, x1, y0, y1),
+					x0, x1, y0, y1) >= SERSIC_SMOOTH) {
+		sersic_grad(g, x - g->xc, y - g->yc, &gx, &gy);
+		smooth = 1;
 	}
 	sersic_wing_put(st->img, st->gxi, st->gyi, st->lpi, o, v, gx, gy, smooth, any, rough);
 }
@@ -724,9 +640,9 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
  * scatters into the window is included; it is convolved with
  * host->convolve (FFTW) and only the window part is added.
  */
-static int sersic_render_common(const struct wfs_host *host, void *thread,
-				const struct wfs_source *src, const struct wfs_window *win,
-				const struct sersic_method *m)
+int sersic_render_common(const struct wfs_host *host, void *thread,
+			 const struct wfs_source *src, const struct wfs_window *win,
+			 const struct sersic_method *m)
 {
 	struct sersic_stamp st;
 	double hx, hy;
@@ -763,5 +679,3 @@ static int sersic_render_common(const struct wfs_host *host, void *thread,
 	sersic_core_add(&st, win, m);
 	return 0;
 }
-
-#endif

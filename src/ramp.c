@@ -320,15 +320,9 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 	return nh;
 }
 
-/* The tables at the start of the scratch (RAMP_TABS doubles). */
-_Static_assert(sizeof(struct pois_tab) <= RAMP_TAB_DOUBLES * sizeof(double), "scratch tables");
-
 void ramp_scratch_init(double *scratch)
 {
-	struct pois_tab *t = (struct pois_tab *)scratch;
-
-	for (int i = 0; i < 2 * (RAMP_MAX_RES + 1); i++)
-		t[i].mu = -1;
+	(void)scratch;
 }
 
 /* The state of one row's level1() call, shared by its steps. */
@@ -343,11 +337,9 @@ struct l1row {
 	double *ch;
 	float *own;
 	size_t cplane;
-	/* in the caller's scratch: the Poisson tables (kept across rows), and
-	 * per pixel the rate r, the true charge S collected so far, the reset
-	 * level P, the means mu, the group's arrivals D, the reset level seen
+	/* in the caller's scratch, per pixel: the rate r, the true charge S
+	 * collected so far, the reset level P, the means mu, the group's arrivals D, the reset level seen
 	 * through the NL Q, and w the read call of 256 pixels */
-	struct pois_tab *tabs;  /* two per group */
 	double *r, *S, *P, *mu, *D, *Q;
 	uint32_t (*w)[4];
 	/* 0: the default 4; below 0: never exact (the normal for every split) */
@@ -486,7 +478,7 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 	if (gap > 0 && R->light) {
 		scale_row(r, gap, dt, mu, n);
 		rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
-		ramp_pois_row(&g, R->cell0, n, mu, mu, &R->tabs[2 * RAMP_MAX_RES], R->normal_above);
+		ramp_pois_row(&g, R->cell0, n, mu, mu, R->normal_above);
 		for (int i = 0; i < n; i++)
 			S[i] += mu[i];
 	}
@@ -496,7 +488,7 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 	if (R->light) {
 		scale_row(r, N, dt, mu, n);
 		rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
-		ramp_pois_row(&g, R->cell0, n, mu, D, &R->tabs[2 * gi], R->normal_above);
+		ramp_pois_row(&g, R->cell0, n, mu, D, R->normal_above);
 	} else {
 		memset(D, 0, (size_t)n * sizeof(*D));
 	}
@@ -901,7 +893,6 @@ static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 	struct l1row R = {
 		.p = p, .d = d, .k = k, .cell0 = cell0, .n = n, .light = light,
 		.out = out, .plane = plane, .ch = ch, .own = own, .cplane = cplane,
-		.tabs = (struct pois_tab *)scratch,
 		.exact_max = k->split_exact_max > 0 ? k->split_exact_max :
 			     k->split_exact_max < 0 ? 0 : 4,
 		.normal_above = k->poisson_normal > 0 ? k->poisson_normal :
@@ -911,7 +902,7 @@ static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 	int prev = 0;
 
 	R.hits = hits;
-	R.r = scratch + RAMP_TABS;
+	R.r = scratch;
 	R.S = R.r + n;
 	R.P = R.S + n;
 	R.mu = R.P + n;

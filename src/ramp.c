@@ -650,6 +650,97 @@ static inline void read_pixel(struct l1row *R, const struct l1grp *G, int i,
 
 #ifdef RAMP_AVX2
 /*
+ * split_arrivals() for the eight lanes of read8_avx512(): W from the
+ * arrivals Di and words 2-3 of each lane's call (w23): none to place,
+ * digits, or the normal.  A lane it does not cover (a split of more digits
+ * than one number's, a ziggurat's slow case, a count beyond the root
+ * table) is added to *bad.  The same operations in the same order.
+ */
+__attribute__((target("avx512f,avx512dq"))) static inline __m512d
+split8_avx512(const struct l1grp *G, __m512d Di, __m512i w23, __mmask8 *bad)
+{
+	const __m512i b8 = _mm512_set1_epi64(0xff), one = _mm512_set1_epi64(1);
+	const __m512d sgn = _mm512_set1_pd(-0.0), scale = _mm512_set1_pd(0x1p-52);
+	const double *zx = rng_zig_x;
+	int N = G->N;
+	__m512d W = _mm512_mul_pd(Di, _mm512_set1_pd(N));
+	__mmask8 easy, exact, nrm;
+
+	easy = _mm512_cmp_pd_mask(Di, _mm512_setzero_pd(), _CMP_EQ_OQ) | (N == 1 ? 0xff : 0);
+	exact = ~easy & _mm512_cmp_pd_mask(Di, _mm512_set1_pd(G->exact_max), _CMP_LE_OQ);
+	nrm = ~easy & ~exact;
+	if (exact) {
+		const __m512i nv = _mm512_set1_epi64(N), m32 = _mm512_set1_epi64(0xffffffff);
+		__m512i nd = _mm512_cvttpd_epi64(Di), sum = _mm512_setzero_si512(), xx = w23;
+
+		*bad |= exact & (G->per < 4 ? 0xff : _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(4)));
+		for (int q = 0; q < 4; q++) {
+			__m512i lo = _mm512_mul_epu32(xx, nv);
+			__m512i hi = _mm512_add_epi64(_mm512_mul_epu32(_mm512_srli_epi64(xx, 32), nv),
+						      _mm512_srli_epi64(lo, 32));
+
+			xx = _mm512_or_si512(_mm512_slli_epi64(hi, 32), _mm512_and_si512(lo, m32));
+			sum = _mm512_mask_add_epi64(sum, _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(q)),
+						    sum, _mm512_srli_epi64(hi, 32));
+		}
+		W = _mm512_mask_sub_pd(W, exact, W, _mm512_cvtepi64_pd(sum));
+	}
+	if (nrm) {
+		__m512d zs, sd, c, zx0, zx1, lim = _mm512_set1_pd(SPLIT_SQ);
+		__m512i si, li = _mm512_and_si512(w23, b8);
+
+		zx0 = _mm512_i64gather_pd(li, zx, 8);
+		zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
+		zs = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w23, 11)),
+						 scale), zx0);
+		*bad |= nrm & _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, zs), zx1, _CMP_NLT_UQ);
+		*bad |= nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_NLT_UQ);
+		si = _mm512_maskz_cvttpd_epi64(nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_LT_OQ), Di);
+		sd = _mm512_i64gather_pd(si, G->sq, 8);
+		c = _mm512_add_pd(_mm512_div_pd(_mm512_mul_pd(Di, _mm512_set1_pd(N + 1)),
+						_mm512_set1_pd(2)), _mm512_mul_pd(sd, zs));
+		/* round_even: to nearest, ties to even, below 2^51 */
+		c = _mm512_mask_roundscale_pd(c, _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, c),
+								    _mm512_set1_pd(0x1p51), _CMP_LT_OQ),
+					      c, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, Di, _CMP_LT_OQ), Di);
+		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, W, _CMP_GT_OQ), W);
+		W = _mm512_mask_mov_pd(W, nrm, c);
+	}
+	return W;
+}
+
+/* The lanes q of read8_avx512() whose only slow case is the read noise's
+ * deviate (badz): that deviate alone, as read_pixel() would draw it, into
+ * what it changes (the charge does not hold it); mm the lanes' measured
+ * means. */
+static void read8_slow_noise(struct l1row *R, const struct l1grp *G, int i,
+			     const uint32_t (*w)[4], unsigned badz, const double mm[8])
+{
+	const struct ramp_det *d = R->d;
+
+	for (int q = 0; q < 8; q++) {
+		double zq, v;
+
+		if (!(badz >> q & 1))
+			continue;
+		zq = rng_normal_bits(&G->g, R->cell0 + (uint32_t)(i + q), w[q][0], w[q][1]);
+		if (R->ch) {
+			size_t o = (size_t)G->gi * R->cplane + (size_t)(i + q);
+
+			R->own[o] = (float)(R->Q[i + q] + G->sn * zq);
+			continue;
+		}
+		v = mm[q] + G->sn * zq;
+		if (v > d->sat_e)
+			v = d->sat_e;
+		v = round_even(v * G->inv_g);
+		R->out[(size_t)G->gi * R->plane + (size_t)(i + q)] =
+			(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+	}
+}
+
+/*
  * read_pixel() for the eight pixels i .. i+7, none hit by a cosmic ray,
  * with AVX-512: the same operations in the same order on each lane (no
  * fused multiply-add), so the same numbers.  A lane the common path does
@@ -666,16 +757,15 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 	const __m512i b8 = _mm512_set1_epi64(0xff), one = _mm512_set1_epi64(1);
 	const __m512d sgn = _mm512_set1_pd(-0.0), scale = _mm512_set1_pd(0x1p-52);
 	const double *zx = rng_zig_x;
-	int N = G->N;
 	__m512i lo4 = _mm512_loadu_si512(w[0]), hi4 = _mm512_loadu_si512(w[4]);
 	/* words 0:1 and 2:3 of each call as 64-bit numbers, word 0 high */
 	__m512i w01 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, ev, hi4), 32);
 	__m512i w23 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, od, hi4), 32);
-	__m512d Di = _mm512_loadu_pd(R->D + i), Nd = _mm512_set1_pd(N);
+	__m512d Di = _mm512_loadu_pd(R->D + i);
 	__m512d s0 = _mm512_add_pd(_mm512_loadu_pd(R->P + i), _mm512_loadu_pd(R->S + i));
 	__m512d z, W, mm, nz, x, zx0, zx1;
 	__m512i li;
-	__mmask8 bad = 0, badz, easy, exact, nrm;
+	__mmask8 bad = 0, badz;
 
 	/* the read noise's deviate (rng_normal_bits) */
 	li = _mm512_and_si512(w01, b8);
@@ -684,50 +774,8 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 	z = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w01, 11)), scale),
 			  zx0);
 	badz = _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, z), zx1, _CMP_NLT_UQ);
-	/* the split (split_arrivals): none to place, digits, or the normal */
-	easy = _mm512_cmp_pd_mask(Di, _mm512_setzero_pd(), _CMP_EQ_OQ) | (N == 1 ? 0xff : 0);
-	exact = ~easy & _mm512_cmp_pd_mask(Di, _mm512_set1_pd(G->exact_max), _CMP_LE_OQ);
-	nrm = ~easy & ~exact;
-	W = _mm512_mul_pd(Di, Nd);
-	if (exact) {
-		const __m512i nv = _mm512_set1_epi64(N), m32 = _mm512_set1_epi64(0xffffffff);
-		__m512i nd = _mm512_cvttpd_epi64(Di), sum = _mm512_setzero_si512(), xx = w23;
-
-		bad |= exact & (G->per < 4 ? 0xff : _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(4)));
-		for (int q = 0; q < 4; q++) {
-			__m512i lo = _mm512_mul_epu32(xx, nv);
-			__m512i hi = _mm512_add_epi64(_mm512_mul_epu32(_mm512_srli_epi64(xx, 32), nv),
-						      _mm512_srli_epi64(lo, 32));
-
-			xx = _mm512_or_si512(_mm512_slli_epi64(hi, 32), _mm512_and_si512(lo, m32));
-			sum = _mm512_mask_add_epi64(sum, _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(q)),
-						    sum, _mm512_srli_epi64(hi, 32));
-		}
-		W = _mm512_mask_sub_pd(W, exact, W, _mm512_cvtepi64_pd(sum));
-	}
-	if (nrm) {
-		__m512d zs, sd, c, lim = _mm512_set1_pd(SPLIT_SQ);
-		__m512i si;
-
-		li = _mm512_and_si512(w23, b8);
-		zx0 = _mm512_i64gather_pd(li, zx, 8);
-		zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
-		zs = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w23, 11)),
-						 scale), zx0);
-		bad |= nrm & _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, zs), zx1, _CMP_NLT_UQ);
-		bad |= nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_NLT_UQ);
-		si = _mm512_maskz_cvttpd_epi64(nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_LT_OQ), Di);
-		sd = _mm512_i64gather_pd(si, G->sq, 8);
-		c = _mm512_add_pd(_mm512_div_pd(_mm512_mul_pd(Di, _mm512_set1_pd(N + 1)),
-						_mm512_set1_pd(2)), _mm512_mul_pd(sd, zs));
-		/* round_even: to nearest, ties to even, below 2^51 */
-		c = _mm512_mask_roundscale_pd(c, _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, c),
-								    _mm512_set1_pd(0x1p51), _CMP_LT_OQ),
-					      c, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, Di, _CMP_LT_OQ), Di);
-		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, W, _CMP_GT_OQ), W);
-		W = _mm512_mask_mov_pd(W, nrm, c);
-	}
+	/* the split (split_arrivals) */
+	W = split8_avx512(G, Di, w23, &bad);
 	/* the afterglow's arrivals, after the light's split, as read_pixel()
 	 * adds them */
 	if (R->glow) {
@@ -757,33 +805,13 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 		_mm_storeu_si128((__m128i *)(R->out + (size_t)G->gi * R->plane + (size_t)i),
 				 _mm512_cvtepi64_epi16(_mm512_cvttpd_epi64(v)));
 	}
-	/* a lane whose only slow case is the read noise's deviate: that
-	 * deviate alone, as read_pixel() would draw it, into what it
-	 * changes (the charge does not hold it) */
+	/* a lane whose only slow case is the read noise's deviate */
 	badz &= ~bad;
 	if (badz) {
 		double mq[8];
 
 		_mm512_storeu_pd(mq, mm);
-		for (int q = 0; q < 8; q++) {
-			double zq, v;
-
-			if (!(badz >> q & 1))
-				continue;
-			zq = rng_normal_bits(&G->g, R->cell0 + (uint32_t)(i + q), w[q][0], w[q][1]);
-			if (R->ch) {
-				size_t o = (size_t)G->gi * R->cplane + (size_t)(i + q);
-
-				R->own[o] = (float)(R->Q[i + q] + G->sn * zq);
-				continue;
-			}
-			v = mq[q] + G->sn * zq;
-			if (v > d->sat_e)
-				v = d->sat_e;
-			v = round_even(v * G->inv_g);
-			R->out[(size_t)G->gi * R->plane + (size_t)(i + q)] =
-				(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
-		}
+		read8_slow_noise(R, G, i, w, badz, mq);
 	}
 	return bad;
 }

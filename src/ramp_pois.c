@@ -100,12 +100,17 @@ static inline int pois_lookup(const struct pois_tab *t, double u)
 /* The tables of m0 = j POIS_STEP, j = 1 .. POIS_NM - 1 (j = 0, a mean of
  * 0, has none), built by the first ramp_pois_row(). */
 static struct pois_tab pois_tabs[POIS_NM];
+static double pois_top;          /* the least of their F(POIS_TAB - 1) */
 static pthread_once_t pois_once = PTHREAD_ONCE_INIT;
 
 static void pois_build(void)
 {
-	for (int j = 1; j < POIS_NM; j++)
+	pois_top = 1;
+	for (int j = 1; j < POIS_NM; j++) {
 		pois_tabulate(&pois_tabs[j], j * POIS_STEP);
+		if (pois_tabs[j].cdf[POIS_TAB - 1] < pois_top)
+			pois_top = pois_tabs[j].cdf[POIS_TAB - 1];
+	}
 }
 
 /* What pois_row() carries from pixel to pixel: exp(-delta) of the last
@@ -180,7 +185,7 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_state *st, dou
 	const long long stride = (long long)sizeof(struct pois_tab);
 	const unsigned char *guide0 = pois_tabs[0].guide;
 	const double *cdf0 = pois_tabs[0].cdf;
-	__m512d x = _mm512_loadu_pd(v), m0, delta, u, u2, d2, kd, top;
+	__m512d x = _mm512_loadu_pd(v), m0, delta, u, u2, d2, kd;
 	__m512i lo4, hi4, w01, w23, j, k, off, ci;
 	__mmask8 lit, more, rest, slow;
 	double rests[8], vq[8];
@@ -198,11 +203,11 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_state *st, dou
 	u = _mm512_mul_pd(_mm512_cvtepu64_pd(_mm512_srli_epi64(w01, 11)), u53);
 	/* each lane's table: its offset from pois_tabs[0] in bytes, in
 	 * doubles for the cdf (a table is a whole number of doubles) */
-	off = _mm512_mullo_epi64(j, _mm512_set1_epi64(stride));
+	off = _mm512_mul_epu32(j, _mm512_set1_epi64(stride));
 	ci = _mm512_srli_epi64(off, 3);
-	top = _mm512_mask_i64gather_pd(c1, lit, _mm512_add_epi64(ci, _mm512_set1_epi64(POIS_TAB - 1)),
-				       cdf0, 8);
-	slow = lit & _mm512_cmp_pd_mask(u, top, _CMP_NLT_UQ);
+	/* past the least table's top (u within ulps of 1: never seen), the
+	 * lane's own table decides, below */
+	slow = lit & _mm512_cmp_pd_mask(u, _mm512_set1_pd(pois_top), _CMP_NLT_UQ);
 	k = _mm512_mask_i64gather_epi64(_mm512_setzero_si512(), lit & ~slow,
 					_mm512_add_epi64(off, _mm512_cvttpd_epi64(_mm512_mul_pd(
 						u, _mm512_set1_pd(POIS_GUIDE)))), guide0, 1);
@@ -265,8 +270,13 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_state *st, dou
 	for (int q = 0; q < 8 && (slow | rest); q++) {
 		double mq = (double)(int)(vq[q] * (1 / POIS_STEP)) * POIS_STEP;
 
-		if (slow >> q & 1)
-			out[q] += rng_poisson_invert(rng_u01(w[q][0], w[q][1]), mq, exp(-mq));
+		if (slow >> q & 1) {
+			const struct pois_tab *t = &pois_tabs[(int)(vq[q] * (1 / POIS_STEP))];
+			double uq = rng_u01(w[q][0], w[q][1]);
+
+			out[q] += uq < t->cdf[POIS_TAB - 1] ? pois_lookup(t, uq) :
+				  rng_poisson_invert(uq, mq, exp(-mq));
+		}
 		if (rest >> q & 1)
 			out[q] += pois_rest(vq[q] - mq, rests[q], st);
 	}

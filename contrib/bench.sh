@@ -354,7 +354,38 @@ r = j['seconds']
 print('| %d | %d | %.1f | %.1f | %.0f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f |' % ($huge,
       j['rows']['placements'], $1, $2, $huge / $1, $3 / 1024, r['read_parse'],
       r['project_place'], r['render_busy'], r['render_wait'], r['write']))"
+rm -f "$W/o.fits"
+
+echo
+echo "## The same sky rows at level 2, and an empty exposure with all noise"
+echo
+echo "Level 2 of the 18 SCAs (MA table 4, the filter's average background; one"
+echo "run: it writes 6 GB; issue goal: 60 s wall, 2 GB peak):"
+echo "\`wfiscene --filter F158 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --level 2 --background avg --report r.json -o out.fits sky.csv\`."
+echo "An empty catalog on the 18 SCAs with every noise stage (median of 3; goal"
+echo "10 s wall): \`wfiscene --filter F129 --sca 1-18 --noise all --background avg --report r.json -o out.fits empty.csv\`."
+echo "Noise is the --report's noise stage (the ramps and fits at level 2, wall"
+echo "time less the writing it overlaps), write its writing."
+echo
+echo "| run | wall s | CPU s | peak MiB | read+parse s | project+place s | render busy s | noise s | write s |"
+echo "|---|---|---|---|---|---|---|---|---|"
+set -- $(measure3 "'$WFS' --filter F158 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --level 2 --background avg --report '$W/rl2.json' -o '$W/o.fits' '$W/sky.csv'")
+/usr/bin/python3 -c "
+import json
+r = json.load(open('$W/rl2.json'))['seconds']
+print('| level 2, 10^7 sky rows | %.1f | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f |' % ($1, $2, $3 / 1024,
+      r['read_parse'], r['project_place'], r['render_busy'], r['noise'], r['write']))"
 rm -f "$W/o.fits" "$W/sky.csv"
+for k in 1 2 3; do
+	echo "$(measure3 "'$WFS' --filter F129 --sca 1-18 --noise all --background avg --report '$W/rn_$k.json' -o '$W/o.fits' '$W/empty.csv'") $k"
+done | sort -n | sed -n 2p > "$W/rn.med"
+set -- $(cat "$W/rn.med")
+/usr/bin/python3 -c "
+import json
+r = json.load(open('$W/rn_$4.json'))['seconds']
+print('| empty, --noise all | %.1f | %.1f | %.0f | | | | %.1f | %.1f |' % ($1, $2, $3 / 1024,
+      r['noise'], r['write']))"
+rm -f "$W/o.fits"
 
 echo
 echo "## Noise, per stage"

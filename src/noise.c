@@ -36,6 +36,7 @@
 #include "instrument.h"
 #include "noise.h"
 #include "rng.h"
+#include "simd.h"
 
 /* Domains: the stage in bits 0-7, the filter in 8-15, the SCA in 16-23. */
 enum {
@@ -378,6 +379,190 @@ static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
 	}
 }
 
+/*
+ * The Poisson stage's counts of means below POIS_FAST (all but a star's
+ * core), eight at a time without a call to exp() per pixel.  The count of
+ * rng_poisson_fill_approx() for a mean m < 10 is the inversion k = min{k :
+ * u < F(k)} of u from words 0-1 of the cell's draw 0, F built from e =
+ * exp(-m) by F(0) = e, F(k) = F(k-1) + p(k), p(k) = p(k-1) m (1/k)
+ * (rng_poisson_invert).  Rounded products and sums are monotone in each
+ * argument, so F built the same way from a bracket e_lo <= e <= e_hi
+ * brackets F; e is approximated here (range reduction by ln 2 and a
+ * degree-12 Taylor polynomial, relative error below 1e-15) and bracketed
+ * by 2^-40 either side.  Where the counts of the two brackets agree the
+ * count is the exact one; a lane where they do not (u within 1e-12 of a
+ * step of F: never seen in practice) or that needs more than POIS_STEPS
+ * terms takes rng_poisson_invert() with libm's exp.  So the same counts as
+ * before, bit for bit, with libm's exp() per pixel (a sky varies by pixel
+ * area: the mean changes at every pixel) gone.
+ */
+#define POIS_FAST 10.0
+#define POIS_STEPS 48
+
+/* Eight lanes in GCC's vector types, compiled for AVX-512 and for AVX2
+ * (two halves) below, into which the functions on them are inlined. */
+typedef double v8d __attribute__((vector_size(64)));
+typedef long long v8l __attribute__((vector_size(64)));
+
+static const double recip_k[POIS_STEPS] = {
+	0, 1.0 / 1, 1.0 / 2, 1.0 / 3, 1.0 / 4, 1.0 / 5, 1.0 / 6, 1.0 / 7,
+	1.0 / 8, 1.0 / 9, 1.0 / 10, 1.0 / 11, 1.0 / 12, 1.0 / 13, 1.0 / 14, 1.0 / 15,
+	1.0 / 16, 1.0 / 17, 1.0 / 18, 1.0 / 19, 1.0 / 20, 1.0 / 21, 1.0 / 22, 1.0 / 23,
+	1.0 / 24, 1.0 / 25, 1.0 / 26, 1.0 / 27, 1.0 / 28, 1.0 / 29, 1.0 / 30, 1.0 / 31,
+	1.0 / 32, 1.0 / 33, 1.0 / 34, 1.0 / 35, 1.0 / 36, 1.0 / 37, 1.0 / 38, 1.0 / 39,
+	1.0 / 40, 1.0 / 41, 1.0 / 42, 1.0 / 43, 1.0 / 44, 1.0 / 45, 1.0 / 46, 1.0 / 47,
+};
+
+/* exp(-m) for 0 <= m < POIS_FAST, relative error below 1e-15. */
+static inline __attribute__((always_inline)) void exp_neg8(const v8d *mp, v8d *out)
+{
+	const double magic = 0x1.8p52;
+	v8d x = -*mp, t = x * 1.4426950408889634 + magic, nd = t - magic, r, p;
+	v8l sc;
+
+	/* r = x - n ln 2 (Cody-Waite: ln 2 in two parts, the first exact
+	 * times n) */
+	r = (x - nd * 0x1.62e42fee00000p-1) - nd * 0x1.a39ef35793c76p-33;
+	p = r * (1.0 / 479001600) + 1.0 / 39916800;
+	p = p * r + 1.0 / 3628800;
+	p = p * r + 1.0 / 362880;
+	p = p * r + 1.0 / 40320;
+	p = p * r + 1.0 / 5040;
+	p = p * r + 1.0 / 720;
+	p = p * r + 1.0 / 120;
+	p = p * r + 1.0 / 24;
+	p = p * r + 1.0 / 6;
+	p = p * r + 0.5;
+	p = p * r + 1.0;
+	p = p * r + 1.0;
+	/* 2^n from t's low bits (n = -15 .. 0) */
+	sc = ((v8l)t - 0x4338000000000000LL + 1023) << 52;
+	*out = p * (v8d)sc;
+}
+
+/* Counts of the eight means m (0 <= m < POIS_FAST) from the uniforms u
+ * into out; the lanes it leaves (a bracket that does not decide, or too
+ * many terms) in the mask returned. */
+static inline __attribute__((always_inline)) unsigned
+pois_fast8(const v8d *mp, const v8d *up, double *out)
+{
+	v8d m = *mp, u = *up, e, plo, phi, flo, fhi, ka = { 0 }, kb = { 0 };
+	v8l go;
+	unsigned left = 0;
+	int k = 1;
+
+	exp_neg8(mp, &e);
+	plo = e * (1 - 0x1p-40);
+	phi = e * (1 + 0x1p-40);
+	flo = plo;
+	fhi = phi;
+
+	for (;; k++) {
+		v8l a = u >= fhi, b = u >= flo;
+		v8d mk;
+
+		/* ka counts the F_hi(j) <= u, kb the F_lo(j) <= u */
+		ka -= (v8d)__builtin_convertvector(a, v8d);
+		kb -= (v8d)__builtin_convertvector(b, v8d);
+		go = b;
+		{
+			long long any = 0;
+
+			for (int q = 0; q < 8; q++)
+				any |= go[q];
+			if (!any || k == POIS_STEPS)
+				break;
+		}
+		mk = m * recip_k[k];
+		plo *= mk;
+		phi *= mk;
+		flo += plo;
+		fhi += phi;
+	}
+	for (int q = 0; q < 8; q++) {
+		left |= (unsigned)(ka[q] != kb[q] || go[q] != 0) << q;
+		out[q] = kb[q];
+	}
+	return left;
+}
+
+/* The body of poisson_small_fill() for 8 lanes at a time. */
+static inline __attribute__((always_inline)) int
+pois_fill8(const double *m, const uint32_t (*w)[4], int n, double *out)
+{
+	int i = 0;
+
+	for (; i + 8 <= n; i += 8) {
+		v8d mv, uv;
+		unsigned left;
+
+		for (int q = 0; q < 8; q++) {
+			/* a large mean's lane is drawn again by the caller */
+			mv[q] = m[i + q] < POIS_FAST ? m[i + q] : 0;
+			uv[q] = rng_u01(w[i + q][0], w[i + q][1]);
+		}
+		left = pois_fast8(&mv, &uv, out + i);
+		for (int q = 0; left; q++, left >>= 1)
+			if (left & 1)
+				out[i + q] = rng_poisson_invert(uv[q], mv[q], exp(-mv[q]));
+	}
+	return i;
+}
+
+#ifdef SIMD_X86
+__attribute__((target("avx512f,avx512dq"))) static int
+pois_fill8_avx512(const double *m, const uint32_t (*w)[4], int n, double *out)
+{
+	return pois_fill8(m, w, n, out);
+}
+
+__attribute__((target("avx2"))) static int
+pois_fill8_avx2(const double *m, const uint32_t (*w)[4], int n, double *out)
+{
+	return pois_fill8(m, w, n, out);
+}
+#endif
+
+/*
+ * rng_poisson_fill_approx(g, cell0, n, m, m, normal_above) for n <= CHUNK
+ * means m >= 0 of which most are below POIS_FAST: those by pois_fast8(),
+ * the runs of larger ones by rng_poisson_fill_approx() (a cell's numbers
+ * are its own, so a run gives the counts the whole row would).  The same
+ * counts, into m; w: CHUNK calls of scratch.
+ */
+static void poisson_small_fill(const struct rng *g, uint32_t cell0, int n, double *m,
+			       double normal_above, uint32_t (*w)[4])
+{
+	double out[CHUNK];
+	int i = 0, f = simd_flags();
+
+	rng_bits_n(g, cell0, 0, (size_t)n, w);
+#ifdef SIMD_X86
+	if (f & SIMD_AVX512)
+		i = pois_fill8_avx512(m, w, n, out);
+	else if (f & SIMD_AVX2)
+		i = pois_fill8_avx2(m, w, n, out);
+#endif
+	(void)f;
+	for (; i < n; i++) {
+		double u = rng_u01(w[i][0], w[i][1]);
+
+		out[i] = m[i] > 0 && m[i] < POIS_FAST ? rng_poisson_invert(u, m[i], exp(-m[i])) : 0;
+	}
+	/* the large means, by runs, as rng_poisson_fill_approx draws them */
+	for (i = 0; i < n; i++) {
+		int e = i;
+
+		while (e < n && !(m[e] < POIS_FAST))
+			e++;
+		if (e > i)
+			rng_poisson_fill_approx(g, cell0 + (uint32_t)i, (size_t)(e - i), m + i,
+						out + i, normal_above);
+		i = e;
+	}
+	memcpy(m, out, (size_t)n * sizeof(*m));
+}
+
 int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 	       int ny, double *pix, ptrdiff_t stride)
 {
@@ -452,8 +637,7 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 					c[i] = m;
 					z[i] = isfinite(m) ? fabs(m) : 0;
 				}
-				rng_poisson_fill_approx(&g_pois, (uint32_t)cell, (size_t)n, z, z,
-							normal_above);
+				poisson_small_fill(&g_pois, (uint32_t)cell, n, z, normal_above, w);
 				for (int i = 0; i < n; i++)
 					if (isfinite(c[i]))
 						c[i] = c[i] < 0 ? -z[i] : z[i];

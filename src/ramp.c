@@ -315,15 +315,9 @@ static int cr_hits(const struct ramp_pattern *p, const struct ramp_det *d,
 	return nh;
 }
 
-/* The tables at the start of the scratch (RAMP_TABS doubles). */
-_Static_assert(sizeof(struct pois_tab) <= RAMP_TAB_DOUBLES * sizeof(double), "scratch tables");
-
 void ramp_scratch_init(double *scratch)
 {
-	struct pois_tab *t = (struct pois_tab *)scratch;
-
-	for (int i = 0; i < 2 * (RAMP_MAX_RES + 1); i++)
-		t[i].mu = -1;
+	(void)scratch;
 }
 
 /* The state of one row's level1() call, shared by its steps. */
@@ -338,11 +332,9 @@ struct l1row {
 	double *ch;
 	float *own;
 	size_t cplane;
-	/* in the caller's scratch: the Poisson tables (kept across rows), and
-	 * per pixel the rate r, the true charge S collected so far, the reset
-	 * level P, the means mu, the group's arrivals D, the reset level seen
+	/* in the caller's scratch, per pixel: the rate r, the true charge S
+	 * collected so far, the reset level P, the means mu, the group's arrivals D, the reset level seen
 	 * through the NL Q, and w the read call of 256 pixels */
-	struct pois_tab *tabs;  /* two per group */
 	double *r, *S, *P, *mu, *D, *Q;
 	uint32_t (*w)[4];
 	/* 0: the default 4; below 0: never exact (the normal for every split) */
@@ -481,7 +473,7 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 	if (gap > 0 && R->light) {
 		scale_row(r, gap, dt, mu, n);
 		rng_init(&g, k->seed, domain(k, DOM_GAP, gi));
-		ramp_pois_row(&g, R->cell0, n, mu, mu, &R->tabs[2 * RAMP_MAX_RES], R->normal_above);
+		ramp_pois_row(&g, R->cell0, n, mu, mu, R->normal_above);
 		for (int i = 0; i < n; i++)
 			S[i] += mu[i];
 	}
@@ -491,7 +483,7 @@ static void level1_arrivals(struct l1row *R, int gi, int prev)
 	if (R->light) {
 		scale_row(r, N, dt, mu, n);
 		rng_init(&g, k->seed, domain(k, DOM_POIS, gi));
-		ramp_pois_row(&g, R->cell0, n, mu, D, &R->tabs[2 * gi], R->normal_above);
+		ramp_pois_row(&g, R->cell0, n, mu, D, R->normal_above);
 	} else {
 		memset(D, 0, (size_t)n * sizeof(*D));
 	}
@@ -653,6 +645,97 @@ static inline void read_pixel(struct l1row *R, const struct l1grp *G, int i,
 
 #ifdef SIMD_X86
 /*
+ * split_arrivals() for the eight lanes of read8_avx512(): W from the
+ * arrivals Di and words 2-3 of each lane's call (w23): none to place,
+ * digits, or the normal.  A lane it does not cover (a split of more digits
+ * than one number's, a ziggurat's slow case, a count beyond the root
+ * table) is added to *bad.  The same operations in the same order.
+ */
+__attribute__((target("avx512f,avx512dq"))) static inline __m512d
+split8_avx512(const struct l1grp *G, __m512d Di, __m512i w23, __mmask8 *bad)
+{
+	const __m512i b8 = _mm512_set1_epi64(0xff), one = _mm512_set1_epi64(1);
+	const __m512d sgn = _mm512_set1_pd(-0.0), scale = _mm512_set1_pd(0x1p-52);
+	const double *zx = rng_zig_x;
+	int N = G->N;
+	__m512d W = _mm512_mul_pd(Di, _mm512_set1_pd(N));
+	__mmask8 easy, exact, nrm;
+
+	easy = _mm512_cmp_pd_mask(Di, _mm512_setzero_pd(), _CMP_EQ_OQ) | (N == 1 ? 0xff : 0);
+	exact = ~easy & _mm512_cmp_pd_mask(Di, _mm512_set1_pd(G->exact_max), _CMP_LE_OQ);
+	nrm = ~easy & ~exact;
+	if (exact) {
+		const __m512i nv = _mm512_set1_epi64(N), m32 = _mm512_set1_epi64(0xffffffff);
+		__m512i nd = _mm512_cvttpd_epi64(Di), sum = _mm512_setzero_si512(), xx = w23;
+
+		*bad |= exact & (G->per < 4 ? 0xff : _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(4)));
+		for (int q = 0; q < 4; q++) {
+			__m512i lo = _mm512_mul_epu32(xx, nv);
+			__m512i hi = _mm512_add_epi64(_mm512_mul_epu32(_mm512_srli_epi64(xx, 32), nv),
+						      _mm512_srli_epi64(lo, 32));
+
+			xx = _mm512_or_si512(_mm512_slli_epi64(hi, 32), _mm512_and_si512(lo, m32));
+			sum = _mm512_mask_add_epi64(sum, _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(q)),
+						    sum, _mm512_srli_epi64(hi, 32));
+		}
+		W = _mm512_mask_sub_pd(W, exact, W, _mm512_cvtepi64_pd(sum));
+	}
+	if (nrm) {
+		__m512d zs, sd, c, zx0, zx1, lim = _mm512_set1_pd(SPLIT_SQ);
+		__m512i si, li = _mm512_and_si512(w23, b8);
+
+		zx0 = _mm512_i64gather_pd(li, zx, 8);
+		zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
+		zs = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w23, 11)),
+						 scale), zx0);
+		*bad |= nrm & _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, zs), zx1, _CMP_NLT_UQ);
+		*bad |= nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_NLT_UQ);
+		si = _mm512_maskz_cvttpd_epi64(nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_LT_OQ), Di);
+		sd = _mm512_i64gather_pd(si, G->sq, 8);
+		c = _mm512_add_pd(_mm512_div_pd(_mm512_mul_pd(Di, _mm512_set1_pd(N + 1)),
+						_mm512_set1_pd(2)), _mm512_mul_pd(sd, zs));
+		/* round_even: to nearest, ties to even, below 2^51 */
+		c = _mm512_mask_roundscale_pd(c, _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, c),
+								    _mm512_set1_pd(0x1p51), _CMP_LT_OQ),
+					      c, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, Di, _CMP_LT_OQ), Di);
+		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, W, _CMP_GT_OQ), W);
+		W = _mm512_mask_mov_pd(W, nrm, c);
+	}
+	return W;
+}
+
+/* The lanes q of read8_avx512() whose only slow case is the read noise's
+ * deviate (badz): that deviate alone, as read_pixel() would draw it, into
+ * what it changes (the charge does not hold it); mm the lanes' measured
+ * means. */
+static void read8_slow_noise(struct l1row *R, const struct l1grp *G, int i,
+			     const uint32_t (*w)[4], unsigned badz, const double mm[8])
+{
+	const struct ramp_det *d = R->d;
+
+	for (int q = 0; q < 8; q++) {
+		double zq, v;
+
+		if (!(badz >> q & 1))
+			continue;
+		zq = rng_normal_bits(&G->g, R->cell0 + (uint32_t)(i + q), w[q][0], w[q][1]);
+		if (R->ch) {
+			size_t o = (size_t)G->gi * R->cplane + (size_t)(i + q);
+
+			R->own[o] = (float)(R->Q[i + q] + G->sn * zq);
+			continue;
+		}
+		v = mm[q] + G->sn * zq;
+		if (v > d->sat_e)
+			v = d->sat_e;
+		v = round_even(v * G->inv_g);
+		R->out[(size_t)G->gi * R->plane + (size_t)(i + q)] =
+			(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+	}
+}
+
+/*
  * read_pixel() for the eight pixels i .. i+7, none hit by a cosmic ray,
  * with AVX-512: the same operations in the same order on each lane (no
  * fused multiply-add), so the same numbers.  A lane the common path does
@@ -669,16 +752,15 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 	const __m512i b8 = _mm512_set1_epi64(0xff), one = _mm512_set1_epi64(1);
 	const __m512d sgn = _mm512_set1_pd(-0.0), scale = _mm512_set1_pd(0x1p-52);
 	const double *zx = rng_zig_x;
-	int N = G->N;
 	__m512i lo4 = _mm512_loadu_si512(w[0]), hi4 = _mm512_loadu_si512(w[4]);
 	/* words 0:1 and 2:3 of each call as 64-bit numbers, word 0 high */
 	__m512i w01 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, ev, hi4), 32);
 	__m512i w23 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, od, hi4), 32);
-	__m512d Di = _mm512_loadu_pd(R->D + i), Nd = _mm512_set1_pd(N);
+	__m512d Di = _mm512_loadu_pd(R->D + i);
 	__m512d s0 = _mm512_add_pd(_mm512_loadu_pd(R->P + i), _mm512_loadu_pd(R->S + i));
 	__m512d z, W, mm, nz, x, zx0, zx1;
 	__m512i li;
-	__mmask8 bad = 0, badz, easy, exact, nrm;
+	__mmask8 bad = 0, badz;
 
 	/* the read noise's deviate (rng_normal_bits) */
 	li = _mm512_and_si512(w01, b8);
@@ -687,50 +769,8 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 	z = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w01, 11)), scale),
 			  zx0);
 	badz = _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, z), zx1, _CMP_NLT_UQ);
-	/* the split (split_arrivals): none to place, digits, or the normal */
-	easy = _mm512_cmp_pd_mask(Di, _mm512_setzero_pd(), _CMP_EQ_OQ) | (N == 1 ? 0xff : 0);
-	exact = ~easy & _mm512_cmp_pd_mask(Di, _mm512_set1_pd(G->exact_max), _CMP_LE_OQ);
-	nrm = ~easy & ~exact;
-	W = _mm512_mul_pd(Di, Nd);
-	if (exact) {
-		const __m512i nv = _mm512_set1_epi64(N), m32 = _mm512_set1_epi64(0xffffffff);
-		__m512i nd = _mm512_cvttpd_epi64(Di), sum = _mm512_setzero_si512(), xx = w23;
-
-		bad |= exact & (G->per < 4 ? 0xff : _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(4)));
-		for (int q = 0; q < 4; q++) {
-			__m512i lo = _mm512_mul_epu32(xx, nv);
-			__m512i hi = _mm512_add_epi64(_mm512_mul_epu32(_mm512_srli_epi64(xx, 32), nv),
-						      _mm512_srli_epi64(lo, 32));
-
-			xx = _mm512_or_si512(_mm512_slli_epi64(hi, 32), _mm512_and_si512(lo, m32));
-			sum = _mm512_mask_add_epi64(sum, _mm512_cmpgt_epi64_mask(nd, _mm512_set1_epi64(q)),
-						    sum, _mm512_srli_epi64(hi, 32));
-		}
-		W = _mm512_mask_sub_pd(W, exact, W, _mm512_cvtepi64_pd(sum));
-	}
-	if (nrm) {
-		__m512d zs, sd, c, lim = _mm512_set1_pd(SPLIT_SQ);
-		__m512i si;
-
-		li = _mm512_and_si512(w23, b8);
-		zx0 = _mm512_i64gather_pd(li, zx, 8);
-		zx1 = _mm512_i64gather_pd(_mm512_add_epi64(li, one), zx, 8);
-		zs = _mm512_mul_pd(_mm512_mul_pd(_mm512_cvtepi64_pd(_mm512_srai_epi64(w23, 11)),
-						 scale), zx0);
-		bad |= nrm & _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, zs), zx1, _CMP_NLT_UQ);
-		bad |= nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_NLT_UQ);
-		si = _mm512_maskz_cvttpd_epi64(nrm & _mm512_cmp_pd_mask(Di, lim, _CMP_LT_OQ), Di);
-		sd = _mm512_i64gather_pd(si, G->sq, 8);
-		c = _mm512_add_pd(_mm512_div_pd(_mm512_mul_pd(Di, _mm512_set1_pd(N + 1)),
-						_mm512_set1_pd(2)), _mm512_mul_pd(sd, zs));
-		/* round_even: to nearest, ties to even, below 2^51 */
-		c = _mm512_mask_roundscale_pd(c, _mm512_cmp_pd_mask(_mm512_andnot_pd(sgn, c),
-								    _mm512_set1_pd(0x1p51), _CMP_LT_OQ),
-					      c, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, Di, _CMP_LT_OQ), Di);
-		c = _mm512_mask_mov_pd(c, _mm512_cmp_pd_mask(c, W, _CMP_GT_OQ), W);
-		W = _mm512_mask_mov_pd(W, nrm, c);
-	}
+	/* the split (split_arrivals) */
+	W = split8_avx512(G, Di, w23, &bad);
 	/* the afterglow's arrivals, after the light's split, as read_pixel()
 	 * adds them */
 	if (R->glow) {
@@ -760,33 +800,13 @@ read8_avx512(struct l1row *R, const struct l1grp *G, int i, const uint32_t (*w)[
 		_mm_storeu_si128((__m128i *)(R->out + (size_t)G->gi * R->plane + (size_t)i),
 				 _mm512_cvtepi64_epi16(_mm512_cvttpd_epi64(v)));
 	}
-	/* a lane whose only slow case is the read noise's deviate: that
-	 * deviate alone, as read_pixel() would draw it, into what it
-	 * changes (the charge does not hold it) */
+	/* a lane whose only slow case is the read noise's deviate */
 	badz &= ~bad;
 	if (badz) {
 		double mq[8];
 
 		_mm512_storeu_pd(mq, mm);
-		for (int q = 0; q < 8; q++) {
-			double zq, v;
-
-			if (!(badz >> q & 1))
-				continue;
-			zq = rng_normal_bits(&G->g, R->cell0 + (uint32_t)(i + q), w[q][0], w[q][1]);
-			if (R->ch) {
-				size_t o = (size_t)G->gi * R->cplane + (size_t)(i + q);
-
-				R->own[o] = (float)(R->Q[i + q] + G->sn * zq);
-				continue;
-			}
-			v = mq[q] + G->sn * zq;
-			if (v > d->sat_e)
-				v = d->sat_e;
-			v = round_even(v * G->inv_g);
-			R->out[(size_t)G->gi * R->plane + (size_t)(i + q)] =
-				(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
-		}
+		read8_slow_noise(R, G, i, w, badz, mq);
 	}
 	return bad;
 }
@@ -896,7 +916,6 @@ static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 	struct l1row R = {
 		.p = p, .d = d, .k = k, .cell0 = cell0, .n = n, .light = light,
 		.out = out, .plane = plane, .ch = ch, .own = own, .cplane = cplane,
-		.tabs = (struct pois_tab *)scratch,
 		.exact_max = k->split_exact_max > 0 ? k->split_exact_max :
 			     k->split_exact_max < 0 ? 0 : 4,
 		.normal_above = k->poisson_normal > 0 ? k->poisson_normal :
@@ -906,7 +925,7 @@ static void level1(const struct ramp_pattern *p, const struct ramp_det *d,
 	int prev = 0;
 
 	R.hits = hits;
-	R.r = scratch + RAMP_TABS;
+	R.r = scratch;
 	R.S = R.r + n;
 	R.P = R.S + n;
 	R.mu = R.P + n;
@@ -1015,6 +1034,40 @@ ipc_span_avx2(const double *const src[3], const double kr[3][3], const float *ow
 	}
 	return x;
 }
+
+/* ipc_span_avx2() eight pixels at a time with AVX-512: the same
+ * operations in the same order, so the same DN. */
+__attribute__((target("avx512f,avx512dq"))) static int
+ipc_span_avx512(const double *const src[3], const double kr[3][3], const float *ow,
+		double sat_e, double inv_g, int x0, int x1, uint16_t *dn)
+{
+	__m512d k[3][3], sat = _mm512_set1_pd(sat_e), ig = _mm512_set1_pd(inv_g);
+	__m512d zero = _mm512_setzero_pd(), top = _mm512_set1_pd(65535);
+	int x = x0;
+
+	for (int j = 0; j < 3; j++)
+		for (int i = 0; i < 3; i++)
+			k[j][i] = _mm512_set1_pd(kr[j][i]);
+	for (; x + 8 <= x1; x += 8) {
+		__m512d v = zero;
+
+		for (int j = 0; j < 3; j++) {
+			const double *r = src[j] + x;
+			__m512d t = _mm512_add_pd(_mm512_mul_pd(k[j][0], _mm512_loadu_pd(r + 1)),
+						  _mm512_mul_pd(k[j][1], _mm512_loadu_pd(r)));
+
+			t = _mm512_add_pd(t, _mm512_mul_pd(k[j][2], _mm512_loadu_pd(r - 1)));
+			v = j ? _mm512_add_pd(v, t) : t;
+		}
+		v = _mm512_add_pd(v, _mm512_cvtps_pd(_mm256_loadu_ps(ow + x)));
+		v = _mm512_min_pd(v, sat);
+		v = _mm512_roundscale_pd(_mm512_mul_pd(v, ig),
+					 _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+		v = _mm512_min_pd(_mm512_max_pd(v, zero), top);
+		_mm_storeu_si128((__m128i *)(dn + x), _mm512_cvtepi64_epi16(_mm512_cvttpd_epi64(v)));
+	}
+	return x;
+}
 #endif
 
 void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double *above,
@@ -1023,10 +1076,11 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 {
 	const double *rows[3] = { above, row, below };
 	double inv_g = 1 / d->gain, dnmax = 65535, kr[3][3];
-	int avx2 = 0;
+	int avx2 = 0, avx512 = 0;
 
 #ifdef SIMD_X86
 	avx2 = (simd_flags() & SIMD_AVX2) != 0;
+	avx512 = (simd_flags() & SIMD_AVX512) != 0;
 #endif
 	/* kernel row dy + 1 acts on rows[1 - dy] */
 	for (int j = 0; j < 3; j++)
@@ -1042,7 +1096,9 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 		for (int j = 0; j < 3; j++)
 			src[j] = (rows[2 - j] ? rows[2 - j] : row) + o;
 #ifdef SIMD_X86
-		if (avx2 && n > 2)
+		if (avx512 && n > 2)
+			xa = ipc_span_avx512(src, kr, ow, d->sat_e, inv_g, 1, n - 1, dn);
+		else if (avx2 && n > 2)
 			xa = ipc_span_avx2(src, kr, ow, d->sat_e, inv_g, 1, n - 1, dn);
 #endif
 		if (xa < n - 1)

@@ -110,13 +110,9 @@ struct ramp_key {
  * out[r * plane + i].  No IPC: see ramp_level1_charge().  scratch:
  * RAMP_SCRATCH(n) doubles.  Thread-safe.
  */
-/* The Poisson tables kept in the scratch: two per group and two more, of
- * RAMP_TAB_DOUBLES each (ramp_pois.h's struct pois_tab fits). */
-#define RAMP_TAB_DOUBLES 260
-#define RAMP_TABS ((RAMP_MAX_RES + 1) * 2 * RAMP_TAB_DOUBLES)
-#define RAMP_SCRATCH(n) ((size_t)(n) * 8 + 512 + RAMP_TABS)
-/* Before its first use, scratch must be set up by ramp_scratch_init() (it
- * keeps tables across calls; they change the speed, never the numbers). */
+#define RAMP_SCRATCH(n) ((size_t)(n) * 8 + 512)
+/* Kept for the callers: the scratch needs no set-up (the Poisson tables,
+ * once kept there, are the process's: ramp_pois.c). */
 void ramp_scratch_init(double *scratch);
 void ramp_level1_row(const struct ramp_pattern *p, const struct ramp_det *d,
 		     const struct ramp_key *k, uint32_t cell0, int n,

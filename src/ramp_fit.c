@@ -181,6 +181,109 @@ static double combine(const struct seg *sg, int nseg, double *vr, double *vp)
 	return f;
 }
 
+/* The resultants of a pixel linearised into s[0 .. n) and the number the
+ * fit uses: those before the first saturated one, less the one before it
+ * when its last read, projected along the ramp, reaches saturation (DQ
+ * SATURATED in out). */
+static int fit_saturation(const struct ramp_fit_plan *fp, const uint16_t *dn, size_t stride,
+			  double *s, struct ramp_fit *out)
+{
+	const struct ramp_pattern *p = &fp->p;
+	const struct ramp_det *d = &fp->d;
+	double dt = p->read_time, sat_dn = floor(d->saturation);
+	int n = p->nres, nuse = n;
+
+	for (int i = 0; i < n; i++) {
+		double v = dn[(size_t)i * stride];
+
+		if (v >= sat_dn && nuse == n)
+			nuse = i;
+		s[i] = fp->nlinv[dn[(size_t)i * stride]];
+	}
+	if (nuse < n) {
+		int i = nuse - 1;
+
+		out->dq |= RAMP_SATURATED;
+		if (i >= 0) {
+			double f, from, tfrom, xlast = p->last[i] * dt;
+
+			if (i >= 2) {
+				f = (s[i - 1] - s[i - 2]) / (p->tbar[i - 1] - p->tbar[i - 2]);
+				from = s[i - 1];
+				tfrom = p->tbar[i - 1];
+			} else {
+				f = (s[0] - d->pedestal) / p->tbar[0];
+				from = s[0];
+				tfrom = p->tbar[0];
+			}
+			if (from + f * (xlast - tfrom) >= d->sat_true)
+				nuse = i;
+		}
+	}
+	return nuse;
+}
+
+/* The pieces sg[0 .. *nseg) of a ramp s split at its jumps, each fitted
+ * (the first fitted already): the rise most beyond the threshold splits
+ * its piece, until none is left (see ramp_fit_pixel()). */
+static void fit_jumps(const struct ramp_fit_plan *fp, const double *s, struct seg *sg,
+		      int *nseg, struct ramp_fit *out)
+{
+	for (int iter = 0; iter < fp->nres; iter++) {
+		double vr, vp, f = combine(sg, *nseg, &vr, &vp), best = 0;
+		int bi = -1, bj = -1;
+
+		if (!isfinite(f))
+			break;
+		if (f < 0)
+			f = 0;
+		/* z^2 = r^2 / var > threshold^2 for a rise r > 0, tested
+		 * without a root or a division, which most pixels never
+		 * need */
+		for (int j = 0; j < *nseg; j++)
+			for (int i = sg[j].a; i < sg[j].b - 1; i++) {
+				double r = s[i + 1] - s[i] - f * fp->dtbar[i];
+				double var = fp->vdiff[i] + f * fp->cdiff[i];
+
+				if (r > 0 && r * r > fp->jump2 * var) {
+					double z = r / sqrt(var);
+
+					if (z > best) {
+						best = z;
+						bi = i;
+						bj = j;
+					}
+				}
+			}
+		if (bi < 0)
+			break;
+		/* split piece bj after resultant bi */
+		memmove(&sg[bj + 2], &sg[bj + 1], (size_t)(*nseg - bj - 1) * sizeof(*sg));
+		sg[bj + 1].a = bi + 1;
+		sg[bj + 1].b = sg[bj].b;
+		sg[bj].b = bi + 1;
+		++*nseg;
+		out->njump++;
+		out->dq |= RAMP_JUMP_DET;
+		for (int j = bj; j <= bj + 1; j++)
+			if (sg[j].b - sg[j].a >= 2)
+				fit_seg(fp, s, &sg[j]);
+	}
+}
+
+/* The rate of a ramp whose only usable resultant is the first: its rise
+ * over the nominal reset level. */
+static void fit_first(const struct ramp_fit_plan *fp, const double *s, struct ramp_fit *out)
+{
+	const struct ramp_pattern *p = &fp->p;
+	const struct ramp_det *d = &fp->d;
+	double t = p->tbar[0];
+
+	out->rate = (s[0] - d->pedestal) / t;
+	out->var_rnoise = (fp->var_read[0] + d->reset_noise * d->reset_noise) / (t * t);
+	out->var_poisson = (out->rate > 0 ? out->rate : 0) * p->tau[0] / (t * t);
+}
+
 /*
  * The fit of one pixel.
  *
@@ -202,44 +305,16 @@ static double combine(const struct seg *sg, int nseg, double *vr, double *vp)
 void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 		    size_t stride, struct ramp_fit *out)
 {
-	const struct ramp_pattern *p = &fp->p;
-	const struct ramp_det *d = &fp->d;
-	double s[RAMP_MAX_RES], dt = p->read_time, sat_dn = floor(d->saturation);
+	double s[RAMP_MAX_RES];
 	struct seg sg[RAMP_MAX_RES];
-	int n = p->nres, nuse = n, nseg = 1;
+	int n = fp->p.nres, nuse, nseg = 1;
 
 	memset(out, 0, sizeof(*out));
 	if (n < 2) {
 		out->dq = RAMP_DO_NOT_USE;
 		return;
 	}
-	for (int i = 0; i < n; i++) {
-		double v = dn[(size_t)i * stride];
-
-		if (v >= sat_dn && nuse == n)
-			nuse = i;
-		s[i] = fp->nlinv[dn[(size_t)i * stride]];
-	}
-	if (nuse < n) {
-		int i = nuse - 1;
-
-		out->dq |= RAMP_SATURATED;
-		if (i >= 0) {
-			double f, from, tfrom, xlast = p->last[i] * dt;
-
-			if (i >= 2) {
-				f = (s[i - 1] - s[i - 2]) / (p->tbar[i - 1] - p->tbar[i - 2]);
-				from = s[i - 1];
-				tfrom = p->tbar[i - 1];
-			} else {        /* one or two resultants: from the pedestal */
-				f = (s[0] - d->pedestal) / p->tbar[0];
-				from = s[0];
-				tfrom = p->tbar[0];
-			}
-			if (from + f * (xlast - tfrom) >= d->sat_true)
-				nuse = i;
-		}
-	}
+	nuse = fit_saturation(fp, dn, stride, s, out);
 	out->nuse = nuse;
 	/*
 	 * The linearity flags, for the resultants the fit uses (saturated ones
@@ -263,64 +338,17 @@ void ramp_fit_pixel(const struct ramp_fit_plan *fp, const uint16_t *dn,
 	}
 	if (nuse == 1) {
 		/* one resultant: the rate above the nominal reset level */
-		double t = p->tbar[0];
-
-		out->rate = (s[0] - d->pedestal) / t;
-		out->var_rnoise = (fp->var_read[0] + d->reset_noise * d->reset_noise) / (t * t);
-		out->var_poisson = (out->rate > 0 ? out->rate : 0) * p->tau[0] / (t * t);
+		fit_first(fp, s, out);
 		return;
 	}
 	sg[0].a = 0;
 	sg[0].b = nuse;
 	fit_seg(fp, s, &sg[0]);
-	for (int iter = 0; iter < n; iter++) {
-		double vr, vp, f = combine(sg, nseg, &vr, &vp), best = 0;
-		int bi = -1, bj = -1;
-
-		if (!isfinite(f))
-			break;
-		if (f < 0)
-			f = 0;
-		/* z^2 = r^2 / var > threshold^2 for a rise r > 0, tested
-		 * without a root or a division, which most pixels never
-		 * need */
-		for (int j = 0; j < nseg; j++)
-			for (int i = sg[j].a; i < sg[j].b - 1; i++) {
-				double r = s[i + 1] - s[i] - f * fp->dtbar[i];
-				double var = fp->vdiff[i] + f * fp->cdiff[i];
-
-				if (r > 0 && r * r > fp->jump2 * var) {
-					double z = r / sqrt(var);
-
-					if (z > best) {
-						best = z;
-						bi = i;
-						bj = j;
-					}
-				}
-			}
-		if (bi < 0)
-			break;
-		/* split piece bj after resultant bi */
-		memmove(&sg[bj + 2], &sg[bj + 1], (size_t)(nseg - bj - 1) * sizeof(*sg));
-		sg[bj + 1].a = bi + 1;
-		sg[bj + 1].b = sg[bj].b;
-		sg[bj].b = bi + 1;
-		nseg++;
-		out->njump++;
-		out->dq |= RAMP_JUMP_DET;
-		for (int j = bj; j <= bj + 1; j++)
-			if (sg[j].b - sg[j].a >= 2)
-				fit_seg(fp, s, &sg[j]);
-	}
+	fit_jumps(fp, s, sg, &nseg, out);
 	out->rate = combine(sg, nseg, &out->var_rnoise, &out->var_poisson);
 	if (!isfinite(out->rate)) {
 		if (sg[0].a == 0 && sg[0].b == 1) {
-			double t = p->tbar[0];
-
-			out->rate = (s[0] - d->pedestal) / t;
-			out->var_rnoise = (fp->var_read[0] + d->reset_noise * d->reset_noise) / (t * t);
-			out->var_poisson = (out->rate > 0 ? out->rate : 0) * p->tau[0] / (t * t);
+			fit_first(fp, s, out);
 		} else {
 			out->rate = out->var_rnoise = out->var_poisson = 0;
 			out->dq |= RAMP_DO_NOT_USE;

@@ -1,5 +1,6 @@
 /* ramp_pois.c - the Poisson counts of a row for the ramp; see ramp_pois.h. */
 #include <math.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -17,15 +18,16 @@
  * the sum of independent Poisson counts is a Poisson count of the summed
  * mean, so this is exact.  Each part is the inversion k = min{k : u < F(k)}
  * (rng_poisson_invert), a function of u and its mean alone.  The m0 part
- * is looked up in one of two tables of F kept per group in the caller's
- * scratch across rows: a sky that varies from pixel to pixel (pixel areas,
- * a gradient) keeps m0 for runs of pixels, where a table of the exact mean
- * would be rebuilt at every pixel, and the second table keeps a star's
- * pixels from throwing the sky's away.  A guide table (Chen & Asau 1974)
- * of the first k with F(k) > j / POIS_GUIDE starts the search, so a lookup
- * is one or two comparisons.  The delta part is 0 unless u2 >= exp(-delta)
- * and 1 unless u2 >= F(1); bounds on both settle all but ~delta^2 / 2 of
- * the draws without the exp.
+ * is looked up in a table of F for that m0: one table for each of the
+ * POIS_NM - 1 multiples of POIS_STEP below POIS_INV, built once for the
+ * process (530 kB) and shared by every thread, so that a crowded field,
+ * whose m0 changes from pixel to pixel, looks its counts up as a flat sky
+ * does (tables kept per worker and rebuilt when m0 changed took 2.6x the
+ * level-2 time of an empty SCA on a crowded one).  A guide table (Chen &
+ * Asau 1974) of the first k with F(k) > j / POIS_GUIDE starts the search,
+ * so a lookup is one or two comparisons.  The delta part is 0 unless u2 >=
+ * exp(-delta) and 1 unless u2 >= F(1); bounds on both settle all but
+ * ~delta^2 / 2 of the draws without the exp.
  *
  * Means from POIS_INV to the normal limit go to rng_poisson_fill_approx
  * (PTRS, Hormann 1993, exact) on the same cells, a run of such pixels at a
@@ -36,6 +38,9 @@
  */
 #define POIS_INV 32.0
 #define POIS_STEP 0.125
+#define POIS_NM 256             /* POIS_INV / POIS_STEP: tables j = 1 .. 255 */
+
+_Static_assert(POIS_NM * POIS_STEP == POIS_INV, "a table for every m0");
 
 static void pois_tabulate(struct pois_tab *t, double mu)
 {
@@ -87,11 +92,26 @@ static inline int pois_lookup(const struct pois_tab *t, double u)
 	return k;
 }
 
-/* What pois_row() carries from pixel to pixel: the last m0, the table to
- * rebuild next, and exp(-delta) of the last delta that needed it. */
+/* The tables of m0 = j POIS_STEP, j = 1 .. POIS_NM - 1 (j = 0, a mean of
+ * 0, has none), built by the first ramp_pois_row(). */
+static struct pois_tab pois_tabs[POIS_NM];
+static double pois_top;          /* the least of their F(POIS_TAB - 1) */
+static pthread_once_t pois_once = PTHREAD_ONCE_INIT;
+
+static void pois_build(void)
+{
+	pois_top = 1;
+	for (int j = 1; j < POIS_NM; j++) {
+		pois_tabulate(&pois_tabs[j], j * POIS_STEP);
+		if (pois_tabs[j].cdf[POIS_TAB - 1] < pois_top)
+			pois_top = pois_tabs[j].cdf[POIS_TAB - 1];
+	}
+}
+
+/* What pois_row() carries from pixel to pixel: exp(-delta) of the last
+ * delta that needed it. */
 struct pois_state {
-	double prev, dlast, edlast;
-	int victim;
+	double dlast, edlast;
 };
 
 /* The count of the rest 0 < delta < 1/8 from the uniform u2. */
@@ -120,33 +140,23 @@ static inline double pois_rest(double delta, double u2, struct pois_state *st)
 	return u2 >= st->edlast ? rng_poisson_invert(u2, delta, st->edlast) : 0;
 }
 
-/* The count of a mean 0 < v < POIS_INV from its call w (t: the group's two
- * tables). */
-static inline double pois_small(double v, const uint32_t w[4], struct pois_tab *t,
-				struct pois_state *st)
+/* The count of a mean 0 < v < POIS_INV from its call w. */
+static inline double pois_small(double v, const uint32_t w[4], struct pois_state *st)
 {
 	/* 0 < v < 32: truncation is floor, without a call */
-	double m0 = (double)(int)(v * (1 / POIS_STEP)) * POIS_STEP;
+	int j = (int)(v * (1 / POIS_STEP));
+	double m0 = (double)j * POIS_STEP;
 	double delta = v - m0;
 	double u = rng_u01(w[0], w[1]), k = 0;
 
-	if (m0 > 0) {
-		int h = m0 == t[0].mu ? 0 : m0 == t[1].mu ? 1 : -1;
+	if (j > 0) {
+		const struct pois_tab *t = &pois_tabs[j];
 
-		/* a new mean that repeats gets the table used less lately */
-		if (h < 0 && m0 == st->prev)
-			pois_tabulate(&t[h = st->victim], m0);
-		if (h >= 0) {
-			st->victim = 1 - h;
-			if (u < t[h].cdf[POIS_TAB - 1])
-				k = pois_lookup(&t[h], u);
-			else
-				k = rng_poisson_invert(u, m0, exp(-m0));
-		} else {
+		if (u < t->cdf[POIS_TAB - 1])
+			k = pois_lookup(t, u);
+		else
 			k = rng_poisson_invert(u, m0, exp(-m0));
-		}
 	}
-	st->prev = m0;
 	if (delta > 0)
 		k += pois_rest(delta, rng_u01(w[2], w[3]), st);
 	return k;
@@ -155,62 +165,57 @@ static inline double pois_small(double v, const uint32_t w[4], struct pois_tab *
 #ifdef SIMD_X86
 /*
  * pois_small() for the eight means v[0..8) with AVX-512, when each is
- * below POIS_INV and its m0 is 0 or one of the two tables' (the sky's):
- * the table lookups by gathers, the rest's count 0 or 1 from the same
- * bounds, the rest's exact count (rare) by pois_rest().  The same counts
- * into out; returns 0, having done nothing, when the eight do not qualify.
+ * below POIS_INV: the table lookups by gathers, the rest's count 0 or 1
+ * from the same bounds, the rest's exact count (rare) by pois_rest().
+ * The same counts into out; returns 0, having done nothing, when the
+ * eight do not qualify.
  */
 __attribute__((target("avx512f,avx512dq"))) static int
-pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
-	     struct pois_state *st, double *out)
+pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_state *st, double *out)
 {
 	const __m512i ev = _mm512_set_epi64(14, 12, 10, 8, 6, 4, 2, 0);
 	const __m512i od = _mm512_set_epi64(15, 13, 11, 9, 7, 5, 3, 1);
-	const __m512i one = _mm512_set1_epi64(1), zero = _mm512_setzero_si512();
+	const __m512i one = _mm512_set1_epi64(1);
 	const __m512d u53 = _mm512_set1_pd(0x1p-53), c1 = _mm512_set1_pd(1);
 	const long long stride = (long long)sizeof(struct pois_tab);
+	const unsigned char *guide0 = pois_tabs[0].guide;
+	const double *cdf0 = pois_tabs[0].cdf;
 	__m512d x = _mm512_loadu_pd(v), m0, delta, u, u2, d2, kd;
-	__m512i lo4, hi4, w01, w23, k, off, gidx;
-	__mmask8 h1, lit, more, rest, slow = 0;
+	__m512i lo4, hi4, w01, w23, j, k, off, ci;
+	__mmask8 lit, more, rest, slow;
 	double rests[8], vq[8];
 
 	if (_mm512_cmp_pd_mask(x, _mm512_setzero_pd(), _CMP_GT_OQ) != 0xff ||
 	    _mm512_cmp_pd_mask(x, _mm512_set1_pd(POIS_INV), _CMP_LT_OQ) != 0xff)
 		return 0;
-	m0 = _mm512_mul_pd(_mm512_cvtepi32_pd(_mm512_cvttpd_epi32(
-				   _mm512_mul_pd(x, _mm512_set1_pd(1 / POIS_STEP)))),
-			   _mm512_set1_pd(POIS_STEP));
-	lit = _mm512_cmp_pd_mask(m0, _mm512_setzero_pd(), _CMP_GT_OQ);
-	h1 = _mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[1].mu), _CMP_EQ_OQ);
-	if ((lit & ~(_mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[0].mu), _CMP_EQ_OQ) | h1)) != 0)
-		return 0;
-	h1 &= ~_mm512_cmp_pd_mask(m0, _mm512_set1_pd(t[0].mu), _CMP_EQ_OQ);
+	j = _mm512_cvtepi32_epi64(_mm512_cvttpd_epi32(_mm512_mul_pd(x, _mm512_set1_pd(1 / POIS_STEP))));
+	m0 = _mm512_mul_pd(_mm512_cvtepi64_pd(j), _mm512_set1_pd(POIS_STEP));
+	lit = _mm512_cmpgt_epi64_mask(j, _mm512_setzero_si512());
 	lo4 = _mm512_loadu_si512(w[0]);
 	hi4 = _mm512_loadu_si512(w[4]);
 	w01 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, ev, hi4), 32);
 	w23 = _mm512_ror_epi64(_mm512_permutex2var_epi64(lo4, od, hi4), 32);
 	u = _mm512_mul_pd(_mm512_cvtepu64_pd(_mm512_srli_epi64(w01, 11)), u53);
-	/* the table of each lane: its offset from t[0] in bytes */
-	off = _mm512_mask_mov_epi64(zero, h1, _mm512_set1_epi64(stride));
-	{
-		__m512d top = _mm512_mask_mov_pd(_mm512_set1_pd(t[0].cdf[POIS_TAB - 1]), h1,
-						 _mm512_set1_pd(t[1].cdf[POIS_TAB - 1]));
-
-		slow = lit & _mm512_cmp_pd_mask(u, top, _CMP_NLT_UQ);
-	}
-	gidx = _mm512_cvttpd_epi64(_mm512_mul_pd(u, _mm512_set1_pd(POIS_GUIDE)));
-	k = _mm512_i64gather_epi64(_mm512_add_epi64(off, gidx), t[0].guide, 1);
+	/* each lane's table: its offset from pois_tabs[0] in bytes, in
+	 * doubles for the cdf (a table is a whole number of doubles) */
+	off = _mm512_mul_epu32(j, _mm512_set1_epi64(stride));
+	ci = _mm512_srli_epi64(off, 3);
+	/* past the least table's top (u within ulps of 1: never seen), the
+	 * lane's own table decides, below */
+	slow = lit & _mm512_cmp_pd_mask(u, _mm512_set1_pd(pois_top), _CMP_NLT_UQ);
+	k = _mm512_mask_i64gather_epi64(_mm512_setzero_si512(), lit & ~slow,
+					_mm512_add_epi64(off, _mm512_cvttpd_epi64(_mm512_mul_pd(
+						u, _mm512_set1_pd(POIS_GUIDE)))), guide0, 1);
 	/* the search from the guide's k, where it is flagged: u >= F(k)
 	 * steps on; the first two steps' F together (F(k + 1) counts only
 	 * past F(k): F rises, and the guide's k may be the table's last,
 	 * below the top) */
 	more = lit & ~slow & _mm512_test_epi64_mask(k, _mm512_set1_epi64(POIS_PAST));
-	k = _mm512_maskz_and_epi64(lit & ~slow, k, _mm512_set1_epi64(POIS_PAST - 1));
+	k = _mm512_and_epi64(k, _mm512_set1_epi64(POIS_PAST - 1));
 	if (more) {
-		__m512i ci = _mm512_add_epi64(_mm512_srli_epi64(off, 3), k);
-		__m512d f0 = _mm512_mask_i64gather_pd(c1, more, ci, t[0].cdf, 8);
-		__m512d f1 = _mm512_mask_i64gather_pd(c1, more, _mm512_add_epi64(ci, one),
-						      t[0].cdf, 8);
+		__m512i c = _mm512_add_epi64(ci, k);
+		__m512d f0 = _mm512_mask_i64gather_pd(c1, more, c, cdf0, 8);
+		__m512d f1 = _mm512_mask_i64gather_pd(c1, more, _mm512_add_epi64(c, one), cdf0, 8);
 		__mmask8 a = more & _mm512_cmp_pd_mask(u, f0, _CMP_GE_OQ);
 
 		k = _mm512_mask_add_epi64(k, a, k, one);
@@ -218,8 +223,7 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
 		k = _mm512_mask_add_epi64(k, more, k, one);
 	}
 	while (more) {
-		__m512i ci = _mm512_add_epi64(_mm512_srli_epi64(off, 3), k);
-		__m512d f = _mm512_mask_i64gather_pd(c1, more, ci, t[0].cdf, 8);
+		__m512d f = _mm512_mask_i64gather_pd(c1, more, _mm512_add_epi64(ci, k), cdf0, 8);
 
 		more &= _mm512_cmp_pd_mask(u, f, _CMP_GE_OQ);
 		k = _mm512_mask_add_epi64(k, more, k, one);
@@ -261,29 +265,28 @@ pois8_avx512(const double *v, const uint32_t (*w)[4], struct pois_tab *t,
 	for (int q = 0; q < 8 && (slow | rest); q++) {
 		double mq = (double)(int)(vq[q] * (1 / POIS_STEP)) * POIS_STEP;
 
-		if (slow >> q & 1)
-			out[q] += rng_poisson_invert(rng_u01(w[q][0], w[q][1]), mq, exp(-mq));
+		if (slow >> q & 1) {
+			const struct pois_tab *t = &pois_tabs[(int)(vq[q] * (1 / POIS_STEP))];
+			double uq = rng_u01(w[q][0], w[q][1]);
+
+			out[q] += uq < t->cdf[POIS_TAB - 1] ? pois_lookup(t, uq) :
+				  rng_poisson_invert(uq, mq, exp(-mq));
+		}
 		if (rest >> q & 1)
 			out[q] += pois_rest(vq[q] - mq, rests[q], st);
-	}
-	/* as pois_small() leaves them after the eighth */
-	st->prev = m0[7];
-	if (lit) {
-		int q = 31 - __builtin_clz(lit);
-
-		st->victim = 1 - (h1 >> q & 1);
 	}
 	return 1;
 }
 #endif
 
 void ramp_pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
-		   double *out, struct pois_tab *t, double normal_above)
+		   double *out, double normal_above)
 {
 	uint32_t w[256][4];
-	struct pois_state st = { .prev = -1, .dlast = -1, .edlast = 1,
-				 .victim = t[0].mu == -1 ? 0 : 1 };
+	struct pois_state st = { .dlast = -1, .edlast = 1 };
 	int wide = 0;
+
+	pthread_once(&pois_once, pois_build);
 
 #ifdef SIMD_X86
 	wide = (simd_flags() & SIMD_AVX512) != 0;
@@ -298,7 +301,7 @@ void ramp_pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
 
 #ifdef SIMD_X86
 			if (wide && !(j & 7) && j + 8 <= m &&
-			    pois8_avx512(mu + i, w + j, t, &st, out + i)) {
+			    pois8_avx512(mu + i, w + j, &st, out + i)) {
 				j += 7;
 				continue;
 			}
@@ -306,7 +309,7 @@ void ramp_pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
 			if (!(v > 0)) {
 				out[i] = 0;
 			} else if (v < POIS_INV) {
-				out[i] = pois_small(v, w[j], t, &st);
+				out[i] = pois_small(v, w[j], &st);
 			} else if (v >= normal_above) {
 				out[i] = rng_poisson_normal(v, rng_normal_bits(g, cell0 + (uint32_t)i,
 									       w[j][0], w[j][1]));

@@ -1,7 +1,6 @@
 /*
  * ramp_pois.h - the Poisson counts of a row of pixels for the ramp
- * (ramp_pois.c): internal to ramp.c, which keeps the tables in the
- * scratch of each worker.
+ * (ramp_pois.c): internal to ramp.c.
  */
 #ifndef WFS_RAMP_POIS_H
 #define WFS_RAMP_POIS_H
@@ -21,9 +20,9 @@ struct pois_tab {
 };
 
 /* out[i] = a Poisson count of mean mu[i], i < n, from draw 0 of the cells
- * cell0 + i of g (out may be mu); t: two tables kept across rows (their mu
- * -1 before the first use); from a mean of normal_above the normal form. */
+ * cell0 + i of g (out may be mu); from a mean of normal_above the normal
+ * form.  Thread-safe (the tables are built once, by the first call). */
 void ramp_pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
-		   double *out, struct pois_tab *t, double normal_above);
+		   double *out, double normal_above);
 
 #endif

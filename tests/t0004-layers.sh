@@ -89,8 +89,6 @@ long() {
 # leaves this list when its split is merged.
 cat > allowed <<-\EOF
 	plugins/point_epsf.c epsf_prepare
-	src/ramp.c read8_avx512
-	src/ramp_fit.c ramp_fit_pixel
 EOF
 
 test_expect_success 'no function of src/ or plugins/ is over 120 lines' '

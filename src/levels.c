@@ -103,10 +103,13 @@ static void strip_charge(void *arg, int wid, size_t task)
 				(uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX,
 				s->light[s->c0 + task], &glow, s->ch[task], s->own[task],
 				WFS_NPIX, s->scr[wid]);
-	if (s->rn)
+	if (s->rn) {
 		for (int r = 0; r < L->pat->nres; r++)
 			rnoise_add_frame(s->rn, r, sy + BORDER, BORDER, WFS_NPIX,
 					 s->own[task] + (size_t)r * WFS_NPIX);
+		rnoise_slow_add(s->rn, (uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX, 0,
+				L->pat->nres, s->own[task], WFS_NPIX);
+	}
 }
 
 /* DQ PERSISTENCE on science row sy's pixels (dq[0 .. 4088)) whose

@@ -9,6 +9,14 @@
  * 0: power 1/f from 1/(N t_row) to the row rate's Nyquist frequency, and a
  * sample's variance sum_j 4 K / j (the Nyquist term K / (N/2)), which sets
  * K for the amplitude asked.  Read k of row y is sample k 4096 + y.
+ *
+ * The slow part of a pixel: knots Y_0 .. Y_J at reads 0, RN_KNOT, ...,
+ * Y_0 = slow z_0, Y_j = rho Y_j-1 + slow sqrt(1 - rho^2) z_j, rho =
+ * exp(-RN_KNOT read_time / slow_tau): stationary, of variance slow^2 and
+ * covariance slow^2 exp(-|t| / slow_tau) between knots.  Read k takes
+ * (1 - f) Y_j + f Y_j+1, j = k / RN_KNOT, f = (k mod RN_KNOT) / RN_KNOT;
+ * a resultant the mean of its reads', a fixed sum over the knots its reads
+ * span (kc).  z_j of pixel c is deviate c of the domain of knot j.
  */
 #include <fftw3.h>
 #include <math.h>
@@ -24,6 +32,7 @@
 enum {
 	DOM_RN_PINK = 0x51,     /* group: the series, 0 shared, 1 + c own */
 	DOM_RN_OFF = 0x52,      /* cell: read * 64 + c * 2 + parity */
+	DOM_RN_SLOW = 0x53,     /* group: the knot; deviate: the pixel */
 };
 
 static uint32_t rn_domain(const struct ramp_key *k, int purpose, int group)
@@ -43,10 +52,11 @@ int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
 	if (tsv_parse(&t, "readnoise.tsv") < 0)
 		return e ? err_set(e, EXIT_SYSTEM, "readnoise.tsv: table missing from the build") : -1;
 	int cd = tsv_col(&t, "cds"), cs = tsv_col(&t, "sca"), cw = tsv_col(&t, "white"), cp = tsv_col(&t, "ped"),
-	    cc = tsv_col(&t, "cpink"), cu = tsv_col(&t, "upink"), ca = tsv_col(&t, "acn");
+	    cc = tsv_col(&t, "cpink"), cu = tsv_col(&t, "upink"), ca = tsv_col(&t, "acn"),
+	    cl = tsv_col(&t, "slow"), ct = tsv_col(&t, "slow_tau"), cT = tsv_col(&t, "total");
 
-	for (int r = 1; r < t.nrow && cs >= 0 && cw >= 0 && cp >= 0 && cc >= 0 && cu >= 0 && ca >= 0 && cd >= 0;
-	     r++)
+	for (int r = 1; r < t.nrow && cs >= 0 && cw >= 0 && cp >= 0 && cc >= 0 && cu >= 0 && ca >= 0 && cd >= 0
+	     && cl >= 0 && ct >= 0 && cT >= 0; r++)
 		if (!strcmp(t.cell[r][cs], name)) {
 			par->cds = strtod(t.cell[r][cd], NULL);
 			par->white = strtod(t.cell[r][cw], NULL);
@@ -54,11 +64,15 @@ int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
 			par->cpink = strtod(t.cell[r][cc], NULL);
 			par->upink = strtod(t.cell[r][cu], NULL);
 			par->acn = strtod(t.cell[r][ca], NULL);
+			par->slow = strtod(t.cell[r][cl], NULL);
+			par->slow_tau = strtod(t.cell[r][ct], NULL);
+			par->total = strtod(t.cell[r][cT], NULL);
 			found = 1;
 		}
 	tsv_free(&t);
 	if (!found || !(par->cds > 0) || !(par->white >= 0) || !(par->ped >= 0) || !(par->cpink >= 0) ||
-	    !(par->upink >= 0) || !(par->acn >= 0))
+	    !(par->upink >= 0) || !(par->acn >= 0) || !(par->slow >= 0) || !(par->slow_tau > 0) ||
+	    !(par->total > 0))
 		return e ? err_set(e, EXIT_SYSTEM, "readnoise.tsv: no or bad row for %s", name) : -1;
 	return 0;
 }
@@ -194,6 +208,32 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	}
 	free(shared);
 	free(own);
+	/* the slow part's knots and each resultant's weights on them */
+	R->seed = k->seed;
+	R->slow_dom = rn_domain(k, DOM_RN_SLOW, 0);
+	R->nknot = last / RN_KNOT + 2;
+	if (R->nknot > RN_MAX_KNOT) {
+		rnoise_free(R);
+		return e ? err_set(e, EXIT_INPUT, "correlated read noise: %d reads, at most %d",
+				   last, (RN_MAX_KNOT - 1) * RN_KNOT - 1) : -1;
+	}
+	R->rho = exp(-RN_KNOT * p->read_time / par->slow_tau);
+	R->s1 = par->slow * sqrt(1 - R->rho * R->rho);
+	if (!(R->kc = calloc((size_t)p->nres * (size_t)R->nknot, sizeof(double))))
+		goto nomem;
+	for (int r = 0; r < p->nres; r++) {
+		double *kc = R->kc + (size_t)r * R->nknot, inv = 1.0 / (p->last[r] - p->first[r] + 1);
+
+		R->kj0[r] = p->first[r] / RN_KNOT;
+		R->kj1[r] = p->last[r] / RN_KNOT + 1;
+		for (int rd = p->first[r]; rd <= p->last[r]; rd++) {
+			int j = rd / RN_KNOT;
+			double f = (double)(rd % RN_KNOT) / RN_KNOT;
+
+			kc[j] += (1 - f) * inv;
+			kc[j + 1] += f * inv;
+		}
+	}
 	return 0;
 nomem:
 	free(shared);
@@ -206,8 +246,54 @@ void rnoise_free(struct rnoise *R)
 {
 	free(R->pink);
 	free(R->off);
+	free(R->kc);
 	R->pink = NULL;
 	R->off = NULL;
+	R->kc = NULL;
+}
+
+void rnoise_slow_add(const struct rnoise *R, uint32_t cell0, int n, int r0, int r1, float *dst,
+		     size_t plane)
+{
+	enum { M = 128 };
+	double Y[RN_MAX_KNOT][M], z[M];
+	int jmax = 0;
+
+	if (!(R->par.slow > 0) || r1 <= r0)
+		return;
+	for (int r = r0; r < r1; r++)
+		jmax = R->kj1[r] > jmax ? R->kj1[r] : jmax;
+	for (int i0 = 0; i0 < n; i0 += M) {
+		int m = n - i0 < M ? n - i0 : M;
+		uint32_t c0 = cell0 + (uint32_t)i0;
+
+		/* the knots up to the last one asked, in order */
+		for (int j = 0; j <= jmax; j++) {
+			struct rng g;
+
+			rng_init(&g, R->seed, R->slow_dom | (uint32_t)j << 24);
+			rng_normal_fill(&g, c0, (size_t)m, z);
+			if (!j)
+				for (int i = 0; i < m; i++)
+					Y[0][i] = R->par.slow * z[i];
+			else
+				for (int i = 0; i < m; i++)
+					Y[j][i] = R->rho * Y[j - 1][i] + R->s1 * z[i];
+		}
+		for (int r = r0; r < r1; r++) {
+			const double *kc = R->kc + (size_t)r * R->nknot;
+			float *o = dst + (size_t)(r - r0) * plane + i0;
+			int j = R->kj0[r];
+
+			for (int i = 0; i < m; i++)
+				z[i] = kc[j] * Y[j][i];
+			for (j++; j <= R->kj1[r]; j++)
+				for (int i = 0; i < m; i++)
+					z[i] += kc[j] * Y[j][i];
+			for (int i = 0; i < m; i++)
+				o[i] += (float)z[i];
+		}
+	}
 }
 
 void rnoise_add(const struct rnoise *R, int r, int c, int y, int x0, int n, float *dst)
@@ -247,21 +333,27 @@ void rnoise_add_frame(const struct rnoise *R, int r, int y, int fx0, int n, floa
 void rnoise_add_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out,
 		   size_t plane)
 {
-	float v[RN_COLS * 2];
+	enum { M = RN_COLS * 2 };
+	float v[RAMP_MAX_RES][M];
 
-	for (int r = 0; r < R->nres; r++)
-		for (int i0 = 0; i0 < n; i0 += RN_COLS * 2) {
-			int m = n - i0 < RN_COLS * 2 ? n - i0 : RN_COLS * 2;
+	for (int i0 = 0; i0 < n; i0 += M) {
+		int m = n - i0 < M ? n - i0 : M;
+
+		for (int r = 0; r < R->nres; r++) {
+			memset(v[r], 0, sizeof(float) * (size_t)m);
+			rnoise_add_frame(R, r, y, fx0 + i0, m, v[r]);
+		}
+		rnoise_slow_add(R, (uint32_t)y * RN_ROWS + (uint32_t)(fx0 + i0), m, 0, R->nres, v[0], M);
+		for (int r = 0; r < R->nres; r++) {
 			uint16_t *o = out + (size_t)r * plane + i0;
 
-			memset(v, 0, sizeof(float) * (size_t)m);
-			rnoise_add_frame(R, r, y, fx0 + i0, m, v);
 			for (int i = 0; i < m; i++) {
-				double dn = floor(o[i] + v[i] / gain + 0.5);
+				double dn = floor(o[i] + v[r][i] / gain + 0.5);
 
 				o[i] = (uint16_t)(dn < 0 ? 0 : dn > 65535 ? 65535 : dn);
 			}
 		}
+	}
 }
 
 int rnoise_ref_init(struct rnoise_ref *C, const struct rnoise *R, const struct ramp_pattern *p,
@@ -363,16 +455,21 @@ void rnoise_ref_apply(const struct rnoise_ref *C, int y, uint16_t *dn, size_t pl
 		for (int c = 0; c < 32; c++) {
 			/* floor(v - t + 0.5) = v - ceil(t - 0.5) for an integer v:
 			 * one integer a column parity */
-			int k[2], lo = c ? c * RN_COLS : 4;
-			int hi = c == 31 ? RN_ROWS - 4 : (c + 1) * RN_COLS;
+			int k[2], kk[RN_COLS], lo = c ? 0 : 4, hi = c == 31 ? RN_COLS - 4 : RN_COLS;
+			uint16_t *oc = o + c * RN_COLS;
 
 			for (int q = 0; q < 2; q++)
 				k[q] = (int)ceil(tb[c * 2 + q] + sd - 0.5);
-			for (int fx = lo; fx < hi; fx++) {
-				int v = o[fx], w = v - k[fx & 1];
+			for (int x = 0; x < RN_COLS; x++)
+				kk[x] = k[x & 1];
+			/* a loop the compiler vectorises */
+			for (int x = lo; x < hi; x++) {
+				int v = oc[x], w = v - kk[x];
 
-				/* saturated or clipped: as it is */
-				o[fx] = (uint16_t)(v == 65535 ? v : w < 0 ? 0 : w > 65534 ? 65534 : w);
+				w = w < 0 ? 0 : w;
+				w = w > 65534 ? 65534 : w;
+				/* saturated: as it is */
+				oc[x] = (uint16_t)(v == 65535 ? v : w);
 			}
 		}
 	}

@@ -150,6 +150,7 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	n = m * RN_ROWS;
 	size_t plane = (size_t)RN_NCHAN * (RN_ROWS + 1);
 	double *shared = NULL, *own = NULL;
+	int fa[RAMP_MAX_RES + 1], la[RAMP_MAX_RES + 1];
 	struct rng g;
 
 	memset(R, 0, sizeof(*R));
@@ -157,8 +158,14 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	R->nres = p->nres;
 	R->nsamp = n;
 	R->row_time = p->read_time / RN_ROWS;
-	R->pink = calloc((size_t)p->nres * plane, sizeof(float));
-	R->off = calloc((size_t)p->nres * RN_NCHAN * 2, sizeof(float));
+	/* the resultants, and after them the reset read (read 0) */
+	for (int r = 0; r < p->nres; r++) {
+		fa[r] = p->first[r];
+		la[r] = p->last[r];
+	}
+	fa[p->nres] = la[p->nres] = 0;
+	R->pink = calloc((size_t)(p->nres + 1) * plane, sizeof(float));
+	R->off = calloc((size_t)(p->nres + 1) * RN_NCHAN * 2, sizeof(float));
 	shared = malloc(sizeof(double) * (size_t)n);
 	own = malloc(sizeof(double) * (size_t)n);
 	if (!R->pink || !R->off || !shared || !own)
@@ -170,14 +177,14 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 		rng_init(&g, k->seed, rn_domain(k, DOM_RN_PINK, 1 + c));
 		if (pink_series(&g, n, par->upink, own) < 0)
 			goto nomem;
-		for (int r = 0; r < p->nres; r++) {
+		for (int r = 0; r <= p->nres; r++) {
 			float *dst = R->pink + (size_t)r * plane + (size_t)c * (RN_ROWS + 1);
-			double inv = 1.0 / (p->last[r] - p->first[r] + 1);
+			double inv = 1.0 / (la[r] - fa[r] + 1);
 
 			for (int y = 0; y <= RN_ROWS; y++) {
 				double s = 0;
 
-				for (int rd = p->first[r]; rd <= p->last[r]; rd++) {
+				for (int rd = fa[r]; rd <= la[r]; rd++) {
 					long i = (long)rd * RN_ROWS + y;
 
 					s += shared[i] + own[i];
@@ -188,14 +195,14 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	}
 	/* the offsets of each read: pedestal and alternating columns */
 	rng_init(&g, k->seed, rn_domain(k, DOM_RN_OFF, 0));
-	for (int r = 0; r < p->nres; r++) {
-		double inv = 1.0 / (p->last[r] - p->first[r] + 1);
+	for (int r = 0; r <= p->nres; r++) {
+		double inv = 1.0 / (la[r] - fa[r] + 1);
 
 		for (int c = 0; c < RN_NCHAN; c++)
 			for (int par2 = 0; par2 < 2; par2++) {
 				double s = 0;
 
-				for (int rd = p->first[r]; rd <= p->last[r]; rd++) {
+				for (int rd = fa[r]; rd <= la[r]; rd++) {
 					double z[2];
 
 					/* the pedestal, shared by the parities; the odd
@@ -219,14 +226,14 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	}
 	R->rho = exp(-RN_KNOT * p->read_time / par->slow_tau);
 	R->s1 = par->slow * sqrt(1 - R->rho * R->rho);
-	if (!(R->kc = calloc((size_t)p->nres * (size_t)R->nknot, sizeof(double))))
+	if (!(R->kc = calloc((size_t)(p->nres + 1) * (size_t)R->nknot, sizeof(double))))
 		goto nomem;
-	for (int r = 0; r < p->nres; r++) {
-		double *kc = R->kc + (size_t)r * R->nknot, inv = 1.0 / (p->last[r] - p->first[r] + 1);
+	for (int r = 0; r <= p->nres; r++) {
+		double *kc = R->kc + (size_t)r * R->nknot, inv = 1.0 / (la[r] - fa[r] + 1);
 
-		R->kj0[r] = p->first[r] / RN_KNOT;
-		R->kj1[r] = p->last[r] / RN_KNOT + 1;
-		for (int rd = p->first[r]; rd <= p->last[r]; rd++) {
+		R->kj0[r] = fa[r] / RN_KNOT;
+		R->kj1[r] = la[r] / RN_KNOT + 1;
+		for (int rd = fa[r]; rd <= la[r]; rd++) {
 			int j = rd / RN_KNOT;
 			double f = (double)(rd % RN_KNOT) / RN_KNOT;
 
@@ -330,8 +337,36 @@ void rnoise_add_frame(const struct rnoise *R, int r, int y, int fx0, int n, floa
 	}
 }
 
-void rnoise_add_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out,
+/* out[r * plane + i] += v[r][i] / gain, rounded, clipped to 16 bits */
+static void dn_add(int nres, const float *v, size_t vplane, double gain, int m, uint16_t *out,
 		   size_t plane)
+{
+	for (int r = 0; r < nres; r++) {
+		uint16_t *o = out + (size_t)r * plane;
+		const float *vr = v + (size_t)r * vplane;
+
+		for (int i = 0; i < m; i++) {
+			double dn = floor(o[i] + vr[i] / gain + 0.5);
+
+			o[i] = (uint16_t)(dn < 0 ? 0 : dn > 65535 ? 65535 : dn);
+		}
+	}
+}
+
+void rnoise_add_amp33_dn(const struct rnoise *R, double gain, int y, uint16_t *out, size_t plane)
+{
+	float v[RAMP_MAX_RES][RN_COLS];
+
+	memset(v, 0, sizeof(v));
+	for (int r = 0; r < R->nres; r++)
+		rnoise_add(R, r, RN_NCHAN - 1, y, 0, RN_COLS, v[r]);
+	rnoise_slow_add(R, RN_AMP33_CELL + (uint32_t)y * RN_COLS, RN_COLS, 0, R->nres, v[0], RN_COLS);
+	dn_add(R->nres, v[0], RN_COLS, gain, RN_COLS, out, plane);
+}
+
+/* rnoise_add_dn for resultants r0 .. r1 - 1 (r = nres: the reset read) */
+static void add_dn(const struct rnoise *R, int r0, int r1, double gain, int y, int fx0, int n,
+		   uint16_t *out, size_t plane)
 {
 	enum { M = RN_COLS * 2 };
 	float v[RAMP_MAX_RES][M];
@@ -339,21 +374,24 @@ void rnoise_add_dn(const struct rnoise *R, double gain, int y, int fx0, int n, u
 	for (int i0 = 0; i0 < n; i0 += M) {
 		int m = n - i0 < M ? n - i0 : M;
 
-		for (int r = 0; r < R->nres; r++) {
-			memset(v[r], 0, sizeof(float) * (size_t)m);
-			rnoise_add_frame(R, r, y, fx0 + i0, m, v[r]);
+		for (int r = r0; r < r1; r++) {
+			memset(v[r - r0], 0, sizeof(float) * (size_t)m);
+			rnoise_add_frame(R, r, y, fx0 + i0, m, v[r - r0]);
 		}
-		rnoise_slow_add(R, (uint32_t)y * RN_ROWS + (uint32_t)(fx0 + i0), m, 0, R->nres, v[0], M);
-		for (int r = 0; r < R->nres; r++) {
-			uint16_t *o = out + (size_t)r * plane + i0;
-
-			for (int i = 0; i < m; i++) {
-				double dn = floor(o[i] + v[r][i] / gain + 0.5);
-
-				o[i] = (uint16_t)(dn < 0 ? 0 : dn > 65535 ? 65535 : dn);
-			}
-		}
+		rnoise_slow_add(R, (uint32_t)y * RN_ROWS + (uint32_t)(fx0 + i0), m, r0, r1, v[0], M);
+		dn_add(r1 - r0, v[0], M, gain, m, out + i0, plane);
 	}
+}
+
+void rnoise_add_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out,
+		   size_t plane)
+{
+	add_dn(R, 0, R->nres, gain, y, fx0, n, out, plane);
+}
+
+void rnoise_add_read0_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out)
+{
+	add_dn(R, R->nres, R->nres + 1, gain, y, fx0, n, out, 0);
 }
 
 int rnoise_ref_init(struct rnoise_ref *C, const struct rnoise *R, const struct ramp_pattern *p,

@@ -64,7 +64,8 @@ struct rnoise {
 	int nres;
 	/* resultant r's mean over its reads of the channel's pink (shared
 	 * and own) at the start of frame row y: pink[(r * RN_NCHAN + c) *
-	 * (RN_ROWS + 1) + y], y = 4096 the start of the next frame */
+	 * (RN_ROWS + 1) + y], y = 4096 the start of the next frame; r = nres
+	 * is the reset read (read 0), as off, kc, kj0 and kj1 below */
 	float *pink;
 	/* the mean of pedestal + alternating-column offset of the even (0) and
 	 * odd (1) columns: off[(r * RN_NCHAN + c) * 2 + parity] */
@@ -79,7 +80,7 @@ struct rnoise {
 	int nknot;
 	double rho, s1;
 	double *kc;
-	int kj0[RAMP_MAX_RES], kj1[RAMP_MAX_RES];
+	int kj0[RAMP_MAX_RES + 1], kj1[RAMP_MAX_RES + 1];
 	uint64_t seed;
 	uint32_t slow_dom;      /* its domain but for the knot (bits 24-31) */
 };
@@ -126,6 +127,14 @@ void rnoise_slow_add(const struct rnoise *R, uint32_t cell0, int n, int r0, int 
  * gain e-/DN. */
 void rnoise_add_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out,
 		   size_t plane);
+
+/* The same for the reset read (read 0, the reference read of a level-1
+ * file), row y, frame columns fx0 .. fx0 + n - 1 at out[i]. */
+void rnoise_add_read0_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out);
+
+/* The same for amp33's 128 columns of frame row y (channel 32, columns in
+ * readout order), resultant r at out[r * plane + x]. */
+void rnoise_add_amp33_dn(const struct rnoise *R, double gain, int y, uint16_t *out, size_t plane);
 
 /*
  * The reference correction of level 2, from the reference pixels of the

@@ -16,6 +16,7 @@
 
 #include "tap.h"
 #include "err.h"
+#include "amp33.h"
 #include "ramp.h"
 #include "readnoise.h"
 #include "rng.h"
@@ -245,6 +246,70 @@ static void spectrum(void)
 	rnoise_free(&R);
 }
 
+/*
+ * amp33 samples the channels' correlated noise: the row means of its
+ * resultant 1 less resultant 0 (DN) follow those of the left border's
+ * reference columns (channel 0) row by row, both averaged over 16 rows
+ * against their white noise; with the white model alone (rn NULL) they
+ * are unrelated.  The correlation of the two.
+ */
+static double amp33_follows(int correlated)
+{
+	struct err e = { 0 };
+	struct ramp_det d, dw;
+	struct rnoise_par par;
+	struct ramp_pattern p;
+	struct rnoise R;
+	struct ramp_key key = { .seed = 31, .filter = 2, .sca = 1 };
+	enum { NB = NROW / 16 };
+	static uint16_t amp[2 * 16 * AMP33_COLS], ref[2 * 16 * 4];
+	double *scr = malloc(sizeof(double) * AMP33_SCRATCH), a[NB], b[NB];
+	double ma = 0, mb = 0, sab = 0, saa = 0, sbb = 0;
+
+	memset(&p, 0, sizeof(p));
+	p.nres = 2;
+	p.first[0] = p.last[0] = 1;
+	p.first[1] = p.last[1] = 2;
+	if (!scr || ramp_det_get(1, &d, &e) < 0 || rnoise_par_get(1, &par, &e) < 0 ||
+	    (p.read_time = d.read_time, ramp_pattern_finish(&p)) < 0 ||
+	    rnoise_init(&R, &p, &par, &key, 0, &e) < 0) {
+		diag("%s", e.msg);
+		exit(1);
+	}
+	ramp_scratch_init(scr);
+	dw = d;
+	dw.read_noise = par.white;
+	for (int bk = 0; bk < NB; bk++) {
+		double sa = 0, sb = 0;
+
+		amp33_rows(&p, &d, &key, correlated ? &R : NULL, bk * 16, 16, amp, scr);
+		for (int i = 0; i < 16; i++) {
+			int y = bk * 16 + i;
+
+			ramp_level1_row(&p, correlated ? &dw : &d, &key, (uint32_t)y * NROW, 4, NULL, 0,
+					ref + i * 4, 16 * 4, scr);
+			if (correlated)
+				rnoise_add_dn(&R, d.gain, y, 0, 4, ref + i * 4, 16 * 4);
+		}
+		for (int i = 0; i < 16 * AMP33_COLS; i++)
+			sa += (double)amp[16 * AMP33_COLS + i] - amp[i];
+		for (int i = 0; i < 16 * 4; i++)
+			sb += (double)ref[16 * 4 + i] - ref[i];
+		a[bk] = sa / (16 * AMP33_COLS);
+		b[bk] = sb / (16 * 4);
+		ma += a[bk] / NB;
+		mb += b[bk] / NB;
+	}
+	for (int bk = 0; bk < NB; bk++) {
+		sab += (a[bk] - ma) * (b[bk] - mb);
+		saa += (a[bk] - ma) * (a[bk] - ma);
+		sbb += (b[bk] - mb) * (b[bk] - mb);
+	}
+	rnoise_free(&R);
+	free(scr);
+	return sab / sqrt(saa * sbb);
+}
+
 /* "calib": the corrected CDS and total read noise (the dark current's
  * part out) per e- of the white part without the slow part, the means over
  * the 18 SCAs and 3 exposures each, which contrib/tables/derive_readnoise.py
@@ -279,6 +344,12 @@ int main(int argc, char **argv)
 	if (argc > 1 && !strcmp(argv[1], "calib"))
 		return calibrate();
 	spectrum();
+	{
+		double on = amp33_follows(1), off = amp33_follows(0);
+
+		ok(on > 0.8, "amp33 follows the left reference columns row by row: correlation %.3f", on);
+		ok(fabs(off) < 0.3, "with white noise alone it does not: correlation %.3f", off);
+	}
 	for (int sca = 1; sca <= 18; sca += all ? 1 : 17) {
 		struct rnoise_par par;
 		double cds[2], total[2], dark, want_cds, cds0[2], total0[2];

@@ -28,6 +28,7 @@
 #include "err.h"
 #include "readnoise.h"
 #include "rng.h"
+#include "simd.h"
 
 enum {
 	DOM_RN_PINK = 0x51,     /* group: the series, 0 shared, 1 + c own */
@@ -259,47 +260,78 @@ void rnoise_free(struct rnoise *R)
 	R->kc = NULL;
 }
 
+/* The knots 0 .. jmax of RN_SLOW_M pixels from cell c0 on (m of them
+ * real: the rest of z holds zeros or a block's old deviates, whose sums
+ * nobody reads) and their resultants r0 .. r1 - 1 added to dst.  Loops of
+ * a fixed count, which the compiler vectorises; the same operations in
+ * the same order on every pixel, so the same numbers either way. */
+#define RN_SLOW_M 128
+#define SLOW_BLOCK_BODY                                                                         \
+	{                                                                                       \
+		double Y[RN_MAX_KNOT][RN_SLOW_M], acc[RN_SLOW_M];                               \
+		for (int j = 0; j <= jmax; j++) {                                               \
+			struct rng g;                                                           \
+			rng_init(&g, R->seed, R->slow_dom | (uint32_t)j << 24);                 \
+			rng_normal_fill(&g, c0, (size_t)m, z);                                  \
+			if (!j)                                                                 \
+				for (int i = 0; i < RN_SLOW_M; i++)                             \
+					Y[0][i] = R->par.slow * z[i];                           \
+			else                                                                    \
+				for (int i = 0; i < RN_SLOW_M; i++)                             \
+					Y[j][i] = R->rho * Y[j - 1][i] + R->s1 * z[i];          \
+		}                                                                               \
+		for (int r = r0; r < r1; r++) {                                                 \
+			const double *kc = R->kc + (size_t)r * R->nknot;                        \
+			float *o = dst + (size_t)(r - r0) * plane;                              \
+			int j = R->kj0[r];                                                      \
+			for (int i = 0; i < RN_SLOW_M; i++)                                     \
+				acc[i] = kc[j] * Y[j][i];                                       \
+			for (j++; j <= R->kj1[r]; j++)                                          \
+				for (int i = 0; i < RN_SLOW_M; i++)                             \
+					acc[i] += kc[j] * Y[j][i];                              \
+			if (m == RN_SLOW_M)                                                     \
+				for (int i = 0; i < RN_SLOW_M; i++)                             \
+					o[i] += (float)acc[i];                                  \
+			else                                                                    \
+				for (int i = 0; i < m; i++)                                     \
+					o[i] += (float)acc[i];                                  \
+		}                                                                               \
+	}
+
+static void slow_block(const struct rnoise *R, uint32_t c0, int m, int jmax, int r0, int r1,
+		       double *z, float *dst, size_t plane)
+SLOW_BLOCK_BODY
+
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("avx512f"))) static void
+slow_block_avx512(const struct rnoise *R, uint32_t c0, int m, int jmax, int r0, int r1,
+		  double *z, float *dst, size_t plane)
+SLOW_BLOCK_BODY
+#endif
+
 void rnoise_slow_add(const struct rnoise *R, uint32_t cell0, int n, int r0, int r1, float *dst,
 		     size_t plane)
 {
-	enum { M = 128 };
-	double Y[RN_MAX_KNOT][M], z[M];
-	int jmax = 0;
+	double z[RN_SLOW_M] = { 0 };
+	int jmax = 0, wide = 0;
 
 	if (!(R->par.slow > 0) || r1 <= r0)
 		return;
+#if defined(__x86_64__) && defined(__GNUC__)
+	wide = (simd_flags() & SIMD_AVX512) != 0;
+#endif
 	for (int r = r0; r < r1; r++)
 		jmax = R->kj1[r] > jmax ? R->kj1[r] : jmax;
-	for (int i0 = 0; i0 < n; i0 += M) {
-		int m = n - i0 < M ? n - i0 : M;
+	for (int i0 = 0; i0 < n; i0 += RN_SLOW_M) {
+		int m = n - i0 < RN_SLOW_M ? n - i0 : RN_SLOW_M;
 		uint32_t c0 = cell0 + (uint32_t)i0;
 
-		/* the knots up to the last one asked, in order */
-		for (int j = 0; j <= jmax; j++) {
-			struct rng g;
-
-			rng_init(&g, R->seed, R->slow_dom | (uint32_t)j << 24);
-			rng_normal_fill(&g, c0, (size_t)m, z);
-			if (!j)
-				for (int i = 0; i < m; i++)
-					Y[0][i] = R->par.slow * z[i];
-			else
-				for (int i = 0; i < m; i++)
-					Y[j][i] = R->rho * Y[j - 1][i] + R->s1 * z[i];
-		}
-		for (int r = r0; r < r1; r++) {
-			const double *kc = R->kc + (size_t)r * R->nknot;
-			float *o = dst + (size_t)(r - r0) * plane + i0;
-			int j = R->kj0[r];
-
-			for (int i = 0; i < m; i++)
-				z[i] = kc[j] * Y[j][i];
-			for (j++; j <= R->kj1[r]; j++)
-				for (int i = 0; i < m; i++)
-					z[i] += kc[j] * Y[j][i];
-			for (int i = 0; i < m; i++)
-				o[i] += (float)z[i];
-		}
+#if defined(__x86_64__) && defined(__GNUC__)
+		if (wide)
+			slow_block_avx512(R, c0, m, jmax, r0, r1, z, dst + i0, plane);
+		else
+#endif
+			slow_block(R, c0, m, jmax, r0, r1, z, dst + i0, plane);
 	}
 }
 

@@ -1,7 +1,7 @@
 #!/bin/sh
 # Correlated read noise (wfiscene(1), DETECTOR MODEL, --detector
 # correlated): the same bytes for any thread count and for runs split by
-# rows; off by default (the white noise's bytes); the reference pixels
+# rows; on by default (--detector none: the white noise's bytes); the reference pixels
 # carry the channels' noise; level 2's reference correction leaves a rate
 # whose scatter is what VAR_RNOISE and VAR_POISSON say, which the
 # uncorrected noise would exceed.  tests/unit/readnoise_stats measures the
@@ -41,14 +41,20 @@ for k in range(1, 6):
 "
 '
 
-test_expect_success 'off by default: the white noise bytes; on, the reference pixels move' '
-	run --level 1 --rows 1-60 -o d.fits &&
+test_expect_success 'on by default; off, the white noise bytes; on, the reference pixels move' '
+	run --level 1 --rows 1-60 --threads 1 -o a.fits &&
+	cmp a.fits w.fits &&
+	run --level 1 --detector none --rows 1-60 -o d.fits &&
 	run --level 1 --detector persistence --rows 1-60 -o p.fits &&
 	cmp d.fits p.fits &&
 	! cmp -s d.fits w.fits &&
 	$PY -c "
 import numpy as np
 from astropy.io import fits
+hw, hd = fits.open(\"w.fits\")[1].header, fits.open(\"d.fits\")[1].header
+# RNCORR records the correlated noise; RDNOISE keeps its meaning (a read)
+assert hw[\"RNCORR\"] is True and \"RNCORR\" not in hd, (hw.get(\"RNCORR\"), hd.get(\"RNCORR\"))
+assert hw[\"RDNOISE\"] == hd[\"RDNOISE\"], (hw[\"RDNOISE\"], hd[\"RDNOISE\"])
 w = fits.open(\"w.fits\")[1].data.astype(float)
 d = fits.open(\"d.fits\")[1].data.astype(float)
 # the bottom reference rows, resultant 1 less resultant 0, mean per channel:
@@ -64,7 +70,7 @@ assert cw > 3 * cd
 
 test_expect_success 'level 2: the corrected rate scatters as VAR_RNOISE + VAR_POISSON say' '
 	run --level 2 --detector correlated --rows 2000-2200 -o c2.fits &&
-	run --level 2 --rows 2000-2200 -o n2.fits &&
+	run --level 2 --detector none --rows 2000-2200 -o n2.fits &&
 	$PY -c "
 import numpy as np
 from astropy.io import fits

@@ -5,8 +5,10 @@
  * reads and the total noise (a least-squares slope through all reads, its
  * scatter times 54 read times, the median dark current's shot noise
  * added) against WFI_CDS_Noise_summary.ecsv and WFI_Total_noise.ecsv
- * (their values are in data/readnoise.tsv's cds column and below); and
- * the power spectrum along a channel's readout against the model's 1/f.
+ * (their values are in data/readnoise.tsv's cds and total columns), with
+ * and without the pixels' slow part; the power spectrum along a channel's
+ * readout against the model's 1/f; and amp33 following the channels.
+ * "calib" prints the constants contrib/tables/derive_readnoise.py takes.
  */
 #include <complex.h>
 #include <fftw3.h>

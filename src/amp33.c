@@ -1,10 +1,8 @@
 /* amp33.c - the reference channel of amplifier 33; see amp33.h. */
 #include "amp33.h"
 #include "readnoise.h"
+#include "rng_domains.h"
 
-/* The filter byte of the key's domain with this bit set names the
- * channel's own domain: ramp.c's filters are below 16. */
-#define AMP33_DOMAIN 0x80
 
 void amp33_rows(const struct ramp_pattern *p, const struct ramp_det *d,
 		const struct ramp_key *k, const struct rnoise *rn, int fy0, int ny, uint16_t *out,
@@ -13,7 +11,8 @@ void amp33_rows(const struct ramp_pattern *p, const struct ramp_det *d,
 	struct ramp_key key = *k;
 	struct ramp_det dw = *d;
 
-	key.filter = (k->filter & 0x7f) | AMP33_DOMAIN;
+	/* the channel's own numbers: the filter byte with DOM_FILTER_AMP33 */
+	key.filter = (k->filter & 0x7f) | DOM_FILTER_AMP33;
 	/* with the correlated noise, its white part per pixel and the
 	 * channel's own (readnoise.h, channel 32) */
 	if (rn)

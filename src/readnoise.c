@@ -28,18 +28,12 @@
 #include "err.h"
 #include "readnoise.h"
 #include "rng.h"
+#include "rng_domains.h"
 #include "simd.h"
-
-enum {
-	DOM_RN_PINK = 0x51,     /* group: the series, 0 shared, 1 + c own */
-	DOM_RN_OFF = 0x52,      /* cell: read * 64 + c * 2 + parity */
-	DOM_RN_SLOW = 0x53,     /* group: the knot; deviate: the pixel */
-};
 
 static uint32_t rn_domain(const struct ramp_key *k, int purpose, int group)
 {
-	return (uint32_t)purpose | (uint32_t)(k->filter & 0xff) << 8 |
-	       (uint32_t)(k->sca & 0xff) << 16 | (uint32_t)(group & 0xff) << 24;
+	return rng_domain(purpose, k->filter, k->sca, group);
 }
 
 int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)

@@ -8,8 +8,11 @@
  * read noise of each read averaged into the resultants, in DN.  Its
  * randomness is keyed by (seed, filter, SCA) and the pixel (y * 128 + x) in
  * a domain of its own, so the array's numbers do not move when it is
- * written, and any strip of rows gives the same values.  A model of the
- * correlated noise that the channel exists to measure can replace it here.
+ * written, and any strip of rows gives the same values.  With the
+ * correlated read noise (readnoise.h) its read noise is that model's: the
+ * white part per pixel, and the pink series, pedestal, alternating-column
+ * offsets and slow part of channel 32, so that a reference correction
+ * from amp33 has the channels' shared noise to measure.
  */
 #ifndef WFS_AMP33_H
 #define WFS_AMP33_H
@@ -21,12 +24,16 @@
 
 #define AMP33_COLS 128
 
+struct rnoise;
+
 /* Scratch doubles amp33_rows needs; set up with ramp_scratch_init. */
 #define AMP33_SCRATCH RAMP_SCRATCH(AMP33_COLS)
 
 /* Rows [fy0, fy0 + ny) of 0 .. 4096 of the channel: resultant r of row
- * fy0 + i, column x at out[(r * ny + i) * 128 + x]. */
+ * fy0 + i, column x at out[(r * ny + i) * 128 + x]; rn the exposure's
+ * correlated read noise, or NULL (white read noise only). */
 void amp33_rows(const struct ramp_pattern *p, const struct ramp_det *d,
-		const struct ramp_key *k, int fy0, int ny, uint16_t *out, double *scratch);
+		const struct ramp_key *k, const struct rnoise *rn, int fy0, int ny, uint16_t *out,
+		double *scratch);
 
 #endif

@@ -76,8 +76,8 @@ enum detector_part {
 	DETECTOR_CORRELATED = 1 << 1,
 	DETECTOR_ALL = DETECTOR_PERSISTENCE | DETECTOR_CORRELATED,
 	/* what levels 1 and 2 have without --detector: the parts whose
-	 * calibration holds (wfiscene(1), DETECTOR MODEL) */
-	DETECTOR_DEFAULT = DETECTOR_PERSISTENCE,
+	 * calibration holds (wfiscene(1), DETECTOR MODEL): all */
+	DETECTOR_DEFAULT = DETECTOR_ALL,
 };
 
 /* Parse a --detector value: "all", "none" or a comma-separated list of

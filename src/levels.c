@@ -51,6 +51,7 @@ struct strip {
 	struct ramp_fit_plan *fp;
 	const struct rnoise *rn;        /* NULL: white read noise only */
 	const struct rnoise_ref *ref;   /* level 2 with rn */
+	double read_noise;      /* e- a read as simulated (corrected): DQ PERSISTENCE's unit */
 	int fy0, ny;            /* frame rows [fy0, fy0 + ny) */
 	const double *const *light;     /* science row sy at light[sy - sy0 + 1] */
 	int sy0;
@@ -103,21 +104,25 @@ static void strip_charge(void *arg, int wid, size_t task)
 				(uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX,
 				s->light[s->c0 + task], &glow, s->ch[task], s->own[task],
 				WFS_NPIX, s->scr[wid]);
-	if (s->rn)
+	if (s->rn) {
 		for (int r = 0; r < L->pat->nres; r++)
 			rnoise_add_frame(s->rn, r, sy + BORDER, BORDER, WFS_NPIX,
 					 s->own[task] + (size_t)r * WFS_NPIX);
+		rnoise_slow_add(s->rn, (uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX, 0,
+				L->pat->nres, s->own[task], WFS_NPIX);
+	}
 }
 
 /* DQ PERSISTENCE on science row sy's pixels (dq[0 .. 4088)) whose
  * afterglow over the exposure reaches the flag's fraction of the read
- * noise of one read. */
-static void strip_persist_dq(const struct level_sca *L, int sy, uint32_t *dq)
+ * noise of one read, read_noise (as simulated: with the correlated read
+ * noise that of a reference-corrected read, which the fit assumes). */
+static void strip_persist_dq(const struct level_sca *L, double read_noise, int sy, uint32_t *dq)
 {
 	const struct persist *P = L->persist;
 	const struct persist_list *l = &P->now[L->key.sca - 1];
 	const struct persist_curve *c = &P->curve[L->key.sca - 1];
-	double limit = P->flag * L->det->read_noise, T = L->pat->exptime;
+	double limit = P->flag * read_noise, T = L->pat->exptime;
 	size_t first, n = persist_row(P, L->key.sca, sy, &first);
 
 	for (size_t k = first; k < first + n; k++) {
@@ -209,14 +214,14 @@ static void strip_row(void *arg, int wid, size_t ctask)
 					       s->sscr[wid], s->chisq + o, s->dumo + o);
 		}
 		if (L->persist && light)
-			strip_persist_dq(L, sy, s->dq + task * WFS_NPIX);
+			strip_persist_dq(L, s->read_noise, sy, s->dq + task * WFS_NPIX);
 	}
 }
 
 /* Hand computed strip s to the writer. */
 static int strip_write(const struct level_sca *L, const struct strip *s, struct err *e)
 {
-	struct level_strip out = { .fy0 = s->fy0, .ny = s->ny, .l1 = s->l1 };
+	struct level_strip out = { .fy0 = s->fy0, .ny = s->ny, .l1 = s->l1, .rn = s->rn };
 
 	if (L->level == LEVEL_2) {
 		/* science rows only: the reference rows have no fit */
@@ -457,6 +462,7 @@ int level_write_sca(struct level_sca *L, struct err *e)
 	int r = -1;
 
 	const struct ramp_det *det0 = L->det;
+	double read_noise = L->det->read_noise;
 
 	if (L->correlated) {
 		/* the white part per pixel; the fit's read noise that of a
@@ -470,6 +476,7 @@ int level_write_sca(struct level_sca *L, struct err *e)
 		w.det = *L->det;
 		w.det.read_noise = par.white;
 		fd.read_noise = par.cds / sqrt(2);
+		read_noise = fd.read_noise;
 		if (rnoise_init(&w.rn, L->pat, &par, &L->key, 0, e) < 0)
 			return -1;
 		L->det = &w.det;
@@ -486,6 +493,7 @@ int level_write_sca(struct level_sca *L, struct err *e)
 	}
 	if (sca_pass_alloc(&w, L) < 0)
 		goto nomem;
+	w.st[0].read_noise = w.st[1].read_noise = read_noise;
 	for (int fy0 = flo, b = 0; fy0 < fhi; fy0 += w.S, b ^= 1) {
 		struct strip *s = &w.st[b];
 		double t0 = now(), t1;

@@ -36,24 +36,9 @@
 #include "instrument.h"
 #include "noise.h"
 #include "rng.h"
+#include "rng_domains.h"
 #include "simd.h"
 
-/* Domains: the stage in bits 0-7, the filter in 8-15, the SCA in 16-23. */
-enum {
-	DOM_POISSON = 1,
-	DOM_READ = 2,
-	DOM_DARK_SHOT = 3,
-	DOM_DARK_FIELD = 4,
-	DOM_FLAT_FIELD = 5,
-	DOM_CR_HIT = 6,
-	DOM_CR_LOW = 7,
-	DOM_CR_HIGH = 8,
-	DOM_CR_LOW_N = 9,       /* per-centre counts and energies, for */
-	DOM_CR_HIGH_N = 10,     /* lambda >= CR_PER_CENTRE */
-	DOM_CR_LOW_E = 11,
-	DOM_CR_HIGH_E = 12,
-	DOM_ANY_FILTER = 0xff,
-};
 
 #define CR_PIXEL_AREA 1e-6      /* cm^2: 10 micron pixels */
 #define CR_E_LOW 600.0          /* e-, STIPS' "galactic" population */
@@ -64,8 +49,7 @@ enum {
 
 static uint32_t domain(int stage, int filter, int sca)
 {
-	return (uint32_t)stage | (uint32_t)(filter & 0xff) << 8 |
-	       (uint32_t)(sca & 0xff) << 16;
+	return rng_domain(stage, filter, sca, 0);
 }
 
 void noise_opts_default(struct noise_opts *o)
@@ -281,8 +265,8 @@ static void cosmic_per_centre(const struct noise_opts *o, const struct cr_tile *
 			      int sca, double lambda)
 {
 	static const double energy[2] = { CR_E_LOW, CR_E_HIGH };
-	static const int dom_n[2] = { DOM_CR_LOW_N, DOM_CR_HIGH_N };
-	static const int dom_e[2] = { DOM_CR_LOW_E, DOM_CR_HIGH_E };
+	static const int dom_n[2] = { DOM_SC_CR_LOW_N, DOM_SC_CR_HIGH_N };
+	static const int dom_e[2] = { DOM_SC_CR_LOW_E, DOM_SC_CR_HIGH_E };
 	int xa = t->x0 - 1, xb = t->x0 + t->nx, ya = t->y0 - 1, yb = t->y0 + t->ny;
 	double lam[CR_SPAN], n[CR_SPAN];
 	size_t len;
@@ -343,9 +327,9 @@ static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
 		yb = WFS_NPIX;
 	if (sb > CR_NSEG - 1)
 		sb = CR_NSEG - 1;
-	rng_init(&hit, o->seed, domain(DOM_CR_HIT, o->filter, sca));
-	rng_init(&pop[0], o->seed, domain(DOM_CR_LOW, o->filter, sca));
-	rng_init(&pop[1], o->seed, domain(DOM_CR_HIGH, o->filter, sca));
+	rng_init(&hit, o->seed, domain(DOM_SC_CR_HIT, o->filter, sca));
+	rng_init(&pop[0], o->seed, domain(DOM_SC_CR_LOW, o->filter, sca));
+	rng_init(&pop[1], o->seed, domain(DOM_SC_CR_HIGH, o->filter, sca));
 	/* [0]: a full segment, [1]: the last, shorter one. */
 	for (int k = 0; k < 2; k++) {
 		lam[k] = lambda * (k ? nlast : CR_SEG);
@@ -600,11 +584,11 @@ int noise_tile(const struct noise_opts *o, int sca, int x0, int y0, int nx,
 	rn = o->readnoise;
 	sf = o->flat_residual > 0 ? o->flat_residual : NOISE_FLAT_RESIDUAL;
 	sdt = (o->dark_residual > 0 ? o->dark_residual : NOISE_DARK_RESIDUAL) * t;
-	rng_init(&g_pois, o->seed, domain(DOM_POISSON, o->filter, sca));
-	rng_init(&g_read, o->seed, domain(DOM_READ, o->filter, sca));
-	rng_init(&g_flat, o->seed, domain(DOM_FLAT_FIELD, o->filter, sca));
-	rng_init(&g_dshot, o->seed, domain(DOM_DARK_SHOT, o->filter, sca));
-	rng_init(&g_dfield, o->seed, domain(DOM_DARK_FIELD, DOM_ANY_FILTER, sca));
+	rng_init(&g_pois, o->seed, domain(DOM_SC_POISSON, o->filter, sca));
+	rng_init(&g_read, o->seed, domain(DOM_SC_READ, o->filter, sca));
+	rng_init(&g_flat, o->seed, domain(DOM_SC_FLAT_FIELD, o->filter, sca));
+	rng_init(&g_dshot, o->seed, domain(DOM_SC_DARK_SHOT, o->filter, sca));
+	rng_init(&g_dfield, o->seed, domain(DOM_SC_DARK_FIELD, DOM_ANY_FILTER, sca));
 	/*
 	 * With both poisson and dark, the dark current joins the light in
 	 * one Poisson count: a sum of independent Poisson counts is a Poisson

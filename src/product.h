@@ -18,6 +18,7 @@ struct engine;
 struct err;
 struct ramp_det;
 struct ramp_pattern;
+struct rnoise;
 
 /* The output formats (--format; by default from -o's extension). */
 enum product_format { FORMAT_FITS = 0, FORMAT_ASDF = 1 };
@@ -31,6 +32,7 @@ struct product {
 	/* levels 1 and 2: the read pattern and the SCA's constants */
 	const struct ramp_pattern *pat;
 	const struct ramp_det *det;
+	int correlated;         /* the correlated read noise (RNCORR) */
 };
 
 /*
@@ -50,6 +52,9 @@ struct level_strip {
 	const uint32_t *dq;
 	/* with writer_ops.ramp_stats: ramp_stats.h's chisq and dumo (DN/s) */
 	const float *chisq, *dumo;
+	/* the exposure's correlated read noise (readnoise.h), for amp33; NULL:
+	 * white read noise only */
+	const struct rnoise *rn;
 };
 
 struct writer;

@@ -60,28 +60,16 @@
 #include "ramp.h"
 #include "ramp_pois.h"
 #include "rng.h"
+#include "rng_domains.h"
 #include "simd.h"
 
-enum {
-	DOM_RESET = 0x41,
-	DOM_CR = 0x42,
-	DOM_CR_DETAIL = 0x43,
-	DOM_POIS = 0x44,
-	DOM_SPLIT = 0x45,
-	DOM_SPLIT_N = 0x46,
-	DOM_READ = 0x47,
-	DOM_GAP = 0x48,
-	DOM_GLOW = 0x49,
-	DOM_REFREAD = 0x4a,
-};
 
 #define RATE_MAX 1e12           /* e-/s: beyond this a pixel is as saturated */
 #define CR_MAX 1024             /* hits remembered per row call */
 
 static uint32_t domain(const struct ramp_key *k, int purpose, int group)
 {
-	return (uint32_t)purpose | (uint32_t)(k->filter & 0xff) << 8 |
-	       (uint32_t)(k->sca & 0xff) << 16 | (uint32_t)(group & 0xff) << 24;
+	return rng_domain(purpose, k->filter, k->sca, group);
 }
 
 /* ---- tables ---- */

@@ -9,6 +9,14 @@
  * 0: power 1/f from 1/(N t_row) to the row rate's Nyquist frequency, and a
  * sample's variance sum_j 4 K / j (the Nyquist term K / (N/2)), which sets
  * K for the amplitude asked.  Read k of row y is sample k 4096 + y.
+ *
+ * The slow part of a pixel: knots Y_0 .. Y_J at reads 0, RN_KNOT, ...,
+ * Y_0 = slow z_0, Y_j = rho Y_j-1 + slow sqrt(1 - rho^2) z_j, rho =
+ * exp(-RN_KNOT read_time / slow_tau): stationary, of variance slow^2 and
+ * covariance slow^2 exp(-|t| / slow_tau) between knots.  Read k takes
+ * (1 - f) Y_j + f Y_j+1, j = k / RN_KNOT, f = (k mod RN_KNOT) / RN_KNOT;
+ * a resultant the mean of its reads', a fixed sum over the knots its reads
+ * span (kc).  z_j of pixel c is deviate c of the domain of knot j.
  */
 #include <fftw3.h>
 #include <math.h>
@@ -20,16 +28,12 @@
 #include "err.h"
 #include "readnoise.h"
 #include "rng.h"
-
-enum {
-	DOM_RN_PINK = 0x51,     /* group: the series, 0 shared, 1 + c own */
-	DOM_RN_OFF = 0x52,      /* cell: read * 64 + c * 2 + parity */
-};
+#include "rng_domains.h"
+#include "simd.h"
 
 static uint32_t rn_domain(const struct ramp_key *k, int purpose, int group)
 {
-	return (uint32_t)purpose | (uint32_t)(k->filter & 0xff) << 8 |
-	       (uint32_t)(k->sca & 0xff) << 16 | (uint32_t)(group & 0xff) << 24;
+	return rng_domain(purpose, k->filter, k->sca, group);
 }
 
 int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
@@ -43,10 +47,11 @@ int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
 	if (tsv_parse(&t, "readnoise.tsv") < 0)
 		return e ? err_set(e, EXIT_SYSTEM, "readnoise.tsv: table missing from the build") : -1;
 	int cd = tsv_col(&t, "cds"), cs = tsv_col(&t, "sca"), cw = tsv_col(&t, "white"), cp = tsv_col(&t, "ped"),
-	    cc = tsv_col(&t, "cpink"), cu = tsv_col(&t, "upink"), ca = tsv_col(&t, "acn");
+	    cc = tsv_col(&t, "cpink"), cu = tsv_col(&t, "upink"), ca = tsv_col(&t, "acn"),
+	    cl = tsv_col(&t, "slow"), ct = tsv_col(&t, "slow_tau"), cT = tsv_col(&t, "total");
 
-	for (int r = 1; r < t.nrow && cs >= 0 && cw >= 0 && cp >= 0 && cc >= 0 && cu >= 0 && ca >= 0 && cd >= 0;
-	     r++)
+	for (int r = 1; r < t.nrow && cs >= 0 && cw >= 0 && cp >= 0 && cc >= 0 && cu >= 0 && ca >= 0 && cd >= 0
+	     && cl >= 0 && ct >= 0 && cT >= 0; r++)
 		if (!strcmp(t.cell[r][cs], name)) {
 			par->cds = strtod(t.cell[r][cd], NULL);
 			par->white = strtod(t.cell[r][cw], NULL);
@@ -54,11 +59,15 @@ int rnoise_par_get(int sca, struct rnoise_par *par, struct err *e)
 			par->cpink = strtod(t.cell[r][cc], NULL);
 			par->upink = strtod(t.cell[r][cu], NULL);
 			par->acn = strtod(t.cell[r][ca], NULL);
+			par->slow = strtod(t.cell[r][cl], NULL);
+			par->slow_tau = strtod(t.cell[r][ct], NULL);
+			par->total = strtod(t.cell[r][cT], NULL);
 			found = 1;
 		}
 	tsv_free(&t);
 	if (!found || !(par->cds > 0) || !(par->white >= 0) || !(par->ped >= 0) || !(par->cpink >= 0) ||
-	    !(par->upink >= 0) || !(par->acn >= 0))
+	    !(par->upink >= 0) || !(par->acn >= 0) || !(par->slow >= 0) || !(par->slow_tau > 0) ||
+	    !(par->total > 0))
 		return e ? err_set(e, EXIT_SYSTEM, "readnoise.tsv: no or bad row for %s", name) : -1;
 	return 0;
 }
@@ -136,6 +145,7 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	n = m * RN_ROWS;
 	size_t plane = (size_t)RN_NCHAN * (RN_ROWS + 1);
 	double *shared = NULL, *own = NULL;
+	int fa[RAMP_MAX_RES + 1], la[RAMP_MAX_RES + 1];
 	struct rng g;
 
 	memset(R, 0, sizeof(*R));
@@ -143,8 +153,14 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	R->nres = p->nres;
 	R->nsamp = n;
 	R->row_time = p->read_time / RN_ROWS;
-	R->pink = calloc((size_t)p->nres * plane, sizeof(float));
-	R->off = calloc((size_t)p->nres * RN_NCHAN * 2, sizeof(float));
+	/* the resultants, and after them the reset read (read 0) */
+	for (int r = 0; r < p->nres; r++) {
+		fa[r] = p->first[r];
+		la[r] = p->last[r];
+	}
+	fa[p->nres] = la[p->nres] = 0;
+	R->pink = calloc((size_t)(p->nres + 1) * plane, sizeof(float));
+	R->off = calloc((size_t)(p->nres + 1) * RN_NCHAN * 2, sizeof(float));
 	shared = malloc(sizeof(double) * (size_t)n);
 	own = malloc(sizeof(double) * (size_t)n);
 	if (!R->pink || !R->off || !shared || !own)
@@ -156,14 +172,14 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 		rng_init(&g, k->seed, rn_domain(k, DOM_RN_PINK, 1 + c));
 		if (pink_series(&g, n, par->upink, own) < 0)
 			goto nomem;
-		for (int r = 0; r < p->nres; r++) {
+		for (int r = 0; r <= p->nres; r++) {
 			float *dst = R->pink + (size_t)r * plane + (size_t)c * (RN_ROWS + 1);
-			double inv = 1.0 / (p->last[r] - p->first[r] + 1);
+			double inv = 1.0 / (la[r] - fa[r] + 1);
 
 			for (int y = 0; y <= RN_ROWS; y++) {
 				double s = 0;
 
-				for (int rd = p->first[r]; rd <= p->last[r]; rd++) {
+				for (int rd = fa[r]; rd <= la[r]; rd++) {
 					long i = (long)rd * RN_ROWS + y;
 
 					s += shared[i] + own[i];
@@ -174,14 +190,14 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	}
 	/* the offsets of each read: pedestal and alternating columns */
 	rng_init(&g, k->seed, rn_domain(k, DOM_RN_OFF, 0));
-	for (int r = 0; r < p->nres; r++) {
-		double inv = 1.0 / (p->last[r] - p->first[r] + 1);
+	for (int r = 0; r <= p->nres; r++) {
+		double inv = 1.0 / (la[r] - fa[r] + 1);
 
 		for (int c = 0; c < RN_NCHAN; c++)
 			for (int par2 = 0; par2 < 2; par2++) {
 				double s = 0;
 
-				for (int rd = p->first[r]; rd <= p->last[r]; rd++) {
+				for (int rd = fa[r]; rd <= la[r]; rd++) {
 					double z[2];
 
 					/* the pedestal, shared by the parities; the odd
@@ -194,6 +210,32 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 	}
 	free(shared);
 	free(own);
+	/* the slow part's knots and each resultant's weights on them */
+	R->seed = k->seed;
+	R->slow_dom = rn_domain(k, DOM_RN_SLOW, 0);
+	R->nknot = last / RN_KNOT + 2;
+	if (R->nknot > RN_MAX_KNOT) {
+		rnoise_free(R);
+		return e ? err_set(e, EXIT_INPUT, "correlated read noise: %d reads, at most %d",
+				   last, (RN_MAX_KNOT - 1) * RN_KNOT - 1) : -1;
+	}
+	R->rho = exp(-RN_KNOT * p->read_time / par->slow_tau);
+	R->s1 = par->slow * sqrt(1 - R->rho * R->rho);
+	if (!(R->kc = calloc((size_t)(p->nres + 1) * (size_t)R->nknot, sizeof(double))))
+		goto nomem;
+	for (int r = 0; r <= p->nres; r++) {
+		double *kc = R->kc + (size_t)r * R->nknot, inv = 1.0 / (la[r] - fa[r] + 1);
+
+		R->kj0[r] = fa[r] / RN_KNOT;
+		R->kj1[r] = la[r] / RN_KNOT + 1;
+		for (int rd = fa[r]; rd <= la[r]; rd++) {
+			int j = rd / RN_KNOT;
+			double f = (double)(rd % RN_KNOT) / RN_KNOT;
+
+			kc[j] += (1 - f) * inv;
+			kc[j + 1] += f * inv;
+		}
+	}
 	return 0;
 nomem:
 	free(shared);
@@ -206,8 +248,85 @@ void rnoise_free(struct rnoise *R)
 {
 	free(R->pink);
 	free(R->off);
+	free(R->kc);
 	R->pink = NULL;
 	R->off = NULL;
+	R->kc = NULL;
+}
+
+/* The knots 0 .. jmax of RN_SLOW_M pixels from cell c0 on (m of them
+ * real: the rest of z holds zeros or a block's old deviates, whose sums
+ * nobody reads) and their resultants r0 .. r1 - 1 added to dst.  Loops of
+ * a fixed count, which the compiler vectorises; the same operations in
+ * the same order on every pixel, so the same numbers either way. */
+#define RN_SLOW_M 128
+#define SLOW_BLOCK_BODY                                                                         \
+	{                                                                                       \
+		double Y[RN_MAX_KNOT][RN_SLOW_M], acc[RN_SLOW_M];                               \
+		for (int j = 0; j <= jmax; j++) {                                               \
+			struct rng g;                                                           \
+			rng_init(&g, R->seed, R->slow_dom | (uint32_t)j << 24);                 \
+			rng_normal_fill(&g, c0, (size_t)m, z);                                  \
+			if (!j)                                                                 \
+				for (int i = 0; i < RN_SLOW_M; i++)                             \
+					Y[0][i] = R->par.slow * z[i];                           \
+			else                                                                    \
+				for (int i = 0; i < RN_SLOW_M; i++)                             \
+					Y[j][i] = R->rho * Y[j - 1][i] + R->s1 * z[i];          \
+		}                                                                               \
+		for (int r = r0; r < r1; r++) {                                                 \
+			const double *kc = R->kc + (size_t)r * R->nknot;                        \
+			float *o = dst + (size_t)(r - r0) * plane;                              \
+			int j = R->kj0[r];                                                      \
+			for (int i = 0; i < RN_SLOW_M; i++)                                     \
+				acc[i] = kc[j] * Y[j][i];                                       \
+			for (j++; j <= R->kj1[r]; j++)                                          \
+				for (int i = 0; i < RN_SLOW_M; i++)                             \
+					acc[i] += kc[j] * Y[j][i];                              \
+			if (m == RN_SLOW_M)                                                     \
+				for (int i = 0; i < RN_SLOW_M; i++)                             \
+					o[i] += (float)acc[i];                                  \
+			else                                                                    \
+				for (int i = 0; i < m; i++)                                     \
+					o[i] += (float)acc[i];                                  \
+		}                                                                               \
+	}
+
+static void slow_block(const struct rnoise *R, uint32_t c0, int m, int jmax, int r0, int r1,
+		       double *z, float *dst, size_t plane)
+SLOW_BLOCK_BODY
+
+#ifdef SIMD_X86
+__attribute__((target("avx512f"))) static void
+slow_block_avx512(const struct rnoise *R, uint32_t c0, int m, int jmax, int r0, int r1,
+		  double *z, float *dst, size_t plane)
+SLOW_BLOCK_BODY
+#endif
+
+void rnoise_slow_add(const struct rnoise *R, uint32_t cell0, int n, int r0, int r1, float *dst,
+		     size_t plane)
+{
+	double z[RN_SLOW_M] = { 0 };
+	int jmax = 0, wide = 0;
+
+	if (!(R->par.slow > 0) || r1 <= r0)
+		return;
+#ifdef SIMD_X86
+	wide = (simd_flags() & SIMD_AVX512) != 0;
+#endif
+	for (int r = r0; r < r1; r++)
+		jmax = R->kj1[r] > jmax ? R->kj1[r] : jmax;
+	for (int i0 = 0; i0 < n; i0 += RN_SLOW_M) {
+		int m = n - i0 < RN_SLOW_M ? n - i0 : RN_SLOW_M;
+		uint32_t c0 = cell0 + (uint32_t)i0;
+
+#ifdef SIMD_X86
+		if (wide)
+			slow_block_avx512(R, c0, m, jmax, r0, r1, z, dst + i0, plane);
+		else
+#endif
+			slow_block(R, c0, m, jmax, r0, r1, z, dst + i0, plane);
+	}
 }
 
 void rnoise_add(const struct rnoise *R, int r, int c, int y, int x0, int n, float *dst)
@@ -244,24 +363,61 @@ void rnoise_add_frame(const struct rnoise *R, int r, int y, int fx0, int n, floa
 	}
 }
 
+/* out[r * plane + i] += v[r][i] / gain, rounded, clipped to 16 bits */
+static void dn_add(int nres, const float *v, size_t vplane, double gain, int m, uint16_t *out,
+		   size_t plane)
+{
+	for (int r = 0; r < nres; r++) {
+		uint16_t *o = out + (size_t)r * plane;
+		const float *vr = v + (size_t)r * vplane;
+
+		for (int i = 0; i < m; i++) {
+			double dn = floor(o[i] + vr[i] / gain + 0.5);
+
+			o[i] = (uint16_t)(dn < 0 ? 0 : dn > 65535 ? 65535 : dn);
+		}
+	}
+}
+
+void rnoise_add_amp33_dn(const struct rnoise *R, double gain, int y, uint16_t *out, size_t plane)
+{
+	float v[RAMP_MAX_RES][RN_COLS];
+
+	memset(v, 0, sizeof(v));
+	for (int r = 0; r < R->nres; r++)
+		rnoise_add(R, r, RN_NCHAN - 1, y, 0, RN_COLS, v[r]);
+	rnoise_slow_add(R, RN_AMP33_CELL + (uint32_t)y * RN_COLS, RN_COLS, 0, R->nres, v[0], RN_COLS);
+	dn_add(R->nres, v[0], RN_COLS, gain, RN_COLS, out, plane);
+}
+
+/* rnoise_add_dn for resultants r0 .. r1 - 1 (r = nres: the reset read) */
+static void add_dn(const struct rnoise *R, int r0, int r1, double gain, int y, int fx0, int n,
+		   uint16_t *out, size_t plane)
+{
+	enum { M = RN_COLS * 2 };
+	float v[RAMP_MAX_RES][M];
+
+	for (int i0 = 0; i0 < n; i0 += M) {
+		int m = n - i0 < M ? n - i0 : M;
+
+		for (int r = r0; r < r1; r++) {
+			memset(v[r - r0], 0, sizeof(float) * (size_t)m);
+			rnoise_add_frame(R, r, y, fx0 + i0, m, v[r - r0]);
+		}
+		rnoise_slow_add(R, (uint32_t)y * RN_ROWS + (uint32_t)(fx0 + i0), m, r0, r1, v[0], M);
+		dn_add(r1 - r0, v[0], M, gain, m, out + i0, plane);
+	}
+}
+
 void rnoise_add_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out,
 		   size_t plane)
 {
-	float v[RN_COLS * 2];
+	add_dn(R, 0, R->nres, gain, y, fx0, n, out, plane);
+}
 
-	for (int r = 0; r < R->nres; r++)
-		for (int i0 = 0; i0 < n; i0 += RN_COLS * 2) {
-			int m = n - i0 < RN_COLS * 2 ? n - i0 : RN_COLS * 2;
-			uint16_t *o = out + (size_t)r * plane + i0;
-
-			memset(v, 0, sizeof(float) * (size_t)m);
-			rnoise_add_frame(R, r, y, fx0 + i0, m, v);
-			for (int i = 0; i < m; i++) {
-				double dn = floor(o[i] + v[i] / gain + 0.5);
-
-				o[i] = (uint16_t)(dn < 0 ? 0 : dn > 65535 ? 65535 : dn);
-			}
-		}
+void rnoise_add_read0_dn(const struct rnoise *R, double gain, int y, int fx0, int n, uint16_t *out)
+{
+	add_dn(R, R->nres, R->nres + 1, gain, y, fx0, n, out, 0);
 }
 
 int rnoise_ref_init(struct rnoise_ref *C, const struct rnoise *R, const struct ramp_pattern *p,
@@ -363,16 +519,21 @@ void rnoise_ref_apply(const struct rnoise_ref *C, int y, uint16_t *dn, size_t pl
 		for (int c = 0; c < 32; c++) {
 			/* floor(v - t + 0.5) = v - ceil(t - 0.5) for an integer v:
 			 * one integer a column parity */
-			int k[2], lo = c ? c * RN_COLS : 4;
-			int hi = c == 31 ? RN_ROWS - 4 : (c + 1) * RN_COLS;
+			int k[2], kk[RN_COLS], lo = c ? 0 : 4, hi = c == 31 ? RN_COLS - 4 : RN_COLS;
+			uint16_t *oc = o + c * RN_COLS;
 
 			for (int q = 0; q < 2; q++)
 				k[q] = (int)ceil(tb[c * 2 + q] + sd - 0.5);
-			for (int fx = lo; fx < hi; fx++) {
-				int v = o[fx], w = v - k[fx & 1];
+			for (int x = 0; x < RN_COLS; x++)
+				kk[x] = k[x & 1];
+			/* a loop the compiler vectorises */
+			for (int x = lo; x < hi; x++) {
+				int v = oc[x], w = v - kk[x];
 
-				/* saturated or clipped: as it is */
-				o[fx] = (uint16_t)(v == 65535 ? v : w < 0 ? 0 : w > 65534 ? 65534 : w);
+				w = w < 0 ? 0 : w;
+				w = w > 65534 ? 65534 : w;
+				/* saturated: as it is */
+				oc[x] = (uint16_t)(v == 65535 ? v : w);
 			}
 		}
 	}

@@ -23,8 +23,15 @@ struct rng {
 	uint32_t dom[2];
 };
 
-/* The key for seed and the domain dom (any 32 bits that name the stream,
- * e.g. stage | filter << 8 | sca << 16). */
+/* The domain of a stream: the purpose (rng_domains.h) in bits 0-7, the
+ * filter in 8-15, the SCA in 16-23 and a group in 24-31. */
+static inline uint32_t rng_domain(int purpose, int filter, int sca, int group)
+{
+	return (uint32_t)(purpose & 0xff) | (uint32_t)(filter & 0xff) << 8 |
+	       (uint32_t)(sca & 0xff) << 16 | (uint32_t)(group & 0xff) << 24;
+}
+
+/* The key for seed and the domain dom (rng_domain()). */
 void rng_init(struct rng *g, uint64_t seed, uint32_t dom);
 
 /* Philox4x32-10 of counter ctr with key key, the raw primitive. */

@@ -213,6 +213,7 @@ static int write_slot_level(struct engine *g, struct writer *w, int s, const str
 	if (ramp_det_get(sca, &det, g->e) < 0)
 		return -1;
 	detector_level_setup(d, sca, &L);
+	p.correlated = L.correlated;
 	/* the knobs of the approximations (wfiscene(1), DETECTOR LEVELS) */
 	{
 		static const char *const keys[2] = { "ramp-split-exact", "ramp-jump-threshold" };

@@ -27,6 +27,7 @@
 #include <time.h>
 
 #include "amp33.h"
+#include "readnoise.h"
 #include "asdf.h"
 #include "asdf_gwcs.h"
 #include "date.h"
@@ -616,7 +617,7 @@ static int put_amp33(struct asdf_writer *aw, int k, const struct level_strip *s,
 		aw->amp = a;
 		aw->amp_rows = s->ny;
 	}
-	amp33_rows(aw->pat, aw->det, &aw->key, s->fy0, s->ny, aw->amp, aw->scratch);
+	amp33_rows(aw->pat, aw->det, &aw->key, s->rn, s->fy0, s->ny, aw->amp, aw->scratch);
 	return put_planes(aw, k, s->fy0, s->ny, AMP33_COLS, aw->amp, sizeof(uint16_t), e);
 }
 
@@ -730,9 +731,18 @@ static int asdf_strip(struct writer *w, const struct level_strip *s, struct err 
 		    put_amp33(aw, L1_AMP33, s, e) < 0 || grow(aw, (size_t)s->ny * FRAME * 2, e) < 0)
 			return -1;
 		/* the reference read: the reset level the resultants start from */
-		for (int i = 0; i < s->ny; i++)
-			ramp_reference_row(aw->det, &aw->key, (uint32_t)(s->fy0 + i) * FRAME, FRAME,
-					   (uint16_t *)aw->buf + (size_t)i * FRAME, aw->scratch);
+		for (int i = 0; i < s->ny; i++) {
+			uint16_t *row = (uint16_t *)aw->buf + (size_t)i * FRAME;
+			struct ramp_det dw = *aw->det;
+
+			/* with the correlated read noise, read 0's (readnoise.h) */
+			if (s->rn)
+				dw.read_noise = s->rn->par.white;
+			ramp_reference_row(&dw, &aw->key, (uint32_t)(s->fy0 + i) * FRAME, FRAME, row,
+					   aw->scratch);
+			if (s->rn)
+				rnoise_add_read0_dn(s->rn, aw->det->gain, s->fy0 + i, 0, FRAME, row);
+		}
 		return asdf_out_put(aw->out, L1_REF, (uint64_t)s->fy0 * FRAME * 2, aw->buf,
 				    (size_t)s->ny * FRAME * 2, e);
 	}

@@ -164,6 +164,7 @@ struct level_cards {
 	const struct ramp_det *det;
 	const char *cards;      /* the SCA's image cards */
 	int ncards;
+	int correlated;
 };
 
 /* Append card c (80 characters) to the list. */
@@ -237,6 +238,11 @@ static int hdu_cards(const struct level_cards *L, const char *extname, const cha
 	}
 	fits_card_dbl(c, "RDNOISE", L->det->read_noise, "read noise per read (e-)");
 	bad |= push(cards, n, c);
+	if (L->correlated) {
+		/* RDNOISE stays the read noise of a (reference-corrected) read */
+		fits_card_bool(c, "RNCORR", 1, "read noise correlated (channels, slow part)");
+		bad |= push(cards, n, c);
+	}
 	fits_card_dbl(c, "DARKCURR", L->det->dark, "dark current (e-/s)");
 	bad |= push(cards, n, c);
 	fits_card_dbl(c, "SATURATE", L->det->saturation, "saturation (DN, pedestal included)");
@@ -349,7 +355,8 @@ static int fits_sca_begin(struct writer *w, const struct product *p, struct err 
 		free(cards);
 		return r;
 	} else {
-		struct level_cards L = { p->level, p->sca, p->ylo, p->yhi, p->pat, p->det, cards, ncards };
+		struct level_cards L = { p->level, p->sca, p->ylo, p->yhi, p->pat, p->det, cards, ncards,
+					 p->correlated };
 		int fhi = p->yhi == WFS_NPIX ? FRAME : p->yhi + BORDER;
 
 		if ((nh = sca_hdus(&L, fw->flo, fhi, h, hc, name)) < 0)

@@ -357,7 +357,7 @@ test_expect_success 'SIAF geometry: each pixel gets the sky part times its area,
 '
 test_expect_success '--level 2, SIAF geometry: the sky part times each pixel area, thermal as is' '
 	"$WFS" --filter F158 --sca 9 --rows 1-64 -q --background sky --date $D1 \
-		--ra 270 --dec 66.56 --level 2 -o lev2siaf.fits none.csv &&
+		--ra 270 --dec 66.56 --level 2 --detector none -o lev2siaf.fits none.csv &&
 	"$PY" - <<-\EOF
 	import warnings
 	import numpy as np
@@ -390,6 +390,8 @@ test_expect_success '--level 2, SIAF geometry: the sky part times each pixel are
 	        got.append(rate[:, x0:x0 + 512][good[:, x0:x0 + 512]].mean())
 	    got, want = np.array(got), np.array(want)
 	    print(got, want)
+	    # (white read noise: the residuals of the channels after the reference
+	    # correction would blur the 0.4 % this asks)
 	    # the areas differ by more than the test resolves, so one flat
 	    # number for the SCA would fail
 	    assert want.max() / want.min() > 1.008, want

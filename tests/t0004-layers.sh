@@ -2,7 +2,8 @@
 # Files follow the data flow: no file of src/ calls back into one that calls
 # it, directly or through others (a file A "calls" B when A's object uses a
 # symbol B's defines, as nm shows them), no source file is over 1,200
-# lines, and no function of src/ or plugins/ is over 120.  A plugin's own
+# lines, no function of src/ or plugins/ is over 120, and vector code
+# sits under simd.h's one switch.  A plugin's own
 # units may call each other; they are not in build/obj.
 . "$(dirname "$0")/lib.sh"
 
@@ -103,5 +104,12 @@ test_expect_success '... which the check does see: a function of 121 lines, in b
 	{ echo "int g(int a) {"; sed 1,2d f.c; } > g.c &&
 	long f.c g.c > found &&
 	printf "f.c f 121\ng.c g 121\n" > want && test_cmp want found
+'
+# One SIMD switch (simd.h): vector code elsewhere sits under SIMD_X86, never
+# under a guard of its own, which a rename leaves silently undefined.
+test_expect_success 'vector code is guarded by simd.h alone' '
+	(cd "$TOP" && grep -n -E "__x86_64__|#if(def|ndef)? [A-Z_0-9]*AVX|defined\([A-Z_0-9]*AVX" \
+		src/*.[ch] plugins/*.[ch] | grep -v "^src/simd.h:") > ad_hoc ;
+	test ! -s ad_hoc || { cat ad_hoc; false; }
 '
 test_done

@@ -43,7 +43,9 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	g->e = e;
 	g->main_thread = pthread_self();
 	settings_init(g);
-	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, o->geometry, x->sca_mask, e) < 0)
+	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, o->geometry, x->sca_mask, e) < 0 ||
+	    sky_va_setting(&g->sky, host_setting(g, "velocity-aberration"), x->date, o->exptime,
+			   e) < 0)
 		return -1;
 	g->tile = o->tile;
 	g->ntx = g->nty = (WFS_NPIX + g->tile - 1) / g->tile;

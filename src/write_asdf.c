@@ -222,7 +222,10 @@ static void meta_exposure(struct asdf_writer *aw, struct asdf_tree *t, struct fy
 	 * ramp fit's slope spans */
 	asdf_num(t, x, "effective_exposure_time", p->tbar[p->nres - 1] - p->tbar[0]);
 	snprintf(id, sizeof(id), "%d", p->table);
-	asdf_str(t, x, "ma_table_name", "wfiscene data/ma_tables.tsv");
+	/* the Project's name of the table where wfiscene's sources give it
+	 * (romanisim's parameters: table 4 is C2A_IMG_HLWAS); UNKNOWN, not
+	 * a made-up one, for the others */
+	asdf_str(t, x, "ma_table_name", p->table == 4 ? "C2A_IMG_HLWAS" : "UNKNOWN");
 	asdf_int(t, x, "ma_table_number", p->table);
 	asdf_str(t, x, "ma_table_id", id);
 	rp = asdf_seq(t, x, "read_pattern");

@@ -468,8 +468,9 @@ int geom_sky_to_pix(struct geom_sca *g, size_t n, const double *ra,
 		geom_idl_to_sci(ap, dot(s, g->ex) / w / AS2R, dot(s, g->ey) / w / AS2R, &u, &v);
 		x[i] = isfinite(u) && isfinite(v) ? ap->xref - 1 + u : NAN;
 		y[i] = isfinite(u) && isfinite(v) ? ap->yref - 1 + v : NAN;
+		/* (ra, dec may be x, y: sky_to_pixel works in place) */
 		if (g->map && isfinite(x[i]))
-			g->map->to_pix(g->map->ctx, ra[i], dec[i], x[i], y[i], &x[i], &y[i]);
+			g->map->to_pix(g->map->ctx, a / D2R, d / D2R, x[i], y[i], &x[i], &y[i]);
 	}
 	return 0;
 }

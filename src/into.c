@@ -298,8 +298,16 @@ void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
 	*boresight = in->boresight;
 }
 
+void into_catalogs(struct into *in, char *const *catalogs)
+{
+	if (in->asdf)
+		into_asdf_catalogs(in->asdf, catalogs);
+}
+
 int into_apply(const struct into *in, struct sky *sky, struct err *e)
 {
+	if (in->asdf)
+		return into_asdf_apply(in->asdf, sky, e);
 	for (int k = 0; k < in->nh; k++) {
 		const struct into_hdu *h = &in->h[k];
 		struct sky_sca *ss = &sky->sca[h->sca - 1];

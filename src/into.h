@@ -34,6 +34,9 @@ void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
  * SCA's window.  Returns 0 or -1. */
 int into_apply(const struct into *in, struct sky *sky, struct err *e);
 
+/* The scene's catalogs (NULL-terminated), for an ASDF image's history. */
+void into_catalogs(struct into *in, char *const *catalogs);
+
 /* Refuse an output path that names the --into image itself (the same
  * file, by device and inode; a symbolic link as -o is replaced, not
  * followed): the scene would be written over it before it is read.

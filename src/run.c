@@ -418,6 +418,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 			       "--pointings, --rows, '-' or '%%d'");
 	if (o->into && !(into = into_open(o->into, o->sca_mask, e)))
 		return -1;
+	if (into)
+		into_catalogs(into, catalogs);
 	if (into && into_check_output(into, o->output, e) < 0) {
 		into_free(into);
 		return -1;

@@ -389,9 +389,37 @@ int into_check_output(const struct into *in, const char *path, struct err *e)
 	return 0;
 }
 
+int into_scene(const char *path, int sca, long nx, long ny, double *out, long *nsrc,
+	       char *filter, size_t nfilter, struct err *e)
+{
+	fitsfile *f = NULL;
+	long fp[2] = { 1, 1 }, lp[2] = { nx, ny }, inc[2] = { 1, 1 }, ns = 0;
+	char ext[16], fv[FLEN_VALUE] = "";
+	int status = 0, any;
+
+	snprintf(ext, sizeof(ext), "WFI%02d", sca);
+	if (fits_open_diskfile(&f, path, READONLY, &status) ||
+	    fits_movnam_hdu(f, IMAGE_HDU, ext, 0, &status) ||
+	    (nsrc && fits_read_key(f, TLONG, "NSOURCES", &ns, NULL, &status)) ||
+	    (filter && fits_read_key(f, TSTRING, "FILTER", fv, NULL, &status)) ||
+	    fits_read_subset(f, TDOUBLE, fp, lp, inc, NULL, out, &any, &status)) {
+		err_fits(e, status, "%s[%s]", path, ext);
+		status = 0;
+		if (f)
+			fits_close_file(f, &status);
+		return -1;
+	}
+	fits_close_file(f, &status);
+	if (nsrc)
+		*nsrc = ns;
+	if (filter)
+		snprintf(filter, nfilter, "%s", fv);
+	return 0;
+}
+
 int into_compose(const struct into *in, const char *path, struct err *e)
 {
-	fitsfile *src = NULL, *eng = NULL, *out = NULL;
+	fitsfile *src = NULL, *out = NULL;
 	char tmp[4200];
 	double *a = NULL, *b = NULL;
 	int status = 0, fd, rc = -1;
@@ -413,7 +441,6 @@ int into_compose(const struct into *in, const char *path, struct err *e)
 	close(fd);
 	unlink(tmp);
 	if (fits_open_diskfile(&src, in->path, READONLY, &status) ||
-	    fits_open_diskfile(&eng, path, READONLY, &status) ||
 	    fits_create_diskfile(&out, tmp, &status) ||
 	    fits_copy_file(src, out, 1, 1, 1, &status)) {
 		err_fits(e, status, "--into %s: %s", in->spec, path);
@@ -422,18 +449,17 @@ int into_compose(const struct into *in, const char *path, struct err *e)
 	for (int k = 0; k < in->nh; k++) {
 		const struct into_hdu *h = &in->h[k];
 		size_t n = (size_t)h->nx * (size_t)h->ny;
-		long fp[2] = { 1, 1 }, lp[2] = { h->nx, h->ny }, inc[2] = { 1, 1 };
-		char ext[16], hist[80];
+		long fp[2] = { 1, 1 };
+		char hist[80];
 		int type, any;
 
-		snprintf(ext, sizeof(ext), "WFI%02d", h->sca);
 		if (!(a = malloc(n * sizeof(double))) || !(b = malloc(n * sizeof(double)))) {
 			err_set(e, EXIT_SYSTEM, "out of memory");
 			goto out;
 		}
-		if (fits_movnam_hdu(eng, IMAGE_HDU, ext, 0, &status) ||
-		    fits_read_subset(eng, TDOUBLE, fp, lp, inc, NULL, a, &any, &status) ||
-		    fits_movabs_hdu(out, h->hdu, &type, &status) ||
+		if (into_scene(path, h->sca, h->nx, h->ny, a, NULL, NULL, 0, e) < 0)
+			goto out;
+		if (fits_movabs_hdu(out, h->hdu, &type, &status) ||
 		    fits_read_pix(out, TDOUBLE, fp, (LONGLONG)n, NULL, b, &any, &status)) {
 			err_fits(e, status, "--into %s[%d]", in->path, h->hdu - 1);
 			goto out;
@@ -468,9 +494,6 @@ out:
 	status = 0;
 	if (src)
 		fits_close_file(src, &status);
-	status = 0;
-	if (eng)
-		fits_close_file(eng, &status);
 	tempfile_discard(tmp);
 	/* The run failed: what lies under path is the scene without the
 	 * image it was to be added to, so it goes too (a failed run leaves

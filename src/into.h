@@ -14,6 +14,8 @@
 #ifndef WFS_INTO_H
 #define WFS_INTO_H
 
+#include <stddef.h>
+
 struct err;
 struct sky;
 struct into;
@@ -33,6 +35,13 @@ void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
  * image larger than an SCA or reaching farther from its centre than an
  * SCA's window.  Returns 0 or -1. */
 int into_apply(const struct into *in, struct sky *sky, struct err *e);
+
+/* The engine's scene of SCA sca (HDU WFInn of the FITS file at path):
+ * its first nx x ny pixels into out, and where asked the number of
+ * sources it drew (NSOURCES) and its filter (FILTER); what --into adds to
+ * a FITS or an ASDF image.  0 or -1. */
+int into_scene(const char *path, int sca, long nx, long ny, double *out, long *nsrc,
+	       char *filter, size_t nfilter, struct err *e);
 
 /* The scene's catalogs (NULL-terminated), for an ASDF image's history. */
 void into_catalogs(struct into *in, char *const *catalogs);

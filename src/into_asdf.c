@@ -22,6 +22,7 @@
 #include "geometry.h"
 #include "gwcs_eval.h"
 #include "instrument.h"
+#include "into.h"
 #include "into_asdf.h"
 #include "ramp.h"
 #include "sky.h"
@@ -684,28 +685,22 @@ done:
 int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e)
 {
 	size_t npx = (size_t)WFS_NPIX * WFS_NPIX;
-	float *add = NULL, *v[A_N] = { 0 };
+	float *v[A_N] = { 0 };
+	double *add = NULL;
 	void *data[A_N] = { 0 };
-	fitsfile *f = NULL;
-	char tmp[4200] = "", ext[16], filter[FLEN_VALUE] = "";
+	char tmp[4200] = "", filter[FLEN_VALUE] = "";
 	struct ramp_det det;
 	long nsrc = 0;
-	int status = 0, any, fd = -1, rc = -1;
+	int fd = -1, rc = -1;
 
 	/* the engine's light, counts/s (e-/s), from its scene */
-	snprintf(ext, sizeof(ext), "WFI%02d", ia->sca);
-	if (!(add = malloc(npx * sizeof(float)))) {
+	if (!(add = malloc(npx * sizeof(double)))) {
 		err_sys(e, "%s", path);
 		goto out;
 	}
-	if (fits_open_diskfile(&f, path, READONLY, &status) ||
-	    fits_movnam_hdu(f, IMAGE_HDU, ext, 0, &status) ||
-	    fits_read_key(f, TLONG, "NSOURCES", &nsrc, NULL, &status) ||
-	    fits_read_key(f, TSTRING, "FILTER", filter, NULL, &status) ||
-	    fits_read_img(f, TFLOAT, 1, (LONGLONG)npx, NULL, add, &any, &status)) {
-		err_fits(e, status, "%s", path);
+	if (into_scene(path, ia->sca, WFS_NPIX, WFS_NPIX, add, &nsrc, filter, sizeof(filter),
+		       e) < 0)
 		goto out;
-	}
 	if (update_tree(ia, path, nsrc, filter, e) < 0)
 		goto out;
 	if (ramp_det_get(ia->sca, &det, e) < 0)
@@ -745,9 +740,6 @@ int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e)
 		goto out;
 	rc = 0;
 out:
-	status = 0;
-	if (f)
-		fits_close_file(f, &status);
 	if (fd >= 0)
 		close(fd);
 	if (tmp[0])

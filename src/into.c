@@ -417,7 +417,8 @@ int into_scene(const char *path, int sca, long nx, long ny, double *out, long *n
 	return 0;
 }
 
-int into_compose(const struct into *in, const char *path, struct err *e)
+int into_compose(const struct into *in, const char *path, int asdf_compression,
+		 struct pool *pool, struct err *e)
 {
 	fitsfile *src = NULL, *out = NULL;
 	char tmp[4200];
@@ -426,7 +427,7 @@ int into_compose(const struct into *in, const char *path, struct err *e)
 	struct stat sb;
 
 	if (in->asdf) {
-		rc = into_asdf_compose(in->asdf, path, e);
+		rc = into_asdf_compose(in->asdf, path, asdf_compression, pool, e);
 		/* as below: a failed run leaves nothing under the name */
 		if (rc < 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode))
 			unlink(path);

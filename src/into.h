@@ -19,6 +19,7 @@
 struct err;
 struct sky;
 struct into;
+struct pool;
 
 /* Open spec ("IMAGE.fits" or "IMAGE.fits[N]") for the SCAs in mask (bit
  * s-1 for SCA s) and read each mapped HDU's size and WCS.  NULL with a
@@ -54,8 +55,11 @@ int into_check_output(const struct into *in, const char *path, struct err *e);
 
 /* Replace the engine's image at path (one HDU WFInn per SCA) by a copy of
  * the --into image with those HDUs' pixels added to the mapped HDUs'.
- * Written beside path and renamed over it.  Returns 0 or -1. */
-int into_compose(const struct into *in, const char *path, struct err *e);
+ * Written beside path and renamed over it; an ASDF image's blocks stored
+ * as asdf_compression says (asdf.h), compressed on pool's threads.
+ * Returns 0 or -1. */
+int into_compose(const struct into *in, const char *path, int asdf_compression,
+		 struct pool *pool, struct err *e);
 
 void into_free(struct into *in);
 

@@ -6,7 +6,6 @@
 #include <fcntl.h>
 #include <libfyaml.h>
 #include <math.h>
-#include <md5.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -461,12 +460,6 @@ static int copy(struct into_asdf *ia, int fd, uint64_t from, uint64_t n, uint64_
 	return 0;
 }
 
-static void be64(unsigned char *p, uint64_t v)
-{
-	for (int i = 7; i >= 0; i--, v >>= 8)
-		p[i] = (unsigned char)v;
-}
-
 void into_asdf_catalogs(struct into_asdf *ia, char *const *catalogs)
 {
 	size_t n = 1;
@@ -579,11 +572,31 @@ nomem:
 	return err_sys(e, "%s: the ASDF tree", path);
 }
 
+/* Block data from memory, for asdf_block_write. */
+static int mem_get(void *arg, uint64_t off, void *buf, size_t n, struct err *e)
+{
+	(void)e;
+	memcpy(buf, (const unsigned char *)arg + off, n);
+	return 0;
+}
+
+/* The compression a block is stored with, as asdf.h's enum; -1 for one
+ * not written here (bzp2, an extension's). */
+static int stored_as(const struct asdf_block *b)
+{
+	for (int c = ASDF_NONE; c <= ASDF_LZ4; c++)
+		if (!memcmp(b->comp, asdf_compression_field(c), 4))
+			return c;
+	return -1;
+}
+
 /* The image with the changed arrays, to fd: the header and tree as they
- * were, each block copied but the changed ones (written uncompressed,
- * their MD5 computed where the image had one), a new block index. */
-static int write_image(struct into_asdf *ia, int fd, void *const *data, const char *path,
-		       struct err *e)
+ * were, then the blocks.  Each stored as compression says (ASDF_KEEP:
+ * as it was); a block unchanged and stored so already is copied byte for
+ * byte, the others written anew (an unchanged one read back, its MD5
+ * checked), with an MD5 of their data where the image had one. */
+static int write_image(struct into_asdf *ia, int fd, void *const *data, int compression,
+		       struct pool *pool, const char *path, struct err *e)
 {
 	struct asdf_in *a = ia->in;
 	uint64_t off = 0, *where = calloc((size_t)a->nblock + 1, sizeof(*where));
@@ -624,36 +637,42 @@ static int write_image(struct into_asdf *ia, int fd, void *const *data, const ch
 	}
 	for (int k = 0; k < a->nblock; k++) {
 		const struct asdf_block *b = &a->b[k];
-		int changed = -1;
+		int changed = -1, was = stored_as(b), to = compression == ASDF_KEEP ? was : compression;
+		struct asdf_block_src src = { .n = b->data, .itemsize = 1, .get = mem_get,
+					      .md5 = memcmp(b->md5, (const unsigned char[16]){ 0 }, 16) };
+		void *back = NULL;
 
 		for (int j = 0; j < A_N; j++)
-			if (ia->block[j] == k)
+			if (ia->block[j] == k) {
 				changed = j;
+				src.itemsize = ia->dtype[j] == ASDF_F32 ? 4 : 2;
+			}
 		where[k] = off;
-		if (changed < 0) {
+		if (changed < 0 && to == was) {
 			if (copy(ia, fd, b->off, b->data_off - b->off + b->allocated, &off, path,
 				 e) < 0)
 				goto done;
-		} else {
-			unsigned char h[6 + 48] = { 0 };
-			uint64_t n = b->data;
-
-			memcpy(h, "\323BLK", 4);
-			h[5] = 48;
-			be64(h + 14, n);
-			be64(h + 22, n);
-			be64(h + 30, n);
-			if (memcmp(b->md5, (const unsigned char[16]){ 0 }, 16)) {
-				MD5_CTX c;
-
-				MD5Init(&c);
-				MD5Update(&c, data[changed], (size_t)n);
-				MD5Final(h + 38, &c);
-			}
-			if (put(fd, h, sizeof(h), &off, path, e) < 0 ||
-			    put(fd, data[changed], (size_t)n, &off, path, e) < 0)
-				goto done;
+			continue;
 		}
+		if (changed < 0) {
+			/* recompressed: the data read back (and checked) first */
+			if (!(back = malloc(b->data ? b->data : 1))) {
+				err_sys(e, "%s", path);
+				goto done;
+			}
+			if (asdf_in_block(a, k, back, b->data, e) < 0) {
+				free(back);
+				goto done;
+			}
+		}
+		/* a changed block of a compression not written here: none */
+		src.compression = to < 0 ? ASDF_NONE : to;
+		src.arg = changed < 0 ? back : data[changed];
+		r = asdf_block_write(fd, off, &src, pool, path, &off, e);
+		free(back);
+		if (r < 0)
+			goto done;
+		r = -1;
 	}
 	if (!(m = open_memstream(&idx, &ni))) {
 		err_sys(e, "%s", path);
@@ -682,7 +701,8 @@ done:
 	return r;
 }
 
-int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e)
+int into_asdf_compose(struct into_asdf *ia, const char *path, int compression,
+		      struct pool *pool, struct err *e)
 {
 	size_t npx = (size_t)WFS_NPIX * WFS_NPIX;
 	float *v[A_N] = { 0 };
@@ -728,7 +748,7 @@ int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e)
 			goto out;
 		}
 	if ((fd = tempfile_beside(path, tmp, sizeof(tmp), e)) < 0 ||
-	    write_image(ia, fd, data, path, e) < 0)
+	    write_image(ia, fd, data, compression, pool, path, e) < 0)
 		goto out;
 	if (close(fd)) {
 		fd = -1;

@@ -21,6 +21,7 @@
 
 struct err;
 struct into_asdf;
+struct pool;
 struct sky;
 
 /* The file begins "#ASDF", or its name ends in ".asdf". */
@@ -47,8 +48,11 @@ void into_asdf_catalogs(struct into_asdf *ia, char *const *catalogs);
 int into_asdf_apply(const struct into_asdf *ia, struct sky *sky, struct err *e);
 
 /* Replace the engine's scene at path (FITS, HDU WFInn in counts/s) by the
- * image with that light added.  0 or -1. */
-int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e);
+ * image with that light added, its blocks stored as compression says
+ * (asdf.h's enum; ASDF_KEEP: each as the image had it), compressed on
+ * pool's threads (may be NULL).  0 or -1. */
+int into_asdf_compose(struct into_asdf *ia, const char *path, int compression,
+		      struct pool *pool, struct err *e);
 
 void into_asdf_free(struct into_asdf *ia);
 

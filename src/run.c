@@ -18,6 +18,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "asdf.h"
 #include "catalog.h"
 #include "clock.h"
 #include "detector.h"
@@ -409,9 +410,12 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	struct into *into = NULL;
 	struct persist *persist = NULL;
 	struct timespec t0;
-	int n = 0, per, nthreads, rc = -1;
+	int n = 0, per, nthreads, rc = -1, acomp;
 
 	clock_gettime(CLOCK_MONOTONIC, &t0);
+	/* a setting the writers read at the end, checked before any work */
+	if (asdf_compression_setting(o->settings, &acomp, e) < 0)
+		return -1;
 	if (o->into && (o->pointings || o->row_first || !strcmp(o->output, "-") ||
 			strstr(o->output, "%d")))
 		return err_set(e, EXIT_INPUT, "--into: one output file, without "
@@ -475,7 +479,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		if (run_pass(o, catalogs, x + i, n - i < per ? n - i : per, pool, place_pool,
 			     into, t0, e) < 0)
 			goto out;
-	if (into && into_compose(into, x[0].output, e) < 0)
+	if (into && into_compose(into, x[0].output, acomp, pool, e) < 0)
 		goto out;
 	if (persist && o->persistence_state && persist_save(persist, o->persistence_state, e) < 0)
 		goto out;

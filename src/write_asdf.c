@@ -559,6 +559,7 @@ static uint64_t array_bytes(const struct array *a)
 static struct writer *asdf_open(struct engine *g, const char *path, struct err *e)
 {
 	struct asdf_writer *aw = calloc(1, sizeof(*aw));
+	int comp;
 
 	if (!aw || !(aw->path = strdup(path))) {
 		free(aw);
@@ -567,7 +568,9 @@ static struct writer *asdf_open(struct engine *g, const char *path, struct err *
 	}
 	aw->w.ops = &writer_asdf;
 	aw->g = g;
-	if (!(aw->out = asdf_out_open(path, e))) {
+	/* --set asdf-compression: every block stored so (none by default) */
+	if (asdf_compression_setting(g->o->settings, &comp, e) < 0 ||
+	    !(aw->out = asdf_out_open(path, comp, g->pool, e))) {
 		free(aw->path);
 		free(aw);
 		return NULL;
@@ -581,6 +584,7 @@ static int asdf_sca_begin(struct writer *w, const struct product *p, struct err 
 	struct asdf_tree t;
 	struct fy_node *roman, *meta;
 	uint64_t bytes[L2_N];
+	size_t itemsize[L2_N];
 
 	if (p->level == DETECTOR_SCENE || p->ylo != 0 || p->yhi != WFS_NPIX)
 		return err_set(e, EXIT_INPUT, "%s: an ASDF file holds a whole SCA at level 1 "
@@ -617,12 +621,13 @@ static int asdf_sca_begin(struct writer *w, const struct product *p, struct err 
 		asdf_ndarray(&t, roman, aw->arr[k].name, k, aw->arr[k].dtype, aw->arr[k].ndim,
 			     aw->arr[k].shape);
 		bytes[k] = array_bytes(&aw->arr[k]);
+		itemsize[k] = asdf_dtype_size(aw->arr[k].dtype);
 	}
 	if (t.bad) {
 		asdf_tree_free(&t);
 		return err_sys(e, "%s: the ASDF tree", aw->path);
 	}
-	if (asdf_out_begin(aw->out, &t, aw->narr, bytes, e) < 0) {
+	if (asdf_out_begin(aw->out, &t, aw->narr, bytes, itemsize, e) < 0) {
 		asdf_tree_free(&t);
 		return -1;
 	}

@@ -3,7 +3,12 @@
 # compressed (zlib, and lz4 in asdf's framing, as romancal's files often
 # are), with python3-asdf's MD5s; the result is the same image as from
 # the uncompressed file; a corrupt compressed block is refused with the
-# file and block named, nothing written.
+# file and block named, nothing written.  wfiscene writes compressed
+# blocks too (--set asdf-compression=zlib|lz4): levels 1 and 2 that the
+# schemas accept, whose arrays python3-asdf reads equal to the uncompressed
+# file's, lz4 byte for byte as python3-asdf frames it, the same bytes for
+# any thread count; --into reads them back and keeps or changes their
+# compression; a bad value is refused, nothing written.
 . "$(dirname "$0")/lib.sh"
 require_python
 "$PY" -c 'import asdf, gwcs, asdf_astropy, lz4.block' 2>/dev/null ||
@@ -55,6 +60,70 @@ test_expect_success 'a corrupt compressed block: file and block named, exit 1, n
 		one.csv 2> err &&
 	test_grep "m.asdf: block 0: " err &&
 	! ls -a | grep -q "bad\\.asdf"
+'
+
+test_expect_success 'level 2 with zlib and lz4 blocks: the arrays of the uncompressed file' '
+	for c in zlib lz4; do
+		"$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --level 2 \
+			--ma-table 3 --sca 9 --set asdf-compression=$c -o l2_$c.asdf stars.csv &&
+		"$PY" "$TOP/tests/asdf_same.py" l2.asdf l2_$c.asdf $c > out &&
+		say "$c: $(cat out)" && test_grep "^ok" out || return 1
+		if have_shared && [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image l2_$c.asdf || return 1; fi
+	done &&
+	"$PY" "$TOP/tests/asdf_same.py" l2.asdf l2_lz4.asdf lz4 --lz4-as-asdf > out &&
+	test_grep "^ok" out &&
+	"$PY" "$TOP/tests/asdf_checksum.py" l2_zlib.asdf > /dev/null
+'
+
+test_expect_success 'the same compressed bytes with one thread' '
+	mkdir -p b &&
+	for c in zlib lz4; do
+		"$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --level 2 \
+			--ma-table 3 --sca 9 --set asdf-compression=$c --threads 1 --tile 512 \
+			-o b/l2_$c.asdf stars.csv &&
+		cmp l2_$c.asdf b/l2_$c.asdf || return 1
+	done &&
+	rm -r b
+'
+
+test_expect_success 'level 1 with zlib and lz4 blocks: the arrays of the uncompressed file' '
+	l1() { "$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --level 1 \
+		--ma-table 3 --sca 9 "$@" stars.csv; } &&
+	l1 -o l1.asdf &&
+	for c in zlib lz4; do
+		l1 --set asdf-compression=$c -o l1_$c.asdf &&
+		"$PY" "$TOP/tests/asdf_same.py" l1.asdf l1_$c.asdf $c > out &&
+		say "$c: $(cat out)" && test_grep "^ok" out || return 1
+		if have_shared && [ -x "$CHECK" ]; then "$CHECK" --expect wfi_science_raw l1_$c.asdf || return 1; fi
+	done &&
+	rm -f l1.asdf l1_zlib.asdf l1_lz4.asdf
+'
+
+test_expect_success '--into our own compressed file: kept compressed, or stored as told' '
+	"$WFS" --filter F158 --sca 9 --into l2_lz4.asdf -o in_lz4.asdf one.csv &&
+	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_lz4.asdf lz4 > out && test_grep "^ok" out &&
+	"$WFS" --filter F158 --sca 9 --into l2_zlib.asdf -o in_zlib.asdf one.csv &&
+	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_zlib.asdf zlib > out && test_grep "^ok" out &&
+	"$WFS" --filter F158 --sca 9 --into l2.asdf --set asdf-compression=lz4 -o in_to.asdf \
+		one.csv &&
+	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_to.asdf lz4 > out && test_grep "^ok" out &&
+	"$WFS" --filter F158 --sca 9 --into c.asdf --set asdf-compression=none -o in_no.asdf \
+		one.csv &&
+	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_no.asdf none > out && test_grep "^ok" out &&
+	"$PY" "$TOP/tests/asdf_checksum.py" in_no.asdf > /dev/null &&
+	if have_shared && [ -x "$CHECK" ]; then
+		"$CHECK" --expect wfi_image in_lz4.asdf in_zlib.asdf in_to.asdf in_no.asdf
+	fi
+'
+
+test_expect_success 'asdf-compression=gzip: refused naming the key and value, nothing written' '
+	test_must_fail --status 1 "$WFS" --filter F158 --ra 200 --dec 60 --level 2 --sca 9 \
+		--set asdf-compression=gzip -o g.asdf stars.csv 2> err &&
+	test_grep "asdf-compression=gzip: expected none, zlib or lz4" err &&
+	test_must_fail --status 1 "$WFS" --filter F158 --sca 9 --into l2.asdf \
+		--set asdf-compression=gzip -o g.asdf one.csv 2> err &&
+	test_grep "asdf-compression=gzip" err &&
+	! ls -a | grep -q "^\.*g\.asdf"
 '
 
 test_done

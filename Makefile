@@ -26,7 +26,7 @@ VERSION    := 0.1.0
 CC         ?= cc
 PKG_CONFIG ?= pkg-config
 CFLAGS     ?= -O2 -g
-PKGS       := cfitsio wcslib fftw3 libzstd zlib libpng chealpix libfyaml libmd
+PKGS       := cfitsio wcslib fftw3 libzstd zlib libpng chealpix libfyaml libmd liblz4
 
 Q = $(if $(filter 1,$(V)),,@)
 # The plugins' inner loops are worth the vectoriser's full effort.

@@ -20,12 +20,14 @@
 # Slurm and munge (t7100 runs contrib/parallel and contrib/slurm for real,
 # on a private one-node cluster it starts and stops); python3-asdf,
 # python3-asdf-astropy and python3-gwcs open the ASDF products (t4400:
-# the Roman schemas' validation, the gwcs against the FITS WCS).
+# the Roman schemas' validation, the gwcs against the FITS WCS), and
+# python3-lz4 lets python3-asdf compress blocks with lz4 (t4403).  liblz4
+# reads (and writes) the lz4-compressed blocks of Roman ASDF files.
 set -e
-build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev libchealpix-dev libfyaml-dev libmd-dev zstd perl"
+build="gcc make pkg-config libcfitsio-dev wcslib-dev libfftw3-dev libltdl-dev libzstd-dev zlib1g-dev libpng-dev libchealpix-dev libfyaml-dev libmd-dev liblz4-dev zstd perl"
 tests="gzip time python3 python3-numpy python3-astropy python3-scipy python3-photutils python3-sep mandoc
 	bsdutils util-linux parallel slurmctld slurmd slurm-client munge clang libclang-rt-dev valgrind
-	python3-asdf python3-asdf-astropy python3-gwcs"
+	python3-asdf python3-asdf-astropy python3-gwcs python3-lz4"
 extra=
 case ${1:-} in
 validate) extra="python3-matplotlib" ;;
@@ -35,7 +37,7 @@ bench) extra="gnuplot-nox" ;;
 esac
 if ! command -v dpkg-query > /dev/null 2>&1; then
 	echo "wfiscene: not a Debian system; packages not checked (the build needs" \
-		"cc, make, pkg-config and cfitsio, wcslib, fftw3, libltdl, zstd, zlib, libpng, libfyaml, libmd)" >&2
+		"cc, make, pkg-config and cfitsio, wcslib, fftw3, libltdl, zstd, zlib, libpng, libfyaml, libmd, liblz4)" >&2
 	exit 0
 fi
 missing() {

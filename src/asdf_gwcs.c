@@ -177,7 +177,18 @@ int asdf_gwcs(struct asdf_tree *t, struct fy_node *meta, const struct gwcs_param
 	asdf_str(t, w, "name", "");
 	steps = asdf_seq(t, w, "steps");
 	step(t, steps, frame2d(t, "detector", "[x, y]", "pixel"), to_v23);
-	step(t, steps, frame2d(t, "v2v3", "[v2, v3]", "arcsec"), to_sky);
+	if (g->va != 1) {
+		/* romancal's differential velocity aberration: V2/V3 scaled by
+		 * va about (V2Ref, V3Ref) */
+		struct fy_node *dva = compose(t, concat(t, scale(t, g->va), scale(t, g->va)),
+					      concat(t, shift(t, (1 - g->va) * ap->v2ref),
+						     shift(t, (1 - g->va) * ap->v3ref)));
+
+		step(t, steps, frame2d(t, "v2v3", "[v2, v3]", "arcsec"), dva);
+		step(t, steps, frame2d(t, "v2v3vacorr", "[v2, v3]", "arcsec"), to_sky);
+	} else {
+		step(t, steps, frame2d(t, "v2v3", "[v2, v3]", "arcsec"), to_sky);
+	}
 	{
 		struct fy_node *f = tr(t, "!<tag:stsci.edu:gwcs/celestial_frame-1.0.0>");
 

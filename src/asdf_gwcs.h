@@ -13,6 +13,7 @@ struct gwcs_params {
 	const struct geom_aperture *ap;   /* the SCA's SIAF aperture */
 	double ra_ref, dec_ref;         /* its reference point on the sky, deg */
 	double roll_ref;                /* position angle of +V3 there, deg */
+	double va;                      /* velocity aberration's scale (1: none) */
 };
 
 /* Put meta.wcs into map meta.  0, or -1 (t->bad set) out of memory. */

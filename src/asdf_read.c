@@ -1,12 +1,14 @@
 /*
  * asdf_read.c - reading an ASDF file (asdf.h's layout) for --into: the
  * header lines, the tree through libfyaml, the blocks' headers checked
- * against the file, a block's data read (zlib blocks inflated) and its MD5
- * checked where the writer computed one.
+ * against the file, a block's data read (zlib and lz4 blocks
+ * decompressed, lz4 in asdf's framing) and its MD5 checked where the
+ * writer computed one.
  */
 #include <errno.h>
 #include <fcntl.h>
 #include <libfyaml.h>
+#include <lz4.h>
 #include <md5.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -258,6 +260,51 @@ struct fy_node *asdf_in_root(const struct asdf_in *a)
 	return fy_document_root(a->d);
 }
 
+/*
+ * asdf's lz4 framing (asdf/compression.py, Lz4Compressor): the data cut
+ * into chunks of 4 MB, each stored as its compressed size (4 bytes, big
+ * endian), then what python-lz4's lz4.block.compress writes: the chunk's
+ * size (4 bytes, little endian) and the LZ4 block.  0 or -1 (a message
+ * naming the block).
+ */
+static int lz4_blocks(const struct asdf_in *a, int k, const unsigned char *p, uint64_t used,
+		      unsigned char *out, size_t n, struct err *e)
+{
+	uint64_t at = 0;
+	size_t done = 0;
+
+	while (at < used) {
+		uint64_t len, size;
+		int got;
+
+		if (used - at < 8)
+			return err_set(e, EXIT_INPUT, "%s: block %d: lz4 data cut short at byte "
+				       "%llu", a->path, k, (unsigned long long)at);
+		len = (uint64_t)p[at] << 24 | (uint64_t)p[at + 1] << 16 | (uint64_t)p[at + 2] << 8 |
+		      p[at + 3];
+		size = (uint64_t)p[at + 4] | (uint64_t)p[at + 5] << 8 | (uint64_t)p[at + 6] << 16 |
+		       (uint64_t)p[at + 7] << 24;
+		if (len < 4 || len - 4 > used - at - 8 || len - 4 > INT32_MAX ||
+		    size > n - done || size > INT32_MAX)
+			return err_set(e, EXIT_INPUT, "%s: block %d: an lz4 chunk at byte %llu of "
+				       "%llu bytes for %llu: not the block's sizes", a->path, k,
+				       (unsigned long long)at, (unsigned long long)len,
+				       (unsigned long long)size);
+		got = LZ4_decompress_safe((const char *)p + at + 8, (char *)out + done,
+					  (int)(len - 4), (int)size);
+		if (got < 0 || (uint64_t)got != size)
+			return err_set(e, EXIT_INPUT, "%s: block %d: the lz4 chunk at byte %llu "
+				       "does not decompress (corrupt)", a->path, k,
+				       (unsigned long long)at);
+		done += (size_t)size;
+		at += 4 + len;
+	}
+	if (done != n)
+		return err_set(e, EXIT_INPUT, "%s: block %d: its lz4 data decompress to %zu "
+			       "bytes, not %zu", a->path, k, done, n);
+	return 0;
+}
+
 int asdf_in_block(struct asdf_in *a, int k, void *out, size_t n, struct err *e)
 {
 	struct asdf_block *b;
@@ -276,31 +323,43 @@ int asdf_in_block(struct asdf_in *a, int k, void *out, size_t n, struct err *e)
 		if (read_at(a->fd, out, n, b->data_off) < 0)
 			return err_sys(e, "%s: reading block %d", a->path, k);
 		raw = out;
-	} else if (!memcmp(b->comp, "zlib", 4)) {
-		uLongf got = (uLongf)n;
-
+	} else if (!memcmp(b->comp, "zlib", 4) || !memcmp(b->comp, "lz4\0", 4)) {
 		if (!(raw = malloc(b->used ? b->used : 1)))
 			return err_sys(e, "%s", a->path);
 		if (read_at(a->fd, raw, b->used, b->data_off) < 0) {
 			err_sys(e, "%s: reading block %d", a->path, k);
 			goto done;
 		}
-		if (uncompress(out, &got, raw, (uLong)b->used) != Z_OK || got != n) {
-			err_set(e, EXIT_INPUT, "%s: block %d: its zlib data do not inflate to "
-				"%zu bytes", a->path, k, n);
+		if (b->comp[0] == 'z') {
+			uLongf got = (uLongf)n;
+			int z = uncompress(out, &got, raw, (uLong)b->used);
+
+			if (z != Z_OK || got != n) {
+				err_set(e, EXIT_INPUT, "%s: block %d: its zlib data %s", a->path, k,
+					z == Z_OK || z == Z_BUF_ERROR ? "do not inflate to the "
+					"block's data size (corrupt)" : "are corrupt");
+				goto done;
+			}
+		} else if (lz4_blocks(a, k, raw, b->used, out, n, e) < 0) {
 			goto done;
 		}
 	} else {
 		return err_set(e, EXIT_INPUT, "%s: block %d: compression '%.4s' is not read "
-			       "here (zlib and none are)", a->path, k, b->comp);
+			       "here (zlib, lz4 and none are)", a->path, k, b->comp);
 	}
-	/* the checksum is of the used (stored) data */
+	/* the checksum: the Standard's is of the used (stored) data,
+	 * python3-asdf's of the data before compression; either will do */
 	if (memcmp(b->md5, zero, 16)) {
 		MD5_CTX c;
 
 		MD5Init(&c);
 		MD5Update(&c, raw, (size_t)b->used);
 		MD5Final(sum, &c);
+		if (memcmp(sum, b->md5, 16) && raw != out) {
+			MD5Init(&c);
+			MD5Update(&c, out, n);
+			MD5Final(sum, &c);
+		}
 		if (memcmp(sum, b->md5, 16)) {
 			err_set(e, EXIT_INPUT, "%s: block %d: its MD5 checksum does not match its "
 				"data", a->path, k);

@@ -362,6 +362,7 @@ int geom_sca_init(struct geom_sca *g, int kind, int sca, const double m[3][3],
 	mat_vec(m, ut, g->u);
 	mat_vec(m, xt, g->ex);
 	mat_vec(m, yt, g->ey);
+	g->va = 1;
 	vec_to_radec(g->u, &g->ra, &g->dec);
 	/* +y of the science frame at the reference pixel: d(ideal)/dy */
 	for (int k = 0; k < 3; k++)
@@ -369,6 +370,39 @@ int geom_sca_init(struct geom_sca *g, int kind, int sca, const double m[3][3],
 	sky_frame(g->ra * D2R, g->dec * D2R, s, east, north);
 	g->pa = atan2(dot(dir, east), dot(dir, north)) / D2R;
 	return 0;
+}
+
+void geom_sca_aberrate(struct geom_sca *g, double scale, const double b[3])
+{
+	double s[3], east[3], north[3], dir[3], len, pe, pn;
+
+	if (g->kind != GEOM_SIAF)
+		return;
+	for (int k = 0; k < 3; k++)
+		g->u[k] = b[k] + scale * (g->u[k] - b[k]);
+	len = sqrt(dot(g->u, g->u));
+	for (int k = 0; k < 3; k++)
+		g->u[k] /= len;
+	/* the ideal axes back in the plane tangent at the new u (they turn
+	 * by its move, ~1e-6 rad) */
+	pe = dot(g->ex, g->u);
+	pn = dot(g->ey, g->u);
+	for (int k = 0; k < 3; k++) {
+		g->ex[k] -= pe * g->u[k];
+		g->ey[k] -= pn * g->u[k];
+	}
+	len = sqrt(dot(g->ex, g->ex));
+	pe = sqrt(dot(g->ey, g->ey));
+	for (int k = 0; k < 3; k++) {
+		g->ex[k] /= len;
+		g->ey[k] /= pe;
+	}
+	g->va = scale;
+	vec_to_radec(g->u, &g->ra, &g->dec);
+	for (int k = 0; k < 3; k++)
+		dir[k] = g->ap->sx[2] * g->ex[k] + g->ap->sy[2] * g->ey[k];
+	sky_frame(g->ra * D2R, g->dec * D2R, s, east, north);
+	g->pa = atan2(dot(dir, east), dot(dir, north)) / D2R;
 }
 
 void geom_sca_free(struct geom_sca *g)
@@ -425,9 +459,13 @@ int geom_sky_to_pix(struct geom_sca *g, size_t n, const double *ra,
 			x[i] = y[i] = NAN;
 			continue;
 		}
+		w *= g->va;
 		geom_idl_to_sci(ap, dot(s, g->ex) / w / AS2R, dot(s, g->ey) / w / AS2R, &u, &v);
 		x[i] = isfinite(u) && isfinite(v) ? ap->xref - 1 + u : NAN;
 		y[i] = isfinite(u) && isfinite(v) ? ap->yref - 1 + v : NAN;
+		/* (ra, dec may be x, y: sky_to_pixel works in place) */
+		if (g->map && isfinite(x[i]))
+			g->map->to_pix(g->map->ctx, a / D2R, d / D2R, x[i], y[i], &x[i], &y[i]);
 	}
 	return 0;
 }
@@ -449,7 +487,13 @@ void geom_pix_to_sky(struct geom_sca *g, double x, double y, double *ra,
 		*dec = world[1];
 		return;
 	}
+	if (g->map) {
+		g->map->to_sky(g->map->ctx, x, y, ra, dec);
+		return;
+	}
 	geom_sci_to_idl(g->ap, x + 1 - g->ap->xref, y + 1 - g->ap->yref, &xi, &yi, NULL);
+	xi *= g->va;
+	yi *= g->va;
 	for (int k = 0; k < 3; k++)
 		s[k] = g->u[k] + xi * AS2R * g->ex[k] + yi * AS2R * g->ey[k];
 	vec_to_radec(s, ra, dec);
@@ -475,7 +519,7 @@ void geom_sky_jacobian(struct geom_sca *g, double x, double y, double k[4])
 	double ca = cos(ra * D2R), sa = sin(ra * D2R), cd = cos(dec * D2R), sd = sin(dec * D2R);
 	double east[3] = { -sa, ca, 0 }, north[3] = { -sd * ca, -sd * sa, cd };
 
-	if (g->kind == GEOM_STIPS) {
+	if (g->kind == GEOM_STIPS || g->map) {
 		/* the gnomonic offsets of the four neighbours about (ra, dec) */
 		double h[4][2] = { { 1, 0 }, { -1, 0 }, { 0, 1 }, { 0, -1 } }, t[4][2];
 		for (int n = 0; n < 4; n++) {
@@ -499,6 +543,10 @@ void geom_sky_jacobian(struct geom_sca *g, double x, double y, double k[4])
 	double xi, yi, j[4], s[3];
 
 	geom_sci_to_idl(g->ap, x + 1 - g->ap->xref, y + 1 - g->ap->yref, &xi, &yi, j);
+	for (int c = 0; c < 4; c++)
+		j[c] *= g->va;
+	xi *= g->va;
+	yi *= g->va;
 	for (int c = 0; c < 3; c++)
 		s[c] = g->u[c] + xi * AS2R * g->ex[c] + yi * AS2R * g->ey[c];
 	double len = sqrt(dot(s, s));
@@ -716,10 +764,10 @@ int geom_header(struct geom_sca *g, int row0, char **cards, int *ncards,
 	/* TAN about the reference pixel, whose tangent plane is the SCA's
 	 * ideal frame turned by r (ideal axes -> east, north); CD = r L. */
 	sky_frame(g->ra * D2R, g->dec * D2R, s, east, north);
-	r[0] = dot(g->ex, east);
-	r[1] = dot(g->ey, east);
-	r[2] = dot(g->ex, north);
-	r[3] = dot(g->ey, north);
+	r[0] = g->va * dot(g->ex, east);
+	r[1] = g->va * dot(g->ey, east);
+	r[2] = g->va * dot(g->ex, north);
+	r[3] = g->va * dot(g->ey, north);
 	cd[0] = (r[0] * ap->sx[1] + r[1] * ap->sy[1]) / 3600;
 	cd[1] = (r[0] * ap->sx[2] + r[1] * ap->sy[2]) / 3600;
 	cd[2] = (r[2] * ap->sx[1] + r[3] * ap->sy[1]) / 3600;

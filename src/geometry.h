@@ -60,6 +60,16 @@ const struct geom_aperture *geom_aperture(int sca);
 int geom_parse(const char *name);
 const char *geom_name(int kind);
 
+/* An SCA's own mapping that replaces the SIAF chain (--into a Roman file
+ * whose gwcs is evaluated): pixel -> sky, and sky -> pixel from the SIAF's
+ * answer (x0, y0) as a first guess.  Read-only, any thread. */
+struct geom_map {
+	const void *ctx;
+	void (*to_sky)(const void *ctx, double x, double y, double *ra, double *dec);
+	void (*to_pix)(const void *ctx, double ra, double dec, double x0, double y0,
+		       double *x, double *y);
+};
+
 /*
  * One SCA of one pointing.  The siaf members are read-only after
  * geom_sca_init() (any thread may use them); the stips WCS is used by one
@@ -74,6 +84,11 @@ struct geom_sca {
 	double u[3], ex[3], ey[3];
 	double ra, dec;         /* reference pixel (the centre), degrees */
 	double pa;              /* position angle of +y there, degrees */
+	double va;              /* siaf: sky arcsec per ideal arcsec (1; the
+				 * velocity aberration's scale factor) */
+	const struct geom_map *map;     /* siaf: NULL, or the mapping in use
+					 * (the SIAF's pixels still give the
+					 * PSF's sampling and the pixel area) */
 	struct wcsprm wcs;      /* stips: the TAN projection */
 	int have_wcs;
 };
@@ -89,6 +104,13 @@ void geom_attitude(const struct geom_aperture *ref, double ra, double dec,
 int geom_sca_init(struct geom_sca *g, int kind, int sca, const double m[3][3],
 		  double ra, double dec, double pa, struct err *e);
 void geom_sca_free(struct geom_sca *g);
+
+/* Velocity aberration, to first order in v/c (siaf only): what the
+ * detector sees is the sky shrunk by 1 / scale about the unit vector b
+ * (the pointing's reference point, which keeps its place), so the
+ * reference pixel moves to b + scale (u - b) and an ideal arcsec spans
+ * scale arcsec of the sky. */
+void geom_sca_aberrate(struct geom_sca *g, double scale, const double b[3]);
 
 /* Exact 0-based pixel coordinates of n sky positions (degrees); positions
  * more than 80 degrees away or that do not project get NaN.  0 or -1. */

@@ -298,8 +298,16 @@ void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
 	*boresight = in->boresight;
 }
 
+void into_catalogs(struct into *in, char *const *catalogs)
+{
+	if (in->asdf)
+		into_asdf_catalogs(in->asdf, catalogs);
+}
+
 int into_apply(const struct into *in, struct sky *sky, struct err *e)
 {
+	if (in->asdf)
+		return into_asdf_apply(in->asdf, sky, e);
 	for (int k = 0; k < in->nh; k++) {
 		const struct into_hdu *h = &in->h[k];
 		struct sky_sca *ss = &sky->sca[h->sca - 1];
@@ -381,16 +389,45 @@ int into_check_output(const struct into *in, const char *path, struct err *e)
 	return 0;
 }
 
-int into_compose(const struct into *in, const char *path, struct err *e)
+int into_scene(const char *path, int sca, long nx, long ny, double *out, long *nsrc,
+	       char *filter, size_t nfilter, struct err *e)
 {
-	fitsfile *src = NULL, *eng = NULL, *out = NULL;
+	fitsfile *f = NULL;
+	long fp[2] = { 1, 1 }, lp[2] = { nx, ny }, inc[2] = { 1, 1 }, ns = 0;
+	char ext[16], fv[FLEN_VALUE] = "";
+	int status = 0, any;
+
+	snprintf(ext, sizeof(ext), "WFI%02d", sca);
+	if (fits_open_diskfile(&f, path, READONLY, &status) ||
+	    fits_movnam_hdu(f, IMAGE_HDU, ext, 0, &status) ||
+	    (nsrc && fits_read_key(f, TLONG, "NSOURCES", &ns, NULL, &status)) ||
+	    (filter && fits_read_key(f, TSTRING, "FILTER", fv, NULL, &status)) ||
+	    fits_read_subset(f, TDOUBLE, fp, lp, inc, NULL, out, &any, &status)) {
+		err_fits(e, status, "%s[%s]", path, ext);
+		status = 0;
+		if (f)
+			fits_close_file(f, &status);
+		return -1;
+	}
+	fits_close_file(f, &status);
+	if (nsrc)
+		*nsrc = ns;
+	if (filter)
+		snprintf(filter, nfilter, "%s", fv);
+	return 0;
+}
+
+int into_compose(const struct into *in, const char *path, int asdf_compression,
+		 struct pool *pool, struct err *e)
+{
+	fitsfile *src = NULL, *out = NULL;
 	char tmp[4200];
 	double *a = NULL, *b = NULL;
 	int status = 0, fd, rc = -1;
 	struct stat sb;
 
 	if (in->asdf) {
-		rc = into_asdf_compose(in->asdf, path, e);
+		rc = into_asdf_compose(in->asdf, path, asdf_compression, pool, e);
 		/* as below: a failed run leaves nothing under the name */
 		if (rc < 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode))
 			unlink(path);
@@ -405,7 +442,6 @@ int into_compose(const struct into *in, const char *path, struct err *e)
 	close(fd);
 	unlink(tmp);
 	if (fits_open_diskfile(&src, in->path, READONLY, &status) ||
-	    fits_open_diskfile(&eng, path, READONLY, &status) ||
 	    fits_create_diskfile(&out, tmp, &status) ||
 	    fits_copy_file(src, out, 1, 1, 1, &status)) {
 		err_fits(e, status, "--into %s: %s", in->spec, path);
@@ -414,18 +450,17 @@ int into_compose(const struct into *in, const char *path, struct err *e)
 	for (int k = 0; k < in->nh; k++) {
 		const struct into_hdu *h = &in->h[k];
 		size_t n = (size_t)h->nx * (size_t)h->ny;
-		long fp[2] = { 1, 1 }, lp[2] = { h->nx, h->ny }, inc[2] = { 1, 1 };
-		char ext[16], hist[80];
+		long fp[2] = { 1, 1 };
+		char hist[80];
 		int type, any;
 
-		snprintf(ext, sizeof(ext), "WFI%02d", h->sca);
 		if (!(a = malloc(n * sizeof(double))) || !(b = malloc(n * sizeof(double)))) {
 			err_set(e, EXIT_SYSTEM, "out of memory");
 			goto out;
 		}
-		if (fits_movnam_hdu(eng, IMAGE_HDU, ext, 0, &status) ||
-		    fits_read_subset(eng, TDOUBLE, fp, lp, inc, NULL, a, &any, &status) ||
-		    fits_movabs_hdu(out, h->hdu, &type, &status) ||
+		if (into_scene(path, h->sca, h->nx, h->ny, a, NULL, NULL, 0, e) < 0)
+			goto out;
+		if (fits_movabs_hdu(out, h->hdu, &type, &status) ||
 		    fits_read_pix(out, TDOUBLE, fp, (LONGLONG)n, NULL, b, &any, &status)) {
 			err_fits(e, status, "--into %s[%d]", in->path, h->hdu - 1);
 			goto out;
@@ -460,9 +495,6 @@ out:
 	status = 0;
 	if (src)
 		fits_close_file(src, &status);
-	status = 0;
-	if (eng)
-		fits_close_file(eng, &status);
 	tempfile_discard(tmp);
 	/* The run failed: what lies under path is the scene without the
 	 * image it was to be added to, so it goes too (a failed run leaves

@@ -14,9 +14,12 @@
 #ifndef WFS_INTO_H
 #define WFS_INTO_H
 
+#include <stddef.h>
+
 struct err;
 struct sky;
 struct into;
+struct pool;
 
 /* Open spec ("IMAGE.fits" or "IMAGE.fits[N]") for the SCAs in mask (bit
  * s-1 for SCA s) and read each mapped HDU's size and WCS.  NULL with a
@@ -34,6 +37,16 @@ void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
  * SCA's window.  Returns 0 or -1. */
 int into_apply(const struct into *in, struct sky *sky, struct err *e);
 
+/* The engine's scene of SCA sca (HDU WFInn of the FITS file at path):
+ * its first nx x ny pixels into out, and where asked the number of
+ * sources it drew (NSOURCES) and its filter (FILTER); what --into adds to
+ * a FITS or an ASDF image.  0 or -1. */
+int into_scene(const char *path, int sca, long nx, long ny, double *out, long *nsrc,
+	       char *filter, size_t nfilter, struct err *e);
+
+/* The scene's catalogs (NULL-terminated), for an ASDF image's history. */
+void into_catalogs(struct into *in, char *const *catalogs);
+
 /* Refuse an output path that names the --into image itself (the same
  * file, by device and inode; a symbolic link as -o is replaced, not
  * followed): the scene would be written over it before it is read.
@@ -42,8 +55,11 @@ int into_check_output(const struct into *in, const char *path, struct err *e);
 
 /* Replace the engine's image at path (one HDU WFInn per SCA) by a copy of
  * the --into image with those HDUs' pixels added to the mapped HDUs'.
- * Written beside path and renamed over it.  Returns 0 or -1. */
-int into_compose(const struct into *in, const char *path, struct err *e);
+ * Written beside path and renamed over it; an ASDF image's blocks stored
+ * as asdf_compression says (asdf.h), compressed on pool's threads.
+ * Returns 0 or -1. */
+int into_compose(const struct into *in, const char *path, int asdf_compression,
+		 struct pool *pool, struct err *e);
 
 void into_free(struct into *in);
 

@@ -6,21 +6,25 @@
 #include <fcntl.h>
 #include <libfyaml.h>
 #include <math.h>
-#include <md5.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <fitsio.h>
 
 #include "asdf.h"
 #include "asdf_read.h"
+#include "date.h"
 #include "err.h"
 #include "geometry.h"
+#include "gwcs_eval.h"
 #include "instrument.h"
+#include "into.h"
 #include "into_asdf.h"
 #include "ramp.h"
+#include "sky.h"
 #include "tempfile.h"
 
 #define D2R (M_PI / 180)
@@ -36,6 +40,10 @@ struct into_asdf {
 	int sca;
 	double ra_ref, dec_ref, roll_ref, v2_ref, v3_ref;
 	double teff;            /* s: the Poisson variance's time */
+	double va;              /* meta.velocity_aberration.scale_factor, 1 without */
+	struct gwcs *gw;        /* meta.wcs where it is evaluated, else NULL */
+	struct geom_map map;    /* gw as the SCA's mapping */
+	char *catalogs;         /* the scene's catalogs, for the history */
 	int block[A_N];
 	int dtype[A_N];
 	int big[A_N];           /* big-endian */
@@ -167,6 +175,43 @@ static int check_model(struct asdf_in *a, struct err *e)
 	return 0;
 }
 
+static void map_sky(const void *ctx, double x, double y, double *ra, double *dec)
+{
+	gwcs_pix_to_sky(ctx, x, y, ra, dec);
+}
+
+static void map_pix(const void *ctx, double ra, double dec, double x0, double y0, double *x,
+		    double *y)
+{
+	gwcs_sky_to_pix(ctx, ra, dec, x0, y0, x, y);
+}
+
+/* meta.wcs, where it can be evaluated; a warning naming what cannot be
+ * otherwise (the sources are then placed by meta.wcsinfo).  -1 for a
+ * gwcs whose own arrays cannot be read (a broken file). */
+static int load_gwcs(struct into_asdf *ia, struct err *e)
+{
+	struct fy_node *w = at(asdf_in_root(ia->in), "/roman/meta/wcs");
+	char why[512];
+	int fatal;
+
+	if (!w || fy_node_is_scalar(w)) {
+		fprintf(stderr, "wfiscene: warning: %s: no meta.wcs (a gwcs): the sources are "
+			"placed by meta.wcsinfo and wfiscene's SIAF distortion\n", ia->in->path);
+		return 0;
+	}
+	if (!(ia->gw = gwcs_load(ia->in, w, why, sizeof(why), &fatal))) {
+		if (fatal)
+			return err_set(e, EXIT_INPUT, "%s: meta.wcs: %s", ia->in->path, why);
+		fprintf(stderr, "wfiscene: warning: %s: %s: the sources are placed by "
+			"meta.wcsinfo and wfiscene's SIAF distortion instead of meta.wcs\n",
+			ia->in->path, why);
+		return 0;
+	}
+	ia->map = (struct geom_map){ ia->gw, map_sky, map_pix };
+	return 0;
+}
+
 struct into_asdf *into_asdf_open(const char *path, unsigned mask, struct err *e)
 {
 	struct into_asdf *ia = calloc(1, sizeof(*ia));
@@ -214,6 +259,17 @@ struct into_asdf *into_asdf_open(const char *path, unsigned mask, struct err *e)
 	if (ndarray(ia, "data", A_DATA, shape, 2, e) < 0 ||
 	    ndarray(ia, "var_poisson", A_VP, shape, 2, e) < 0 ||
 	    ndarray(ia, "err", A_ERR, shape, 2, e) < 0)
+		goto fail;
+	ia->va = 1;
+	if (at(asdf_in_root(ia->in), "/roman/meta/velocity_aberration/scale_factor") &&
+	    (number(ia->in, "/roman/meta/velocity_aberration/scale_factor", &ia->va, e) < 0 ||
+	     !(ia->va > 0.99 && ia->va < 1.01))) {
+		if (!e->code)
+			err_set(e, EXIT_INPUT, "%s: meta.velocity_aberration.scale_factor %g: not "
+				"near 1", path, ia->va);
+		goto fail;
+	}
+	if (load_gwcs(ia, e) < 0)
 		goto fail;
 	return ia;
 fail:
@@ -404,17 +460,143 @@ static int copy(struct into_asdf *ia, int fd, uint64_t from, uint64_t n, uint64_
 	return 0;
 }
 
-static void be64(unsigned char *p, uint64_t v)
+void into_asdf_catalogs(struct into_asdf *ia, char *const *catalogs)
 {
-	for (int i = 7; i >= 0; i--, v >>= 8)
-		p[i] = (unsigned char)v;
+	size_t n = 1;
+	char *p;
+
+	for (char *const *c = catalogs; c && *c; c++)
+		n += strlen(*c) + 2;
+	free(ia->catalogs);
+	if (!(ia->catalogs = p = malloc(n)))
+		return;
+	*p = 0;
+	for (char *const *c = catalogs; c && *c; c++)
+		p += sprintf(p, "%s%s", c == catalogs ? "" : ", ", *c);
+}
+
+/* s as a YAML double-quoted scalar into out (n bytes). */
+static void quoted(const char *s, char *out, size_t n)
+{
+	size_t k = 0;
+
+	if (n < 3)
+		return;
+	out[k++] = '"';
+	for (; *s && k + 3 < n; s++) {
+		if (*s == '"' || *s == '\\')
+			out[k++] = '\\';
+		out[k++] = (unsigned char)*s < ' ' ? ' ' : *s;
+	}
+	out[k++] = '"';
+	out[k] = 0;
+}
+
+/* A node of YAML text yaml (libfyaml keeps the text: a copy it frees). */
+static struct fy_node *node_yaml(struct fy_document *d, const char *yaml)
+{
+	char *c = strdup(yaml);
+	/* (on a failure libfyaml may still hold it: not freed here) */
+	return c ? fy_node_build_from_malloc_string(d, c, FY_NT) : NULL;
+}
+
+/* map[key] = the node of YAML text yaml (replaced, or appended). */
+static int set_yaml(struct fy_document *d, struct fy_node *map, const char *key, const char *yaml)
+{
+	struct fy_node *v = node_yaml(d, yaml), *k;
+	struct fy_node_pair *p = fy_node_mapping_lookup_pair_by_string(map, key, FY_NT);
+
+	if (!v)
+		return -1;
+	if (p)
+		return fy_node_pair_set_value(p, v);
+	if (!(k = fy_node_create_scalar_copy(d, key, FY_NT)))
+		return -1;
+	return fy_node_mapping_append(map, k, v);
+}
+
+/*
+ * The tree of the injected file: meta.filename its name, meta.file_date
+ * now (SOURCE_DATE_EPOCH pins it), and an entry in the ASDF history
+ * (history-1.1.0's entries, or an old file's list of entries) saying
+ * what wfiscene added.
+ */
+static int update_tree(struct into_asdf *ia, const char *path, long nsrc, const char *filter,
+		       struct err *e)
+{
+	struct fy_document *d = ia->in->d;
+	struct fy_node *root = fy_document_root(d), *meta = at(root, "/roman/meta"), *h, *ent;
+	const char *base = strrchr(path, '/'), *epoch = getenv("SOURCE_DATE_EPOCH");
+	time_t now = epoch && *epoch ? (time_t)strtoll(epoch, NULL, 10) : time(NULL);
+	char q[1024], when[40], yaml[2600], desc[1800], iso[40];
+	struct tm tm;
+
+	if (!meta || !fy_node_is_mapping(meta))
+		return err_set(e, EXIT_INPUT, "%s: no meta mapping", ia->in->path);
+	quoted(base ? base + 1 : path, q, sizeof(q));
+	date_format(40587.0 + (double)now / 86400.0, when, sizeof(when));
+	snprintf(yaml, sizeof(yaml), "!time/time-1.2.0 \"%s\"", when);
+	if (set_yaml(d, meta, "filename", q) < 0 || set_yaml(d, meta, "file_date", yaml) < 0)
+		goto nomem;
+	snprintf(desc, sizeof(desc), "wfiscene --into: %ld source%s of %s drawn in %s on %s "
+		 "and added to data (DN/s), their Poisson variance to var_poisson and err",
+		 nsrc, nsrc == 1 ? "" : "s", ia->catalogs && *ia->catalogs ? ia->catalogs :
+		 "the catalog", filter, fy_node_get_scalar0(at(root,
+		 "/roman/meta/instrument/detector")));
+	quoted(desc, q, sizeof(q));
+	gmtime_r(&now, &tm);
+	strftime(iso, sizeof(iso), "%Y-%m-%dT%H:%M:%SZ", &tm);
+	snprintf(yaml, sizeof(yaml), "!core/history_entry-1.0.0 {description: %s, software: "
+		 "!core/software-1.0.0 {name: wfiscene, version: \"%s\"}, "
+		 "time: \"%s\"}", q, WFS_VERSION, iso);
+	if (!(ent = node_yaml(d, yaml)))
+		goto nomem;
+	h = at(root, "/history");
+	if (h && fy_node_is_sequence(h))
+		return fy_node_sequence_append(h, ent) < 0 ? err_sys(e, "%s", path) : 0;
+	if (!h || !fy_node_is_mapping(h)) {
+		if (set_yaml(d, root, "history", "{entries: []}") < 0)
+			goto nomem;
+		h = at(root, "/history");
+	}
+	if (!fy_node_mapping_lookup_by_string(h, "entries", FY_NT) &&
+	    set_yaml(d, h, "entries", "[]") < 0)
+		goto nomem;
+	h = fy_node_mapping_lookup_by_string(h, "entries", FY_NT);
+	if (!h || !fy_node_is_sequence(h))
+		return err_set(e, EXIT_INPUT, "%s: history.entries is not a list", ia->in->path);
+	if (fy_node_sequence_append(h, ent) < 0)
+		goto nomem;
+	return 0;
+nomem:
+	return err_sys(e, "%s: the ASDF tree", path);
+}
+
+/* Block data from memory, for asdf_block_write. */
+static int mem_get(void *arg, uint64_t off, void *buf, size_t n, struct err *e)
+{
+	(void)e;
+	memcpy(buf, (const unsigned char *)arg + off, n);
+	return 0;
+}
+
+/* The compression a block is stored with, as asdf.h's enum; -1 for one
+ * not written here (bzp2, an extension's). */
+static int stored_as(const struct asdf_block *b)
+{
+	for (int c = ASDF_NONE; c <= ASDF_LZ4; c++)
+		if (!memcmp(b->comp, asdf_compression_field(c), 4))
+			return c;
+	return -1;
 }
 
 /* The image with the changed arrays, to fd: the header and tree as they
- * were, each block copied but the changed ones (written uncompressed,
- * their MD5 computed where the image had one), a new block index. */
-static int write_image(struct into_asdf *ia, int fd, void *const *data, const char *path,
-		       struct err *e)
+ * were, then the blocks.  Each stored as compression says (ASDF_KEEP:
+ * as it was); a block unchanged and stored so already is copied byte for
+ * byte, the others written anew (an unchanged one read back, its MD5
+ * checked), with an MD5 of their data where the image had one. */
+static int write_image(struct into_asdf *ia, int fd, void *const *data, int compression,
+		       struct pool *pool, const char *path, struct err *e)
 {
 	struct asdf_in *a = ia->in;
 	uint64_t off = 0, *where = calloc((size_t)a->nblock + 1, sizeof(*where));
@@ -425,40 +607,72 @@ static int write_image(struct into_asdf *ia, int fd, void *const *data, const ch
 
 	if (!where)
 		return err_sys(e, "%s", path);
-	if (copy(ia, fd, 0, a->b ? a->b[0].off : a->blocks_end, &off, path, e) < 0)
-		goto done;
+	{
+		/* the header lines and the YAML directives as they were, then
+		 * the tree emitted again (its tags in the same shorthand) */
+		const char *dash = strstr(a->text + a->tree_off, "\n---");
+		size_t nd = dash ? (size_t)(dash - a->text) + 1 : 0, nt;
+		char *tree;
+
+		if (!dash || nd > a->tree_end) {
+			err_set(e, EXIT_INPUT, "%s: no '---' before the tree", a->path);
+			goto done;
+		}
+		tree = fy_emit_document_to_string(a->d, FYECF_MODE_ORIGINAL | FYECF_WIDTH_INF |
+						  FYECF_INDENT_2 | FYECF_DOC_START_MARK_ON |
+						  FYECF_DOC_END_MARK_OFF | FYECF_VERSION_DIR_OFF |
+						  FYECF_TAG_DIR_OFF);
+		if (!tree) {
+			err_sys(e, "%s: the ASDF tree", path);
+			goto done;
+		}
+		nt = strlen(tree);
+		if (copy(ia, fd, 0, nd, &off, path, e) < 0 || put(fd, tree, nt, &off, path, e) < 0 ||
+		    put(fd, nt && tree[nt - 1] == '\n' ? "...\n" : "\n...\n",
+			nt && tree[nt - 1] == '\n' ? 4 : 5, &off, path, e) < 0) {
+			free(tree);
+			goto done;
+		}
+		free(tree);
+	}
 	for (int k = 0; k < a->nblock; k++) {
 		const struct asdf_block *b = &a->b[k];
-		int changed = -1;
+		int changed = -1, was = stored_as(b), to = compression == ASDF_KEEP ? was : compression;
+		struct asdf_block_src src = { .n = b->data, .itemsize = 1, .get = mem_get,
+					      .md5 = memcmp(b->md5, (const unsigned char[16]){ 0 }, 16) };
+		void *back = NULL;
 
 		for (int j = 0; j < A_N; j++)
-			if (ia->block[j] == k)
+			if (ia->block[j] == k) {
 				changed = j;
+				src.itemsize = ia->dtype[j] == ASDF_F32 ? 4 : 2;
+			}
 		where[k] = off;
-		if (changed < 0) {
+		if (changed < 0 && to == was) {
 			if (copy(ia, fd, b->off, b->data_off - b->off + b->allocated, &off, path,
 				 e) < 0)
 				goto done;
-		} else {
-			unsigned char h[6 + 48] = { 0 };
-			uint64_t n = b->data;
-
-			memcpy(h, "\323BLK", 4);
-			h[5] = 48;
-			be64(h + 14, n);
-			be64(h + 22, n);
-			be64(h + 30, n);
-			if (memcmp(b->md5, (const unsigned char[16]){ 0 }, 16)) {
-				MD5_CTX c;
-
-				MD5Init(&c);
-				MD5Update(&c, data[changed], (size_t)n);
-				MD5Final(h + 38, &c);
-			}
-			if (put(fd, h, sizeof(h), &off, path, e) < 0 ||
-			    put(fd, data[changed], (size_t)n, &off, path, e) < 0)
-				goto done;
+			continue;
 		}
+		if (changed < 0) {
+			/* recompressed: the data read back (and checked) first */
+			if (!(back = malloc(b->data ? b->data : 1))) {
+				err_sys(e, "%s", path);
+				goto done;
+			}
+			if (asdf_in_block(a, k, back, b->data, e) < 0) {
+				free(back);
+				goto done;
+			}
+		}
+		/* a changed block of a compression not written here: none */
+		src.compression = to < 0 ? ASDF_NONE : to;
+		src.arg = changed < 0 ? back : data[changed];
+		r = asdf_block_write(fd, off, &src, pool, path, &off, e);
+		free(back);
+		if (r < 0)
+			goto done;
+		r = -1;
 	}
 	if (!(m = open_memstream(&idx, &ni))) {
 		err_sys(e, "%s", path);
@@ -487,28 +701,28 @@ done:
 	return r;
 }
 
-int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e)
+int into_asdf_compose(struct into_asdf *ia, const char *path, int compression,
+		      struct pool *pool, struct err *e)
 {
 	size_t npx = (size_t)WFS_NPIX * WFS_NPIX;
-	float *add = NULL, *v[A_N] = { 0 };
+	float *v[A_N] = { 0 };
+	double *add = NULL;
 	void *data[A_N] = { 0 };
-	fitsfile *f = NULL;
-	char tmp[4200] = "", ext[16];
+	char tmp[4200] = "", filter[FLEN_VALUE] = "";
 	struct ramp_det det;
-	int status = 0, any, fd = -1, rc = -1;
+	long nsrc = 0;
+	int fd = -1, rc = -1;
 
 	/* the engine's light, counts/s (e-/s), from its scene */
-	snprintf(ext, sizeof(ext), "WFI%02d", ia->sca);
-	if (!(add = malloc(npx * sizeof(float)))) {
+	if (!(add = malloc(npx * sizeof(double)))) {
 		err_sys(e, "%s", path);
 		goto out;
 	}
-	if (fits_open_diskfile(&f, path, READONLY, &status) ||
-	    fits_movnam_hdu(f, IMAGE_HDU, ext, 0, &status) ||
-	    fits_read_img(f, TFLOAT, 1, (LONGLONG)npx, NULL, add, &any, &status)) {
-		err_fits(e, status, "%s", path);
+	if (into_scene(path, ia->sca, WFS_NPIX, WFS_NPIX, add, &nsrc, filter, sizeof(filter),
+		       e) < 0)
 		goto out;
-	}
+	if (update_tree(ia, path, nsrc, filter, e) < 0)
+		goto out;
 	if (ramp_det_get(ia->sca, &det, e) < 0)
 		goto out;
 	for (int k = 0; k < A_N; k++)
@@ -534,7 +748,7 @@ int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e)
 			goto out;
 		}
 	if ((fd = tempfile_beside(path, tmp, sizeof(tmp), e)) < 0 ||
-	    write_image(ia, fd, data, path, e) < 0)
+	    write_image(ia, fd, data, compression, pool, path, e) < 0)
 		goto out;
 	if (close(fd)) {
 		fd = -1;
@@ -546,9 +760,6 @@ int into_asdf_compose(struct into_asdf *ia, const char *path, struct err *e)
 		goto out;
 	rc = 0;
 out:
-	status = 0;
-	if (f)
-		fits_close_file(f, &status);
 	if (fd >= 0)
 		close(fd);
 	if (tmp[0])
@@ -561,10 +772,71 @@ out:
 	return rc;
 }
 
+int into_asdf_apply(const struct into_asdf *ia, struct sky *sky, struct err *e)
+{
+	struct sky_sca *ss = &sky->sca[ia->sca - 1];
+	const struct geom_aperture *ap = geom_aperture(ia->sca);
+	double x0 = ap->xref - 1, y0 = ap->yref - 1, ra2, dec2, cx, cy, far = 0;
+
+	/* the SIAF chain of wcsinfo's attitude, whatever --set said */
+	geom_sca_free(&ss->geo);
+	if (geom_sca_init(&ss->geo, GEOM_SIAF, ia->sca, (const double (*)[3])sky->att, 0, 0, 0,
+			  e) < 0)
+		return -1;
+	if (ia->gw)
+		ss->geo.map = &ia->map;
+	else if (ia->va != 1)
+		/* romancal's WCS of wcsinfo: V2/V3 scaled about the reference */
+		geom_sca_aberrate(&ss->geo, ia->va, ss->geo.u);
+	geom_pix_to_sky(&ss->geo, x0, y0, &ss->ra, &ss->dec);
+	geom_pix_to_sky(&ss->geo, x0, y0 + 1, &ra2, &dec2);
+	if (!isfinite(ss->ra) || !isfinite(ss->dec) || !isfinite(ra2) || !isfinite(dec2))
+		return err_set(e, EXIT_INPUT, "%s: meta.wcs gives no sky position for the "
+			       "reference pixel", ia->in->path);
+	{
+		double a = ss->ra * D2R, d = ss->dec * D2R, s2[3], ee[3], nn[3], de = 0, dn = 0;
+
+		unit(ra2 * D2R, dec2 * D2R, s2);
+		en(a, d, ee, nn);
+		for (int k = 0; k < 3; k++) {
+			de += s2[k] * ee[k];
+			dn += s2[k] * nn[k];
+		}
+		ss->pa = atan2(de, dn) * R2D;
+	}
+	/* the engine culls rows outside a square about the SCA in the focal
+	 * plane: the square of the image's own corners */
+	sky_to_focal(sky, 1, &ss->ra, &ss->dec, INFINITY, &cx, &cy);
+	if (!isfinite(cx) || !isfinite(cy))
+		return err_set(e, EXIT_INPUT, "%s: meta.wcs puts the image far from its "
+			       "meta.wcsinfo pointing", ia->in->path);
+	ss->fx = cx;
+	ss->fy = cy;
+	for (int c = 0; c < 8; c++) {
+		static const double px[8] = { -0.5, 4087.5, -0.5, 4087.5, -0.5, 4087.5, 2043.5,
+					      2043.5 };
+		static const double py[8] = { -0.5, -0.5, 4087.5, 4087.5, 2043.5, 2043.5, -0.5,
+					      4087.5 };
+		double r, d, fx, fy;
+
+		geom_pix_to_sky(&ss->geo, px[c], py[c], &r, &d);
+		sky_to_focal(sky, 1, &r, &d, INFINITY, &fx, &fy);
+		far = fmax(far, fmax(fabs(fx - cx), fabs(fy - cy)));
+	}
+	if (!(far <= SKY_SCA_HALF * 1.1))
+		return err_set(e, EXIT_INPUT, "%s: meta.wcs: the image reaches %.1f arcsec from "
+			       "its centre along the detector axes, more than an SCA's %.1f",
+			       ia->in->path, far, SKY_SCA_HALF * 1.1);
+	ss->half = fmax(SKY_SCA_HALF, far + 1.0);
+	return 0;
+}
+
 void into_asdf_free(struct into_asdf *ia)
 {
 	if (!ia)
 		return;
+	gwcs_free(ia->gw);
+	free(ia->catalogs);
 	asdf_in_free(ia->in);
 	free(ia);
 }

@@ -18,6 +18,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "asdf.h"
 #include "catalog.h"
 #include "clock.h"
 #include "detector.h"
@@ -43,7 +44,9 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	g->e = e;
 	g->main_thread = pthread_self();
 	settings_init(g);
-	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, o->geometry, x->sca_mask, e) < 0)
+	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, o->geometry, x->sca_mask, e) < 0 ||
+	    sky_va_setting(&g->sky, host_setting(g, "velocity-aberration"), x->date, o->exptime,
+			   e) < 0)
 		return -1;
 	g->tile = o->tile;
 	g->ntx = g->nty = (WFS_NPIX + g->tile - 1) / g->tile;
@@ -407,15 +410,20 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	struct into *into = NULL;
 	struct persist *persist = NULL;
 	struct timespec t0;
-	int n = 0, per, nthreads, rc = -1;
+	int n = 0, per, nthreads, rc = -1, acomp;
 
 	clock_gettime(CLOCK_MONOTONIC, &t0);
+	/* a setting the writers read at the end, checked before any work */
+	if (asdf_compression_setting(o->settings, &acomp, e) < 0)
+		return -1;
 	if (o->into && (o->pointings || o->row_first || !strcmp(o->output, "-") ||
 			strstr(o->output, "%d")))
 		return err_set(e, EXIT_INPUT, "--into: one output file, without "
 			       "--pointings, --rows, '-' or '%%d'");
 	if (o->into && !(into = into_open(o->into, o->sca_mask, e)))
 		return -1;
+	if (into)
+		into_catalogs(into, catalogs);
 	if (into && into_check_output(into, o->output, e) < 0) {
 		into_free(into);
 		return -1;
@@ -471,7 +479,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		if (run_pass(o, catalogs, x + i, n - i < per ? n - i : per, pool, place_pool,
 			     into, t0, e) < 0)
 			goto out;
-	if (into && into_compose(into, x[0].output, e) < 0)
+	if (into && into_compose(into, x[0].output, acomp, pool, e) < 0)
 		goto out;
 	if (persist && o->persistence_state && persist_save(persist, o->persistence_state, e) < 0)
 		goto out;

@@ -4,9 +4,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "date.h"
 #include "err.h"
 #include "geometry.h"
 #include "instrument.h"
+#include "motion.h"
 #include "sky.h"
 
 #define D2R (M_PI / 180.0)
@@ -145,6 +147,7 @@ int sky_init(struct sky *sky, double ra, double dec, double pa, int boresight,
 	sky->pa0 = fmod(fmod(pa, 360) + 360, 360);
 	sky->boresight = boresight;
 	sky->geometry = geometry;
+	sky->va = 1;
 	make_rot(sky);
 	geom_attitude(geom_aperture(boresight ? 0 : 1), sky->ra0, sky->dec0, sky->pa0, sky->att);
 	for (int i = 0; i < WFS_NSCA; i++) {
@@ -171,6 +174,70 @@ int sky_init(struct sky *sky, double ra, double dec, double pa, int boresight,
 		s->pa = s->geo.pa;
 		s->half = sca_half(sky, s);
 	}
+	return 0;
+}
+
+/* The pointing's reference direction, a unit vector. */
+static void ref_unit(const struct sky *sky, double b[3])
+{
+	double a = sky->ra0 * M_PI / 180, d = sky->dec0 * M_PI / 180;
+
+	b[0] = cos(d) * cos(a);
+	b[1] = cos(d) * sin(a);
+	b[2] = sin(d);
+}
+
+double sky_va_scale(const struct sky *sky, double mjd)
+{
+	/* km/s per AU/s and the speed of light */
+	const double au_km = 149597870.7, c_kms = 299792.458;
+	double p[3], q[3], b[3], ub = 0;
+
+	/* the velocity by a central difference of an hour either side, as
+	 * the ASDF writer's meta.ephemeris */
+	motion_observer(mjd - 1.0 / 24, p);
+	motion_observer(mjd + 1.0 / 24, q);
+	ref_unit(sky, b);
+	for (int k = 0; k < 3; k++)
+		ub += b[k] * (q[k] - p[k]) * au_km / 7200.0 / c_kms;
+	return 1 + ub;
+}
+
+void sky_aberrate(struct sky *sky, double scale)
+{
+	double b[3];
+
+	ref_unit(sky, b);
+	sky->va = scale;
+	for (int i = 0; i < WFS_NSCA; i++) {
+		struct sky_sca *s = &sky->sca[i];
+
+		if (!s->sca)
+			continue;
+		geom_sca_aberrate(&s->geo, scale, b);
+		s->ra = s->geo.ra;
+		s->dec = s->geo.dec;
+		s->pa = s->geo.pa;
+		/* the SCA moves by (scale - 1) of its distance from the
+		 * reference, and grows by scale */
+		s->half += fabs(scale - 1) * (hypot(s->fx, s->fy) + s->half) + 0.01;
+	}
+}
+
+int sky_va_setting(struct sky *sky, const char *value, double mjd, double exptime,
+		   struct err *e)
+{
+	if (!value || !strcmp(value, "off"))
+		return 0;
+	if (strcmp(value, "on"))
+		return err_set(e, EXIT_INPUT, "--set velocity-aberration=%s: expected on or off",
+			       value);
+	if (sky->geometry != GEOM_SIAF)
+		return err_set(e, EXIT_INPUT, "--set velocity-aberration=on goes with the SIAF "
+			       "geometry (--geometry stips draws the sky unaberrated)");
+	if (isnan(mjd))
+		mjd = date_mjd(2027, 1, 1, 0, 0, 0);
+	sky_aberrate(sky, sky_va_scale(sky, mjd + exptime / 2 / 86400));
 	return 0;
 }
 

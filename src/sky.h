@@ -44,6 +44,8 @@ struct sky {
 	int boresight;          /* reference is the boresight, not WFI01 */
 	int geometry;           /* GEOM_SIAF or GEOM_STIPS */
 	double att[3][3];       /* siaf: V2/V3 unit vector -> sky unit vector */
+	double va;              /* velocity aberration's scale factor applied
+				 * (1: none, the default) */
 	double rot[3][3];       /* sky unit vector -> frame with ref on +x */
 	struct sky_sca sca[WFS_NSCA];
 };
@@ -53,6 +55,23 @@ struct sky {
 int sky_init(struct sky *sky, double ra, double dec, double pa,
 	     int boresight, int geometry, unsigned mask, struct err *e);
 void sky_free(struct sky *sky);
+
+/*
+ * Velocity aberration (--set velocity-aberration=on): Roman's velocity at
+ * mid-exposure mjd from the observer model (motion.h), the scale factor
+ * 1 + beta.u of the pointing's reference direction u (beta = v / c), and
+ * every SCA's geometry aberrated by it about the reference point
+ * (geom_sca_aberrate).  siaf only.  Returns the scale factor.
+ */
+double sky_va_scale(const struct sky *sky, double mjd);
+void sky_aberrate(struct sky *sky, double scale);
+
+/* The setting velocity-aberration (NULL or "off": none; "on": aberrated
+ * at the middle of the exposure that starts at mjd, 2027-01-01 for NaN,
+ * and lasts exptime s).  0, or -1 for a value not on or off or "on" with
+ * the stips geometry. */
+int sky_va_setting(struct sky *sky, const char *value, double mjd, double exptime,
+		   struct err *e);
 
 /* Focal-plane coordinates (arcsec, ideal frame of the reference: +x along
  * the detectors' +x, +y along +y) of n sky positions.  Rows more than 80

@@ -155,6 +155,55 @@ static void v23_sky(const struct engine *g, double v2, double v3, double *ra, do
 	*pa_v3 = pa_toward(s, q);
 }
 
+/* The SCA's reference point on the sky and the position angle of +V3
+ * there, as wcsinfo gives them: with velocity aberration the attitude
+ * turned by the least rotation that takes the unaberrated reference
+ * direction u to the aberrated one (geometry's u, ~0.1" away). */
+static void sca_ref(const struct engine *g, int sca, double *ra, double *dec, double *pa_v3)
+{
+	const struct geom_aperture *ap = geom_aperture(sca);
+	const double *w = g->sky.sca[sca - 1].geo.u;
+	double m[3][3], u[3], a[3], sn, c, k[3][3] = { { 0 } };
+
+	if (g->sky.va == 1) {
+		v23_sky(g, ap->v2ref, ap->v3ref, ra, dec, pa_v3);
+		return;
+	}
+	unit_v23(ap->v2ref, ap->v3ref, a);
+	att_apply(g->sky.att, a, u);
+	/* Rodrigues: R = I + K + K^2 / (1 + c), K the cross-product matrix
+	 * of u x w, c = u . w */
+	a[0] = u[1] * w[2] - u[2] * w[1];
+	a[1] = u[2] * w[0] - u[0] * w[2];
+	a[2] = u[0] * w[1] - u[1] * w[0];
+	c = u[0] * w[0] + u[1] * w[1] + u[2] * w[2];
+	k[0][1] = -a[2], k[0][2] = a[1], k[1][0] = a[2];
+	k[1][2] = -a[0], k[2][0] = -a[1], k[2][1] = a[0];
+	for (int i = 0; i < 3; i++)
+		for (int j = 0; j < 3; j++) {
+			double r = (i == j) + k[i][j], k2 = 0;
+
+			for (int q = 0; q < 3; q++)
+				k2 += k[i][q] * k[q][j];
+			sn = r + k2 / (1 + c);
+			m[i][j] = sn;
+		}
+	{
+		double att[3][3], s3[3], q[3], t[3];
+
+		for (int i = 0; i < 3; i++)
+			for (int j = 0; j < 3; j++)
+				att[i][j] = m[i][0] * g->sky.att[0][j] + m[i][1] * g->sky.att[1][j] +
+					    m[i][2] * g->sky.att[2][j];
+		unit_v23(ap->v2ref, ap->v3ref, a);
+		att_apply(att, a, s3);
+		unit_v23(ap->v2ref, ap->v3ref + 1, t);
+		att_apply(att, t, q);
+		radec(s3, ra, dec);
+		*pa_v3 = pa_toward(s3, q);
+	}
+}
+
 static void meta_exposure(struct asdf_writer *aw, struct asdf_tree *t, struct fy_node *meta)
 {
 	const struct ramp_pattern *p = aw->pat;
@@ -174,7 +223,10 @@ static void meta_exposure(struct asdf_writer *aw, struct asdf_tree *t, struct fy
 	 * ramp fit's slope spans */
 	asdf_num(t, x, "effective_exposure_time", p->tbar[p->nres - 1] - p->tbar[0]);
 	snprintf(id, sizeof(id), "%d", p->table);
-	asdf_str(t, x, "ma_table_name", "wfiscene data/ma_tables.tsv");
+	/* the Project's name of the table where wfiscene's sources give it
+	 * (romanisim's parameters: table 4 is C2A_IMG_HLWAS); UNKNOWN, not
+	 * a made-up one, for the others */
+	asdf_str(t, x, "ma_table_name", p->table == 4 ? "C2A_IMG_HLWAS" : "UNKNOWN");
 	asdf_int(t, x, "ma_table_number", p->table);
 	asdf_str(t, x, "ma_table_id", id);
 	rp = asdf_seq(t, x, "read_pattern");
@@ -298,21 +350,25 @@ static void meta_bookkeeping(struct asdf_tree *t, struct fy_node *meta)
 	asdf_int(t, n, "counts", 0);
 }
 
-/* velocity aberration of the SCA's reference point: the apparent
- * direction of u seen moving at beta = v / c is u + beta less its
- * part along u, to first order; the plate scale grows by 1 + u.beta */
-static void meta_aberration(struct engine *g, const struct geom_aperture *ap,
-			    const double vel[3], struct asdf_tree *t, struct fy_node *meta)
+/* velocity aberration of the SCA's reference point, as the scene drew
+ * it.  Off (the default): none, scale 1 and the apparent direction the
+ * reference point's, so that romancal's assign_wcs (which scales V2/V3
+ * about the reference point by scale_factor) puts the sources where they
+ * are.  On: the scale factor the geometry applied (sky.h) and the
+ * apparent direction of the reference point, u + beta less its part along
+ * u, to first order. */
+static void meta_aberration(struct engine *g, int sca, const double vel[3],
+			    struct asdf_tree *t, struct fy_node *meta)
 {
 	struct fy_node *n;
 	double ra, dec, pa_v3, u[3], beta[3], ub = 0, s[3], nn = 0, ra_a, dec_a;
 
-	v23_sky(g, ap->v2ref, ap->v3ref, &ra, &dec, &pa_v3);
+	sca_ref(g, sca, &ra, &dec, &pa_v3);
 	u[0] = cos(dec * D2R) * cos(ra * D2R);
 	u[1] = cos(dec * D2R) * sin(ra * D2R);
 	u[2] = sin(dec * D2R);
 	for (int k = 0; k < 3; k++) {
-		beta[k] = vel[k] / C_KMS;
+		beta[k] = g->sky.va == 1 ? 0 : vel[k] / C_KMS;
 		ub += u[k] * beta[k];
 	}
 	for (int k = 0; k < 3; k++) {
@@ -323,9 +379,9 @@ static void meta_aberration(struct engine *g, const struct geom_aperture *ap,
 		s[k] /= sqrt(nn);
 	n = asdf_map(t, meta, "velocity_aberration", NULL);
 	radec(s, &ra_a, &dec_a);
-	asdf_num(t, n, "ra_reference", ra_a);
-	asdf_num(t, n, "dec_reference", dec_a);
-	asdf_num(t, n, "scale_factor", 1 + ub);
+	asdf_num(t, n, "ra_reference", g->sky.va == 1 ? ra : ra_a);
+	asdf_num(t, n, "dec_reference", g->sky.va == 1 ? dec : dec_a);
+	asdf_num(t, n, "scale_factor", g->sky.va);
 }
 
 /* visit: one exposure of general astrophysics, no dither named */
@@ -354,7 +410,7 @@ static void meta_wcsinfo(struct asdf_writer *aw, struct asdf_tree *t, struct fy_
 	double ra, dec, pa_v3;
 	char name[32];
 
-	v23_sky(g, ap->v2ref, ap->v3ref, &ra, &dec, &pa_v3);
+	sca_ref(g, aw->sca, &ra, &dec, &pa_v3);
 	n = asdf_map(t, meta, "wcsinfo", NULL);
 	snprintf(name, sizeof(name), "WFI%02d_FULL", aw->sca);
 	asdf_str(t, n, "aperture_name", name);
@@ -387,7 +443,6 @@ static void meta_common(struct asdf_writer *aw, struct asdf_tree *t, struct fy_n
 {
 	struct engine *g = aw->g;
 	const struct exposure *x = g->x;
-	const struct geom_aperture *ap = geom_aperture(aw->sca);
 	struct fy_node *n;
 	double mid = start_mjd(g) + aw->pat->exptime / 2 / 86400, pos[3], vel[3];
 	char name[32], *base = strrchr(aw->path, '/');
@@ -437,7 +492,7 @@ static void meta_common(struct asdf_writer *aw, struct asdf_tree *t, struct fy_n
 
 	meta_bookkeeping(t, meta);
 
-	meta_aberration(g, ap, vel, t, meta);
+	meta_aberration(g, aw->sca, vel, t, meta);
 
 	meta_visit(g, t, meta);
 
@@ -505,6 +560,7 @@ static uint64_t array_bytes(const struct array *a)
 static struct writer *asdf_open(struct engine *g, const char *path, struct err *e)
 {
 	struct asdf_writer *aw = calloc(1, sizeof(*aw));
+	int comp;
 
 	if (!aw || !(aw->path = strdup(path))) {
 		free(aw);
@@ -513,7 +569,9 @@ static struct writer *asdf_open(struct engine *g, const char *path, struct err *
 	}
 	aw->w.ops = &writer_asdf;
 	aw->g = g;
-	if (!(aw->out = asdf_out_open(path, e))) {
+	/* --set asdf-compression: every block stored so (none by default) */
+	if (asdf_compression_setting(g->o->settings, &comp, e) < 0 ||
+	    !(aw->out = asdf_out_open(path, comp, g->pool, e))) {
 		free(aw->path);
 		free(aw);
 		return NULL;
@@ -527,6 +585,7 @@ static int asdf_sca_begin(struct writer *w, const struct product *p, struct err 
 	struct asdf_tree t;
 	struct fy_node *roman, *meta;
 	uint64_t bytes[L2_N];
+	size_t itemsize[L2_N];
 
 	if (p->level == DETECTOR_SCENE || p->ylo != 0 || p->yhi != WFS_NPIX)
 		return err_set(e, EXIT_INPUT, "%s: an ASDF file holds a whole SCA at level 1 "
@@ -554,7 +613,8 @@ static int asdf_sca_begin(struct writer *w, const struct product *p, struct err 
 		meta_photometry(aw, &t, meta);
 		struct gwcs_params gp = { .ap = geom_aperture(p->sca) };
 
-		v23_sky(p->g, gp.ap->v2ref, gp.ap->v3ref, &gp.ra_ref, &gp.dec_ref, &gp.roll_ref);
+		sca_ref(p->g, p->sca, &gp.ra_ref, &gp.dec_ref, &gp.roll_ref);
+		gp.va = p->g->sky.va;
 		if (asdf_gwcs(&t, meta, &gp) < 0)
 			t.bad = 1;
 	}
@@ -562,12 +622,13 @@ static int asdf_sca_begin(struct writer *w, const struct product *p, struct err 
 		asdf_ndarray(&t, roman, aw->arr[k].name, k, aw->arr[k].dtype, aw->arr[k].ndim,
 			     aw->arr[k].shape);
 		bytes[k] = array_bytes(&aw->arr[k]);
+		itemsize[k] = asdf_dtype_size(aw->arr[k].dtype);
 	}
 	if (t.bad) {
 		asdf_tree_free(&t);
 		return err_sys(e, "%s: the ASDF tree", aw->path);
 	}
-	if (asdf_out_begin(aw->out, &t, aw->narr, bytes, e) < 0) {
+	if (asdf_out_begin(aw->out, &t, aw->narr, bytes, itemsize, e) < 0) {
 		asdf_tree_free(&t);
 		return -1;
 	}

@@ -41,10 +41,41 @@ test_expect_success 'level 2: the gwcs within 0.01 pixel of the FITS WCS, three 
 	for s in 1 9 16; do
 		f=$(printf "g_%02d.asdf" $s) &&
 		"$PY" "$TOP/tests/asdf_gwcs_check.py" $f g.fits $s > out && say "WFI$s $(cat out)" &&
-		read x fits y inv z ref < out &&
-		awk -v a="$fits" -v b="$inv" "BEGIN { exit !(a < 0.01 && b < 0.01) }" || return 1
+		read x fits y inv z ref w rc < out &&
+		awk -v a="$fits" -v b="$inv" -v c="$rc" "BEGIN { exit !(a < 0.01 && b < 0.01 && c < 0.01) }" || return 1
 		if [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image $f || return 1; fi
 	done
+'
+
+# --set velocity-aberration: off (the default) the file says scale 1 and
+# romancal's WCS is the gwcs; on, sources move (up to 0.8 px at the
+# corners of the outer SCAs) and the gwcs, the FITS WCS and romancal's
+# WCS (which applies meta.velocity_aberration.scale_factor) all follow
+test_expect_success 'velocity aberration: placed where the gwcs and romancal say, on and off' '
+	grep -a -A3 "velocity_aberration:" g_09.asdf | grep -q "scale_factor: 1$" &&
+	va() { "$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --sca 9 "$@"; } &&
+	va --level 2 --ma-table 3 --set velocity-aberration=on -o va.asdf stars.csv &&
+	va --set velocity-aberration=on -o va.fits stars.csv &&
+	"$PY" "$TOP/tests/asdf_gwcs_check.py" va.asdf va.fits 9 > out && say "on: $(cat out)" &&
+	read x fits y inv z ref w rc < out &&
+	awk -v a="$fits" -v c="$rc" "BEGIN { exit !(a < 0.01 && c < 0.01) }" &&
+	! grep -a -A3 "velocity_aberration:" va.asdf | grep -q "scale_factor: 1$" &&
+	"$PY" "$TOP/tests/asdf_va_check.py" grid va.asdf > grid.csv &&
+	va --noise none --set velocity-aberration=on --placed on.csv -o p.fits grid.csv &&
+	"$PY" "$TOP/tests/asdf_va_check.py" placed va.asdf on.csv > out && say "on: $(cat out)" &&
+	read x dg y drc < out && awk -v a="$dg" -v c="$drc" "BEGIN { exit !(a < 0.01 && c < 0.01) }" &&
+	va --noise none --placed off.csv -o p.fits grid.csv &&
+	"$PY" "$TOP/tests/asdf_va_check.py" placed va.asdf off.csv > out && say "off: $(cat out)" &&
+	read x dg y drc < out && awk -v a="$dg" "BEGIN { exit !(a > 0.3) }" &&
+	"$PY" "$TOP/tests/asdf_va_check.py" grid g_09.asdf > grid.csv &&
+	va --noise none --placed off.csv -o p.fits grid.csv &&
+	"$PY" "$TOP/tests/asdf_va_check.py" placed g_09.asdf off.csv > out && say "off: $(cat out)" &&
+	read x dg y drc < out && awk -v a="$dg" -v c="$drc" "BEGIN { exit !(a < 0.01 && c < 0.01) }" &&
+	if [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image va.asdf; fi &&
+	test_must_fail --status 1 va --set velocity-aberration=yes -o p.fits stars.csv 2> err &&
+	test_grep "velocity-aberration=yes: expected on or off" err &&
+	test_must_fail --status 1 va --geometry stips --set velocity-aberration=on -o p.fits \
+		stars.csv 2> err && test_grep "SIAF geometry" err
 '
 
 test_expect_success 'level 1: a wfi_science_raw file, data the FITS cube, amp33 as the border' '

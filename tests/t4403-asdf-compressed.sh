@@ -1,0 +1,129 @@
+#!/bin/sh
+# --into reads a Roman level-2 ASDF file whose blocks python3-asdf
+# compressed (zlib, and lz4 in asdf's framing, as romancal's files often
+# are), with python3-asdf's MD5s; the result is the same image as from
+# the uncompressed file; a corrupt compressed block is refused with the
+# file and block named, nothing written.  wfiscene writes compressed
+# blocks too (--set asdf-compression=zlib|lz4): levels 1 and 2 that the
+# schemas accept, whose arrays python3-asdf reads equal to the uncompressed
+# file's, lz4 byte for byte as python3-asdf frames it, the same bytes for
+# any thread count; --into reads them back and keeps or changes their
+# compression; a bad value is refused, nothing written.
+. "$(dirname "$0")/lib.sh"
+require_python
+"$PY" -c 'import asdf, gwcs, asdf_astropy, lz4.block' 2>/dev/null ||
+	skip_all "python3-asdf, python3-asdf-astropy, python3-gwcs or python3-lz4 is absent"
+
+CHECK=$SHARED/tools/roman-asdf-check
+printf 'ra,dec,flux\n200,60,5e5\n' > stars.csv
+
+test_expect_success 'a level 2 file, its blocks compressed by python3-asdf' '
+	"$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --level 2 \
+		--ma-table 3 --sca 9 -o l2.asdf stars.csv &&
+	"$PY" "$TOP/tests/asdf_rewrite.py" l2.asdf c.asdf --md5 --compress data=lz4 \
+		--compress var_poisson=zlib --compress err=lz4 --compress dq=zlib \
+		--compress amp33=lz4 &&
+	"$PY" "$TOP/tests/asdf_va_check.py" grid l2.asdf > grid.csv &&
+	head -n 2 grid.csv > one.csv
+'
+
+test_expect_success '--into the compressed file: the image of the uncompressed one' '
+	"$WFS" --filter F158 --sca 9 --into c.asdf -o out_c.asdf --placed p.csv one.csv &&
+	"$WFS" --filter F158 --sca 9 --into l2.asdf -o out_u.asdf one.csv &&
+	ra=$(sed -n 2p one.csv | cut -d, -f1) && dec=$(sed -n 2p one.csv | cut -d, -f2) &&
+	"$PY" "$TOP/tests/asdf_into_check.py" c.asdf out_c.asdf p.csv 2 "$ra" "$dec" > out &&
+	say "$(cat out)" && test_grep "^ok" out &&
+	"$PY" -c "
+import sys, warnings, numpy as np, asdf, asdf.tags.core.ndarray as nd
+warnings.simplefilter(\"ignore\")
+nd._datatype_names.setdefault(\"float16\", \"f2\")
+with asdf.open(\"out_c.asdf\") as a, asdf.open(\"out_u.asdf\") as b:
+    for k in (\"data\", \"var_poisson\", \"err\", \"dq\", \"amp33\"):
+        assert np.array_equal(np.asarray(a.tree[\"roman\"][k]), np.asarray(b.tree[\"roman\"][k]),
+                              equal_nan=True), k
+print(\"same\")" > out && test_grep same out &&
+	if have_shared && [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image out_c.asdf; fi
+'
+
+test_expect_success 'a corrupt compressed block: file and block named, exit 1, nothing written' '
+	"$PY" "$TOP/tests/asdf_rewrite.py" l2.asdf z.asdf --compress var_poisson=zlib \
+		--corrupt var_poisson &&
+	test_must_fail --status 1 "$WFS" --filter F158 --sca 9 --into z.asdf -o bad.asdf \
+		one.csv 2> err &&
+	test_grep "z.asdf: block [0-9]*: its zlib data .*corrupt" err &&
+	"$PY" "$TOP/tests/asdf_rewrite.py" l2.asdf l.asdf --compress data=lz4 --corrupt data &&
+	test_must_fail --status 1 "$WFS" --filter F158 --sca 9 --into l.asdf -o bad.asdf \
+		one.csv 2> err &&
+	test_grep "l.asdf: block 0: .*lz4\\|l.asdf: block 0: its MD5" err &&
+	"$PY" "$TOP/tests/asdf_rewrite.py" l2.asdf m.asdf --md5 --compress data=lz4 --corrupt data &&
+	test_must_fail --status 1 "$WFS" --filter F158 --sca 9 --into m.asdf -o bad.asdf \
+		one.csv 2> err &&
+	test_grep "m.asdf: block 0: " err &&
+	! ls -a | grep -q "bad\\.asdf"
+'
+
+test_expect_success 'level 2 with zlib and lz4 blocks: the arrays of the uncompressed file' '
+	for c in zlib lz4; do
+		"$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --level 2 \
+			--ma-table 3 --sca 9 --set asdf-compression=$c -o l2_$c.asdf stars.csv &&
+		"$PY" "$TOP/tests/asdf_same.py" l2.asdf l2_$c.asdf $c > out &&
+		say "$c: $(cat out)" && test_grep "^ok" out || return 1
+		if have_shared && [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image l2_$c.asdf || return 1; fi
+	done &&
+	"$PY" "$TOP/tests/asdf_same.py" l2.asdf l2_lz4.asdf lz4 --lz4-as-asdf > out &&
+	test_grep "^ok" out &&
+	"$PY" "$TOP/tests/asdf_checksum.py" l2_zlib.asdf > /dev/null
+'
+
+test_expect_success 'the same compressed bytes with one thread' '
+	mkdir -p b &&
+	for c in zlib lz4; do
+		"$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --level 2 \
+			--ma-table 3 --sca 9 --set asdf-compression=$c --threads 1 --tile 512 \
+			-o b/l2_$c.asdf stars.csv &&
+		cmp l2_$c.asdf b/l2_$c.asdf || return 1
+	done &&
+	rm -r b
+'
+
+test_expect_success 'level 1 with zlib and lz4 blocks: the arrays of the uncompressed file' '
+	l1() { "$WFS" --filter F158 --ra 200 --dec 60 --pa 30 --date 2027-07-01 --level 1 \
+		--ma-table 3 --sca 9 "$@" stars.csv; } &&
+	l1 -o l1.asdf &&
+	for c in zlib lz4; do
+		l1 --set asdf-compression=$c -o l1_$c.asdf &&
+		"$PY" "$TOP/tests/asdf_same.py" l1.asdf l1_$c.asdf $c > out &&
+		say "$c: $(cat out)" && test_grep "^ok" out || return 1
+		if have_shared && [ -x "$CHECK" ]; then "$CHECK" --expect wfi_science_raw l1_$c.asdf || return 1; fi
+	done &&
+	rm -f l1.asdf l1_zlib.asdf l1_lz4.asdf
+'
+
+test_expect_success '--into our own compressed file: kept compressed, or stored as told' '
+	"$WFS" --filter F158 --sca 9 --into l2_lz4.asdf -o in_lz4.asdf one.csv &&
+	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_lz4.asdf lz4 > out && test_grep "^ok" out &&
+	"$WFS" --filter F158 --sca 9 --into l2_zlib.asdf -o in_zlib.asdf one.csv &&
+	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_zlib.asdf zlib > out && test_grep "^ok" out &&
+	"$WFS" --filter F158 --sca 9 --into l2.asdf --set asdf-compression=lz4 -o in_to.asdf \
+		one.csv &&
+	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_to.asdf lz4 > out && test_grep "^ok" out &&
+	"$WFS" --filter F158 --sca 9 --into c.asdf --set asdf-compression=none -o in_no.asdf \
+		one.csv &&
+	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_no.asdf none > out && test_grep "^ok" out &&
+	"$PY" "$TOP/tests/asdf_checksum.py" in_no.asdf > /dev/null &&
+	if have_shared && [ -x "$CHECK" ]; then
+		"$CHECK" --expect wfi_image in_lz4.asdf in_zlib.asdf in_to.asdf in_no.asdf
+	fi
+'
+
+test_expect_success 'asdf-compression=gzip: refused naming the key and value, nothing written' '
+	test_must_fail --status 1 "$WFS" --filter F158 --ra 200 --dec 60 --level 2 --sca 9 \
+		--set asdf-compression=gzip -o g.asdf stars.csv 2> err &&
+	test_grep "asdf-compression=gzip: expected none, zlib or lz4" err &&
+	test_must_fail --status 1 "$WFS" --filter F158 --sca 9 --into l2.asdf \
+		--set asdf-compression=gzip -o g.asdf one.csv 2> err &&
+	test_grep "asdf-compression=gzip" err &&
+	! ls -a | grep -q "^\.*g\.asdf"
+'
+
+test_done

@@ -282,23 +282,56 @@ static void cell_correction(const struct poly *cell, double flux, const double w
 		}
 }
 
-/* The same for a colour source in its pair's cell: the cell's nodes of
- * class a (0..3) and a + 1 (4..7), the source's own weights (1 - f) w and
- * f w of them. */
+/* The same for a colour source in its pair's cell, whose blend at the
+ * source is, with A_k and B_k the nodes of classes a and a + 1, w_k the
+ * source's position weights (aux[4..7]) and c_k the cell's, f the source's
+ * fraction of the way from a to a + 1 and g the cell's (cstep),
+ *
+ *   sum_k w_k (A_k + f D_k),  D_k = B_k - A_k;
+ *
+ * with E_k the nodes of the class nearer g (e = 0 or 1), the cell plus
+ *
+ *   sum_k (w_k - c_k) E_k + (f - g) D,  D = sum_k c_k D_k (the cell's dcol)
+ *
+ * is that blend less (f - e) sum_k (w_k - c_k) D_k: the change of the
+ * pair's difference across the grid, times the source's offset from the
+ * cell's centre and its colour's from class e (BENCHMARKS.md, "Colour").
+ * Five arrays instead of the eight of the exact blend. */
+static int colour_e(const struct poly *cell)
+{
+	return cell->cstep >= 0.5;
+}
+
 static void cell_correction_colour(const struct point *p, const struct wfs_source *src,
 				   const struct poly *cell, const double w[4], struct draw *d)
 {
 	double f, flux = src->flux;
-	int a;
+	int a, e = colour_e(cell);
 
 	point_pair(p, colour_of(p, src), &a, &f);
 	d->ncor = 0;
-	for (int k = 0; k < 8; k++)
-		if (cell->cpoly[k]) {
-			d->cp[d->ncor] = cell->cpoly[k];
-			d->cw[d->ncor++] = flux * (k < 4 ? 1 - f : f) * w[k & 3] -
-					   flux * cell->cweight[k];
+	for (int k = 0; k < 4; k++)
+		if (cell->cpoly[k + 4 * e]) {
+			d->cp[d->ncor] = cell->cpoly[k + 4 * e];
+			d->cw[d->ncor++] = flux * w[k] - flux * (cell->cweight[k] + cell->cweight[k + 4]);
 		}
+	d->cp[d->ncor] = cell->dcol;
+	d->cw[d->ncor++] = flux * (f - cell->cstep);
+}
+
+/* T of a colour source in its pair's cell (one_array), from the same five
+ * arrays: sum_k w_k E_k + (f - e) D over the zone z. */
+static double colour_total(const struct point *p, const struct wfs_source *src,
+			   const struct poly *cell, const struct geom *g, struct zone z)
+{
+	double f, t = 0;
+	int a, e = colour_e(cell);
+
+	point_pair(p, colour_of(p, src), &a, &f);
+	for (int k = 0; k < 4; k++)
+		if (cell->cpoly[k + 4 * e])
+			t += src->aux[4 + k] * bil_sum(cell->cpoly[k + 4 * e], g, z);
+	return src->flux * (t + (f - e) * bil_sum(cell->dcol, g, z));
 }
 
 /* How src is drawn in render(), its box and what prepare() found in aux:
@@ -511,7 +544,9 @@ int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut, d
 	/* T: the bilinear sum over the box of the blend at the source (of
 	 * the cell's, psf-blend=cell); one array with a cut box draws the
 	 * whole box's light below instead, and needs no T */
-	if (!(half < whole && one_array(&d))) {
+	if (!(half < whole && one_array(&d)) && same && colour_of(p, src) >= 0 && one_array(&d))
+		t = colour_total(p, src, cell, &d.g, d.box);
+	else if (!(half < whole && one_array(&d))) {
 		if (blend == BLEND_CELL)
 			t = src->flux * bil_sum(cell, &d.g, d.box);
 		for (int k = 0; k < nn; k++)

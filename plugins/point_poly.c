@@ -307,7 +307,8 @@ static float *blend_nodes(struct point *p, const float *const node[8], const dou
 			  int nw, size_t nn)
 {
 	float *mix = malloc(nn * sizeof(float));
-	double *v = calloc(nn, sizeof(double));
+	double *v = malloc(nn * sizeof(double));
+	int first = 1;
 
 	if (!mix || !v) {
 		free(mix);
@@ -315,12 +316,18 @@ static float *blend_nodes(struct point *p, const float *const node[8], const dou
 		p->host->error(p->host->ctx, "out of memory");
 		return NULL;
 	}
+	/* 0 + the first product, as a sum from 0 (-0 becomes +0) */
 	for (int k = 0; k < nw; k++)
-		if (w[k] != 0)
+		if (w[k] != 0 && first) {
+			for (size_t i = 0; i < nn; i++)
+				v[i] = 0.0 + w[k] * node[k][i];
+			first = 0;
+		} else if (w[k] != 0) {
 			for (size_t i = 0; i < nn; i++)
 				v[i] += w[k] * node[k][i];
+		}
 	for (size_t i = 0; i < nn; i++)
-		mix[i] = (float)v[i];
+		mix[i] = first ? 0.0f : (float)v[i];
 	free(v);
 	return mix;
 }

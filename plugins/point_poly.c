@@ -224,9 +224,11 @@ static size_t slots_wanted(const struct point *p, long c)
 {
 	size_t side = (size_t)cell_last(c) + 2;
 	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * SCA_COUNT *
-		       (p->blend == BLEND_CELL ? 3 : 1) *
-		       (1 + (size_t)p->colour_cells + (p->colour_cells ? (size_t)p->nclasses : 0));
+		       (p->blend == BLEND_CELL ? 3 : 1) * (1 + (size_t)p->colour_cells);
 
+	/* and per position the colour cells' pair differences (dcol_add) */
+	if (p->colour_cells)
+		cells += cells / (1 + (size_t)p->colour_cells) * (size_t)p->nclasses;
 	return 2 * (cells + POLY_NODES);
 }
 

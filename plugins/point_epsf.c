@@ -616,10 +616,14 @@ static double prep_totals(const struct point *p, struct wfs_source *src, const s
  */
 int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut, double *drawn)
 {
-	struct prep r = { .blend = source_blend(p, src) };
+	struct prep r;          /* not zeroed: a source's prepare is hot */
 	const struct poly *q0;
 	double half, whole, t_all;
 
+	r.cell = NULL;
+	r.nn = 0;
+	r.d.pl[0] = NULL;
+	r.blend = source_blend(p, src);
 	r.same = r.blend == BLEND_CORE;
 	if (r.blend != BLEND_SOURCE && !(r.cell = cell_add(p, src)))
 		return -1;

@@ -71,6 +71,11 @@ struct poly {
 	const float *cnode[8];  /* 8: two spectral classes' nodes */
 	double cweight[8];
 	const struct poly *cpoly[8];
+	/* a colour cell: its step between the pair's classes (0 to 1), and
+	 * the pair's difference at the cell's centre, class a + 1 less class
+	 * a (cell_add): psf-blend=core's colour correction */
+	double cstep;
+	const struct poly *dcol;
 };
 
 /* Pixels [x0, x1) x [y0, y1), 0-based; empty when x0 >= x1 or y0 >= y1. */

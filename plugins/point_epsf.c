@@ -282,23 +282,56 @@ static void cell_correction(const struct poly *cell, double flux, const double w
 		}
 }
 
-/* The same for a colour source in its pair's cell: the cell's nodes of
- * class a (0..3) and a + 1 (4..7), the source's own weights (1 - f) w and
- * f w of them. */
+/* The same for a colour source in its pair's cell, whose blend at the
+ * source is, with A_k and B_k the nodes of classes a and a + 1, w_k the
+ * source's position weights (aux[4..7]) and c_k the cell's, f the source's
+ * fraction of the way from a to a + 1 and g the cell's (cstep),
+ *
+ *   sum_k w_k (A_k + f D_k),  D_k = B_k - A_k;
+ *
+ * with E_k the nodes of the class nearer g (e = 0 or 1), the cell plus
+ *
+ *   sum_k (w_k - c_k) E_k + (f - g) D,  D = sum_k c_k D_k (the cell's dcol)
+ *
+ * is that blend less (f - e) sum_k (w_k - c_k) D_k: the change of the
+ * pair's difference across the grid, times the source's offset from the
+ * cell's centre and its colour's from class e (BENCHMARKS.md, "Colour").
+ * Five arrays instead of the eight of the exact blend. */
+static int colour_e(const struct poly *cell)
+{
+	return cell->cstep >= 0.5;
+}
+
 static void cell_correction_colour(const struct point *p, const struct wfs_source *src,
 				   const struct poly *cell, const double w[4], struct draw *d)
 {
 	double f, flux = src->flux;
-	int a;
+	int a, e = colour_e(cell);
 
 	point_pair(p, colour_of(p, src), &a, &f);
 	d->ncor = 0;
-	for (int k = 0; k < 8; k++)
-		if (cell->cpoly[k]) {
-			d->cp[d->ncor] = cell->cpoly[k];
-			d->cw[d->ncor++] = flux * (k < 4 ? 1 - f : f) * w[k & 3] -
-					   flux * cell->cweight[k];
+	for (int k = 0; k < 4; k++)
+		if (cell->cpoly[k + 4 * e]) {
+			d->cp[d->ncor] = cell->cpoly[k + 4 * e];
+			d->cw[d->ncor++] = flux * w[k] - flux * (cell->cweight[k] + cell->cweight[k + 4]);
 		}
+	d->cp[d->ncor] = cell->dcol;
+	d->cw[d->ncor++] = flux * (f - cell->cstep);
+}
+
+/* T of a colour source in its pair's cell (one_array), from the same five
+ * arrays: sum_k w_k E_k + (f - e) D over the zone z. */
+static double colour_total(const struct point *p, const struct wfs_source *src,
+			   const struct poly *cell, const struct geom *g, struct zone z)
+{
+	double f, t = 0;
+	int a, e = colour_e(cell);
+
+	point_pair(p, colour_of(p, src), &a, &f);
+	for (int k = 0; k < 4; k++)
+		if (cell->cpoly[k + 4 * e])
+			t += src->aux[4 + k] * bil_sum(cell->cpoly[k + 4 * e], g, z);
+	return src->flux * (t + (f - e) * bil_sum(cell->dcol, g, z));
 }
 
 /* How src is drawn in render(), its box and what prepare() found in aux:
@@ -363,6 +396,211 @@ static double beyond(const struct wfs_source *src, const struct poly *cell, int 
 	return fabs(out);
 }
 
+/* What prepare() finds for a source, step by step: its cell (NULL: none),
+ * its own nodes' copies with their weights (not times the flux), its
+ * blend, whether its cell was blended from exactly its nodes
+ * (psf-blend=core's correction from aux[4..7]), and the arrays render()
+ * reads with its zones. */
+struct prep {
+	struct poly *cell;
+	const struct poly *node[8];
+	double w[8];
+	int nn, blend, same;
+	struct draw d;
+};
+
+/* The source's nodes (not for psf-blend=cell): the cell's copies when the
+ * cell was blended from them (their weights go to aux[4..7] in the cell's
+ * order), else copies made here.  Returns 0 or -1. */
+static int prep_nodes(struct point *p, struct wfs_source *src, struct prep *r)
+{
+	struct wfs_epsf es[2];
+	double wc[2];
+	int ne = src_epsf(p, src, es, wc);
+
+	if (ne < 0)
+		return -1;
+	for (int i = 0; i < ne; i++)
+	for (int k = 0; k < 4; k++) {
+		const struct wfs_epsf *e = &es[i];
+		const struct poly *q = NULL;
+
+		if (e->weight[k] == 0)
+			continue;
+		/* the position weights (aux[4..7], the cell's node order)
+		 * from the source's first class: a colour cell holds both
+		 * classes' nodes in one order */
+		for (int j = 0; r->cell && j < 8 && !q; j++)
+			if (r->cell->cnode[j] == e->node[k] && r->cell->cpoly[j]) {
+				q = r->cell->cpoly[j];
+				if (i == 0)
+					src->aux[4 + (j & 3)] += e->weight[k];
+			}
+		if (!q) {
+			r->same = 0;
+			if (!(q = poly_add(p, (uint64_t)(uintptr_t)e->node[k], e->node[k], e->n,
+					   e->over)))
+				return -1;
+		}
+		r->node[r->nn] = q;
+		/* times 1 for the default spectrum: the same bytes */
+		r->w[r->nn++] = wc[i] * e->weight[k];
+	}
+	return 0;
+}
+
+/* A colour source whose cell's nodes are not all its own (a node line
+ * between the source and its cell's centre): psf-blend=core's correction
+ * would read the source's arrays and the cell's, more than the 8 of
+ * draw.cp together, so the cell is left for a blend of the source's own. */
+static void prep_colour_fit(const struct point *p, const struct wfs_source *src,
+			    struct prep *r)
+{
+	int extra = 0;
+
+	if (!r->cell || !(colour_of(p, src) >= 0) || r->same)
+		return;
+	for (int j = 0; r->blend == BLEND_CORE && j < 8; j++) {
+		int k;
+
+		for (k = 0; k < r->nn && r->cell->cnode[j] && r->node[k]->key !=
+			     (uint64_t)(uintptr_t)r->cell->cnode[j]; k++)
+			;
+		extra += r->cell->cnode[j] && k == r->nn;
+	}
+	if (r->nn + extra > 8) {
+		r->blend = BLEND_SOURCE;
+		r->cell = NULL;
+	}
+}
+
+/* The arrays render() reads: the cell, or the source's nodes; aux[3] the
+ * cell's slot (-1: none).  Returns 0 or -1. */
+static int prep_arrays(const struct point *p, struct wfs_source *src, struct prep *r)
+{
+	struct draw *d = &r->d;
+
+	src->aux[3] = -1;
+	d->nn = 0;
+	if (r->cell) {
+		src->aux[3] = (double)(r->cell - p->slot);
+		d->pl[d->nn] = r->cell;
+		d->wn[d->nn++] = src->flux;
+	} else
+		for (int k = 0; k < r->nn && k < 8; k++) {
+			d->pl[d->nn] = r->node[k];
+			d->wn[d->nn++] = r->w[k] * src->flux;
+		}
+	if (d->nn == 0)
+		return p->host->error(p->host->ctx, "no ePSF node with a weight");
+	return 0;
+}
+
+/* psf-box=adaptive: the smallest half-width (at most half) whose left-out
+ * light is below box_noise times the noise summed over the box, for the
+ * blend at the source (at the cell's, psf-blend=cell). */
+static double box_adaptive(const struct point *p, const struct wfs_source *src,
+			   const struct prep *r, double half)
+{
+	int h, H = r->d.pl[0]->nee;
+
+	for (h = 1; h < H; h++) {
+		double out = 0;
+
+		if (r->blend == BLEND_CELL)
+			out = src->flux * (r->cell->ee[H] - r->cell->ee[h]);
+		for (int k = 0; k < r->nn; k++)
+			out += r->w[k] * src->flux * (r->node[k]->ee[H] - r->node[k]->ee[h]);
+		if (fabs(out) <= p->box_noise * p->sigma * 2 * h)
+			break;
+	}
+	return h < half ? h : half;
+}
+
+/* psf-extent-cut: the smallest half-width, beyond the core, past which
+ * the source's light within the whole box of half-width half (for the
+ * blend at the source, or the cell's; ee_table) is at most extent_cut of
+ * the noise per pixel (that light is put back by prep_totals), or half. */
+static double box_cut(const struct point *p, const struct wfs_source *src,
+		      const struct prep *r, double half)
+{
+	const struct poly *const *node = r->node;
+	int rc = (int)ceil(p->core), h = rc + 1, H = (int)half, nn = r->nn;
+	double all = beyond(src, r->cell, r->blend, node, r->w, nn, H, 0);
+
+	/* most sources that need the whole box are seen at its edge */
+	if (h < H && !(beyond(src, r->cell, r->blend, node, r->w, nn, H, H - 1) <=
+		       p->extent_cut * p->sigma))
+		h = H;
+	/* the light put back goes outside the core (flux_factor), so the box
+	 * keeps at least 2% of the light there; bicubic (the core is the
+	 * box) is never cut */
+	for (; h < H; h++)
+		if (beyond(src, r->cell, r->blend, node, r->w, nn, H, h) <=
+		    p->extent_cut * p->sigma &&
+		    beyond(src, r->cell, r->blend, node, r->w, nn, h, rc) >= 0.02 * all)
+			break;
+	return h < H ? h : half;
+}
+
+/* The flux factor's terms (aux[1..2]) for the box of half-width half, cut
+ * from whole; returns the light the box places. */
+static double prep_totals(const struct point *p, struct wfs_source *src, const struct prep *r,
+			  double half, double whole)
+{
+	const struct draw *d = &r->d;
+	const struct poly *cell = r->cell;
+	double t = 0, t_all;
+
+	/* T: the bilinear sum over the box of the blend at the source (of
+	 * the cell's, psf-blend=cell); one array with a cut box draws the
+	 * whole box's light below instead, and needs no T */
+	if (!(half < whole && one_array(d)) && r->same && colour_of(p, src) >= 0 && one_array(d))
+		t = colour_total(p, src, cell, &d->g, d->box);
+	else if (!(half < whole && one_array(d))) {
+		if (r->blend == BLEND_CELL)
+			t = src->flux * bil_sum(cell, &d->g, d->box);
+		for (int k = 0; k < r->nn; k++)
+			t += r->w[k] * src->flux * bil_sum(r->node[k], &d->g, d->box);
+	}
+	/* A box the cut shrank draws the light of the whole one at the
+	 * source's phase: its factor below carries the light beyond it (below
+	 * the cut), outside the core.  That light is taken from the cell's
+	 * blend where there is one (one table instead of four; the blends'
+	 * light in the whole box differs by some 1e-4 of it). */
+	t_all = t;
+	if (half < whole) {
+		struct zone all = square(src->x, src->y, whole);
+
+		if (cell)
+			t_all = src->flux * bil_sum(cell, &d->g, all);
+		else
+			for (int k = t_all = 0; k < r->nn; k++)
+				t_all += r->w[k] * src->flux * bil_sum(r->node[k], &d->g, all);
+	}
+	if (one_array(d)) {
+		const struct geom *g = &d->g;
+
+		src->aux[1] = t_all;
+		src->aux[2] = src->flux * (tap_sum(cell, g, g->an, g->bn, corners_of(g, d->box)) -
+					   (zone_empty(d->wing) ? 0 :
+					    tap_sum(cell, g, g->an, g->bn, corners_of(g, d->wing))) +
+					   bil_sum(cell, g, d->wing) - bil_sum(cell, g, d->core));
+	} else {
+		double k = 0, u = t;
+
+		for (int i = 0; i < d->nn; i++) {
+			double b = bil_sum(d->pl[i], &d->g, d->core);
+
+			u -= d->wn[i] * b;
+			k += d->wn[i] * (d->keys ? keys_sum(d->pl[i], &d->g, d->core) : b);
+		}
+		src->aux[1] = flux_factor(t_all, k, u);
+		src->aux[2] = 0;
+	}
+	return t_all;
+}
+
 /*
  * prepare(): the arrays the source reads (polyphase copies of its grid
  * nodes and of its cell's blend, made once and kept), its box and what its
@@ -378,180 +616,38 @@ static double beyond(const struct wfs_source *src, const struct poly *cell, int 
  */
 int epsf_prepare(struct point *p, struct wfs_source *src, double cap, int cut, double *drawn)
 {
-	struct wfs_epsf es[2];
-	struct draw d;
-	const struct poly *node[8];
-	double w[8], wc[2], half, t = 0, t_all = 0, whole;
-	struct poly *cell = NULL;
-	int nn = 0, blend = source_blend(p, src), same = blend == BLEND_CORE;
+	struct prep r;          /* not zeroed: a source's prepare is hot */
+	const struct poly *q0;
+	double half, whole, t_all;
 
-	if (blend != BLEND_SOURCE && !(cell = cell_add(p, src)))
+	r.cell = NULL;
+	r.nn = 0;
+	r.d.pl[0] = NULL;
+	r.blend = source_blend(p, src);
+	r.same = r.blend == BLEND_CORE;
+	if (r.blend != BLEND_SOURCE && !(r.cell = cell_add(p, src)))
 		return -1;
 	src->aux[4] = src->aux[5] = src->aux[6] = src->aux[7] = 0;
-	if (blend != BLEND_CELL) {
-		/* the source's nodes: the cell's copies when the cell was
-		 * blended from them (their weights go to aux[4..7] in the
-		 * cell's order), else copies made here */
-		int ne = src_epsf(p, src, es, wc);
-
-		if (ne < 0)
-			return -1;
-		for (int i = 0; i < ne; i++)
-		for (int k = 0; k < 4; k++) {
-			const struct wfs_epsf *e = &es[i];
-			const struct poly *q = NULL;
-
-			if (e->weight[k] == 0)
-				continue;
-			/* the position weights (aux[4..7], the cell's node
-			 * order) from the source's first class: a colour
-			 * cell holds both classes' nodes in one order */
-			for (int j = 0; cell && j < 8 && !q; j++)
-				if (cell->cnode[j] == e->node[k] && cell->cpoly[j]) {
-					q = cell->cpoly[j];
-					if (i == 0)
-						src->aux[4 + (j & 3)] += e->weight[k];
-				}
-			if (!q) {
-				same = 0;
-				if (!(q = poly_add(p, (uint64_t)(uintptr_t)e->node[k], e->node[k], e->n,
-						   e->over)))
-					return -1;
-			}
-			node[nn] = q;
-			/* times 1 for the default spectrum: the same bytes */
-			w[nn++] = wc[i] * e->weight[k];
-		}
-	}
-	if (cell && colour_of(p, src) >= 0 && !same) {
-		/* psf-blend=core's correction reads the source's arrays and
-		 * the cell's (at most 8 together, draw.cp): a cell whose
-		 * nodes are not all the source's (a node line between the
-		 * source and its cell's centre) is left for a blend of the
-		 * source's own */
-		int extra = 0;
-
-		for (int j = 0; blend == BLEND_CORE && j < 8; j++) {
-			int k;
-
-			for (k = 0; k < nn && cell->cnode[j] && node[k]->key !=
-				     (uint64_t)(uintptr_t)cell->cnode[j]; k++)
-				;
-			extra += cell->cnode[j] && k == nn;
-		}
-		if (nn + extra > 8) {
-			blend = BLEND_SOURCE;
-			cell = NULL;
-		}
-	}
-	if (!same)
+	if (r.blend != BLEND_CELL && prep_nodes(p, src, &r) < 0)
+		return -1;
+	prep_colour_fit(p, src, &r);
+	if (!r.same)
 		src->aux[4] = NAN;
-	src->aux[3] = -1;
-	/* the arrays render() reads */
-	d.nn = 0;
-	if (cell) {
-		src->aux[3] = (double)(cell - p->slot);
-		d.pl[d.nn] = cell;
-		d.wn[d.nn++] = src->flux;
-	} else
-		for (int k = 0; k < nn && k < 8; k++) {
-			d.pl[d.nn] = node[k];
-			d.wn[d.nn++] = w[k] * src->flux;
-		}
-	if (d.nn == 0)
-		return p->host->error(p->host->ctx, "no ePSF node with a weight");
-	half = (double)d.pl[0]->centre / d.pl[0]->over;
-	if (p->adaptive) {
-		/* the smallest half-width whose left-out light is below
-		 * box_noise times the noise summed over the box, for the
-		 * blend at the source (at the cell's, psf-blend=cell) */
-		int h, H = d.pl[0]->nee;
-
-		for (h = 1; h < H; h++) {
-			double out = 0;
-
-			if (blend == BLEND_CELL)
-				out = src->flux * (cell->ee[H] - cell->ee[h]);
-			for (int k = 0; k < nn; k++)
-				out += w[k] * src->flux * (node[k]->ee[H] - node[k]->ee[h]);
-			if (fabs(out) <= p->box_noise * p->sigma * 2 * h)
-				break;
-		}
-		if (h < half)
-			half = h;
-	}
+	if (prep_arrays(p, src, &r) < 0)
+		return -1;
+	q0 = r.d.pl[0];
+	half = (double)q0->centre / q0->over;
+	if (p->adaptive)
+		half = box_adaptive(p, src, &r, half);
 	if (cap > 0 && cap < half)
 		half = cap;
 	whole = half;
-	if (cut && p->extent_cut > 0 && p->sigma > 0 && half == floor(half) && half <= d.pl[0]->nee &&
-	    p->interp != INTERP_BICUBIC) {
-		/* psf-extent-cut: the smallest half-width, beyond the core, past
-		 * which the source's light within the whole box (for the blend
-		 * at the source, or the cell's; ee_table) is at most extent_cut
-		 * of the noise per pixel; that light is put back below */
-		int rc = (int)ceil(p->core), h = rc + 1, H = (int)half;
-		double all = beyond(src, cell, blend, node, w, nn, H, 0);
-
-		/* most sources that need the whole box are seen at its edge */
-		if (h < H && !(beyond(src, cell, blend, node, w, nn, H, H - 1) <=
-			       p->extent_cut * p->sigma))
-			h = H;
-		/* the light put back goes outside the core (flux_factor), so
-		 * the box keeps at least 2% of the light there; bicubic (the
-		 * core is the box) is never cut */
-		for (; h < H; h++)
-			if (beyond(src, cell, blend, node, w, nn, H, h) <= p->extent_cut * p->sigma &&
-			    beyond(src, cell, blend, node, w, nn, h, rc) >= 0.02 * all)
-				break;
-		if (h < H)
-			half = h;
-	}
+	if (cut && p->extent_cut > 0 && p->sigma > 0 && half == floor(half) && half <= q0->nee &&
+	    p->interp != INTERP_BICUBIC)
+		half = box_cut(p, src, &r, half);
 	src->aux[0] = half;
-	zones(p, src, blend, half, &d);
-	/* T: the bilinear sum over the box of the blend at the source (of
-	 * the cell's, psf-blend=cell); one array with a cut box draws the
-	 * whole box's light below instead, and needs no T */
-	if (!(half < whole && one_array(&d))) {
-		if (blend == BLEND_CELL)
-			t = src->flux * bil_sum(cell, &d.g, d.box);
-		for (int k = 0; k < nn; k++)
-			t += w[k] * src->flux * bil_sum(node[k], &d.g, d.box);
-	}
-	/* A box the cut shrank draws the light of the whole one at the
-	 * source's phase: its factor below carries the light beyond it (below
-	 * the cut), outside the core.  That light is taken from the cell's
-	 * blend where there is one (one table instead of four; the blends'
-	 * light in the whole box differs by some 1e-4 of it). */
-	t_all = t;
-	if (half < whole) {
-		struct zone all = square(src->x, src->y, whole);
-
-		if (cell)
-			t_all = src->flux * bil_sum(cell, &d.g, all);
-		else
-			for (int k = t_all = 0; k < nn; k++)
-				t_all += w[k] * src->flux * bil_sum(node[k], &d.g, all);
-	}
-	if (one_array(&d)) {
-		const struct geom *g = &d.g;
-
-		src->aux[1] = t_all;
-		src->aux[2] = src->flux * (tap_sum(cell, g, g->an, g->bn, corners_of(g, d.box)) -
-					   (zone_empty(d.wing) ? 0 :
-					    tap_sum(cell, g, g->an, g->bn, corners_of(g, d.wing))) +
-					   bil_sum(cell, g, d.wing) - bil_sum(cell, g, d.core));
-	} else {
-		double k = 0, u = t;
-
-		for (int i = 0; i < d.nn; i++) {
-			double b = bil_sum(d.pl[i], &d.g, d.core);
-
-			u -= d.wn[i] * b;
-			k += d.wn[i] * (d.keys ? keys_sum(d.pl[i], &d.g, d.core) : b);
-		}
-		src->aux[1] = flux_factor(t_all, k, u);
-		src->aux[2] = 0;
-	}
+	zones(p, src, r.blend, half, &r.d);
+	t_all = prep_totals(p, src, &r, half, whole);
 	if (drawn)
 		*drawn = t_all;         /* the light the box places */
 	return 0;

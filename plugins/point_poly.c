@@ -226,6 +226,9 @@ static size_t slots_wanted(const struct point *p, long c)
 	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * WFS_SCA_COUNT *
 		       (p->blend == BLEND_CELL ? 3 : 1) * (1 + (size_t)p->colour_cells);
 
+	/* and per position the colour cells' pair differences (dcol_add) */
+	if (p->colour_cells)
+		cells += cells / (1 + (size_t)p->colour_cells) * (size_t)p->nclasses;
 	return 2 * (cells + POLY_NODES);
 }
 
@@ -299,6 +302,69 @@ uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 	       q << 48;
 }
 
+/* The blend of the nw arrays node[] with weights w[] (a weight 0 skipped),
+ * summed in double in the order given, into a new float array of nn
+ * samples; NULL with an error recorded. */
+static float *blend_nodes(struct point *p, const float *const node[8], const double w[8],
+			  int nw, size_t nn)
+{
+	float *mix = malloc(nn * sizeof(float));
+	double *v = malloc(nn * sizeof(double));
+	int first = 1;
+
+	if (!mix || !v) {
+		free(mix);
+		free(v);
+		p->host->error(p->host->ctx, "out of memory");
+		return NULL;
+	}
+	/* 0 + the first product, as a sum from 0 (-0 becomes +0) */
+	for (int k = 0; k < nw; k++)
+		if (w[k] != 0 && first) {
+			for (size_t i = 0; i < nn; i++)
+				v[i] = 0.0 + w[k] * node[k][i];
+			first = 0;
+		} else if (w[k] != 0) {
+			for (size_t i = 0; i < nn; i++)
+				v[i] += w[k] * node[k][i];
+		}
+	for (size_t i = 0; i < nn; i++)
+		mix[i] = first ? 0.0f : (float)v[i];
+	free(v);
+	return mix;
+}
+
+/* A colour cell's pair difference (struct poly, dcol): the blend at the
+ * cell's centre of class ck + 1's nodes less class ck's, e[0] and e[1],
+ * one per pair and position (the cells of every step share it), under
+ * the cell's key with the pair in place of the step and the top bit set
+ * (cell keys never have it).  NULL with an error recorded. */
+static const struct poly *dcol_add(struct point *p, uint64_t key, int ck,
+				   const struct wfs_epsf e[2])
+{
+	uint64_t dkey = (key & ~(0x7fffULL << 48)) | (uint64_t)(ck + 1) << 48 | 1ULL << 63;
+	const struct poly *d = poly_find(p, dkey);
+	const float *node[8];
+	double w[8];
+	struct poly made;
+	float *mix;
+	int rc;
+
+	if (d)
+		return d;
+	for (int k = 0; k < 4; k++) {
+		node[k] = e[1].node[k];
+		w[k] = e[1].weight[k];
+		node[4 + k] = e[0].node[k];
+		w[4 + k] = -e[0].weight[k];
+	}
+	if (!(mix = blend_nodes(p, node, w, 8, (size_t)e[0].n * e[0].n)))
+		return NULL;
+	rc = poly_build(p, dkey, mix, e[0].n, e[0].over, &made);
+	free(mix);
+	return rc < 0 ? NULL : poly_insert(p, &made);
+}
+
 /* psf-blend=cell: the ePSF blended once at the centre of the source's cell
  * (bilinear in position, as the host's weights say), so a source reads one
  * array instead of four.  Made outside the lock, like poly_add().  NULL
@@ -306,15 +372,14 @@ uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 struct poly *cell_add(struct point *p, const struct wfs_source *src)
 {
 	uint64_t key = cell_key(p, src);
-	struct wfs_epsf e;
+	struct wfs_epsf e, ep[2];
 	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
 	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
 	struct poly *c = (struct poly *)poly_find(p, key), made;
 	const float *cnode[8], *node[8];
-	const struct poly *cpoly[8];
-	double w[8];
+	const struct poly *cpoly[8], *dcol = NULL;
+	double w[8], f = 0;
 	float *mix;
-	size_t nn;
 	int rc, ck, cj, nw = 0;
 
 	if (c)
@@ -322,17 +387,19 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 	if (colour_cell(p, src, &ck, &cj) >= 0) {
 		/* a colour cell: the class pair's nodes, the pair's blend
 		 * rounded to cj / colour_steps */
-		double f = (double)cj / p->colour_steps;
-
+		f = (double)cj / p->colour_steps;
 		for (int i = 0; i < 2; i++) {
 			if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class,
-						 ck + i, &e) < 0)
+						 ck + i, &ep[i]) < 0)
 				return NULL;
+			e = ep[i];
 			for (int k = 0; k < 4; k++) {
 				node[nw] = e.node[k];
 				w[nw++] = (i ? f : 1 - f) * e.weight[k];
 			}
 		}
+		if (p->blend == BLEND_CORE && !(dcol = dcol_add(p, key, ck, ep)))
+			return NULL;
 	} else {
 		if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
 			return NULL;
@@ -354,19 +421,8 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)node[k], node[k], e.n, e.over)))
 			return NULL;
 	}
-	nn = (size_t)e.n * e.n;
-	if (!(mix = malloc(nn * sizeof(float)))) {
-		p->host->error(p->host->ctx, "out of memory");
+	if (!(mix = blend_nodes(p, node, w, nw, (size_t)e.n * e.n)))
 		return NULL;
-	}
-	for (size_t i = 0; i < nn; i++) {
-		double v = 0;
-
-		for (int k = 0; k < nw; k++)
-			if (w[k] != 0)
-				v += w[k] * node[k][i];
-		mix[i] = (float)v;
-	}
 	rc = poly_build(p, key, mix, e.n, e.over, &made);
 	free(mix);
 	if (rc < 0)
@@ -376,6 +432,8 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 		made.cweight[k] = cnode[k] ? w[k] : 0;
 		made.cpoly[k] = cpoly[k];
 	}
+	made.cstep = f;
+	made.dcol = dcol;
 	return poly_insert(p, &made);
 }
 

@@ -180,12 +180,18 @@ bad:
 	return err_set(e, EXIT_SYSTEM, "broken build: malformed zernike.tsv");
 }
 
-static int load_throughput(struct optics *o, struct err *e)
+/* throughput.tsv's columns filter, wave and sca01..sca18, once for the
+ * optical model and the colour tables (spectrum.c). */
+int throughput_read(double *lam[], double *area[], int n[], struct err *e)
 {
 	struct tsv t;
 	int cf, cw, cs[WFS_NSCA];
 	char name[16];
 
+	for (int f = 0; f < WFS_NFILTER; f++) {
+		lam[f] = area[f] = NULL;
+		n[f] = 0;
+	}
 	if (tsv_parse(&t, "throughput.tsv"))
 		return err_set(e, EXIT_SYSTEM, "broken build: no throughput.tsv");
 	cf = tsv_col(&t, "filter");
@@ -202,28 +208,43 @@ static int load_throughput(struct optics *o, struct err *e)
 	for (int r = 1; r < t.nrow; r++) {
 		int f = filter_lookup(t.cell[r][cf]);
 		if (f >= 0)
-			o->nthr[f]++;
+			n[f]++;
 	}
 	for (int f = 0; f < WFS_NFILTER; f++) {
-		o->thr_lam[f] = malloc((o->nthr[f] + 1) * sizeof(double));
-		o->thr_area[f] = malloc((o->nthr[f] + 1) * WFS_NSCA * sizeof(double));
-		if (!o->thr_lam[f] || !o->thr_area[f]) {
+		lam[f] = malloc((n[f] + 1) * sizeof(double));
+		area[f] = malloc((n[f] + 1) * WFS_NSCA * sizeof(double));
+		n[f] = 0;
+		if (!lam[f] || !area[f]) {
 			tsv_free(&t);
+			throughput_free(lam, area);
 			return err_set(e, EXIT_SYSTEM, "out of memory");
 		}
-		o->nthr[f] = 0;
 	}
 	for (int r = 1; r < t.nrow; r++) {
 		int f = filter_lookup(t.cell[r][cf]);
 		if (f < 0)
 			continue;
-		int k = o->nthr[f]++;
-		o->thr_lam[f][k] = atof(t.cell[r][cw]);
+		int k = n[f]++;
+		lam[f][k] = atof(t.cell[r][cw]);
 		for (int s = 0; s < WFS_NSCA; s++)
-			o->thr_area[f][k * WFS_NSCA + s] = atof(t.cell[r][cs[s]]);
+			area[f][k * WFS_NSCA + s] = atof(t.cell[r][cs[s]]);
 	}
 	tsv_free(&t);
 	return 0;
+}
+
+void throughput_free(double *lam[], double *area[])
+{
+	for (int f = 0; f < WFS_NFILTER; f++) {
+		free(lam[f]);
+		free(area[f]);
+		lam[f] = area[f] = NULL;
+	}
+}
+
+static int load_throughput(struct optics *o, struct err *e)
+{
+	return throughput_read(o->thr_lam, o->thr_area, o->nthr, e);
 }
 
 struct optics *optics_new(struct err *e)

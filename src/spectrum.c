@@ -5,7 +5,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "data.h"
 #include "err.h"
 #include "instrument.h"
 #include "optics.h"
@@ -96,9 +95,8 @@ static void tables_fill(struct colour *c, int sca)
 struct colour *colour_new(int filter, struct err *e)
 {
 	struct colour *c;
-	struct tsv t;
-	int cf, cw, cs[WFS_NSCA];
-	char name[16];
+	double *lam[WFS_NFILTER], *area[WFS_NFILTER];
+	int n[WFS_NFILTER];
 
 	if (instrument_init(e))
 		return NULL;
@@ -108,38 +106,16 @@ struct colour *colour_new(int filter, struct err *e)
 		return err_set(e, EXIT_SYSTEM, "out of memory"), NULL;
 	c->filter = filter;
 	c->pivot = filter_get(filter)->pivot;
-	if (tsv_parse(&t, "throughput.tsv")) {
+	if (throughput_read(lam, area, n, e)) {
 		free(c);
-		return err_set(e, EXIT_SYSTEM, "broken build: no throughput.tsv"), NULL;
+		return NULL;
 	}
-	cf = tsv_col(&t, "filter");
-	cw = tsv_col(&t, "wave");
-	for (int s = 0; s < WFS_NSCA; s++) {
-		snprintf(name, sizeof(name), "sca%02d", s + 1);
-		if ((cs[s] = tsv_col(&t, name)) < 0)
-			cf = -1;
-	}
-	if (cf >= 0 && cw >= 0) {
-		c->lam = malloc(sizeof(double) * t.nrow);
-		c->area = malloc(sizeof(double) * t.nrow * WFS_NSCA);
-	}
-	if (!c->lam || !c->area) {
-		tsv_free(&t);
-		free(c->lam);
-		free(c->area);
-		free(c);
-		return err_set(e, EXIT_SYSTEM, "%s", cf < 0 || cw < 0 ?
-			       "broken build: malformed throughput.tsv" : "out of memory"), NULL;
-	}
-	for (int r = 1; r < t.nrow; r++) {
-		if (filter_lookup(t.cell[r][cf]) != filter)
-			continue;
-		c->lam[c->n] = atof(t.cell[r][cw]);
-		for (int s = 0; s < WFS_NSCA; s++)
-			c->area[c->n * WFS_NSCA + s] = atof(t.cell[r][cs[s]]);
-		c->n++;
-	}
-	tsv_free(&t);
+	/* the filter's samples kept, the others' freed */
+	c->lam = lam[filter];
+	c->area = area[filter];
+	c->n = n[filter];
+	lam[filter] = area[filter] = NULL;
+	throughput_free(lam, area);
 	for (int s = 0; s < WFS_NSCA; s++)
 		pthread_mutex_init(&c->t[s].lock, NULL);
 	if (c->n < 2) {

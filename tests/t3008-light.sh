@@ -11,12 +11,13 @@
 . "$(dirname "$0")/lib.sh"
 require_python
 
-# one MAG X Y GEOM [extra]: the image sum over the flux requested
+# one MAG X Y GEOM [extra]: the image sum over the flux requested (a star
+# of temperature $TEFF in filter $FILT when set)
 one() {
 	m=$1 x=$2 y=$3 g=$4
 	shift 4
-	printf 'x,y,sca,flux\n%s,%s,1,%s\n' "$x" "$y" "$m" > one.csv &&
-	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag --geometry "$g" \
+	printf 'x,y,sca,flux,teff\n%s,%s,1,%s,%s\n' "$x" "$y" "$m" "${TEFF-}" > one.csv &&
+	"$WFS" --filter "${FILT:-F129}" --sca 1 --exptime 139.8 --flux-unit abmag --geometry "$g" \
 		--report one.json -o one.fits "$@" one.csv &&
 	"$PY" -c '
 import json, sys
@@ -31,13 +32,13 @@ print("%.6f" % (s / r["requested"]))'
 # sweep X Y GEOM: the ratios from AB 6 to 28, then max/min - 1 <= 0.002
 sweep() {
 	for m in 6 10 14 18 20 22 28; do
-		one $m "$1" "$2" "$3" >> "ratios.$1.$2.$3" || return 1
+		one $m "$1" "$2" "$3" >> "ratios.$1.$2.$3${TEFF:+.$TEFF}" || return 1
 	done
 	"$PY" -c '
 import sys
 v = [float(l) for l in open(sys.argv[1])]
 print(sys.argv[1], v, max(v) / min(v) - 1)
-assert max(v) / min(v) - 1 <= 0.002' "ratios.$1.$2.$3"
+assert max(v) / min(v) - 1 <= 0.002' "ratios.$1.$2.$3${TEFF:+.$TEFF}"
 }
 
 for g in siaf stips; do
@@ -47,6 +48,17 @@ for g in siaf stips; do
 			sweep $1 $2 $g
 		"
 	done
+done
+
+# Coloured stars (F146, where the spectral classes differ most), away from
+# their blended cell's centre: a red and a blue star keep the same fraction
+# of their light at every brightness too.
+for t in 3000 30000; do
+	test_expect_success "a $t K star in F146: the same fraction of light at AB 6-28" "
+		FILT=F146 && TEFF=$t && sweep 1900.3 2300.6 siaf; r=\$?
+		unset FILT TEFF
+		test \$r = 0
+	"
 done
 
 test_expect_success 'the fraction is the PSF light the model draws, about 0.994 in F129' '

@@ -114,6 +114,7 @@ FORCE:
 # checksum of its sources, so that changed code never reads a grid that the
 # old code cached.
 PSF_SRC := src/optics.c src/optics.h src/psf.c src/psf.h src/psfbuild.c \
+	src/throughput.c src/throughput.h \
 	src/spectrum.c src/spectrum.h
 $(B)/psf_src.h: $(PSF_SRC) | $(B)/obj
 	$(Q)printf '#define PSF_SRC_SUM "%s"\n' "$$(cat $(PSF_SRC) | cksum | tr ' ' -)" > $@.tmp && \

@@ -426,6 +426,153 @@ static int poly(struct ctx *c, struct fy_node *n, struct tnode *t, const char *w
 	return 0;
 }
 
+/* remap_axes: the axes a mapping passes on, in its order */
+static int parse_mapping(struct ctx *c, struct fy_node *n, struct tnode *t, const char *what)
+{
+	struct fy_node *m = key(n, "mapping"), *ni = key(n, "n_inputs");
+	int k = m && fy_node_is_sequence(m) ? fy_node_sequence_item_count(m) : 0, hi = 0;
+
+	if (k < 1 || k > MAXD) {
+		fail(c, "%s: a mapping of 1 to 8 axes is read here", what);
+		return -1;
+	}
+	for (int i = 0; i < k; i++) {
+		struct fy_node *e = deref(fy_node_sequence_get_by_index(m, i));
+		double d;
+
+		/* a constant in the mapping (a fixed value) is not read */
+		if (num(c, e, what, &d) < 0 || d < 0 || d >= MAXD || d != floor(d)) {
+			c->bad = 0;
+			fail(c, "%s: a mapping of axis numbers is read here", what);
+			return -1;
+		}
+		t->map[i] = (int)d;
+		hi = t->map[i] + 1 > hi ? t->map[i] + 1 : hi;
+	}
+	t->op = T_MAPPING;
+	t->nout = k;
+	t->nin = ni && fy_node_is_scalar(ni) ? atoi(fy_node_get_scalar0(ni)) : hi;
+	if (t->nin < hi || t->nin > MAXD) {
+		fail(c, "%s: n_inputs below the mapping's axes", what);
+		return -1;
+	}
+	return 0;
+}
+
+/* affine: a 2 x 2 matrix and a translation */
+static int parse_affine(struct ctx *c, struct fy_node *n, struct tnode *t, const char *what)
+{
+	double v[9];
+	int nd, sh[2];
+
+	t->op = T_AFFINE;
+	t->nin = t->nout = 2;
+	if (array(c, key(n, "matrix"), what, v, 9, &nd, sh) < 0)
+		return -1;
+	if (nd != 2 || sh[0] != 2 || sh[1] != 2) {
+		fail(c, "%s: a 2 x 2 matrix is read here", what);
+		return -1;
+	}
+	t->m[0][0] = v[0], t->m[0][1] = v[1], t->m[1][0] = v[2], t->m[1][1] = v[3];
+	if (key(n, "translation")) {
+		if (array(c, key(n, "translation"), what, v, 9, &nd, sh) < 0)
+			return -1;
+		if (sh[0] * sh[1] != 2) {
+			fail(c, "%s: a translation of 2 is read here", what);
+			return -1;
+		}
+		t->t[0] = v[0];
+		t->t[1] = v[1];
+	}
+	return 0;
+}
+
+/* rotate3d: Euler angles, or the native/celestial rotations of a projection */
+static int parse_rotate3d(struct ctx *c, struct fy_node *n, struct tnode *t, const char *what)
+{
+	struct fy_node *d = key(n, "direction");
+	const char *dir = d && fy_node_is_scalar(d) ? fy_node_get_scalar0(d) : "zxz";
+	double phi, theta, psi, a[3];
+
+	t->op = T_ROT_SPH;
+	t->nin = t->nout = 2;
+	if (num(c, key(n, "phi"), what, &phi) < 0 ||
+	    num(c, key(n, "theta"), what, &theta) < 0 ||
+	    num(c, key(n, "psi"), what, &psi) < 0)
+		return -1;
+	phi *= D2R, theta *= D2R, psi *= D2R;
+	if (!strcmp(dir, "native2celestial")) {
+		/* astropy's RotateNative2Celestial(lon, lat, lon_pole) */
+		a[0] = psi - M_PI / 2;
+		a[1] = -(M_PI / 2 - theta);
+		a[2] = -(M_PI / 2 + phi);
+		sequence(a, "zxz", 3, t->m);
+		t->wrap = 1;
+	} else if (!strcmp(dir, "celestial2native")) {
+		a[0] = M_PI / 2 + phi;
+		a[1] = M_PI / 2 - theta;
+		a[2] = -(psi - M_PI / 2);
+		sequence(a, "zxz", 3, t->m);
+		t->wrap = 1;
+	} else if (strlen(dir) == 3 && strspn(dir, "xyz") == 3) {
+		a[0] = phi, a[1] = theta, a[2] = psi;
+		sequence(a, dir, 3, t->m);
+	} else {
+		fail(c, "%s: direction not read here", what);
+		return -1;
+	}
+	return 0;
+}
+
+/* rotate_sequence_3d: rotations about the axes in axes_order */
+static int parse_rotseq(struct ctx *c, struct fy_node *n, struct tnode *t, const char *what)
+{
+	struct fy_node *ax = key(n, "axes_order"), *rt = key(n, "rotation_type");
+	const char *axes = ax && fy_node_is_scalar(ax) ? fy_node_get_scalar0(ax) : "";
+	double a[MAXD];
+	int nd, sh[2], k = (int)strlen(axes);
+
+	if (k < 1 || k > MAXD || strspn(axes, "xyz") != (size_t)k) {
+		fail(c, "%s: axes_order not read here", what);
+		return -1;
+	}
+	if (array(c, key(n, "angles"), what, a, MAXD, &nd, sh) < 0)
+		return -1;
+	if (sh[0] * sh[1] != k) {
+		fail(c, "%s: as many angles as axes are read here", what);
+		return -1;
+	}
+	for (int i = 0; i < k; i++)
+		a[i] *= D2R;
+	sequence(a, axes, k, t->m);
+	t->op = rt && fy_node_is_scalar(rt) && !strcmp(fy_node_get_scalar0(rt), "spherical")
+		? T_ROT_SPH : T_ROT_CART;
+	t->nin = t->nout = t->op == T_ROT_SPH ? 2 : 3;
+	return 0;
+}
+
+/* spherical_cartesian: unit vectors and back */
+static int parse_sphcart(struct ctx *c, struct fy_node *n, struct tnode *t, const char *what)
+{
+	struct fy_node *ty = key(n, "transform_type"), *w = key(n, "wrap_lon_at");
+	const char *s = ty && fy_node_is_scalar(ty) ? fy_node_get_scalar0(ty) : "";
+
+	if (!strcmp(s, "spherical_to_cartesian")) {
+		t->op = T_S2C;
+		t->nin = 2, t->nout = 3;
+	} else if (!strcmp(s, "cartesian_to_spherical")) {
+		t->op = T_C2S;
+		t->nin = 3, t->nout = 2;
+	} else {
+		fail(c, "%s: transform_type not read here", what);
+		return -1;
+	}
+	t->v = 360;
+	if (w && num(c, w, what, &t->v) < 0)
+		return -1;
+	return 0;
+}
+
 static struct tnode *parse(struct ctx *c, struct fy_node *n, const char *where)
 {
 	struct tnode *t = calloc(1, sizeof(*t));
@@ -455,33 +602,8 @@ static struct tnode *parse(struct ctx *c, struct fy_node *n, const char *where)
 		if (!pair(c, n, t, where))
 			goto bad;
 	} else if (!strcmp(name, "remap_axes")) {
-		struct fy_node *m = key(n, "mapping"), *ni = key(n, "n_inputs");
-		int k = m && fy_node_is_sequence(m) ? fy_node_sequence_item_count(m) : 0, hi = 0;
-
-		if (k < 1 || k > MAXD) {
-			fail(c, "%s: a mapping of 1 to 8 axes is read here", what);
+		if (parse_mapping(c, n, t, what) < 0)
 			goto bad;
-		}
-		for (int i = 0; i < k; i++) {
-			struct fy_node *e = deref(fy_node_sequence_get_by_index(m, i));
-			double d;
-
-			/* a constant in the mapping (a fixed value) is not read */
-			if (num(c, e, what, &d) < 0 || d < 0 || d >= MAXD || d != floor(d)) {
-				c->bad = 0;
-				fail(c, "%s: a mapping of axis numbers is read here", what);
-				goto bad;
-			}
-			t->map[i] = (int)d;
-			hi = t->map[i] + 1 > hi ? t->map[i] + 1 : hi;
-		}
-		t->op = T_MAPPING;
-		t->nout = k;
-		t->nin = ni && fy_node_is_scalar(ni) ? atoi(fy_node_get_scalar0(ni)) : hi;
-		if (t->nin < hi || t->nin > MAXD) {
-			fail(c, "%s: n_inputs below the mapping's axes", what);
-			goto bad;
-		}
 	} else if (!strcmp(name, "identity")) {
 		struct fy_node *nd = key(n, "n_dims");
 
@@ -518,28 +640,8 @@ static struct tnode *parse(struct ctx *c, struct fy_node *n, const char *where)
 		if (poly(c, n, t, what) < 0)
 			goto bad;
 	} else if (!strcmp(name, "affine")) {
-		double v[9];
-		int nd, sh[2];
-
-		t->op = T_AFFINE;
-		t->nin = t->nout = 2;
-		if (array(c, key(n, "matrix"), what, v, 9, &nd, sh) < 0)
+		if (parse_affine(c, n, t, what) < 0)
 			goto bad;
-		if (nd != 2 || sh[0] != 2 || sh[1] != 2) {
-			fail(c, "%s: a 2 x 2 matrix is read here", what);
-			goto bad;
-		}
-		t->m[0][0] = v[0], t->m[0][1] = v[1], t->m[1][0] = v[2], t->m[1][1] = v[3];
-		if (key(n, "translation")) {
-			if (array(c, key(n, "translation"), what, v, 9, &nd, sh) < 0)
-				goto bad;
-			if (sh[0] * sh[1] != 2) {
-				fail(c, "%s: a translation of 2 is read here", what);
-				goto bad;
-			}
-			t->t[0] = v[0];
-			t->t[1] = v[1];
-		}
 	} else if (!strcmp(name, "rotate2d")) {
 		t->op = T_ROT2D;
 		t->nin = t->nout = 2;
@@ -547,59 +649,11 @@ static struct tnode *parse(struct ctx *c, struct fy_node *n, const char *where)
 			goto bad;
 		t->v *= D2R;
 	} else if (!strcmp(name, "rotate3d")) {
-		struct fy_node *d = key(n, "direction");
-		const char *dir = d && fy_node_is_scalar(d) ? fy_node_get_scalar0(d) : "zxz";
-		double phi, theta, psi, a[3];
-
-		t->op = T_ROT_SPH;
-		t->nin = t->nout = 2;
-		if (num(c, key(n, "phi"), what, &phi) < 0 ||
-		    num(c, key(n, "theta"), what, &theta) < 0 ||
-		    num(c, key(n, "psi"), what, &psi) < 0)
+		if (parse_rotate3d(c, n, t, what) < 0)
 			goto bad;
-		phi *= D2R, theta *= D2R, psi *= D2R;
-		if (!strcmp(dir, "native2celestial")) {
-			/* astropy's RotateNative2Celestial(lon, lat, lon_pole) */
-			a[0] = psi - M_PI / 2;
-			a[1] = -(M_PI / 2 - theta);
-			a[2] = -(M_PI / 2 + phi);
-			sequence(a, "zxz", 3, t->m);
-			t->wrap = 1;
-		} else if (!strcmp(dir, "celestial2native")) {
-			a[0] = M_PI / 2 + phi;
-			a[1] = M_PI / 2 - theta;
-			a[2] = -(psi - M_PI / 2);
-			sequence(a, "zxz", 3, t->m);
-			t->wrap = 1;
-		} else if (strlen(dir) == 3 && strspn(dir, "xyz") == 3) {
-			a[0] = phi, a[1] = theta, a[2] = psi;
-			sequence(a, dir, 3, t->m);
-		} else {
-			fail(c, "%s: direction not read here", what);
-			goto bad;
-		}
 	} else if (!strcmp(name, "rotate_sequence_3d")) {
-		struct fy_node *ax = key(n, "axes_order"), *rt = key(n, "rotation_type");
-		const char *axes = ax && fy_node_is_scalar(ax) ? fy_node_get_scalar0(ax) : "";
-		double a[MAXD];
-		int nd, sh[2], k = (int)strlen(axes);
-
-		if (k < 1 || k > MAXD || strspn(axes, "xyz") != (size_t)k) {
-			fail(c, "%s: axes_order not read here", what);
+		if (parse_rotseq(c, n, t, what) < 0)
 			goto bad;
-		}
-		if (array(c, key(n, "angles"), what, a, MAXD, &nd, sh) < 0)
-			goto bad;
-		if (sh[0] * sh[1] != k) {
-			fail(c, "%s: as many angles as axes are read here", what);
-			goto bad;
-		}
-		for (int i = 0; i < k; i++)
-			a[i] *= D2R;
-		sequence(a, axes, k, t->m);
-		t->op = rt && fy_node_is_scalar(rt) && !strcmp(fy_node_get_scalar0(rt), "spherical")
-			? T_ROT_SPH : T_ROT_CART;
-		t->nin = t->nout = t->op == T_ROT_SPH ? 2 : 3;
 	} else if (!strcmp(name, "gnomonic")) {
 		struct fy_node *d = key(n, "direction");
 		const char *dir = d && fy_node_is_scalar(d) ? fy_node_get_scalar0(d) : "pix2sky";
@@ -607,21 +661,7 @@ static struct tnode *parse(struct ctx *c, struct fy_node *n, const char *where)
 		t->op = !strcmp(dir, "sky2pix") ? T_TAN_S2P : T_TAN_P2S;
 		t->nin = t->nout = 2;
 	} else if (!strcmp(name, "spherical_cartesian")) {
-		struct fy_node *ty = key(n, "transform_type"), *w = key(n, "wrap_lon_at");
-		const char *s = ty && fy_node_is_scalar(ty) ? fy_node_get_scalar0(ty) : "";
-
-		if (!strcmp(s, "spherical_to_cartesian")) {
-			t->op = T_S2C;
-			t->nin = 2, t->nout = 3;
-		} else if (!strcmp(s, "cartesian_to_spherical")) {
-			t->op = T_C2S;
-			t->nin = 3, t->nout = 2;
-		} else {
-			fail(c, "%s: transform_type not read here", what);
-			goto bad;
-		}
-		t->v = 360;
-		if (w && num(c, w, what, &t->v) < 0)
+		if (parse_sphcart(c, n, t, what) < 0)
 			goto bad;
 	} else {
 		fail(c, "%s: this transform is not evaluated by wfiscene", what);

@@ -26,13 +26,6 @@ struct err;
 #define OPTICS_JITTER 0.012     /* arcsec per axis, STPSF's default */
 #define OPTICS_BB_TEMP 5700.0   /* K, the default source (STPSF's default) */
 
-/* The samples of every filter in throughput.tsv (the reader the optical
- * model and the colour tables share): n[f] wavelengths lam[f][k] (micron)
- * and the effective area of SCA s + 1 at each, area[f][k * WFS_NSCA + s]
- * (m^2), in the file's order; malloc'd, freed by throughput_free.
- * Returns 0, or -1 with e set (nothing left allocated). */
-int throughput_read(double *lam[], double *area[], int n[], struct err *e);
-void throughput_free(double *lam[], double *area[]);
 
 /* A strut blocks the strip smin <= s <= smax, lo_a + lo_b s <= t <=
  * hi_a + hi_b s, with s along the unit axis (c, sn) through (x0, y0) and t

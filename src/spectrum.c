@@ -8,6 +8,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "optics.h"
+#include "throughput.h"
 #include "spectrum.h"
 
 /* c2 = h c / k in micron K */

@@ -298,14 +298,28 @@ void asdf_tree_free(struct asdf_tree *t)
 
 /* ---- blocks ---- */
 
+/* zlib's level for compressed blocks: --set asdf-zlib-level (1-9, asdf's
+ * and python's 6 by default), read with asdf-compression before any block
+ * is written, the same for the whole run. */
+static int zlib_level = 6;
+
 int asdf_compression_setting(const char *const *settings, int *c, struct err *e)
 {
-	static const char key[] = "asdf-compression=";
-	const char *v = NULL;
+	static const char key[] = "asdf-compression=", lkey[] = "asdf-zlib-level=";
+	const char *v = NULL, *lv = NULL;
 
-	for (const char *const *kv = settings; kv && *kv; kv++)
+	for (const char *const *kv = settings; kv && *kv; kv++) {
 		if (!strncmp(*kv, key, sizeof(key) - 1))
 			v = *kv + sizeof(key) - 1;
+		if (!strncmp(*kv, lkey, sizeof(lkey) - 1))
+			lv = *kv + sizeof(lkey) - 1;
+	}
+	if (lv) {
+		if (lv[0] < '1' || lv[0] > '9' || lv[1])
+			return err_set(e, EXIT_INPUT, "--set asdf-zlib-level=%s: expected a "
+				       "level from 1 (fastest) to 9 (smallest)", lv);
+		zlib_level = lv[0] - '0';
+	}
 	if (!v)
 		*c = ASDF_KEEP;
 	else if (!strcmp(v, "none"))
@@ -419,7 +433,7 @@ static void compress_chunk(void *arg, int worker, size_t task)
 		int last = b->first + (uint64_t)k == b->nchunk - 1, r;
 
 		memset(&z, 0, sizeof(z));
-		if (deflateInit2(&z, Z_DEFAULT_COMPRESSION, Z_DEFLATED, -15, 8,
+		if (deflateInit2(&z, zlib_level, Z_DEFLATED, -15, 8,
 				 Z_DEFAULT_STRATEGY) != Z_OK)
 			return;
 		/* primed with the data before the chunk, as one stream would

@@ -78,11 +78,14 @@ UNIT_BIN := $(patsubst tests/unit/%.c,$(B)/tests/%,$(UNIT_SRC))
 TOOL_SRC := $(wildcard contrib/*.c)
 TOOL_BIN := $(patsubst contrib/%.c,$(B)/contrib/%,$(TOOL_SRC))
 DATA     := $(wildcard data/*.tsv)
-# The slowest shell tests start first, so that prove -j2 does not end on one
-# long test running alone on a core.
-SLOW_TESTS := $(wildcard tests/t7100-*.sh tests/t3002-*.sh tests/t3100-*.sh \
-	tests/t4200-*.sh tests/t3005-*.sh tests/t3006-*.sh tests/t3004-*.sh \
-	tests/t5100-*.sh tests/t9002-*.sh tests/t6001-*.sh)
+# The slowest shell tests start first, longest first (as `prove --timer`
+# measured them), so that prove -j2 does not end on one long test running
+# alone on a core.
+SLOW_TESTS := $(wildcard tests/t4403-*.sh tests/t4400-*.sh tests/t3002-*.sh \
+	tests/t4101-*.sh tests/t3008-*.sh tests/t4102-*.sh tests/t3004-*.sh \
+	tests/t4402-*.sh tests/t5001-*.sh tests/t3005-*.sh tests/t9003-*.sh \
+	tests/t3009-*.sh tests/t5100-*.sh tests/t3100-*.sh tests/t7100-*.sh \
+	tests/t3006-*.sh tests/t4200-*.sh tests/t9002-*.sh tests/t6001-*.sh)
 TESTS    ?= $(SLOW_TESTS) $(filter-out $(SLOW_TESTS),$(wildcard tests/t*.sh))
 
 ## all: build wfiscene, the plugins and the contrib tools (default)

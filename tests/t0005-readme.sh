@@ -24,6 +24,12 @@ test_expect_success '... within the first 40 lines' '
 	test -n "$n" && test "$n" -le 40
 '
 
+test_expect_success 'no paragraph of prose is over 600 characters' '
+	awk "BEGIN { RS = \"\" } !/^    / && length(\$0) > 600 { print length(\$0) \": \" substr(\$0, 1, 60) }" \
+		"$TOP/README.md" > long &&
+	test ! -s long || { cat long; false; }
+'
+
 test_expect_success 'the command draws the catalog: SCA 1, four sources placed' '
 	set -- $blocks &&
 	cmd=$(sed "s|^build/wfiscene|\"\$WFS\" --psf $PSF --placed placed.csv|" "$2") &&

@@ -122,14 +122,10 @@ static int pink_series(const struct rng *g, long n, double sigma, double *out)
 	return 0;
 }
 
-int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rnoise_par *par,
-		const struct ramp_key *k, int nlast, struct err *e)
+/* The least m' >= m that is a product of 2, 3 and 5 alone: a fast FFT
+ * length. */
+static long fft_length(long m)
 {
-	int last = nlast > p->last[p->nres - 1] ? nlast : p->last[p->nres - 1];
-	long m = last + 2, n;
-
-	/* frames enough for the reads and the next row start, rounded up to a
-	 * number of 2, 3 and 5 alone: a fast FFT length */
 	for (;; m++) {
 		long q = m;
 
@@ -140,39 +136,30 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 		while (q % 5 == 0)
 			q /= 5;
 		if (q == 1)
-			break;
+			return m;
 	}
-	n = m * RN_ROWS;
-	size_t plane = (size_t)RN_NCHAN * (RN_ROWS + 1);
-	double *shared = NULL, *own = NULL;
-	int fa[RAMP_MAX_RES + 1], la[RAMP_MAX_RES + 1];
-	struct rng g;
+}
 
-	memset(R, 0, sizeof(*R));
-	R->par = *par;
-	R->nres = p->nres;
-	R->nsamp = n;
-	R->row_time = p->read_time / RN_ROWS;
-	/* the resultants, and after them the reset read (read 0) */
-	for (int r = 0; r < p->nres; r++) {
-		fa[r] = p->first[r];
-		la[r] = p->last[r];
-	}
-	fa[p->nres] = la[p->nres] = 0;
-	R->pink = calloc((size_t)(p->nres + 1) * plane, sizeof(float));
-	R->off = calloc((size_t)(p->nres + 1) * RN_NCHAN * 2, sizeof(float));
-	shared = malloc(sizeof(double) * (size_t)n);
-	own = malloc(sizeof(double) * (size_t)n);
-	if (!R->pink || !R->off || !shared || !own)
-		goto nomem;
+/* R->pink: each resultant r's (reads fa[r]..la[r]) mean of the shared and
+ * each channel's own pink series over n samples.  0 or -1 (memory). */
+static int rn_pink(struct rnoise *R, int nr, const int *fa, const int *la, long n,
+		   const struct rnoise_par *par, const struct ramp_key *k)
+{
+	size_t plane = (size_t)RN_NCHAN * (RN_ROWS + 1);
+	double *shared = malloc(sizeof(double) * (size_t)n), *own = malloc(sizeof(double) * (size_t)n);
+	struct rng g;
+	int rc = -1;
+
+	if (!shared || !own)
+		goto out;
 	rng_init(&g, k->seed, rn_domain(k, DOM_RN_PINK, 0));
 	if (pink_series(&g, n, par->cpink, shared) < 0)
-		goto nomem;
+		goto out;
 	for (int c = 0; c < RN_NCHAN; c++) {
 		rng_init(&g, k->seed, rn_domain(k, DOM_RN_PINK, 1 + c));
 		if (pink_series(&g, n, par->upink, own) < 0)
-			goto nomem;
-		for (int r = 0; r <= p->nres; r++) {
+			goto out;
+		for (int r = 0; r < nr; r++) {
 			float *dst = R->pink + (size_t)r * plane + (size_t)c * (RN_ROWS + 1);
 			double inv = 1.0 / (la[r] - fa[r] + 1);
 
@@ -188,9 +175,22 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 			}
 		}
 	}
-	/* the offsets of each read: pedestal and alternating columns */
+	rc = 0;
+out:
+	free(shared);
+	free(own);
+	return rc;
+}
+
+/* R->off: the offsets of each read, the pedestal and alternating columns,
+ * averaged over each resultant's reads. */
+static void rn_offsets(struct rnoise *R, int nr, const int *fa, const int *la,
+		       const struct rnoise_par *par, const struct ramp_key *k)
+{
+	struct rng g;
+
 	rng_init(&g, k->seed, rn_domain(k, DOM_RN_OFF, 0));
-	for (int r = 0; r <= p->nres; r++) {
+	for (int r = 0; r < nr; r++) {
 		double inv = 1.0 / (la[r] - fa[r] + 1);
 
 		for (int c = 0; c < RN_NCHAN; c++)
@@ -208,22 +208,15 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 				R->off[((size_t)r * RN_NCHAN + c) * 2 + par2] = (float)(s * inv);
 			}
 	}
-	free(shared);
-	free(own);
-	/* the slow part's knots and each resultant's weights on them */
-	R->seed = k->seed;
-	R->slow_dom = rn_domain(k, DOM_RN_SLOW, 0);
-	R->nknot = last / RN_KNOT + 2;
-	if (R->nknot > RN_MAX_KNOT) {
-		rnoise_free(R);
-		return e ? err_set(e, EXIT_INPUT, "correlated read noise: %d reads, at most %d",
-				   last, (RN_MAX_KNOT - 1) * RN_KNOT - 1) : -1;
-	}
-	R->rho = exp(-RN_KNOT * p->read_time / par->slow_tau);
-	R->s1 = par->slow * sqrt(1 - R->rho * R->rho);
-	if (!(R->kc = calloc((size_t)(p->nres + 1) * (size_t)R->nknot, sizeof(double))))
-		goto nomem;
-	for (int r = 0; r <= p->nres; r++) {
+}
+
+/* R->kc: each resultant's weights on the slow part's knots (every RN_KNOT
+ * reads, linear between).  0 or -1 (memory). */
+static int rn_knots(struct rnoise *R, int nr, const int *fa, const int *la)
+{
+	if (!(R->kc = calloc((size_t)nr * (size_t)R->nknot, sizeof(double))))
+		return -1;
+	for (int r = 0; r < nr; r++) {
 		double *kc = R->kc + (size_t)r * R->nknot, inv = 1.0 / (la[r] - fa[r] + 1);
 
 		R->kj0[r] = fa[r] / RN_KNOT;
@@ -237,9 +230,48 @@ int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rno
 		}
 	}
 	return 0;
+}
+
+int rnoise_init(struct rnoise *R, const struct ramp_pattern *p, const struct rnoise_par *par,
+		const struct ramp_key *k, int nlast, struct err *e)
+{
+	int last = nlast > p->last[p->nres - 1] ? nlast : p->last[p->nres - 1];
+	/* frames enough for the reads and the next row start */
+	long n = fft_length(last + 2) * RN_ROWS;
+	size_t plane = (size_t)RN_NCHAN * (RN_ROWS + 1);
+	int fa[RAMP_MAX_RES + 1], la[RAMP_MAX_RES + 1], nr = p->nres + 1;
+
+	memset(R, 0, sizeof(*R));
+	R->par = *par;
+	R->nres = p->nres;
+	R->nsamp = n;
+	R->row_time = p->read_time / RN_ROWS;
+	/* the resultants, and after them the reset read (read 0) */
+	for (int r = 0; r < p->nres; r++) {
+		fa[r] = p->first[r];
+		la[r] = p->last[r];
+	}
+	fa[p->nres] = la[p->nres] = 0;
+	R->pink = calloc((size_t)nr * plane, sizeof(float));
+	R->off = calloc((size_t)nr * RN_NCHAN * 2, sizeof(float));
+	if (!R->pink || !R->off || rn_pink(R, nr, fa, la, n, par, k) < 0)
+		goto nomem;
+	rn_offsets(R, nr, fa, la, par, k);
+	/* the slow part */
+	R->seed = k->seed;
+	R->slow_dom = rn_domain(k, DOM_RN_SLOW, 0);
+	R->nknot = last / RN_KNOT + 2;
+	if (R->nknot > RN_MAX_KNOT) {
+		rnoise_free(R);
+		return e ? err_set(e, EXIT_INPUT, "correlated read noise: %d reads, at most %d",
+				   last, (RN_MAX_KNOT - 1) * RN_KNOT - 1) : -1;
+	}
+	R->rho = exp(-RN_KNOT * p->read_time / par->slow_tau);
+	R->s1 = par->slow * sqrt(1 - R->rho * R->rho);
+	if (rn_knots(R, nr, fa, la) < 0)
+		goto nomem;
+	return 0;
 nomem:
-	free(shared);
-	free(own);
 	rnoise_free(R);
 	return e ? err_sys(e, "correlated read noise: memory") : -1;
 }

@@ -460,8 +460,8 @@ static void compress_chunk(void *arg, int worker, size_t task)
 	b->bad[k] = 0;
 }
 
-static int fd_write(int fd, const void *p, size_t n, uint64_t off, const char *path,
-		    struct err *e)
+int asdf_fd_write(int fd, const void *p, size_t n, uint64_t off, const char *path,
+		  struct err *e)
 {
 	const unsigned char *q = p;
 
@@ -520,7 +520,7 @@ int asdf_block_write(int fd, uint64_t at, const struct asdf_block_src *s, struct
 		/* deflate, 32 KiB window, default level: python's zlib.compress */
 		static const unsigned char zh[2] = { 0x78, 0x9c };
 
-		if (fd_write(fd, zh, 2, pos, path, e) < 0)
+		if (asdf_fd_write(fd, zh, 2, pos, path, e) < 0)
 			goto done;
 		pos += 2;
 	}
@@ -539,7 +539,7 @@ int asdf_block_write(int fd, uint64_t at, const struct asdf_block_src *s, struct
 		if (s->md5)
 			MD5Update(&md5, b.raw, got);
 		if (s->compression == ASDF_NONE) {
-			if (fd_write(fd, b.raw, got, pos, path, e) < 0)
+			if (asdf_fd_write(fd, b.raw, got, pos, path, e) < 0)
 				goto done;
 			pos += got;
 			continue;
@@ -555,7 +555,7 @@ int asdf_block_write(int fd, uint64_t at, const struct asdf_block_src *s, struct
 					path, s->compression == ASDF_LZ4 ? "lz4" : "zlib");
 				goto done;
 			}
-			if (fd_write(fd, b.out[k], b.out_n[k], pos, path, e) < 0)
+			if (asdf_fd_write(fd, b.out[k], b.out_n[k], pos, path, e) < 0)
 				goto done;
 			pos += b.out_n[k];
 			if (s->compression == ASDF_ZLIB)
@@ -569,7 +569,7 @@ int asdf_block_write(int fd, uint64_t at, const struct asdf_block_src *s, struct
 		unsigned char t[4];
 
 		be32(t, (uint32_t)adler);
-		if (fd_write(fd, t, 4, pos, path, e) < 0)
+		if (asdf_fd_write(fd, t, 4, pos, path, e) < 0)
 			goto done;
 		pos += 4;
 	}
@@ -583,7 +583,7 @@ int asdf_block_write(int fd, uint64_t at, const struct asdf_block_src *s, struct
 	be64(h + 30, s->n);
 	if (s->md5)
 		MD5Final(h + 38, &md5);
-	if (fd_write(fd, h, sizeof(h), at, path, e) < 0)
+	if (asdf_fd_write(fd, h, sizeof(h), at, path, e) < 0)
 		goto done;
 	*end = pos;
 	r = 0;
@@ -653,7 +653,7 @@ struct asdf_out *asdf_out_open(const char *path, int compression, struct pool *p
 /* n bytes at offset off, whole. */
 static int write_at(struct asdf_out *a, const void *p, size_t n, uint64_t off, struct err *e)
 {
-	if (fd_write(a->fd, p, n, off, a->path, e) < 0) {
+	if (asdf_fd_write(a->fd, p, n, off, a->path, e) < 0) {
 		a->failed = 1;
 		return -1;
 	}

@@ -135,6 +135,11 @@ int asdf_compression_setting(const char *const *settings, int *c, struct err *e)
 /* The 4-byte compression field of a block header for c (NONE: zeros). */
 const char *asdf_compression_field(int c);
 
+/* n bytes of p written at offset off of fd, whatever pwrite() takes at a
+ * time; 0, or -1 with e naming path. */
+int asdf_fd_write(int fd, const void *p, size_t n, uint64_t off, const char *path,
+		  struct err *e);
+
 /* Fill buf with n bytes of a block's data from byte off of the data. */
 typedef int asdf_get_fn(void *arg, uint64_t off, void *buf, size_t n, struct err *e);
 

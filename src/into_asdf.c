@@ -413,22 +413,9 @@ static void *store(const struct into_asdf *ia, int k, const float *v, size_t npx
 
 static int put(int fd, const void *p, size_t n, uint64_t *off, const char *path, struct err *e)
 {
-	const unsigned char *q = p;
-
-	while (n > 0) {
-		ssize_t w = pwrite(fd, q, n, (off_t)*off);
-
-		if (w < 0 && errno == EINTR)
-			continue;
-		if (w <= 0) {
-			if (w == 0)
-				errno = EIO;
-			return err_sys(e, "%s: write error", path);
-		}
-		q += w;
-		n -= (size_t)w;
-		*off += (uint64_t)w;
-	}
+	if (asdf_fd_write(fd, p, n, *off, path, e) < 0)
+		return -1;
+	*off += n;
 	return 0;
 }
 

@@ -126,6 +126,8 @@ $(B)/obj/psfbuild.o: $(B)/psf_src.h
 # level 2's chisq and dumo: one loop per resultant along a row, for the
 # vectoriser (src/ramp_stats.c)
 $(B)/obj/ramp_stats.o: ALL_CFLAGS += -O3
+# the scene's noise stages: a tile's element-wise loops, for the vectoriser
+$(B)/obj/noise.o: ALL_CFLAGS += -O3
 
 $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 	@echo "  EMBED   data/*.tsv"

@@ -119,8 +119,9 @@ struct engine {
 	struct slot slot[WFS_NSCA];
 	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
 
-	/* [3]: the halo (psf.h); published under grid_lock (psfgrids.c) */
-	struct psf_grid *grid[WFS_NSCA][4];
+	/* per SCA, the size classes of model.h's enum wfs_psf_class and last
+	 * the halo's (psf.h); published under grid_lock (psfgrids.c) */
+	struct psf_grid *grid[WFS_NSCA][WFS_PSF_HALO + 1];
 	pthread_mutex_t grid_lock;
 	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
 	struct psf_build_opts pbo;

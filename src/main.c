@@ -428,6 +428,10 @@ static int fail(const struct err *e)
  * in Roman's own geometry, one file per SCA, written at offsets. */
 static int check_asdf(const struct scene_opts *o, struct err *e)
 {
+	if (strcmp(o->compress, "none"))
+		return err_set(e, EXIT_INPUT, "--compress %s with ASDF: FITS tile compression; "
+			       "an ASDF file's blocks take --set asdf-compression=zlib or lz4",
+			       o->compress);
 	if (o->level == LEVEL_SCENE)
 		return err_set(e, EXIT_INPUT, "-o %s: ASDF holds Roman's level 1 or 2 products; "
 			       "add --level 1 or --level 2 (or write FITS)", o->output);

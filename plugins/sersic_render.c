@@ -353,6 +353,38 @@ static void sersic_wings_integrate(const struct sersic_stamp *st, const struct s
 	*rough_out = rough;
 }
 
+/* The stamp planes through their kernels, summed into the integrals
+ * plane img: the gradient planes when moments, the Laplacian plane when
+ * rough.  With the host's convolve_sum in one call (the planes' transforms
+ * summed and transformed back once), else one convolve() each. */
+static int sersic_convolve_planes(const struct wfs_host *host, void *thread,
+				  const struct sersic_stamp *st, int moments, int rough)
+{
+	double *planes[4] = { st->img };
+	const double *kers[4] = { st->ker };
+	int n = 1, snx = st->snx, sny = st->sny, kn = st->kn;
+
+	if (moments) {
+		planes[n] = st->gxi;
+		kers[n++] = st->kdx;
+		planes[n] = st->gyi;
+		kers[n++] = st->kdy;
+	}
+	if (rough) {
+		planes[n] = st->lpi;
+		kers[n++] = st->klp;
+	}
+	if (WFS_HAS(host->size, struct wfs_host, convolve_sum) && host->convolve_sum)
+		return host->convolve_sum(host->ctx, thread, planes, kers, n, snx, sny, kn);
+	for (int i = 0; i < n; i++)
+		if (host->convolve(host->ctx, thread, planes[i], snx, sny, kers[i], kn))
+			return -1;
+	for (int i = 1; i < n; i++)
+		for (size_t k = 0; k < (size_t)snx * sny; k++)
+			st->img[k] += planes[i][k];
+	return 0;
+}
+
 /* The wings through the ePSF: the pixel-offset kernels, the FFT
  * convolutions of the stamp planes, and the window's part of the sum
  * added to it. */
@@ -364,7 +396,7 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 	int over = st->over, hp = st->hp, kn = st->kn;
 	int sx0 = st->sx0, sx1 = st->sx1, sy0 = st->sy0, sy1 = st->sy1, snx = st->snx, sny = st->sny;
 	size_t nker = st->nker;
-	double *img = st->img, *gxi = st->gxi, *gyi = st->gyi, *lpi = st->lpi;
+	double *img = st->img;
 	double *ker = st->ker, *kdx = st->kdx, *kdy = st->kdy, *klp = st->klp;
 
 	/* The pixel-offset ePSF kernels: E + lap E / 24 and the gradient
@@ -435,10 +467,7 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 
 		moments = !(bound <= level);
 	}
-	if (host->convolve(host->ctx, thread, img, snx, sny, ker, kn) ||
-	    (moments && host->convolve(host->ctx, thread, gxi, snx, sny, kdx, kn)) ||
-	    (moments && host->convolve(host->ctx, thread, gyi, snx, sny, kdy, kn)) ||
-	    (rough && host->convolve(host->ctx, thread, lpi, snx, sny, klp, kn)))
+	if (sersic_convolve_planes(host, thread, st, moments, rough) < 0)
 		return host->error(host->ctx, "FFT convolution of a %d x %d galaxy stamp failed",
 				   snx, sny);
 	for (int y = win->y0; y < win->y0 + win->ny; y++) {
@@ -449,9 +478,7 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 		int x0 = win->x0, x1 = win->x0 + win->nx - 1;
 		box_clip(&x0, &x1, sx0, sx1);
 		for (int x = x0; x <= x1; x++)
-			dst[x - win->x0] += img[o + x - sx0] +
-					    (moments ? gxi[o + x - sx0] + gyi[o + x - sx0] : 0.0) +
-					    (rough ? lpi[o + x - sx0] : 0.0);
+			dst[x - win->x0] += img[o + x - sx0];
 	}
 	return 0;
 }

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "sersic.h"
+#include "../src/simd.h"
 
 /* The ePSF samples at the galaxy: blend of four nodes at sample (ix, iy),
  * zero outside the array. */
@@ -139,7 +140,8 @@ struct sersic_stamp {
 	double *img, *gxi, *gyi, *lpi;  /* stamp planes: integrals, gradient terms, Laplacian term */
 	double *ker, *kdx, *kdy, *klp;  /* the kernels of those planes, kn x kn */
 	double *cells, *ep, *eb;        /* core cells; the ePSF at the phase, and blended */
-	double *cpix;                   /* a cut core's pixels (sersic_core_add), or NULL */
+	double *cpix;                   /* the core's pixels (sersic_core_add) */
+	double *poly;                   /* the ePSF rows at the phase split by sample phase */
 };
 
 /* Without the PSF: each window pixel the truncation box (gx0..gx1,
@@ -228,9 +230,10 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	size_t nstamp = (size_t)st->snx * st->sny, nker = (size_t)st->kn * st->kn;
 	size_t ncell = st->core_on ? (size_t)st->na * st->nb : 0;
 	size_t nep = st->core_on ? 2 * (size_t)st->e.n * st->e.n : 0;
-	size_t side = 2 * ((size_t)st->kq + st->hp) + 1;
-	size_t ncpix = st->core_on && st->psf_all > 0 ? side * side : 0;
-	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep + ncpix) *
+	size_t side = 2 * ((size_t)st->kq + st->hp) + 3;
+	size_t ncpix = st->core_on ? side * side : 0;
+	size_t npoly = st->core_on ? (size_t)st->e.n * st->e.over * (side + st->na / st->e.over + 2) : 0;
+	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep + ncpix + npoly) *
 				    sizeof(double));
 
 	if (!buf)
@@ -247,7 +250,8 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	st->cells = st->klp + nker;
 	st->ep = st->cells + ncell;
 	st->eb = st->ep + nep / 2;
-	st->cpix = ncpix ? st->eb + nep / 2 : NULL;
+	st->cpix = st->eb + nep / 2;
+	st->poly = st->cpix + ncpix;
 	return 0;
 }
 
@@ -524,38 +528,73 @@ static void sersic_core_cells(const struct sersic_stamp *st, const struct sersic
 	}
 }
 
-/* One output pixel of the core: sum_a C[a] ep[k0 + t] over the reversed
- * cell rows (sersic_core_add), ky0 the ePSF row of cell row 0. */
-static inline double sersic_core_pixel(const double *cells, const double *ep, int na, int nb,
-				       int en, long long k0, long long ky0)
+/*
+ * The core's pixels [rx0, rx0 + side) x [ry0, ry0 + side) into out (side
+ * x side): pixel (x, y) is the sum over the cells (a0 + i, b0 + j) of
+ * C[j][i] ep[ky][kx], kx = bx + over x - a0 - i, ky = by + over y - b0 - j
+ * (ep: the ePSF at the galaxy's phase, sersic_phase_epsf; zero outside
+ * its en x en samples).  With X = x - rx0 and kx = K0 - i + over X, write
+ * K0 - i = over q + r (0 <= r < over): kx = over (X + q) + r, so each ePSF
+ * row split by sample phase r (poly) makes the sum for a cell one run
+ * along a row of pixels, in vector code.  Each cell's product is added to
+ * each pixel in the same order in every clone: the same bytes.
+ */
+SIMD_CLONES("avx512f", "avx2", "default")
+static void sersic_core_block(const double *restrict cells, int na, int nb, const double *restrict ep,
+			      int en, int over, long long K0, long long ky0, int side,
+			      double *restrict poly, double *restrict out)
 {
-	int t0 = k0 < 0 ? (int)-k0 : 0;
-	int t1 = k0 + na > en ? (int)(en - k0) : na;
-	double s = 0;
+	long long qmin = (K0 - na + 1) >= 0 ? (K0 - na + 1) / over : -((over - 1 - (K0 - na + 1)) / over);
+	long long qmax = K0 >= 0 ? K0 / over : -((over - 1 - K0) / over);
+	int L = side + (int)(qmax - qmin);
+	/* the ePSF rows the pixels read: ky0 - (nb - 1) to ky0 + over (side - 1) */
+	long long klo = ky0 - nb + 1, khi = ky0 + (long long)over * (side - 1);
 
-	if (t0 >= t1)
-		return 0;
-	for (int bj = 0; bj < nb; bj++) {
-		long long ky = ky0 - bj;
-		if (ky < 0 || ky >= en)
-			continue;
-		const double *erow = ep + (size_t)ky * en + (k0 + t0);
-		const double *crow = cells + (size_t)bj * na + t0;
-		/* four partial sums: the compiler may not reorder a
-		 * floating-point reduction by itself */
-		double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-		int len = t1 - t0, t = 0;
-		for (; t + 4 <= len; t += 4) {
-			s0 += crow[t] * erow[t];
-			s1 += crow[t + 1] * erow[t + 1];
-			s2 += crow[t + 2] * erow[t + 2];
-			s3 += crow[t + 3] * erow[t + 3];
+	klo = klo < 0 ? 0 : klo;
+	khi = khi >= en ? en - 1 : khi;
+	/* poly[((ky - klo) over + r) L + m] = ep[ky][over (qmin + m) + r], zero
+	 * outside the row; only the samples the cells read (K0 - na + 1 to
+	 * K0 + over (side - 1)), which sersic_phase_epsf computed */
+	long long xlo = K0 - na + 1 > 0 ? K0 - na + 1 : 0;
+	long long xhi = K0 + (long long)over * (side - 1) < en - 1 ? K0 + (long long)over * (side - 1) : en - 1;
+
+	for (int r = 0; r < over; r++) {
+		/* the m of phase r whose samples lie in [xlo, xhi] */
+		long long m0 = xlo - r - over * qmin, m1 = xhi - r - over * qmin;
+		int ma = (int)(m0 <= 0 ? 0 : (m0 + over - 1) / over);
+		int mb = (int)(m1 < 0 ? -1 : m1 / over);
+
+		mb = mb < L - 1 ? mb : L - 1;
+		for (long long ky = klo; ky <= khi; ky++) {
+			double *pr = poly + ((size_t)(ky - klo) * over + r) * L;
+			long long k0 = ky * en + over * qmin + r;
+
+			for (int m = 0; m < L; m++)
+				pr[m] = m >= ma && m <= mb ? ep[k0 + (long long)over * m] : 0;
 		}
-		for (; t < len; t++)
-			s0 += crow[t] * erow[t];
-		s += (s0 + s1) + (s2 + s3);
 	}
-	return s;
+	memset(out, 0, (size_t)side * side * sizeof(double));
+	for (int y = 0; y < side; y++) {
+		double *o = out + (size_t)y * side;
+
+		for (int j = 0; j < nb; j++) {
+			long long ky = ky0 + (long long)over * y - j;
+
+			if (ky < klo || ky > khi)
+				continue;
+			for (int i = 0; i < na; i++) {
+				double c = cells[(size_t)j * na + i];
+				long long s0 = K0 - i, q = s0 >= 0 ? s0 / over : -((over - 1 - s0) / over);
+				int r = (int)(s0 - q * over);
+				const double *pr = poly + ((size_t)(ky - klo) * over + r) * L + (q - qmin);
+
+				if (c == 0)
+					continue;
+				for (int x = 0; x < side; x++)
+					o[x] += c * pr[x];
+			}
+		}
+	}
 }
 
 /* The core cells through the ePSF at the galaxy's own phase, summed
@@ -568,7 +607,6 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 	int a0 = st->a0, b0 = st->b0, na = st->na, nb = st->nb;
 	double xc = st->g.xc, yc = st->g.yc, icx = st->icx, icy = st->icy;
 	double *cells = st->cells, *ep = st->ep, *eb = st->eb;
-	int en = e->n;
 
 	/* The ePSF at the galaxy's phase: sample position of pixel i, cell a is
 	 * centre + over (i - xc) - a = base + over i - a + phi, so ep[k] holds
@@ -584,7 +622,7 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 	 * the core's pixels are then scaled so that its light is what the
 	 * whole ePSF would put down: its cells' sum times the ePSF's light
 	 * (AUX_PSFALL). */
-	int cut = st->cpix != NULL, r = kq + hp + !cut;
+	int cut = st->psf_all > 0, r = kq + hp + !cut;
 	int rx0 = (int)icx - r, ry0 = (int)icy - r, side = 2 * r + 1;
 	int ox0 = rx0, ox1 = rx0 + side - 1, oy0 = ry0, oy1 = ry0 + side - 1;
 	double norm = 1;
@@ -596,44 +634,26 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 			  (int)(by + (long long)over * oy1 - b0));
 	box_clip(&ox0, &ox1, win->x0, win->x0 + win->nx - 1);
 	box_clip(&oy0, &oy1, win->y0, win->y0 + win->ny - 1);
-	/* Each cell row reversed in place, so that pixel x's sum over a row,
-	 * sum_a C[a] ep[kx0 - a], runs forward through both arrays. */
-	for (int bj = 0; bj < nb; bj++)
-		for (int i = 0, j = na - 1; i < j; i++, j--) {
-			double t = cells[(size_t)bj * na + i];
-			cells[(size_t)bj * na + i] = cells[(size_t)bj * na + j];
-			cells[(size_t)bj * na + j] = t;
-		}
-	/* reversed index t = na - 1 - a reads ep[kx0 - na + 1 + t] */
+	sersic_core_block(cells, na, nb, ep, e->n, over, bx + (long long)over * rx0 - a0,
+			  by + (long long)over * ry0 - b0, side, st->poly, st->cpix);
 	if (cut) {
-		/* every pixel of the cut core once, into cpix, then the window's */
+		/* the cut core's light made whole */
 		double whole = 0, drawn = 0;
 
 		for (size_t k = 0; k < (size_t)na * nb; k++)
 			whole += cells[k];
 		whole *= st->psf_all;
-		for (int y = 0; y < side; y++)
-			for (int x = 0; x < side; x++)
-				drawn += st->cpix[(size_t)y * side + x] = sersic_core_pixel(
-					cells, ep, na, nb, en, bx + (long long)over * (rx0 + x) - a0 - na + 1,
-					by + (long long)over * (ry0 + y) - b0);
+		for (size_t k = 0; k < (size_t)side * side; k++)
+			drawn += st->cpix[k];
 		if (drawn > 0 && whole > 0)
 			norm = whole / drawn;
-		for (int y = oy0; y <= oy1; y++) {
-			double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
-			const double *c = st->cpix + (size_t)(y - ry0) * side - rx0;
-
-			for (int x = ox0; x <= ox1; x++)
-				dst[x] += norm * c[x];
-		}
-		return;
 	}
 	for (int y = oy0; y <= oy1; y++) {
 		double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
-		long long ky0 = by + (long long)over * y - b0;
+		const double *c = st->cpix + (size_t)(y - ry0) * side - rx0;
+
 		for (int x = ox0; x <= ox1; x++)
-			dst[x] += sersic_core_pixel(cells, ep, na, nb, en,
-						    bx + (long long)over * x - a0 - na + 1, ky0);
+			dst[x] += norm * c[x];
 	}
 }
 

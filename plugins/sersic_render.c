@@ -48,6 +48,27 @@ static void sersic_keys(double t, double w[4])
  * over the samples [lo_x, hi_x] x [lo_y, hi_y] (and the blend's taps
  * around them): the rest of ep is left as it was.
  */
+/* eb[k] for k in [k0, k1): the four nodes blended (sersic_phase_epsf). */
+SIMD_CLONES("avx512f", "avx2", "default")
+static void sersic_blend_run(const struct wfs_epsf *e, double *restrict eb, size_t k0, size_t k1)
+{
+	const float *n0 = e->node[0], *n1 = e->node[1], *n2 = e->node[2], *n3 = e->node[3];
+	double w0 = e->weight[0], w1 = e->weight[1], w2 = e->weight[2], w3 = e->weight[3];
+
+	for (size_t k = k0; k < k1; k++)
+		eb[k] = w0 * n0[k] + w1 * n1[k] + w2 * n2[k] + w3 * n3[k];
+}
+
+/* ep[k] for k in [k0, k1) of one row, bilinear between the samples
+ * (sersic_phase_epsf), all four taps inside the array. */
+SIMD_CLONES("avx512f", "avx2", "default")
+static void sersic_bilinear_run(const double *restrict eb, double *restrict ep, size_t k0, size_t k1,
+				int n, double b00, double b01, double b10, double b11)
+{
+	for (size_t k = k0; k < k1; k++)
+		ep[k] = b00 * eb[k] + b01 * eb[k + 1] + b10 * eb[k + n] + b11 * eb[k + n + 1];
+}
+
 static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, double core,
 			      double *eb, double *ep, int lo_x, int hi_x, int lo_y, int hi_y)
 {
@@ -65,30 +86,44 @@ static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, 
 	int bx0 = lo_x > 0 ? lo_x - 1 : 0, bx1 = hi_x + 2 < n ? hi_x + 2 : n - 1;
 	int by0 = lo_y > 0 ? lo_y - 1 : 0, by1 = hi_y + 2 < n ? hi_y + 2 : n - 1;
 	for (int ky = by0; ky <= by1; ky++)
-		for (int kx = bx0; kx <= bx1; kx++) {
-			size_t k = (size_t)ky * n + kx;
-			eb[k] = e->weight[0] * e->node[0][k] + e->weight[1] * e->node[1][k]
-				+ e->weight[2] * e->node[2][k] + e->weight[3] * e->node[3][k];
-		}
+		sersic_blend_run(e, eb, (size_t)ky * n + bx0, (size_t)ky * n + bx1 + 1);
 	sersic_keys(phx, wx);
 	sersic_keys(phy, wy);
 	double b00 = (1 - phx) * (1 - phy), b01 = phx * (1 - phy), b10 = (1 - phx) * phy, b11 = phx * phy;
+	/* the samples bilinear with all four taps inside: kx + 1 < n */
+	int bl1 = hi_x < n - 2 ? hi_x : n - 2;
 	for (int ky = lo_y; ky <= hi_y; ky++) {
 		double dy = (ky + phy - e->centre) / e->over;
-		for (int kx = lo_x; kx <= hi_x; kx++) {
+		int keys_row = fabs(dy) < core && ky >= 1 && ky + 2 < n;
+
+		int inner = ky + 1 < n && lo_x <= bl1;
+
+		if (inner)
+			sersic_bilinear_run(eb, ep, (size_t)ky * n + lo_x, (size_t)ky * n + bl1 + 1, n,
+					    b00, b01, b10, b11);
+		/* Keys' cubic within core of the centre: a window of samples
+		 * about it, each tested as before */
+		int ka = (int)floor(e->centre - phx - core * e->over) - 1;
+		int kb = (int)ceil(e->centre - phx + core * e->over) + 1;
+		ka = ka > lo_x ? ka : lo_x;
+		kb = kb < hi_x ? kb : hi_x;
+		for (int kx = ka; keys_row && kx <= kb; kx++) {
 			double dx = (kx + phx - e->centre) / e->over, v = 0;
-			const double *r0 = eb + (size_t)ky * n + kx;
-			if (fabs(dx) < core && fabs(dy) < core && kx >= 1 && ky >= 1 && kx + 2 < n &&
-			    ky + 2 < n) {
-				const double *r = r0 - n - 1;
-				for (int bb = 0; bb < 4; bb++, r += n)
-					v += wy[bb] * (wx[0] * r[0] + wx[1] * r[1] + wx[2] * r[2] + wx[3] * r[3]);
-			} else {
-				int xin = kx + 1 < n, yin = ky + 1 < n;
-				v = b00 * r0[0] + (xin ? b01 * r0[1] : 0) + (yin ? b10 * r0[n] : 0)
-				    + (xin && yin ? b11 * r0[n + 1] : 0);
-			}
+			const double *r = eb + (size_t)ky * n + kx - n - 1;
+
+			if (!(fabs(dx) < core && kx >= 1 && kx + 2 < n))
+				continue;
+			for (int bb = 0; bb < 4; bb++, r += n)
+				v += wy[bb] * (wx[0] * r[0] + wx[1] * r[1] + wx[2] * r[2] + wx[3] * r[3]);
 			ep[(size_t)ky * n + kx] = v;
+		}
+		/* the samples at the array's last column or row */
+		for (int kx = inner ? bl1 + 1 : lo_x; kx <= hi_x; kx++) {
+			const double *r0 = eb + (size_t)ky * n + kx;
+			int xin = kx + 1 < n, yin = ky + 1 < n;
+
+			ep[(size_t)ky * n + kx] = b00 * r0[0] + (xin ? b01 * r0[1] : 0) +
+						  (yin ? b10 * r0[n] : 0) + (xin && yin ? b11 * r0[n + 1] : 0);
 		}
 	}
 }

@@ -392,6 +392,31 @@ static void sersic_wings_integrate(const struct sersic_stamp *st, const struct s
 	*rough_out = rough;
 }
 
+/*
+ * A bound on the gradient of the light at the centre of any pixel outside
+ * the core square Q (K pixels about the centre pixel), so at a distance d
+ * >= K + 1/2 from the centre: with rho >= d sqrt(min(ia2, ib2)) there and
+ * |grad rho| <= sqrt(max(ia2, ib2)), |grad I| <= h(rho) sqrt(max(ia2, ib2)),
+ * h(rho) = I0 e^(-b rho^(1/n)) (b/n) rho^(1/n - 1), which for n >= 1 only
+ * falls, and for n < 1 rises up to rho^(1/n) = (1 - n) / b and then falls.
+ * Zero beyond the truncation.  The same for every window of the galaxy.
+ */
+static double sersic_grad_bound(const struct sersic_gal *g, int kq)
+{
+	double rho = (kq + 0.5) * sqrt(fmin(g->ia2, g->ib2));
+
+	if (g->n < 1) {
+		double peak = exp(g->n * log((1 - g->n) / g->b));
+
+		rho = fmax(rho, peak);
+	}
+	if (!(rho < g->rho_t))
+		return 0;
+	double p = g->b * exp(g->inv_n * log(rho));     /* b rho^(1/n) */
+
+	return exp(g->lni0 - p) * p * g->inv_n / rho * sqrt(fmax(g->ia2, g->ib2));
+}
+
 /* The stamp planes through their kernels, summed into the integrals
  * plane img: the gradient planes when moments, the Laplacian plane when
  * rough.  With the host's convolve_sum in one call (the planes' transforms
@@ -503,7 +528,13 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 		kmax *= f;
 		double iq = st->kq > 0 ? exp(g->lni0 - g->b * exp(log(st->kq / g->re) / g->n)) : exp(g->lni0);
 		double bound = 2 * g->flux * f * dmax * over * over / 12 + 4 * (2 * st->kq + 1) * iq * kmax;
+		/* and directly: no pixel gets more than the largest gradient
+		 * outside Q times the kernels' absolute sums */
+		double sk = 0;
 
+		for (size_t k = 0; k < nker; k++)
+			sk += fabs(kdx[k]) + fabs(kdy[k]);
+		bound = fmin(bound, sersic_grad_bound(g, st->kq) * sk);
 		moments = !(bound <= level);
 	}
 	if (sersic_convolve_planes(host, thread, st, moments, rough) < 0)

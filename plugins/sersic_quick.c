@@ -197,7 +197,8 @@ static void (*quick_profile)(int n, const double *restrict r2, double b, double 
 
 /* The profile (sersic_sb) at np points (dx[k], dy[k]) into v[k], those
  * inside the truncation and off the centre at once through quick_profile
- * (vmath.h's exp and log, in vector code where the CPU has it). */
+ * (vmath.h's exp and log, in vector code where the CPU has it) when there
+ * are at least four of them. */
 static void quick_sb_points(const struct sersic_gal *g, int np, double *dx, double *dy, double *v)
 {
 	double r2[QUICK_PTS], pw[QUICK_PTS], in[QUICK_PTS];
@@ -215,8 +216,12 @@ static void quick_sb_points(const struct sersic_gal *g, int np, double *dx, doub
 			at[nf++] = k;
 		}
 	}
-	if (!nf)
+	if (nf < 4) {
+		/* fewer than a vector's four: libm's, cheaper one by one */
+		for (int j = 0; j < nf; j++)
+			v[at[j]] = exp(g->lni0 - g->b * exp(0.5 * g->inv_n * log(r2[j])));
 		return;
+	}
 	quick_profile(nf, r2, g->b, 0.5 * g->inv_n, g->lni0, pw, in);
 	for (int j = 0; j < nf; j++)
 		v[at[j]] = in[j];

@@ -412,16 +412,26 @@ echo "\`starfield -n N -x -g -m 20 -M 28 | wfiscene --filter F129 --flux-unit ab
 echo "(the default exposure is 1 s, where the pixel noise is 12 counts/s and most"
 echo "of these galaxies are below it; at 1000 s it is 0.026)"
 echo
+echo "The bright and large mix (the last row): the same rows with AB uniform in"
+echo "20-27 and r_e log-uniform in 1-15 px (awk, \`srand(17)\`; mawk's numbers)."
+echo
 echo "| model | exposure s | galaxies | wall s | CPU s | galaxies/s | CPU ms/galaxy | peak MiB |"
 echo "|---|---|---|---|---|---|---|---|"
-for m in "quick 1 1000" "quick 1 10000" "quick 1 100000" "quick 1000 10000" "precise 1 300"; do
+for m in "quick 1 1000" "quick 1 10000" "quick 1 100000" "quick 1000 10000" "precise 1 300" \
+	 "quick 1 3000 bright"; do
 	set -- $m
-	meth=$1 exp=$2 n=$3
+	meth=$1 exp=$2 n=$3 mix=${4:-deep}
 	[ "$quick" = 1 ] && n=$((n / 5))
 	"$GEN" -n $n -x -g -m 20 -M 28 -s 13 > "$W/gal.csv"
+	if [ "$mix" = bright ]; then
+		awk -F, 'BEGIN { OFS = ","; srand(17) } NR == 1 { print; next }
+			{ $4 = sprintf("%.3f", 20 + 7 * rand()); $7 = sprintf("%.3f", exp(log(15) * rand())); print }' \
+			"$W/gal.csv" > "$W/galb.csv" && mv "$W/galb.csv" "$W/gal.csv"
+	fi
 	set -- $(measure3 "'$WFS' --filter F129 --flux-unit abmag --sersic $meth --exptime $exp -o '$W/o.fits' '$W/gal.csv'")
-	awk -v m=$meth -v e=$exp -v n=$n -v t=$1 -v c=$2 -v k=$3 'BEGIN {
-		printf "| sersic-%s | %s | %d | %.1f | %.1f | %.0f | %.2f | %.0f |\n", m, e, n, t, c, n / t, 1e3 * c / n, k / 1024 }'
+	awk -v m=$meth -v e=$exp -v n=$n -v t=$1 -v c=$2 -v k=$3 -v x=$mix 'BEGIN {
+		printf "| sersic-%s%s | %s | %d | %.1f | %.1f | %.0f | %.2f | %.0f |\n", m,
+			x == "bright" ? ", bright and large" : "", e, n, t, c, n / t, 1e3 * c / n, k / 1024 }'
 done
 rm -f "$W/gal.csv"
 rm -f "$W"/*.fits

@@ -118,11 +118,121 @@ int placed_close(struct engine *g, int keep)
 {
 	int r;
 
+	for (int k = 0; k < WFS_NSCA; k++)
+		if (g->placed_part[k]) {
+			fclose(g->placed_part[k]);
+			g->placed_part[k] = NULL;
+		}
+	if (g->placed_out) {
+		g->placed = g->placed_out;
+		g->placed_out = NULL;
+	}
 	if (!g->placed)
 		return 0;
 	r = side_close(g->placed, g->x->placed, g->placed_tmp, keep, g->e);
 	g->placed = NULL;
 	return r;
+}
+
+/*
+ * SCA groups (run.c).  Each pass writes its placements to an unnamed
+ * temporary, an empty line after each chunk of rows; in romanisim's
+ * convention each line begins with its row in the chunk and a tab
+ * (place.c).  One pass lists a chunk's placements slot by slot, and the
+ * passes draw consecutive slots, so the list of one pass is, chunk by
+ * chunk, the passes' lists one after another; in romanisim's convention a
+ * row is listed once, at its first placement, so a row an earlier pass
+ * listed in the chunk is left out.
+ */
+int placed_pass_begin(struct engine *g)
+{
+	int fd;
+
+	if (g->npass < 2 || (!g->placed && !g->placed_out))
+		return 0;
+	if (!g->placed_out)
+		g->placed_out = g->placed;
+	g->placed = NULL;
+	if ((fd = tempfile_unnamed("--placed", g->e)) < 0)
+		return -1;
+	if (!(g->placed_part[g->pass] = fdopen(fd, "w+"))) {
+		close(fd);
+		return err_sys(g->e, "--placed: temporary list");
+	}
+	g->placed = g->placed_part[g->pass];
+	return 0;
+}
+
+int placed_chunk_end(struct engine *g)
+{
+	if (g->npass > 1 && g->placed && putc('\n', g->placed) == EOF)
+		return err_sys(g->e, "--placed: temporary list");
+	return 0;
+}
+
+/* The next line of part f into *line: 1, or 0 at the end of a chunk or of
+ * the file (*end set). */
+static int part_line(FILE *f, char **line, size_t *cap, int *end)
+{
+	ssize_t n = getline(line, cap, f);
+
+	*end = n < 0;
+	return n > 0 && (*line)[0] != '\n';
+}
+
+int placed_merge(struct engine *g)
+{
+	FILE *out = g->placed_out;
+	uint32_t *stamp = NULL, chunk = 0;
+	size_t nstamp = 0, cap = 0;
+	char *line = NULL;
+	int more = 1, end = 1, rc = 0;
+
+	if (!out)
+		return 0;
+	for (int k = 0; k < g->npass; k++)
+		if (fflush(g->placed_part[k]) || ferror(g->placed_part[k]) ||
+		    fseek(g->placed_part[k], 0, SEEK_SET))
+			return err_sys(g->e, "--placed: temporary list");
+	while (more && rc == 0) {
+		more = 0;
+		chunk++;
+		for (int k = 0; k < g->npass && rc == 0; k++) {
+			while (rc == 0 && part_line(g->placed_part[k], &line, &cap, &end)) {
+				char *text = line;
+
+				if (g->placed_roman) {
+					size_t i = strtoull(line, &text, 10);
+
+					text++;
+					if (i >= nstamp) {
+						size_t n = 2 * i + 1024;
+						uint32_t *more_ = realloc(stamp, n * sizeof(*stamp));
+
+						if (!more_) {
+							rc = err_sys(g->e, "--placed");
+							break;
+						}
+						memset(more_ + nstamp, 0, (n - nstamp) * sizeof(*stamp));
+						stamp = more_;
+						nstamp = n;
+					}
+					if (stamp[i] == chunk)
+						continue;
+					stamp[i] = chunk;
+				}
+				if (fputs(text, out) == EOF)
+					rc = err_sys(g->e, "%s", g->x->placed);
+			}
+			more |= !end;
+		}
+	}
+	for (int k = 0; k < g->npass; k++)
+		if (ferror(g->placed_part[k]) && rc == 0)
+			rc = err_sys(g->e, "--placed: temporary list");
+	free(line);
+	free(stamp);
+	return rc;
 }
 
 /* A JSON string: quotes, backslashes and control bytes escaped (--set

@@ -204,6 +204,7 @@ struct engine {
 	int pass, npass;
 	struct writer *out;
 	FILE *placed_out, *placed_part[WFS_NSCA];
+	struct grid_note *grid_note;    /* the report's PSF grids of SCAs done */
 };
 
 /* host.c: the struct wfs_host lent to plugins. */
@@ -227,6 +228,9 @@ const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls);
 int psfgrids_need(struct engine *g, int sca, int cls, struct err *e);
 int psfgrids_open_user(struct engine *g);
 void psfgrids_free(struct engine *g);
+/* SCA groups (run.c): the grids of SCA sca freed, once it is written and
+ * its light gathered (the pool idle); report_grids_note() first. */
+void psfgrids_drop(struct engine *g, int sca);
 /* The spectral classes for a scene with spectra (the builtin PSF only):
  * made once, from the setting psf-colour-classes.
  * Returns 0 or -1. */
@@ -269,5 +273,9 @@ int placed_pass_begin(struct engine *g);
 int placed_chunk_end(struct engine *g);
 int placed_merge(struct engine *g);
 int report_write(struct engine *g);
+/* What the report says of SCA sca's PSF grids, kept before they are freed
+ * (psfgrids_drop); its memory freed by report_notes_free.  0 or -1. */
+int report_grids_note(struct engine *g, int sca);
+void report_notes_free(struct engine *g);
 
 #endif

@@ -361,8 +361,88 @@ static void report_work(FILE *f, struct engine *g)
 	fputs("]},\n", f);
 }
 
-/* "psf_grids": the grids built and loaded and each one's least enclosed
- * light; returns the largest truncation loss among them. */
+/*
+ * The PSF grids the report lists: per SCA and size class, the grid's
+ * samples and least enclosed light (a class that shares the class
+ * before's grid is not listed again), and which spectral classes' grids
+ * were drawn with.  From the grids themselves, or for an SCA whose grids
+ * a pass freed (SCA groups, run.c) from the note taken just before.
+ */
+struct grid_note {
+	unsigned char noted[WFS_NSCA];
+	int n[WFS_NSCA][3];             /* samples; 0: not listed */
+	double lo[WFS_NSCA][3];
+	unsigned char *cls;             /* [sca][class][k]: ncls a class */
+	int ncls;
+};
+
+/* The box of SCA sca, size class c, from its grids: 1 with *n and *lo,
+ * or 0 when not listed. */
+static int grid_box_live(struct engine *g, int sca, int c, int *n, double *lo)
+{
+	const struct psf_grid *gr = psfgrids_get(g, sca, c);
+
+	if (!gr || (c > 0 && gr == psfgrids_get(g, sca, c - 1)))
+		return 0;
+	*lo = 1;
+	for (int k = 0; k < gr->nx * gr->ny; k++)
+		for (int p = 0; p < gr->over * gr->over; p++)
+			*lo = fmin(*lo, psf_enclosed(gr, k, p % gr->over, p / gr->over));
+	*n = gr->n;
+	return 1;
+}
+
+static int grid_box(struct engine *g, int sca, int c, int *n, double *lo)
+{
+	const struct grid_note *gn = g->grid_note;
+
+	if (!gn || !gn->noted[sca - 1])
+		return grid_box_live(g, sca, c, n, lo);
+	*n = gn->n[sca - 1][c];
+	*lo = gn->lo[sca - 1][c];
+	return *n > 0;
+}
+
+static int grid_class(struct engine *g, int sca, int c, int k)
+{
+	const struct grid_note *gn = g->grid_note;
+
+	if (!gn || !gn->noted[sca - 1])
+		return psfgrids_colour_get(g, sca, c, k) != NULL;
+	return k < gn->ncls && gn->cls[((size_t)(sca - 1) * 3 + c) * gn->ncls + k];
+}
+
+int report_grids_note(struct engine *g, int sca)
+{
+	struct grid_note *gn = g->grid_note;
+	int ncls = g->classes ? 2 * g->classes->n : 0;
+
+	if (!gn && !(gn = g->grid_note = calloc(1, sizeof(*gn))))
+		return err_sys(g->e, "report");
+	if (ncls && !gn->cls) {
+		if (!(gn->cls = calloc((size_t)WFS_NSCA * 3 * ncls, 1)))
+			return err_sys(g->e, "report");
+		gn->ncls = ncls;
+	}
+	for (int c = 0; c < 3; c++) {
+		if (!grid_box_live(g, sca, c, &gn->n[sca - 1][c], &gn->lo[sca - 1][c]))
+			gn->n[sca - 1][c] = 0;
+		for (int k = 0; k < gn->ncls; k++)
+			gn->cls[((size_t)(sca - 1) * 3 + c) * gn->ncls + k] =
+				psfgrids_colour_get(g, sca, c, k) != NULL;
+	}
+	gn->noted[sca - 1] = 1;
+	return 0;
+}
+
+void report_notes_free(struct engine *g)
+{
+	if (g->grid_note)
+		free(g->grid_note->cls);
+	free(g->grid_note);
+	g->grid_note = NULL;
+}
+
 /* The spectral classes (psf.h) and the grids of them drawn with, inside
  * "psf_grids"; nothing when the scene had no source with a spectrum. */
 static void report_spectral_classes(FILE *f, struct engine *g)
@@ -384,7 +464,7 @@ static void report_spectral_classes(FILE *f, struct engine *g)
 		first = 1;
 		for (int s = 0; s < WFS_NSCA; s++)
 			for (int c = 0; c < 3; c++)
-				if (psfgrids_colour_get(g, s + 1, c, k)) {
+				if (grid_class(g, s + 1, c, k)) {
 					fprintf(f, "%s{\"sca\": %d, \"samples\": %d}",
 						first ? "" : ", ", s + 1, psf_class_n[c]);
 					first = 0;
@@ -394,6 +474,8 @@ static void report_spectral_classes(FILE *f, struct engine *g)
 	fprintf(f, "\n  ]");
 }
 
+/* "psf_grids": the grids built and loaded and each one's least enclosed
+ * light; returns the largest truncation loss among them. */
 static double report_psf_grids(FILE *f, struct engine *g)
 {
 	double worst_loss = 0;
@@ -406,17 +488,14 @@ static double report_psf_grids(FILE *f, struct engine *g)
 	first = 1;
 	for (int s = 0; s < WFS_NSCA; s++)
 		for (int c = 0; c < 3; c++) {
-			const struct psf_grid *gr = psfgrids_get(g, s + 1, c);
-			double lo = 1;
+			double lo;
+			int n;
 
-			if (!gr || (c > 0 && gr == psfgrids_get(g, s + 1, c - 1)))
+			if (!grid_box(g, s + 1, c, &n, &lo))
 				continue;
-			for (int k = 0; k < gr->nx * gr->ny; k++)
-				for (int p = 0; p < gr->over * gr->over; p++)
-					lo = fmin(lo, psf_enclosed(gr, k, p % gr->over, p / gr->over));
 			worst_loss = fmax(worst_loss, 1 - lo);
 			fprintf(f, "%s\n    {\"sca\": %d, \"class\": %d, \"samples\": %d, "
-				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, gr->n, lo);
+				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, n, lo);
 			first = 0;
 		}
 	fputs("\n  ]", f);

@@ -109,6 +109,7 @@ static void engine_free(struct engine *g)
 		free(g->slot[s].tile);
 	}
 	psfgrids_free(g);
+	report_notes_free(g);
 	for (int i = 0; i < 2; i++) {
 		free(g->b[i].p);
 		free(g->b[i].param);
@@ -309,12 +310,60 @@ out:
 	return rc < 0 || e->code != EXIT_OK ? -1 : 0;
 }
 
+/*
+ * Between SCA groups, the pool idle: the models started afresh (their
+ * threads' states stopped, fini() and init() again), so that what they
+ * hold for the SCAs written (halos, the diffuse light, polyphase copies of
+ * ePSF nodes) goes, and then those SCAs' PSF grids are freed.  In that
+ * order: a model may know a grid by its address, which a grid loaded
+ * later could take.  The report's figures of the grids are kept first.
+ */
+static int models_restart(struct engine *g)
+{
+	for (int i = 0; i < g->nworker; i++)
+		for (int m = 0; m < g->plugins.n; m++) {
+			struct plugin *pl = &g->plugins.p[m];
+
+			if (g->w[i].started[m] && pl->m->thread_stop)
+				pl->m->thread_stop(pl->state, g->w[i].tstate[m]);
+			g->w[i].started[m] = 0;
+			g->w[i].tstate[m] = NULL;
+		}
+	for (int m = 0; m < g->plugins.n; m++) {
+		struct plugin *pl = &g->plugins.p[m];
+
+		if (!pl->ready)
+			continue;
+		if (pl->m->fini)
+			pl->m->fini(pl->state);
+		pl->state = NULL;
+		if (pl->m->init && pl->m->init(&g->host, &pl->state) < 0) {
+			pl->ready = 0;
+			if (g->e->code == EXIT_OK)
+				err_set(g->e, EXIT_PLUGIN, "model '%s' (%s): set-up failed",
+					pl->name, pl->path);
+			return -1;
+		}
+	}
+	/* (not the first SCA's: every pass measures the reach of sky rows
+	 * on it, place.c) */
+	for (int s = 1; s < g->nslot; s++)
+		if (g->pass_slots >> s & 1) {
+			if (g->x->report && report_grids_note(g, g->slot[s].sca) < 0)
+				return -1;
+			psfgrids_drop(g, g->slot[s].sca);
+		}
+	return 0;
+}
+
 /* The end of a pass for one exposure: the light its models gathered
- * spread, its SCAs through the detector stage and written, and with SCA
- * groups their PSF grids freed (no later pass draws on them). */
+ * spread, its SCAs through the detector stage and written, and before
+ * another SCA group the memory of these SCAs freed. */
 static int finish_pass(struct engine *g)
 {
-	return render_spread(g) < 0 || write_exposure(g) < 0 ? -1 : 0;
+	if (render_spread(g) < 0 || write_exposure(g) < 0)
+		return -1;
+	return g->pass + 1 < g->npass ? models_restart(g) : 0;
 }
 
 /* After the exposure's last pass: its --placed list, persistence, report. */

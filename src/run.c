@@ -7,7 +7,9 @@
  * is placed (place.c) by every engine and drawn (render.c) by the shared
  * worker pool while the main thread reads and places the next chunk.  After
  * the last chunk each exposure is written (write.c) with its side files
- * (report.c).
+ * (report.c).  What does not fit the memory budget is drawn in more passes
+ * over the catalogs: whole exposures, or groups of an exposure's SCAs
+ * (plan_passes).
  */
 #include <math.h>
 #include <pthread.h>

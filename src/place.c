@@ -1043,7 +1043,8 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    focal_step(g, r, maxreach) < 0 || pixel_step(g, r, off, perr) < 0)
 		goto out;
 	for (int s = 0; s < g->nslot && !pended; s++)
-		if ((g->pass_slots >> s & 1) && place_on_slot(g, r, b, s, model, param, nxy, off, perr) < 0) {
+		if ((g->pass_slots >> s & 1) &&
+		    place_on_slot(g, r, b, s, model, param, nxy, off, perr) < 0) {
 			/* reported only if no placement before it fails */
 			pended = -1;
 			stopped = *g->e;

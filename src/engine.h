@@ -205,6 +205,8 @@ struct engine {
 	struct writer *out;
 	FILE *placed_out, *placed_part[WFS_NSCA];
 	struct grid_note *grid_note;    /* the report's PSF grids of SCAs done */
+	char *written[WFS_NSCA];        /* files committed by passes before the last */
+	int nwritten;
 };
 
 /* host.c: the struct wfs_host lent to plugins. */

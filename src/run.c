@@ -577,6 +577,12 @@ static int run_pass(const struct scene_opts *o, char *const *catalogs, struct ex
 out:
 	for (int i = 0; i < made; i++) {
 		placed_close(g[i], 0);
+		/* a failed run leaves no file behind, as one pass would not */
+		for (int k = 0; k < g[i]->nwritten; k++) {
+			if (rc < 0)
+				unlink(g[i]->written[k]);
+			free(g[i]->written[k]);
+		}
 		engine_free(g[i]);
 		free(g[i]);
 	}

@@ -309,11 +309,11 @@ int write_exposure(struct engine *g)
 		goto fail;
 	}
 	for (int s = 0; s < g->nslot; s++) {
+		char path[PATH_MAX];
+
 		if (!(g->pass_slots >> s & 1))
 			continue;
 		if (!w || per_sca) {
-			char path[PATH_MAX];
-
 			if (name_expand(path, sizeof(path), "-o", x->output, g->slot[s].sca,
 					x->name[0] ? x->name : NULL, g->e) < 0 ||
 			    !(w = ops->open(g, path, g->e)))
@@ -328,6 +328,16 @@ int write_exposure(struct engine *g)
 			w = NULL;
 			if (ops->commit(done, g->e) < 0)
 				goto fail;
+			/* a file an SCA group wrote before the last: removed
+			 * if a later pass fails (run.c), as one pass leaves
+			 * none then */
+			if (g->pass + 1 < g->npass && g->nwritten < WFS_NSCA) {
+				if (!(g->written[g->nwritten] = strdup(path))) {
+					err_sys(g->e, "memory");
+					goto fail;
+				}
+				g->nwritten++;
+			}
 		}
 	}
 	g->out = w;

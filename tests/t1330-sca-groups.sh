@@ -75,6 +75,14 @@ test_expect_success 'a catalog on stdin, plain or compressed, is read in every p
 	gzip -c sky.csv > sky.csv.gz &&
 	run --memory 100 -o gz.fits - < sky.csv.gz && cmp one.fits gz.fits
 '
+test_expect_success 'a row refused by the last group: exit 1, no file left' '
+	printf "id,x,y,sca,flux,type,n,re,ratio,phi\n1,100,2048,4,20,sersic,-1,3,0.5,0\n" \
+		> bad.csv &&
+	test_must_fail --status 1 run --memory 100 -v -o "bad_%d.fits" sky.csv bad.csv 2> err &&
+	test_grep "4 SCAs in 4 passes" err &&
+	test_grep "bad.csv:2: .*Sérsic index must be > 0" err &&
+	! ls | grep -q "^bad_"
+'
 test_expect_success 'stdin that cannot be kept: exit 2, nothing written' '
 	test_must_fail --status 2 env TMPDIR=/nonexistent "$WFS" --filter F158 --ra 10 \
 		--dec 20 --pointing-ref boresight --sca 1-4 --flux-unit abmag \

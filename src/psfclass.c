@@ -68,6 +68,8 @@ int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n
 			       PSF_COLOUR_MAX, n);
 	pc->filter = filter;
 	pc->n = n;
+	pc->gsteps = 0;
+	pc->blend = NULL;
 	double l[4] = {
 		colour_lam_eff(c, 1, &(struct spectrum){ SPEC_POWER, 3 }),
 		colour_lam_eff(c, 1, &(struct spectrum){ SPEC_BLACKBODY, 50000 }),

@@ -185,7 +185,7 @@ int psfgrids_colour_init(struct engine *g)
 		return err_set(g->e, EXIT_SYSTEM, "out of memory");
 	if (psf_classes_make(g->classes, g->colour, g->o->filter, n, g->e) < 0)
 		return -1;
-	if (int_setting(g, "psf-colour-galaxy-steps", 0, 64, 16, &g->classes->gsteps) < 0)
+	if (int_setting(g, "psf-colour-galaxy-steps", 0, 64, 32, &g->classes->gsteps) < 0)
 		return -1;
 	g->ncgrid = 2 * n;
 	snprintf(g->classes_str, sizeof(g->classes_str), "%d", 2 * n);

@@ -244,7 +244,7 @@ assert all(np.isfinite(f)) and f[2] > f[5] > 0 and f[3] > f[4] > 0, f
 '
 
 # Galaxies are convolved with the blend of their spectrum's two classes,
-# rounded to 1/psf-colour-galaxy-steps: a compact galaxy of 3000 K (6.40
+# rounded to 1/psf-colour-galaxy-steps (32): a compact galaxy of 3000 K (6.40
 # of the way in F146's classes) against the same galaxy drawn with the
 # exact grid of 3000 K (--psf), with the nearest class alone (steps 0)
 # and with the default spectrum's.
@@ -255,8 +255,8 @@ EOF
 printf 'x,y,flux,type,n,re,phi,ratio\n1001,1001,2000,sersic,1,1.5,30,0.7\n' > gal0.csv
 test_expect_success 'a galaxy with a spectrum: convolved with the blend of its classes' '
 	"$WFS" --filter F146 --sersic precise -o gc.fits gal.csv &&
-	"$WFS" --filter F146 --sersic precise --set psf-colour-galaxy-steps=32 \
-		-o g32.fits gal.csv &&
+	"$WFS" --filter F146 --sersic precise --set psf-colour-galaxy-steps=16 \
+		-o g16.fits gal.csv &&
 	"$WFS" --filter F146 --sersic precise --set psf-colour-galaxy-steps=0 \
 		-o gn.fits gal.csv &&
 	"$WFS" --filter F146 --sersic precise --psf t3000.fits -o ge.fits gal0.csv &&
@@ -264,14 +264,14 @@ test_expect_success 'a galaxy with a spectrum: convolved with the blend of its c
 	"$PY" -c "
 import numpy as np
 from astropy.io import fits
-c, c32, n, e, d = (fits.open(f)[1].data.astype(float)
-                   for f in (\"gc.fits\", \"g32.fits\", \"gn.fits\", \"ge.fits\", \"gd.fits\"))
+c, c16, n, e, d = (fits.open(f)[1].data.astype(float)
+                   for f in (\"gc.fits\", \"g16.fits\", \"gn.fits\", \"ge.fits\", \"gd.fits\"))
 pk = e.max()
-dc, d32, dn, dd = (np.abs(a - e).max() / pk for a in (c, c32, n, d))
-print(\"# galaxy: blend 1/16 %.2e, 1/32 %.2e, nearest class %.2e, default spectrum %.2e \"
-      \"of the peak\" % (dc, d32, dn, dd))
-assert dc < 1.5e-3 and d32 < 2e-4 and dn < 0.5 * dd and dc < 0.1 * dn
-for a in (c, c32, n):
+dc, d16, dn, dd = (np.abs(a - e).max() / pk for a in (c, c16, n, d))
+print(\"# galaxy: blend 1/32 %.2e, 1/16 %.2e, nearest class %.2e, default spectrum %.2e \"
+      \"of the peak\" % (dc, d16, dn, dd))
+assert dc < 2e-4 and d16 < 1.5e-3 and dn < 0.5 * dd and d16 < 0.1 * dn
+for a in (c, c16, n):
     assert abs(a.sum() / e.sum() - 1) < 1e-3
 "
 '

@@ -83,6 +83,7 @@ DATA     := $(wildcard data/*.tsv)
 # alone on a core.
 SLOW_TESTS := $(wildcard tests/t4403-*.sh tests/t4400-*.sh tests/t3002-*.sh \
 	tests/t4101-*.sh tests/t3008-*.sh tests/t4102-*.sh tests/t3004-*.sh \
+	tests/t1330-*.sh \
 	tests/t4402-*.sh tests/t5001-*.sh tests/t3005-*.sh tests/t9003-*.sh \
 	tests/t3009-*.sh tests/t5100-*.sh tests/t3100-*.sh tests/t7100-*.sh \
 	tests/t3006-*.sh tests/t4200-*.sh tests/t9002-*.sh tests/t6001-*.sh)
@@ -126,6 +127,8 @@ $(B)/obj/psfbuild.o: $(B)/psf_src.h
 # level 2's chisq and dumo: one loop per resultant along a row, for the
 # vectoriser (src/ramp_stats.c)
 $(B)/obj/ramp_stats.o: ALL_CFLAGS += -O3
+# the scene's noise stages: a tile's element-wise loops, for the vectoriser
+$(B)/obj/noise.o: ALL_CFLAGS += -O3
 
 $(B)/data_tables.c: src/embed.sh $(DATA) | $(B)/obj
 	@echo "  EMBED   data/*.tsv"

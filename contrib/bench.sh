@@ -360,7 +360,8 @@ echo
 echo "## The same sky rows at level 2, and an empty exposure with all noise"
 echo
 echo "Level 2 of the 18 SCAs (MA table 4, the filter's average background; one"
-echo "run: it writes 6 GB; issue goal: 60 s wall, 2 GB peak):"
+echo "run: it writes 6 GB; issue goal: 60 s wall, 2 GB peak), in one pass and"
+echo "with --memory 2000 (two passes over the catalog, nine SCAs each):"
 echo "\`wfiscene --filter F158 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --level 2 --background avg --report r.json -o out.fits sky.csv\`."
 echo "An empty catalog on the 18 SCAs with every noise stage (median of 3; goal"
 echo "10 s wall): \`wfiscene --filter F129 --sca 1-18 --noise all --background avg --report r.json -o out.fits empty.csv\`."
@@ -374,6 +375,14 @@ set -- $(measure3 "'$WFS' --filter F158 --ra 10 --dec 20 --pointing-ref boresigh
 import json
 r = json.load(open('$W/rl2.json'))['seconds']
 print('| level 2, 10^7 sky rows | %.1f | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f |' % ($1, $2, $3 / 1024,
+      r['read_parse'], r['project_place'], r['render_busy'], r['noise'], r['write']))"
+rm -f "$W/o.fits"
+# the same in the memory of the goal: two groups of nine SCAs, two passes
+set -- $(measure3 "'$WFS' --filter F158 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --level 2 --background avg --memory 2000 --report '$W/rl2m.json' -o '$W/o.fits' '$W/sky.csv'")
+/usr/bin/python3 -c "
+import json
+r = json.load(open('$W/rl2m.json'))['seconds']
+print('| the same, --memory 2000 | %.1f | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f |' % ($1, $2, $3 / 1024,
       r['read_parse'], r['project_place'], r['render_busy'], r['noise'], r['write']))"
 rm -f "$W/o.fits" "$W/sky.csv"
 for k in 1 2 3; do
@@ -412,16 +421,26 @@ echo "\`starfield -n N -x -g -m 20 -M 28 | wfiscene --filter F129 --flux-unit ab
 echo "(the default exposure is 1 s, where the pixel noise is 12 counts/s and most"
 echo "of these galaxies are below it; at 1000 s it is 0.026)"
 echo
+echo "The bright and large mix (the last row): the same rows with AB uniform in"
+echo "20-27 and r_e log-uniform in 1-15 px (awk, \`srand(17)\`; mawk's numbers)."
+echo
 echo "| model | exposure s | galaxies | wall s | CPU s | galaxies/s | CPU ms/galaxy | peak MiB |"
 echo "|---|---|---|---|---|---|---|---|"
-for m in "quick 1 1000" "quick 1 10000" "quick 1 100000" "quick 1000 10000" "precise 1 300"; do
+for m in "quick 1 1000" "quick 1 10000" "quick 1 100000" "quick 1000 10000" "precise 1 300" \
+	 "quick 1 3000 bright"; do
 	set -- $m
-	meth=$1 exp=$2 n=$3
+	meth=$1 exp=$2 n=$3 mix=${4:-deep}
 	[ "$quick" = 1 ] && n=$((n / 5))
 	"$GEN" -n $n -x -g -m 20 -M 28 -s 13 > "$W/gal.csv"
+	if [ "$mix" = bright ]; then
+		awk -F, 'BEGIN { OFS = ","; srand(17) } NR == 1 { print; next }
+			{ $4 = sprintf("%.3f", 20 + 7 * rand()); $7 = sprintf("%.3f", exp(log(15) * rand())); print }' \
+			"$W/gal.csv" > "$W/galb.csv" && mv "$W/galb.csv" "$W/gal.csv"
+	fi
 	set -- $(measure3 "'$WFS' --filter F129 --flux-unit abmag --sersic $meth --exptime $exp -o '$W/o.fits' '$W/gal.csv'")
-	awk -v m=$meth -v e=$exp -v n=$n -v t=$1 -v c=$2 -v k=$3 'BEGIN {
-		printf "| sersic-%s | %s | %d | %.1f | %.1f | %.0f | %.2f | %.0f |\n", m, e, n, t, c, n / t, 1e3 * c / n, k / 1024 }'
+	awk -v m=$meth -v e=$exp -v n=$n -v t=$1 -v c=$2 -v k=$3 -v x=$mix 'BEGIN {
+		printf "| sersic-%s%s | %s | %d | %.1f | %.1f | %.0f | %.2f | %.0f |\n", m,
+			x == "bright" ? ", bright and large" : "", e, n, t, c, n / t, 1e3 * c / n, k / 1024 }'
 done
 rm -f "$W/gal.csv"
 rm -f "$W"/*.fits

@@ -134,6 +134,9 @@ static const struct wfs_setting point_settings[] = {
 	{ "psf-halo-far", "spikes", "spikes|disc",
 	  "beyond where the halo away from its spikes sinks below the drawing level, "
 	  "draw only the spikes, or the whole disc" },
+	{ "psf-halo-near", "1", "number >= 0",
+	  "psf-diffuse=grid: within the halo's array draw only the pixels that reach this "
+	  "times the drawing level, the rest spread on the diffuse grid (0: the whole disc)" },
 	{ "psf-diffuse", "grid", "grid|none",
 	  "psf-extent=noise: the light a source's drawing leaves out, spread on a coarse grid "
 	  "per SCA so every star keeps the halo's total, or left out" },
@@ -294,6 +297,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	    setting_number(host, "psf-halo-power", 2.5, 0, &p->halo_power) < 0 ||
 	    setting_number(host, "psf-halo-taper", 0, 0, &p->halo_taper) < 0 ||
 	    setting_choice(host, "psf-halo-far", far, 2, &p->halo_far) < 0 ||
+	    setting_number(host, "psf-halo-near", 0, 0, &p->halo_near) < 0 ||
 	    setting_choice(host, "psf-diffuse", diffuse, 2, &p->diffuse) < 0 ||
 	    setting_number(host, "psf-diffuse-cell", 8, 0, &dcell) < 0 ||
 	    setting_number(host, "psf-diffuse-floor", 0, 0, &p->diffuse_floor) < 0)
@@ -377,8 +381,10 @@ static void point_fini(void *state)
 			     "%lld sources with a halo", all.left, all.requested,
 			     100 * all.left / all.requested, all.spread, all.nhalo, all.npoint);
 	far_free(p);
-	for (int s = 0; s < SCA_SLOTS; s++)
+	for (int s = 0; s < SCA_SLOTS; s++) {
 		halo_free(&p->halo[s]);
+		near_free(&p->near[s]);
+	}
 	pthread_mutex_destroy(&p->lock);
 	free(p);
 }
@@ -426,13 +432,14 @@ static int point_reach(void *state, const struct wfs_source *src, double *pixels
 	struct point *p = state;
 	const struct halo *h;
 	double r;
+	int k;
 
 	*pixels = XBRIGHT_HALF;
 	if (p->extent == EXTENT_STIPS || !(src->flux > 0))
 		return 0;
 	if (!(h = halo_of(p, src)))
 		return -1;
-	r = far_radius(p, halo_radius(h, p->extent_noise * p->sigma / src->flux, p->extent_max)) + 1;
+	r = far_radius(p, halo_radius(h, halo_level(p, src->flux, &k), p->extent_max)) + 1;
 	if (r > *pixels)
 		*pixels = r;
 	return 0;

@@ -141,6 +141,28 @@ enum { HALO_FAR_SPIKES, HALO_FAR_DISC };
 #define HALO_PACK 65536.0
 enum { BLEND_SOURCE, BLEND_CELL, BLEND_CORE };
 enum { DIFFUSE_GRID, DIFFUSE_NONE };
+/* psf-halo-near=F: within the halo's array, the pixels a source draws are
+ * those whose value at any phase reaches F times its drawing level,
+ * rounded down to FAR_STEPS steps per octave (level step k:
+ * 2^(k / FAR_STEPS)) */
+#define FAR_STEPS 4
+#define NEAR_SEG 8              /* offsets of a row segment of the step map */
+
+/* The halo's array, pixel by pixel (point_halo.c, near_setup): for every
+ * pixel offset (dx, dy) from the pixel nearest a source within the
+ * array's disc, its step st[(dy + rc) side + dx + rc], floor(FAR_STEPS
+ * log2 vmax) of its largest value at any phase (INT16_MIN beyond the
+ * disc); smax[(dy + rc) nseg + s] the largest step of row segment s,
+ * offsets dx + rc in [s NEAR_SEG, (s + 1) NEAR_SEG).  under[k - kmin] is the light (phase 0) of the
+ * offsets within the disc and outside the box of half-width hb whose step
+ * is below k: what a source of level step k leaves to the diffuse grid
+ * there. */
+struct near {
+	int16_t *st, *smax;
+	int rc, side, nseg, hb;
+	int kmin, kmax;
+	double *under;          /* steps kmin to kmax + 1 */
+};
 
 /* One array, the whole window, straight into the tile: for each row j and
  * pixel i < nx,
@@ -199,6 +221,9 @@ struct core_args {
  * only logged). */
 struct far_dep {
 	int sca;
+	int k;                  /* psf-halo-near=level: the level step of light
+				 * left out of the halo's array (r = 0), else
+				 * INT_MIN */
 	double r, x, y, light;
 };
 
@@ -242,6 +267,7 @@ struct point {
 	double halo_power;      /* psf-halo-power: the tail's power */
 	double halo_taper;      /* psf-halo-taper: pixels */
 	int halo_far;           /* psf-halo-far: HALO_FAR_SPIKES or HALO_FAR_DISC */
+	double halo_near;       /* psf-halo-near: of the drawing level (0: off) */
 	int diffuse;            /* psf-diffuse: DIFFUSE_GRID or DIFFUSE_NONE */
 	int far_cell;           /* psf-diffuse-cell: side of a cell, pixels */
 	double diffuse_floor;   /* psf-diffuse-floor: of the drawing level */
@@ -256,6 +282,8 @@ struct point {
 	pthread_mutex_t lock;
 	struct halo halo[SCA_SLOTS]; /* per SCA, set up in prepare() */
 	_Atomic int halo_ready[SCA_SLOTS];
+	struct near near[SCA_SLOTS]; /* psf-halo-near=level, set up in prepare() */
+	_Atomic int near_ready[SCA_SLOTS];
 	double cfac[SCA_SLOTS][3]; /* per SCA and class: the core's scale */
 	int chalf[SCA_SLOTS][3]; /* and the box's half-width (core_scale) */
 	_Atomic int cfac_ready[SCA_SLOTS][3];
@@ -345,6 +373,10 @@ static inline double box_half_of(const struct wfs_source *src)
 /* psf-halo-far=spikes: beyond the radius where the halo away from its
  * spikes sinks below the level, only the spikes' strips are drawn */
 #define psf_spikes(p) ((p)->halo_far == HALO_FAR_SPIKES)
+/* psf-halo-near=F > 0 (with psf-diffuse=grid): within the halo's array
+ * only the pixels at or above F times the level are drawn, the rest
+ * spread on the grid */
+#define psf_near(p) ((p)->halo_near > 0 && (p)->diffuse == DIFFUSE_GRID)
 
 /* point_kernels.c: set p's inner loops, the AVX2 ones where the processor
  * has AVX2 and FMA and WFISCENE_NO_SIMD is unset (the plain loops give the
@@ -372,6 +404,9 @@ struct tally *tally_of(struct point *p);
 const struct halo *halo_of(struct point *p, const struct wfs_source *src);
 int noise_prepare(struct point *p, struct wfs_source *src);
 int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
+double halo_level(const struct point *p, double flux, int *k);
+const struct near *near_of(struct point *p, const struct wfs_source *src, int hb);
+void near_free(struct near *n);
 
 /* point_far.c: psf-diffuse=grid; far_deposit() adds light (counts/s) left
  * out of src beyond its box (r = 0) or beyond its radius r to its
@@ -380,6 +415,7 @@ int noise_render(struct point *p, const struct wfs_source *src, const struct wfs
 void far_geometry(struct point *p);
 double far_radius(const struct point *p, double r);
 int far_deposit(struct point *p, const struct wfs_source *src, double light, double r);
+int far_deposit_near(struct point *p, const struct wfs_source *src, double light, int k);
 int far_gather(void *state, void *thread, int sca);
 int far_spread(void *state, void *thread, int sca, const struct wfs_window *win);
 void far_free(struct point *p);

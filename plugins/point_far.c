@@ -38,6 +38,7 @@
  * into a grid per radius present, each convolved with its own K (the
  * box's K with the disc taken out), in order of radius.
  */
+#include <limits.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -50,7 +51,6 @@
 #define FAR_LO (1.0 / 1073741824.0)     /* counts/s per unit of the low one, 2^-30 */
 #define FAR_EXACT 3                     /* cells summed pixel by pixel, at least */
 #define FAR_MARGIN 96                   /* pixels of grid beyond each SCA edge */
-#define FAR_STEPS 4                     /* halo radii per octave */
 #define FAR_R0 22.0                     /* the ladder's first radius */
 #define FAR_COARSE 4                    /* coarse cells a side, in fine ones */
 #define FAR_NEAR 8                      /* coarse cells the fine kernel reaches */
@@ -172,6 +172,22 @@ static void far_cic(const struct point *p, double x, double y, size_t c[4], doub
 		c[k] = (size_t)(b + (k >> 1)) * n + a + (k & 1);
 }
 
+/* One more deposit in the thread's list. */
+static int dep_push(struct point *p, struct tally *t, struct far_dep d)
+{
+	if (t->ndep == t->capdep) {
+		size_t cap = t->capdep ? 2 * t->capdep : 256;
+		struct far_dep *nd = realloc(t->dep, cap * sizeof(*nd));
+
+		if (!nd)
+			return p->host->error(p->host->ctx, "out of memory");
+		t->dep = nd;
+		t->capdep = cap;
+	}
+	t->dep[t->ndep++] = d;
+	return 0;
+}
+
 int far_deposit(struct point *p, const struct wfs_source *src, double light, double r)
 {
 	struct tally *t = tally_of(p);
@@ -184,25 +200,28 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 	if (!(light > 0))
 		return 0;
 	t->spread += light;
-	if (r > 0) {
-		if (t->ndep == t->capdep) {
-			size_t cap = t->capdep ? 2 * t->capdep : 256;
-			struct far_dep *d = realloc(t->dep, cap * sizeof(*d));
-
-			if (!d)
-				return p->host->error(p->host->ctx, "out of memory");
-			t->dep = d;
-			t->capdep = cap;
-		}
-		t->dep[t->ndep++] = (struct far_dep){ sca, r, src->x, src->y, light };
-		return 0;
-	}
+	if (r > 0)
+		return dep_push(p, t, (struct far_dep){ sca, INT_MIN, r, src->x, src->y, light });
 	if (!t->cnt[sca] && !(t->cnt[sca] = calloc((size_t)3 * n * n, sizeof(int64_t))))
 		return p->host->error(p->host->ctx, "out of memory");
 	far_cic(p, src->x, src->y, c, w);
 	for (int k = 0; k < 4; k++)
 		far_add(t->cnt[sca], c[k], light * w[k]);
 	return 0;
+}
+
+/* psf-halo-near=level: light left out of the halo's array by a source of
+ * level step k, spread with the array's pixels below that step. */
+int far_deposit_near(struct point *p, const struct wfs_source *src, double light, int k)
+{
+	struct tally *t = tally_of(p);
+
+	if (!t)
+		return p->host->error(p->host->ctx, "out of memory");
+	if (!(light > 0))
+		return 0;
+	t->spread += light;
+	return dep_push(p, t, (struct far_dep){ src->sca, k, 0, src->x, src->y, light });
 }
 
 /* The model's value at pixel offset (dx, dy) outside the box of half-width
@@ -402,8 +421,11 @@ static void level_disc(const struct halo *h, const struct level *l, double r, do
 
 static int dep_cmp(const void *a, const void *b)
 {
-	double x = ((const struct far_dep *)a)->r, y = ((const struct far_dep *)b)->r;
+	const struct far_dep *u = a, *v = b;
+	double x = u->r, y = v->r;
 
+	if (u->k != v->k)
+		return (u->k > v->k) - (u->k < v->k);
 	return (x > y) - (x < y);
 }
 
@@ -501,6 +523,125 @@ static int level_spread(struct point *p, void *thread, const struct halo *h, str
 	return 0;
 }
 
+/* psf-halo-near=level's kernels: the light of the array's pixels (phase
+ * 0, within its disc, outside the box hb) per fine cell about a source at
+ * a cell's centre, one plane per step (hist, (2 pc + 1)^2 cells a plane);
+ * acc the planes below step next summed. */
+struct nearker {
+	double *hist, *acc;
+	int pc, next;
+};
+
+static int near_hist(const struct point *p, const struct halo *h, const struct near *n, double hb,
+		     struct nearker *nk)
+{
+	int s = p->far_cell, pc = (int)ceil((h->R + 1 + 0.5 * s) / s), side = 2 * pc + 1;
+	size_t plane = (size_t)side * side;
+
+	nk->pc = pc;
+	nk->next = n->kmin;
+	if (!(nk->hist = calloc((size_t)(n->kmax - n->kmin + 1) * plane, sizeof(double))) ||
+	    !(nk->acc = calloc(plane, sizeof(double))))
+		return -1;
+	for (int dy = -n->rc; dy <= n->rc; dy++)
+		for (int dx = -n->rc; dx <= n->rc; dx++) {
+			int st = n->st[(size_t)(dy + n->rc) * n->side + dx + n->rc];
+			long a, b;
+
+			if (st < n->kmin || (double)dx * dx + (double)dy * dy >= h->R * h->R ||
+			    (abs(dx) < hb && abs(dy) < hb))
+				continue;
+			a = lfloor((dx + 0.5 + 0.5 * s) / s);
+			b = lfloor((dy + 0.5 + 0.5 * s) / s);
+			nk->hist[(size_t)(st - n->kmin) * plane + (size_t)(b + pc) * side + a + pc] +=
+				halo_value(h, dx, dy);
+		}
+	return 0;
+}
+
+/* The light of the fine grid g spread with the array's pixels below step
+ * k, added to c. */
+static int near_spread(struct point *p, void *thread, struct work *w, const struct near *n,
+		       struct nearker *nk, int k, double *c)
+{
+	const struct level *f = &w->l[0];
+	int side = 2 * nk->pc + 1, H = f->H, kf = 2 * H + 1, nn = f->n;
+	size_t plane = (size_t)side * side, nc = (size_t)nn * nn;
+	double sum = 0, *t = w->g + nc;
+
+	for (; nk->next < k && nk->next <= n->kmax; nk->next++)
+		for (size_t i = 0; i < plane; i++)
+			nk->acc[i] += nk->hist[(size_t)(nk->next - n->kmin) * plane + i];
+	for (size_t i = 0; i < plane; i++)
+		sum += nk->acc[i];
+	if (!(sum > 0))
+		return 0;
+	memset(w->kern, 0, (size_t)kf * kf * sizeof(double));
+	for (int b = 0; b < side; b++)
+		for (int a = 0; a < side; a++)
+			w->kern[(size_t)(b - nk->pc + H) * kf + a - nk->pc + H] =
+				nk->acc[(size_t)b * side + a] / sum;
+	memcpy(t, w->g, nc * sizeof(double));
+	if (p->host->convolve(p->host->ctx, thread, t, nn, nn, w->kern, kf) < 0)
+		return -1;
+	for (size_t i = 0; i < nc; i++)
+		c[i] += t[i];
+	return 0;
+}
+
+/* The deposits dep (nd, sorted by step and radius) in groups of one step
+ * and radius, each group's grid spread with its own kernel into c. */
+static int spread_groups(struct point *p, void *thread, int sca, struct work *w,
+			 const struct far_dep *dep, size_t nd, int64_t *cnt, double *c)
+{
+	const struct halo *h = &p->halo[sca];
+	int n = p->far_n, rc = -1;
+	size_t nc = (size_t)n * n;
+	struct nearker nk = { 0 };
+
+	for (size_t i = 0; i < nd;) {
+		size_t j = i;
+		double r = dep[i].r, out;
+		int k = dep[i].k;
+
+		memset(cnt, 0, 3 * nc * sizeof(int64_t));
+		for (; j < nd && dep[j].r == r && dep[j].k == k; j++) {
+			size_t cc[4];
+			double wt[4];
+
+			far_cic(p, dep[j].x, dep[j].y, cc, wt);
+			for (int q = 0; q < 4; q++)
+				far_add(cnt, cc[q], dep[j].light * wt[q]);
+		}
+		for (size_t q = 0; q < nc; q++)
+			w->g[q] = far_light(cnt, q);
+		i = j;
+		if (k != INT_MIN) {
+			const struct near *nr = &p->near[sca];
+
+			if (!atomic_load(&p->near_ready[sca]) ||
+			    (!nk.hist && near_hist(p, h, nr, w->hb, &nk) < 0)) {
+				p->host->error(p->host->ctx, "out of memory for the diffuse light");
+				goto out;
+			}
+			if (near_spread(p, thread, w, nr, &nk, k, c) < 0)
+				goto out;
+			continue;
+		}
+		if (!((out = light_beyond(h, w->hb, w->outbox, r)) > 0)) {
+			p->host->error(p->host->ctx, "the halo holds no light beyond %g pixels", r);
+			goto out;
+		}
+		if (level_spread(p, thread, h, w, r, out, c) < 0)
+			goto out;
+	}
+	rc = 0;
+out:
+	free(nk.hist);
+	free(nk.acc);
+	return rc;
+}
+
 int far_gather(void *state, void *thread, int sca)
 {
 	struct point *p = state;
@@ -558,30 +699,9 @@ int far_gather(void *state, void *thread, int sca)
 		if (level_spread(p, thread, h, &w, 0, w.outbox, c) < 0)
 			goto out;
 	}
-	/* each radius's grid, in order of radius */
-	for (size_t i = 0; i < nd;) {
-		size_t j = i;
-		double r = dep[i].r, out;
-
-		memset(cnt, 0, 3 * nc * sizeof(int64_t));
-		for (; j < nd && dep[j].r == r; j++) {
-			size_t cc[4];
-			double wt[4];
-
-			far_cic(p, dep[j].x, dep[j].y, cc, wt);
-			for (int k = 0; k < 4; k++)
-				far_add(cnt, cc[k], dep[j].light * wt[k]);
-		}
-		for (size_t k = 0; k < nc; k++)
-			w.g[k] = far_light(cnt, k);
-		if (!((out = light_beyond(h, w.hb, w.outbox, r)) > 0)) {
-			p->host->error(p->host->ctx, "the halo holds no light beyond %g pixels", r);
-			goto out;
-		}
-		if (level_spread(p, thread, h, &w, r, out, c) < 0)
-			goto out;
-		i = j;
-	}
+	/* each radius's grid, in order of radius, then each level step's */
+	if (nd && spread_groups(p, thread, sca, &w, dep, nd, cnt, c) < 0)
+		goto out;
 	/* light per pixel at the cells' centres; nought where it is below
 	 * both psf-diffuse-floor times the drawing level and FAR_REL of the
 	 * SCA's diffuse light in the cell, so that a tile whose cells are all

@@ -4,6 +4,7 @@
  * (point_epsf.c) scaled to the halo's light in it and the halo model of
  * halo.h drawn over the rest of that disc.
  */
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -87,6 +88,175 @@ static double core_scale(struct point *p, const struct wfs_source *src, const st
 	return p->cfac[src->sca][src->psf_class];
 }
 
+/* The drawing level of a source of flux fl, over its flux: psf-extent-noise
+ * of the noise; with psf-halo-near=F, F times that rounded down to a level
+ * step, *k (else INT_MIN). */
+double halo_level(const struct point *p, double fl, int *k)
+{
+	double lev = p->extent_noise * p->sigma / fl;
+
+	*k = INT_MIN;
+	if (!psf_near(p) || !(lev > 0) || !isfinite(lev))
+		return lev;
+	*k = (int)floor(FAR_STEPS * log2(p->halo_near * lev));
+	return exp2((double)*k / FAR_STEPS);
+}
+
+/* The largest value of pixel offset (dx, dy) from the pixel nearest a
+ * source at any phase (|phase| <= 1/2): the samples its bilinear read may
+ * take, and in the hand-over to the tail the tail at its corners. */
+static double near_vmax(const struct halo *h, int dx, int dy)
+{
+	int o = h->over, hw = (o + 1) / 2;
+	double v = 0, d = sqrt((double)dx * dx + (double)dy * dy);
+
+	for (int j = -hw; j <= hw; j++)
+		for (int i = -hw; i <= hw; i++) {
+			long u = h->c + (long)o * dx + i, w = h->c + (long)o * dy + j;
+
+			if (u >= 0 && w >= 0 && u < h->n && w < h->n && h->a[w * h->n + u] * h->s > v)
+				v = h->a[w * h->n + u] * h->s;
+		}
+	if (d + 0.75 > h->R - h->taper)
+		for (int c = 0; c < 5; c++) {
+			double t = halo_tail(h, dx + (c < 4 ? (c & 1) - 0.5 : 0),
+					     dy + (c < 4 ? (c >> 1) - 0.5 : 0));
+
+			v = t > v ? t : v;
+		}
+	return v;
+}
+
+/* Set up n from halo h and the box half-width hb: 0, or -1 when out of
+ * memory. */
+static int near_setup(struct near *n, const struct halo *h, int hb)
+{
+	int rc = (int)ceil(h->R) + 1, side = 2 * rc + 1;
+	double *bin = NULL;
+
+	n->rc = rc;
+	n->side = side;
+	n->nseg = (side + NEAR_SEG - 1) / NEAR_SEG;
+	n->hb = hb;
+	n->kmin = INT_MAX;
+	n->kmax = INT_MIN;
+	if (!(n->st = malloc((size_t)side * side * sizeof(*n->st))) ||
+	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))))
+		return -1;
+	for (int b = 0; b < side * n->nseg; b++)
+		n->smax[b] = INT16_MIN;
+	for (int dy = -rc; dy <= rc; dy++)
+		for (int dx = -rc; dx <= rc; dx++) {
+			double vm = 0, d = sqrt((double)dx * dx + (double)dy * dy);
+			int st = INT16_MIN, b = (dy + rc) * n->nseg + (dx + rc) / NEAR_SEG;
+
+			if (d < h->R + 1 && (vm = near_vmax(h, dx, dy)) > 0) {
+				st = (int)floor(FAR_STEPS * log2(vm));
+				st = st <= INT16_MIN ? INT16_MIN + 1 : st;
+				n->kmin = st < n->kmin ? st : n->kmin;
+				n->kmax = st > n->kmax ? st : n->kmax;
+			}
+			n->st[(size_t)(dy + rc) * side + dx + rc] = (int16_t)st;
+			n->smax[b] = (int16_t)(st > n->smax[b] ? st : n->smax[b]);
+		}
+	if (n->kmin > n->kmax)
+		n->kmin = n->kmax = 0;
+	if (!(n->under = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))) ||
+	    !(bin = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))))
+		return -1;
+	/* the light of each step's offsets within the disc outside the box */
+	for (int dy = -rc; dy <= rc; dy++)
+		for (int dx = -rc; dx <= rc; dx++) {
+			int st = n->st[(size_t)(dy + rc) * side + dx + rc];
+
+			if (st >= n->kmin && (double)dx * dx + (double)dy * dy < h->R * h->R &&
+			    (abs(dx) >= hb || abs(dy) >= hb))
+				bin[st - n->kmin] += halo_value(h, dx, dy);
+		}
+	for (int k = 1; k <= n->kmax - n->kmin + 1; k++)
+		n->under[k] = n->under[k - 1] + bin[k - 1];
+	free(bin);
+	return 0;
+}
+
+void near_free(struct near *n)
+{
+	free(n->st);
+	free(n->smax);
+	free(n->under);
+	memset(n, 0, sizeof(*n));
+}
+
+/* The light (over the flux) a source of level step k leaves to the grid
+ * within the array's disc. */
+static double near_under(const struct near *n, int k)
+{
+	if (k <= n->kmin)
+		return 0;
+	return n->under[(k > n->kmax + 1 ? n->kmax + 1 : k) - n->kmin];
+}
+
+/* SCA sca's lists, set up on first use under the lock (the box: hb). */
+const struct near *near_of(struct point *p, const struct wfs_source *src, int hb)
+{
+	struct near *n = &p->near[src->sca];
+	int ok = 1;
+
+	if (atomic_load_explicit(&p->near_ready[src->sca], memory_order_acquire))
+		return n;
+	pthread_mutex_lock(&p->lock);
+	if (!atomic_load_explicit(&p->near_ready[src->sca], memory_order_relaxed)) {
+		if ((ok = near_setup(n, &p->halo[src->sca], hb) == 0))
+			atomic_store_explicit(&p->near_ready[src->sca], 1, memory_order_release);
+		else
+			near_free(n);
+	}
+	pthread_mutex_unlock(&p->lock);
+	if (!ok) {
+		p->host->error(p->host->ctx, "out of memory for the halo's pixel lists");
+		return NULL;
+	}
+	return n;
+}
+
+/* The light a source with a halo of radius r leaves out, of level lev
+ * (step k): the light beyond r and, beyond the base radius, the light away
+ * from the spikes; with psf-halo-near=level, within the array's disc the
+ * light of the pixels below the level, and beyond the disc what the
+ * drawing there leaves out.  With psf-diffuse=grid spread once per tile
+ * (point_far.c), the baseline with the wing beyond the base radius. */
+static int halo_left(struct point *p, const struct wfs_source *src, const struct halo *h,
+		     double r, double lev, int k, struct tally *t)
+{
+	double fl = src->flux, base = 0, rb = r, left, under = 0;
+	const struct near *n = NULL;
+
+	if (k != INT_MIN) {
+		struct wfs_source ns = *src;
+
+		/* the lists leave out the normal class's box, as the grid does */
+		ns.psf_class = WFS_PSF_NORMAL;
+		if (core_scale(p, &ns, h) < 0 || !(n = near_of(p, src, p->chalf[src->sca][WFS_PSF_NORMAL])))
+			return -1;
+		under = fl * near_under(n, k);
+		if (r < h->R)
+			r = h->R;       /* beyond the disc, all left out */
+	}
+	left = fl * halo_beyond(h, r);
+	if (psf_spikes(p) && r > h->R) {
+		rb = halo_base_radius(h, lev, r);
+		base = fl * halo_base_between(h, rb, r);
+	}
+	t->left += left + base + under;
+	if (p->diffuse != DIFFUSE_GRID)
+		return 0;
+	if (far_deposit(p, src, left, r) < 0 ||
+	    (base > 0 && far_deposit(p, src, base, far_radius(p, rb)) < 0) ||
+	    (under > 0 && far_deposit_near(p, src, under, k) < 0))
+		return -1;
+	return 0;
+}
+
 /*
  * prepare(), psf-extent=noise: the radius r beyond which the source's model
  * stays below psf-extent-noise of the noise per pixel (the halo's
@@ -100,13 +270,14 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	const struct halo *h;
 	struct wfs_source fs;
 	struct tally *t;
-	double r, half, c, cap, fl = src->flux, drawn = 0, left;
+	double r, half, c, cap, fl = src->flux, drawn = 0, left, lev;
 	struct zone box;
-	int faint, cut;
+	int faint, cut, k = INT_MIN;
 
 	if (!(h = halo_of(p, src)) || (c = core_scale(p, src, h)) < 0)
 		return -1;
-	r = fl > 0 ? halo_radius(h, p->extent_noise * p->sigma / fl, p->extent_max) : 1;
+	lev = fl > 0 ? halo_level(p, fl, &k) : 0;
+	r = fl > 0 ? halo_radius(h, lev, p->extent_max) : 1;
 	if (r < 1)
 		r = 1;
 	fs = *src;
@@ -121,7 +292,9 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	 * once the envelope there reaches half the level.  Only a source with
 	 * no halo may have its box cut by psf-extent-cut, which puts the
 	 * light beyond the cut back into the box. */
-	faint = r <= cap && fl * halo_envelope(h, cap - 1) < 0.5 * p->extent_noise * p->sigma;
+	faint = r <= cap && (k == INT_MIN ? fl * halo_envelope(h, cap - 1) <
+				       0.5 * p->extent_noise * p->sigma :
+				       halo_envelope(h, cap - 1) < 0.5 * lev);
 	/* A box the SCA's edge crosses is not cut: the light put back would
 	 * land on the SCA where the whole box's would partly fall off it */
 	box = square(src->x, src->y, cap);
@@ -141,27 +314,8 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	t->requested += fabs(fl);
 	t->npoint++;
 	t->nhalo += r > 0;
-	/* The light left out: a faint source's, the model's total less what
-	 * its box places (a cut box places the light of the box before the
-	 * cut); a source with a halo, the light beyond its radius and,
-	 * beyond the base radius, the light away from the spikes */
-	if (r > 0) {
-		double base = 0, rb = r;
-
-		left = fl * halo_beyond(h, r);
-		if (psf_spikes(p)) {
-			rb = halo_base_radius(h, p->extent_noise * p->sigma / fl, r);
-			base = fl * halo_base_between(h, rb, r);
-		}
-		t->left += left + base;
-		/* psf-diffuse=grid: spread once per tile (point_far.c), the
-		 * baseline with the wing beyond the base radius */
-		if (p->diffuse == DIFFUSE_GRID &&
-		    (far_deposit(p, src, left, r) < 0 ||
-		     (base > 0 && far_deposit(p, src, base, far_radius(p, rb)) < 0)))
-			return -1;
-		return 0;
-	}
+	if (r > 0)
+		return halo_left(p, src, h, r, lev, k, t);
 	left = fl * h->total - drawn;
 	t->left += left;
 	/* a source whose box misses the SCA is dropped by the host, its
@@ -236,21 +390,22 @@ static void spike_render(const struct halo *h, double flux, double x, double y, 
 }
 
 /*
- * The halo of a source: every pixel of the window within radius r of it and
- * outside its box (the zone box), flux times the halo model.  Inside the
+ * The halo of a source: every pixel of the window within radius r of it,
+ * outside its box (the zone box) and not within rs, flux times the halo
+ * model.  Inside the
  * array's disc less the taper, the bilinear read with one set of weights
  * for the source (its pixels share one sub-sample phase); elsewhere
  * halo_value().
  */
 static void halo_render(const struct halo *h, double flux, double x, double y, double r,
-			struct zone box, const struct wfs_window *win)
+			double rs, struct zone box, const struct wfs_window *win)
 {
 	double ux = h->c + h->over * (win->x0 - x), uy = h->c + h->over * (win->y0 - y);
 	long iu = (long)floor(ux), iv = (long)floor(uy);
 	double fu = ux - iu, fv = uy - iv;
 	double w00 = flux * h->s * (1 - fu) * (1 - fv), w10 = flux * h->s * fu * (1 - fv);
 	double w01 = flux * h->s * (1 - fu) * fv, w11 = flux * h->s * fu * fv;
-	double rin = h->R - h->taper, rin2 = rin * rin, r2 = r * r, R2 = h->R * h->R;
+	double rin = h->R - h->taper, rin2 = rin * rin, r2 = r * r, R2 = h->R * h->R, rs2 = rs * rs;
 	long n = h->n, o = h->over;
 
 	for (int j = 0; j < win->ny; j++) {
@@ -277,6 +432,12 @@ static void halo_render(const struct halo *h, double flux, double x, double y, d
 				i = (int)(box.x1 - win->x0) - 1;
 				continue;
 			}
+			if (d2 < rs2) { /* within rs: drawn by near_render */
+				int e = (int)(ceil(x + sqrt(rs2 - dy2)) - win->x0) - 1;
+
+				i = e > i ? e : i;
+				continue;
+			}
 			if (d2 < rin2) {
 				const float *q = h->a + (iv + o * j) * n + iu + o * i;
 
@@ -286,6 +447,119 @@ static void halo_render(const struct halo *h, double flux, double x, double y, d
 			else
 				row[i] += flux * halo_value(h, dx, dy);
 		}
+	}
+}
+
+/* near_render's pixels i0 + dx of window row `row` for dx in [a, b],
+ * those whose step (st, indexed by dx) reaches k. */
+struct near_row {
+	const struct halo *h;
+	double flux, x, dy, rin2, w[4];
+	long i0, iu, iv;            /* iv: the row's first sample row */
+};
+
+static inline void near_run(const struct near_row *q, const int16_t *st, int k, long a, long b,
+		     double *row)
+{
+	const struct halo *h = q->h;
+	long o = h->over, n = h->n;
+	double xa = q->i0 + a - q->x, xb = q->i0 + b - q->x;
+
+	if (xa * xa + q->dy * q->dy < q->rin2 && xb * xb + q->dy * q->dy < q->rin2) {
+		/* all within the array's plain part: bilinear reads */
+		const float *s0 = h->a + q->iv * n + q->iu;
+
+		for (long dx = a; dx <= b; dx++) {
+			const float *s = s0 + o * dx;
+			double v = q->w[0] * s[0] + q->w[1] * s[1] + q->w[2] * s[n] + q->w[3] * s[n + 1];
+
+			row[dx] += st[dx] >= k ? v : 0;
+		}
+		return;
+	}
+	for (long dx = a; dx <= b; dx++) {
+		double ex = q->i0 + dx - q->x, d2 = ex * ex + q->dy * q->dy;
+
+		if (st[dx] < k)
+			continue;
+		if (d2 < q->rin2) {
+			const float *s = h->a + q->iv * n + q->iu + o * dx;
+
+			row[dx] += q->w[0] * s[0] + q->w[1] * s[1] + q->w[2] * s[n] + q->w[3] * s[n + 1];
+		} else
+			row[dx] += q->flux * halo_value(h, ex, q->dy);
+	}
+}
+
+/*
+ * psf-halo-near=level: the pixels of the window within the array's disc
+ * and radius r of the source, outside its box, whose step reaches k (the
+ * step map of near_setup, row by row, skipping the segments none of
+ * whose pixels reach k), flux times the halo model; the bilinear weights from
+ * the pixel nearest the source, so that they do not depend on the window.
+ */
+SIMD_CLONES("avx2,fma", "default")
+static void near_render(const struct halo *h, const struct near *n, double flux, double x,
+			double y, double r, int k, struct zone box, const struct wfs_window *win)
+{
+	long i0 = lfloor(x + 0.5), j0 = lfloor(y + 0.5), o = h->over;
+	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
+	struct near_row q = { h, flux, x, 0, (h->R - h->taper) * (h->R - h->taper), { 0 }, i0, 0, 0 };
+
+	q.iu = lfloor(ux);
+	fu = ux - q.iu;
+	q.iv = lfloor(uy);
+	fv = uy - q.iv;
+	q.w[0] = flux * h->s * (1 - fu) * (1 - fv);
+	q.w[1] = flux * h->s * fu * (1 - fv);
+	q.w[2] = flux * h->s * (1 - fu) * fv;
+	q.w[3] = flux * h->s * fu * fv;
+	rm2 = r < h->R ? r * r : h->R * h->R;
+	for (int j = 0; j < win->ny; j++) {
+		long jj = win->y0 + j, dyo = jj - j0, lo, hi, cut[4];
+		double dy = jj - y, span;
+		const int16_t *st, *sm;
+		int nc = 0;
+
+		if (labs(dyo) > n->rc || dy * dy >= rm2)
+			continue;
+		q.dy = dy;
+		span = sqrt(rm2 - dy * dy);
+		/* the chord (d2 < rm2, within n->rc) in offsets from i0 */
+		lo = lfloor(x - span) + 1 - i0;
+		hi = lceil(x + span) - 1 - i0;
+		lo = lo < -n->rc ? -n->rc : lo;
+		hi = hi > n->rc ? n->rc : hi;
+		lo = lo < win->x0 - i0 ? win->x0 - i0 : lo;
+		hi = hi > win->x0 + win->nx - 1 - i0 ? win->x0 + win->nx - 1 - i0 : hi;
+		if (lo > hi)
+			continue;
+		cut[nc++] = lo;
+		if (jj >= box.y0 && jj < box.y1 && box.x1 - 1 - i0 >= lo && box.x0 - i0 <= hi) {
+			if (box.x0 - i0 - 1 >= lo)
+				cut[nc++] = box.x0 - i0 - 1;
+			else
+				nc = 0;
+			cut[nc++] = box.x1 - i0;
+		}
+		cut[nc++] = hi;
+		st = n->st + (size_t)(dyo + n->rc) * n->side + n->rc;
+		sm = n->smax + (size_t)(dyo + n->rc) * n->nseg;
+		q.iv = lfloor(uy) + o * dyo;
+		for (int c = 0; c + 1 < nc; c += 2)
+			for (long a = cut[c]; a <= cut[c + 1];) {
+				/* the run of segments from a's that reach k */
+				long g = (a + n->rc) / NEAR_SEG, e = a - 1;
+
+				while (e < cut[c + 1] && sm[g] >= k)
+					e = (++g) * NEAR_SEG - 1 - n->rc;
+				e = e < cut[c + 1] ? e : cut[c + 1];
+				if (e >= a)
+					near_run(&q, st, k, a, e, win->pix + j * win->stride + i0 - win->x0);
+				else    /* a's segment does not: past it */
+					e = (g + 1) * NEAR_SEG - 1 - n->rc;
+				a = e + 1;
+			}
 	}
 }
 
@@ -318,10 +592,16 @@ int noise_render(struct point *p, const struct wfs_source *src, const struct wfs
 	}
 	if (r > 0) {
 		const struct halo *h = &p->halo[src->sca];
-		double lev = p->extent_noise * p->sigma / src->flux;
+		int k;
+		double lev = halo_level(p, src->flux, &k), rs = 0;
 		double rb = psf_spikes(p) ? halo_base_radius(h, lev, r) : r;
 
-		halo_render(h, src->flux, src->x, src->y, rb < r ? rb : r, box, win);
+		if (k != INT_MIN) {
+			near_render(h, &p->near[src->sca], src->flux, src->x, src->y, r, k, box, win);
+			rs = h->R;
+		}
+		if (r > rs)
+			halo_render(h, src->flux, src->x, src->y, rb < r ? rb : r, rs, box, win);
 		if (rb < r)
 			spike_render(h, src->flux, src->x, src->y, rb, r, lev, win);
 	}

@@ -41,6 +41,8 @@
 #define QUICK_MOMENT_CUT 0.1
 #define QUICK_CENTRE_CUT 0.01
 #define QUICK_GAUSS 6
+/* The most points of one cell's rule (quick_midpoint, quick_gauss). */
+#define QUICK_PTS (QUICK_NMAX * QUICK_NMAX)
 /* The largest ePSF half-width psf_rings handles (a 4x-sampled ePSF of
  * 181 samples has 22). */
 #define PSF_HMAX 256
@@ -162,20 +164,108 @@ static double gauss_tmax(int n)
 	return pow(QUICK_STEP * QUICK_STEP / (24 * c), 1.0 / (2 * n));
 }
 
+/* p = b rho^(1/n) and I = exp(lni0 - p) at n points from rho^2 (vmath.h's
+ * exp and log: the same bytes in the vector code and the plain), inlined
+ * into a plain copy and one built for AVX2 and FMA. */
+static inline __attribute__((always_inline)) void
+quick_profile_loop(int n, const double *restrict r2, double b, double h, double lni0,
+		   double *restrict p, double *restrict in)
+{
+	for (int j = 0; j < n; j++) {
+		p[j] = b * vm_exp(h * vm_log(r2[j]));
+		in[j] = vm_exp(lni0 - p[j]);
+	}
+}
+
+static void quick_profile_plain(int n, const double *restrict r2, double b, double h,
+				double lni0, double *restrict p, double *restrict in)
+{
+	quick_profile_loop(n, r2, b, h, lni0, p, in);
+}
+
+#ifdef SIMD_X86
+__attribute__((target("avx2,fma"))) static void
+quick_profile_avx2(int n, const double *restrict r2, double b, double h, double lni0,
+		   double *restrict p, double *restrict in)
+{
+	quick_profile_loop(n, r2, b, h, lni0, p, in);
+}
+#endif
+
+static void (*quick_profile)(int n, const double *restrict r2, double b, double h, double lni0,
+			     double *restrict p, double *restrict in) = quick_profile_plain;
+
+/* The profile (sersic_sb) at np points (dx[k], dy[k]) into v[k], those
+ * inside the truncation and off the centre at once through quick_profile
+ * (vmath.h's exp and log, in vector code where the CPU has it) when there
+ * are at least four of them. */
+static void quick_sb_points(const struct sersic_gal *g, int np, double *dx, double *dy, double *v)
+{
+	double r2[QUICK_PTS], pw[QUICK_PTS], in[QUICK_PTS];
+	int at[QUICK_PTS], nf = 0;
+
+	for (int k = 0; k < np; k++) {
+		double r = sersic_rho2(g, dx[k], dy[k]);
+
+		if (r >= g->rho_t2) {
+			v[k] = 0;
+		} else if (r <= 0) {
+			v[k] = exp(g->lni0);
+		} else {
+			r2[nf] = r;
+			at[nf++] = k;
+		}
+	}
+	if (nf < 4) {
+		/* fewer than a vector's four: libm's, cheaper one by one */
+		for (int j = 0; j < nf; j++)
+			v[at[j]] = exp(g->lni0 - g->b * exp(0.5 * g->inv_n * log(r2[j])));
+		return;
+	}
+	quick_profile(nf, r2, g->b, 0.5 * g->inv_n, g->lni0, pw, in);
+	for (int j = 0; j < nf; j++)
+		v[at[j]] = in[j];
+}
+
 static double quick_gauss(const struct sersic_gal *g, double x0, double x1, double y0,
 			  double y1, int n)
 {
 	double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), wx = x1 - x0, wy = y1 - y0, s = 0;
 	const double *nx = gauss_x[n - 1], *nw = gauss_w[n - 1];
+	double dx[QUICK_GAUSS * QUICK_GAUSS], dy[QUICK_GAUSS * QUICK_GAUSS], v[QUICK_GAUSS * QUICK_GAUSS];
 
+	for (int j = 0; j < n; j++)
+		for (int i = 0; i < n; i++) {
+			dx[j * n + i] = cx + wx * nx[i];
+			dy[j * n + i] = cy + wy * nx[j];
+		}
+	quick_sb_points(g, n * n, dx, dy, v);
 	for (int j = 0; j < n; j++) {
-		double y = cy + wy * nx[j], r = 0;
+		double r = 0;
 
 		for (int i = 0; i < n; i++)
-			r += nw[i] * sersic_sb(g, cx + wx * nx[i], y);
+			r += nw[i] * v[j * n + i];
 		s += nw[j] * r;
 	}
 	return s * wx * wy;
+}
+
+/* sersic_midpoint's rule, its points through quick_sb_points. */
+static double quick_midpoint(const struct sersic_gal *g, double x0, double x1, double y0,
+			     double y1, int n)
+{
+	double sx = (x1 - x0) / n, sy = (y1 - y0) / n, s = 0;
+	double dx[QUICK_PTS], dy[QUICK_PTS], v[QUICK_PTS];
+
+	for (int j = 0; j < n; j++)
+		for (int i = 0; i < n; i++) {
+			dx[j * n + i] = x0 + (i + 0.5) * sx;
+			dy[j * n + i] = y0 + (j + 0.5) * sy;
+		}
+	quick_sb_points(g, n * n, dx, dy, v);
+	for (int k = 0; k < n * n; k++)
+		s += v[k];
+	return s * sx * sy;
 }
 
 /* The length scale of the cell at a lower bound on rho, the cell's
@@ -212,7 +302,7 @@ static double quick_points(const struct sersic_gal *g, const struct quick *p, do
 		return quick_gauss(g, x0, x1, y0, y1, k);
 	}
 	double n = ceil(t / QUICK_STEP);
-	return sersic_midpoint(g, x0, x1, y0, y1, n < 1 ? 1 : n > QUICK_NMAX ? QUICK_NMAX : (int)n);
+	return quick_midpoint(g, x0, x1, y0, y1, n < 1 ? 1 : n > QUICK_NMAX ? QUICK_NMAX : (int)n);
 }
 
 /*
@@ -348,37 +438,6 @@ static void quick_stamp_setup(struct sersic_gal *g, const void *opt)
 	g->method_lo2 = lo * lo;
 	g->method_hi2 = hi * hi;
 }
-
-/* p = b rho^(1/n) and I = exp(lni0 - p) at n points from rho^2 (vmath.h's
- * exp and log: the same bytes in the vector code and the plain), inlined
- * into a plain copy and one built for AVX2 and FMA. */
-static inline __attribute__((always_inline)) void
-quick_profile_loop(int n, const double *restrict r2, double b, double h, double lni0,
-		   double *restrict p, double *restrict in)
-{
-	for (int j = 0; j < n; j++) {
-		p[j] = b * vm_exp(h * vm_log(r2[j]));
-		in[j] = vm_exp(lni0 - p[j]);
-	}
-}
-
-static void quick_profile_plain(int n, const double *restrict r2, double b, double h,
-				double lni0, double *restrict p, double *restrict in)
-{
-	quick_profile_loop(n, r2, b, h, lni0, p, in);
-}
-
-#ifdef SIMD_X86
-__attribute__((target("avx2,fma"))) static void
-quick_profile_avx2(int n, const double *restrict r2, double b, double h, double lni0,
-		   double *restrict p, double *restrict in)
-{
-	quick_profile_loop(n, r2, b, h, lni0, p, in);
-}
-#endif
-
-static void (*quick_profile)(int n, const double *restrict r2, double b, double h, double lni0,
-			     double *restrict p, double *restrict in) = quick_profile_plain;
 
 /* The pixels of a row taken at once, in pieces of QUICK_RUN. */
 #define QUICK_RUN 64

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "sersic.h"
+#include "../src/simd.h"
 
 /* The ePSF samples at the galaxy: blend of four nodes at sample (ix, iy),
  * zero outside the array. */
@@ -47,6 +48,27 @@ static void sersic_keys(double t, double w[4])
  * over the samples [lo_x, hi_x] x [lo_y, hi_y] (and the blend's taps
  * around them): the rest of ep is left as it was.
  */
+/* eb[k] for k in [k0, k1): the four nodes blended (sersic_phase_epsf). */
+SIMD_CLONES("avx512f", "avx2", "default")
+static void sersic_blend_run(const struct wfs_epsf *e, double *restrict eb, size_t k0, size_t k1)
+{
+	const float *n0 = e->node[0], *n1 = e->node[1], *n2 = e->node[2], *n3 = e->node[3];
+	double w0 = e->weight[0], w1 = e->weight[1], w2 = e->weight[2], w3 = e->weight[3];
+
+	for (size_t k = k0; k < k1; k++)
+		eb[k] = w0 * n0[k] + w1 * n1[k] + w2 * n2[k] + w3 * n3[k];
+}
+
+/* ep[k] for k in [k0, k1) of one row, bilinear between the samples
+ * (sersic_phase_epsf), all four taps inside the array. */
+SIMD_CLONES("avx512f", "avx2", "default")
+static void sersic_bilinear_run(const double *restrict eb, double *restrict ep, size_t k0, size_t k1,
+				int n, double b00, double b01, double b10, double b11)
+{
+	for (size_t k = k0; k < k1; k++)
+		ep[k] = b00 * eb[k] + b01 * eb[k + 1] + b10 * eb[k + n] + b11 * eb[k + n + 1];
+}
+
 static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, double core,
 			      double *eb, double *ep, int lo_x, int hi_x, int lo_y, int hi_y)
 {
@@ -64,30 +86,44 @@ static void sersic_phase_epsf(const struct wfs_epsf *e, double phx, double phy, 
 	int bx0 = lo_x > 0 ? lo_x - 1 : 0, bx1 = hi_x + 2 < n ? hi_x + 2 : n - 1;
 	int by0 = lo_y > 0 ? lo_y - 1 : 0, by1 = hi_y + 2 < n ? hi_y + 2 : n - 1;
 	for (int ky = by0; ky <= by1; ky++)
-		for (int kx = bx0; kx <= bx1; kx++) {
-			size_t k = (size_t)ky * n + kx;
-			eb[k] = e->weight[0] * e->node[0][k] + e->weight[1] * e->node[1][k]
-				+ e->weight[2] * e->node[2][k] + e->weight[3] * e->node[3][k];
-		}
+		sersic_blend_run(e, eb, (size_t)ky * n + bx0, (size_t)ky * n + bx1 + 1);
 	sersic_keys(phx, wx);
 	sersic_keys(phy, wy);
 	double b00 = (1 - phx) * (1 - phy), b01 = phx * (1 - phy), b10 = (1 - phx) * phy, b11 = phx * phy;
+	/* the samples bilinear with all four taps inside: kx + 1 < n */
+	int bl1 = hi_x < n - 2 ? hi_x : n - 2;
 	for (int ky = lo_y; ky <= hi_y; ky++) {
 		double dy = (ky + phy - e->centre) / e->over;
-		for (int kx = lo_x; kx <= hi_x; kx++) {
+		int keys_row = fabs(dy) < core && ky >= 1 && ky + 2 < n;
+
+		int inner = ky + 1 < n && lo_x <= bl1;
+
+		if (inner)
+			sersic_bilinear_run(eb, ep, (size_t)ky * n + lo_x, (size_t)ky * n + bl1 + 1, n,
+					    b00, b01, b10, b11);
+		/* Keys' cubic within core of the centre: a window of samples
+		 * about it, each tested as before */
+		int ka = (int)floor(e->centre - phx - core * e->over) - 1;
+		int kb = (int)ceil(e->centre - phx + core * e->over) + 1;
+		ka = ka > lo_x ? ka : lo_x;
+		kb = kb < hi_x ? kb : hi_x;
+		for (int kx = ka; keys_row && kx <= kb; kx++) {
 			double dx = (kx + phx - e->centre) / e->over, v = 0;
-			const double *r0 = eb + (size_t)ky * n + kx;
-			if (fabs(dx) < core && fabs(dy) < core && kx >= 1 && ky >= 1 && kx + 2 < n &&
-			    ky + 2 < n) {
-				const double *r = r0 - n - 1;
-				for (int bb = 0; bb < 4; bb++, r += n)
-					v += wy[bb] * (wx[0] * r[0] + wx[1] * r[1] + wx[2] * r[2] + wx[3] * r[3]);
-			} else {
-				int xin = kx + 1 < n, yin = ky + 1 < n;
-				v = b00 * r0[0] + (xin ? b01 * r0[1] : 0) + (yin ? b10 * r0[n] : 0)
-				    + (xin && yin ? b11 * r0[n + 1] : 0);
-			}
+			const double *r = eb + (size_t)ky * n + kx - n - 1;
+
+			if (!(fabs(dx) < core && kx >= 1 && kx + 2 < n))
+				continue;
+			for (int bb = 0; bb < 4; bb++, r += n)
+				v += wy[bb] * (wx[0] * r[0] + wx[1] * r[1] + wx[2] * r[2] + wx[3] * r[3]);
 			ep[(size_t)ky * n + kx] = v;
+		}
+		/* the samples at the array's last column or row */
+		for (int kx = inner ? bl1 + 1 : lo_x; kx <= hi_x; kx++) {
+			const double *r0 = eb + (size_t)ky * n + kx;
+			int xin = kx + 1 < n, yin = ky + 1 < n;
+
+			ep[(size_t)ky * n + kx] = b00 * r0[0] + (xin ? b01 * r0[1] : 0) +
+						  (yin ? b10 * r0[n] : 0) + (xin && yin ? b11 * r0[n + 1] : 0);
 		}
 	}
 }
@@ -139,7 +175,8 @@ struct sersic_stamp {
 	double *img, *gxi, *gyi, *lpi;  /* stamp planes: integrals, gradient terms, Laplacian term */
 	double *ker, *kdx, *kdy, *klp;  /* the kernels of those planes, kn x kn */
 	double *cells, *ep, *eb;        /* core cells; the ePSF at the phase, and blended */
-	double *cpix;                   /* a cut core's pixels (sersic_core_add), or NULL */
+	double *cpix;                   /* the core's pixels (sersic_core_add) */
+	double *poly;                   /* the ePSF rows at the phase split by sample phase */
 };
 
 /* Without the PSF: each window pixel the truncation box (gx0..gx1,
@@ -228,9 +265,10 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	size_t nstamp = (size_t)st->snx * st->sny, nker = (size_t)st->kn * st->kn;
 	size_t ncell = st->core_on ? (size_t)st->na * st->nb : 0;
 	size_t nep = st->core_on ? 2 * (size_t)st->e.n * st->e.n : 0;
-	size_t side = 2 * ((size_t)st->kq + st->hp) + 1;
-	size_t ncpix = st->core_on && st->psf_all > 0 ? side * side : 0;
-	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep + ncpix) *
+	size_t side = 2 * ((size_t)st->kq + st->hp) + 3;
+	size_t ncpix = st->core_on ? side * side : 0;
+	size_t npoly = st->core_on ? (size_t)st->e.n * st->e.over * (side + st->na / st->e.over + 2) : 0;
+	double *buf = host->scratch(thread, (4 * nstamp + 4 * nker + ncell + nep + ncpix + npoly) *
 				    sizeof(double));
 
 	if (!buf)
@@ -247,7 +285,8 @@ static int sersic_stamp_scratch(const struct wfs_host *host, void *thread, struc
 	st->cells = st->klp + nker;
 	st->ep = st->cells + ncell;
 	st->eb = st->ep + nep / 2;
-	st->cpix = ncpix ? st->eb + nep / 2 : NULL;
+	st->cpix = st->eb + nep / 2;
+	st->poly = st->cpix + ncpix;
 	return 0;
 }
 
@@ -353,6 +392,63 @@ static void sersic_wings_integrate(const struct sersic_stamp *st, const struct s
 	*rough_out = rough;
 }
 
+/*
+ * A bound on the gradient of the light at the centre of any pixel outside
+ * the core square Q (K pixels about the centre pixel), so at a distance d
+ * >= K + 1/2 from the centre: with rho >= d sqrt(min(ia2, ib2)) there and
+ * |grad rho| <= sqrt(max(ia2, ib2)), |grad I| <= h(rho) sqrt(max(ia2, ib2)),
+ * h(rho) = I0 e^(-b rho^(1/n)) (b/n) rho^(1/n - 1), which for n >= 1 only
+ * falls, and for n < 1 rises up to rho^(1/n) = (1 - n) / b and then falls.
+ * Zero beyond the truncation.  The same for every window of the galaxy.
+ */
+static double sersic_grad_bound(const struct sersic_gal *g, int kq)
+{
+	double rho = (kq + 0.5) * sqrt(fmin(g->ia2, g->ib2));
+
+	if (g->n < 1) {
+		double peak = exp(g->n * log((1 - g->n) / g->b));
+
+		rho = fmax(rho, peak);
+	}
+	if (!(rho < g->rho_t))
+		return 0;
+	double p = g->b * exp(g->inv_n * log(rho));     /* b rho^(1/n) */
+
+	return exp(g->lni0 - p) * p * g->inv_n / rho * sqrt(fmax(g->ia2, g->ib2));
+}
+
+/* The stamp planes through their kernels, summed into the integrals
+ * plane img: the gradient planes when moments, the Laplacian plane when
+ * rough.  With the host's convolve_sum in one call (the planes' transforms
+ * summed and transformed back once), else one convolve() each. */
+static int sersic_convolve_planes(const struct wfs_host *host, void *thread,
+				  const struct sersic_stamp *st, int moments, int rough)
+{
+	double *planes[4] = { st->img };
+	const double *kers[4] = { st->ker };
+	int n = 1, snx = st->snx, sny = st->sny, kn = st->kn;
+
+	if (moments) {
+		planes[n] = st->gxi;
+		kers[n++] = st->kdx;
+		planes[n] = st->gyi;
+		kers[n++] = st->kdy;
+	}
+	if (rough) {
+		planes[n] = st->lpi;
+		kers[n++] = st->klp;
+	}
+	if (WFS_HAS(host->size, struct wfs_host, convolve_sum) && host->convolve_sum)
+		return host->convolve_sum(host->ctx, thread, planes, kers, n, snx, sny, kn);
+	for (int i = 0; i < n; i++)
+		if (host->convolve(host->ctx, thread, planes[i], snx, sny, kers[i], kn))
+			return -1;
+	for (int i = 1; i < n; i++)
+		for (size_t k = 0; k < (size_t)snx * sny; k++)
+			st->img[k] += planes[i][k];
+	return 0;
+}
+
 /* The wings through the ePSF: the pixel-offset kernels, the FFT
  * convolutions of the stamp planes, and the window's part of the sum
  * added to it. */
@@ -364,7 +460,7 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 	int over = st->over, hp = st->hp, kn = st->kn;
 	int sx0 = st->sx0, sx1 = st->sx1, sy0 = st->sy0, sy1 = st->sy1, snx = st->snx, sny = st->sny;
 	size_t nker = st->nker;
-	double *img = st->img, *gxi = st->gxi, *gyi = st->gyi, *lpi = st->lpi;
+	double *img = st->img;
 	double *ker = st->ker, *kdx = st->kdx, *kdy = st->kdy, *klp = st->klp;
 
 	/* The pixel-offset ePSF kernels: E + lap E / 24 and the gradient
@@ -432,13 +528,16 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 		kmax *= f;
 		double iq = st->kq > 0 ? exp(g->lni0 - g->b * exp(log(st->kq / g->re) / g->n)) : exp(g->lni0);
 		double bound = 2 * g->flux * f * dmax * over * over / 12 + 4 * (2 * st->kq + 1) * iq * kmax;
+		/* and directly: no pixel gets more than the largest gradient
+		 * outside Q times the kernels' absolute sums */
+		double sk = 0;
 
+		for (size_t k = 0; k < nker; k++)
+			sk += fabs(kdx[k]) + fabs(kdy[k]);
+		bound = fmin(bound, sersic_grad_bound(g, st->kq) * sk);
 		moments = !(bound <= level);
 	}
-	if (host->convolve(host->ctx, thread, img, snx, sny, ker, kn) ||
-	    (moments && host->convolve(host->ctx, thread, gxi, snx, sny, kdx, kn)) ||
-	    (moments && host->convolve(host->ctx, thread, gyi, snx, sny, kdy, kn)) ||
-	    (rough && host->convolve(host->ctx, thread, lpi, snx, sny, klp, kn)))
+	if (sersic_convolve_planes(host, thread, st, moments, rough) < 0)
 		return host->error(host->ctx, "FFT convolution of a %d x %d galaxy stamp failed",
 				   snx, sny);
 	for (int y = win->y0; y < win->y0 + win->ny; y++) {
@@ -449,9 +548,7 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
 		int x0 = win->x0, x1 = win->x0 + win->nx - 1;
 		box_clip(&x0, &x1, sx0, sx1);
 		for (int x = x0; x <= x1; x++)
-			dst[x - win->x0] += img[o + x - sx0] +
-					    (moments ? gxi[o + x - sx0] + gyi[o + x - sx0] : 0.0) +
-					    (rough ? lpi[o + x - sx0] : 0.0);
+			dst[x - win->x0] += img[o + x - sx0];
 	}
 	return 0;
 }
@@ -497,38 +594,73 @@ static void sersic_core_cells(const struct sersic_stamp *st, const struct sersic
 	}
 }
 
-/* One output pixel of the core: sum_a C[a] ep[k0 + t] over the reversed
- * cell rows (sersic_core_add), ky0 the ePSF row of cell row 0. */
-static inline double sersic_core_pixel(const double *cells, const double *ep, int na, int nb,
-				       int en, long long k0, long long ky0)
+/*
+ * The core's pixels [rx0, rx0 + side) x [ry0, ry0 + side) into out (side
+ * x side): pixel (x, y) is the sum over the cells (a0 + i, b0 + j) of
+ * C[j][i] ep[ky][kx], kx = bx + over x - a0 - i, ky = by + over y - b0 - j
+ * (ep: the ePSF at the galaxy's phase, sersic_phase_epsf; zero outside
+ * its en x en samples).  With X = x - rx0 and kx = K0 - i + over X, write
+ * K0 - i = over q + r (0 <= r < over): kx = over (X + q) + r, so each ePSF
+ * row split by sample phase r (poly) makes the sum for a cell one run
+ * along a row of pixels, in vector code.  Each cell's product is added to
+ * each pixel in the same order in every clone: the same bytes.
+ */
+SIMD_CLONES("avx512f", "avx2", "default")
+static void sersic_core_block(const double *restrict cells, int na, int nb, const double *restrict ep,
+			      int en, int over, long long K0, long long ky0, int side,
+			      double *restrict poly, double *restrict out)
 {
-	int t0 = k0 < 0 ? (int)-k0 : 0;
-	int t1 = k0 + na > en ? (int)(en - k0) : na;
-	double s = 0;
+	long long qmin = (K0 - na + 1) >= 0 ? (K0 - na + 1) / over : -((over - 1 - (K0 - na + 1)) / over);
+	long long qmax = K0 >= 0 ? K0 / over : -((over - 1 - K0) / over);
+	int L = side + (int)(qmax - qmin);
+	/* the ePSF rows the pixels read: ky0 - (nb - 1) to ky0 + over (side - 1) */
+	long long klo = ky0 - nb + 1, khi = ky0 + (long long)over * (side - 1);
 
-	if (t0 >= t1)
-		return 0;
-	for (int bj = 0; bj < nb; bj++) {
-		long long ky = ky0 - bj;
-		if (ky < 0 || ky >= en)
-			continue;
-		const double *erow = ep + (size_t)ky * en + (k0 + t0);
-		const double *crow = cells + (size_t)bj * na + t0;
-		/* four partial sums: the compiler may not reorder a
-		 * floating-point reduction by itself */
-		double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-		int len = t1 - t0, t = 0;
-		for (; t + 4 <= len; t += 4) {
-			s0 += crow[t] * erow[t];
-			s1 += crow[t + 1] * erow[t + 1];
-			s2 += crow[t + 2] * erow[t + 2];
-			s3 += crow[t + 3] * erow[t + 3];
+	klo = klo < 0 ? 0 : klo;
+	khi = khi >= en ? en - 1 : khi;
+	/* poly[((ky - klo) over + r) L + m] = ep[ky][over (qmin + m) + r], zero
+	 * outside the row; only the samples the cells read (K0 - na + 1 to
+	 * K0 + over (side - 1)), which sersic_phase_epsf computed */
+	long long xlo = K0 - na + 1 > 0 ? K0 - na + 1 : 0;
+	long long xhi = K0 + (long long)over * (side - 1) < en - 1 ? K0 + (long long)over * (side - 1) : en - 1;
+
+	for (int r = 0; r < over; r++) {
+		/* the m of phase r whose samples lie in [xlo, xhi] */
+		long long m0 = xlo - r - over * qmin, m1 = xhi - r - over * qmin;
+		int ma = (int)(m0 <= 0 ? 0 : (m0 + over - 1) / over);
+		int mb = (int)(m1 < 0 ? -1 : m1 / over);
+
+		mb = mb < L - 1 ? mb : L - 1;
+		for (long long ky = klo; ky <= khi; ky++) {
+			double *pr = poly + ((size_t)(ky - klo) * over + r) * L;
+			long long k0 = ky * en + over * qmin + r;
+
+			for (int m = 0; m < L; m++)
+				pr[m] = m >= ma && m <= mb ? ep[k0 + (long long)over * m] : 0;
 		}
-		for (; t < len; t++)
-			s0 += crow[t] * erow[t];
-		s += (s0 + s1) + (s2 + s3);
 	}
-	return s;
+	memset(out, 0, (size_t)side * side * sizeof(double));
+	for (int y = 0; y < side; y++) {
+		double *o = out + (size_t)y * side;
+
+		for (int j = 0; j < nb; j++) {
+			long long ky = ky0 + (long long)over * y - j;
+
+			if (ky < klo || ky > khi)
+				continue;
+			for (int i = 0; i < na; i++) {
+				double c = cells[(size_t)j * na + i];
+				long long s0 = K0 - i, q = s0 >= 0 ? s0 / over : -((over - 1 - s0) / over);
+				int r = (int)(s0 - q * over);
+				const double *pr = poly + ((size_t)(ky - klo) * over + r) * L + (q - qmin);
+
+				if (c == 0)
+					continue;
+				for (int x = 0; x < side; x++)
+					o[x] += c * pr[x];
+			}
+		}
+	}
 }
 
 /* The core cells through the ePSF at the galaxy's own phase, summed
@@ -541,7 +673,6 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 	int a0 = st->a0, b0 = st->b0, na = st->na, nb = st->nb;
 	double xc = st->g.xc, yc = st->g.yc, icx = st->icx, icy = st->icy;
 	double *cells = st->cells, *ep = st->ep, *eb = st->eb;
-	int en = e->n;
 
 	/* The ePSF at the galaxy's phase: sample position of pixel i, cell a is
 	 * centre + over (i - xc) - a = base + over i - a + phi, so ep[k] holds
@@ -557,7 +688,7 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 	 * the core's pixels are then scaled so that its light is what the
 	 * whole ePSF would put down: its cells' sum times the ePSF's light
 	 * (AUX_PSFALL). */
-	int cut = st->cpix != NULL, r = kq + hp + !cut;
+	int cut = st->psf_all > 0, r = kq + hp + !cut;
 	int rx0 = (int)icx - r, ry0 = (int)icy - r, side = 2 * r + 1;
 	int ox0 = rx0, ox1 = rx0 + side - 1, oy0 = ry0, oy1 = ry0 + side - 1;
 	double norm = 1;
@@ -569,44 +700,26 @@ static void sersic_core_add(const struct sersic_stamp *st, const struct wfs_wind
 			  (int)(by + (long long)over * oy1 - b0));
 	box_clip(&ox0, &ox1, win->x0, win->x0 + win->nx - 1);
 	box_clip(&oy0, &oy1, win->y0, win->y0 + win->ny - 1);
-	/* Each cell row reversed in place, so that pixel x's sum over a row,
-	 * sum_a C[a] ep[kx0 - a], runs forward through both arrays. */
-	for (int bj = 0; bj < nb; bj++)
-		for (int i = 0, j = na - 1; i < j; i++, j--) {
-			double t = cells[(size_t)bj * na + i];
-			cells[(size_t)bj * na + i] = cells[(size_t)bj * na + j];
-			cells[(size_t)bj * na + j] = t;
-		}
-	/* reversed index t = na - 1 - a reads ep[kx0 - na + 1 + t] */
+	sersic_core_block(cells, na, nb, ep, e->n, over, bx + (long long)over * rx0 - a0,
+			  by + (long long)over * ry0 - b0, side, st->poly, st->cpix);
 	if (cut) {
-		/* every pixel of the cut core once, into cpix, then the window's */
+		/* the cut core's light made whole */
 		double whole = 0, drawn = 0;
 
 		for (size_t k = 0; k < (size_t)na * nb; k++)
 			whole += cells[k];
 		whole *= st->psf_all;
-		for (int y = 0; y < side; y++)
-			for (int x = 0; x < side; x++)
-				drawn += st->cpix[(size_t)y * side + x] = sersic_core_pixel(
-					cells, ep, na, nb, en, bx + (long long)over * (rx0 + x) - a0 - na + 1,
-					by + (long long)over * (ry0 + y) - b0);
+		for (size_t k = 0; k < (size_t)side * side; k++)
+			drawn += st->cpix[k];
 		if (drawn > 0 && whole > 0)
 			norm = whole / drawn;
-		for (int y = oy0; y <= oy1; y++) {
-			double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
-			const double *c = st->cpix + (size_t)(y - ry0) * side - rx0;
-
-			for (int x = ox0; x <= ox1; x++)
-				dst[x] += norm * c[x];
-		}
-		return;
 	}
 	for (int y = oy0; y <= oy1; y++) {
 		double *dst = win->pix + (ptrdiff_t)(y - win->y0) * win->stride - win->x0;
-		long long ky0 = by + (long long)over * y - b0;
+		const double *c = st->cpix + (size_t)(y - ry0) * side - rx0;
+
 		for (int x = ox0; x <= ox1; x++)
-			dst[x] += sersic_core_pixel(cells, ep, na, nb, en,
-						    bx + (long long)over * x - a0 - na + 1, ky0);
+			dst[x] += norm * c[x];
 	}
 }
 

@@ -119,8 +119,9 @@ struct engine {
 	struct slot slot[WFS_NSCA];
 	int slot_of[WFS_NSCA + 1];      /* SCA -> slot, or -1 */
 
-	/* [3]: the halo (psf.h); published under grid_lock (psfgrids.c) */
-	struct psf_grid *grid[WFS_NSCA][4];
+	/* per SCA, the size classes of model.h's enum wfs_psf_class and last
+	 * the halo's (psf.h); published under grid_lock (psfgrids.c) */
+	struct psf_grid *grid[WFS_NSCA][WFS_PSF_HALO + 1];
 	pthread_mutex_t grid_lock;
 	struct psf_grid *user_grid;     /* --psf FILE without %d: all SCAs */
 	struct psf_build_opts pbo;
@@ -193,6 +194,20 @@ struct engine {
 	double *t_render_cpu;                   /* per worker: CPU seconds drawing */
 	struct timespec t_start, t_progress;
 	int progress;                           /* stderr is a terminal */
+
+	/* SCA groups (run.c): an exposure whose SCAs do not fit --memory
+	 * is drawn in npass passes over the catalogs, pass_slots the bits of
+	 * the slots drawn in pass number pass (all bits set in a run of one
+	 * pass).  A file of several SCAs stays open across them (out,
+	 * write.c); each pass's --placed list is kept apart (placed_part)
+	 * and merged into placed_out in the order of one pass (report.c). */
+	uint32_t pass_slots;
+	int pass, npass;
+	struct writer *out;
+	FILE *placed_out, *placed_part[WFS_NSCA];
+	struct grid_note *grid_note;    /* the report's PSF grids of SCAs done */
+	char *written[WFS_NSCA];        /* files committed by passes before the last */
+	int nwritten;
 };
 
 /* host.c: the struct wfs_host lent to plugins. */
@@ -216,6 +231,9 @@ const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls);
 int psfgrids_need(struct engine *g, int sca, int cls, struct err *e);
 int psfgrids_open_user(struct engine *g);
 void psfgrids_free(struct engine *g);
+/* SCA groups (run.c): the grids of SCA sca freed, once it is written and
+ * its light gathered (the pool idle); report_grids_note() first. */
+void psfgrids_drop(struct engine *g, int sca);
 /* The spectral classes for a scene with spectra (the builtin PSF only):
  * made once, from the setting psf-colour-classes.
  * Returns 0 or -1. */
@@ -256,6 +274,16 @@ int write_exposure(struct engine *g);
 int side_check(const char *path, struct err *e);
 int placed_open(struct engine *g);
 int placed_close(struct engine *g, int keep);
+/* With SCA groups: the --placed list of the pass begins (a temporary of
+ * its own), a chunk of it ends, and after the last pass the lists are
+ * merged in one pass's order.  0 or -1 with the message in g->e. */
+int placed_pass_begin(struct engine *g);
+int placed_chunk_end(struct engine *g);
+int placed_merge(struct engine *g);
 int report_write(struct engine *g);
+/* What the report says of SCA sca's PSF grids, kept before they are freed
+ * (psfgrids_drop); its memory freed by report_notes_free.  0 or -1. */
+int report_grids_note(struct engine *g, int sca);
+void report_notes_free(struct engine *g);
 
 #endif

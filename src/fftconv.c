@@ -13,21 +13,48 @@
 
 #include "simd.h"
 
+/* One FFTW plan of the pruned 2-D transform (fftconv_convolve_sum): a
+ * batch of `rows` 1-D real transforms of length nx along rows, forward
+ * (r2c) or back (c2r), or the nx / 2 + 1 complex columns of length ny,
+ * forward or back, in place. */
+enum { PLAN_ROWS_FWD, PLAN_ROWS_INV, PLAN_COLS_FWD, PLAN_COLS_INV };
+
 struct fftconv_plan {
-	int nx, ny;                     /* padded real size */
-	fftw_plan fwd, inv;             /* r2c and c2r, out of place */
+	int kind, nx, m;                /* m: rows (PLAN_ROWS_*) or ny (PLAN_COLS_*) */
+	fftw_plan p;
 	struct fftconv_plan *next;
 };
 
+/* The plans in lists by a hash of their key, each growing only at its
+ * head: an entry is made whole, then put at the head under the lock with
+ * release order; readers walk a list from an acquire load of its head,
+ * without the lock. */
+#define FFTCONV_BUCKETS 1024
+
 struct fftconv {
-	pthread_mutex_t lock;           /* guards plans and the FFTW planner */
-	struct fftconv_plan *plans;
+	pthread_mutex_t lock;           /* guards adding plans and the FFTW planner */
+	_Atomic(struct fftconv_plan *) plans[FFTCONV_BUCKETS];
 };
+
+static unsigned plan_bucket(int kind, int nx, int m)
+{
+	unsigned h = (unsigned)kind * 2654435761u ^ (unsigned)nx * 40503u ^ (unsigned)m * 2246822519u;
+
+	return (h ^ h >> 15) % FFTCONV_BUCKETS;
+}
+
+static struct fftconv_plan *plan_find(struct fftconv_plan *p, int kind, int nx, int m)
+{
+	for (; p; p = p->next)
+		if (p->kind == kind && p->nx == nx && p->m == m)
+			return p;
+	return NULL;
+}
 
 struct fftconv_thread {
 	size_t nreal, ncplx;            /* capacity of the buffers, in elements */
-	double *rimg, *rker;
-	fftw_complex *cimg, *cker;
+	double *rimg;
+	fftw_complex *cimg, *cker, *cacc;
 };
 
 int fftconv_nplans(struct fftconv *fc)
@@ -35,8 +62,9 @@ int fftconv_nplans(struct fftconv *fc)
 	int n = 0;
 
 	pthread_mutex_lock(&fc->lock);
-	for (const struct fftconv_plan *p = fc->plans; p; p = p->next)
-		n++;
+	for (int b = 0; b < FFTCONV_BUCKETS; b++)
+		for (const struct fftconv_plan *p = atomic_load(&fc->plans[b]); p; p = p->next)
+			n++;
 	pthread_mutex_unlock(&fc->lock);
 	return n;
 }
@@ -98,12 +126,12 @@ void fftconv_free(struct fftconv *fc)
 {
 	if (!fc)
 		return;
-	for (struct fftconv_plan *p = fc->plans, *next; p; p = next) {
-		next = p->next;
-		fftw_destroy_plan(p->fwd);
-		fftw_destroy_plan(p->inv);
-		free(p);
-	}
+	for (int b = 0; b < FFTCONV_BUCKETS; b++)
+		for (struct fftconv_plan *p = atomic_load(&fc->plans[b]), *next; p; p = next) {
+			next = p->next;
+			fftw_destroy_plan(p->p);
+			free(p);
+		}
 	pthread_mutex_destroy(&fc->lock);
 	free(fc);
 }
@@ -113,14 +141,22 @@ struct fftconv_thread *fftconv_thread_new(void)
 	return calloc(1, sizeof(struct fftconv_thread));
 }
 
+static void thread_release(struct fftconv_thread *t)
+{
+	fftw_free(t->rimg);
+	fftw_free(t->cimg);
+	fftw_free(t->cker);
+	fftw_free(t->cacc);
+	t->rimg = NULL;
+	t->cimg = t->cker = t->cacc = NULL;
+	t->nreal = t->ncplx = 0;
+}
+
 void fftconv_thread_free(struct fftconv_thread *t)
 {
 	if (!t)
 		return;
-	fftw_free(t->rimg);
-	fftw_free(t->rker);
-	fftw_free(t->cimg);
-	fftw_free(t->cker);
+	thread_release(t);
 	free(t);
 }
 
@@ -131,20 +167,13 @@ static int thread_reserve(struct fftconv_thread *t, int nx, int ny)
 
 	if (nreal <= t->nreal && ncplx <= t->ncplx)
 		return 0;
-	fftw_free(t->rimg);
-	fftw_free(t->rker);
-	fftw_free(t->cimg);
-	fftw_free(t->cker);
+	thread_release(t);
 	t->rimg = fftw_malloc(nreal * sizeof(double));
-	t->rker = fftw_malloc(nreal * sizeof(double));
 	t->cimg = fftw_malloc(ncplx * sizeof(fftw_complex));
 	t->cker = fftw_malloc(ncplx * sizeof(fftw_complex));
-	if (!t->rimg || !t->rker || !t->cimg || !t->cker) {
-		fftw_free(t->rimg);
-		fftw_free(t->rker);
-		fftw_free(t->cimg);
-		fftw_free(t->cker);
-		memset(t, 0, sizeof(*t));
+	t->cacc = fftw_malloc(ncplx * sizeof(fftw_complex));
+	if (!t->rimg || !t->cimg || !t->cker || !t->cacc) {
+		thread_release(t);
 		return -1;
 	}
 	t->nreal = nreal;
@@ -152,40 +181,48 @@ static int thread_reserve(struct fftconv_thread *t, int nx, int ny)
 	return 0;
 }
 
-/* The plan pair for a padded size, made on first use.  Planning runs on the
- * caller's buffers: with FFTW_ESTIMATE the planner does not write to them,
- * and they have fftw_malloc's alignment, like every buffer executed later. */
-static struct fftconv_plan *plan_get(struct fftconv *fc, struct fftconv_thread *t,
-				     int nx, int ny)
+/* A plan of `kind` (PLAN_*) for rows of length nx and m rows, or columns
+ * of length m, made on first use.  Planning runs on the caller's buffers
+ * (large enough for the problem): with FFTW_ESTIMATE the planner does not
+ * write to them, and they have fftw_malloc's alignment, like every buffer
+ * executed later, each plan executed only on buffers at their start. */
+static fftw_plan plan_get(struct fftconv *fc, struct fftconv_thread *t, int kind, int nx, int m)
 {
-	struct fftconv_plan *p;
+	_Atomic(struct fftconv_plan *) *head = &fc->plans[plan_bucket(kind, nx, m)];
+	struct fftconv_plan *p = plan_find(atomic_load_explicit(head, memory_order_acquire), kind, nx, m);
+	int nc = nx / 2 + 1;
+	fftw_plan made = NULL;
 
+	if (p)
+		return p->p;
 	pthread_mutex_lock(&fc->lock);
-	for (p = fc->plans; p; p = p->next)
-		if (p->nx == nx && p->ny == ny)
-			goto out;
-	p = calloc(1, sizeof(*p));
-	if (!p)
+	if ((p = plan_find(atomic_load_explicit(head, memory_order_relaxed), kind, nx, m)))
 		goto out;
-	p->nx = nx;
-	p->ny = ny;
-	/* FFTW's dimensions are slowest first: (rows, columns) = (ny, nx). */
-	p->fwd = fftw_plan_dft_r2c_2d(ny, nx, t->rimg, t->cimg, FFTW_ESTIMATE);
-	p->inv = fftw_plan_dft_c2r_2d(ny, nx, t->cimg, t->rimg, FFTW_ESTIMATE);
-	if (!p->fwd || !p->inv) {
-		if (p->fwd)
-			fftw_destroy_plan(p->fwd);
-		if (p->inv)
-			fftw_destroy_plan(p->inv);
-		free(p);
+	if (kind == PLAN_ROWS_FWD)
+		made = fftw_plan_many_dft_r2c(1, &nx, m, t->rimg, NULL, 1, nx, t->cimg, NULL, 1, nc,
+					      FFTW_ESTIMATE);
+	else if (kind == PLAN_ROWS_INV)
+		made = fftw_plan_many_dft_c2r(1, &nx, m, t->cacc, NULL, 1, nc, t->rimg, NULL, 1, nx,
+					      FFTW_ESTIMATE);
+	else
+		made = fftw_plan_many_dft(1, &m, nc, t->cimg, NULL, nc, 1, t->cimg, NULL, nc, 1,
+					  kind == PLAN_COLS_FWD ? FFTW_FORWARD : FFTW_BACKWARD,
+					  FFTW_ESTIMATE);
+	if (!made || !(p = calloc(1, sizeof(*p)))) {
+		if (made)
+			fftw_destroy_plan(made);
 		p = NULL;
 		goto out;
 	}
-	p->next = fc->plans;
-	fc->plans = p;
+	p->kind = kind;
+	p->nx = nx;
+	p->m = m;
+	p->p = made;
+	p->next = atomic_load_explicit(head, memory_order_relaxed);
+	atomic_store_explicit(head, p, memory_order_release);
 out:
 	pthread_mutex_unlock(&fc->lock);
-	return p;
+	return p ? p->p : NULL;
 }
 
 /* out[0, n) += v k[0, n): the direct sum's one loop, plain and with AVX2
@@ -211,9 +248,26 @@ __attribute__((target("avx2"))) static void axpy_avx2(double *restrict out,
 }
 #endif
 
+#ifdef SIMD_X86
+__attribute__((target("avx512f"))) static void axpy_avx512(double *restrict out,
+							     const double *restrict k, double v, int n)
+{
+	__m512d vv = _mm512_set1_pd(v);
+	int i = 0;
+
+	for (; i + 8 <= n; i += 8)
+		_mm512_storeu_pd(out + i, _mm512_add_pd(_mm512_loadu_pd(out + i),
+							_mm512_mul_pd(vv, _mm512_loadu_pd(k + i))));
+	for (; i < n; i++)
+		out[i] += v * k[i];
+}
+#endif
+
 static void (*axpy_choose(void))(double *restrict, const double *restrict, double, int)
 {
 #ifdef SIMD_X86
+	if (simd_flags() & SIMD_AVX512)
+		return axpy_avx512;
 	if (simd_flags() & SIMD_AVX2)
 		return axpy_avx2;
 #endif
@@ -265,20 +319,40 @@ static double direct_cost(size_t nnz, int w, int v, int kn, int *rows)
 	return *rows ? byrow : scatter;
 }
 
+/* The rows of a batch of row transforms for `rows` lit rows of a padded
+ * height py: on the ladder, so that few batches are planned (the rows
+ * added are zero). */
+static int rows_q(int rows, int py)
+{
+	int q = fftconv_size(rows);
+
+	return q < py ? q : py;
+}
+
 /*
- * Whether the direct sum costs less than the transforms of px x py: three
- * transforms of px py log2(px py) butterflies and the padding and product
- * around them.  FFTCONV_DIRECT_COST is the ratio of the two unit costs,
- * measured on the development machine (BENCHMARKS.md, "Sérsic galaxies");
- * the crossing is flat, so a factor of two either way costs little.
+ * The cost of the transforms, in the direct sum's unit: for each of
+ * `count` images and its kernel the row transforms of their lit rows and
+ * all the column transforms, and for the sum the columns and the rows
+ * wanted back, each nx log2 nx butterflies a length-nx transform (a row
+ * of reals counted half), and the passes over the arrays around them.
+ * FFTCONV_DIRECT_COST is the ratio of the two unit costs, measured on the
+ * development machines (BENCHMARKS.md, "Sérsic galaxies"); the crossing is
+ * flat, so a factor of two either way costs little.
  */
 #define FFTCONV_DIRECT_COST 0.6
 
-static int direct_cheaper(double cost, int px, int py)
+static double fft_cost(int count, int wy, int kn, int oh, int px, int py)
 {
-	double n = (double)px * py;
+	double lx = log2(px), ly = log2(py), nc = px / 2 + 1;
+	double row = 0.5 * px * lx, col = nc * py * ly;
+	double rows = count * (rows_q(wy, py) + rows_q(kn, py)) + rows_q(oh, py);
 
-	return FFTCONV_DIRECT_COST * cost < 3 * n * log2(n) + 8 * n;
+	return rows * row + (2 * count + 1) * col + (6.0 * count + 2) * px * py;
+}
+
+static int direct_cheaper(double cost, double fft)
+{
+	return FFTCONV_DIRECT_COST * cost < 2 * fft;
 }
 
 static atomic_int forced = FFTCONV_AUTO;
@@ -288,8 +362,8 @@ void fftconv_force(int method)
 	atomic_store(&forced, method);
 }
 
-/* The sum over the lit block [bx0, bx1] x [by0, by1] into the output block
- * [ox0, ox1] x [oy0, oy1] (out, ow wide), one of two ways:
+/* The sum over the lit block [bx0, bx1] x [by0, by1] added into the output
+ * block [ox0, ox1] x [oy0, oy1] (out, ow wide), one of two ways:
  *  - scattered: each lit pixel times the kernel's rows (kn calls of kn),
  *    the better way for a block narrower than the kernel;
  *  - by rows: output row y + ky - h gains tap (kx, ky) times the block's
@@ -301,7 +375,6 @@ static void convolve_direct(const double *img, int nx, int bx0, int bx1, int by0
 	void (*axpy)(double *restrict, const double *restrict, double, int) = axpy_choose();
 	int h = (kn - 1) / 2, ow = ox1 - ox0 + 1;
 
-	memset(out, 0, (size_t)ow * (oy1 - oy0 + 1) * sizeof(double));
 	if (!rows) {
 		for (int y = by0; y <= by1; y++)
 			for (int x = bx0; x <= bx1; x++) {
@@ -342,96 +415,169 @@ static void convolve_direct(const double *img, int nx, int bx0, int bx1, int by0
 	}
 }
 
+
+/* The largest count fftconv_convolve_sum takes. */
+#define FFTCONV_MAX 8
+
+/* One image of a sum: its lit block and lit pixels. */
+struct conv_part {
+	double *img;
+	const double *ker;
+	size_t nnz;
+	int bx0, bx1, by0, by1;
+};
+
+/* The forward transform of a real block of w x v (rows apart by stride)
+ * into c: placed at the origin of the px-wide rows of rimg, its rows
+ * transformed (a batch on the ladder), the rows below zeroed, the columns
+ * transformed.  Returns 0 or -1 (no plan). */
+static int forward(struct fftconv *fc, struct fftconv_thread *t, const double *src, size_t stride,
+		   int w, int v, int px, int py, fftw_complex *c)
+{
+	int q = rows_q(v, py), nc = px / 2 + 1;
+	fftw_plan rows = plan_get(fc, t, PLAN_ROWS_FWD, px, q), cols = plan_get(fc, t, PLAN_COLS_FWD, px, py);
+
+	if (!rows || !cols)
+		return -1;
+	memset(t->rimg, 0, (size_t)px * q * sizeof(double));
+	for (int y = 0; y < v; y++)
+		memcpy(t->rimg + (size_t)y * px, src + (size_t)y * stride, w * sizeof(double));
+	fftw_execute_dft_r2c(rows, t->rimg, c);
+	memset(c + (size_t)q * nc, 0, (size_t)(py - q) * nc * sizeof(fftw_complex));
+	fftw_execute_dft(cols, c, c);
+	return 0;
+}
+
+/* acc[k] += a[k] b[k] over n complex numbers (re, im pairs): products
+ * then sums, as the plain loop, in every clone. */
+SIMD_CLONES("avx512f", "avx2", "default")
+static void cmac(double *restrict acc, const double *restrict a, const double *restrict b, size_t n)
+{
+	for (size_t k = 0; k < 2 * n; k += 2) {
+		double ar = a[k], ai = a[k + 1], br = b[k], bi = b[k + 1];
+
+		acc[k] += ar * br - ai * bi;
+		acc[k + 1] += ar * bi + ai * br;
+	}
+}
+
 /*
- * Only the lit part of the image is transformed: a block of w x v pixels
+ * The sum of the parts' convolutions by transforms: each lit image (the
+ * union block bx0.., w x v, at the origin) and its kernel (unshifted, at
+ * the origin) forward, their products summed, and one transform back.
+ * Output pixel (bx0 + d - h, by0 + e - h) is the circular result at
+ * (d, e), d < w + kn - 1 <= px: nothing wraps.  Rows and columns are
+ * transformed apart so that the rows that are zero (most of a kernel's)
+ * and the rows not wanted back are skipped.
+ */
+static int convolve_fft(struct fftconv *fc, struct fftconv_thread *t, const struct conv_part *pt,
+			int count, int nx, int kn, int bx0, int by0, int w, int v, int ox0, int ox1,
+			int oy0, int oy1, int px, int py)
+{
+	int h = (kn - 1) / 2, nc = px / 2 + 1;
+	size_t ncp = (size_t)py * nc;
+	int e1 = oy1 - by0 + h, q = rows_q(e1 + 1, py);
+	fftw_plan cols = plan_get(fc, t, PLAN_COLS_INV, px, py), rows = plan_get(fc, t, PLAN_ROWS_INV, px, q);
+
+	if (!cols || !rows)
+		return -1;
+	memset(t->cacc, 0, ncp * sizeof(fftw_complex));
+	for (int i = 0; i < count; i++) {
+		if (!pt[i].nnz)
+			continue;
+		if (forward(fc, t, pt[i].ker, kn, kn, kn, px, py, t->cker) ||
+		    forward(fc, t, pt[i].img + (size_t)by0 * nx + bx0, nx, w, v, px, py, t->cimg))
+			return -1;
+		cmac((double *)t->cacc, (const double *)t->cimg, (const double *)t->cker, ncp);
+	}
+	fftw_execute_dft(cols, t->cacc, t->cacc);
+	fftw_execute_dft_c2r(rows, t->cacc, t->rimg);
+	double scale = 1.0 / ((double)px * py);
+	double *out = pt[0].img;
+	for (int y = oy0; y <= oy1; y++) {
+		const double *r = t->rimg + (size_t)(y - by0 + h) * px + (h - bx0);
+		double *o = out + (size_t)y * nx;
+
+		for (int x = ox0; x <= ox1; x++)
+			o[x] = r[x] * scale;
+	}
+	return 0;
+}
+
+/*
+ * Only the lit part of the images is transformed: a block of w x v pixels
  * convolved with a kn-wide kernel lights w + kn - 1 x v + kn - 1 pixels,
  * and a circular transform at least that size holds them without wrapping.
  * A galaxy's stamp is its light grown by the ePSF's half-width on every
  * side, so this halves the side of most transforms; a block with few lit
- * pixels is summed directly instead.
+ * pixels is summed directly instead.  The images share one block (the
+ * union of theirs) and one transform back.
  */
-int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
-		     double *img, int nx, int ny, const double *kernel, int kn)
+int fftconv_convolve_sum(struct fftconv *fc, struct fftconv_thread *t, double *const *imgs,
+			 const double *const *kernels, int count, int nx, int ny, int kn)
 {
-	if (!fc || !t || !img || !kernel || nx < 1 || ny < 1 || kn < 1 || !(kn & 1) ||
-	    nx > (1 << 20) || ny > (1 << 20) || kn > (1 << 20))
+	struct conv_part pt[FFTCONV_MAX];
+	int bx0 = nx, bx1 = -1, by0 = ny, by1 = -1, rows[FFTCONV_MAX];
+	size_t nnz = 0;
+	double cost = 0;
+
+	if (!fc || !t || !imgs || !kernels || count < 1 || count > FFTCONV_MAX || nx < 1 || ny < 1 ||
+	    kn < 1 || !(kn & 1) || nx > (1 << 20) || ny > (1 << 20) || kn > (1 << 20))
 		return -1;
+	for (int i = 0; i < count; i++)
+		if (!imgs[i] || !kernels[i])
+			return -1;
+	for (int i = 0; i < count; i++) {
+		struct conv_part *p = &pt[i];
 
-	int h = (kn - 1) / 2, bx0, bx1, by0, by1;
-	size_t nnz = image_support(img, nx, ny, &bx0, &bx1, &by0, &by1);
-
+		p->img = imgs[i];
+		p->ker = kernels[i];
+		p->nnz = image_support(p->img, nx, ny, &p->bx0, &p->bx1, &p->by0, &p->by1);
+		if (!p->nnz)
+			continue;
+		nnz += p->nnz;
+		cost += direct_cost(p->nnz, p->bx1 - p->bx0 + 1, p->by1 - p->by0 + 1, kn, &rows[i]);
+		bx0 = p->bx0 < bx0 ? p->bx0 : bx0;
+		bx1 = p->bx1 > bx1 ? p->bx1 : bx1;
+		by0 = p->by0 < by0 ? p->by0 : by0;
+		by1 = p->by1 > by1 ? p->by1 : by1;
+	}
 	if (!nnz)
-		return 0;       /* dark in, dark out */
+		return 0;       /* dark in (imgs[0] too), dark out */
 
-	int wx = bx1 - bx0 + 1, wy = by1 - by0 + 1;
+	int h = (kn - 1) / 2, wx = bx1 - bx0 + 1, wy = by1 - by0 + 1;
 	/* the pixels the light reaches */
 	int ox0 = bx0 - h > 0 ? bx0 - h : 0, ox1 = bx1 + h < nx - 1 ? bx1 + h : nx - 1;
 	int oy0 = by0 - h > 0 ? by0 - h : 0, oy1 = by1 + h < ny - 1 ? by1 + h : ny - 1;
 	int ow = ox1 - ox0 + 1, oh = oy1 - oy0 + 1;
-	int px = fftconv_size(wx + kn - 1), py = fftconv_size(wy + kn - 1), rows;
+	int px = fftconv_size(wx + kn - 1), py = fftconv_size(wy + kn - 1);
 	int method = atomic_load(&forced);
-	double cost = direct_cost(nnz, wx, wy, kn, &rows);
 
 	if (method == FFTCONV_AUTO)
-		method = direct_cheaper(cost, px, py) ? FFTCONV_DIRECT : FFTCONV_FFT;
+		method = direct_cheaper(cost, fft_cost(count, wy, kn, oy1 - by0 + h + 1, px, py))
+			 ? FFTCONV_DIRECT : FFTCONV_FFT;
 	if (method == FFTCONV_DIRECT) {
 		if (thread_reserve(t, ow, oh))
 			return -1;
-		convolve_direct(img, nx, bx0, bx1, by0, by1, kernel, kn, t->rimg, ox0, ox1, oy0, oy1,
-				rows);
+		memset(t->rimg, 0, (size_t)ow * oh * sizeof(double));
+		for (int i = 0; i < count; i++)
+			if (pt[i].nnz)
+				convolve_direct(pt[i].img, nx, pt[i].bx0, pt[i].bx1, pt[i].by0, pt[i].by1,
+						pt[i].ker, kn, t->rimg, ox0, ox1, oy0, oy1, rows[i]);
 		for (int y = oy0; y <= oy1; y++)
-			memcpy(img + (size_t)y * nx + ox0, t->rimg + (size_t)(y - oy0) * ow,
+			memcpy(imgs[0] + (size_t)y * nx + ox0, t->rimg + (size_t)(y - oy0) * ow,
 			       ow * sizeof(double));
-		return 0;
-	}
-
-	if (thread_reserve(t, px, py))
+	} else if (thread_reserve(t, px, py) ||
+		   convolve_fft(fc, t, pt, count, nx, kn, bx0, by0, wx, wy, ox0, ox1, oy0, oy1, px, py)) {
 		return -1;
-	struct fftconv_plan *p = plan_get(fc, t, px, py);
-	if (!p)
-		return -1;
-
-	/* The lit block at the origin, zero beyond it up to the padded size. */
-	memset(t->rimg, 0, (size_t)px * py * sizeof(double));
-	for (int y = 0; y < wy; y++)
-		memcpy(t->rimg + (size_t)y * px, img + (size_t)(by0 + y) * nx + bx0,
-		       wx * sizeof(double));
-
-	/* The kernel with its centre moved to (0, 0) and negative offsets
-	 * wrapped to the far end: sample (h + dx, h + dy) goes to
-	 * (dx mod px, dy mod py). */
-	memset(t->rker, 0, (size_t)px * py * sizeof(double));
-	for (int ky = 0; ky < kn; ky++) {
-		int y = ky - h < 0 ? ky - h + py : ky - h;
-		for (int kx = 0; kx < kn; kx++) {
-			int x = kx - h < 0 ? kx - h + px : kx - h;
-			t->rker[(size_t)y * px + x] = kernel[(size_t)ky * kn + kx];
-		}
 	}
-
-	fftw_execute_dft_r2c(p->fwd, t->rimg, t->cimg);
-	fftw_execute_dft_r2c(p->fwd, t->rker, t->cker);
-	size_t nc = (size_t)py * (px / 2 + 1);
-	double scale = 1.0 / ((double)px * py);
-	for (size_t i = 0; i < nc; i++) {
-		double ar = t->cimg[i][0], ai = t->cimg[i][1];
-		double br = t->cker[i][0], bi = t->cker[i][1];
-		t->cimg[i][0] = (ar * br - ai * bi) * scale;
-		t->cimg[i][1] = (ar * bi + ai * br) * scale;
-	}
-	fftw_execute_dft_c2r(p->inv, t->cimg, t->rimg);
-
-	/* Output pixel (bx0 + d, by0 + e), d in [-h, wx - 1 + h], is the
-	 * circular result at (d mod px, e mod py). */
-	for (int y = oy0; y <= oy1; y++) {
-		int e = y - by0 < 0 ? y - by0 + py : y - by0;
-		const double *r = t->rimg + (size_t)e * px;
-		double *o = img + (size_t)y * nx;
-
-		for (int x = ox0; x <= ox1; x++) {
-			int d = x - bx0 < 0 ? x - bx0 + px : x - bx0;
-			o[x] = r[d];
-		}
-	}
+	/* imgs[0] was dark outside the block written, which holds its lit
+	 * block, and stays so */
 	return 0;
+}
+
+int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
+		     double *img, int nx, int ny, const double *kernel, int kn)
+{
+	return fftconv_convolve_sum(fc, t, &img, &kernel, 1, nx, ny, kn);
 }

@@ -66,7 +66,21 @@ void fftconv_thread_free(struct fftconv_thread *t);
 int fftconv_convolve(struct fftconv *fc, struct fftconv_thread *t,
 		     double *img, int nx, int ny, const double *kernel, int kn);
 
-/* How fftconv_convolve sums: FFTCONV_AUTO (the default) takes the direct
+/*
+ * The sum of count (1 to 8) such convolutions, each image with its own
+ * kernel (all kn x kn), into imgs[0]:
+ *
+ *   imgs[0] <- sum_i imgs[i] * kernels[i],
+ *
+ * the other images left as they were.  The transforms of the images and
+ * kernels are multiplied and summed, and the sum transformed back once.
+ * Returns 0, or -1 on bad sizes or when out of memory (imgs[0] is then
+ * unchanged).
+ */
+int fftconv_convolve_sum(struct fftconv *fc, struct fftconv_thread *t, double *const *imgs,
+			 const double *const *kernels, int count, int nx, int ny, int kn);
+
+/* How fftconv_convolve and fftconv_convolve_sum sum: FFTCONV_AUTO (the default) takes the direct
  * sum over the lit pixels where that costs less than the transforms, and
  * the FFT elsewhere; FFTCONV_FFT and FFTCONV_DIRECT force one way, for the
  * tests and the benchmarks that compare them.  Process-wide; not while a

@@ -127,6 +127,18 @@ static int host_convolve(void *ctx, void *thread, double *img, int nx, int ny,
 	return 0;
 }
 
+static int host_convolve_sum(void *ctx, void *thread, double *const *imgs,
+			     const double *const *kernels, int count, int nx, int ny, int kn)
+{
+	struct engine *g = ctx;
+	struct worker *w = thread;
+
+	if (!w->fft && !(w->fft = fftconv_thread_new()))
+		return host_error(ctx, "out of memory for FFT buffers");
+	if (fftconv_convolve_sum(g->fft, w->fft, imgs, kernels, count, nx, ny, kn) < 0)
+		return host_error(ctx, "FFT convolution of %d %d x %d images failed", count, nx, ny);
+	return 0;
+}
 
 void host_init(struct engine *g)
 {
@@ -136,5 +148,6 @@ void host_init(struct engine *g)
 		.epsf = host_epsf, .scratch = host_scratch, .convolve = host_convolve,
 		.source_size = sizeof(struct wfs_source), .epsf_colour = host_epsf_colour,
 		.epsf_blend = host_epsf_blend,
+		.convolve_sum = host_convolve_sum,
 	};
 }

@@ -96,8 +96,9 @@ static const struct opt scene_options[] = {
 	  "line); "
 	  "-o, --placed and --report then need a %s for the name", opt_string,
 	  OFF(o.pointings)) },
-	{ OPT("memory", 0, "MB", "half the RAM", "memory for the exposures of --pointings drawn "
-	  "at once; the rest in later passes over the catalogs", opt_double, OFF(o.memory_mb)),
+	{ OPT("memory", 0, "MB", "half the RAM", "memory for the exposures (or an exposure's "
+	  "SCAs) drawn at once; the rest in later passes over the catalogs", opt_double,
+	  OFF(o.memory_mb)),
 	  .lo = 1, .hi = 1e9, .flags = OPT_SHOW_DEFAULT },
 	{ OPT("compress", 0, "C", "none", "none, rice or gzip tile compression",
 	  opt_choice_word, OFF(o.compress)), .words = compressions },
@@ -428,6 +429,10 @@ static int fail(const struct err *e)
  * in Roman's own geometry, one file per SCA, written at offsets. */
 static int check_asdf(const struct scene_opts *o, struct err *e)
 {
+	if (strcmp(o->compress, "none"))
+		return err_set(e, EXIT_INPUT, "--compress %s with ASDF: FITS tile compression; "
+			       "an ASDF file's blocks take --set asdf-compression=zlib or lz4",
+			       o->compress);
 	if (o->level == LEVEL_SCENE)
 		return err_set(e, EXIT_INPUT, "-o %s: ASDF holds Roman's level 1 or 2 products; "
 			       "add --level 1 or --level 2 (or write FITS)", o->output);

@@ -337,6 +337,9 @@ static int placed_roman_row(struct engine *g, const struct rows *r, size_t i,
 		if (pa < 0)
 			pa += 360.0;
 	}
+	/* with SCA groups, the row for placed_merge() to list it once */
+	if (g->npass > 1 && fprintf(g->placed, "%zu\t", i) < 0)
+		return -1;
 	return fprintf(g->placed, "%lld,%d,%.4f,%.4f,%.15g,%.15g,%s,%.17g,%.17g,%.17g,%.17g,%.17g\n",
 		       src->id, src->sca, src->x + 1, src->y + 1, r->ra[i], r->dec[i], type,
 		       n, hlr, pa, ba, maggies) < 0 ? -1 : 0;
@@ -772,7 +775,8 @@ static unsigned long long slot_masks(const struct slot_map *sm, size_t a, size_t
 					m |= 1u << s;
 			}
 		}
-		g->mask[i] = m;
+		/* culled near no slot; placed on this pass's (run.c) */
+		g->mask[i] = m & g->pass_slots;
 		culled += !isnan(r->ra[i]) && !m;
 	}
 	return culled;
@@ -1107,7 +1111,8 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	    focal_step(g, r, maxreach) < 0 || pixel_step(g, r, off, perr) < 0)
 		goto out;
 	for (int s = 0; s < g->nslot && !pended; s++)
-		if (place_on_slot(g, r, b, s, model, param, nxy, off, perr) < 0) {
+		if ((g->pass_slots >> s & 1) &&
+		    place_on_slot(g, r, b, s, model, param, nxy, off, perr) < 0) {
 			/* reported only if no placement before it fails */
 			pended = -1;
 			stopped = *g->e;

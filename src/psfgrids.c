@@ -361,6 +361,25 @@ int psfgrids_open_user(struct engine *g)
 	return 0;
 }
 
+void psfgrids_drop(struct engine *g, int sca)
+{
+	struct psf_grid **gr = g->grid[sca - 1];
+
+	for (int c = WFS_PSF_HALO; c >= 0; c--) {
+		if (gr[c] && (c == 0 || gr[c] != gr[0]))
+			psf_grid_free(gr[c]);
+		gr[c] = NULL;
+	}
+	for (int c = 0; g->cgrid && c < SOURCE_CLASSES; c++)
+		for (int k = 0; k < g->ncgrid; k++) {
+			struct psf_grid **cg = &g->cgrid[((size_t)(sca - 1) * SOURCE_CLASSES + c) *
+							 g->ncgrid + k];
+
+			psf_grid_free(*cg);
+			*cg = NULL;
+		}
+}
+
 void psfgrids_free(struct engine *g)
 {
 	for (int s = 0; s < WFS_NSCA; s++)

@@ -821,7 +821,10 @@ static void level1_reads(struct l1row *R, int gi)
 	const struct ramp_key *k = R->k;
 	struct l1grp G;
 	uint32_t cell0 = R->cell0, (*w)[4] = R->w;
-	int n = R->n, nh = R->nh, hp = 0, wide = 0;
+	int n = R->n, hp = 0;
+#ifdef SIMD_X86
+	int nh = R->nh, wide = (simd_flags() & SIMD_AVX512) != 0;
+#endif
 
 	G.gi = gi;
 	G.a = R->p->first[gi];
@@ -833,9 +836,6 @@ static void level1_reads(struct l1row *R, int gi)
 	G.bk = d->beta * G.kvar * G.inv_n * G.inv_n;
 	G.exact_max = R->exact_max;
 	G.inv_g = 1 / d->gain;
-#ifdef SIMD_X86
-	wide = (simd_flags() & SIMD_AVX512) != 0;
-#endif
 	/* the split's normal: the square root of a count's variance, the
 	 * very one it would compute, without the wait for a root per pixel
 	 * (eight at a time where the machine can: the same roots) */
@@ -1064,12 +1064,10 @@ void ramp_level1_finish(const struct ramp_det *d, int nres, int n, const double 
 {
 	const double *rows[3] = { above, row, below };
 	double inv_g = 1 / d->gain, dnmax = 65535, kr[3][3];
-	int avx2 = 0, avx512 = 0;
-
 #ifdef SIMD_X86
-	avx2 = (simd_flags() & SIMD_AVX2) != 0;
-	avx512 = (simd_flags() & SIMD_AVX512) != 0;
+	int avx2 = (simd_flags() & SIMD_AVX2) != 0, avx512 = (simd_flags() & SIMD_AVX512) != 0;
 #endif
+
 	/* kernel row dy + 1 acts on rows[1 - dy] */
 	for (int j = 0; j < 3; j++)
 		for (int i = 0; i < 3; i++)

@@ -284,13 +284,11 @@ void ramp_pois_row(const struct rng *g, uint32_t cell0, int n, const double *mu,
 {
 	uint32_t w[256][4];
 	struct pois_state st = { .dlast = -1, .edlast = 1 };
-	int wide = 0;
+#ifdef SIMD_X86
+	int wide = (simd_flags() & SIMD_AVX512) != 0;
+#endif
 
 	pthread_once(&pois_once, pois_build);
-
-#ifdef SIMD_X86
-	wide = (simd_flags() & SIMD_AVX512) != 0;
-#endif
 	for (int i0 = 0; i0 < n; i0 += 256) {
 		int m = n - i0 < 256 ? n - i0 : 256;
 

@@ -339,13 +339,13 @@ void rnoise_slow_add(const struct rnoise *R, uint32_t cell0, int n, int r0, int 
 		     size_t plane)
 {
 	double z[RN_SLOW_M] = { 0 };
-	int jmax = 0, wide = 0;
+	int jmax = 0;
+#ifdef SIMD_X86
+	int wide = (simd_flags() & SIMD_AVX512) != 0;
+#endif
 
 	if (!(R->par.slow > 0) || r1 <= r0)
 		return;
-#ifdef SIMD_X86
-	wide = (simd_flags() & SIMD_AVX512) != 0;
-#endif
 	for (int r = r0; r < r1; r++)
 		jmax = R->kj1[r] > jmax ? R->kj1[r] : jmax;
 	for (int i0 = 0; i0 < n; i0 += RN_SLOW_M) {

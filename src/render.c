@@ -170,7 +170,8 @@ static void gather_task(void *arg, int wid, size_t task)
 	double t0 = engine_clock(), c0 = thread_cpu();
 	int r;
 
-	if (atomic_load(&g->failed) || !j->has[m])
+	/* an SCA is gathered in the pass that draws it (run.c) */
+	if (atomic_load(&g->failed) || !j->has[m] || !(g->pass_slots >> s & 1))
 		return;
 	host_worker(w);
 	if ((r = pl->m->gather(pl->state, w, g->slot[s].sca)) < 0)

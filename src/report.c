@@ -118,11 +118,121 @@ int placed_close(struct engine *g, int keep)
 {
 	int r;
 
+	for (int k = 0; k < WFS_NSCA; k++)
+		if (g->placed_part[k]) {
+			fclose(g->placed_part[k]);
+			g->placed_part[k] = NULL;
+		}
+	if (g->placed_out) {
+		g->placed = g->placed_out;
+		g->placed_out = NULL;
+	}
 	if (!g->placed)
 		return 0;
 	r = side_close(g->placed, g->x->placed, g->placed_tmp, keep, g->e);
 	g->placed = NULL;
 	return r;
+}
+
+/*
+ * SCA groups (run.c).  Each pass writes its placements to an unnamed
+ * temporary, an empty line after each chunk of rows; in romanisim's
+ * convention each line begins with its row in the chunk and a tab
+ * (place.c).  One pass lists a chunk's placements slot by slot, and the
+ * passes draw consecutive slots, so the list of one pass is, chunk by
+ * chunk, the passes' lists one after another; in romanisim's convention a
+ * row is listed once, at its first placement, so a row an earlier pass
+ * listed in the chunk is left out.
+ */
+int placed_pass_begin(struct engine *g)
+{
+	int fd;
+
+	if (g->npass < 2 || (!g->placed && !g->placed_out))
+		return 0;
+	if (!g->placed_out)
+		g->placed_out = g->placed;
+	g->placed = NULL;
+	if ((fd = tempfile_unnamed("--placed", g->e)) < 0)
+		return -1;
+	if (!(g->placed_part[g->pass] = fdopen(fd, "w+"))) {
+		close(fd);
+		return err_sys(g->e, "--placed: temporary list");
+	}
+	g->placed = g->placed_part[g->pass];
+	return 0;
+}
+
+int placed_chunk_end(struct engine *g)
+{
+	if (g->npass > 1 && g->placed && putc('\n', g->placed) == EOF)
+		return err_sys(g->e, "--placed: temporary list");
+	return 0;
+}
+
+/* The next line of part f into *line: 1, or 0 at the end of a chunk or of
+ * the file (*end set). */
+static int part_line(FILE *f, char **line, size_t *cap, int *end)
+{
+	ssize_t n = getline(line, cap, f);
+
+	*end = n < 0;
+	return n > 0 && (*line)[0] != '\n';
+}
+
+int placed_merge(struct engine *g)
+{
+	FILE *out = g->placed_out;
+	uint32_t *stamp = NULL, chunk = 0;
+	size_t nstamp = 0, cap = 0;
+	char *line = NULL;
+	int more = 1, end = 1, rc = 0;
+
+	if (!out)
+		return 0;
+	for (int k = 0; k < g->npass; k++)
+		if (fflush(g->placed_part[k]) || ferror(g->placed_part[k]) ||
+		    fseek(g->placed_part[k], 0, SEEK_SET))
+			return err_sys(g->e, "--placed: temporary list");
+	while (more && rc == 0) {
+		more = 0;
+		chunk++;
+		for (int k = 0; k < g->npass && rc == 0; k++) {
+			while (rc == 0 && part_line(g->placed_part[k], &line, &cap, &end)) {
+				char *text = line;
+
+				if (g->placed_roman) {
+					size_t i = strtoull(line, &text, 10);
+
+					text++;
+					if (i >= nstamp) {
+						size_t n = 2 * i + 1024;
+						uint32_t *more_ = realloc(stamp, n * sizeof(*stamp));
+
+						if (!more_) {
+							rc = err_sys(g->e, "--placed");
+							break;
+						}
+						memset(more_ + nstamp, 0, (n - nstamp) * sizeof(*stamp));
+						stamp = more_;
+						nstamp = n;
+					}
+					if (stamp[i] == chunk)
+						continue;
+					stamp[i] = chunk;
+				}
+				if (fputs(text, out) == EOF)
+					rc = err_sys(g->e, "%s", g->x->placed);
+			}
+			more |= !end;
+		}
+	}
+	for (int k = 0; k < g->npass; k++)
+		if (ferror(g->placed_part[k]) && rc == 0)
+			rc = err_sys(g->e, "--placed: temporary list");
+	free(line);
+	free(stamp);
+	return rc;
 }
 
 /* A JSON string: quotes, backslashes and control bytes escaped (--set
@@ -251,8 +361,88 @@ static void report_work(FILE *f, struct engine *g)
 	fputs("]},\n", f);
 }
 
-/* "psf_grids": the grids built and loaded and each one's least enclosed
- * light; returns the largest truncation loss among them. */
+/*
+ * The PSF grids the report lists: per SCA and size class, the grid's
+ * samples and least enclosed light (a class that shares the class
+ * before's grid is not listed again), and which spectral classes' grids
+ * were drawn with.  From the grids themselves, or for an SCA whose grids
+ * a pass freed (SCA groups, run.c) from the note taken just before.
+ */
+struct grid_note {
+	unsigned char noted[WFS_NSCA];
+	int n[WFS_NSCA][3];             /* samples; 0: not listed */
+	double lo[WFS_NSCA][3];
+	unsigned char *cls;             /* [sca][class][k]: ncls a class */
+	int ncls;
+};
+
+/* The box of SCA sca, size class c, from its grids: 1 with *n and *lo,
+ * or 0 when not listed. */
+static int grid_box_live(struct engine *g, int sca, int c, int *n, double *lo)
+{
+	const struct psf_grid *gr = psfgrids_get(g, sca, c);
+
+	if (!gr || (c > 0 && gr == psfgrids_get(g, sca, c - 1)))
+		return 0;
+	*lo = 1;
+	for (int k = 0; k < gr->nx * gr->ny; k++)
+		for (int p = 0; p < gr->over * gr->over; p++)
+			*lo = fmin(*lo, psf_enclosed(gr, k, p % gr->over, p / gr->over));
+	*n = gr->n;
+	return 1;
+}
+
+static int grid_box(struct engine *g, int sca, int c, int *n, double *lo)
+{
+	const struct grid_note *gn = g->grid_note;
+
+	if (!gn || !gn->noted[sca - 1])
+		return grid_box_live(g, sca, c, n, lo);
+	*n = gn->n[sca - 1][c];
+	*lo = gn->lo[sca - 1][c];
+	return *n > 0;
+}
+
+static int grid_class(struct engine *g, int sca, int c, int k)
+{
+	const struct grid_note *gn = g->grid_note;
+
+	if (!gn || !gn->noted[sca - 1])
+		return psfgrids_colour_get(g, sca, c, k) != NULL;
+	return k < gn->ncls && gn->cls[((size_t)(sca - 1) * 3 + c) * gn->ncls + k];
+}
+
+int report_grids_note(struct engine *g, int sca)
+{
+	struct grid_note *gn = g->grid_note;
+	int ncls = g->classes ? 2 * g->classes->n : 0;
+
+	if (!gn && !(gn = g->grid_note = calloc(1, sizeof(*gn))))
+		return err_sys(g->e, "report");
+	if (ncls && !gn->cls) {
+		if (!(gn->cls = calloc((size_t)WFS_NSCA * 3 * ncls, 1)))
+			return err_sys(g->e, "report");
+		gn->ncls = ncls;
+	}
+	for (int c = 0; c < 3; c++) {
+		if (!grid_box_live(g, sca, c, &gn->n[sca - 1][c], &gn->lo[sca - 1][c]))
+			gn->n[sca - 1][c] = 0;
+		for (int k = 0; k < gn->ncls; k++)
+			gn->cls[((size_t)(sca - 1) * 3 + c) * gn->ncls + k] =
+				psfgrids_colour_get(g, sca, c, k) != NULL;
+	}
+	gn->noted[sca - 1] = 1;
+	return 0;
+}
+
+void report_notes_free(struct engine *g)
+{
+	if (g->grid_note)
+		free(g->grid_note->cls);
+	free(g->grid_note);
+	g->grid_note = NULL;
+}
+
 /* The spectral classes (psf.h) and the grids of them drawn with, inside
  * "psf_grids"; nothing when the scene had no source with a spectrum. */
 static void report_spectral_classes(FILE *f, struct engine *g)
@@ -274,7 +464,7 @@ static void report_spectral_classes(FILE *f, struct engine *g)
 		first = 1;
 		for (int s = 0; s < WFS_NSCA; s++)
 			for (int c = 0; c < 3; c++)
-				if (psfgrids_colour_get(g, s + 1, c, k)) {
+				if (grid_class(g, s + 1, c, k)) {
 					fprintf(f, "%s{\"sca\": %d, \"samples\": %d}",
 						first ? "" : ", ", s + 1, psf_class_n[c]);
 					first = 0;
@@ -284,6 +474,8 @@ static void report_spectral_classes(FILE *f, struct engine *g)
 	fprintf(f, "\n  ]");
 }
 
+/* "psf_grids": the grids built and loaded and each one's least enclosed
+ * light; returns the largest truncation loss among them. */
 static double report_psf_grids(FILE *f, struct engine *g)
 {
 	double worst_loss = 0;
@@ -296,17 +488,14 @@ static double report_psf_grids(FILE *f, struct engine *g)
 	first = 1;
 	for (int s = 0; s < WFS_NSCA; s++)
 		for (int c = 0; c < 3; c++) {
-			const struct psf_grid *gr = psfgrids_get(g, s + 1, c);
-			double lo = 1;
+			double lo;
+			int n;
 
-			if (!gr || (c > 0 && gr == psfgrids_get(g, s + 1, c - 1)))
+			if (!grid_box(g, s + 1, c, &n, &lo))
 				continue;
-			for (int k = 0; k < gr->nx * gr->ny; k++)
-				for (int p = 0; p < gr->over * gr->over; p++)
-					lo = fmin(lo, psf_enclosed(gr, k, p % gr->over, p / gr->over));
 			worst_loss = fmax(worst_loss, 1 - lo);
 			fprintf(f, "%s\n    {\"sca\": %d, \"class\": %d, \"samples\": %d, "
-				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, gr->n, lo);
+				"\"min_enclosed\": %.8f}", first ? "" : ",", s + 1, c, n, lo);
 			first = 0;
 		}
 	fputs("\n  ]", f);

@@ -1053,11 +1053,10 @@ void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, double *out)
 {
 	uint32_t w[64][4];
 	uint64_t i = first, end = first + n;
-	int wide = 0;
-
 #ifdef SIMD_X86
-	wide = (simd_flags() & SIMD_AVX512) != 0;
+	int wide = (simd_flags() & SIMD_AVX512) != 0;
 #endif
+
 	while (i < end) {
 		uint64_t p0 = i >> 1, p1 = ((end - 1) >> 1) + 1;
 		size_t np = p1 - p0 < 64 ? (size_t)(p1 - p0) : 64, k = 0;

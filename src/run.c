@@ -7,7 +7,9 @@
  * is placed (place.c) by every engine and drawn (render.c) by the shared
  * worker pool while the main thread reads and places the next chunk.  After
  * the last chunk each exposure is written (write.c) with its side files
- * (report.c).
+ * (report.c).  What does not fit the memory budget is drawn in more passes
+ * over the catalogs: whole exposures, or groups of an exposure's SCAs
+ * (plan_passes).
  */
 #include <math.h>
 #include <pthread.h>
@@ -29,6 +31,8 @@
 #include "noise.h"
 #include "persist.h"
 #include "pool.h"
+#include "product.h"
+#include "tempfile.h"
 #include "tree.h"
 
 /* An engine for exposure x: its sky geometry, its SCAs' tile grids, the
@@ -43,6 +47,8 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 	g->x = x;
 	g->e = e;
 	g->main_thread = pthread_self();
+	g->pass_slots = UINT32_MAX;
+	g->npass = 1;
 	settings_init(g);
 	if (sky_init(&g->sky, x->ra, x->dec, x->pa, x->boresight, o->geometry, x->sca_mask, e) < 0 ||
 	    sky_va_setting(&g->sky, host_setting(g, "velocity-aberration"), x->date, o->exptime,
@@ -93,6 +99,8 @@ static int engine_init(struct engine *g, const struct scene_opts *o, const struc
 /* The pool is the caller's; the workers must be idle. */
 static void engine_free(struct engine *g)
 {
+	if (g->out)
+		g->out->ops->abort(g->out);
 	render_threads_stop(g);
 	free(g->pw);
 	plugins_free(&g->plugins);
@@ -103,6 +111,7 @@ static void engine_free(struct engine *g)
 		free(g->slot[s].tile);
 	}
 	psfgrids_free(g);
+	report_notes_free(g);
 	for (int i = 0; i < 2; i++) {
 		free(g->b[i].p);
 		free(g->b[i].param);
@@ -190,6 +199,28 @@ static int tree_region(struct engine **g, int ng, struct tree_disc **out, int *n
 	return 0;
 }
 
+/* A catalog tree's counts, into the engines' (and -v's) once per run:
+ * by the first pass over the catalogs. */
+static void tree_note(struct engine **g, int ng, struct catalog *c, const char *cat)
+{
+	struct tree_counts tc;
+
+	if (g[0]->pass || !catalog_tree_counts(c, &tc))
+		return;
+	host_log(g[0], 1, "%s: catalog tree: %llu of %llu files read; %llu skipped unread "
+		 "(%llu bytes, %llu rows counted, %llu files uncounted)", cat,
+		 tc.files - tc.skipped, tc.files, tc.skipped, tc.bytes_skipped,
+		 tc.rows_skipped, tc.rows_uncounted);
+	for (int i = 0; i < ng; i++) {
+		g[i]->tree_files += tc.files;
+		g[i]->tree_skipped += tc.skipped;
+		g[i]->tree_bytes_skipped += tc.bytes_skipped;
+		g[i]->tree_rows_skipped += tc.rows_skipped;
+		g[i]->tree_rows_uncounted += tc.rows_uncounted;
+		g[i]->trees++;
+	}
+}
+
 static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			const struct scene_opts *o, struct err *e)
 {
@@ -225,9 +256,11 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			for (int i = 0; i < ng; i++) {
 				struct batch *b = &g[i]->b[cur];
 
-				g[i]->rows_read += n;
+				/* rows read and culled: counted by the first pass */
+				if (!g[i]->pass)
+					g[i]->rows_read += n;
 				/* placed while the pool draws the pending batch */
-				if (place_batch(g[i], &rows, b) < 0) {
+				if (place_batch(g[i], &rows, b) < 0 || placed_chunk_end(g[i]) < 0) {
 					/* Never a silent end of the run. */
 					err_set(e, EXIT_SYSTEM, "placing the rows of %s failed", *cat);
 					break;
@@ -258,25 +291,7 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				break;
 			cur ^= 1;
 		}
-		{
-			struct tree_counts tc;
-
-			if (catalog_tree_counts(c, &tc))
-				host_log(g[0], 1, "%s: catalog tree: %llu of %llu files read; %llu "
-					 "skipped unread (%llu bytes, %llu rows counted, %llu "
-					 "files uncounted)", *cat, tc.files - tc.skipped, tc.files,
-					 tc.skipped, tc.bytes_skipped, tc.rows_skipped,
-					 tc.rows_uncounted);
-			if (catalog_tree_counts(c, &tc))
-				for (int i = 0; i < ng; i++) {
-					g[i]->tree_files += tc.files;
-					g[i]->tree_skipped += tc.skipped;
-					g[i]->tree_bytes_skipped += tc.bytes_skipped;
-					g[i]->tree_rows_skipped += tc.rows_skipped;
-					g[i]->tree_rows_uncounted += tc.rows_uncounted;
-					g[i]->trees++;
-				}
-		}
+		tree_note(g, ng, c, *cat);
 		catalog_close(c);
 		if (n < 0 || e->code != EXIT_OK)
 			break;
@@ -297,12 +312,68 @@ out:
 	return rc < 0 || e->code != EXIT_OK ? -1 : 0;
 }
 
-/* Write one exposure's image, --placed list and report. */
+/*
+ * Between SCA groups, the pool idle: the models started afresh (their
+ * threads' states stopped, fini() and init() again), so that what they
+ * hold for the SCAs written (halos, the diffuse light, polyphase copies of
+ * ePSF nodes) goes, and then those SCAs' PSF grids are freed.  In that
+ * order: a model may know a grid by its address, which a grid loaded
+ * later could take.  The report's figures of the grids are kept first.
+ */
+static int models_restart(struct engine *g)
+{
+	for (int i = 0; i < g->nworker; i++)
+		for (int m = 0; m < g->plugins.n; m++) {
+			struct plugin *pl = &g->plugins.p[m];
+
+			if (g->w[i].started[m] && pl->m->thread_stop)
+				pl->m->thread_stop(pl->state, g->w[i].tstate[m]);
+			g->w[i].started[m] = 0;
+			g->w[i].tstate[m] = NULL;
+		}
+	for (int m = 0; m < g->plugins.n; m++) {
+		struct plugin *pl = &g->plugins.p[m];
+
+		if (!pl->ready)
+			continue;
+		if (pl->m->fini)
+			pl->m->fini(pl->state);
+		pl->state = NULL;
+		if (pl->m->init && pl->m->init(&g->host, &pl->state) < 0) {
+			pl->ready = 0;
+			if (g->e->code == EXIT_OK)
+				err_set(g->e, EXIT_PLUGIN, "model '%s' (%s): set-up failed",
+					pl->name, pl->path);
+			return -1;
+		}
+	}
+	/* (not the first SCA's: every pass measures the reach of sky rows
+	 * on it, place.c) */
+	for (int s = 1; s < g->nslot; s++)
+		if (g->pass_slots >> s & 1) {
+			if (g->x->report && report_grids_note(g, g->slot[s].sca) < 0)
+				return -1;
+			psfgrids_drop(g, g->slot[s].sca);
+		}
+	return 0;
+}
+
+/* The end of a pass for one exposure: the light its models gathered
+ * spread, its SCAs through the detector stage and written, and before
+ * another SCA group the memory of these SCAs freed. */
+static int finish_pass(struct engine *g)
+{
+	if (render_spread(g) < 0 || write_exposure(g) < 0)
+		return -1;
+	return g->pass + 1 < g->npass ? models_restart(g) : 0;
+}
+
+/* After the exposure's last pass: its --placed list, persistence, report. */
 static int finish(struct engine *g, struct timespec t0)
 {
 	struct timespec t1;
 
-	if (render_spread(g) < 0 || write_exposure(g) < 0 || placed_close(g, 1) < 0 ||
+	if (placed_merge(g) < 0 || placed_close(g, 1) < 0 ||
 	    (g->x->persist && persist_end(g->x->persist, g->e) < 0))
 		return -1;
 	clock_gettime(CLOCK_MONOTONIC, &t1);
@@ -319,88 +390,230 @@ static int finish(struct engine *g, struct timespec t0)
 }
 
 /*
- * The memory one exposure holds while it is drawn: its tiles, 4088 columns
- * of doubles for each row drawn on each SCA requested (a crowded field
- * touches every tile), and SERIES_SCA_BYTES more per SCA for its PSF
- * grids, which each exposure loads for itself, its placements and its
- * writer.  Measured: a series of 10^6 stars on SCA 1 peaks at 1846 MB with
- * 10 exposures at once and 581 MB with 3, 181 MB an exposure, of which
- * 128 MiB are tiles (BENCHMARKS.md).
+ * The memory a run holds while it draws, measured with /usr/bin/time's
+ * peak (BENCHMARKS.md, "Memory in passes"): for every SCA drawn at once,
+ * 4088 columns of doubles for each row drawn (its tiles: a crowded field
+ * touches every one) and SCA_BYTES more for its PSF grids, the models'
+ * state for it and its placements; and RUN_BYTES once, the catalog's
+ * chunks and the program (more at levels 1 and 2: the ramps of the SCA
+ * being written).  Measured on 10^6 sky rows over the focal plane: 172 MiB
+ * an SCA at the scene level and 183 MiB at level 2, of which 127.5 MiB
+ * are tiles; 33 and 104 MiB besides.
  */
-#define SERIES_SCA_BYTES (56.0 * 1024 * 1024)
+#define MIB (1024.0 * 1024.0)
+#define SCA_BYTES (56.0 * MIB)
+
+static double run_bytes(const struct scene_opts *o)
+{
+	return (o->level ? 110.0 : 40.0) * MIB;
+}
+
+static double sca_bytes(const struct scene_opts *o)
+{
+	double rows = o->row_first ? o->row_last - o->row_first + 1 : WFS_NPIX;
+
+	return rows * WFS_NPIX * sizeof(double) + SCA_BYTES;
+}
 
 static double exposure_bytes(const struct scene_opts *o, const struct exposure *x)
 {
-	int nsca = __builtin_popcount(x->sca_mask);
-	double rows = o->row_first ? o->row_last - o->row_first + 1 : WFS_NPIX;
+	return __builtin_popcount(x->sca_mask) * sca_bytes(o);
+}
 
-	return nsca * (rows * WFS_NPIX * sizeof(double) + SERIES_SCA_BYTES);
+/* The smallest of the machine's physical memory and the memory limit of
+ * the control group the process runs in (cgroup v2, else v1), bytes. */
+static double memory_available(void)
+{
+	static const char *const limit[2] = { "/sys/fs/cgroup/memory.max",
+					      "/sys/fs/cgroup/memory/memory.limit_in_bytes" };
+	long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+	double have = pages > 0 && size > 0 ? (double)pages * size : 8e9;
+
+	for (int k = 0; k < 2; k++) {
+		FILE *f = fopen(limit[k], "r");
+		double v;
+
+		if (!f)
+			continue;
+		if (fscanf(f, "%lf", &v) == 1 && v > 0 && v < have)
+			have = v;
+		fclose(f);
+		break;
+	}
+	return have;
 }
 
 /*
- * How many exposures are drawn at once: as many as the memory budget
- * (--memory, by default half the machine's physical memory) holds at
- * exposure_bytes() each, at least one.  The others wait for later passes
- * over the catalogs, so a series of hundreds of exposures of one field
- * needs the memory of a few and reads the catalogs once per pass.
+ * How a run's exposures are drawn: as many exposures at once as the memory
+ * budget (--memory, by default half of memory_available()) holds at
+ * exposure_bytes() each besides run_bytes(); the others wait for later
+ * passes over the catalogs, so a series of hundreds of exposures of one
+ * field needs the memory of a few.  When not even one exposure fits, each
+ * is drawn alone in groups of SCAs, as many at once as fit (at least one),
+ * one pass over the catalogs a group: every SCA of a group is finished,
+ * written and freed before the next group is drawn.
  */
-static int series_per_pass(const struct scene_opts *o, const struct exposure *x, int n)
+struct plan {
+	int per;                /* exposures drawn at once */
+	int groups;             /* SCA groups of each exposure (per is 1) */
+	int passes;             /* over the catalogs in all */
+	double budget;          /* bytes */
+};
+
+static void plan_passes(const struct scene_opts *o, const struct exposure *x, int n,
+			struct plan *p)
 {
-	double budget = o->memory_mb > 0 ? o->memory_mb * 1024.0 * 1024.0 : 0;
-	double each = exposure_bytes(o, &x[0]), k;
+	double each = 0, k;
+	int nsca = __builtin_popcount(x[0].sca_mask);
 
-	if (!(budget > 0)) {
-		long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
-
-		budget = pages > 0 && size > 0 ? 0.5 * pages * (double)size : 4e9;
-	}
-	for (int i = 1; i < n; i++)
+	p->budget = o->memory_mb > 0 ? o->memory_mb * MIB : 0.5 * memory_available();
+	for (int i = 0; i < n; i++)
 		each = fmax(each, exposure_bytes(o, &x[i]));
-	k = floor(budget / each);
-	return k < 1 ? 1 : k >= n ? n : (int)k;
+	k = floor((p->budget - run_bytes(o)) / each);
+	p->per = k < 1 ? 1 : k >= n ? n : (int)k;
+	p->groups = 1;
+	if (k < 1 && nsca > 1) {
+		double fit = floor((p->budget - run_bytes(o)) / sca_bytes(o));
+		int at_once = fit < 1 ? 1 : fit >= nsca ? nsca : (int)fit;
+
+		p->groups = (nsca + at_once - 1) / at_once;
+	}
+	p->passes = (n + p->per - 1) / p->per * p->groups;
 }
 
-/* Exposures x[first .. first+n-1] drawn in one pass over the catalogs: an
- * engine each, the catalogs streamed through them, each written. */
+/* The bits of the slots of group j of k among nslot slots: consecutive
+ * slots, the groups as even as can be. */
+static uint32_t group_slots(int nslot, int j, int k)
+{
+	int lo = j * nslot / k, hi = (j + 1) * nslot / k;
+
+	return (uint32_t)(((1ull << hi) - 1) & ~((1ull << lo) - 1));
+}
+
+/* -v: how the run's exposures are drawn. */
+static void plan_say(const struct scene_opts *o, const struct exposure *x, int n,
+		     const struct plan *p)
+{
+	int nsca = __builtin_popcount(x[0].sca_mask);
+
+	if (o->verbose < 1 || p->passes < 2)
+		return;
+	if (p->groups > 1)
+		fprintf(stderr, "wfiscene: %d SCAs in %d passes over the catalogs%s, %d at most at "
+			"a time (%.0f MB each, %.0f MB of memory)\n", nsca, p->groups,
+			n > 1 ? " per exposure" : "", (nsca + p->groups - 1) / p->groups,
+			sca_bytes(o) / MIB, p->budget / MIB);
+	else
+		fprintf(stderr, "wfiscene: %d exposures in %d passes over the catalogs, "
+			"at most %d at a time (%.0f MB each)\n", n, p->passes, p->per,
+			exposure_bytes(o, &x[0]) / MIB);
+}
+
+/* Engine g[i] for exposure x[i], ready for the catalogs. */
+static int pass_engine(struct engine *g, const struct scene_opts *o, struct exposure *x,
+		       int groups, struct pool *pool, struct pool *place_pool,
+		       struct into *into, struct timespec t0, int first, struct err *e)
+{
+	if (engine_init(g, o, x, pool, place_pool, e) < 0 ||
+	    (into && into_apply(into, &g->sky, e) < 0))
+		return -1;
+	if ((x->placed && placed_open(g) < 0) || (x->report && side_check(x->report, e) < 0))
+		return -1;
+	g->npass = groups;
+	g->t_start = g->t_progress = t0;
+	g->progress = first && o->verbose >= 0 && isatty(2);
+	return 0;
+}
+
+/* Exposures x[0 .. n-1] drawn in plan->groups passes over the catalogs (one
+ * but with SCA groups): an engine each, the catalogs streamed through them
+ * once a group, each group finished, the exposures' side files at the end.
+ * A catalog on stdin has been spooled (stdin_copy) and is read again from
+ * its start each pass. */
 static int run_pass(const struct scene_opts *o, char *const *catalogs, struct exposure *x,
-		    int n, struct pool *pool, struct pool *place_pool, struct into *into,
-		    struct timespec t0,
-		    struct err *e)
+		    int n, int groups, struct pool *pool, struct pool *place_pool,
+		    struct into *into, struct timespec t0, int stdin_copy, struct err *e)
 {
 	struct engine **g = calloc(n, sizeof(*g));
+	unsigned long long *culled = calloc(n, sizeof(*culled));
 	int made = 0, rc = -1;
 
-	if (!g)
-		return err_sys(e, "memory");
+	if (!g || !culled) {
+		err_sys(e, "memory");
+		goto out;
+	}
 	for (int i = 0; i < n; i++) {
 		if (!(g[i] = malloc(sizeof(*g[i])))) {
 			err_sys(e, "memory");
 			goto out;
 		}
 		made++;
-		if (engine_init(g[i], o, &x[i], pool, place_pool, e) < 0 ||
-		    (into && into_apply(into, &g[i]->sky, e) < 0))
+		if (pass_engine(g[i], o, &x[i], groups, pool, place_pool, into, t0, i == 0, e) < 0)
 			goto out;
-		if ((x[i].placed && placed_open(g[i]) < 0) ||
-		    (x[i].report && side_check(x[i].report, e) < 0))
-			goto out;
-		g[i]->t_start = g[i]->t_progress = t0;
-		g[i]->progress = i == 0 && o->verbose >= 0 && isatty(2);
 	}
-	if (run_catalogs(g, n, catalogs, o, e) < 0)
-		goto out;
-	for (int i = 0; i < n; i++)
-		if (finish(g[i], t0) < 0)
+	for (int j = 0; j < groups; j++) {
+		if (stdin_copy && lseek(0, 0, SEEK_SET) < 0) {
+			err_sys(e, "<stdin>: its temporary copy");
 			goto out;
+		}
+		for (int i = 0; i < n; i++) {
+			g[i]->pass = j;
+			g[i]->pass_slots = groups > 1 ? group_slots(g[i]->nslot, j, groups) : UINT32_MAX;
+			culled[i] = g[i]->culled;
+			if (placed_pass_begin(g[i]) < 0)
+				goto out;
+		}
+		if (run_catalogs(g, n, catalogs, o, e) < 0)
+			goto out;
+		for (int i = 0; i < n; i++) {
+			/* culled near every SCA: counted by the first pass */
+			if (j)
+				g[i]->culled = culled[i];
+			if (finish_pass(g[i]) < 0 || (j == groups - 1 && finish(g[i], t0) < 0))
+				goto out;
+		}
+	}
 	rc = 0;
 out:
 	for (int i = 0; i < made; i++) {
 		placed_close(g[i], 0);
+		/* a failed run leaves no file behind, as one pass would not */
+		for (int k = 0; k < g[i]->nwritten; k++) {
+			if (rc < 0)
+				unlink(g[i]->written[k]);
+			free(g[i]->written[k]);
+		}
 		engine_free(g[i]);
 		free(g[i]);
 	}
 	free(g);
+	free(culled);
 	return rc;
+}
+
+/* A run of several passes over a catalog given as '-': stdin copied to a
+ * temporary once (tempfile.h), read from its start by each pass. */
+static int stdin_for_passes(const struct scene_opts *o, char *const *catalogs,
+			    const struct plan *p, int *copied, struct err *e)
+{
+	long long bytes;
+
+	*copied = 0;
+	if (p->passes < 2)
+		return 0;
+	for (char *const *cat = catalogs; *cat; cat++)
+		if (!strcmp(*cat, "-")) {
+			if ((bytes = tempfile_spool_stdin(e)) < 0) {
+				err_prefix(e, "%d passes over the catalogs (--memory)", p->passes);
+				return -1;
+			}
+			if (o->verbose >= 1)
+				fprintf(stderr, "wfiscene: <stdin>: %lld bytes kept in a temporary "
+					"file for %d passes\n", bytes, p->passes);
+			*copied = 1;
+			return 0;
+		}
+	return 0;
 }
 
 int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
@@ -410,7 +623,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	struct into *into = NULL;
 	struct persist *persist = NULL;
 	struct timespec t0;
-	int n = 0, per, nthreads, rc = -1, acomp;
+	struct plan plan;
+	int n = 0, nthreads, rc = -1, acomp, stdin_copy;
 
 	clock_gettime(CLOCK_MONOTONIC, &t0);
 	/* a setting the writers read at the end, checked before any work */
@@ -451,22 +665,10 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		for (int i = 0; i < n; i++)
 			x[i].persist = persist;
 	}
-	per = series_per_pass(o, x, n);
-	if (per < n) {
-		for (char *const *cat = catalogs; *cat; cat++)
-			if (!strcmp(*cat, "-")) {
-				err_set(e, EXIT_INPUT, "--pointings: %d exposures need %d passes "
-					"over the catalogs (%d at a time, %.0f MB each), and stdin "
-					"can be read once: give the catalog as a file, or more "
-					"--memory", n, (n + per - 1) / per, per,
-					exposure_bytes(o, &x[0]) / 1048576.0);
-				goto out;
-			}
-		if (o->verbose >= 1)
-			fprintf(stderr, "wfiscene: %d exposures in %d passes over the catalogs, "
-				"at most %d at a time (%.0f MB each)\n", n, (n + per - 1) / per,
-				per, exposure_bytes(o, &x[0]) / 1048576.0);
-	}
+	plan_passes(o, x, n, &plan);
+	plan_say(o, x, n, &plan);
+	if (stdin_for_passes(o, catalogs, &plan, &stdin_copy, e) < 0)
+		goto out;
 	nthreads = o->threads > 0 ? o->threads : pool_cpus();
 	/* the models' prepare() on as many threads, beside the render pool's
 	 * (place.c): one thread would only stand in for the main one */
@@ -475,9 +677,9 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		err_sys(e, "memory");
 		goto out;
 	}
-	for (int i = 0; i < n; i += per)
-		if (run_pass(o, catalogs, x + i, n - i < per ? n - i : per, pool, place_pool,
-			     into, t0, e) < 0)
+	for (int i = 0; i < n; i += plan.per)
+		if (run_pass(o, catalogs, x + i, n - i < plan.per ? n - i : plan.per, plan.groups,
+			     pool, place_pool, into, t0, stdin_copy, e) < 0)
 			goto out;
 	if (into && into_compose(into, x[0].output, acomp, pool, e) < 0)
 		goto out;

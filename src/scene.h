@@ -37,8 +37,8 @@ struct scene_opts {
 	int allow_sun;                  /* --allow-sun-angle */
 	double date;                    /* MJD (UTC) of --date; NaN for none */
 	double memory_mb;               /* --memory: the budget for exposures
-	                                   drawn at once (run.c); 0: half the
-	                                   physical memory */
+	                                   (or an exposure's SCAs) drawn at
+	                                   once (run.c); 0: half the memory */
 	double epoch;                   /* --epoch: Julian year of catalog
 	                                   positions without an epoch column */
 	unsigned noise;                 /* enum noise_stage bits */

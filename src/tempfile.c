@@ -10,6 +10,7 @@
 #include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <time.h>
@@ -194,4 +195,63 @@ int tempfile_open_output(const char *path, char *tmp, size_t cap, struct err *e)
 		return fd;
 	}
 	return tempfile_beside(path, tmp, cap, e);
+}
+
+int tempfile_unnamed(const char *what, struct err *e)
+{
+	const char *dir = getenv("TMPDIR");
+	char name[PATH_MAX];
+	int fd;
+
+	if (!dir || !*dir)
+		dir = "/tmp";
+	if (snprintf(name, sizeof(name), "%s/wfiscene-XXXXXX", dir) >= (int)sizeof(name))
+		return err_set(e, EXIT_SYSTEM, "%s: cannot create a temporary file in %s: "
+			       "the name is too long", what, dir);
+	if ((fd = mkstemp(name)) < 0)
+		return err_sys(e, "%s: cannot create a temporary file in %s", what, dir);
+	unlink(name);
+	return fd;
+}
+
+long long tempfile_spool_stdin(struct err *e)
+{
+	char buf[1 << 16];
+	long long total = 0;
+	int fd = tempfile_unnamed("stdin", e);
+	ssize_t r;
+
+	if (fd < 0)
+		return -1;
+	while ((r = read(0, buf, sizeof(buf))) != 0) {
+		if (r < 0 && errno == EINTR)
+			continue;
+		if (r < 0) {
+			err_sys(e, "<stdin>: cannot read");
+			goto fail;
+		}
+		for (char *p = buf; r > 0;) {
+			ssize_t w = write(fd, p, (size_t)r);
+
+			if (w < 0 && errno == EINTR)
+				continue;
+			if (w < 0) {
+				err_sys(e, "<stdin>: cannot keep a copy for the passes over it "
+					"(in $TMPDIR or /tmp)");
+				goto fail;
+			}
+			p += w;
+			r -= w;
+			total += w;
+		}
+	}
+	if (dup2(fd, 0) < 0 || lseek(0, 0, SEEK_SET) < 0) {
+		err_sys(e, "<stdin>: temporary copy");
+		goto fail;
+	}
+	close(fd);
+	return total;
+fail:
+	close(fd);
+	return -1;
 }

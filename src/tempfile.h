@@ -77,4 +77,22 @@ void tempfile_remove_all(void);
  */
 int tempfile_open_output(const char *path, char *tmp, size_t cap, struct err *e);
 
+/*
+ * An unnamed temporary file for the program's own use (a catalog read from
+ * stdin kept for several passes over it, the --placed lists of SCA groups):
+ * created in $TMPDIR (or /tmp) and unlinked at once, so nothing is left
+ * behind however the program ends.  Returns a descriptor open for reading
+ * and writing, or -1 with "what: cannot create a temporary file in DIR:
+ * reason" recorded (exit 2).
+ */
+int tempfile_unnamed(const char *what, struct err *e);
+
+/*
+ * Copy the rest of stdin (as it comes: compressed bytes stay compressed)
+ * to an unnamed temporary that then takes stdin's place (descriptor 0),
+ * at its start, so that it can be read again after lseek(0, 0, SEEK_SET).
+ * Returns the bytes copied, or -1 with the error recorded (exit 2).
+ */
+long long tempfile_spool_stdin(struct err *e);
+
 #endif

@@ -270,20 +270,38 @@ int product_format_of(const char *path)
 	return n >= 5 && !strcmp(path + n - 5, ".asdf") ? FORMAT_ASDF : FORMAT_FITS;
 }
 
+/*
+ * The SCAs of this pass (all of them but with SCA groups, run.c), each
+ * through the detector stage to its writer.  A file that holds several
+ * SCAs is opened by the pass that writes its first and committed by the
+ * one that writes its last, the SCAs in order (g->out keeps it between
+ * passes); persistence begins with the exposure's first pass only, and
+ * ends (run.c) after its last.
+ */
 int write_exposure(struct engine *g)
 {
 	const struct scene_opts *o = g->o;
 	const struct exposure *x = g->x;
 	const struct writer_ops *ops = o->format == FORMAT_ASDF ? &writer_asdf : &writer_fits;
+	struct exposure later = *x;
 	struct detector d;
 	int per_sca = (name_fields(x->output) & NAME_SCA) != 0;
 	float *strip = malloc((size_t)g->tile * WFS_NPIX * sizeof(float));
-	struct writer *w = NULL;
+	struct writer *w = g->out;
 
-	if (!strip)
-		return err_sys(g->e, "output buffer");
-	if (detector_init(&d, o, x, g->e) < 0)
+	g->out = NULL;
+	later.persist = NULL;
+	if (!strip) {
+		err_sys(g->e, "output buffer");
 		goto fail;
+	}
+	if (detector_init(&d, o, g->pass ? &later : x, g->e) < 0)
+		goto fail;
+	if (g->pass && x->persist) {
+		/* begun by the first pass: its state, as detector_init gives */
+		d.persist = x->persist;
+		d.active = 1;
+	}
 	d.sky = &g->sky;
 	if (ops->one_sca_per_file && !per_sca && g->nslot > 1) {
 		err_set(g->e, EXIT_INPUT, "-o %s: an %s file holds one SCA; put %%d in the name "
@@ -291,9 +309,11 @@ int write_exposure(struct engine *g)
 		goto fail;
 	}
 	for (int s = 0; s < g->nslot; s++) {
-		if (!w || per_sca) {
-			char path[PATH_MAX];
+		char path[PATH_MAX];
 
+		if (!(g->pass_slots >> s & 1))
+			continue;
+		if (!w || per_sca) {
 			if (name_expand(path, sizeof(path), "-o", x->output, g->slot[s].sca,
 					x->name[0] ? x->name : NULL, g->e) < 0 ||
 			    !(w = ops->open(g, path, g->e)))
@@ -308,13 +328,24 @@ int write_exposure(struct engine *g)
 			w = NULL;
 			if (ops->commit(done, g->e) < 0)
 				goto fail;
+			/* a file an SCA group wrote before the last: removed
+			 * if a later pass fails (run.c), as one pass leaves
+			 * none then */
+			if (g->pass + 1 < g->npass && g->nwritten < WFS_NSCA) {
+				if (!(g->written[g->nwritten] = strdup(path))) {
+					err_sys(g->e, "memory");
+					goto fail;
+				}
+				g->nwritten++;
+			}
 		}
 	}
+	g->out = w;
 	free(strip);
 	return 0;
 fail:
 	if (w)
-		ops->abort(w);
+		w->ops->abort(w);
 	free(strip);
 	return -1;
 }

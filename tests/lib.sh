@@ -135,6 +135,16 @@ have_python() { "$PY" -c 'import numpy, astropy' 2>/dev/null; }
 skip_all() { echo "1..0 # SKIP $*"; exit 0; }
 require_shared() { have_shared || skip_all "../shared is absent"; }
 require_python() { have_python || skip_all "python3 with numpy and astropy is absent (Debian packages python3-numpy, python3-astropy)"; }
+# require_modules "DEBIAN PACKAGES" MODULE...: python3 with numpy, astropy
+# and these modules, or skip naming the packages that bring them.
+require_modules() {
+	_pkgs=$1
+	shift
+	require_python
+	for _m in "$@"; do
+		"$PY" -c "import $_m" 2>/dev/null || skip_all "python3 module $_m is absent (Debian packages $_pkgs)"
+	done
+}
 # A ThreadSanitizer build (make check SANITIZE=thread) runs several times
 # slower in several times the memory: tests of memory bounds skip there.
 tsan_build() { grep -qa __tsan_init "$WFS" 2>/dev/null; }

@@ -159,7 +159,8 @@ assert list(b) == [\"psf-interp\", \"psf-core\", \"psf-wing\", \"psf-box\",
                    \"psf-extent\", \"psf-extent-noise\", \"psf-extent-max\",
                    \"psf-extent-min\", \"psf-extent-cut\", \"psf-colour-steps\",
                    \"psf-halo-power\", \"psf-halo-taper\", \"psf-halo-far\",
-                   \"psf-diffuse\", \"psf-diffuse-cell\", \"psf-diffuse-floor\"], b
+                   \"psf-halo-near\", \"psf-diffuse\", \"psf-diffuse-cell\",
+                   \"psf-diffuse-floor\"], b
 "
 '
 for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-box-noise=0 \

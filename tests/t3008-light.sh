@@ -185,6 +185,71 @@ for R in (10, 30, 50, 100):
 "
 '
 
+# psf-halo-near (default 1): within the halo's array a bright star draws
+# only the pixels at or above the drawing level, the rest spread on the
+# grid.  The whole disc (0) keeps the same fractions; the two images of a
+# bright star differ by less than the drawing level in every pixel; a
+# field of bright and faint stars gives the same bytes for any threads
+# and tiles.
+test_expect_success 'psf-halo-near=0 (the whole disc): the same fraction of light at AB 6-28' '
+	for m in 6 10 14 18 20 22 28; do
+		one $m 2044.5 2044.5 siaf --set psf-halo-near=0 >> ratios.disc || return 1
+	done &&
+	"$PY" -c "
+v = [float(l) for l in open(\"ratios.disc\")]
+w = [float(l) for l in open(\"ratios.2044.5.2044.5.siaf\")]
+print(v, w)
+assert max(v) / min(v) - 1 <= 0.002
+assert max(abs(a / b - 1) for a, b in zip(v, w)) <= 1e-3
+"
+'
+
+test_expect_success 'psf-halo-near: a bright star within 0.11 sigma of the whole disc in every pixel' '
+	for m in 12 15 17; do
+		printf "x,y,flux\n2044.3,2044.6,$m\n" > b$m.csv &&
+		for f in 0 1; do
+			"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag \
+				--set psf-halo-near=$f --report b$m-$f.json -o b$m-$f.fits b$m.csv || return 1
+		done &&
+		"$PY" -c "
+import json
+import numpy as np
+from astropy.io import fits
+sig = float(json.load(open(\"b$m-1.json\"))[\"error_budget\"][\"pixel_sigma\"])
+a = fits.getdata(\"b$m-1.fits\", 1).astype(float); b = fits.getdata(\"b$m-0.fits\", 1).astype(float)
+d = np.abs(a - b) / sig
+print($m, \"max\", d.max(), \"pixels that differ\", (d > 0).sum(), \"sums\", a.sum() / b.sum() - 1)
+assert d.max() < 0.11 and (d > 1e-9).sum() > 100
+assert abs(a.sum() / b.sum() - 1) < 1e-3
+" || return 1
+	done
+'
+
+test_expect_success 'psf-halo-near: the same bytes with one thread and another tile size' '
+	"$PY" -c "
+import numpy as np
+r = np.random.default_rng(11)
+n = 3000
+x = r.uniform(1, 4088, n); y = r.uniform(1, 4088, n); m = r.uniform(13, 24, n)
+np.savetxt(\"mixb.csv\", np.c_[x, y, m], fmt=\"%.3f\", delimiter=\",\", header=\"x,y,flux\", comments=\"\")
+" &&
+	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag -o mixb2.fits mixb.csv &&
+	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag --threads 1 --tile 300 \
+		--chunk 1000 -o mixb1.fits mixb.csv &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+a = fits.getdata(\"mixb2.fits\", 1); b = fits.getdata(\"mixb1.fits\", 1)
+assert np.array_equal(a, b), np.abs(a - b).max()
+"
+'
+
+test_expect_success 'psf-halo-near: a negative value is refused, naming the key' '
+	test_must_fail --status 3 "$WFS" --filter F129 --sca 1 --set psf-halo-near=-1 \
+		-o bad.fits one.csv 2>err &&
+	grep "psf-halo-near" err && ! test -e bad.fits
+'
+
 test_expect_success 'psf-diffuse-cell: a bad value is refused, naming the key' '
 	test_must_fail --status 3 "$WFS" --filter F129 --sca 1 --set psf-diffuse-cell=20 \
 		-o bad.fits one.csv 2>err &&

@@ -418,6 +418,27 @@ sys.exit(not (0 < d.max() <= 0.1 * sig and abs(b.sum() / a.sum() - 1) < 1e-5 and
 " &&
 	refused mc.csv sersic-moment-cut=-1 sersic-moment-cut=11 sersic-moment-cut=nan sersic-moment-cut=x
 '
+test_expect_success 'sersic-moment-cut: a faint and a bright large galaxy keep the fraction of their light the full drawing puts down' '
+	for m in 20.5 26; do
+		printf "id,x,y,mag,type,n,re,phi,ratio\n1,1000.3,1000.7,%s,sersic,1.5,9,30,0.6\n" $m > mf$m.csv &&
+		"$WFS" -q --filter F129 --flux-unit abmag --report mf$m.json -o mf$m.fits mf$m.csv &&
+		"$WFS" -q --filter F129 --flux-unit abmag --set sersic-moment-cut=0 -o mf0$m.fits mf$m.csv || return 1
+	done &&
+	"$PY" -c "
+import json, sys
+import numpy as np
+from imgs import images, sigma
+sig = sigma(\"mf20.5.json\")
+f = {}
+for m in (\"20.5\", \"26\"):
+    a, b = images(\"mf0%s.fits\" % m, \"mf%s.fits\" % m)
+    flux = json.load(open(\"mf%s.json\" % m))[\"flux\"][0][\"requested\"]
+    f[m] = (a.sum() / flux, b.sum() / flux, np.abs(b - a).max() / sig)
+    print(\"AB %s: fraction %.7f with the first-moment terms, %.7f by default, largest change %.3g sigma\" % ((m,) + f[m]))
+# each keeps what the full drawing puts down, to 1e-5 of it
+sys.exit(not all(abs(v[1] / v[0] - 1) < 1e-5 and v[2] <= 0.1 for v in f.values()))
+"
+'
 # Galaxies far smaller than a pixel, centred on the edges of the core's
 # quarter-pixel cells, drawn with no core square (--sersic-core 0): where
 # the centre cut moves pixels most (found by an audit over 10^4 of them:

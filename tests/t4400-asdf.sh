@@ -5,9 +5,7 @@
 # WCS, the same bytes for any threads, and the settings an ASDF file does
 # not go with refused, nothing written.
 . "$(dirname "$0")/lib.sh"
-require_python
-"$PY" -c 'import asdf, gwcs, asdf_astropy' 2>/dev/null ||
-	skip_all "python3-asdf, python3-asdf-astropy or python3-gwcs is absent"
+require_modules "python3-asdf, python3-asdf-astropy, python3-gwcs" asdf gwcs asdf_astropy
 
 CHECK=$SHARED/tools/roman-asdf-check
 run() { "$WFS" --filter F129 --ra 90 --dec 0 --background 0.54 --date 2027-03-20T06:30 "$@"; }

@@ -1,6 +1,7 @@
 #!/bin/sh
 # --into IMAGE.asdf given broken or foreign files beyond t4400's: each
-# refused with exit 1 and the file named, nothing written.
+# refused with exit 1 and the file named, nothing written; FITS tile
+# compression asked of an ASDF output refused the same way.
 . "$(dirname "$0")/lib.sh"
 require_python
 
@@ -45,6 +46,12 @@ test_expect_success 'an array whose source is another array.s block, or not a bl
 	test_must_fail --status 1 inj ext.asdf 2> err &&
 	test_grep "ext.asdf: roman.data: source .x.asdf. is not one of the file.s" err &&
 	! ls -a | grep -q "out\.asdf"
+'
+
+test_expect_success '--compress with ASDF output: refused, naming the ASDF setting' '
+	test_must_fail --status 1 run --level 2 --compress gzip -o c.asdf inj.csv 2> err &&
+	test_grep "compress gzip with ASDF: .*asdf-compression" err &&
+	! ls -a | grep -q "c\.asdf"
 '
 
 test_done

@@ -6,9 +6,7 @@
 # file's meta.wcsinfo; its inverse the file's, or none (Newton's method);
 # a transform not evaluated falls back to meta.wcsinfo with a warning.
 . "$(dirname "$0")/lib.sh"
-require_python
-"$PY" -c 'import asdf, gwcs, asdf_astropy' 2>/dev/null ||
-	skip_all "python3-asdf, python3-asdf-astropy or python3-gwcs is absent"
+require_modules "python3-asdf, python3-asdf-astropy, python3-gwcs" asdf gwcs asdf_astropy
 
 CHECK=$SHARED/tools/roman-asdf-check
 printf 'ra,dec,flux\n200,60,5e5\n' > stars.csv

@@ -10,9 +10,8 @@
 # any thread count; --into reads them back and keeps or changes their
 # compression; a bad value is refused, nothing written.
 . "$(dirname "$0")/lib.sh"
-require_python
-"$PY" -c 'import asdf, gwcs, asdf_astropy, lz4.block' 2>/dev/null ||
-	skip_all "python3-asdf, python3-asdf-astropy, python3-gwcs or python3-lz4 is absent"
+require_modules "python3-asdf, python3-asdf-astropy, python3-gwcs, python3-lz4" \
+	asdf gwcs asdf_astropy lz4.block
 
 CHECK=$SHARED/tools/roman-asdf-check
 printf 'ra,dec,flux\n200,60,5e5\n' > stars.csv

@@ -10,9 +10,7 @@
 # (tests/validate/RESULTS.md).
 . "$(dirname "$0")/lib.sh"
 
-require_python
-"$PY" -c 'import sep, photutils.psf, scipy' 2>/dev/null ||
-	skip_all "python3 with sep, photutils and scipy is absent (Debian packages python3-sep, python3-photutils, python3-scipy)"
+require_modules "python3-sep, python3-photutils, python3-scipy" sep photutils.psf scipy
 
 test_expect_success 'the 200-star scene is drawn and measured' '
 	"$PY" "$TOP/tests/validate/photometry.py" --n 200 --seed 1 --wfs "$WFS" \

@@ -176,10 +176,11 @@ extern "C" {
  * built-in models relied on stated here: WFS_SCA_SIDE, WFS_SCA_COUNT,
  * WFS_MAX_COLUMNS, WFS_PSF_HALO, WFS_PRINTF, the setting pixel-sigma,
  * thread_start()'s return value; 6 wfs_model.column_roles
- * (enum wfs_column_role) and roman_type; 7 wfs_host.epsf_blend.  A plugin MAY test
+ * (enum wfs_column_role) and roman_type; 7 wfs_host.convolve_sum; 8
+ * wfs_host.epsf_blend.  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
-#define WFS_ABI_EDITION 7
+#define WFS_ABI_EDITION 8
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -378,7 +379,18 @@ struct wfs_host {
 	int (*epsf_colour)(void *ctx, int sca, double x, double y, int cls, int spectral,
 			   struct wfs_epsf *out);
 
-	/* Edition 7.  The ePSF of a source of spectral class `colour`
+	/* Edition 7.  convolve() of count images (1 to 8, each nx x ny,
+	 * row-major) each with its own odd kn x kn kernel, the results summed
+	 * into imgs[0]: imgs[0] <- sum_i imgs[i] * kernels[i]; the others are
+	 * left as they were.  Transformed back once, so cheaper than count
+	 * calls of convolve().  The result is the same for any thread.
+	 * Returns 0 or -1.  Absent in older hosts (check WFS_HAS(host->size,
+	 * struct wfs_host, convolve_sum) and that it is not NULL): call
+	 * convolve() for each and add. */
+	int (*convolve_sum)(void *ctx, void *thread, double *const *imgs,
+			    const double *const *kernels, int count, int nx, int ny, int kn);
+
+	/* Edition 8.  The ePSF of a source of spectral class `colour`
 	 * (wfs_source.colour, >= 0) at (x, y) as four nodes like epsf()'s:
 	 * the blend of its two classes, the blend rounded to steps the host
 	 * chooses (wfiscene: 1/psf-colour-galaxy-steps), so that the arrays

@@ -149,6 +149,43 @@ int main(void)
 		ok(!lit, "a dark image stays dark, each way");
 	}
 
+	/* Three images, each its own kernel and lit block, summed: against the
+	 * sum of three direct sums, both ways. */
+	for (int m = FFTCONV_AUTO; m <= FFTCONV_DIRECT; m++) {
+		enum { NX = 70, NY = 64, KN = 21 };
+		static double im[3][NX * NY], ref[NX * NY], one[NX * NY], ks[3][KN * KN];
+		double *imgs[3] = { im[0], im[1], im[2] }, d = 0;
+		const double *kers[3] = { ks[0], ks[1], ks[2] };
+		unsigned seed = 99u + m;
+		int dark = 0;
+
+		memset(im, 0, sizeof(im));
+		memset(ref, 0, sizeof(ref));
+		for (int i = 0; i < 3; i++) {
+			for (int k = 0; k < KN * KN; k++)
+				ks[i][k] = (double)((seed = seed * 1103515245u + 12345u) >> 8) / (1 << 24) - 0.3;
+			/* block i: [12 + 5i, 40 + 3i) x [15 + 2i, 30 + 6i) */
+			for (int y = 15 + 2 * i; y < 30 + 6 * i; y++)
+				for (int x = 12 + 5 * i; x < 40 + 3 * i; x++)
+					im[i][y * NX + x] = (double)((seed = seed * 1103515245u + 12345u) >> 8) / (1 << 24);
+			direct(im[i], NX, NY, ks[i], KN, one);
+			for (int k = 0; k < NX * NY; k++)
+				ref[k] += one[k];
+		}
+		fftconv_force(m);
+		if (fftconv_convolve_sum(fc, t, imgs, kers, 3, NX, NY, KN))
+			d = INFINITY;
+		fftconv_force(FFTCONV_AUTO);
+		for (int k = 0; k < NX * NY; k++) {
+			d = fmax(d, fabs(im[0][k] - ref[k]));
+			/* the blocks begin at x = 12, y = 15: no light reaches
+			 * x < 2 or y < 5 (h = 10) */
+			dark |= (k % NX < 2 || k / NX < 5) && im[0][k] != 0;
+		}
+		ok(d < 1e-11 && !dark, "three images with their own kernels summed, %s: within %.2g "
+		   "of the direct sums, dark where no light reaches", way[m], d);
+	}
+
 	double img[4] = { 1, 2, 3, 4 }, k[2] = { 1, 1 };
 	ok(fftconv_convolve(fc, t, img, 2, 2, k, 2) == -1 && img[3] == 4,
 	   "even kernel refused, image unchanged");

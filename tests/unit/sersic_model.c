@@ -127,6 +127,15 @@ static int mock_convolve(void *ctx, void *thread, double *img, int nx, int ny,
 	return fftconv_convolve(m->fft, t->fft, img, nx, ny, kernel, kn);
 }
 
+static int mock_convolve_sum(void *ctx, void *thread, double *const *imgs,
+			     const double *const *kernels, int count, int nx, int ny, int kn)
+{
+	struct mock *m = ctx;
+	struct mock_thread *t = thread;
+
+	return fftconv_convolve_sum(m->fft, t->fft, imgs, kernels, count, nx, ny, kn);
+}
+
 /* Fraction of a unit Gaussian of width sigma in [d - 1/2, d + 1/2]. */
 static double box_gauss_s(double d, double sigma)
 {
@@ -154,7 +163,7 @@ static struct mock_thread mthread;
 static struct wfs_host host = {
 	.abi = WFS_ABI_VERSION, .size = sizeof(struct wfs_host), .ctx = &mock,
 	.error = mock_error, .log = mock_log, .setting = mock_setting, .epsf = mock_epsf,
-	.scratch = mock_scratch, .convolve = mock_convolve,
+	.scratch = mock_scratch, .convolve = mock_convolve, .convolve_sum = mock_convolve_sum,
 };
 
 static void mock_init(void)

@@ -504,16 +504,11 @@ static void settle_part(void *arg, int wid, size_t part)
 	host_worker(NULL);
 }
 
-/*
- * The order place_pool settles a batch in when the scene has spectra: by
- * slot and 512-pixel block of the detector (a stable counting sort), so
- * that what a model keeps per position and spectrum (point.so's colour
- * cells: some 0.3 MB each, four to seven per position against one without
- * spectra) is read a position at a time instead of from all positions at
- * once, from memory rather than cache.  prepare() gives the same result
- * in any order (model.h), so the image does not change.  NULL: the
- * batch's own order (also when out of memory).
- */
+/* The order place_pool settles a batch of a scene with spectra in: by
+ * slot and 512-pixel block (a stable counting sort), so that point.so's
+ * colour cells (0.3 MB each, four to seven per position) are read a
+ * position at a time, from cache rather than memory.  prepare() gives the
+ * same result in any order (model.h).  NULL: the batch's own order. */
 #define ORDER_BLOCK 512
 #define ORDER_SIDE ((WFS_NPIX + ORDER_BLOCK - 1) / ORDER_BLOCK + 2)
 
@@ -526,13 +521,8 @@ static size_t *settle_order(const struct engine *g, const struct batch *b)
 		return NULL;
 	order = malloc(b->n * sizeof(*order));
 	key = malloc(b->n * sizeof(*key));
-	at = calloc(nkey + 1, sizeof(*at));
-	if (!order || !key || !at) {
-		free(order);
-		free(key);
-		free(at);
-		return NULL;
-	}
+	if (!(at = calloc(nkey + 1, sizeof(*at))) || !order || !key)
+		goto out;
 	for (size_t k = 0; k < b->n; k++) {
 		const struct placement *p = &b->p[k];
 		double bx = floor(p->src.x / ORDER_BLOCK) + 1, by = floor(p->src.y / ORDER_BLOCK) + 1;
@@ -549,6 +539,11 @@ static size_t *settle_order(const struct engine *g, const struct batch *b)
 	free(key);
 	free(at);
 	return order;
+out:
+	free(order);
+	free(key);
+	free(at);
+	return NULL;
 }
 
 /*

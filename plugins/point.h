@@ -76,7 +76,25 @@ struct poly {
 	 * a (cell_add): psf-blend=core's colour correction */
 	double cstep;
 	const struct poly *dcol;
+	/* or a class cell (cclass >= 0: the blend of one class, which the
+	 * pairs cclass - 1, cclass and cclass, cclass + 1 share at their end
+	 * steps): the two pairs' differences, dpair[0] of the pair below
+	 * (its step 1) and dpair[1] of the pair above (its step 0) */
+	int cclass;
+	const struct poly *dpair[2];
 };
+
+/* A colour cell's step g (0 to 1) between the classes a, a + 1 of a
+ * source's pair, and the pair's difference at the cell's centre. */
+static inline const struct poly *cell_pair(const struct poly *cell, int a, double *g)
+{
+	if (cell->cclass < 0) {
+		*g = cell->cstep;
+		return cell->dcol;
+	}
+	*g = a == cell->cclass ? 0 : 1;
+	return cell->dpair[a == cell->cclass];
+}
 
 /* Pixels [x0, x1) x [y0, y1), 0-based; empty when x0 >= x1 or y0 >= y1. */
 struct zone {

@@ -21,14 +21,16 @@ static double colour_of(const struct point *p, const struct wfs_source *src)
 }
 
 /* The host's ePSFs at src: e[0] with weight wc[0], and e[1] with wc[1]
- * for a source between two spectral classes.  Returns how many, or -1. */
+ * for a source between two spectral classes, cls[] their classes (-1:
+ * the default spectrum).  Returns how many, or -1. */
 static int src_epsf(const struct point *p, const struct wfs_source *src, struct wfs_epsf e[2],
-		    double wc[2])
+		    double wc[2], int cls[2])
 {
 	double c = colour_of(p, src), f, w2[2];
 	int k, n = 0;
 
 	wc[0] = 1;
+	cls[0] = -1;
 	if (!(c >= 0))
 		return p->host->epsf(p->host->ctx, src->sca, src->x, src->y, src->psf_class,
 				     &e[0]) < 0 ? -1 : 1;
@@ -41,6 +43,7 @@ static int src_epsf(const struct point *p, const struct wfs_source *src, struct 
 			if (p->host->epsf_colour(p->host->ctx, src->sca, src->x, src->y,
 						 src->psf_class, k + i, &e[n]) < 0)
 				return -1;
+			cls[n] = k + i;
 			wc[n++] = w2[i];
 		}
 	return n;
@@ -54,7 +57,7 @@ static int source_polys(const struct point *p, const struct wfs_source *src, int
 {
 	struct wfs_epsf es[2];
 	double wc[2];
-	int nn = 0, ne;
+	int nn = 0, ne, cls[2];
 
 	if (blend != BLEND_SOURCE) {
 		if (!(pl[0] = poly_find(p, cell_key(p, src))))
@@ -62,7 +65,7 @@ static int source_polys(const struct point *p, const struct wfs_source *src, int
 		wn[0] = src->flux;
 		return 1;
 	}
-	if ((ne = src_epsf(p, src, es, wc)) < 0)
+	if ((ne = src_epsf(p, src, es, wc, cls)) < 0)
 		return -1;
 	for (int i = 0; i < ne; i++)
 		for (int k = 0; k < 4; k++)
@@ -297,41 +300,42 @@ static void cell_correction(const struct poly *cell, double flux, const double w
  * pair's difference across the grid, times the source's offset from the
  * cell's centre and its colour's from class e (BENCHMARKS.md, "Colour").
  * Five arrays instead of the eight of the exact blend. */
-static int colour_e(const struct poly *cell)
-{
-	return cell->cstep >= 0.5;
-}
-
 static void cell_correction_colour(const struct point *p, const struct wfs_source *src,
 				   const struct poly *cell, const double w[4], struct draw *d)
 {
-	double f, flux = src->flux;
-	int a, e = colour_e(cell);
+	double f, g, flux = src->flux;
+	const struct poly *dcol;
+	int a, e;
 
 	point_pair(p, colour_of(p, src), &a, &f);
+	dcol = cell_pair(cell, a, &g);
+	e = g >= 0.5;
 	d->ncor = 0;
 	for (int k = 0; k < 4; k++)
 		if (cell->cpoly[k + 4 * e]) {
 			d->cp[d->ncor] = cell->cpoly[k + 4 * e];
 			d->cw[d->ncor++] = flux * w[k] - flux * (cell->cweight[k] + cell->cweight[k + 4]);
 		}
-	d->cp[d->ncor] = cell->dcol;
-	d->cw[d->ncor++] = flux * (f - cell->cstep);
+	d->cp[d->ncor] = dcol;
+	d->cw[d->ncor++] = flux * (f - g);
 }
 
 /* T of a colour source in its pair's cell (one_array), from the same five
  * arrays: sum_k w_k E_k + (f - e) D over the zone z. */
 static double colour_total(const struct point *p, const struct wfs_source *src,
-			   const struct poly *cell, const struct geom *g, struct zone z)
+			   const struct poly *cell, const struct geom *gm, struct zone z)
 {
-	double f, t = 0;
-	int a, e = colour_e(cell);
+	double f, g, t = 0;
+	const struct poly *dcol;
+	int a, e;
 
 	point_pair(p, colour_of(p, src), &a, &f);
+	dcol = cell_pair(cell, a, &g);
+	e = g >= 0.5;
 	for (int k = 0; k < 4; k++)
 		if (cell->cpoly[k + 4 * e])
-			t += src->aux[4 + k] * bil_sum(cell->cpoly[k + 4 * e], g, z);
-	return src->flux * (t + (f - e) * bil_sum(cell->dcol, g, z));
+			t += src->aux[4 + k] * bil_sum(cell->cpoly[k + 4 * e], gm, z);
+	return src->flux * (t + (f - e) * bil_sum(dcol, gm, z));
 }
 
 /* How src is drawn in render(), its box and what prepare() found in aux:
@@ -416,7 +420,7 @@ static int prep_nodes(struct point *p, struct wfs_source *src, struct prep *r)
 {
 	struct wfs_epsf es[2];
 	double wc[2];
-	int ne = src_epsf(p, src, es, wc);
+	int cls[2], ne = src_epsf(p, src, es, wc, cls);
 
 	if (ne < 0)
 		return -1;
@@ -424,20 +428,23 @@ static int prep_nodes(struct point *p, struct wfs_source *src, struct prep *r)
 	for (int k = 0; k < 4; k++) {
 		const struct wfs_epsf *e = &es[i];
 		const struct poly *q = NULL;
+		/* a class cell holds its own class's nodes only: the other
+		 * class of the source's pair has its nodes where they are */
+		int other = r->cell && r->cell->cclass >= 0 && cls[i] != r->cell->cclass;
 
 		if (e->weight[k] == 0)
 			continue;
 		/* the position weights (aux[4..7], the cell's node order)
-		 * from the source's first class: a colour cell holds both
-		 * classes' nodes in one order */
-		for (int j = 0; r->cell && j < 8 && !q; j++)
+		 * from the source's first class (a pair's colour cell holds
+		 * both classes' nodes in one order), or the class cell's */
+		for (int j = 0; r->cell && !other && j < 8 && !q; j++)
 			if (r->cell->cnode[j] == e->node[k] && r->cell->cpoly[j]) {
 				q = r->cell->cpoly[j];
-				if (i == 0)
+				if (i == 0 || r->cell->cclass >= 0)
 					src->aux[4 + (j & 3)] += e->weight[k];
 			}
 		if (!q) {
-			r->same = 0;
+			r->same &= other;
 			if (!(q = poly_add(p, (uint64_t)(uintptr_t)e->node[k], e->node[k], e->n,
 					   e->over)))
 				return -1;

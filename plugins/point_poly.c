@@ -279,16 +279,20 @@ int cell_in_range(const struct point *p, const struct wfs_source *src)
 /* A colour source's cell: its class pair k, k + 1 (point_pair) and the
  * step j of 1/steps (0 .. steps) between them its colour rounds to; the
  * cell's index among the colour cells of its position, or -1 for the
- * default spectrum. */
+ * default spectrum.  The end steps are one class's blend, which the pairs
+ * on either side share: the class cell of class K, index K (steps + 1),
+ * for step 0 of pair K and step steps of pair K - 1 (struct poly,
+ * cclass). */
 static long colour_cell(const struct point *p, const struct wfs_source *src, int *k, int *j)
 {
 	double c = point_colour(p, src), f;
+	int s = p->colour_steps;
 
 	if (!(c >= 0) || !p->colour_cells)
 		return -1;
 	point_pair(p, c, k, &f);
-	*j = (int)lround(f * p->colour_steps);
-	return (long)*k * (p->colour_steps + 1) + *j;
+	*j = (int)lround(f * s);
+	return (long)(*k + (*j == s)) * (s + 1) + (*j == s ? 0 : *j);
 }
 
 uint64_t cell_key(const struct point *p, const struct wfs_source *src)
@@ -365,6 +369,67 @@ static const struct poly *dcol_add(struct point *p, uint64_t key, int ck,
 	return rc < 0 ? NULL : poly_insert(p, &made);
 }
 
+/* The nodes a cell is blended from at its centre (cx, cy), into node[]
+ * and w[] (returns how many, or -1): the default spectrum's four, a class
+ * cell's four of its class (cclass), or a pair cell's eight at step f.
+ * psf-blend=core: the pairs' differences too (dcol, dpair). */
+static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t key, double cx,
+		      double cy, struct poly *made, const float *node[8], double w[8],
+		      struct wfs_epsf *e)
+{
+	struct wfs_epsf ep[3];
+	int ck, cj, nw = 0, n = p->nclasses / 2, core = p->blend == BLEND_CORE;
+
+	made->cclass = -1;
+	made->cstep = 0;
+	made->dcol = made->dpair[0] = made->dpair[1] = NULL;
+	if (colour_cell(p, src, &ck, &cj) < 0) {
+		if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, e) < 0)
+			return -1;
+		for (int k = 0; k < 4; k++) {
+			node[nw] = e->node[k];
+			w[nw++] = e->weight[k];
+		}
+		return nw;
+	}
+	if (cj == 0 || cj == p->colour_steps) {
+		/* a class cell: class K's nodes; the differences of the pairs
+		 * K - 1, K and K, K + 1 that exist in its family */
+		int K = ck + (cj != 0), lo = K % n > 0, hi = K % n < n - 1;
+
+		made->cclass = K;
+		for (int i = -lo; i <= hi; i++)
+			if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class,
+						 K + i, &ep[1 + i]) < 0)
+				return -1;
+		*e = ep[1];
+		for (int k = 0; k < 4; k++) {
+			node[nw] = e->node[k];
+			w[nw++] = e->weight[k];
+		}
+		if (core && lo && !(made->dpair[0] = dcol_add(p, key, K - 1, ep)))
+			return -1;
+		if (core && hi && !(made->dpair[1] = dcol_add(p, key, K, ep + 1)))
+			return -1;
+		return nw;
+	}
+	/* a pair cell: the pair's nodes, its blend rounded to cj / steps */
+	made->cstep = (double)cj / p->colour_steps;
+	for (int i = 0; i < 2; i++) {
+		if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class, ck + i,
+					 &ep[i]) < 0)
+			return -1;
+		*e = ep[i];
+		for (int k = 0; k < 4; k++) {
+			node[nw] = e->node[k];
+			w[nw++] = (i ? made->cstep : 1 - made->cstep) * e->weight[k];
+		}
+	}
+	if (core && !(made->dcol = dcol_add(p, key, ck, ep)))
+		return -1;
+	return nw;
+}
+
 /* psf-blend=cell: the ePSF blended once at the centre of the source's cell
  * (bilinear in position, as the host's weights say), so a source reads one
  * array instead of four.  Made outside the lock, like poly_add().  NULL
@@ -372,48 +437,26 @@ static const struct poly *dcol_add(struct point *p, uint64_t key, int ck,
 struct poly *cell_add(struct point *p, const struct wfs_source *src)
 {
 	uint64_t key = cell_key(p, src);
-	struct wfs_epsf e, ep[2];
+	struct wfs_epsf e;
 	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
 	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
-	struct poly *c = (struct poly *)poly_find(p, key), made;
+	struct poly *c = (struct poly *)poly_find(p, key), made, how;
 	const float *cnode[8], *node[8];
-	const struct poly *cpoly[8], *dcol = NULL;
-	double w[8], f = 0;
+	const struct poly *cpoly[8];
+	double w[8];
 	float *mix;
-	int rc, ck, cj, nw = 0;
+	int rc, nw;
 
 	if (c)
 		return c;
-	if (colour_cell(p, src, &ck, &cj) >= 0) {
-		/* a colour cell: the class pair's nodes, the pair's blend
-		 * rounded to cj / colour_steps */
-		f = (double)cj / p->colour_steps;
-		for (int i = 0; i < 2; i++) {
-			if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class,
-						 ck + i, &ep[i]) < 0)
-				return NULL;
-			e = ep[i];
-			for (int k = 0; k < 4; k++) {
-				node[nw] = e.node[k];
-				w[nw++] = (i ? f : 1 - f) * e.weight[k];
-			}
-		}
-		if (p->blend == BLEND_CORE && !(dcol = dcol_add(p, key, ck, ep)))
-			return NULL;
-	} else {
-		if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, &e) < 0)
-			return NULL;
-		for (int k = 0; k < 4; k++) {
-			node[nw] = e.node[k];
-			w[nw++] = e.weight[k];
-		}
-	}
+	if ((nw = cell_nodes(p, src, key, cx, cy, &how, node, w, &e)) < 0)
+		return NULL;
 	/* what the cell is blended from, for the core's correction
 	 * (psf-blend=core): the nodes' own polyphase copies too, made
 	 * first, so that the cell is published whole */
-	/* a colour cell keeps both classes' nodes of every position weight
-	 * (a class's weight may be 0: psf-blend=core's correction reads
-	 * them for the sources in the cell) */
+	/* a pair's colour cell keeps both classes' nodes of every position
+	 * weight (a class's weight may be 0: psf-blend=core's correction
+	 * reads them for the sources in the cell) */
 	for (int k = 0; k < 8; k++) {
 		cnode[k] = k < nw && (w[k] != 0 || (nw == 8 && w[k ^ 4] != 0)) ? node[k] : NULL;
 		cpoly[k] = NULL;
@@ -430,10 +473,15 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 	for (int k = 0; k < 8; k++) {
 		made.cnode[k] = cnode[k];
 		made.cweight[k] = cnode[k] ? w[k] : 0;
-		made.cpoly[k] = cpoly[k];
+		/* a class cell's nodes are those of either step (cpoly[k +
+		 * 4 e], point_epsf.c) */
+		made.cpoly[k] = how.cclass >= 0 && k >= 4 ? cpoly[k - 4] : cpoly[k];
 	}
-	made.cstep = f;
-	made.dcol = dcol;
+	made.cstep = how.cstep;
+	made.dcol = how.dcol;
+	made.cclass = how.cclass;
+	made.dpair[0] = how.dpair[0];
+	made.dpair[1] = how.dpair[1];
 	return poly_insert(p, &made);
 }
 

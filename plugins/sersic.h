@@ -262,15 +262,20 @@ static inline double sersic_cell_scale(const struct sersic_gal *g, double rmin,
 	return l;
 }
 
-/* The ePSF a galaxy is convolved with: its spectrum's nearest spectral
- * class (model.h, wfs_source.colour; wfiscene(1) "Spectral classes"),
- * else the scene's default spectrum.  Every call for one source gives the
- * same arrays. */
+/* The ePSF a galaxy is convolved with: the blend of its spectrum's two
+ * spectral classes (model.h, wfs_source.colour, host->epsf_blend;
+ * wfiscene(1) "Spectral classes"), or from an older host the nearest
+ * class, else the scene's default spectrum.  Every call for one source
+ * gives the same arrays. */
 static inline int sersic_epsf(const struct wfs_host *host, const struct wfs_source *src,
 			      struct wfs_epsf *e)
 {
-	if (WFS_HAS(host->size, struct wfs_host, epsf_colour) && host->epsf_colour &&
-	    WFS_HAS(host->source_size, struct wfs_source, colour) && src->colour >= 0)
+	int colour = WFS_HAS(host->source_size, struct wfs_source, colour) && src->colour >= 0;
+
+	if (colour && WFS_HAS(host->size, struct wfs_host, epsf_blend) && host->epsf_blend)
+		return host->epsf_blend(host->ctx, src->sca, src->x, src->y, src->psf_class,
+					src->colour, e);
+	if (colour && WFS_HAS(host->size, struct wfs_host, epsf_colour) && host->epsf_colour)
 		return host->epsf_colour(host->ctx, src->sca, src->x, src->y, src->psf_class,
 					 (int)floor(src->colour + 0.5), e);
 	return host->epsf(host->ctx, src->sca, src->x, src->y, src->psf_class, e);

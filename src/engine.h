@@ -240,6 +240,11 @@ void psfgrids_drop(struct engine *g, int sca);
 int psfgrids_colour_init(struct engine *g);
 const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int k);
 int psfgrids_colour_need(struct engine *g, int sca, int cls, int k, struct err *e);
+/* The grid galaxies of spectral class colour are drawn with (host->
+ * epsf_blend): loaded or made when load is set, else NULL when not made
+ * yet.  NULL with an error in e when it fails. */
+const struct psf_grid *psfgrids_blend(struct engine *g, int sca, int cls, double colour,
+				      int load, struct err *e);
 
 /* tile.c: the memory of one tile of T x T doubles, zeroed */
 double *tile_alloc(int T);

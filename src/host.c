@@ -72,6 +72,32 @@ static int host_epsf_colour(void *ctx, int sca, double x, double y, int cls, int
 	return 0;
 }
 
+/* The blend of a galaxy's two classes (psfgrids_blend), made in prepare()
+ * or footprint() like the classes' grids. */
+static int host_epsf_blend(void *ctx, int sca, double x, double y, int cls, double colour,
+			   struct wfs_epsf *out)
+{
+	struct engine *g = ctx;
+	struct worker *w = host_current(g);
+	int load = w ? w->place : pthread_equal(pthread_self(), g->main_thread);
+	const struct psf_grid *grid;
+
+	if (cls == 3 || !(colour >= 0))
+		return host_epsf(ctx, sca, x, y, cls, out);
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2 || !g->classes ||
+	    !(colour <= g->ncgrid - 1))
+		return host_error(ctx, "no ePSF for SCA %d class %d spectral class %g", sca, cls,
+				  colour);
+	grid = psfgrids_blend(g, sca, cls, colour, load, w ? &w->err : g->e);
+	if (!grid && !load)
+		return host_error(ctx, "ePSF of SCA %d class %d spectral class %g asked for in "
+				  "render() but not in prepare() or footprint()", sca, cls, colour);
+	if (!grid)
+		return -1;
+	psf_grid_at(grid, x, y, out);
+	return 0;
+}
+
 static void *host_scratch(void *thread, size_t bytes)
 {
 	struct worker *w = thread;
@@ -121,6 +147,7 @@ void host_init(struct engine *g)
 		.error = host_error, .log = host_log, .setting = host_setting,
 		.epsf = host_epsf, .scratch = host_scratch, .convolve = host_convolve,
 		.source_size = sizeof(struct wfs_source), .epsf_colour = host_epsf_colour,
+		.epsf_blend = host_epsf_blend,
 		.convolve_sum = host_convolve_sum,
 	};
 }

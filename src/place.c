@@ -447,6 +447,8 @@ struct settle_job {
 	struct engine *g;
 	const struct rows *r;
 	struct batch *b;
+	const size_t *order;    /* the placements in the order taken (NULL:
+				 * the batch's own), settle_order() */
 	atomic_size_t failed;   /* the lowest failing placement, or SIZE_MAX */
 };
 
@@ -472,23 +474,81 @@ static void settle_part(void *arg, int wid, size_t part)
 	size_t end = (part + 1) * PLACE_PART;
 
 	host_worker(w);
-	for (size_t k = part * PLACE_PART; k < end && k < j->b->n; k++) {
-		if (k > atomic_load_explicit(&j->failed, memory_order_relaxed))
+	for (size_t n = part * PLACE_PART; n < end && n < j->b->n; n++) {
+		size_t k = j->order ? j->order[n] : n;
+		int had = w->err.code != EXIT_OK;
+		struct err was;
+
+		if (k > atomic_load_explicit(&j->failed, memory_order_relaxed)) {
+			if (j->order)
+				continue;
 			break;  /* an earlier placement failed: this one is moot */
+		}
 		if (!in_pool(g, &j->b->p[k]))
 			continue;
+		/* out of order, a placement before the thread's failure: its
+		 * own error replaces that one if it fails too */
+		if (had) {
+			was = w->err;
+			err_clear(&w->err);
+		}
 		if (place_settle(g, j->r, &j->b->p[k], &w->err) < 0) {
 			w->err_task = k;
 			settle_failed(j, k);
-			break;
+			if (!j->order)
+				break;
+		} else if (had) {
+			w->err = was;
 		}
 	}
 	host_worker(NULL);
 }
 
+/* The order place_pool settles a batch of a scene with spectra in: by
+ * slot and 512-pixel block (a stable counting sort), so that point.so's
+ * colour cells (0.3 MB each, four to seven per position) are read a
+ * position at a time, from cache rather than memory.  prepare() gives the
+ * same result in any order (model.h).  NULL: the batch's own order. */
+#define ORDER_BLOCK 512
+#define ORDER_SIDE ((WFS_NPIX + ORDER_BLOCK - 1) / ORDER_BLOCK + 2)
+
+static size_t *settle_order(const struct engine *g, const struct batch *b)
+{
+	size_t nkey = (size_t)g->nslot * ORDER_SIDE * ORDER_SIDE, *order, *at;
+	unsigned *key;
+
+	if (!g->classes || b->n < 2 * PLACE_PART)
+		return NULL;
+	order = malloc(b->n * sizeof(*order));
+	key = malloc(b->n * sizeof(*key));
+	if (!(at = calloc(nkey + 1, sizeof(*at))) || !order || !key)
+		goto out;
+	for (size_t k = 0; k < b->n; k++) {
+		const struct placement *p = &b->p[k];
+		double bx = floor(p->src.x / ORDER_BLOCK) + 1, by = floor(p->src.y / ORDER_BLOCK) + 1;
+
+		bx = bx < 0 ? 0 : bx > ORDER_SIDE - 1 ? ORDER_SIDE - 1 : bx;
+		by = by < 0 ? 0 : by > ORDER_SIDE - 1 ? ORDER_SIDE - 1 : by;
+		key[k] = (unsigned)((p->slot * ORDER_SIDE + by) * ORDER_SIDE + bx);
+		at[key[k] + 1]++;
+	}
+	for (size_t q = 0; q < nkey; q++)
+		at[q + 1] += at[q];
+	for (size_t k = 0; k < b->n; k++)
+		order[at[key[k]]++] = k;
+	free(key);
+	free(at);
+	return order;
+out:
+	free(order);
+	free(key);
+	free(at);
+	return NULL;
+}
+
 /*
  * settle() for the batch's placements: place_pool's threads take those
- * whose model allows it, when there are enough of them to share, while
+ * whose model allows it (in settle_order()'s order), when there are enough of them to share, while
  * the main thread takes the rest in order.  Returns 0, or -1 with the
  * first failing placement's error in g->e.
  */
@@ -505,6 +565,8 @@ static int settle_all(struct engine *g, const struct rows *r, struct batch *b)
 	if (npool < 2 * PLACE_PART)
 		npool = 0;
 	if (npool)
+		j.order = settle_order(g, b);
+	if (npool)
 		pool_start(g->place_pool, settle_part, &j, parts);
 	for (size_t k = 0; k < b->n && k < failed &&
 	     k <= atomic_load_explicit(&j.failed, memory_order_relaxed); k++)
@@ -515,6 +577,7 @@ static int settle_all(struct engine *g, const struct rows *r, struct batch *b)
 	if (!npool)
 		return failed == SIZE_MAX ? 0 : -1;
 	pool_wait(g->place_pool);
+	free((void *)j.order);
 	for (int t = 0; t < g->npw; t++)
 		if (g->pw[t].err.code != EXIT_OK && g->pw[t].err_task < failed) {
 			first = &g->pw[t];

@@ -140,10 +140,16 @@ struct psf_grid *psf_builtin_halo(int filter, int sca, int radius, int grid, int
 #define PSF_COLOUR_MAX 16
 struct colour;
 struct spectrum;
+struct psf_grid;
 struct psf_classes {
 	int filter, n;
 	double beta[PSF_COLOUR_MAX], teff[PSF_COLOUR_MAX];
 	double lam[18][2][PSF_COLOUR_MAX];
+	/* galaxies' blends (psfgrids.c, host->epsf_blend): steps between two
+	 * classes (0: the nearest class), and the blended grids, NULL until
+	 * made */
+	int gsteps;
+	struct psf_grid **blend;
 };
 int psf_default_classes(int filter);
 int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n,

@@ -68,6 +68,8 @@ int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n
 			       PSF_COLOUR_MAX, n);
 	pc->filter = filter;
 	pc->n = n;
+	pc->gsteps = 0;
+	pc->blend = NULL;
 	double l[4] = {
 		colour_lam_eff(c, 1, &(struct spectrum){ SPEC_POWER, 3 }),
 		colour_lam_eff(c, 1, &(struct spectrum){ SPEC_BLACKBODY, 50000 }),
@@ -81,11 +83,16 @@ int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n
 		 * to 1e-6, T to 0.1 K */
 		pc->beta[k] = round(1e6 * solve(c, 0, plo + (phi - plo) * k / (n - 1))) / 1e6;
 		pc->teff[k] = round(10 * exp(solve(c, 1, l[1] + (l[3] - l[1]) * k / (n - 1)))) / 10;
+		/* summed, not from the tables: filling an SCA's tables costs
+		 * some 8 million instructions, and a scene uses few SCAs (the
+		 * two differ by 3e-10 micron, tests/unit/spectrum.c) */
 		for (int s = 1; s <= WFS_NSCA; s++) {
-			pc->lam[s - 1][0][k] = colour_lam_eff(c, s, &(struct spectrum){
-							      SPEC_POWER, pc->beta[k] });
-			pc->lam[s - 1][1][k] = colour_lam_eff(c, s, &(struct spectrum){
-							      SPEC_BLACKBODY, pc->teff[k] });
+			double f;
+
+			colour_exact(c, s, &(struct spectrum){ SPEC_POWER, pc->beta[k] }, &f,
+				     &pc->lam[s - 1][0][k]);
+			colour_exact(c, s, &(struct spectrum){ SPEC_BLACKBODY, pc->teff[k] }, &f,
+				     &pc->lam[s - 1][1][k]);
 		}
 	}
 	return 0;

@@ -16,6 +16,7 @@
  * (host->epsf_colour).
  */
 #include <limits.h>
+#include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -184,6 +185,8 @@ int psfgrids_colour_init(struct engine *g)
 		return err_set(g->e, EXIT_SYSTEM, "out of memory");
 	if (psf_classes_make(g->classes, g->colour, g->o->filter, n, g->e) < 0)
 		return -1;
+	if (int_setting(g, "psf-colour-galaxy-steps", 0, 64, 32, &g->classes->gsteps) < 0)
+		return -1;
 	g->ncgrid = 2 * n;
 	snprintf(g->classes_str, sizeof(g->classes_str), "%d", 2 * n);
 	if (!(g->cgrid = calloc((size_t)WFS_NSCA * SOURCE_CLASSES * g->ncgrid, sizeof(*g->cgrid))))
@@ -245,6 +248,99 @@ int psfgrids_colour_need(struct engine *g, int sca, int cls, int k, struct err *
 	return rc;
 }
 
+/*
+ * Galaxies (host->epsf_blend): the blend of a galaxy's two classes a, a +
+ * 1 (as point.so pairs them: the last class of a family is step 1 of the
+ * pair before it), rounded to 1/gsteps, one grid per SCA, size class,
+ * pair and step, made under grid_lock the first time a prepare() asks
+ * and kept, so that the sersic models see the same nodes for a step (and
+ * cache what they derive from them).  The end steps are the classes'
+ * own grids; gsteps 0 takes the nearest class.
+ */
+static struct psf_grid *blend_make(const struct psf_grid *a, const struct psf_grid *b,
+				   double f)
+{
+	struct psf_grid *m = psf_grid_new(a->n, a->over, a->nx, a->ny);
+	size_t nd = (size_t)a->nx * a->ny * a->n * a->n, nj = 4 * (size_t)a->nx * a->ny;
+
+	if (!m)
+		return NULL;
+	memcpy(m->xs, a->xs, a->nx * sizeof(*a->xs));
+	memcpy(m->ys, a->ys, a->ny * sizeof(*a->ys));
+	if (a->jac && !(m->jac = malloc(nj * sizeof(*a->jac)))) {
+		psf_grid_free(m);
+		return NULL;
+	}
+	if (a->jac)
+		memcpy(m->jac, a->jac, nj * sizeof(*a->jac));
+	m->pixscale = a->pixscale;
+	m->sca = a->sca;
+	m->filter = a->filter;
+	m->kind = a->kind;
+	m->pixgrid = a->pixgrid;
+	snprintf(m->origin, sizeof(m->origin), "%s", a->origin);
+	for (size_t i = 0; i < nd; i++)
+		m->data[i] = (float)((1 - f) * a->data[i] + f * b->data[i]);
+	return m;
+}
+
+/* Class k's grid of (sca, cls), loaded when load is set. */
+static const struct psf_grid *class_grid(struct engine *g, int sca, int cls, int k, int load,
+					 struct err *e)
+{
+	const struct psf_grid *grid = psfgrids_colour_get(g, sca, cls, k);
+
+	if (grid || !load || psfgrids_colour_need(g, sca, cls, k, e) < 0)
+		return grid;
+	return psfgrids_colour_get(g, sca, cls, k);
+}
+
+const struct psf_grid *psfgrids_blend(struct engine *g, int sca, int cls, double colour,
+				      int load, struct err *e)
+{
+	struct psf_classes *pc = g->classes;
+	int n = pc->n, N = pc->gsteps, a = (int)colour, j;
+	double f = colour - a;
+	struct psf_grid **slot, *m;
+	const struct psf_grid *ga, *gb;
+
+	if (N == 0)
+		return class_grid(g, sca, cls, (int)floor(colour + 0.5), load, e);
+	if (a % n == n - 1) {
+		a--;
+		f += 1;
+	}
+	j = (int)lround(f * N);
+	if (j == 0 || j == N)
+		return class_grid(g, sca, cls, a + (j == N), load, e);
+	if (!pc->blend && load) {
+		pthread_mutex_lock(&g->grid_lock);
+		if (!pc->blend)
+			__atomic_store_n(&pc->blend, calloc((size_t)WFS_NSCA * SOURCE_CLASSES *
+							    g->ncgrid * (N + 1), sizeof(*pc->blend)),
+					 __ATOMIC_RELEASE);
+		pthread_mutex_unlock(&g->grid_lock);
+		if (!pc->blend)
+			return err_set(e, EXIT_SYSTEM, "out of memory"), NULL;
+	}
+	if (!__atomic_load_n(&pc->blend, __ATOMIC_ACQUIRE))
+		return NULL;
+	slot = &pc->blend[(((size_t)(sca - 1) * SOURCE_CLASSES + cls) * g->ncgrid + a) * (N + 1) + j];
+	if ((m = __atomic_load_n(slot, __ATOMIC_ACQUIRE)) || !load)
+		return m;
+	if (!(ga = class_grid(g, sca, cls, a, 1, e)) || !(gb = class_grid(g, sca, cls, a + 1, 1, e)))
+		return NULL;
+	pthread_mutex_lock(&g->grid_lock);
+	if (!(m = __atomic_load_n(slot, __ATOMIC_ACQUIRE))) {
+		m = blend_make(ga, gb, (double)j / N);
+		__atomic_store_n(slot, m, __ATOMIC_RELEASE);
+	}
+	pthread_mutex_unlock(&g->grid_lock);
+	if (!m)
+		err_set(e, EXIT_SYSTEM, "out of memory");
+	return m;
+}
+
 /* --psf FILE without %d: one grid read up front for every SCA. */
 int psfgrids_open_user(struct engine *g)
 {
@@ -294,6 +390,10 @@ void psfgrids_free(struct engine *g)
 	for (size_t i = 0; g->cgrid && i < (size_t)WFS_NSCA * SOURCE_CLASSES * g->ncgrid; i++)
 		psf_grid_free(g->cgrid[i]);
 	free(g->cgrid);
+	for (size_t i = 0; g->classes && g->classes->blend &&
+	     i < (size_t)WFS_NSCA * SOURCE_CLASSES * g->ncgrid * (g->classes->gsteps + 1); i++)
+		psf_grid_free(g->classes->blend[i]);
+	free(g->classes ? g->classes->blend : NULL);
 	free(g->classes);
 	colour_free(g->colour);
 }

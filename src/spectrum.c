@@ -71,25 +71,54 @@ void colour_exact(const struct colour *c, int sca, const struct spectrum *s,
 	*lam_eff = sasl / sas;
 }
 
+/*
+ * SCA sca's tables: the sums of colour_exact() for every table node, the
+ * nodes in the inner loop so that each sample's f_nu follows from the
+ * previous node's by one multiplication (beta and 1000 K / T step
+ * uniformly, so f_nu and exp(h nu / k T) are geometric in them), restarted
+ * from pow() and exp() every RESTART nodes: the rounding so gathered stays
+ * below 1e-13 of the sums, and the fill costs some 10 million instructions
+ * an SCA instead of 120 million with a pow() or two expm1() per term.
+ * Samples of zero area are skipped (they add nothing).
+ */
+#define RESTART 64
+
 static void tables_fill(struct colour *c, int sca)
 {
 	struct sca_tables *t = &c->t[sca - 1];
-	struct spectrum s = { SPEC_POWER, 0 };
+	double sa = 0, p = c->pivot;
+	double sb[NBETA] = { 0 }, sbl[NBETA] = { 0 }, st[NU] = { 0 }, stl[NU] = { 0 };
+	double gp[NU];          /* expm1(h nu_pivot / k T) of each node */
 
-	for (int i = 0; i < NBETA; i++) {
-		double f;
+	for (int i = 0; i < NU; i++)
+		gp[i] = expm1(C2 * (U_LO + i * U_STEP) / (1000 * p));
+	for (int k = 0; k < c->n; k++) {
+		double a = c->area[k * WFS_NSCA + sca - 1], l = c->lam[k];
+		double r = pow(l / p, -BETA_STEP), x = C2 / (1000 * l), q = exp(x * U_STEP);
+		double p3 = pow(p / l, 3), v = 0, e = 0;
 
-		s.value = BETA_LO + i * BETA_STEP;
-		colour_exact(c, sca, &s, &f, &t->lam_beta[i]);
-		t->lnf_beta[i] = log(f);
+		sa += a / l;
+		if (a == 0)
+			continue;
+		for (int i = 0; i < NBETA; i++) {
+			v = i % RESTART ? v * r : pow(l / p, -(BETA_LO + i * BETA_STEP));
+			sb[i] += a * v / l;
+			sbl[i] += a * v;
+		}
+		for (int i = 0; i < NU; i++) {
+			e = i % RESTART ? e * q : exp(x * (U_LO + i * U_STEP));
+			v = p3 * gp[i] / (e - 1);
+			st[i] += a * v / l;
+			stl[i] += a * v;
+		}
 	}
-	s.kind = SPEC_BLACKBODY;
+	for (int i = 0; i < NBETA; i++) {
+		t->lam_beta[i] = sbl[i] / sb[i];
+		t->lnf_beta[i] = log(sb[i] / sa);
+	}
 	for (int i = 0; i < NU; i++) {
-		double f;
-
-		s.value = 1000.0 / (U_LO + i * U_STEP);
-		colour_exact(c, sca, &s, &f, &t->lam_bb[i]);
-		t->lnf_bb[i] = log(f);
+		t->lam_bb[i] = stl[i] / st[i];
+		t->lnf_bb[i] = log(st[i] / sa);
 	}
 }
 

@@ -243,28 +243,44 @@ assert all(np.isfinite(f)) and f[2] > f[5] > 0 and f[3] > f[4] > 0, f
 "
 '
 
-# Galaxies are convolved with the ePSF of their spectrum's nearest class:
-# a compact galaxy of 3000 K against the same galaxy drawn with the exact
-# grid of 3000 K (--psf), and with the default spectrum's.
+# Galaxies are convolved with the blend of their spectrum's two classes,
+# rounded to 1/psf-colour-galaxy-steps (32): a compact galaxy of 3000 K (6.40
+# of the way in F146's classes) against the same galaxy drawn with the
+# exact grid of 3000 K (--psf), with the nearest class alone (steps 0)
+# and with the default spectrum's.
 cat > gal.csv <<EOF
 x,y,flux,type,n,re,phi,ratio,teff
 1001,1001,2000,sersic,1,1.5,30,0.7,3000
 EOF
 printf 'x,y,flux,type,n,re,phi,ratio\n1001,1001,2000,sersic,1,1.5,30,0.7\n' > gal0.csv
-test_expect_success 'a galaxy with a spectrum: convolved with its nearest class' '
+test_expect_success 'a galaxy with a spectrum: convolved with the blend of its classes' '
 	"$WFS" --filter F146 --sersic precise -o gc.fits gal.csv &&
+	"$WFS" --filter F146 --sersic precise --set psf-colour-galaxy-steps=16 \
+		-o g16.fits gal.csv &&
+	"$WFS" --filter F146 --sersic precise --set psf-colour-galaxy-steps=0 \
+		-o gn.fits gal.csv &&
 	"$WFS" --filter F146 --sersic precise --psf t3000.fits -o ge.fits gal0.csv &&
 	"$WFS" --filter F146 --sersic precise -o gd.fits gal0.csv &&
 	"$PY" -c "
 import numpy as np
 from astropy.io import fits
-c, e, d = (fits.open(f)[1].data.astype(float) for f in (\"gc.fits\", \"ge.fits\", \"gd.fits\"))
+c, c16, n, e, d = (fits.open(f)[1].data.astype(float)
+                   for f in (\"gc.fits\", \"g16.fits\", \"gn.fits\", \"ge.fits\", \"gd.fits\"))
 pk = e.max()
-print(\"# galaxy: nearest class %.2e, default spectrum %.2e of the peak\" %
-      (np.abs(c - e).max() / pk, np.abs(d - e).max() / pk))
-assert np.abs(c - e).max() < 0.5 * np.abs(d - e).max()
-assert abs(c.sum() / e.sum() - 1) < 1e-3
+dc, d16, dn, dd = (np.abs(a - e).max() / pk for a in (c, c16, n, d))
+print(\"# galaxy: blend 1/32 %.2e, 1/16 %.2e, nearest class %.2e, default spectrum %.2e \"
+      \"of the peak\" % (dc, d16, dn, dd))
+assert dc < 2e-4 and d16 < 1.5e-3 and dn < 0.5 * dd and d16 < 0.1 * dn
+for a in (c, c16, n):
+    assert abs(a.sum() / e.sum() - 1) < 1e-3
 "
+'
+
+test_expect_success 'psf-colour-galaxy-steps: refused beyond 0 to 64' '
+	test_must_fail --status 1 "$WFS" --filter F146 --sersic precise \
+		--set psf-colour-galaxy-steps=65 -o gx.fits gal.csv 2>err &&
+	test_grep "psf-colour-galaxy-steps: expected a whole number 0 to 64" err &&
+	test ! -e gx.fits
 '
 
 test_expect_success 'wfiscene psf --report: the classes, and the class of a spectrum' '

@@ -11,7 +11,9 @@
  * the exact ePSF's peak, for each n, and the build time of one class
  * grid; for the default n the same with the blend rounded to 1/q beyond
  * the 4-pixel core and exact in it (the point model's colour cells,
- * psf-colour-steps = q).  Then the FWHM and EE(0.1") of the
+ * psf-colour-steps = q), and with the blend rounded to 1/q everywhere
+ * (galaxies, psf-colour-galaxy-steps = q).  COLOUR_DEFAULT_ONLY=1 skips
+ * the other numbers of classes.  Then the FWHM and EE(0.1") of the
  * optical PSF (jitter included, no pixel) of a 3000 K and a 30000 K star
  * and their ratios.  Run by hand:
  *
@@ -122,6 +124,8 @@ int main(int argc, char **argv)
 		struct colour *c = colour_new(filter, &e);
 		float *exact[NT + NB];
 		double t_build = 0, worst[NN][2] = { { 0 } }, wq[4][2] = { { 0 } }, wn[2] = { 0 };
+		double wg[4][2] = { { 0 } };
+		static const int gq[4] = { 4, 8, 16, 32 };
 		static const int qs[4] = { 1, 2, 4, 8 };
 		struct spectrum sp[NT + NB];
 
@@ -136,6 +140,8 @@ int main(int argc, char **argv)
 			struct psf_classes pc;
 			float *cls[2 * PSF_COLOUR_MAX];
 
+			if (getenv("COLOUR_DEFAULT_ONLY") && ns[in] != psf_default_classes(filter))
+				continue;
 			if (psf_classes_make(&pc, c, filter, ns[in], &e))
 				return fprintf(stderr, "%s\n", e.msg), 2;
 			for (int k = 0; k < 2 * pc.n; k++) {
@@ -164,6 +170,22 @@ int main(int argc, char **argv)
 					for (int p = 0; p < N * N; p++)
 						dn = fmax(dn, fabs(cls[kn][p] - exact[i][p]));
 					wn[i >= NT] = fmax(wn[i >= NT], dn / peak);
+				}
+				/* galaxies: the pair's blend rounded to 1/q (as
+				 * point_pair pairs the last class) */
+				for (int iq = 0; ns[in] == psf_default_classes(filter) && iq < 4; iq++) {
+					int ka = k, n2 = pc.n;
+					double fa = f, dg = 0, ph;
+
+					if (ka % n2 == n2 - 1) {
+						ka--;
+						fa += 1;
+					}
+					ph = round(fa * gq[iq]) / gq[iq];
+					for (int p = 0; p < N * N; p++)
+						dg = fmax(dg, fabs((1 - ph) * cls[ka][p] + ph * cls[ka + 1][p] -
+								   exact[i][p]));
+					wg[iq][i >= NT] = fmax(wg[iq][i >= NT], dg / peak);
 				}
 				/* blended cells: the class pair's blend rounded to
 				 * 1/q outside the 4-pixel core, exact inside it */
@@ -201,6 +223,9 @@ int main(int argc, char **argv)
 			printf("q %d  %.2e      %.2e\n", qs[iq], wq[iq][0], wq[iq][1]);
 		printf("%s, %d classes, the nearest class alone: %.2e      %.2e\n", argv[a],
 		       psf_default_classes(filter), wn[0], wn[1]);
+		for (int iq = 0; iq < 4; iq++)
+			printf("%s galaxies, the blend rounded to 1/%d: %.2e      %.2e\n", argv[a],
+			       gq[iq], wg[iq][0], wg[iq][1]);
 		{
 			float *cool = grid_of(filter, SPEC_BLACKBODY, 3000, PSF_OPTICAL, NULL);
 			float *hot = grid_of(filter, SPEC_BLACKBODY, 30000, PSF_OPTICAL, NULL);

@@ -176,10 +176,11 @@ extern "C" {
  * built-in models relied on stated here: WFS_SCA_SIDE, WFS_SCA_COUNT,
  * WFS_MAX_COLUMNS, WFS_PSF_HALO, WFS_PRINTF, the setting pixel-sigma,
  * thread_start()'s return value; 6 wfs_model.column_roles
- * (enum wfs_column_role) and roman_type; 7 wfs_host.convolve_sum.  A plugin MAY test
+ * (enum wfs_column_role) and roman_type; 7 wfs_host.convolve_sum; 8
+ * wfs_host.epsf_blend.  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
-#define WFS_ABI_EDITION 7
+#define WFS_ABI_EDITION 8
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -388,6 +389,17 @@ struct wfs_host {
 	 * convolve() for each and add. */
 	int (*convolve_sum)(void *ctx, void *thread, double *const *imgs,
 			    const double *const *kernels, int count, int nx, int ny, int kn);
+
+	/* Edition 8.  The ePSF of a source of spectral class `colour`
+	 * (wfs_source.colour, >= 0) at (x, y) as four nodes like epsf()'s:
+	 * the blend of its two classes, the blend rounded to steps the host
+	 * chooses (wfiscene: 1/psf-colour-galaxy-steps), so that the arrays
+	 * are the same for every source of a step (a model may cache what it
+	 * derives from a node by its address).  The same rules of loading
+	 * apply.  Absent in older hosts (check WFS_HAS(host->size, struct
+	 * wfs_host, epsf_blend)): take epsf_colour() of the nearest class. */
+	int (*epsf_blend)(void *ctx, int sca, double x, double y, int cls, double colour,
+			  struct wfs_epsf *out);
 };
 
 /*

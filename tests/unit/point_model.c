@@ -125,7 +125,7 @@ static void *host_scratch(void *thread, size_t bytes)
 
 static const struct wfs_host host = {
 	WFS_ABI_VERSION, sizeof(struct wfs_host), NULL, host_error, host_log, host_setting,
-	host_epsf, host_scratch, NULL, sizeof(struct wfs_source), NULL, NULL,
+	host_epsf, host_scratch, NULL, sizeof(struct wfs_source), NULL, NULL, NULL,
 };
 
 /* The synthetic ePSF of node (ix, iy): the sample at offset d pixels is

@@ -382,20 +382,12 @@ static void cosmic_tile(const struct noise_opts *o, int sca, int x0, int y0,
  */
 #define POIS_FAST 10.0
 #define POIS_STEPS 48
+_Static_assert(POIS_STEPS <= RNG_RECIP, "the steps' 1/k from rng_recip");
 
 /* Eight lanes in GCC's vector types, compiled for AVX-512 and for AVX2
  * (two halves) below, into which the functions on them are inlined. */
 typedef double v8d __attribute__((vector_size(64)));
 typedef long long v8l __attribute__((vector_size(64)));
-
-static const double recip_k[POIS_STEPS] = {
-	0, 1.0 / 1, 1.0 / 2, 1.0 / 3, 1.0 / 4, 1.0 / 5, 1.0 / 6, 1.0 / 7,
-	1.0 / 8, 1.0 / 9, 1.0 / 10, 1.0 / 11, 1.0 / 12, 1.0 / 13, 1.0 / 14, 1.0 / 15,
-	1.0 / 16, 1.0 / 17, 1.0 / 18, 1.0 / 19, 1.0 / 20, 1.0 / 21, 1.0 / 22, 1.0 / 23,
-	1.0 / 24, 1.0 / 25, 1.0 / 26, 1.0 / 27, 1.0 / 28, 1.0 / 29, 1.0 / 30, 1.0 / 31,
-	1.0 / 32, 1.0 / 33, 1.0 / 34, 1.0 / 35, 1.0 / 36, 1.0 / 37, 1.0 / 38, 1.0 / 39,
-	1.0 / 40, 1.0 / 41, 1.0 / 42, 1.0 / 43, 1.0 / 44, 1.0 / 45, 1.0 / 46, 1.0 / 47,
-};
 
 /* exp(-m) for 0 <= m < POIS_FAST, relative error below 1e-15. */
 static inline __attribute__((always_inline)) void exp_neg8(const v8d *mp, v8d *out)
@@ -457,7 +449,7 @@ pois_fast8(const v8d *mp, const v8d *up, double *out)
 			if (!any || k == POIS_STEPS)
 				break;
 		}
-		mk = m * recip_k[k];
+		mk = m * rng_recip[k];
 		plo *= mk;
 		phi *= mk;
 		flo += plo;

@@ -224,15 +224,6 @@ void geom_idl_to_sci(const struct geom_aperture *ap, double xi, double yi,
 
 /* ---- the attitude ---- */
 
-static void unit_v23(double v2, double v3, double u[3])
-{
-	double a = v2 * AS2R, d = v3 * AS2R;
-
-	u[0] = cos(d) * cos(a);
-	u[1] = cos(d) * sin(a);
-	u[2] = sin(d);
-}
-
 /* The aperture's reference point and ideal +x, +y axes as V2/V3 unit
  * vectors: +y_idl at V3IdlYAngle from the local +V3 toward +V2, x_idl of
  * parity VIdlParity (the SIAF's planar rule applied in the tangent plane). */
@@ -243,7 +234,7 @@ static void aperture_frame(const struct geom_aperture *ap, double ut[3], double 
 	double e2[3] = { -sin(a), cos(a), 0 };                          /* +V2 */
 	double e3[3] = { -sin(d) * cos(a), -sin(d) * sin(a), cos(d) };  /* +V3 */
 
-	unit_v23(ap->v2ref, ap->v3ref, ut);
+	geom_unit(a, d, ut);
 	for (int k = 0; k < 3; k++) {
 		xt[k] = ap->parity * (cos(th) * e2[k] - sin(th) * e3[k]);
 		yt[k] = sin(th) * e2[k] + cos(th) * e3[k];
@@ -253,9 +244,7 @@ static void aperture_frame(const struct geom_aperture *ap, double ut[3], double 
 /* East and north unit vectors at (ra, dec) (radians). */
 static void sky_frame(double a, double d, double s[3], double east[3], double north[3])
 {
-	s[0] = cos(d) * cos(a);
-	s[1] = cos(d) * sin(a);
-	s[2] = sin(d);
+	geom_unit(a, d, s);
 	east[0] = -sin(a);
 	east[1] = cos(a);
 	east[2] = 0;
@@ -525,9 +514,7 @@ void geom_sky_jacobian(struct geom_sca *g, double x, double y, double k[4])
 		for (int n = 0; n < 4; n++) {
 			double r2, d2, v[3];
 			geom_pix_to_sky(g, x + h[n][0], y + h[n][1], &r2, &d2);
-			v[0] = cos(d2 * D2R) * cos(r2 * D2R);
-			v[1] = cos(d2 * D2R) * sin(r2 * D2R);
-			v[2] = sin(d2 * D2R);
+			geom_unit(r2 * D2R, d2 * D2R, v);
 			double w = v[0] * cd * ca + v[1] * cd * sa + v[2] * sd;
 			t[n][0] = dot(v, east) / w / AS2R;
 			t[n][1] = dot(v, north) / w / AS2R;

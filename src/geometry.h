@@ -23,6 +23,7 @@
 #ifndef WFS_GEOMETRY_H
 #define WFS_GEOMETRY_H
 
+#include <math.h>
 #include <stddef.h>
 
 #include <wcslib/wcs.h>
@@ -30,6 +31,15 @@
 struct err;
 
 enum wfs_geometry { GEOM_SIAF, GEOM_STIPS };
+
+/* The unit vector of longitude lon, latitude lat (radians): RA/Dec on the
+ * sky, V2/V3 in the telescope's frame. */
+static inline void geom_unit(double lon, double lat, double u[3])
+{
+	u[0] = cos(lat) * cos(lon);
+	u[1] = cos(lat) * sin(lon);
+	u[2] = sin(lat);
+}
 
 #define GEOM_DEG 5      /* SIAF polynomial degree */
 #define GEOM_NC 21      /* coefficients of a degree-5 polynomial in x, y */

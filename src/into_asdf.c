@@ -277,13 +277,6 @@ fail:
 	return NULL;
 }
 
-static void unit(double lon, double lat, double u[3])
-{
-	u[0] = cos(lat) * cos(lon);
-	u[1] = cos(lat) * sin(lon);
-	u[2] = sin(lat);
-}
-
 /* East and north unit vectors at (lon, lat) radians. */
 static void en(double lon, double lat, double e[3], double n[3])
 {
@@ -305,9 +298,9 @@ void into_asdf_pointing(const struct into_asdf *ia, double *ra, double *dec, dou
 	const struct geom_aperture *ap = geom_aperture(1);
 	double a1[3], e21[3], e31[3], y1[3], s1[3], y1s[3], th = ap->v3idlyangle * D2R;
 
-	unit(ia->v2_ref * AS2R, ia->v3_ref * AS2R, u);
+	geom_unit(ia->v2_ref * AS2R, ia->v3_ref * AS2R, u);
 	en(ia->v2_ref * AS2R, ia->v3_ref * AS2R, e2, e3);
-	unit(ia->ra_ref * D2R, ia->dec_ref * D2R, s);
+	geom_unit(ia->ra_ref * D2R, ia->dec_ref * D2R, s);
 	en(ia->ra_ref * D2R, ia->dec_ref * D2R, ee, nn);
 	for (int k = 0; k < 3; k++) {
 		N[k] = cos(r) * nn[k] + sin(r) * ee[k];
@@ -318,7 +311,7 @@ void into_asdf_pointing(const struct into_asdf *ia, double *ra, double *dec, dou
 			m[i][j] = s[i] * u[j] + E[i] * e2[j] + N[i] * e3[j];
 	/* WFI01's reference point and its +y_idl on the sky: the pointing
 	 * that sky.c turns back into the same attitude */
-	unit(ap->v2ref * AS2R, ap->v3ref * AS2R, a1);
+	geom_unit(ap->v2ref * AS2R, ap->v3ref * AS2R, a1);
 	en(ap->v2ref * AS2R, ap->v3ref * AS2R, e21, e31);
 	for (int k = 0; k < 3; k++)
 		y1[k] = sin(th) * e21[k] + cos(th) * e31[k];
@@ -783,7 +776,7 @@ int into_asdf_apply(const struct into_asdf *ia, struct sky *sky, struct err *e)
 	{
 		double a = ss->ra * D2R, d = ss->dec * D2R, s2[3], ee[3], nn[3], de = 0, dn = 0;
 
-		unit(ra2 * D2R, dec2 * D2R, s2);
+		geom_unit(ra2 * D2R, dec2 * D2R, s2);
 		en(a, d, ee, nn);
 		for (int k = 0; k < 3; k++) {
 			de += s2[k] * ee[k];

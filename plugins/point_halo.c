@@ -150,6 +150,8 @@ void hslot_free_all(struct point *p)
 		halo_free(&p->hs[i].h);
 		near_free(&p->hs[i].near);
 	}
+	int made = 0;
+
 	for (size_t i = 0; p->chs && i < (size_t)SCA_SLOTS * p->nclasses * p->halo_steps; i++) {
 		struct hslot *s = atomic_load(&p->chs[i]);
 
@@ -158,8 +160,12 @@ void hslot_free_all(struct point *p)
 			near_free(&s->near);
 			free(s->arr);
 			free(s);
+			made++;
 		}
 	}
+	if (made)
+		p->host->log(p->host->ctx, 1, "point: %d halos of spectra (SCA, class and step)",
+			     made);
 	free(p->chs);
 	p->chs = NULL;
 }

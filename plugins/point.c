@@ -83,6 +83,10 @@
  *                                     eight nodes at the pair's blend rounded
  *                                     to 1/N (default 1), the core corrected
  *                                     to its own exact blend; 0: per source
+ *   psf-halo-colour-steps=N           a bright source with a spectrum: the
+ *                                     halo of its class pair blended, the
+ *                                     blend rounded to 1/N (default 4; 0:
+ *                                     the default spectrum's halo)
  *
  * Files: this one holds the settings, init/fini and the callbacks;
  * point_epsf.c a source's ePSF box, point_poly.c the polyphase copies,

@@ -83,6 +83,10 @@
  *                                     eight nodes at the pair's blend rounded
  *                                     to 1/N (default 1), the core corrected
  *                                     to its own exact blend; 0: per source
+ *   psf-halo-colour-steps=N           a bright source with a spectrum: the
+ *                                     halo of its class pair blended, the
+ *                                     blend rounded to 1/N (default 4; 0:
+ *                                     the default spectrum's halo)
  *
  * Files: this one holds the settings, init/fini and the callbacks;
  * point_epsf.c a source's ePSF box, point_poly.c the polyphase copies,
@@ -128,6 +132,9 @@ static const struct wfs_setting point_settings[] = {
 	{ "psf-colour-steps", "1", "whole number 0 to 64",
 	  "sources with a spectrum: their two spectral classes' blend per cell rounded to "
 	  "1/N beyond the core, exact in it (0: blended per source everywhere)" },
+	{ "psf-halo-colour-steps", "4", "whole number 0 to 64",
+	  "sources with a spectrum: the halo of their two spectral classes blended, the "
+	  "blend rounded to 1/N (0: the default spectrum's halo)" },
 	{ "psf-halo-power", "3", "number >= 2.5", "power-law index of the far tail" },
 	{ "psf-halo-taper", "16", "number >= 0",
 	  "pixels over which the halo array hands over to the tail" },
@@ -277,6 +284,8 @@ static int point_init(const struct wfs_host *host, void **state)
 	pthread_mutex_init(&p->lock, NULL);
 	p->serial = atomic_fetch_add(&serials, 1) + 1;
 	kernels_choose(p);
+	for (int i = 0; i < SCA_SLOTS; i++)
+		p->hs[i].cls = -1;      /* the default spectrum's halos */
 	/* the defaults are point_settings' (setting_value); the two derived
 	 * from the scene are set here: the noise, and -1 for "the class's box" */
 	p->sigma = scene_sigma(host);
@@ -333,12 +342,25 @@ static int point_init(const struct wfs_host *host, void **state)
 		goto fail;
 	}
 	p->colour_steps = (int)csteps;
+	if (setting_number(host, "psf-halo-colour-steps", 0, 0, &csteps) < 0)
+		goto fail;
+	if (csteps != floor(csteps) || csteps > 64) {
+		host->error(host->ctx, "psf-halo-colour-steps: expected a whole number 0 to 64, "
+			    "not '%s'", setting_value(host, "psf-halo-colour-steps"));
+		goto fail;
+	}
+	p->halo_steps = (int)csteps;
 	/* the classes the host has (none before the scene's first spectrum):
 	 * room for the cells of every step between them */
 	if (host->setting(host->ctx, "spectral-classes"))
 		p->nclasses = atoi(host->setting(host->ctx, "spectral-classes"));
 	if (p->colour_steps > 0 && p->nclasses >= 4)
 		p->colour_cells = (p->colour_steps + 1) * p->nclasses;
+	if (p->halo_steps > 0 && p->nclasses >= 4 &&
+	    !(p->chs = calloc((size_t)SCA_SLOTS * p->nclasses * p->halo_steps, sizeof(*p->chs)))) {
+		host->error(host->ctx, "out of memory");
+		goto fail;
+	}
 	if (poly_table_init(p) < 0)
 		goto fail;
 	if (p->adaptive && !(p->sigma > 0)) {
@@ -350,6 +372,7 @@ static int point_init(const struct wfs_host *host, void **state)
 	return 0;
 fail:
 	poly_free_all(p);
+	free(p->chs);
 	pthread_mutex_destroy(&p->lock);
 	free(p);
 	return -1;
@@ -381,10 +404,7 @@ static void point_fini(void *state)
 			     "%lld sources with a halo", all.left, all.requested,
 			     100 * all.left / all.requested, all.spread, all.nhalo, all.npoint);
 	far_free(p);
-	for (int s = 0; s < SCA_SLOTS; s++) {
-		halo_free(&p->halo[s]);
-		near_free(&p->near[s]);
-	}
+	hslot_free_all(p);
 	pthread_mutex_destroy(&p->lock);
 	free(p);
 }
@@ -430,19 +450,11 @@ static int point_render(void *state, void *tstate, void *thread,
 static int point_reach(void *state, const struct wfs_source *src, double *pixels)
 {
 	struct point *p = state;
-	const struct halo *h;
-	double r;
-	int k;
 
 	*pixels = XBRIGHT_HALF;
 	if (p->extent == EXTENT_STIPS || !(src->flux > 0))
 		return 0;
-	if (!(h = halo_of(p, src)))
-		return -1;
-	r = far_radius(p, halo_radius(h, halo_level(p, src->flux, &k), p->extent_max)) + 1;
-	if (r > *pixels)
-		*pixels = r;
-	return 0;
+	return noise_reach(p, src, pixels);
 }
 
 static const struct wfs_model point_model = {

@@ -164,6 +164,24 @@ struct near {
 	double *under;          /* steps kmin to kmax + 1 */
 };
 
+/* A halo and what is derived from it (point_halo.c): one per SCA of the
+ * scene's default spectrum (cls -1), and for sources with a spectrum one
+ * per SCA, spectral class cls and step (of psf-halo-colour-steps) of the
+ * blend of the halos of cls and cls + 1, each made on first use under the
+ * lock and flagged ready with release order.  cfac and chalf per size
+ * class: the core's scale and the box's half-width (core_scale). */
+struct hslot {
+	struct halo h;
+	float *arr;             /* the blended array (NULL: the host's) */
+	_Atomic int ready;
+	struct near near;       /* psf-halo-near=level */
+	_Atomic int near_ready;
+	double cfac[3];
+	int chalf[3];
+	_Atomic int cfac_ready[3];
+	int cls, step;
+};
+
 /* One array, the whole window, straight into the tile: for each row j and
  * pixel i < nx,
  *
@@ -280,13 +298,12 @@ struct point {
 	 * copies) is made under lock and then flagged ready with release
 	 * order; its counters are per thread (struct tally) */
 	pthread_mutex_t lock;
-	struct halo halo[SCA_SLOTS]; /* per SCA, set up in prepare() */
-	_Atomic int halo_ready[SCA_SLOTS];
-	struct near near[SCA_SLOTS]; /* psf-halo-near=level, set up in prepare() */
-	_Atomic int near_ready[SCA_SLOTS];
-	double cfac[SCA_SLOTS][3]; /* per SCA and class: the core's scale */
-	int chalf[SCA_SLOTS][3]; /* and the box's half-width (core_scale) */
-	_Atomic int cfac_ready[SCA_SLOTS][3];
+	struct hslot hs[SCA_SLOTS]; /* per SCA, the default spectrum's halo */
+	/* psf-halo-colour-steps (0: every source has the default's halo),
+	 * and the colour halos: chs[(sca nclasses + cls) halo_steps + step],
+	 * NULL until made (point_halo.c) */
+	int halo_steps;
+	_Atomic(struct hslot *) *chs;
 	unsigned long serial;   /* this state's number among all made */
 	struct tally *tallies;  /* one per thread that prepared */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
@@ -359,15 +376,16 @@ static inline int zone_empty(struct zone z)
 	return z.x0 >= z.x1 || z.y0 >= z.y1;
 }
 
-/* The source's halo radius (0: none) and its box's half-width from aux[0]. */
+/* The source's halo radius (0: none) and its box's half-width from aux[0]
+ * (negative when the halo is its spectrum's, point_halo.c). */
 static inline double halo_radius_of(const struct wfs_source *src)
 {
-	return floor(src->aux[0] / HALO_PACK);
+	return floor(fabs(src->aux[0]) / HALO_PACK);
 }
 
 static inline double box_half_of(const struct wfs_source *src)
 {
-	return src->aux[0] - HALO_PACK * halo_radius_of(src);
+	return fabs(src->aux[0]) - HALO_PACK * halo_radius_of(src);
 }
 
 /* psf-halo-far=spikes: beyond the radius where the halo away from its
@@ -401,12 +419,11 @@ int epsf_render(struct point *p, const struct wfs_source *src, const struct wfs_
 struct tally *tally_of(struct point *p);
 
 /* point_halo.c: psf-extent=noise */
-const struct halo *halo_of(struct point *p, const struct wfs_source *src);
 int noise_prepare(struct point *p, struct wfs_source *src);
 int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
+int noise_reach(struct point *p, const struct wfs_source *src, double *pixels);
 double halo_level(const struct point *p, double flux, int *k);
-const struct near *near_of(struct point *p, const struct wfs_source *src, int hb);
-void near_free(struct near *n);
+void hslot_free_all(struct point *p);
 
 /* point_far.c: psf-diffuse=grid; far_deposit() adds light (counts/s) left
  * out of src beyond its box (r = 0) or beyond its radius r to its

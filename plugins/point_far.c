@@ -17,7 +17,9 @@
  * The wing's shape.  K(p, q), the share of unit light that a source at
  * the centre of a cell sends into the cell (p, q) away: the halo model
  * (halo.h) summed over the cell's pixels outside the faint class's box,
- * over the model's light outside the box.  Cells that meet the box, or lie
+ * over the model's light outside the box (the default spectrum's halo for
+ * every source: a source with a spectrum deposits its own halo's light,
+ * spread in that shape).  Cells that meet the box, or lie
  * within FAR_EXACT cells, are summed pixel by pixel; nearer than 512 pixels
  * every other pixel, nearer than 1024 on 2 x 2 points, beyond at one
  * (the wing is smooth there on the scale of a cell, its spikes a few
@@ -594,7 +596,7 @@ static int near_spread(struct point *p, void *thread, struct work *w, const stru
 static int spread_groups(struct point *p, void *thread, int sca, struct work *w,
 			 const struct far_dep *dep, size_t nd, int64_t *cnt, double *c)
 {
-	const struct halo *h = &p->halo[sca];
+	const struct halo *h = &p->hs[sca].h;
 	int n = p->far_n, rc = -1;
 	size_t nc = (size_t)n * n;
 	struct nearker nk = { 0 };
@@ -617,9 +619,9 @@ static int spread_groups(struct point *p, void *thread, int sca, struct work *w,
 			w->g[q] = far_light(cnt, q);
 		i = j;
 		if (k != INT_MIN) {
-			const struct near *nr = &p->near[sca];
+			const struct near *nr = &p->hs[sca].near;
 
-			if (!atomic_load(&p->near_ready[sca]) ||
+			if (!atomic_load(&p->hs[sca].near_ready) ||
 			    (!nk.hist && near_hist(p, h, nr, w->hb, &nk) < 0)) {
 				p->host->error(p->host->ctx, "out of memory for the diffuse light");
 				goto out;
@@ -650,10 +652,10 @@ int far_gather(void *state, void *thread, int sca)
 	int64_t *cnt = NULL;
 	double *c = NULL;
 	struct far_dep *dep = NULL;
-	const struct halo *h = &p->halo[sca];
+	const struct halo *h = &p->hs[sca].h;
 	struct work w = { 0 };
 
-	if (p->diffuse != DIFFUSE_GRID || !atomic_load(&p->halo_ready[sca]))
+	if (p->diffuse != DIFFUSE_GRID || !atomic_load(&p->hs[sca].ready))
 		return 0;
 	for (struct tally *t = p->tallies; t; t = t->next)
 		dense |= t->cnt[sca] != NULL;
@@ -662,7 +664,7 @@ int far_gather(void *state, void *thread, int sca)
 			nd += t->dep[i].sca == sca;
 	if (!dense && !nd)
 		return 0;
-	w.hb = p->chalf[sca][WFS_PSF_NORMAL] > 0 ? p->chalf[sca][WFS_PSF_NORMAL] : 21;
+	w.hb = p->hs[sca].chalf[WFS_PSF_NORMAL] > 0 ? p->hs[sca].chalf[WFS_PSF_NORMAL] : 21;
 	far_level(p, 0, w.hb, &w.l[0]);
 	far_level(p, 1, w.hb, &w.l[1]);
 	{

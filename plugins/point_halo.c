@@ -14,78 +14,231 @@
 /* The centre pixel of an SCA (model.h's coordinates). */
 #define SCA_CENTRE ((WFS_SCA_SIDE - 1) / 2.0)
 
-/* The halo of SCA sca, set up on first use by one thread under the lock. */
-const struct halo *halo_of(struct point *p, const struct wfs_source *src)
+static void near_free(struct near *n);
+
+/* Set up slot s's halo from the host's array a (n x n, over per pixel),
+ * or with g > 0 from the blend (1 - g) a + g b into s->arr; the lock held.
+ * 0, or -1 when out of memory or the array is too small. */
+static int slot_setup(struct point *p, struct hslot *s, const float *a, const float *b,
+		      double g, int n, int over)
 {
-	struct halo *h = &p->halo[src->sca];
+	if (g > 0) {
+		size_t nn = (size_t)n * n;
+
+		if (!(s->arr = malloc(nn * sizeof(float))))
+			return -1;
+		for (size_t i = 0; i < nn; i++)
+			s->arr[i] = (float)((1 - g) * a[i] + g * b[i]);
+		a = s->arr;
+	}
+	return halo_setup(&s->h, a, n, over, p->halo_power, p->halo_taper);
+}
+
+static int slot_fail(struct point *p, int sca, int n, int over)
+{
+	return p->host->error(p->host->ctx, "halo of SCA %d: %d samples at %d per pixel are "
+			      "too few (or out of memory)", sca, n, over);
+}
+
+/* The default spectrum's halo of the source's SCA, set up on first use by
+ * one thread under the lock. */
+static struct hslot *slot_default(struct point *p, const struct wfs_source *src)
+{
+	struct hslot *s = &p->hs[src->sca];
 	struct wfs_epsf e;
 	int ok = 1;
 
-	if (atomic_load_explicit(&p->halo_ready[src->sca], memory_order_acquire))
-		return h;
+	if (atomic_load_explicit(&s->ready, memory_order_acquire))
+		return s;
 	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, WFS_PSF_HALO, &e) < 0)
 		return NULL;
 	pthread_mutex_lock(&p->lock);
-	if (!atomic_load_explicit(&p->halo_ready[src->sca], memory_order_relaxed)) {
-		if ((ok = halo_setup(h, e.node[0], e.n, e.over, p->halo_power,
-				     p->halo_taper) == 0))
-			atomic_store_explicit(&p->halo_ready[src->sca], 1, memory_order_release);
+	if (!atomic_load_explicit(&s->ready, memory_order_relaxed)) {
+		if ((ok = slot_setup(p, s, e.node[0], NULL, 0, e.n, e.over) == 0))
+			atomic_store_explicit(&s->ready, 1, memory_order_release);
 	}
 	pthread_mutex_unlock(&p->lock);
 	if (!ok) {
-		p->host->error(p->host->ctx, "halo of SCA %d: %d samples at %d per pixel are "
-			       "too few (or out of memory)", src->sca, e.n, e.over);
+		slot_fail(p, src->sca, e.n, e.over);
 		return NULL;
 	}
-	return h;
+	return s;
+}
+
+/* The index of a source's colour halo among its SCA's (psf-halo-colour-
+ * steps N): the lower class a of its pair (point_pair) and its blend
+ * rounded to j / N, j < N (j = N is the next class's j = 0); -1 for the
+ * default's. */
+static int colour_index(const struct point *p, const struct wfs_source *src)
+{
+	double c = point_colour(p, src), f;
+	int a, j, N = p->halo_steps;
+
+	if (!p->chs || !(c >= 0))
+		return -1;
+	point_pair(p, c, &a, &f);
+	j = (int)(f * N + 0.5);
+	if (j >= N) {
+		a++;
+		j = 0;
+	}
+	return a >= 0 && a < p->nclasses ? a * N + j : -1;
+}
+
+static _Atomic(struct hslot *) *colour_at(const struct point *p, int sca, int idx)
+{
+	return &p->chs[(size_t)sca * p->nclasses * p->halo_steps + idx];
+}
+
+/* Colour halo idx of the source's SCA: the host's halo of class a, or the
+ * blend of a's and a + 1's at step j / N, set up on first use under the
+ * lock (the host's arrays asked for outside it, as building them takes
+ * seconds). */
+static struct hslot *slot_colour(struct point *p, const struct wfs_source *src, int idx)
+{
+	_Atomic(struct hslot *) *at = colour_at(p, src->sca, idx);
+	struct hslot *s = atomic_load_explicit(at, memory_order_acquire);
+	int N = p->halo_steps, a = idx / N, j = idx % N, ok = 1;
+	struct wfs_epsf ea, eb;
+
+	if (s)
+		return s;
+	if (p->host->epsf_colour(p->host->ctx, src->sca, SCA_CENTRE, SCA_CENTRE, WFS_PSF_HALO,
+				 a, &ea) < 0 ||
+	    (j > 0 && p->host->epsf_colour(p->host->ctx, src->sca, SCA_CENTRE, SCA_CENTRE,
+					   WFS_PSF_HALO, a + 1, &eb) < 0))
+		return NULL;
+	if (j > 0 && (eb.n != ea.n || eb.over != ea.over))
+		return p->host->error(p->host->ctx, "halos of spectral classes %d and %d differ "
+				      "in size", a, a + 1), NULL;
+	pthread_mutex_lock(&p->lock);
+	if (!(s = atomic_load_explicit(at, memory_order_relaxed))) {
+		if ((s = calloc(1, sizeof(*s)))) {
+			s->cls = a;
+			s->step = j;
+		}
+		if (!s || slot_setup(p, s, ea.node[0], j ? eb.node[0] : NULL, (double)j / N, ea.n,
+				     ea.over) < 0) {
+			if (s) {
+				halo_free(&s->h);
+				free(s->arr);
+				free(s);
+			}
+			s = NULL;
+			ok = 0;
+		} else
+			atomic_store_explicit(at, s, memory_order_release);
+	}
+	pthread_mutex_unlock(&p->lock);
+	if (!ok)
+		slot_fail(p, src->sca, ea.n, ea.over);
+	return s;
+}
+
+/* The halo a prepared source is drawn with (render(): set up already). */
+static const struct hslot *slot_drawn(const struct point *p, const struct wfs_source *src)
+{
+	if (src->aux[0] < 0)
+		return atomic_load_explicit(colour_at(p, src->sca, colour_index(p, src)),
+					    memory_order_acquire);
+	return &p->hs[src->sca];
+}
+
+void hslot_free_all(struct point *p)
+{
+	for (int i = 0; i < SCA_SLOTS; i++) {
+		halo_free(&p->hs[i].h);
+		near_free(&p->hs[i].near);
+	}
+	int made = 0;
+
+	for (size_t i = 0; p->chs && i < (size_t)SCA_SLOTS * p->nclasses * p->halo_steps; i++) {
+		struct hslot *s = atomic_load(&p->chs[i]);
+
+		if (s) {
+			halo_free(&s->h);
+			near_free(&s->near);
+			free(s->arr);
+			free(s);
+			made++;
+		}
+	}
+	if (made)
+		p->host->log(p->host->ctx, 1, "point: %d halos of spectra (SCA, class and step)",
+			     made);
+	free(p->chs);
+	p->chs = NULL;
+}
+
+/* The core's light within its box less one pixel all round (see
+ * core_scale) at the node of e nearest the SCA's centre, and that box's
+ * half-width. */
+static double core_light(const struct wfs_epsf *e, int *half)
+{
+	double fine = 0;
+	int k0 = 0;
+
+	*half = e->centre / e->over - 1;
+	for (int k = 1; k < 4; k++)
+		if (e->weight[k] > e->weight[k0])
+			k0 = k;
+	for (int j = -*half + 1; j < *half; j++)
+		for (int i = -*half + 1; i < *half; i++)
+			fine += e->node[k0][(size_t)(e->centre + e->over * j) * e->n + e->centre +
+					    e->over * i];
+	return fine;
 }
 
 /*
- * The core's scale for SCA sca and the source's class: the halo's light in
+ * The core's scale for slot s and the source's class: the halo's light in
  * the class's box over the core's own (the cores are normalised within
  * their boxes, so they hold the light beyond them too), both for a source
- * on a pixel centre, from the node nearest the SCA's centre.  The
+ * on a pixel centre, from the node nearest the SCA's centre; for a colour
+ * halo the core of its class, or the blend of its pair's at its step.  The
  * box is the class's less one pixel all round: the grids' outermost
  * samples stand about 20% below their neighbours (a 10.5 mag star on a
  * whole pixel in F129 drew its box's last column 3.5 sigma below the
  * halo beside it, a seam the demo's image showed), so the halo draws
  * that ring.
  */
-static double core_scale(struct point *p, const struct wfs_source *src, const struct halo *h)
+static double core_scale(struct point *p, const struct wfs_source *src, struct hslot *s)
 {
-	_Atomic int *ready = &p->cfac_ready[src->sca][src->psf_class];
+	int cls = src->psf_class, half;
+	_Atomic int *ready = &s->cfac_ready[cls];
+	const struct halo *h = &s->h;
 	struct wfs_epsf e;
+	double fine, far = 0;
 
 	if (atomic_load_explicit(ready, memory_order_acquire))
-		return p->cfac[src->sca][src->psf_class];
+		return s->cfac[cls];
 	/* from the node nearest the SCA's centre (the largest weight there),
 	 * whichever source asks first, so that the scale is the same for any
 	 * order of the sources and any thread: each thread that finds it
 	 * unset computes it, and the first one stores it */
-	if (p->host->epsf(p->host->ctx, src->sca, SCA_CENTRE, SCA_CENTRE, src->psf_class, &e) < 0)
+	if ((s->cls < 0 ? p->host->epsf(p->host->ctx, src->sca, SCA_CENTRE, SCA_CENTRE, cls, &e) :
+			  p->host->epsf_colour(p->host->ctx, src->sca, SCA_CENTRE, SCA_CENTRE, cls,
+					       s->cls, &e)) < 0)
 		return -1;
-	double fine = 0, far = 0;
-	int half = e.centre / e.over - 1, k0 = 0;
+	fine = core_light(&e, &half);
+	if (s->step > 0) {
+		double g = (double)s->step / p->halo_steps;
 
-	for (int k = 1; k < 4; k++)
-		if (e.weight[k] > e.weight[k0])
-			k0 = k;
-
-	for (int j = -half; j <= half; j++)
-		for (int i = -half; i <= half; i++) {
-			if (abs(i) == half || abs(j) == half)
-				continue;       /* the box: |i - x| < half */
-			fine += e.node[k0][(size_t)(e.centre + e.over * j) * e.n + e.centre + e.over * i];
+		if (p->host->epsf_colour(p->host->ctx, src->sca, SCA_CENTRE, SCA_CENTRE, cls,
+					 s->cls + 1, &e) < 0)
+			return -1;
+		fine = (1 - g) * fine + g * core_light(&e, &half);
+	}
+	for (int j = -half + 1; j < half; j++)
+		for (int i = -half + 1; i < half; i++)
 			far += h->s * h->a[(size_t)(h->c + h->over * j) * h->n + h->c + h->over * i];
-		}
 	pthread_mutex_lock(&p->lock);
 	if (!atomic_load_explicit(ready, memory_order_relaxed)) {
-		p->cfac[src->sca][src->psf_class] = fine > 0 && far > 0 ? far / fine : 1;
-		p->chalf[src->sca][src->psf_class] = half;
+		s->cfac[cls] = fine > 0 && far > 0 ? far / fine : 1;
+		s->chalf[cls] = half;
 		atomic_store_explicit(ready, 1, memory_order_release);
 	}
 	pthread_mutex_unlock(&p->lock);
-	return p->cfac[src->sca][src->psf_class];
+	return s->cfac[cls];
 }
 
 /* The drawing level of a source of flux fl, over its flux: psf-extent-noise
@@ -179,7 +332,7 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 	return 0;
 }
 
-void near_free(struct near *n)
+static void near_free(struct near *n)
 {
 	free(n->st);
 	free(n->smax);
@@ -196,18 +349,18 @@ static double near_under(const struct near *n, int k)
 	return n->under[(k > n->kmax + 1 ? n->kmax + 1 : k) - n->kmin];
 }
 
-/* SCA sca's lists, set up on first use under the lock (the box: hb). */
-const struct near *near_of(struct point *p, const struct wfs_source *src, int hb)
+/* Slot s's lists, set up on first use under the lock (the box: hb). */
+static const struct near *near_of(struct point *p, struct hslot *s, int hb)
 {
-	struct near *n = &p->near[src->sca];
+	struct near *n = &s->near;
 	int ok = 1;
 
-	if (atomic_load_explicit(&p->near_ready[src->sca], memory_order_acquire))
+	if (atomic_load_explicit(&s->near_ready, memory_order_acquire))
 		return n;
 	pthread_mutex_lock(&p->lock);
-	if (!atomic_load_explicit(&p->near_ready[src->sca], memory_order_relaxed)) {
-		if ((ok = near_setup(n, &p->halo[src->sca], hb) == 0))
-			atomic_store_explicit(&p->near_ready[src->sca], 1, memory_order_release);
+	if (!atomic_load_explicit(&s->near_ready, memory_order_relaxed)) {
+		if ((ok = near_setup(n, &s->h, hb) == 0))
+			atomic_store_explicit(&s->near_ready, 1, memory_order_release);
 		else
 			near_free(n);
 	}
@@ -224,10 +377,13 @@ const struct near *near_of(struct point *p, const struct wfs_source *src, int hb
  * from the spikes; with psf-halo-near=level, within the array's disc the
  * light of the pixels below the level, and beyond the disc what the
  * drawing there leaves out.  With psf-diffuse=grid spread once per tile
- * (point_far.c), the baseline with the wing beyond the base radius. */
-static int halo_left(struct point *p, const struct wfs_source *src, const struct halo *h,
+ * (point_far.c), the baseline with the wing beyond the base radius.  The
+ * light is the source's own halo's (hs); the grid spreads it in the shape
+ * of the default spectrum's (so its lists are set up too). */
+static int halo_left(struct point *p, const struct wfs_source *src, struct hslot *hs,
 		     double r, double lev, int k, struct tally *t)
 {
+	const struct halo *h = &hs->h;
 	double fl = src->flux, base = 0, rb = r, left, under = 0;
 	const struct near *n = NULL;
 
@@ -236,7 +392,8 @@ static int halo_left(struct point *p, const struct wfs_source *src, const struct
 
 		/* the lists leave out the normal class's box, as the grid does */
 		ns.psf_class = WFS_PSF_NORMAL;
-		if (core_scale(p, &ns, h) < 0 || !(n = near_of(p, src, p->chalf[src->sca][WFS_PSF_NORMAL])))
+		if (core_scale(p, &ns, hs) < 0 || !(n = near_of(p, hs, hs->chalf[WFS_PSF_NORMAL])) ||
+		    (hs->cls >= 0 && !near_of(p, &p->hs[src->sca], hs->chalf[WFS_PSF_NORMAL])))
 			return -1;
 		under = fl * near_under(n, k);
 		if (r < h->R)
@@ -257,65 +414,129 @@ static int halo_left(struct point *p, const struct wfs_source *src, const struct
 	return 0;
 }
 
+/* How a source is drawn with halo hs (plan()): the core's scale c, the
+ * drawing level lev (step k), the halo's radius r, the box's cap, and
+ * whether the box holds everything above the level (faint). */
+struct plan {
+	struct hslot *hs;
+	double c, lev, r, cap;
+	int k, faint;
+};
+
+static int plan_with(struct point *p, const struct wfs_source *src, struct hslot *hs,
+		     struct plan *q)
+{
+	const struct halo *h = &hs->h;
+	double fl = src->flux;
+
+	q->hs = hs;
+	q->k = INT_MIN;
+	if ((q->c = core_scale(p, src, hs)) < 0)
+		return -1;
+	q->lev = fl > 0 ? halo_level(p, fl, &q->k) : 0;
+	q->r = fl > 0 ? halo_radius(h, q->lev, p->extent_max) : 1;
+	if (q->r < 1)
+		q->r = 1;
+	/* the box: core_scale's unless psf-extent-min lets it shrink toward r */
+	q->cap = hs->chalf[src->psf_class];
+	if (p->extent_min > 0 && fmax(q->r, p->extent_min) < q->cap)
+		q->cap = fmax(q->r, p->extent_min);
+	/* no halo when the box holds everything above the level; the core's
+	 * own values at the box's edge may stand a few per cent above the
+	 * halo's (it is sampled twice as finely), so the halo takes over
+	 * once the envelope there reaches half the level. */
+	q->faint = q->r <= q->cap && (q->k == INT_MIN ?
+				      fl * halo_envelope(h, q->cap - 1) <
+					      0.5 * p->extent_noise * p->sigma :
+				      halo_envelope(h, q->cap - 1) < 0.5 * q->lev);
+	return 0;
+}
+
+/* The plan of a source: with its SCA's default halo; a source with a
+ * spectrum (psf-halo-colour-steps > 0) that this finds bright is planned
+ * again with its colour's halo, and drawn with it unless that finds it
+ * faint, so that only bright stars' classes need halos. */
+static int plan(struct point *p, const struct wfs_source *src, struct plan *q)
+{
+	struct hslot *hs = slot_default(p, src);
+	struct plan qc;
+	int idx;
+
+	if (!hs || plan_with(p, src, hs, q) < 0)
+		return -1;
+	if (q->faint || (idx = colour_index(p, src)) < 0)
+		return 0;
+	if (!(hs = slot_colour(p, src, idx)) || plan_with(p, src, hs, &qc) < 0)
+		return -1;
+	if (!qc.faint)
+		*q = qc;
+	return 0;
+}
+
+/* point_reach() with psf-extent=noise: the radius the source's plan
+ * draws to, when it is beyond *pixels. */
+int noise_reach(struct point *p, const struct wfs_source *src, double *pixels)
+{
+	struct plan q;
+	double r;
+
+	if (plan(p, src, &q) < 0)
+		return -1;
+	r = far_radius(p, halo_radius(&q.hs->h, q.lev, p->extent_max)) + 1;
+	if (r > *pixels)
+		*pixels = r;
+	return 0;
+}
+
 /*
  * prepare(), psf-extent=noise: the radius r beyond which the source's model
  * stays below psf-extent-noise of the noise per pixel (the halo's
  * envelope, spikes included); the core's box is the class's, or the
  * square of half-width r when that is smaller; the halo draws the disc of
  * radius r outside the box.  The core is scaled to the halo's light in its
- * box (core_scale).
+ * box (core_scale).  aux[0] is negative when the halo is the source's
+ * spectrum's (plan).
  */
 int noise_prepare(struct point *p, struct wfs_source *src)
 {
+	struct plan q;
 	const struct halo *h;
 	struct wfs_source fs;
 	struct tally *t;
-	double r, half, c, cap, fl = src->flux, drawn = 0, left, lev;
+	double r, half, fl = src->flux, drawn = 0, left;
 	struct zone box;
-	int faint, cut, k = INT_MIN;
+	int cut;
 
-	if (!(h = halo_of(p, src)) || (c = core_scale(p, src, h)) < 0)
+	if (plan(p, src, &q) < 0)
 		return -1;
-	lev = fl > 0 ? halo_level(p, fl, &k) : 0;
-	r = fl > 0 ? halo_radius(h, lev, p->extent_max) : 1;
-	if (r < 1)
-		r = 1;
+	h = &q.hs->h;
+	r = q.r;
 	fs = *src;
-	fs.flux = c * fl;
-	/* the box: core_scale's unless psf-extent-min lets it shrink toward r */
-	cap = p->chalf[src->sca][src->psf_class];
-	if (p->extent_min > 0 && fmax(r, p->extent_min) < cap)
-		cap = fmax(r, p->extent_min);
-	/* no halo when the box holds everything above the level; the core's
-	 * own values at the box's edge may stand a few per cent above the
-	 * halo's (it is sampled twice as finely), so the halo takes over
-	 * once the envelope there reaches half the level.  Only a source with
-	 * no halo may have its box cut by psf-extent-cut, which puts the
-	 * light beyond the cut back into the box. */
-	faint = r <= cap && (k == INT_MIN ? fl * halo_envelope(h, cap - 1) <
-				       0.5 * p->extent_noise * p->sigma :
-				       halo_envelope(h, cap - 1) < 0.5 * lev);
-	/* A box the SCA's edge crosses is not cut: the light put back would
-	 * land on the SCA where the whole box's would partly fall off it */
-	box = square(src->x, src->y, cap);
-	cut = faint && box.x0 >= 0 && box.y0 >= 0 && box.x1 <= WFS_SCA_SIDE && box.y1 <= WFS_SCA_SIDE;
-	if (epsf_prepare(p, &fs, cap, cut, &drawn) < 0)
+	fs.flux = q.c * fl;
+	/* Only a source with no halo may have its box cut by psf-extent-cut,
+	 * which puts the light beyond the cut back into the box.  A box the
+	 * SCA's edge crosses is not cut: the light put back would land on
+	 * the SCA where the whole box's would partly fall off it */
+	box = square(src->x, src->y, q.cap);
+	cut = q.faint && box.x0 >= 0 && box.y0 >= 0 && box.x1 <= WFS_SCA_SIDE &&
+	      box.y1 <= WFS_SCA_SIDE;
+	if (epsf_prepare(p, &fs, q.cap, cut, &drawn) < 0)
 		return -1;
 	memcpy(src->aux, fs.aux, sizeof(src->aux));
 	half = fs.aux[0];
-	if (faint)
+	if (q.faint)
 		r = 0;
 	else if (r <= half)
 		r = half + 1;
 	r = far_radius(p, r);   /* psf-diffuse=grid: a radius of the ladder */
-	src->aux[0] = half + HALO_PACK * r;
+	src->aux[0] = (q.hs->cls >= 0 && r > 0 ? -1 : 1) * (half + HALO_PACK * r);
 	if (!(t = tally_of(p)))
 		return p->host->error(p->host->ctx, "out of memory");
 	t->requested += fabs(fl);
 	t->npoint++;
 	t->nhalo += r > 0;
 	if (r > 0)
-		return halo_left(p, src, h, r, lev, k, t);
+		return halo_left(p, src, q.hs, r, q.lev, q.k, t);
 	left = fl * h->total - drawn;
 	t->left += left;
 	/* a source whose box misses the SCA is dropped by the host, its
@@ -575,9 +796,10 @@ int noise_render(struct point *p, const struct wfs_source *src, const struct wfs
 	struct wfs_window sub;
 	struct zone box, w;
 	double r = halo_radius_of(src), half = box_half_of(src);
+	const struct hslot *hs = slot_drawn(p, src);
 
 	fs.aux[0] = half;
-	fs.flux = src->flux * p->cfac[src->sca][src->psf_class];
+	fs.flux = src->flux * hs->cfac[src->psf_class];
 	box = square(src->x, src->y, half);
 	w = meet(box, (struct zone){ win->x0, win->x0 + win->nx, win->y0, win->y0 + win->ny });
 	if (!zone_empty(w)) {
@@ -591,13 +813,13 @@ int noise_render(struct point *p, const struct wfs_source *src, const struct wfs
 			return -1;
 	}
 	if (r > 0) {
-		const struct halo *h = &p->halo[src->sca];
+		const struct halo *h = &hs->h;
 		int k;
 		double lev = halo_level(p, src->flux, &k), rs = 0;
 		double rb = psf_spikes(p) ? halo_base_radius(h, lev, r) : r;
 
 		if (k != INT_MIN) {
-			near_render(h, &p->near[src->sca], src->flux, src->x, src->y, r, k, box, win);
+			near_render(h, &hs->near, src->flux, src->x, src->y, r, k, box, win);
 			rs = h->R;
 		}
 		if (r > rs)

@@ -131,8 +131,8 @@ struct engine {
 	int colour_band;                /* --set colour-counts=band: no colour term */
 	/* the spectral classes of the built-in PSF (psf.h), NULL for none
 	 * (no spectrum yet, or --psf FILE), and their grids: cgrid[((sca -
-	 * 1) * 3 + cls) * ncgrid + k] for spectral class k, published under
-	 * grid_lock as the others (psfgrids.c) */
+	 * 1) * 4 + cls) * ncgrid + k] for spectral class k (cls 3: its
+	 * halo), published under grid_lock as the others (psfgrids.c) */
 	struct psf_classes *classes;
 	struct psf_grid **cgrid;
 	char classes_str[16];           /* setting "spectral-classes": 2 n */

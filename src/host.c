@@ -45,7 +45,8 @@ static int host_epsf(void *ctx, int sca, double x, double y, int cls,
 }
 
 /* The ePSF of spectral class k (psfgrids.c), loaded as host_epsf() loads
- * the default's; the halo is the default's. */
+ * the default's; the halo (cls 3) too, the class's own (model.h edition
+ * 9). */
 static int host_epsf_colour(void *ctx, int sca, double x, double y, int cls, int k,
 			    struct wfs_epsf *out)
 {
@@ -53,9 +54,7 @@ static int host_epsf_colour(void *ctx, int sca, double x, double y, int cls, int
 	struct worker *w = host_current(g);
 	const struct psf_grid *grid;
 
-	if (cls == 3)
-		return host_epsf(ctx, sca, x, y, cls, out);
-	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > 2 || !g->classes || k < 0 ||
+	if (sca < 1 || sca > WFS_NSCA || cls < 0 || cls > WFS_PSF_HALO || !g->classes || k < 0 ||
 	    k >= g->ncgrid)
 		return host_error(ctx, "no ePSF for SCA %d class %d spectral class %d", sca,
 				  cls, k);

@@ -349,11 +349,6 @@ int psf_main(int argc, char **argv)
 		goto fail;
 	}
 	if (!isnan(c.teff) || !isnan(c.beta)) {
-		if (c.halo) {
-			err_set(&e, EXIT_INPUT, "--halo is the default spectrum's: no --teff or "
-				"--beta with it");
-			goto fail;
-		}
 		bo->spec_kind = isnan(c.teff) ? SPEC_POWER : SPEC_BLACKBODY;
 		bo->spec_value = isnan(c.teff) ? c.beta : c.teff;
 	}

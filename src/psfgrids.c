@@ -29,8 +29,10 @@
 #include "spectrum.h"
 
 /* The size classes a source may have (model.h, enum wfs_psf_class): 0 to
- * SOURCE_CLASSES - 1, the halo's class WFS_PSF_HALO the next. */
+ * SOURCE_CLASSES - 1, the halo's class WFS_PSF_HALO the next; a spectral
+ * class has grids of all GRID_CLASSES, its halo included. */
 #define SOURCE_CLASSES WFS_PSF_HALO
+#define GRID_CLASSES (WFS_PSF_HALO + 1)
 
 const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls)
 {
@@ -72,18 +74,28 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 /* The halo's default radius (psf-halo-radius), pixels */
 #define HALO_RADIUS 256
 
+/* The halo's radius, psf-halo-radius, into *rad; errors into e. */
+static int halo_radius(struct engine *g, long *rad, struct err *e)
+{
+	const char *rs = host_setting(g, "psf-halo-radius");
+	char *end = NULL;
+
+	*rad = rs ? strtol(rs, &end, 10) : HALO_RADIUS;
+	if (rs && (*end || end == rs || *rad < 32 || *rad > PSF_HALO_MAX))
+		return err_set(e, EXIT_INPUT, "psf-halo-radius: expected 32 to %d "
+			       "pixels, not '%s'", PSF_HALO_MAX, rs);
+	return 0;
+}
+
 /* The halo (class WFS_PSF_HALO): always the built-in optics' (a --psf file's core is
  * scaled to join it by the point model). */
 static int need_halo(struct engine *g, int sca, struct err *e)
 {
-	const char *rs = host_setting(g, "psf-halo-radius");
-	char *end = NULL;
-	long rad = rs ? strtol(rs, &end, 10) : HALO_RADIUS;
+	long rad;
 	struct psf_grid *grid;
 
-	if (rs && (*end || end == rs || rad < 32 || rad > PSF_HALO_MAX))
-		return err_set(e, EXIT_INPUT, "psf-halo-radius: expected 32 to %d "
-			       "pixels, not '%s'", PSF_HALO_MAX, rs);
+	if (halo_radius(g, &rad, e) < 0)
+		return -1;
 	if (strcmp(g->o->psf, "builtin"))
 		host_log(g, 1, "%s: the far wing beyond its box is the built-in optics' "
 			 "(%s SCA %d), scaled to join", g->o->psf, g->filter_name, sca);
@@ -189,7 +201,7 @@ int psfgrids_colour_init(struct engine *g)
 		return -1;
 	g->ncgrid = 2 * n;
 	snprintf(g->classes_str, sizeof(g->classes_str), "%d", 2 * n);
-	if (!(g->cgrid = calloc((size_t)WFS_NSCA * SOURCE_CLASSES * g->ncgrid, sizeof(*g->cgrid))))
+	if (!(g->cgrid = calloc((size_t)WFS_NSCA * GRID_CLASSES * g->ncgrid, sizeof(*g->cgrid))))
 		return err_set(g->e, EXIT_SYSTEM, "out of memory");
 	for (int k = 0; k < 2 * n; k++) {
 		int kind;
@@ -205,7 +217,7 @@ int psfgrids_colour_init(struct engine *g)
 
 static struct psf_grid **cslot(const struct engine *g, int sca, int cls, int k)
 {
-	return &g->cgrid[((size_t)(sca - 1) * SOURCE_CLASSES + cls) * g->ncgrid + k];
+	return &g->cgrid[((size_t)(sca - 1) * GRID_CLASSES + cls) * g->ncgrid + k];
 }
 
 const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int cls, int k)
@@ -214,21 +226,32 @@ const struct psf_grid *psfgrids_colour_get(const struct engine *g, int sca, int 
 }
 
 /* Load spectral class k's grid of (sca, cls), grid_lock held: built or
- * read from the cache like the default's. */
+ * read from the cache like the default's, the halo (cls WFS_PSF_HALO)
+ * too. */
 static int cload(struct engine *g, int sca, int cls, int k, struct err *e)
 {
 	struct psf_build_opts bo = g->pbo;
 	struct psf_grid *grid;
+	int kind = g->o->level ? PSF_EPSF_NOIPC : PSF_EPSF;
+	long rad = 0;
 
 	if (psfgrids_colour_get(g, sca, cls, k))
 		return 0;
+	if (cls == WFS_PSF_HALO && halo_radius(g, &rad, e) < 0)
+		return -1;
 	bo.built = bo.loaded = 0;
 	psf_classes_spectrum(g->classes, k, &bo.spec_kind, &bo.spec_value);
-	host_log(g, 1, "ePSF grid for %s SCA %d, %d samples, spectral class %d (%s %.6g): "
-		 "building or loading", g->filter_name, sca, psf_class_n[cls], k,
-		 bo.spec_kind == SPEC_POWER ? "beta" : "teff", bo.spec_value);
-	if (!(grid = psf_builtin(g->o->filter, sca, cls, g->o->level ? PSF_EPSF_NOIPC :
-				 PSF_EPSF, &bo, e)))
+	if (cls == WFS_PSF_HALO)
+		host_log(g, 1, "PSF halo for %s SCA %d, +-%ld pixels, spectral class %d (%s "
+			 "%.6g): building or loading", g->filter_name, sca, rad, k,
+			 bo.spec_kind == SPEC_POWER ? "beta" : "teff", bo.spec_value);
+	else
+		host_log(g, 1, "ePSF grid for %s SCA %d, %d samples, spectral class %d (%s %.6g): "
+			 "building or loading", g->filter_name, sca, psf_class_n[cls], k,
+			 bo.spec_kind == SPEC_POWER ? "beta" : "teff", bo.spec_value);
+	grid = cls == WFS_PSF_HALO ? psf_builtin_halo(g->o->filter, sca, (int)rad, 1, kind, &bo, e) :
+				     psf_builtin(g->o->filter, sca, cls, kind, &bo, e);
+	if (!grid)
 		return -1;
 	g->pbo.built += bo.built;
 	g->pbo.loaded += bo.loaded;
@@ -370,9 +393,9 @@ void psfgrids_drop(struct engine *g, int sca)
 			psf_grid_free(gr[c]);
 		gr[c] = NULL;
 	}
-	for (int c = 0; g->cgrid && c < SOURCE_CLASSES; c++)
+	for (int c = 0; g->cgrid && c < GRID_CLASSES; c++)
 		for (int k = 0; k < g->ncgrid; k++) {
-			struct psf_grid **cg = &g->cgrid[((size_t)(sca - 1) * SOURCE_CLASSES + c) *
+			struct psf_grid **cg = &g->cgrid[((size_t)(sca - 1) * GRID_CLASSES + c) *
 							 g->ncgrid + k];
 
 			psf_grid_free(*cg);
@@ -387,7 +410,7 @@ void psfgrids_free(struct engine *g)
 			if (g->grid[s][c] && (c == 0 || g->grid[s][c] != g->grid[s][0]))
 				psf_grid_free(g->grid[s][c]);
 	psf_grid_free(g->user_grid);
-	for (size_t i = 0; g->cgrid && i < (size_t)WFS_NSCA * SOURCE_CLASSES * g->ncgrid; i++)
+	for (size_t i = 0; g->cgrid && i < (size_t)WFS_NSCA * GRID_CLASSES * g->ncgrid; i++)
 		psf_grid_free(g->cgrid[i]);
 	free(g->cgrid);
 	for (size_t i = 0; g->classes && g->classes->blend &&

@@ -409,7 +409,7 @@ static int grid_class(struct engine *g, int sca, int c, int k)
 
 	if (!gn || !gn->noted[sca - 1])
 		return psfgrids_colour_get(g, sca, c, k) != NULL;
-	return k < gn->ncls && gn->cls[((size_t)(sca - 1) * 3 + c) * gn->ncls + k];
+	return k < gn->ncls && gn->cls[((size_t)(sca - 1) * 4 + c) * gn->ncls + k];
 }
 
 int report_grids_note(struct engine *g, int sca)
@@ -420,17 +420,18 @@ int report_grids_note(struct engine *g, int sca)
 	if (!gn && !(gn = g->grid_note = calloc(1, sizeof(*gn))))
 		return err_sys(g->e, "report");
 	if (ncls && !gn->cls) {
-		if (!(gn->cls = calloc((size_t)WFS_NSCA * 3 * ncls, 1)))
+		if (!(gn->cls = calloc((size_t)WFS_NSCA * 4 * ncls, 1)))
 			return err_sys(g->e, "report");
 		gn->ncls = ncls;
 	}
-	for (int c = 0; c < 3; c++) {
+	for (int c = 0; c < 3; c++)
 		if (!grid_box_live(g, sca, c, &gn->n[sca - 1][c], &gn->lo[sca - 1][c]))
 			gn->n[sca - 1][c] = 0;
+	/* the spectral classes' grids, their halos (class 3) too */
+	for (int c = 0; c < 4; c++)
 		for (int k = 0; k < gn->ncls; k++)
-			gn->cls[((size_t)(sca - 1) * 3 + c) * gn->ncls + k] =
+			gn->cls[((size_t)(sca - 1) * 4 + c) * gn->ncls + k] =
 				psfgrids_colour_get(g, sca, c, k) != NULL;
-	}
 	gn->noted[sca - 1] = 1;
 	return 0;
 }
@@ -463,10 +464,14 @@ static void report_spectral_classes(FILE *f, struct engine *g)
 			pc->lam[0][k >= pc->n][k % pc->n]);
 		first = 1;
 		for (int s = 0; s < WFS_NSCA; s++)
-			for (int c = 0; c < 3; c++)
+			for (int c = 0; c < 4; c++)
 				if (grid_class(g, s + 1, c, k)) {
-					fprintf(f, "%s{\"sca\": %d, \"samples\": %d}",
-						first ? "" : ", ", s + 1, psf_class_n[c]);
+					if (c < 3)
+						fprintf(f, "%s{\"sca\": %d, \"samples\": %d}",
+							first ? "" : ", ", s + 1, psf_class_n[c]);
+					else
+						fprintf(f, "%s{\"sca\": %d, \"halo\": true}",
+							first ? "" : ", ", s + 1);
 					first = 0;
 				}
 		fprintf(f, "]}");

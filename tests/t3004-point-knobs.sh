@@ -158,14 +158,15 @@ assert list(b) == [\"psf-interp\", \"psf-core\", \"psf-wing\", \"psf-box\",
                    \"psf-box-noise\", \"psf-box-sigma\", \"psf-blend\", \"psf-cell\",
                    \"psf-extent\", \"psf-extent-noise\", \"psf-extent-max\",
                    \"psf-extent-min\", \"psf-extent-cut\", \"psf-colour-steps\",
-                   \"psf-halo-power\", \"psf-halo-taper\", \"psf-halo-far\",
+                   \"psf-halo-colour-steps\", \"psf-halo-power\", \"psf-halo-taper\", \"psf-halo-far\",
                    \"psf-halo-near\", \"psf-diffuse\", \"psf-diffuse-cell\",
                    \"psf-diffuse-floor\"], b
 "
 '
 for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-box-noise=0 \
 	psf-box-sigma=x psf-blend=tile psf-cell=0 psf-cell=10.5 psf-extent-cut=-1 psf-extent-cut=x \
-	psf-colour-steps=2.5 psf-colour-steps=65; do
+	psf-colour-steps=2.5 psf-colour-steps=65 psf-halo-colour-steps=1.5 \
+	psf-halo-colour-steps=65; do
 	key=${kv%%=*}
 	test_expect_success "--set $kv is refused, naming $key" "
 		test_must_fail --status 3 run bad.fits --set $kv 2> err &&

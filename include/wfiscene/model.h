@@ -177,10 +177,11 @@ extern "C" {
  * WFS_MAX_COLUMNS, WFS_PSF_HALO, WFS_PRINTF, the setting pixel-sigma,
  * thread_start()'s return value; 6 wfs_model.column_roles
  * (enum wfs_column_role) and roman_type; 7 wfs_host.convolve_sum; 8
- * wfs_host.epsf_blend.  A plugin MAY test
+ * wfs_host.epsf_blend; 9 epsf_colour() of the halo (class 3) gives the
+ * spectral class's own halo.  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
-#define WFS_ABI_EDITION 8
+#define WFS_ABI_EDITION 9
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -372,8 +373,10 @@ struct wfs_host {
 	/* Edition 5.  The ePSF of spectral class `spectral` (a whole number
 	 * from 0, see wfs_source.colour) at (x, y), as epsf() gives the
 	 * default spectrum's.  The same rules of loading apply: ask in
-	 * prepare() or footprint() first.  The halo (class 3) is the default
-	 * spectrum's for every spectral class.  Absent in older hosts (check
+	 * prepare() or footprint() first.  The halo (class 3) is the spectral
+	 * class's own from edition 9 (hosts of editions 5 to 8 give the
+	 * default spectrum's for every class, which a model may use as it
+	 * is: no test is needed).  Absent in older hosts (check
 	 * WFS_HAS(host->size, struct wfs_host, epsf_colour)): draw with
 	 * epsf(). */
 	int (*epsf_colour)(void *ctx, int sca, double x, double y, int cls, int spectral,

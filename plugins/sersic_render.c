@@ -628,6 +628,18 @@ static void sersic_core_cells(const struct sersic_stamp *st, const struct sersic
  * along a row of pixels, in vector code.  Each cell's product is added to
  * each pixel in the same order in every clone: the same bytes.
  */
+/* The cells whose runs sersic_core_block finds once (more: each time). */
+#define SERSIC_CORE_OFFS 512
+
+/* Sample s0 = over q + r (0 <= r < over): where its run starts in the
+ * rows of poly of one ePSF row, L samples a phase. */
+static inline long long sersic_core_off(long long s0, int over, int L, long long qmin)
+{
+	long long q = s0 >= 0 ? s0 / over : -((over - 1 - s0) / over);
+
+	return (s0 - q * over) * L + (q - qmin);
+}
+
 SIMD_CLONES("avx512f", "avx2", "default")
 static void sersic_core_block(const double *restrict cells, int na, int nb, const double *restrict ep,
 			      int en, int over, long long K0, long long ky0, int side,
@@ -662,6 +674,13 @@ static void sersic_core_block(const double *restrict cells, int na, int nb, cons
 				pr[m] = m >= ma && m <= mb ? ep[k0 + (long long)over * m] : 0;
 		}
 	}
+	/* where cell i's run starts in a row's block of poly: phase r and
+	 * first sample q of K0 - i, once for every row and pixel */
+	long long offs[SERSIC_CORE_OFFS];
+	int pre = na <= SERSIC_CORE_OFFS;
+
+	for (int i = 0; pre && i < na; i++)
+		offs[i] = sersic_core_off(K0 - i, over, L, qmin);
 	memset(out, 0, (size_t)side * side * sizeof(double));
 	for (int y = 0; y < side; y++) {
 		double *o = out + (size_t)y * side;
@@ -671,14 +690,16 @@ static void sersic_core_block(const double *restrict cells, int na, int nb, cons
 
 			if (ky < klo || ky > khi)
 				continue;
+			const double *row = poly + (size_t)(ky - klo) * over * L;
+			const double *cj = cells + (size_t)j * na;
+
 			for (int i = 0; i < na; i++) {
-				double c = cells[(size_t)j * na + i];
-				long long s0 = K0 - i, q = s0 >= 0 ? s0 / over : -((over - 1 - s0) / over);
-				int r = (int)(s0 - q * over);
-				const double *pr = poly + ((size_t)(ky - klo) * over + r) * L + (q - qmin);
+				double c = cj[i];
 
 				if (c == 0)
 					continue;
+				const double *pr = row + (pre ? offs[i] : sersic_core_off(K0 - i, over, L, qmin));
+
 				for (int x = 0; x < side; x++)
 					o[x] += c * pr[x];
 			}

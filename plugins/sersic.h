@@ -72,7 +72,9 @@ extern const int sersic_roles[SERSIC_NCOL];
 #define SERSIC_RT_MAX 1e7
 /* ... and never below this along the minor axis, pixels (see prepare). */
 #define SERSIC_RT_MIN 5.0
-/* The most light the cut by the noise may leave out (sersic-noise-cut). */
+/* The most light the cut by the noise may leave out (sersic-noise-cut),
+ * whatever the galaxy's brightness; sersic-noise-eps may raise it for
+ * faint galaxies. */
 #define SERSIC_NOISE_EPS 1e-2
 
 /* Where prepare() leaves its results in src->aux. */
@@ -382,9 +384,11 @@ void sersic_halfbox(const struct sersic_gal *g, double *hx, double *hy);
 double sersic_rect_rel(const struct sersic_gal *g, double x0, double x1, double y0,
 		       double y1, double rmin, double rel, double atol, int k7);
 /* prepare(), footprint() and reach() of both plugins (see sersic_core.c):
- * eps the truncation fraction, noise the pixel noise of the cut. */
+ * eps the truncation fraction, noise the pixel noise of the cut,
+ * noise_eps the most light that cut may leave out where no pixel moves
+ * by more than noise (sersic-noise-eps; at most SERSIC_NOISE_EPS: 0). */
 int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
-			  double eps, double noise);
+			  double eps, double noise, double noise_eps);
 int sersic_footprint_common(const struct wfs_host *host, const struct wfs_source *src,
 			    struct wfs_box *box, int convolve, int core_k);
 int sersic_reach_common(const struct wfs_host *host, const struct wfs_source *src,

@@ -442,7 +442,7 @@ static const char *sersic_num(char buf[32], double v)
  * the total, q included.
  */
 int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
-			  double eps, double noise)
+			  double eps, double noise, double noise_eps)
 {
 	double n = src->param[SERSIC_N], re = src->param[SERSIC_RE];
 	double phi = src->param[SERSIC_PHI], q = src->param[SERSIC_RATIO];
@@ -509,7 +509,25 @@ int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
 	if (noise > 0 && src->flux > 0) {
 		double x = log(src->flux) - lnk - log(noise);
 		double en = x > 0 ? sersic_gamma_q(a, x) : 1.0;
-		eps = fmax(eps, fmin(en, SERSIC_NOISE_EPS));
+		double cap = SERSIC_NOISE_EPS;
+
+		/* A fainter galaxy may leave out more (sersic-noise-eps): as
+		 * much as raises its brightest pixel by at most the noise
+		 * level.  No region of one pixel's area holds more light than
+		 * the central ellipse of that area, rho <= R with
+		 * pi R^2 ra rb = 1, so no pixel more than flux P(2n, b
+		 * R^(1/n)); the renormalisation raises a pixel p by
+		 * eps / (1 - eps) p, at most noise where eps <= r / (1 + r),
+		 * r = noise / (that bound), and a pixel beyond the cut loses
+		 * less than noise.  Any pixel then moves by less than noise. */
+		if (noise_eps > cap) {
+			double r1 = exp(-0.5 * (log(M_PI) + log(ra) + log(rb)));
+			double peak = src->flux * sersic_gamma_p_lg(a, sersic_lgamma(a), b * exp(log(r1) / n));
+			double r = peak > 0 ? noise / peak : INFINITY;
+
+			cap = fmin(noise_eps, fmax(cap, r / (1 + r)));
+		}
+		eps = fmax(eps, fmin(en, cap));
 	}
 	double xt = sersic_trunc_x(n, eps);
 	double qt, pt;
@@ -597,7 +615,7 @@ int sersic_reach_common(const struct wfs_host *host, const struct wfs_source *sr
 	struct wfs_box box;
 
 	at.x = at.y = 0;
-	if (sersic_prepare_common(host, &at, eps, 0) < 0 ||
+	if (sersic_prepare_common(host, &at, eps, 0, 0) < 0 ||
 	    sersic_footprint_common(host, &at, &box, convolve, core_k) < 0)
 		return -1;
 	*pixels = fmax(fmax(-box.x0, box.x1), fmax(-box.y0, box.y1)) + 2;

@@ -162,7 +162,7 @@ static int precise_prepare(void *state, struct wfs_source *src)
 {
 	struct precise *p = state;
 
-	return sersic_prepare_common(p->host, src, p->trunc, 0);
+	return sersic_prepare_common(p->host, src, p->trunc, 0, 0);
 }
 
 static int precise_footprint(void *state, const struct wfs_source *src, struct wfs_box *box)

@@ -560,14 +560,26 @@ static int sersic_wings_convolve(const struct wfs_host *host, void *thread,
  * cell centre it would move by up to 1/8 pixel, several per cent of the
  * pixels beside Q.  The ring of cells around the grid takes the shares
  * that spill out. */
+/* The most cells sersic_core_cells keeps for their mirror images. */
+#define SERSIC_MIRROR_CELLS 1024
+
 static void sersic_core_cells(const struct sersic_stamp *st, const struct sersic_method *m)
 {
 	const struct sersic_gal *g = &st->g;
 	int over = st->over, a0 = st->a0, b0 = st->b0, na = st->na, nb = st->nb;
 	double qx0 = st->qx0, qx1 = st->qx1, qy0 = st->qy0, qy1 = st->qy1;
 	double cell = 1.0 / over, *cells = st->cells;
+	/* The profile is the same at -d as at d, and the cells lie on the
+	 * galaxy's own grid (centres a / over from it): a whole cell (not cut
+	 * by Q) holds the light of the one opposite it, which is taken from
+	 * there when that was whole too.  raw[k]: a whole cell's integral,
+	 * NaN for one not yet taken or cut. */
+	double raw[SERSIC_MIRROR_CELLS];
+	int mirror = (size_t)na * nb <= SERSIC_MIRROR_CELLS;
 
 	memset(cells, 0, (size_t)na * nb * sizeof(double));
+	for (int k = 0; mirror && k < na * nb; k++)
+		raw[k] = NAN;
 	for (int bj = 1; bj < nb - 1; bj++) {
 		double cy = (b0 + bj) * cell;
 		double y0 = fmax(cy - 0.5 * cell, qy0 - g->yc), y1 = fmin(cy + 0.5 * cell, qy1 - g->yc);
@@ -575,13 +587,24 @@ static void sersic_core_cells(const struct sersic_stamp *st, const struct sersic
 			continue;
 		double fy = (0.5 * (y0 + y1) - cy) * over;      /* in [-1/2, 1/2] */
 		int sy = fy < 0 ? -1 : 1;
+		int bm = -(b0 + bj) - b0, wy = y0 == cy - 0.5 * cell && y1 == cy + 0.5 * cell;
 		fy = fabs(fy);
 		for (int ai = 1; ai < na - 1; ai++) {
 			double cx = (a0 + ai) * cell;
 			double x0 = fmax(cx - 0.5 * cell, qx0 - g->xc), x1 = fmin(cx + 0.5 * cell, qx1 - g->xc);
 			if (!(x1 > x0))
 				continue;
-			double v = m->cell(g, m->opt, x0, x1, y0, y1, cell);
+			int am = -(a0 + ai) - a0;
+			int whole = mirror && wy && x0 == cx - 0.5 * cell && x1 == cx + 0.5 * cell;
+			double v;
+
+			if (whole && am >= 0 && am < na && bm >= 0 && bm < nb &&
+			    !isnan(raw[(size_t)bm * na + am]))
+				v = raw[(size_t)bm * na + am];
+			else
+				v = m->cell(g, m->opt, x0, x1, y0, y1, cell);
+			if (whole)
+				raw[(size_t)bj * na + ai] = v;
 			double fx = (0.5 * (x0 + x1) - cx) * over;
 			int sx = fx < 0 ? -1 : 1;
 			fx = fabs(fx);
@@ -605,6 +628,18 @@ static void sersic_core_cells(const struct sersic_stamp *st, const struct sersic
  * along a row of pixels, in vector code.  Each cell's product is added to
  * each pixel in the same order in every clone: the same bytes.
  */
+/* The cells whose runs sersic_core_block finds once (more: each time). */
+#define SERSIC_CORE_OFFS 512
+
+/* Sample s0 = over q + r (0 <= r < over): where its run starts in the
+ * rows of poly of one ePSF row, L samples a phase. */
+static inline long long sersic_core_off(long long s0, int over, int L, long long qmin)
+{
+	long long q = s0 >= 0 ? s0 / over : -((over - 1 - s0) / over);
+
+	return (s0 - q * over) * L + (q - qmin);
+}
+
 SIMD_CLONES("avx512f", "avx2", "default")
 static void sersic_core_block(const double *restrict cells, int na, int nb, const double *restrict ep,
 			      int en, int over, long long K0, long long ky0, int side,
@@ -639,6 +674,13 @@ static void sersic_core_block(const double *restrict cells, int na, int nb, cons
 				pr[m] = m >= ma && m <= mb ? ep[k0 + (long long)over * m] : 0;
 		}
 	}
+	/* where cell i's run starts in a row's block of poly: phase r and
+	 * first sample q of K0 - i, once for every row and pixel */
+	long long offs[SERSIC_CORE_OFFS];
+	int pre = na <= SERSIC_CORE_OFFS;
+
+	for (int i = 0; pre && i < na; i++)
+		offs[i] = sersic_core_off(K0 - i, over, L, qmin);
 	memset(out, 0, (size_t)side * side * sizeof(double));
 	for (int y = 0; y < side; y++) {
 		double *o = out + (size_t)y * side;
@@ -648,14 +690,16 @@ static void sersic_core_block(const double *restrict cells, int na, int nb, cons
 
 			if (ky < klo || ky > khi)
 				continue;
+			const double *row = poly + (size_t)(ky - klo) * over * L;
+			const double *cj = cells + (size_t)j * na;
+
 			for (int i = 0; i < na; i++) {
-				double c = cells[(size_t)j * na + i];
-				long long s0 = K0 - i, q = s0 >= 0 ? s0 / over : -((over - 1 - s0) / over);
-				int r = (int)(s0 - q * over);
-				const double *pr = poly + ((size_t)(ky - klo) * over + r) * L + (q - qmin);
+				double c = cj[i];
 
 				if (c == 0)
 					continue;
+				const double *pr = row + (pre ? offs[i] : sersic_core_off(K0 - i, over, L, qmin));
+
 				for (int x = 0; x < side; x++)
 					o[x] += c * pr[x];
 			}

@@ -13,14 +13,20 @@
 
 #include "simd.h"
 
-/* One FFTW plan of the pruned 2-D transform (fftconv_convolve_sum): a
- * batch of `rows` 1-D real transforms of length nx along rows, forward
- * (r2c) or back (c2r), or the nx / 2 + 1 complex columns of length ny,
- * forward or back, in place. */
+/* One FFTW plan of the pruned 2-D transform (fftconv_convolve_sum), of a
+ * fixed batch whatever the problem's other side, so that a scene plans a
+ * few per transform length, not one per pair of sides and count of rows:
+ * FFTCONV_RB 1-D real transforms of length nx along contiguous rows,
+ * forward (r2c) or back (c2r), executed on each group of FFTCONV_RB rows;
+ * or FFTCONV_CB complex transforms of length nx interleaved in a buffer
+ * (stride FFTCONV_CB), forward or back, in place, on each group of
+ * FFTCONV_CB columns gathered there. */
 enum { PLAN_ROWS_FWD, PLAN_ROWS_INV, PLAN_COLS_FWD, PLAN_COLS_INV };
+#define FFTCONV_RB 4
+#define FFTCONV_CB 8
 
 struct fftconv_plan {
-	int kind, nx, m;                /* m: rows (PLAN_ROWS_*) or ny (PLAN_COLS_*) */
+	int kind, nx, m;                /* m: the batch */
 	fftw_plan p;
 	struct fftconv_plan *next;
 };
@@ -52,9 +58,10 @@ static struct fftconv_plan *plan_find(struct fftconv_plan *p, int kind, int nx, 
 }
 
 struct fftconv_thread {
-	size_t nreal, ncplx;            /* capacity of the buffers, in elements */
+	size_t nreal, ncplx, ncol;      /* capacity of the buffers, in elements */
 	double *rimg;
 	fftw_complex *cimg, *cker, *cacc;
+	fftw_complex *col;              /* FFTCONV_CB columns, interleaved */
 };
 
 int fftconv_nplans(struct fftconv *fc)
@@ -147,9 +154,10 @@ static void thread_release(struct fftconv_thread *t)
 	fftw_free(t->cimg);
 	fftw_free(t->cker);
 	fftw_free(t->cacc);
+	fftw_free(t->col);
 	t->rimg = NULL;
-	t->cimg = t->cker = t->cacc = NULL;
-	t->nreal = t->ncplx = 0;
+	t->cimg = t->cker = t->cacc = t->col = NULL;
+	t->nreal = t->ncplx = t->ncol = 0;
 }
 
 void fftconv_thread_free(struct fftconv_thread *t)
@@ -160,34 +168,48 @@ void fftconv_thread_free(struct fftconv_thread *t)
 	free(t);
 }
 
-/* Grow the thread's buffers to hold a padded nx x ny problem. */
+/* ny rounded up to whole batches of rows. */
+static int rows_up(int ny)
+{
+	return (ny + FFTCONV_RB - 1) / FFTCONV_RB * FFTCONV_RB;
+}
+
+/* Grow the thread's buffers to hold a padded nx x ny problem (its rows
+ * rounded up to whole batches). */
 static int thread_reserve(struct fftconv_thread *t, int nx, int ny)
 {
-	size_t nreal = (size_t)nx * ny, ncplx = (size_t)ny * (nx / 2 + 1);
+	int nyb = rows_up(ny);
+	size_t nreal = (size_t)nx * nyb, ncplx = (size_t)nyb * (nx / 2 + 1);
+	size_t ncol = (size_t)FFTCONV_CB * nyb;
 
-	if (nreal <= t->nreal && ncplx <= t->ncplx)
+	if (nreal <= t->nreal && ncplx <= t->ncplx && ncol <= t->ncol)
 		return 0;
 	thread_release(t);
 	t->rimg = fftw_malloc(nreal * sizeof(double));
 	t->cimg = fftw_malloc(ncplx * sizeof(fftw_complex));
 	t->cker = fftw_malloc(ncplx * sizeof(fftw_complex));
 	t->cacc = fftw_malloc(ncplx * sizeof(fftw_complex));
-	if (!t->rimg || !t->cimg || !t->cker || !t->cacc) {
+	t->col = fftw_malloc(ncol * sizeof(fftw_complex));
+	if (!t->rimg || !t->cimg || !t->cker || !t->cacc || !t->col) {
 		thread_release(t);
 		return -1;
 	}
 	t->nreal = nreal;
 	t->ncplx = ncplx;
+	t->ncol = ncol;
 	return 0;
 }
 
-/* A plan of `kind` (PLAN_*) for rows of length nx and m rows, or columns
- * of length m, made on first use.  Planning runs on the caller's buffers
- * (large enough for the problem): with FFTW_ESTIMATE the planner does not
- * write to them, and they have fftw_malloc's alignment, like every buffer
- * executed later, each plan executed only on buffers at their start. */
-static fftw_plan plan_get(struct fftconv *fc, struct fftconv_thread *t, int kind, int nx, int m)
+/* A plan of `kind` (PLAN_*) for transforms of length nx, made on first
+ * use: FFTCONV_RB rows, or FFTCONV_CB columns in t->col.  Planning runs
+ * on the thread's buffers (large enough for the problem): with
+ * FFTW_ESTIMATE the planner does not write to them.  A row plan is
+ * executed on groups of rows FFTCONV_RB apart, whose offsets (FFTCONV_RB
+ * nx doubles, FFTCONV_RB (nx / 2 + 1) complex) keep fftw_malloc's
+ * alignment; a column plan only on t->col. */
+static fftw_plan plan_get(struct fftconv *fc, struct fftconv_thread *t, int kind, int nx)
 {
+	int m = kind == PLAN_ROWS_FWD || kind == PLAN_ROWS_INV ? FFTCONV_RB : FFTCONV_CB;
 	_Atomic(struct fftconv_plan *) *head = &fc->plans[plan_bucket(kind, nx, m)];
 	struct fftconv_plan *p = plan_find(atomic_load_explicit(head, memory_order_acquire), kind, nx, m);
 	int nc = nx / 2 + 1;
@@ -205,7 +227,7 @@ static fftw_plan plan_get(struct fftconv *fc, struct fftconv_thread *t, int kind
 		made = fftw_plan_many_dft_c2r(1, &nx, m, t->cacc, NULL, 1, nc, t->rimg, NULL, 1, nx,
 					      FFTW_ESTIMATE);
 	else
-		made = fftw_plan_many_dft(1, &m, nc, t->cimg, NULL, nc, 1, t->cimg, NULL, nc, 1,
+		made = fftw_plan_many_dft(1, &nx, m, t->col, NULL, 1, nx, t->col, NULL, 1, nx,
 					  kind == PLAN_COLS_FWD ? FFTW_FORWARD : FFTW_BACKWARD,
 					  FFTW_ESTIMATE);
 	if (!made || !(p = calloc(1, sizeof(*p)))) {
@@ -319,14 +341,13 @@ static double direct_cost(size_t nnz, int w, int v, int kn, int *rows)
 	return *rows ? byrow : scatter;
 }
 
-/* The rows of a batch of row transforms for `rows` lit rows of a padded
- * height py: on the ladder, so that few batches are planned (the rows
- * added are zero). */
+/* The rows transformed for `rows` lit rows of a padded height py: whole
+ * batches of FFTCONV_RB (the rows added are zero). */
 static int rows_q(int rows, int py)
 {
-	int q = fftconv_size(rows);
+	int q = rows_up(rows);
 
-	return q < py ? q : py;
+	return q < rows_up(py) ? q : rows_up(py);
 }
 
 /*
@@ -427,24 +448,63 @@ struct conv_part {
 	int bx0, bx1, by0, by1;
 };
 
+/* The column transforms of c (py rows of nc), FFTCONV_CB columns at a
+ * time gathered into t->col: of its first `in` rows (the rest zero), and
+ * only the first `out` rows written back. */
+static void columns(struct fftconv_thread *t, fftw_plan plan, fftw_complex *c, int nc, int py,
+		    int in, int out)
+{
+	double *b = (double *)t->col;
+
+	for (int j0 = 0; j0 < nc; j0 += FFTCONV_CB) {
+		int cw = nc - j0 < FFTCONV_CB ? nc - j0 : FFTCONV_CB;
+
+		/* column j0 + j into b[j py ..], each contiguous; the columns
+		 * past nc in the last group are zero */
+		for (int y = 0; y < in; y++) {
+			const double *r = (const double *)(c + (size_t)y * nc + j0);
+
+			for (int j = 0; j < cw; j++) {
+				b[2 * ((size_t)j * py + y)] = r[2 * j];
+				b[2 * ((size_t)j * py + y) + 1] = r[2 * j + 1];
+			}
+		}
+		for (int j = 0; j < FFTCONV_CB; j++) {
+			if (j < cw)
+				memset(b + 2 * ((size_t)j * py + in), 0, (size_t)(py - in) * sizeof(fftw_complex));
+			else
+				memset(b + 2 * (size_t)j * py, 0, (size_t)py * sizeof(fftw_complex));
+		}
+		fftw_execute_dft(plan, t->col, t->col);
+		for (int y = 0; y < out; y++) {
+			double *r = (double *)(c + (size_t)y * nc + j0);
+
+			for (int j = 0; j < cw; j++) {
+				r[2 * j] = b[2 * ((size_t)j * py + y)];
+				r[2 * j + 1] = b[2 * ((size_t)j * py + y) + 1];
+			}
+		}
+	}
+}
+
 /* The forward transform of a real block of w x v (rows apart by stride)
  * into c: placed at the origin of the px-wide rows of rimg, its rows
- * transformed (a batch on the ladder), the rows below zeroed, the columns
- * transformed.  Returns 0 or -1 (no plan). */
+ * transformed (whole batches), the columns transformed with the rows
+ * below taken as zero.  Returns 0 or -1 (no plan). */
 static int forward(struct fftconv *fc, struct fftconv_thread *t, const double *src, size_t stride,
 		   int w, int v, int px, int py, fftw_complex *c)
 {
 	int q = rows_q(v, py), nc = px / 2 + 1;
-	fftw_plan rows = plan_get(fc, t, PLAN_ROWS_FWD, px, q), cols = plan_get(fc, t, PLAN_COLS_FWD, px, py);
+	fftw_plan rows = plan_get(fc, t, PLAN_ROWS_FWD, px), cols = plan_get(fc, t, PLAN_COLS_FWD, py);
 
 	if (!rows || !cols)
 		return -1;
 	memset(t->rimg, 0, (size_t)px * q * sizeof(double));
 	for (int y = 0; y < v; y++)
 		memcpy(t->rimg + (size_t)y * px, src + (size_t)y * stride, w * sizeof(double));
-	fftw_execute_dft_r2c(rows, t->rimg, c);
-	memset(c + (size_t)q * nc, 0, (size_t)(py - q) * nc * sizeof(fftw_complex));
-	fftw_execute_dft(cols, c, c);
+	for (int y = 0; y < q; y += FFTCONV_RB)
+		fftw_execute_dft_r2c(rows, t->rimg + (size_t)y * px, c + (size_t)y * nc);
+	columns(t, cols, c, nc, py, q < py ? q : py, py);
 	return 0;
 }
 
@@ -477,7 +537,7 @@ static int convolve_fft(struct fftconv *fc, struct fftconv_thread *t, const stru
 	int h = (kn - 1) / 2, nc = px / 2 + 1;
 	size_t ncp = (size_t)py * nc;
 	int e1 = oy1 - by0 + h, q = rows_q(e1 + 1, py);
-	fftw_plan cols = plan_get(fc, t, PLAN_COLS_INV, px, py), rows = plan_get(fc, t, PLAN_ROWS_INV, px, q);
+	fftw_plan cols = plan_get(fc, t, PLAN_COLS_INV, py), rows = plan_get(fc, t, PLAN_ROWS_INV, px);
 
 	if (!cols || !rows)
 		return -1;
@@ -490,8 +550,11 @@ static int convolve_fft(struct fftconv *fc, struct fftconv_thread *t, const stru
 			return -1;
 		cmac((double *)t->cacc, (const double *)t->cimg, (const double *)t->cker, ncp);
 	}
-	fftw_execute_dft(cols, t->cacc, t->cacc);
-	fftw_execute_dft_c2r(rows, t->cacc, t->rimg);
+	columns(t, cols, t->cacc, nc, py, py, q < py ? q : py);
+	if (q > py)
+		memset(t->cacc + (size_t)py * nc, 0, (size_t)(q - py) * nc * sizeof(fftw_complex));
+	for (int y = 0; y < q; y += FFTCONV_RB)
+		fftw_execute_dft_c2r(rows, t->cacc + (size_t)y * nc, t->rimg + (size_t)y * px);
 	double scale = 1.0 / ((double)px * py);
 	double *out = pt[0].img;
 	for (int y = oy0; y <= oy1; y++) {

@@ -8,10 +8,11 @@
  * fftw_execute (and the new-array variants thereof)").  So:
  *
  *   struct fftconv        one per scene, shared by all threads: a cache of
- *                         r2c/c2r plan pairs keyed by the padded size, each
- *                         made once, under a mutex, with FFTW_ESTIMATE (the
- *                         planner never touches the arrays, and a stamp of a
- *                         new size costs microseconds to plan, not seconds);
+ *                         plans keyed by the transform's length (a fixed
+ *                         batch of rows, or of columns gathered into a
+ *                         buffer, whatever the other side), each made once,
+ *                         under a mutex, with FFTW_ESTIMATE (the planner
+ *                         never touches the arrays);
  *   struct fftconv_thread one per worker thread: fftw_malloc'd buffers that
  *                         grow to the largest size the thread has seen.
  *

@@ -365,6 +365,7 @@ echo "with --memory 2000 (two passes over the catalog, nine SCAs each):"
 echo "\`wfiscene --filter F158 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --level 2 --background avg --report r.json -o out.fits sky.csv\`."
 echo "An empty catalog on the 18 SCAs with every noise stage (median of 3; goal"
 echo "10 s wall): \`wfiscene --filter F129 --sca 1-18 --noise all --background avg --report r.json -o out.fits empty.csv\`."
+echo "Level 2 of one SCA (F158, MA table 4), empty and with 185 000 stars (\`starfield -n 185000 -x -s 1\`)."
 echo "Noise is the --report's noise stage (the ramps and fits at level 2, wall"
 echo "time less the writing it overlaps), write its writing."
 echo
@@ -395,6 +396,20 @@ r = json.load(open('$W/rn_$4.json'))['seconds']
 print('| empty, --noise all | %.1f | %.1f | %.0f | | | | %.1f | %.1f |' % ($1, $2, $3 / 1024,
       r['noise'], r['write']))"
 rm -f "$W/o.fits"
+# level 2 of one SCA, empty and crowded (issue 34: the crowded one cost
+# 2.6x the empty one when the Poisson tables were rebuilt per pixel)
+"$GEN" -n 185000 -x -s 1 > "$W/c185.csv"
+"$WFS" --filter F158 --flux-unit abmag --level 2 --background avg -o "$W/o.fits" "$W/c185.csv"
+for c in empty c185; do
+	set -- $(measure3 "'$WFS' --filter F158 --flux-unit abmag --level 2 --background avg --report '$W/r1_$c.json' -o '$W/o.fits' '$W/$c.csv'")
+	/usr/bin/python3 -c "
+import json
+r = json.load(open('$W/r1_$c.json'))['seconds']
+print('| level 2, one SCA, %s | %.1f | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f |' % (
+      'empty' if '$c' == 'empty' else '185 000 stars', $1, $2, $3 / 1024, r['read_parse'],
+      r['project_place'], r['render_busy'], r['noise'], r['write']))"
+done
+rm -f "$W/o.fits" "$W/c185.csv"
 
 echo
 echo "## Noise, per stage"

@@ -18,11 +18,12 @@
 
 #define FRAME 4096              /* the array with its reference border */
 #define BORDER 4
-/* Rows whose charge is held at once for IPC: the memory is CHUNK + 2
- * rows of every resultant (12 bytes a pixel each), the two margin rows'
- * charge is drawn again by the next chunk (2 / CHUNK of the charge's
- * time) */
-#define CHUNK 64
+/* Rows a worker takes at once: it draws their charge and that of the row
+ * either side one row ahead of IPC and the fits, keeping three rows of
+ * charge (12 bytes a pixel and resultant each, 1.3 MB at MA table 4) in
+ * its cache; the two margin rows' charge is drawn again by the bands
+ * beside (2 / BAND of the charge's time) */
+#define BAND 64
 
 int level_parse(const char *s, int *level, struct err *e)
 {
@@ -55,14 +56,11 @@ struct strip {
 	int fy0, ny;            /* frame rows [fy0, fy0 + ny) */
 	const double *const *light;     /* science row sy at light[sy - sy0 + 1] */
 	int sy0;
-	/* the strip goes by chunks of rows c0 .. c0 + cn - 1 (of its ny): the
-	 * collected charge and the pixels' own part of science row sy at
-	 * ch[sy - (sy0 + c0) + 1] (the chunk and a row either side), each
-	 * resultant WFS_NPIX on; NULL off the array */
-	int c0, cn;
-	double **ch;
-	float **own;
-	/* per worker */
+	/* per worker: the collected charge and the pixels' own part of
+	 * three science rows (ring[wid] and oring[wid], a row's resultants
+	 * WFS_NPIX apart, rows nres WFS_NPIX apart) */
+	double **ring;
+	float **oring;
 	double **scr;
 	uint16_t **dnrow;
 	double **sscr;          /* ramp_stats_row's, with L->ramp_stats */
@@ -73,20 +71,15 @@ struct strip {
 	float *chisq, *dumo;            /* with L->ramp_stats */
 };
 
-/* The first pass: the charge of the strip's science rows and of the one
- * row either side, whose charge IPC shares with the strip's edge rows.
- * A margin row draws the same keyed numbers as when it is the row of a
- * strip, so the strip's seams leave no trace. */
-static void strip_charge(void *arg, int wid, size_t task)
+/* The charge of science row sy (the strip's, or the one either side,
+ * whose charge IPC shares with the strip's edge rows) into ch and own.  A
+ * margin row draws the same keyed numbers as when it is the row of a
+ * band, so the seams leave no trace. */
+static void strip_charge(struct strip *s, int wid, int sy, double *ch, float *own)
 {
-	struct strip *s = arg;
 	struct level_sca *L = s->L;
-	int sy = s->sy0 + s->c0 - 1 + (int)task;
-
 	struct ramp_glow glow = { 0 };
 
-	if (!s->ch[task])
-		return;
 	if (L->persist) {
 		const struct persist *P = L->persist;
 		const struct persist_list *l = &P->now[L->key.sca - 1];
@@ -102,14 +95,13 @@ static void strip_charge(void *arg, int wid, size_t task)
 	}
 	ramp_level1_charge_glow(L->pat, L->det, &L->key,
 				(uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX,
-				s->light[s->c0 + task], &glow, s->ch[task], s->own[task],
-				WFS_NPIX, s->scr[wid]);
+				s->light[sy - s->sy0 + 1], &glow, ch, own, WFS_NPIX, s->scr[wid]);
 	if (s->rn) {
 		for (int r = 0; r < L->pat->nres; r++)
 			rnoise_add_frame(s->rn, r, sy + BORDER, BORDER, WFS_NPIX,
-					 s->own[task] + (size_t)r * WFS_NPIX);
+					 own + (size_t)r * WFS_NPIX);
 		rnoise_slow_add(s->rn, (uint32_t)(sy + BORDER) * FRAME + BORDER, WFS_NPIX, 0,
-				L->pat->nres, s->own[task], WFS_NPIX);
+				L->pat->nres, own, WFS_NPIX);
 	}
 }
 
@@ -133,12 +125,12 @@ static void strip_persist_dq(const struct level_sca *L, double read_noise, int s
 	}
 }
 
-/* The second pass: a frame row's resultants, IPC acting on the charge,
- * then its ramp fit at level 2. */
-static void strip_row(void *arg, int wid, size_t ctask)
+/* Frame row task of the strip: its resultants, IPC acting on the charge
+ * ch[0 .. 2] of the science rows below, at and above (NULL off the
+ * array) and its own part own, then its ramp fit at level 2. */
+static void strip_row(struct strip *s, int wid, size_t task, const double *const ch[3],
+		      const float *own)
 {
-	struct strip *s = arg;
-	size_t task = (size_t)s->c0 + ctask;
 	struct level_sca *L = s->L;
 	const struct ramp_pattern *p = L->pat;
 	int fy = s->fy0 + (int)task, sy = fy - BORDER;
@@ -158,10 +150,8 @@ static void strip_row(void *arg, int wid, size_t ctask)
 	/* the reference columns, the science columns, the reference columns */
 	ramp_level1_row(p, L->det, &L->key, cell0, BORDER, NULL, 0, out, plane, scr);
 	if (light) {
-		int k = sy - (s->sy0 + s->c0) + 1;
-
-		ramp_level1_finish(L->det, p->nres, WFS_NPIX, s->ch[k - 1], s->ch[k],
-				   s->ch[k + 1], s->own[k], WFS_NPIX, out + BORDER, plane);
+		ramp_level1_finish(L->det, p->nres, WFS_NPIX, ch[0], ch[1], ch[2], own, WFS_NPIX,
+				   out + BORDER, plane);
 	} else {
 		ramp_level1_row(p, L->det, &L->key, cell0 + BORDER, WFS_NPIX, NULL, 0,
 				out + BORDER, plane, scr);
@@ -218,6 +208,46 @@ static void strip_row(void *arg, int wid, size_t ctask)
 	}
 }
 
+/*
+ * Band b of the strip: its frame rows BAND b .. in order, each row's
+ * charge drawn into the worker's ring of three rows just before the row
+ * that needs it last, so IPC reads it from the cache (two passes over a
+ * whole strip, the charge of all its rows held between them, went to
+ * memory and back: 19 MB a 64 rows at MA table 4).
+ */
+static void strip_band(void *arg, int wid, size_t b)
+{
+	struct strip *s = arg;
+	size_t rowlen = (size_t)s->L->pat->nres * WFS_NPIX;
+	int t0 = (int)b * BAND, t1 = t0 + BAND < s->ny ? t0 + BAND : s->ny;
+	int have[3] = { -2, -2, -2 };   /* the science row in each slot */
+
+	for (int t = t0; t < t1; t++) {
+		int sy = s->fy0 + t - BORDER;
+		const double *ch[3] = { NULL, NULL, NULL };
+		const float *own = NULL;
+
+		if (sy >= 0 && sy < WFS_NPIX) {
+			for (int k = 0; k < 3; k++) {
+				int ry = sy - 1 + k, slot = (ry + 3) % 3;
+				double *c = s->ring[wid] + (size_t)slot * rowlen;
+				float *o = s->oring[wid] + (size_t)slot * rowlen;
+
+				if (ry < 0 || ry >= WFS_NPIX)
+					continue;
+				if (have[slot] != ry) {
+					strip_charge(s, wid, ry, c, o);
+					have[slot] = ry;
+				}
+				ch[k] = c;
+				if (k == 1)
+					own = o;
+			}
+		}
+		strip_row(s, wid, (size_t)t, ch, own);
+	}
+}
+
 /* Hand computed strip s to the writer. */
 static int strip_write(const struct level_sca *L, const struct strip *s, struct err *e)
 {
@@ -254,10 +284,6 @@ struct sca_pass {
 	int S;                  /* frame rows a strip */
 	double *lightbuf, *pixarea, *fluence;
 	const double **light;
-	/* the charge of a chunk and its margins: one set, as one chunk at a
-	 * time is computed */
-	double *chbuf, **ch;
-	float *ownbuf, **own;
 	/* the correlated read noise and its correction (L->correlated) */
 	struct rnoise rn;
 	struct rnoise_ref ref;
@@ -282,16 +308,16 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 	w->light = calloc((size_t)S + 2, sizeof(*w->light));
 	w->pixarea = malloc(WFS_NPIX * sizeof(double));
 	w->fluence = malloc(WFS_NPIX * sizeof(double));
-	w->chbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(double));
-	w->ownbuf = malloc((size_t)(CHUNK + 2) * rowlen * sizeof(float));
-	w->ch = calloc((size_t)CHUNK + 2, sizeof(*w->ch));
-	w->own = calloc((size_t)CHUNK + 2, sizeof(*w->own));
+	st[0].ring = calloc((size_t)nthr, sizeof(*st[0].ring));
+	st[0].oring = calloc((size_t)nthr, sizeof(*st[0].oring));
 	if (!st[0].scr || !st[0].dnrow || !w->lightbuf || !w->light || !w->pixarea ||
-	    !w->chbuf || !w->ownbuf || !w->ch || !w->own || !w->fluence)
+	    !st[0].ring || !st[0].oring || !w->fluence)
 		return -1;
 	for (int i = 0; i < nthr; i++)
 		if (!(st[0].scr[i] = malloc(RAMP_SCRATCH(FRAME) * sizeof(double))) ||
-		    !(st[0].dnrow[i] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))))
+		    !(st[0].dnrow[i] = malloc((size_t)p->nres * FRAME * sizeof(uint16_t))) ||
+		    !(st[0].ring[i] = malloc(3 * rowlen * sizeof(double))) ||
+		    !(st[0].oring[i] = malloc(3 * rowlen * sizeof(float))))
 			return -1;
 		else
 			ramp_scratch_init(st[0].scr[i]);
@@ -303,6 +329,8 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 				return -1;
 	}
 	st[1].scr = st[0].scr;
+	st[1].ring = st[0].ring;
+	st[1].oring = st[0].oring;
 	st[1].dnrow = st[0].dnrow;
 	st[1].sscr = st[0].sscr;
 	for (int b = 0; b < 2; b++) {
@@ -311,8 +339,6 @@ static int sca_pass_alloc(struct sca_pass *w, struct level_sca *L)
 		s->L = L;
 		s->fp = &w->fp;
 		s->light = w->light;
-		s->ch = w->ch;
-		s->own = w->own;
 		s->rn = L->correlated ? &w->rn : NULL;
 		s->ref = L->correlated && L->level == LEVEL_2 ? &w->ref : NULL;
 		if ((L->level == LEVEL_1 || L->keep_l1) &&
@@ -339,9 +365,15 @@ static void sca_pass_free(struct sca_pass *w)
 	for (int i = 0; st[0].scr && i < w->nthr; i++) {
 		free(st[0].scr[i]);
 		free(st[0].dnrow[i]);
+		if (st[0].ring)
+			free(st[0].ring[i]);
+		if (st[0].oring)
+			free(st[0].oring[i]);
 	}
 	free(st[0].scr);
 	free(st[0].dnrow);
+	free(st[0].ring);
+	free(st[0].oring);
 	for (int i = 0; st[0].sscr && i < w->nthr; i++)
 		free(st[0].sscr[i]);
 	free(st[0].sscr);
@@ -356,10 +388,6 @@ static void sca_pass_free(struct sca_pass *w)
 		free(st[b].dumo);
 	}
 	free(w->lightbuf);
-	free(w->chbuf);
-	free(w->ownbuf);
-	free(w->ch);
-	free(w->own);
 	free(w->light);
 	free(w->pixarea);
 	free(w->fluence);
@@ -412,44 +440,28 @@ static int strip_light(struct sca_pass *w, struct strip *s, struct err *e)
 	return 0;
 }
 
-/* Compute strip s by chunks: the charge (the first chunk's while this
- * thread writes the previous strip prev, if any), then IPC, the resultants
- * and the fits.  The seconds spent writing in *t_write.  0 or -1 with a
- * message, the workers idle either way. */
-static int strip_compute(struct sca_pass *w, struct strip *s, const struct strip *prev,
-			 double *t_write, struct err *e)
+/* Compute strip s by bands of rows on the workers (strip_band) while this
+ * thread writes the previous strip prev, if any.  The seconds spent
+ * writing in *t_write.  0 or -1 with a message, the workers idle either
+ * way. */
+static int strip_compute(struct strip *s, const struct strip *prev, double *t_write,
+			 struct err *e)
 {
 	struct level_sca *L = s->L;
-	size_t rowlen = (size_t)L->pat->nres * WFS_NPIX;
 
 	*t_write = 0;
-	for (int c0 = 0; c0 < s->ny; c0 += CHUNK) {
-		int cn = s->ny - c0 < CHUNK ? s->ny - c0 : CHUNK;
+	pool_start(L->pool, strip_band, s, (size_t)(s->ny + BAND - 1) / BAND);
+	if (prev) {
+		double t1 = now();
 
-		s->c0 = c0;
-		s->cn = cn;
-		for (int k = 0; k < cn + 2; k++) {
-			int sy = s->sy0 + c0 - 1 + k;
-			int in = sy >= 0 && sy < WFS_NPIX;
-
-			w->ch[k] = in ? w->chbuf + (size_t)k * rowlen : NULL;
-			w->own[k] = in ? w->ownbuf + (size_t)k * rowlen : NULL;
+		if (strip_write(L, prev, e) < 0) {
+			pool_wait(L->pool);
+			return -1;
 		}
-		pool_start(L->pool, strip_charge, s, (size_t)cn + 2);
-		if (c0 == 0 && prev) {
-			double t1 = now();
-
-			if (strip_write(L, prev, e) < 0) {
-				pool_wait(L->pool);
-				return -1;
-			}
-			*t_write = now() - t1;
-			L->t_write += *t_write;
-		}
-		pool_wait(L->pool);
-		pool_start(L->pool, strip_row, s, (size_t)cn);
-		pool_wait(L->pool);
+		*t_write = now() - t1;
+		L->t_write += *t_write;
 	}
+	pool_wait(L->pool);
 	return 0;
 }
 
@@ -501,7 +513,7 @@ int level_write_sca(struct level_sca *L, struct err *e)
 		s->fy0 = fy0;
 		s->ny = fhi - fy0 < w.S ? fhi - fy0 : w.S;
 		s->sy0 = fy0 - BORDER;
-		if (strip_light(&w, s, e) < 0 || strip_compute(&w, s, prev, &t1, e) < 0)
+		if (strip_light(&w, s, e) < 0 || strip_compute(s, prev, &t1, e) < 0)
 			goto done;
 		/* the wall time less the writing, which overlapped the ramp:
 		 * the two add up to the wall time of the loop */

@@ -873,9 +873,20 @@ static void level1_reads(struct l1row *R, int gi)
 			unsigned bad;
 
 			if (hp < nh && R->hits[hp].pix < i + 8) {
-				for (int q = 0; q < 8; q++)
-					read_pixel(R, &G, i + q, w[j + q], &hp);
-				continue;
+				/* the eight one by one where a hit falls in
+				 * this group's reads; a hit of another group
+				 * (in S, or still to come) changes nothing
+				 * here */
+				int h = hp, mine = 0;
+
+				for (; h < nh && R->hits[h].pix < i + 8; h++)
+					mine |= R->hits[h].read >= G.a && R->hits[h].read <= G.b;
+				if (mine) {
+					for (int q = 0; q < 8; q++)
+						read_pixel(R, &G, i + q, w[j + q], &hp);
+					continue;
+				}
+				hp = h;
 			}
 			bad = read8_avx512(R, &G, i, w + j);
 			for (int q = 0; bad; q++, bad >>= 1)

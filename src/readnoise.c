@@ -361,6 +361,63 @@ void rnoise_slow_add(const struct rnoise *R, uint32_t cell0, int n, int r0, int 
 	}
 }
 
+/* dst[i] += v[x & 1] + b x for the columns x = x0 + i, i < n: the plain
+ * loop, and the same sums eight (sixteen) lanes at a time in GCC's vector
+ * types, each lane's operations those of the plain loop (no fused
+ * multiply-add), so the same floats.  Returns the columns done. */
+static inline int add_span(const float v[2], float b, int x0, int n, float *dst)
+{
+	for (int i = 0; i < n; i++) {
+		int x = x0 + i;
+
+		dst[i] += v[x & 1] + b * (float)x;
+	}
+	return n;
+}
+
+#ifdef SIMD_X86
+typedef float v16f __attribute__((vector_size(64)));
+typedef int v16i __attribute__((vector_size(64)));
+
+static inline __attribute__((always_inline)) int
+add_span16(const float v[2], float b, int x0, int n, float *dst)
+{
+	const v16i lane = { 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15 };
+	v16f f0, f1;
+	v16i v0, v1;
+	int i = 0;
+
+	for (int q = 0; q < 16; q++) {
+		f0[q] = v[0];
+		f1[q] = v[1];
+	}
+	v0 = (v16i)f0;
+	v1 = (v16i)f1;
+
+	for (; i + 16 <= n; i += 16) {
+		v16i x = lane + (x0 + i), odd = -(x & 1);
+		v16f d, a = (v16f)((v0 & ~odd) | (v1 & odd));
+
+		memcpy(&d, dst + i, sizeof(d));
+		d += a + b * __builtin_convertvector(x, v16f);
+		memcpy(dst + i, &d, sizeof(d));
+	}
+	return i;
+}
+
+__attribute__((target("avx512f"))) static int
+add_span_avx512(const float v[2], float b, int x0, int n, float *dst)
+{
+	return add_span16(v, b, x0, n, dst);
+}
+
+__attribute__((target("avx2"))) static int
+add_span_avx2(const float v[2], float b, int x0, int n, float *dst)
+{
+	return add_span16(v, b, x0, n, dst);
+}
+#endif
+
 void rnoise_add(const struct rnoise *R, int r, int c, int y, int x0, int n, float *dst)
 {
 	const float *pk = R->pink + ((size_t)r * RN_NCHAN + c) * (RN_ROWS + 1) + y;
@@ -368,6 +425,7 @@ void rnoise_add(const struct rnoise *R, int r, int c, int y, int x0, int n, floa
 	/* the value at readout position j: a + b j; with x's column parity */
 	float b = (pk[1] - pk[0]) / (RN_COLS + RN_OVERHEAD), a = pk[0];
 	float v[2];
+	int i = 0;
 
 	if (c & 1) {            /* j = 127 - x */
 		a += b * (RN_COLS - 1);
@@ -375,11 +433,13 @@ void rnoise_add(const struct rnoise *R, int r, int c, int y, int x0, int n, floa
 	}
 	v[0] = a + of[0];
 	v[1] = a + of[1];
-	for (int i = 0; i < n; i++) {
-		int x = x0 + i;
-
-		dst[i] += v[x & 1] + b * (float)x;
-	}
+#ifdef SIMD_X86
+	if (simd_flags() & SIMD_AVX512)
+		i = add_span_avx512(v, b, x0, n, dst);
+	else if (simd_flags() & SIMD_AVX2)
+		i = add_span_avx2(v, b, x0, n, dst);
+#endif
+	add_span(v, b, x0 + i, n - i, dst + i);
 }
 
 void rnoise_add_frame(const struct rnoise *R, int r, int y, int fx0, int n, float *dst)
@@ -541,8 +601,71 @@ void rnoise_ref_free(struct rnoise_ref *C)
 	C->tb = C->side = NULL;
 }
 
+/* One channel's columns lo .. hi - 1 of a resultant (lo even): oc[x] less
+ * k[x & 1], clipped to 0 .. 65534, 65535 (saturated) kept; the plain loop. */
+static inline int ref_span(uint16_t *oc, int lo, int hi, const int k[2])
+{
+	for (int x = lo; x < hi; x++) {
+		int v = oc[x], w = v - k[x & 1];
+
+		w = w < 0 ? 0 : w;
+		w = w > 65534 ? 65534 : w;
+		/* saturated: as it is */
+		oc[x] = (uint16_t)(v == 65535 ? v : w);
+	}
+	return hi;
+}
+
+#ifdef SIMD_X86
+typedef unsigned short v16u16 __attribute__((vector_size(32)));
+
+/* ref_span() sixteen columns at a time: the same integers; returns the
+ * first column left. */
+static inline __attribute__((always_inline)) int
+ref_span16(uint16_t *oc, int lo, int hi, const int k[2])
+{
+	const v16i kv = { k[0], k[1], k[0], k[1], k[0], k[1], k[0], k[1],
+			  k[0], k[1], k[0], k[1], k[0], k[1], k[0], k[1] };
+	int x = lo;
+
+	for (; x + 16 <= hi; x += 16) {
+		v16u16 h;
+		v16i v, w, lt, gt, sat;
+
+		memcpy(&h, oc + x, sizeof(h));
+		v = __builtin_convertvector(h, v16i);
+		w = v - kv;
+		lt = w < 0;
+		w &= ~lt;
+		gt = w > 65534;
+		w = (w & ~gt) | (65534 & gt);
+		sat = v == 65535;
+		w = (w & ~sat) | (v & sat);
+		h = __builtin_convertvector(w, v16u16);
+		memcpy(oc + x, &h, sizeof(h));
+	}
+	return x;
+}
+
+__attribute__((target("avx512f"))) static int
+ref_span_avx512(uint16_t *oc, int lo, int hi, const int k[2])
+{
+	return ref_span16(oc, lo, hi, k);
+}
+
+__attribute__((target("avx2"))) static int
+ref_span_avx2(uint16_t *oc, int lo, int hi, const int k[2])
+{
+	return ref_span16(oc, lo, hi, k);
+}
+#endif
+
 void rnoise_ref_apply(const struct rnoise_ref *C, int y, uint16_t *dn, size_t plane, int nres)
 {
+#ifdef SIMD_X86
+	int f = simd_flags();
+#endif
+
 	for (int r = 0; r < nres; r++) {
 		uint16_t *o = dn + (size_t)r * plane - 4;       /* o[fx] */
 		const double *tb = C->tb + (size_t)r * 64;
@@ -551,22 +674,18 @@ void rnoise_ref_apply(const struct rnoise_ref *C, int y, uint16_t *dn, size_t pl
 		for (int c = 0; c < 32; c++) {
 			/* floor(v - t + 0.5) = v - ceil(t - 0.5) for an integer v:
 			 * one integer a column parity */
-			int k[2], kk[RN_COLS], lo = c ? 0 : 4, hi = c == 31 ? RN_COLS - 4 : RN_COLS;
+			int k[2], lo = c ? 0 : 4, hi = c == 31 ? RN_COLS - 4 : RN_COLS, x = lo;
 			uint16_t *oc = o + c * RN_COLS;
 
 			for (int q = 0; q < 2; q++)
 				k[q] = (int)ceil(tb[c * 2 + q] + sd - 0.5);
-			for (int x = 0; x < RN_COLS; x++)
-				kk[x] = k[x & 1];
-			/* a loop the compiler vectorises */
-			for (int x = lo; x < hi; x++) {
-				int v = oc[x], w = v - kk[x];
-
-				w = w < 0 ? 0 : w;
-				w = w > 65534 ? 65534 : w;
-				/* saturated: as it is */
-				oc[x] = (uint16_t)(v == 65535 ? v : w);
-			}
+#ifdef SIMD_X86
+			if (f & SIMD_AVX512)
+				x = ref_span_avx512(oc, lo, hi, k);
+			else if (f & SIMD_AVX2)
+				x = ref_span_avx2(oc, lo, hi, k);
+#endif
+			ref_span(oc, x, hi, k);
 		}
 	}
 }

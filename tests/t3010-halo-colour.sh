@@ -138,6 +138,24 @@ assert abs(e[0]) < 0.2 and abs(e[1]) < 0.025, e
 "
 '
 
+# --memory's per-SCA estimate counts the colour halos a catalog with a
+# spectrum column may make (an upper bound: with 64-pixel halos, 4 classes
+# a family and 4 steps, 10 MiB), so that the same budget splits its SCAs
+# into more groups
+test_expect_success 'the memory estimate counts the colour halos' '
+	printf "x,y,flux\n2000.3,2100.6,20\n" > nospec.csv &&
+	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
+		-o nospec%d.fits nospec.csv 2> err0 &&
+	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
+		-o spec%d.fits faint.csv 2> err1 &&
+	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
+		--set psf-halo-colour-steps=0 -o specn%d.fits faint.csv 2> err2 &&
+	cat err0 err1 err2 | grep passes &&
+	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err0 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (194 MB each" err1 &&
+	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err2
+'
+
 test_expect_success 'the same bytes with one thread and another tile size' '
 	star 1e7 4200 > mid.csv && run m2.fits mid.csv &&
 	run m1.fits mid.csv --threads 1 --tile 300 && cmp m1.fits m2.fits

@@ -17,9 +17,10 @@
  * The wing's shape.  K(p, q), the share of unit light that a source at
  * the centre of a cell sends into the cell (p, q) away: the halo model
  * (halo.h) summed over the cell's pixels outside the faint class's box,
- * over the model's light outside the box (the default spectrum's halo for
- * every source: a source with a spectrum deposits its own halo's light,
- * spread in that shape).  Cells that meet the box, or lie
+ * over the model's light outside the box: the default spectrum's halo for
+ * faint sources, and for a bright one the halo it is drawn with (a
+ * source with a spectrum: its spectrum's, point_halo.c), each halo's
+ * kernels built when the SCA is gathered.  Cells that meet the box, or lie
  * within FAR_EXACT cells, are summed pixel by pixel; nearer than 512 pixels
  * every other pixel, nearer than 1024 on 2 x 2 points, beyond at one
  * (the wing is smooth there on the scale of a cell, its spikes a few

@@ -138,6 +138,23 @@ assert abs(e[0]) < 0.2 and abs(e[1]) < 0.025, e
 "
 '
 
+# psf-diffuse-cell=8: the pixel lists' kernel (the default +-256 px
+# array's disc, +-33 cells of 8 px) reaches beyond the fine level's (+-32
+# cells), which overran it before; the star keeps the light it has with
+# 16-px cells
+test_expect_success 'small diffuse cells hold a halo pixel lists kernel' '
+	printf "x,y,flux\n2000.3,2100.6,1e4\n" > p.csv &&
+	"$WFS" --filter F146 --sca 1 --exptime 139.8 p.csv --set psf-diffuse-cell=8 \
+		--set psf-diffuse-floor=0 -o c8.fits &&
+	"$WFS" --filter F146 --sca 1 --exptime 139.8 p.csv --set psf-diffuse-floor=0 -o c16.fits &&
+	"$PY" -c "
+from astropy.io import fits
+a, b = (fits.getdata(p, 1).astype(float).sum() for p in (\"c8.fits\", \"c16.fits\"))
+print(a / b - 1)
+assert abs(a / b - 1) < 1e-4, (a, b)
+"
+'
+
 # --memory's per-SCA estimate counts the colour halos a catalog with a
 # spectrum column may make (an upper bound: with 64-pixel halos, 4 classes
 # a family and 4 steps, 10 MiB), so that the same budget splits its SCAs

@@ -242,6 +242,9 @@ struct far_dep {
 	int k;                  /* psf-halo-near=level: the level step of light
 				 * left out of the halo's array (r = 0), else
 				 * INT_MIN */
+	int slot;               /* the halo whose shape it is spread in: -1
+				 * the default spectrum's, else the colour
+				 * halo's index (hslot_at) */
 	double r, x, y, light;
 };
 
@@ -425,14 +428,25 @@ int noise_reach(struct point *p, const struct wfs_source *src, double *pixels);
 double halo_level(const struct point *p, double flux, int *k);
 void hslot_free_all(struct point *p);
 
+/* The colour halo idx of SCA sca once made (NULL before), or with idx -1
+ * the SCA's default one. */
+static inline const struct hslot *hslot_at(const struct point *p, int sca, int idx)
+{
+	if (idx < 0)
+		return &p->hs[sca];
+	return atomic_load_explicit(&p->chs[((size_t)sca * p->nclasses) * p->halo_steps + idx],
+				    memory_order_acquire);
+}
+
 /* point_far.c: psf-diffuse=grid; far_deposit() adds light (counts/s) left
  * out of src beyond its box (r = 0) or beyond its radius r to its
- * thread's grid, from prepare(); far_radius() rounds a halo's radius up
+ * thread's grid, from prepare(), to be spread in the shape of halo slot
+ * (hslot_at; r = 0: the default's always); far_radius() rounds a halo's radius up
  * to the radii whose wings the grid spreads */
 void far_geometry(struct point *p);
 double far_radius(const struct point *p, double r);
-int far_deposit(struct point *p, const struct wfs_source *src, double light, double r);
-int far_deposit_near(struct point *p, const struct wfs_source *src, double light, int k);
+int far_deposit(struct point *p, const struct wfs_source *src, double light, double r, int slot);
+int far_deposit_near(struct point *p, const struct wfs_source *src, double light, int k, int slot);
 int far_gather(void *state, void *thread, int sca);
 int far_spread(void *state, void *thread, int sca, const struct wfs_window *win);
 void far_free(struct point *p);

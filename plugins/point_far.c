@@ -17,9 +17,10 @@
  * The wing's shape.  K(p, q), the share of unit light that a source at
  * the centre of a cell sends into the cell (p, q) away: the halo model
  * (halo.h) summed over the cell's pixels outside the faint class's box,
- * over the model's light outside the box (the default spectrum's halo for
- * every source: a source with a spectrum deposits its own halo's light,
- * spread in that shape).  Cells that meet the box, or lie
+ * over the model's light outside the box: the default spectrum's halo for
+ * faint sources, and for a bright one the halo it is drawn with (a
+ * source with a spectrum: its spectrum's, point_halo.c), each halo's
+ * kernels built when the SCA is gathered.  Cells that meet the box, or lie
  * within FAR_EXACT cells, are summed pixel by pixel; nearer than 512 pixels
  * every other pixel, nearer than 1024 on 2 x 2 points, beyond at one
  * (the wing is smooth there on the scale of a cell, its spikes a few
@@ -190,7 +191,7 @@ static int dep_push(struct point *p, struct tally *t, struct far_dep d)
 	return 0;
 }
 
-int far_deposit(struct point *p, const struct wfs_source *src, double light, double r)
+int far_deposit(struct point *p, const struct wfs_source *src, double light, double r, int slot)
 {
 	struct tally *t = tally_of(p);
 	int n = p->far_n, sca = src->sca;
@@ -203,7 +204,7 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 		return 0;
 	t->spread += light;
 	if (r > 0)
-		return dep_push(p, t, (struct far_dep){ sca, INT_MIN, r, src->x, src->y, light });
+		return dep_push(p, t, (struct far_dep){ sca, INT_MIN, slot, r, src->x, src->y, light });
 	if (!t->cnt[sca] && !(t->cnt[sca] = calloc((size_t)3 * n * n, sizeof(int64_t))))
 		return p->host->error(p->host->ctx, "out of memory");
 	far_cic(p, src->x, src->y, c, w);
@@ -213,8 +214,9 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 }
 
 /* psf-halo-near=level: light left out of the halo's array by a source of
- * level step k, spread with the array's pixels below that step. */
-int far_deposit_near(struct point *p, const struct wfs_source *src, double light, int k)
+ * level step k, spread with the array's pixels below that step (of halo
+ * slot's array). */
+int far_deposit_near(struct point *p, const struct wfs_source *src, double light, int k, int slot)
 {
 	struct tally *t = tally_of(p);
 
@@ -223,7 +225,7 @@ int far_deposit_near(struct point *p, const struct wfs_source *src, double light
 	if (!(light > 0))
 		return 0;
 	t->spread += light;
-	return dep_push(p, t, (struct far_dep){ src->sca, k, 0, src->x, src->y, light });
+	return dep_push(p, t, (struct far_dep){ src->sca, k, slot, 0, src->x, src->y, light });
 }
 
 /* The model's value at pixel offset (dx, dy) outside the box of half-width
@@ -426,13 +428,16 @@ static int dep_cmp(const void *a, const void *b)
 	const struct far_dep *u = a, *v = b;
 	double x = u->r, y = v->r;
 
+	if (u->slot != v->slot)
+		return (u->slot > v->slot) - (u->slot < v->slot);
 	if (u->k != v->k)
 		return (u->k > v->k) - (u->k < v->k);
 	return (x > y) - (x < y);
 }
 
-/* The deposits of SCA sca of every thread, sorted by radius (*nd of
- * them; NULL with *nd 0 when none, or after an error). */
+/* The deposits of SCA sca of every thread, sorted by halo slot (the
+ * default's first), level step and radius (*nd of them; NULL with *nd 0
+ * when none, or after an error). */
 static struct far_dep *deposits_of(struct point *p, int sca, size_t *nd)
 {
 	struct far_dep *d;
@@ -452,13 +457,42 @@ static struct far_dep *deposits_of(struct point *p, int sca, size_t *nd)
 	return d;
 }
 
-/* What gather() works with: the two levels, their raw kernels, the
- * kernel being convolved, the fine grid's light and the coarse one's. */
+/* What gather() works with: the halo whose shape it spreads (slot, as in
+ * far_dep; INT_MIN before the first), its box hb, the two levels and
+ * their raw kernels, the kernel being convolved, the fine grid's light
+ * and the coarse one's. */
 struct work {
+	const struct halo *h;
+	int slot;
 	struct level l[2];
 	double *raw[2], *kern, *g, *gc;
+	size_t nkern;           /* kern's size */
 	double hb, outbox;
 };
+
+/* The kernels of halo slot of SCA sca into w, unless they are there:
+ * built once per slot, by the one thread that gathers the SCA its slots
+ * belong to, into the same buffers (one slot's at a time). */
+static int work_slot(struct point *p, int sca, struct work *w, int slot)
+{
+	const struct hslot *hs = hslot_at(p, sca, slot);
+
+	if (w->slot == slot)
+		return 0;
+	if (!hs || (slot < 0 && !atomic_load(&hs->ready)))
+		return p->host->error(p->host->ctx, "diffuse light of a halo never set up");
+	w->slot = slot;
+	w->h = &hs->h;
+	w->hb = hs->chalf[WFS_PSF_NORMAL] > 0 ? hs->chalf[WFS_PSF_NORMAL] : 21;
+	far_level(p, 0, w->hb, &w->l[0]);
+	far_level(p, 1, w->hb, &w->l[1]);
+	if (!((w->outbox = light_outside(w->h, w->hb)) > 0))
+		return p->host->error(p->host->ctx, "the halo holds no light outside a %g-pixel "
+				      "box", 2 * w->hb);
+	level_kernel(w->h, &w->l[0], w->raw[0]);
+	level_kernel(w->h, &w->l[1], w->raw[1]);
+	return 0;
+}
 
 /* The light of the fine grid g (light per cell) spread with the wing
  * beyond r (0: outside the box) over out, added to c: the fine level's
@@ -567,9 +601,15 @@ static int near_spread(struct point *p, void *thread, struct work *w, const stru
 		       struct nearker *nk, int k, double *c)
 {
 	const struct level *f = &w->l[0];
-	int side = 2 * nk->pc + 1, H = f->H, kf = 2 * H + 1, nn = f->n;
+	/* the kernel reaches the array's disc: beyond the fine level's
+	 * reach with small cells (psf-diffuse-cell=8) */
+	int side = 2 * nk->pc + 1, H = f->H > nk->pc ? f->H : nk->pc, kf = 2 * H + 1, nn = f->n;
 	size_t plane = (size_t)side * side, nc = (size_t)nn * nn;
 	double sum = 0, *t = w->g + nc;
+
+	if ((size_t)kf * kf > w->nkern)
+		return p->host->error(p->host->ctx, "the halo's array is too large for the "
+				      "diffuse grid's kernels");
 
 	for (; nk->next < k && nk->next <= n->kmax; nk->next++)
 		for (size_t i = 0; i < plane; i++)
@@ -596,7 +636,6 @@ static int near_spread(struct point *p, void *thread, struct work *w, const stru
 static int spread_groups(struct point *p, void *thread, int sca, struct work *w,
 			 const struct far_dep *dep, size_t nd, int64_t *cnt, double *c)
 {
-	const struct halo *h = &p->hs[sca].h;
 	int n = p->far_n, rc = -1;
 	size_t nc = (size_t)n * n;
 	struct nearker nk = { 0 };
@@ -604,10 +643,18 @@ static int spread_groups(struct point *p, void *thread, int sca, struct work *w,
 	for (size_t i = 0; i < nd;) {
 		size_t j = i;
 		double r = dep[i].r, out;
-		int k = dep[i].k;
+		int k = dep[i].k, slot = dep[i].slot;
 
+		/* a new halo's shape: its kernels, and its lists' when needed */
+		if (slot != w->slot) {
+			if (work_slot(p, sca, w, slot) < 0)
+				goto out;
+			free(nk.hist);
+			free(nk.acc);
+			nk = (struct nearker){ 0 };
+		}
 		memset(cnt, 0, 3 * nc * sizeof(int64_t));
-		for (; j < nd && dep[j].r == r && dep[j].k == k; j++) {
+		for (; j < nd && dep[j].r == r && dep[j].k == k && dep[j].slot == slot; j++) {
 			size_t cc[4];
 			double wt[4];
 
@@ -619,10 +666,11 @@ static int spread_groups(struct point *p, void *thread, int sca, struct work *w,
 			w->g[q] = far_light(cnt, q);
 		i = j;
 		if (k != INT_MIN) {
-			const struct near *nr = &p->hs[sca].near;
+			const struct hslot *hs = hslot_at(p, sca, slot);
+			const struct near *nr = &hs->near;
 
-			if (!atomic_load(&p->hs[sca].near_ready) ||
-			    (!nk.hist && near_hist(p, h, nr, w->hb, &nk) < 0)) {
+			if (!atomic_load(&hs->near_ready) ||
+			    (!nk.hist && near_hist(p, w->h, nr, w->hb, &nk) < 0)) {
 				p->host->error(p->host->ctx, "out of memory for the diffuse light");
 				goto out;
 			}
@@ -630,11 +678,11 @@ static int spread_groups(struct point *p, void *thread, int sca, struct work *w,
 				goto out;
 			continue;
 		}
-		if (!((out = light_beyond(h, w->hb, w->outbox, r)) > 0)) {
+		if (!((out = light_beyond(w->h, w->hb, w->outbox, r)) > 0)) {
 			p->host->error(p->host->ctx, "the halo holds no light beyond %g pixels", r);
 			goto out;
 		}
-		if (level_spread(p, thread, h, w, r, out, c) < 0)
+		if (level_spread(p, thread, w->h, w, r, out, c) < 0)
 			goto out;
 	}
 	rc = 0;
@@ -652,8 +700,7 @@ int far_gather(void *state, void *thread, int sca)
 	int64_t *cnt = NULL;
 	double *c = NULL;
 	struct far_dep *dep = NULL;
-	const struct halo *h = &p->hs[sca].h;
-	struct work w = { 0 };
+	struct work w = { .slot = INT_MIN };
 
 	if (p->diffuse != DIFFUSE_GRID || !atomic_load(&p->hs[sca].ready))
 		return 0;
@@ -664,9 +711,9 @@ int far_gather(void *state, void *thread, int sca)
 			nd += t->dep[i].sca == sca;
 	if (!dense && !nd)
 		return 0;
-	w.hb = p->hs[sca].chalf[WFS_PSF_NORMAL] > 0 ? p->hs[sca].chalf[WFS_PSF_NORMAL] : 21;
-	far_level(p, 0, w.hb, &w.l[0]);
-	far_level(p, 1, w.hb, &w.l[1]);
+	/* the kernels' sizes do not depend on the box */
+	far_level(p, 0, 21, &w.l[0]);
+	far_level(p, 1, 21, &w.l[1]);
 	{
 		size_t k0 = (size_t)(2 * w.l[0].H + 1) * (2 * w.l[0].H + 1);
 		size_t k1 = (size_t)(2 * w.l[1].H + 1) * (2 * w.l[1].H + 1);
@@ -677,28 +724,24 @@ int far_gather(void *state, void *thread, int sca)
 		    !(w.gc = malloc(2 * m2 * sizeof(double))) ||
 		    !(w.raw[0] = malloc(k0 * sizeof(double))) ||
 		    !(w.raw[1] = malloc(k1 * sizeof(double))) ||
-		    !(w.kern = malloc((k0 > k1 ? k0 : k1) * sizeof(double))) ||
+		    !(w.kern = malloc((w.nkern = k0 > k1 ? k0 : k1) * sizeof(double))) ||
 		    (nd && !(dep = deposits_of(p, sca, &nd)))) {
 			p->host->error(p->host->ctx, "out of memory for the diffuse light");
 			goto out;
 		}
 	}
-	if (!((w.outbox = light_outside(h, w.hb)) > 0)) {
-		p->host->error(p->host->ctx, "the halo holds no light outside a %g-pixel box",
-			       2 * w.hb);
-		goto out;
-	}
-	level_kernel(h, &w.l[0], w.raw[0]);
-	level_kernel(h, &w.l[1], w.raw[1]);
-	/* the faint sources' grid: integer sums, the same in any order */
+	/* the faint sources' grid (the default halo's shape): integer sums,
+	 * the same in any order */
 	if (dense) {
+		if (work_slot(p, sca, &w, -1) < 0)
+			goto out;
 		for (struct tally *t = p->tallies; t; t = t->next)
 			if (t->cnt[sca])
 				for (size_t i = 0; i < 3 * nc; i++)
 					cnt[i] += t->cnt[sca][i];
 		for (size_t i = 0; i < nc; i++)
 			w.g[i] = far_light(cnt, i);
-		if (level_spread(p, thread, h, &w, 0, w.outbox, c) < 0)
+		if (level_spread(p, thread, w.h, &w, 0, w.outbox, c) < 0)
 			goto out;
 	}
 	/* each radius's grid, in order of radius, then each level step's */

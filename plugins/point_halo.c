@@ -378,22 +378,22 @@ static const struct near *near_of(struct point *p, struct hslot *s, int hb)
  * light of the pixels below the level, and beyond the disc what the
  * drawing there leaves out.  With psf-diffuse=grid spread once per tile
  * (point_far.c), the baseline with the wing beyond the base radius.  The
- * light is the source's own halo's (hs); the grid spreads it in the shape
- * of the default spectrum's (so its lists are set up too). */
+ * light is the source's own halo's (hs), and the grid spreads it in that
+ * halo's shape (point_far.c). */
 static int halo_left(struct point *p, const struct wfs_source *src, struct hslot *hs,
 		     double r, double lev, int k, struct tally *t)
 {
 	const struct halo *h = &hs->h;
 	double fl = src->flux, base = 0, rb = r, left, under = 0;
 	const struct near *n = NULL;
+	int slot;
 
 	if (k != INT_MIN) {
 		struct wfs_source ns = *src;
 
 		/* the lists leave out the normal class's box, as the grid does */
 		ns.psf_class = WFS_PSF_NORMAL;
-		if (core_scale(p, &ns, hs) < 0 || !(n = near_of(p, hs, hs->chalf[WFS_PSF_NORMAL])) ||
-		    (hs->cls >= 0 && !near_of(p, &p->hs[src->sca], hs->chalf[WFS_PSF_NORMAL])))
+		if (core_scale(p, &ns, hs) < 0 || !(n = near_of(p, hs, hs->chalf[WFS_PSF_NORMAL])))
 			return -1;
 		under = fl * near_under(n, k);
 		if (r < h->R)
@@ -407,9 +407,10 @@ static int halo_left(struct point *p, const struct wfs_source *src, struct hslot
 	t->left += left + base + under;
 	if (p->diffuse != DIFFUSE_GRID)
 		return 0;
-	if (far_deposit(p, src, left, r) < 0 ||
-	    (base > 0 && far_deposit(p, src, base, far_radius(p, rb)) < 0) ||
-	    (under > 0 && far_deposit_near(p, src, under, k) < 0))
+	slot = hs->cls < 0 ? -1 : hs->cls * p->halo_steps + hs->step;
+	if (far_deposit(p, src, left, r, slot) < 0 ||
+	    (base > 0 && far_deposit(p, src, base, far_radius(p, rb), slot) < 0) ||
+	    (under > 0 && far_deposit_near(p, src, under, k, slot) < 0))
 		return -1;
 	return 0;
 }
@@ -543,7 +544,7 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	 * light with it */
 	if (box.x1 <= 0 || box.y1 <= 0 || box.x0 >= WFS_SCA_SIDE || box.y0 >= WFS_SCA_SIDE)
 		return 0;
-	return p->diffuse == DIFFUSE_GRID ? far_deposit(p, src, left, 0) : 0;
+	return p->diffuse == DIFFUSE_GRID ? far_deposit(p, src, left, 0, -1) : 0;
 }
 
 /* Whether the pixel at (dx, dy), in the tail, is drawn beyond the base

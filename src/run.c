@@ -19,6 +19,7 @@
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
+#include <sys/stat.h>
 
 #include "asdf.h"
 #include "catalog.h"
@@ -32,6 +33,7 @@
 #include "persist.h"
 #include "pool.h"
 #include "product.h"
+#include "psf.h"
 #include "tempfile.h"
 #include "tree.h"
 
@@ -408,16 +410,88 @@ static double run_bytes(const struct scene_opts *o)
 	return (o->level ? 110.0 : 40.0) * MIB;
 }
 
-static double sca_bytes(const struct scene_opts *o)
+/* The value of --set key (the last given), or NULL. */
+static const char *opt_setting(const struct scene_opts *o, const char *key)
+{
+	const char *v = NULL;
+	size_t n = strlen(key);
+
+	for (const char *const *kv = o->settings; kv && *kv; kv++)
+		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
+			v = *kv + n + 1;
+	return v;
+}
+
+/* Whether the first chunk of a catalog file (not stdin, not a catalog
+ * tree) has a spectrum column; a catalog that cannot be read counts as
+ * none (the pass reports it). */
+static int catalog_has_spectra(const struct scene_opts *o, const char *path)
+{
+	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
+				   .chunk_rows = o->chunk, .settings = o->settings,
+				   .epoch = o->epoch };
+	struct stat st;
+	struct err e = { 0 };
+	struct catalog *c;
+	struct rows r;
+	int has = 0;
+
+	if (!strcmp(path, "-") || stat(path, &st) < 0 || S_ISDIR(st.st_mode) ||
+	    !(c = catalog_open(path, &co, &e)))
+		return 0;
+	has = catalog_read(c, &r, &e) > 0 && r.spec_kind;
+	catalog_close(c);
+	return has;
+}
+
+/*
+ * The colour halos an SCA may hold (point.so, psf-extent=noise with the
+ * built-in PSF) when a catalog has a spectrum column, an upper bound: the
+ * class halos the host builds ((4 R + 1)^2 floats for psf-halo-radius R,
+ * 2 n of them for psf-colour-classes n a family) and, for every class pair
+ * of both families and every step of psf-halo-colour-steps N, the blend
+ * (one more array) with its pixel lists ((2 R + 3)^2 int16) and halo
+ * tables (some 40 kB): 2 ((n - 1) N + 1) of them.  The diffuse grid builds a halo's kernels while it
+ * gathers the SCA, one halo's at a time, in the buffers of the default
+ * halo's (counted in SCA_BYTES).  Measured: 1000 bright stars of every
+ * temperature on one SCA held 61 MB more with 4 steps, against this
+ * bound's 158 MB (both families).
+ */
+static double colour_halo_bytes(const struct scene_opts *o, char *const *catalogs)
+{
+	const char *v;
+	double R = 256, N = 4, n = psf_default_classes(o->filter), arr;
+	int has = 0;
+
+	if (strcmp(o->psf, "builtin") || ((v = opt_setting(o, "psf-extent")) && strcmp(v, "noise")))
+		return 0;
+	if ((v = opt_setting(o, "psf-halo-colour-steps")))
+		N = atof(v);
+	if ((v = opt_setting(o, "psf-halo-radius")))
+		R = atof(v);
+	if ((v = opt_setting(o, "psf-colour-classes")))
+		n = atof(v);
+	if (!(N > 0) || !(R > 0) || !(n >= 2))
+		return 0;
+	for (char *const *cat = catalogs; *cat && !has; cat++)
+		has = catalog_has_spectra(o, *cat);
+	if (!has)
+		return 0;
+	arr = (4 * R + 1) * (4 * R + 1) * sizeof(float);
+	return 2 * n * arr + 2 * ((n - 1) * N + 1) * (arr + (2 * R + 3) * (2 * R + 3) * 2 + 40e3);
+}
+
+/* An SCA's bytes; colour, its colour halos' (colour_halo_bytes). */
+static double sca_bytes(const struct scene_opts *o, double colour)
 {
 	double rows = o->row_first ? o->row_last - o->row_first + 1 : WFS_NPIX;
 
-	return rows * WFS_NPIX * sizeof(double) + SCA_BYTES;
+	return rows * WFS_NPIX * sizeof(double) + SCA_BYTES + colour;
 }
 
-static double exposure_bytes(const struct scene_opts *o, const struct exposure *x)
+static double exposure_bytes(const struct scene_opts *o, const struct exposure *x, double colour)
 {
-	return __builtin_popcount(x->sca_mask) * sca_bytes(o);
+	return __builtin_popcount(x->sca_mask) * sca_bytes(o, colour);
 }
 
 /* The smallest of the machine's physical memory and the memory limit of
@@ -458,6 +532,7 @@ struct plan {
 	int groups;             /* SCA groups of each exposure (per is 1) */
 	int passes;             /* over the catalogs in all */
 	double budget;          /* bytes */
+	double colour;          /* an SCA's colour halos, bytes */
 };
 
 static void plan_passes(const struct scene_opts *o, const struct exposure *x, int n,
@@ -468,12 +543,12 @@ static void plan_passes(const struct scene_opts *o, const struct exposure *x, in
 
 	p->budget = o->memory_mb > 0 ? o->memory_mb * MIB : 0.5 * memory_available();
 	for (int i = 0; i < n; i++)
-		each = fmax(each, exposure_bytes(o, &x[i]));
+		each = fmax(each, exposure_bytes(o, &x[i], p->colour));
 	k = floor((p->budget - run_bytes(o)) / each);
 	p->per = k < 1 ? 1 : k >= n ? n : (int)k;
 	p->groups = 1;
 	if (k < 1 && nsca > 1) {
-		double fit = floor((p->budget - run_bytes(o)) / sca_bytes(o));
+		double fit = floor((p->budget - run_bytes(o)) / sca_bytes(o, p->colour));
 		int at_once = fit < 1 ? 1 : fit >= nsca ? nsca : (int)fit;
 
 		p->groups = (nsca + at_once - 1) / at_once;
@@ -502,11 +577,11 @@ static void plan_say(const struct scene_opts *o, const struct exposure *x, int n
 		fprintf(stderr, "wfiscene: %d SCAs in %d passes over the catalogs%s, %d at most at "
 			"a time (%.0f MB each, %.0f MB of memory)\n", nsca, p->groups,
 			n > 1 ? " per exposure" : "", (nsca + p->groups - 1) / p->groups,
-			sca_bytes(o) / MIB, p->budget / MIB);
+			sca_bytes(o, p->colour) / MIB, p->budget / MIB);
 	else
 		fprintf(stderr, "wfiscene: %d exposures in %d passes over the catalogs, "
 			"at most %d at a time (%.0f MB each)\n", n, p->passes, p->per,
-			exposure_bytes(o, &x[0]) / MIB);
+			exposure_bytes(o, &x[0], p->colour) / MIB);
 }
 
 /* Engine g[i] for exposure x[i], ready for the catalogs. */
@@ -665,6 +740,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		for (int i = 0; i < n; i++)
 			x[i].persist = persist;
 	}
+	plan.colour = colour_halo_bytes(o, catalogs);
 	plan_passes(o, x, n, &plan);
 	plan_say(o, x, n, &plan);
 	if (stdin_for_passes(o, catalogs, &plan, &stdin_copy, e) < 0)

@@ -109,6 +109,70 @@ test_expect_success 'without a spectrum, or faint, the bytes of the default halo
 	! cmp -s ired.fits ired0.fits && ! cmp -s iblue.fits iblue0.fits
 '
 
+# The light a bright star's drawing leaves out (psf-halo-near: the array's
+# pixels below its drawing level) is spread on the diffuse grid in the
+# shape of the star's own halo: the red star's diffuse light over the blue
+# one's, ring by ring, follows what the exact drawings (psf-halo-near=0 to
+# the noise's 1e-6) leave beyond the default drawing.  With the default
+# halo's shape for both, the 44-52 px ring was 36 % off, 52-63 px 3.5 %.
+test_expect_success 'the diffuse light of a red and a blue star has their halos shape' '
+	for t in 3000 30000; do
+		star 3e3 $t > d$t.csv &&
+		run g$t.fits d$t.csv --set psf-diffuse-floor=0 &&
+		run n$t.fits d$t.csv --set psf-diffuse=none &&
+		run x$t.fits d$t.csv --set psf-halo-near=0 --set psf-extent-noise=1e-6 || return 1
+	done &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+x, y = 2000.3, 2100.6
+g = lambda p: fits.getdata(p, 1).astype(float)
+j, i = np.indices(g(\"g3000.fits\").shape)
+d = np.hypot(i - x, j - y)
+def left(k, t):
+    a = g(\"%s%d.fits\" % (k, t)) - g(\"n%d.fits\" % t)
+    return np.array([a[(d >= lo) & (d < hi)].sum() for lo, hi in ((44, 52), (52, 63))])
+e = left(\"g\", 3000) / left(\"g\", 30000) / (left(\"x\", 3000) / left(\"x\", 30000)) - 1
+print(\"red / blue diffuse light against the exact, 44-52 and 52-63 px: %+.4f %+.4f\" % tuple(e))
+assert abs(e[0]) < 0.2 and abs(e[1]) < 0.025, e
+"
+'
+
+# psf-diffuse-cell=8: the pixel lists' kernel (the default +-256 px
+# array's disc, +-33 cells of 8 px) reaches beyond the fine level's (+-32
+# cells), which overran it before; the star keeps the light it has with
+# 16-px cells
+test_expect_success 'small diffuse cells hold a halo pixel lists kernel' '
+	printf "x,y,flux\n2000.3,2100.6,1e4\n" > p.csv &&
+	"$WFS" --filter F146 --sca 1 --exptime 139.8 p.csv --set psf-diffuse-cell=8 \
+		--set psf-diffuse-floor=0 -o c8.fits &&
+	"$WFS" --filter F146 --sca 1 --exptime 139.8 p.csv --set psf-diffuse-floor=0 -o c16.fits &&
+	"$PY" -c "
+from astropy.io import fits
+a, b = (fits.getdata(p, 1).astype(float).sum() for p in (\"c8.fits\", \"c16.fits\"))
+print(a / b - 1)
+assert abs(a / b - 1) < 1e-4, (a, b)
+"
+'
+
+# --memory's per-SCA estimate counts the colour halos a catalog with a
+# spectrum column may make (an upper bound: with 64-pixel halos, 4 classes
+# a family and 4 steps, 10 MiB), so that the same budget splits its SCAs
+# into more groups
+test_expect_success 'the memory estimate counts the colour halos' '
+	printf "x,y,flux\n2000.3,2100.6,20\n" > nospec.csv &&
+	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
+		-o nospec%d.fits nospec.csv 2> err0 &&
+	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
+		-o spec%d.fits faint.csv 2> err1 &&
+	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
+		--set psf-halo-colour-steps=0 -o specn%d.fits faint.csv 2> err2 &&
+	cat err0 err1 err2 | grep passes &&
+	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err0 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (194 MB each" err1 &&
+	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err2
+'
+
 test_expect_success 'the same bytes with one thread and another tile size' '
 	star 1e7 4200 > mid.csv && run m2.fits mid.csv &&
 	run m1.fits mid.csv --threads 1 --tile 300 && cmp m1.fits m2.fits

@@ -343,7 +343,8 @@ static long colour_cell(const struct point *p, const struct wfs_source *src, int
 	if (!(c >= 0) || !p->colour_cells)
 		return -1;
 	point_pair(p, c, k, &f);
-	*j = (int)lround(f * s);
+	/* lround(f s), f s >= 0, without a library call */
+	*j = (int)lfloor(f * s + 0.5);
 	return (long)(*k + (*j == s)) * (s + 1) + (*j == s ? 0 : *j);
 }
 

@@ -278,7 +278,7 @@ static size_t slots_wanted(const struct point *p, long c)
 	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * WFS_SCA_COUNT *
 		       (p->blend == BLEND_CELL ? 3 : 1) * (1 + (size_t)p->colour_cells);
 
-	/* and per position the colour cells' pair differences (family_add) */
+	/* and per position the colour cells' pair differences (class_add) */
 	if (p->colour_cells)
 		cells += cells / (1 + (size_t)p->colour_cells) * (size_t)p->nclasses;
 	return 2 * (cells + POLY_NODES);
@@ -449,76 +449,88 @@ static int cell_make(struct point *p, uint64_t key, const float *const node[8],
 	return 0;
 }
 
-#define FAMILY_MAX 16           /* classes per family (the host's limit) */
+/* Class k's blend at (cx, cy) of the source's SCA and size class, into
+ * *made, unpublished: a class cell (nodes kept, psf-blend=core's copies
+ * made) when cell is set, else a bare copy to take a difference from.
+ * Returns 0, or -1 with an error recorded. */
+static int class_blend(struct point *p, const struct wfs_source *src, uint64_t key, double cx,
+		       double cy, int k, int cell, struct poly *made)
+{
+	struct wfs_epsf e;
+	struct poly how = { .cclass = k };
+	const float *node[8] = { NULL };
+	double w[8] = { 0 };
+	float *mix;
+	int rc;
+
+	if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class, k, &e) < 0)
+		return -1;
+	for (int i = 0; i < 4; i++) {
+		node[i] = e.node[i];
+		w[i] = e.weight[i];
+	}
+	if (cell)
+		return cell_make(p, class_key(p, key, k), node, w, 4, e.n, e.over, &how, made);
+	if (!(mix = blend_nodes(p, node, w, 4, (size_t)e.n * e.n)))
+		return -1;
+	rc = poly_build(p, 0, mix, e.n, e.over, made);
+	free(mix);
+	return rc;
+}
 
 /*
- * psf-blend=core: the class cells of class K's family at the position of
- * the cell under key (centre cx, cy), made together: each class's four
- * nodes blended at the centre, then the differences of neighbouring
- * classes (dpair: class k + 1's cell less class k's, plane by plane, the
- * pair's difference at the centre to the cells' float rounding) published
- * first, then the cells.  One blend per class and position, where a pair's
- * difference blended from eight nodes cost two.  Returns class K's cell;
+ * psf-blend=core: class K's cell at the position of the cell under key
+ * (centre cx, cy), with the differences of the pairs about K (dpair: the
+ * upper class's blend less the lower's) published first.  A difference
+ * not yet made is taken plane by plane (and table by table) from K's
+ * blend and its neighbour's: the neighbour's cell when it is published,
+ * else the neighbour's four nodes blended here and dropped after (so the
+ * cells kept are those the sources use).  Before, a difference was
+ * blended from the pair's eight nodes and built anew.  Returns the cell;
  * NULL with an error recorded.
  */
-static struct poly *family_add(struct point *p, const struct wfs_source *src, uint64_t key,
-			       double cx, double cy, int K)
+static struct poly *class_add(struct point *p, const struct wfs_source *src, uint64_t key,
+			      double cx, double cy, int K)
 {
-	int n = p->nclasses / 2, k0 = K - K % n, made_n = 0;
-	struct poly made[FAMILY_MAX], dm, *cell = NULL;
-	const struct poly *diff[FAMILY_MAX];
+	int n = p->nclasses / 2, lo = K % n > 0, hi = K % n < n - 1;
+	struct poly made, *c = (struct poly *)poly_find(p, class_key(p, key, K));
 
-	if (n > FAMILY_MAX) {
-		p->host->error(p->host->ctx, "%d spectral classes per family: the point model "
-			       "takes %d", n, FAMILY_MAX);
+	if (c)
+		return c;
+	if (class_blend(p, src, key, cx, cy, K, 1, &made) < 0)
 		return NULL;
-	}
-	for (; made_n < n; made_n++) {
-		struct wfs_epsf e;
-		struct poly how = { .cclass = k0 + made_n };
-		const float *node[8] = { NULL };
-		double w[8] = { 0 };
+	for (int s = 0; s < 2; s++) {
+		int nb = s ? K + 1 : K - 1, a = s ? K : K - 1;
+		const struct poly *d = NULL, *nc;
+		struct poly tmp, dm;
+		int rc = 0;
 
-		if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class,
-					 k0 + made_n, &e) < 0)
-			goto fail;
-		for (int k = 0; k < 4; k++) {
-			node[k] = e.node[k];
-			w[k] = e.weight[k];
+		made.dpair[s] = NULL;
+		if (!(s ? hi : lo) || (made.dpair[s] = poly_find(p, pair_key(key, a))))
+			continue;
+		if (!(nc = poly_find(p, class_key(p, key, nb)))) {
+			if (class_blend(p, src, key, cx, cy, nb, 0, &tmp) < 0) {
+				poly_drop(&made);
+				return NULL;
+			}
+			nc = &tmp;
 		}
-		if (cell_make(p, class_key(p, key, k0 + made_n), node, w, 4, e.n, e.over, &how,
-			      &made[made_n]) < 0)
-			goto fail;
-	}
-	for (int i = 0; i + 1 < n; i++)
-		if (poly_diff(p, pair_key(key, k0 + i), &made[i + 1], &made[i], &dm) < 0 ||
-		    !(diff[i] = poly_insert(p, &dm)))
-			goto fail;
-	/* each insert takes its copy (kept, or dropped for another's) */
-	for (int i = 0; i < n; i++) {
-		struct poly *in;
-
-		made[i].dpair[0] = i > 0 ? diff[i - 1] : NULL;
-		made[i].dpair[1] = i + 1 < n ? diff[i] : NULL;
-		if (!(in = poly_insert(p, &made[i]))) {
-			while (++i < n)
-				poly_drop(&made[i]);
+		rc = poly_diff(p, pair_key(key, a), s ? nc : &made, s ? &made : nc, &dm);
+		if (nc == &tmp)
+			poly_drop(&tmp);
+		if (rc < 0 || !(d = poly_insert(p, &dm))) {
+			poly_drop(&made);
 			return NULL;
 		}
-		if (k0 + i == K)
-			cell = in;
+		made.dpair[s] = d;
 	}
-	return cell;
-fail:
-	for (int i = 0; i < made_n; i++)
-		poly_drop(&made[i]);
-	return NULL;
+	return poly_insert(p, &made);
 }
 
 /* The nodes a cell is blended from at its centre (cx, cy), into node[]
  * and w[] (returns how many, or -1), and its colour fields into *how: the
  * default spectrum's four, a class cell's four of its class (cclass;
- * psf-blend=core's come from family_add), or a pair cell's eight at step
+ * psf-blend=core's come from class_add), or a pair cell's eight at step
  * f, with psf-blend=core the pair's difference (dcol). */
 static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t key, double cx,
 		      double cy, struct poly *how, const float *node[8], double w[8],
@@ -564,7 +576,7 @@ static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t ke
 		}
 	}
 	if (p->blend == BLEND_CORE) {
-		if (!(c = family_add(p, src, key, cx, cy, ck)))
+		if (!(c = class_add(p, src, key, cx, cy, ck)))
 			return -1;
 		how->dcol = c->dpair[1];
 	}
@@ -590,7 +602,7 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 		return c;
 	if (p->blend == BLEND_CORE && colour_cell(p, src, &ck, &cj) >= 0 &&
 	    (cj == 0 || cj == p->colour_steps))
-		return family_add(p, src, key, cx, cy, ck + (cj != 0));
+		return class_add(p, src, key, cx, cy, ck + (cj != 0));
 	if ((nw = cell_nodes(p, src, key, cx, cy, &how, node, w, &e)) < 0 ||
 	    cell_make(p, key, node, w, nw, e.n, e.over, &how, &made) < 0)
 		return NULL;

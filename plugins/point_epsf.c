@@ -413,6 +413,48 @@ struct prep {
 	struct draw d;
 };
 
+/* A colour source in a class cell (psf-blend=core): its arrays as the
+ * five of colour_total() and the core's correction, the cell's class's
+ * nodes at the source's position weights (to aux[4..7]) and the pair's
+ * difference at the cell's centre times the source's colour less the
+ * cell's, so that the other class's nodes are neither looked up nor read
+ * (their enclosed light in box_cut() is the difference's).  Returns 0, 1
+ * when a node of the source is not the cell's (prep_nodes() then takes
+ * the source's own), or -1. */
+static int prep_class(struct point *p, struct wfs_source *src, struct prep *r)
+{
+	const struct poly *cell = r->cell, *dcol;
+	struct wfs_epsf e;
+	double f, g, w[4] = { 0 };
+	int a, nn = 0;
+
+	if (p->host->epsf_colour(p->host->ctx, src->sca, src->x, src->y, src->psf_class,
+				 cell->cclass, &e) < 0)
+		return -1;
+	point_pair(p, colour_of(p, src), &a, &f);
+	if (!(dcol = cell_pair(cell, a, &g)))
+		return 1;
+	for (int k = 0; k < 4; k++) {
+		int j;
+
+		if (e.weight[k] == 0)
+			continue;
+		for (j = 0; j < 4 && (cell->cnode[j] != e.node[k] || !cell->cpoly[j]); j++)
+			;
+		if (j == 4)
+			return 1;
+		w[j] += e.weight[k];
+		r->node[nn] = cell->cpoly[j];
+		r->w[nn++] = e.weight[k];
+	}
+	r->node[nn] = dcol;
+	r->w[nn++] = f - g;
+	r->nn = nn;
+	for (int j = 0; j < 4; j++)
+		src->aux[4 + j] += w[j];
+	return 0;
+}
+
 /* The source's nodes (not for psf-blend=cell): the cell's copies when the
  * cell was blended from them (their weights go to aux[4..7] in the cell's
  * order), else copies made here.  Returns 0 or -1. */
@@ -420,9 +462,12 @@ static int prep_nodes(struct point *p, struct wfs_source *src, struct prep *r)
 {
 	struct wfs_epsf es[2];
 	double wc[2];
-	int cls[2], ne = src_epsf(p, src, es, wc, cls);
+	int cls[2], ne;
 
-	if (ne < 0)
+	if (r->cell && r->cell->cclass >= 0 && r->blend == BLEND_CORE &&
+	    colour_of(p, src) >= 0 && (ne = prep_class(p, src, r)) <= 0)
+		return ne;
+	if ((ne = src_epsf(p, src, es, wc, cls)) < 0)
 		return -1;
 	for (int i = 0; i < ne; i++)
 	for (int k = 0; k < 4; k++) {

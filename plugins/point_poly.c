@@ -136,6 +136,36 @@ static void poly_drop(struct poly *q)
 	q->ee = NULL;
 }
 
+/* Node array's samples into q's planes (phase r, s: rows and columns
+ * PAD .. PAD + its samples - 1), the rest of each plane and the slack
+ * after the last set to zero: each float written once (no calloc). */
+static void plane_fill(struct poly *q, const float *node)
+{
+	int n = q->n, over = q->over, m = q->m;
+
+	for (int r = 0; r < over; r++)
+		for (int s = 0; s < over; s++) {
+			float *pl = q->plane + (size_t)(r * over + s) * m * m;
+			int ny = (n - r + over - 1) / over, nx = (n - s + over - 1) / over;
+
+			memset(pl, 0, (size_t)PAD * m * sizeof(float));
+			for (int a = 0; a < ny; a++) {
+				float *row = pl + (size_t)(PAD + a) * m;
+				const float *in = node + (size_t)(r + a * over) * n + s;
+
+				for (int b = 0; b < PAD; b++)
+					row[b] = 0;
+				for (int b = 0; b < nx; b++)
+					row[PAD + b] = in[(size_t)b * over];
+				for (int b = PAD + nx; b < m; b++)
+					row[b] = 0;
+			}
+			memset(pl + (size_t)(PAD + ny) * m, 0,
+			       (size_t)(m - PAD - ny) * m * sizeof(float));
+		}
+	memset(q->plane + (size_t)over * over * m * m, 0, VSLACK * sizeof(float));
+}
+
 /* The polyphase copy of an n x n ePSF array under key, into *q, outside
  * the table: any thread, no lock.  Returns 0, or -1 with an error recorded
  * (poly_drop() then has nothing to free). */
@@ -147,26 +177,48 @@ static int poly_build(struct point *p, uint64_t key, const float *node, int n, i
 
 	*q = (struct poly){ .key = key, .n = n, .over = over, .centre = (n - 1) / 2, .m = m };
 	q->nee = q->centre / over;
-	q->plane = calloc((size_t)over * over * m * m + VSLACK, sizeof(float));
+	q->plane = malloc(((size_t)over * over * m * m + VSLACK) * sizeof(float));
 	q->sat = malloc((size_t)over * over * (m + 1) * (m + 1) * sizeof(float));
-	q->ee = calloc((size_t)q->nee + 1, sizeof(double));
+	q->ee = malloc(((size_t)q->nee + 1) * sizeof(double));
 	row = malloc((size_t)(m + 1) * sizeof(double));
 	if (!q->plane || !q->sat || !q->ee || !row) {
 		free(row);
 		poly_drop(q);
 		return p->host->error(p->host->ctx, "out of memory");
 	}
-	for (int r = 0; r < over; r++)
-		for (int s = 0; s < over; s++) {
-			float *pl = q->plane + (size_t)(r * over + s) * m * m;
-
-			for (int y = r, a = PAD; y < n; y += over, a++)
-				for (int x = s, b = PAD; x < n; x += over, b++)
-					pl[a * m + b] = node[(size_t)y * n + x];
-		}
+	plane_fill(q, node);
 	ee_table(q, node);
 	sat_table(q, row);
 	free(row);
+	return 0;
+}
+
+/* The difference hi - lo of two copies of one layout, under key, into *q
+ * (planes, tables and enclosed light each the difference of the two's, in
+ * double rounded to float): linear, so it is the copy of the difference
+ * of their arrays to the rounding of either.  Returns 0, or -1 with an
+ * error recorded. */
+static int poly_diff(struct point *p, uint64_t key, const struct poly *hi,
+		     const struct poly *lo, struct poly *q)
+{
+	int o = hi->over, m = hi->m;
+	size_t np = (size_t)o * o * m * m + VSLACK, ns = (size_t)o * o * (m + 1) * (m + 1);
+
+	*q = (struct poly){ .key = key, .n = hi->n, .over = o, .centre = hi->centre, .m = m,
+			    .nee = hi->nee };
+	q->plane = malloc(np * sizeof(float));
+	q->sat = malloc(ns * sizeof(float));
+	q->ee = malloc(((size_t)q->nee + 1) * sizeof(double));
+	if (!q->plane || !q->sat || !q->ee) {
+		poly_drop(q);
+		return p->host->error(p->host->ctx, "out of memory");
+	}
+	for (size_t i = 0; i < np; i++)
+		q->plane[i] = (float)((double)hi->plane[i] - lo->plane[i]);
+	for (size_t i = 0; i < ns; i++)
+		q->sat[i] = (float)((double)hi->sat[i] - lo->sat[i]);
+	for (int h = 0; h <= q->nee; h++)
+		q->ee[h] = hi->ee[h] - lo->ee[h];
 	return 0;
 }
 
@@ -226,7 +278,7 @@ static size_t slots_wanted(const struct point *p, long c)
 	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * WFS_SCA_COUNT *
 		       (p->blend == BLEND_CELL ? 3 : 1) * (1 + (size_t)p->colour_cells);
 
-	/* and per position the colour cells' pair differences (dcol_add) */
+	/* and per position the colour cells' pair differences (class_add) */
 	if (p->colour_cells)
 		cells += cells / (1 + (size_t)p->colour_cells) * (size_t)p->nclasses;
 	return 2 * (cells + POLY_NODES);
@@ -291,7 +343,8 @@ static long colour_cell(const struct point *p, const struct wfs_source *src, int
 	if (!(c >= 0) || !p->colour_cells)
 		return -1;
 	point_pair(p, c, k, &f);
-	*j = (int)lround(f * s);
+	/* lround(f s), f s >= 0, without a library call */
+	*j = (int)lfloor(f * s + 0.5);
 	return (long)(*k + (*j == s)) * (s + 1) + (*j == s ? 0 : *j);
 }
 
@@ -338,51 +391,158 @@ static float *blend_nodes(struct point *p, const float *const node[8], const dou
 	return mix;
 }
 
-/* A colour cell's pair difference (struct poly, dcol): the blend at the
- * cell's centre of class ck + 1's nodes less class ck's, e[0] and e[1],
- * one per pair and position (the cells of every step share it), under
- * the cell's key with the pair in place of the step and the top bit set
- * (cell keys never have it).  NULL with an error recorded. */
-static const struct poly *dcol_add(struct point *p, uint64_t key, int ck,
-				   const struct wfs_epsf e[2])
+/* The key of class k's cell (colour_cell: index k (steps + 1)) at the
+ * position of the cell under key. */
+static uint64_t class_key(const struct point *p, uint64_t key, int k)
 {
-	uint64_t dkey = (key & ~(0x7fffULL << 48)) | (uint64_t)(ck + 1) << 48 | 1ULL << 63;
-	const struct poly *d = poly_find(p, dkey);
-	const float *node[8];
-	double w[8];
-	struct poly made;
+	return (key & ~(0x7fffULL << 48)) | (uint64_t)((long)k * (p->colour_steps + 1) + 1) << 48;
+}
+
+/* The key of the difference of the class pair k, k + 1 there: the pair
+ * in place of the step, and the top bit set (cell keys never have it). */
+static uint64_t pair_key(uint64_t key, int k)
+{
+	return (key & ~(0x7fffULL << 48)) | (uint64_t)(k + 1) << 48 | 1ULL << 63;
+}
+
+/* A cell blended from the nw arrays node[] (n x n, over) with weights w[]
+ * into *made, unpublished, with how's colour fields; psf-blend=core: the
+ * nodes' own polyphase copies made (and published) first, so that the
+ * cell is published whole.  A pair's colour cell keeps both classes'
+ * nodes of every position weight (a class's weight may be 0: the core's
+ * correction reads them for the sources in the cell).  Returns 0, or -1
+ * with an error recorded. */
+static int cell_make(struct point *p, uint64_t key, const float *const node[8],
+		     const double w[8], int nw, int n, int over, const struct poly *how,
+		     struct poly *made)
+{
+	const float *cnode[8];
+	const struct poly *cpoly[8];
 	float *mix;
 	int rc;
 
-	if (d)
-		return d;
-	for (int k = 0; k < 4; k++) {
-		node[k] = e[1].node[k];
-		w[k] = e[1].weight[k];
-		node[4 + k] = e[0].node[k];
-		w[4 + k] = -e[0].weight[k];
+	for (int k = 0; k < 8; k++) {
+		cnode[k] = k < nw && (w[k] != 0 || (nw == 8 && w[k ^ 4] != 0)) ? node[k] : NULL;
+		cpoly[k] = NULL;
+		if (p->blend == BLEND_CORE && cnode[k] &&
+		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)node[k], node[k], n, over)))
+			return -1;
 	}
-	if (!(mix = blend_nodes(p, node, w, 8, (size_t)e[0].n * e[0].n)))
-		return NULL;
-	rc = poly_build(p, dkey, mix, e[0].n, e[0].over, &made);
+	if (!(mix = blend_nodes(p, node, w, nw, (size_t)n * n)))
+		return -1;
+	rc = poly_build(p, key, mix, n, over, made);
 	free(mix);
-	return rc < 0 ? NULL : poly_insert(p, &made);
+	if (rc < 0)
+		return -1;
+	for (int k = 0; k < 8; k++) {
+		made->cnode[k] = cnode[k];
+		made->cweight[k] = cnode[k] ? w[k] : 0;
+		/* a class cell's nodes are those of either step (cpoly[k +
+		 * 4 e], point_epsf.c) */
+		made->cpoly[k] = how->cclass >= 0 && k >= 4 ? cpoly[k - 4] : cpoly[k];
+	}
+	made->cstep = how->cstep;
+	made->dcol = how->dcol;
+	made->cclass = how->cclass;
+	made->dpair[0] = how->dpair[0];
+	made->dpair[1] = how->dpair[1];
+	return 0;
+}
+
+/* Class k's blend at (cx, cy) of the source's SCA and size class, into
+ * *made, unpublished: a class cell (nodes kept, psf-blend=core's copies
+ * made) when cell is set, else a bare copy to take a difference from.
+ * Returns 0, or -1 with an error recorded. */
+static int class_blend(struct point *p, const struct wfs_source *src, uint64_t key, double cx,
+		       double cy, int k, int cell, struct poly *made)
+{
+	struct wfs_epsf e;
+	struct poly how = { .cclass = k };
+	const float *node[8] = { NULL };
+	double w[8] = { 0 };
+	float *mix;
+	int rc;
+
+	if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class, k, &e) < 0)
+		return -1;
+	for (int i = 0; i < 4; i++) {
+		node[i] = e.node[i];
+		w[i] = e.weight[i];
+	}
+	if (cell)
+		return cell_make(p, class_key(p, key, k), node, w, 4, e.n, e.over, &how, made);
+	if (!(mix = blend_nodes(p, node, w, 4, (size_t)e.n * e.n)))
+		return -1;
+	rc = poly_build(p, 0, mix, e.n, e.over, made);
+	free(mix);
+	return rc;
+}
+
+/*
+ * psf-blend=core: class K's cell at the position of the cell under key
+ * (centre cx, cy), with the differences of the pairs about K (dpair: the
+ * upper class's blend less the lower's) published first.  A difference
+ * not yet made is taken plane by plane (and table by table) from K's
+ * blend and its neighbour's: the neighbour's cell when it is published,
+ * else the neighbour's four nodes blended here and dropped after (so the
+ * cells kept are those the sources use).  Before, a difference was
+ * blended from the pair's eight nodes and built anew.  Returns the cell;
+ * NULL with an error recorded.
+ */
+static struct poly *class_add(struct point *p, const struct wfs_source *src, uint64_t key,
+			      double cx, double cy, int K)
+{
+	int n = p->nclasses / 2, lo = K % n > 0, hi = K % n < n - 1;
+	struct poly made, *c = (struct poly *)poly_find(p, class_key(p, key, K));
+
+	if (c)
+		return c;
+	if (class_blend(p, src, key, cx, cy, K, 1, &made) < 0)
+		return NULL;
+	for (int s = 0; s < 2; s++) {
+		int nb = s ? K + 1 : K - 1, a = s ? K : K - 1;
+		const struct poly *d = NULL, *nc;
+		struct poly tmp, dm;
+		int rc = 0;
+
+		made.dpair[s] = NULL;
+		if (!(s ? hi : lo) || (made.dpair[s] = poly_find(p, pair_key(key, a))))
+			continue;
+		if (!(nc = poly_find(p, class_key(p, key, nb)))) {
+			if (class_blend(p, src, key, cx, cy, nb, 0, &tmp) < 0) {
+				poly_drop(&made);
+				return NULL;
+			}
+			nc = &tmp;
+		}
+		rc = poly_diff(p, pair_key(key, a), s ? nc : &made, s ? &made : nc, &dm);
+		if (nc == &tmp)
+			poly_drop(&tmp);
+		if (rc < 0 || !(d = poly_insert(p, &dm))) {
+			poly_drop(&made);
+			return NULL;
+		}
+		made.dpair[s] = d;
+	}
+	return poly_insert(p, &made);
 }
 
 /* The nodes a cell is blended from at its centre (cx, cy), into node[]
- * and w[] (returns how many, or -1): the default spectrum's four, a class
- * cell's four of its class (cclass), or a pair cell's eight at step f.
- * psf-blend=core: the pairs' differences too (dcol, dpair). */
+ * and w[] (returns how many, or -1), and its colour fields into *how: the
+ * default spectrum's four, a class cell's four of its class (cclass;
+ * psf-blend=core's come from class_add), or a pair cell's eight at step
+ * f, with psf-blend=core the pair's difference (dcol). */
 static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t key, double cx,
-		      double cy, struct poly *made, const float *node[8], double w[8],
+		      double cy, struct poly *how, const float *node[8], double w[8],
 		      struct wfs_epsf *e)
 {
-	struct wfs_epsf ep[3];
-	int ck, cj, nw = 0, n = p->nclasses / 2, core = p->blend == BLEND_CORE;
+	struct wfs_epsf ep[2];
+	const struct poly *c;
+	int ck, cj, nw = 0;
 
-	made->cclass = -1;
-	made->cstep = 0;
-	made->dcol = made->dpair[0] = made->dpair[1] = NULL;
+	how->cclass = -1;
+	how->cstep = 0;
+	how->dcol = how->dpair[0] = how->dpair[1] = NULL;
 	if (colour_cell(p, src, &ck, &cj) < 0) {
 		if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, e) < 0)
 			return -1;
@@ -393,28 +553,18 @@ static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t ke
 		return nw;
 	}
 	if (cj == 0 || cj == p->colour_steps) {
-		/* a class cell: class K's nodes; the differences of the pairs
-		 * K - 1, K and K, K + 1 that exist in its family */
-		int K = ck + (cj != 0), lo = K % n > 0, hi = K % n < n - 1;
-
-		made->cclass = K;
-		for (int i = -lo; i <= hi; i++)
-			if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class,
-						 K + i, &ep[1 + i]) < 0)
-				return -1;
-		*e = ep[1];
+		how->cclass = ck + (cj != 0);
+		if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class,
+					 how->cclass, e) < 0)
+			return -1;
 		for (int k = 0; k < 4; k++) {
 			node[nw] = e->node[k];
 			w[nw++] = e->weight[k];
 		}
-		if (core && lo && !(made->dpair[0] = dcol_add(p, key, K - 1, ep)))
-			return -1;
-		if (core && hi && !(made->dpair[1] = dcol_add(p, key, K, ep + 1)))
-			return -1;
 		return nw;
 	}
 	/* a pair cell: the pair's nodes, its blend rounded to cj / steps */
-	made->cstep = (double)cj / p->colour_steps;
+	how->cstep = (double)cj / p->colour_steps;
 	for (int i = 0; i < 2; i++) {
 		if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class, ck + i,
 					 &ep[i]) < 0)
@@ -422,11 +572,14 @@ static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t ke
 		*e = ep[i];
 		for (int k = 0; k < 4; k++) {
 			node[nw] = e->node[k];
-			w[nw++] = (i ? made->cstep : 1 - made->cstep) * e->weight[k];
+			w[nw++] = (i ? how->cstep : 1 - how->cstep) * e->weight[k];
 		}
 	}
-	if (core && !(made->dcol = dcol_add(p, key, ck, ep)))
-		return -1;
+	if (p->blend == BLEND_CORE) {
+		if (!(c = class_add(p, src, key, cx, cy, ck)))
+			return -1;
+		how->dcol = c->dpair[1];
+	}
 	return nw;
 }
 
@@ -441,47 +594,18 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
 	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
 	struct poly *c = (struct poly *)poly_find(p, key), made, how;
-	const float *cnode[8], *node[8];
-	const struct poly *cpoly[8];
+	const float *node[8];
 	double w[8];
-	float *mix;
-	int rc, nw;
+	int nw, ck, cj;
 
 	if (c)
 		return c;
-	if ((nw = cell_nodes(p, src, key, cx, cy, &how, node, w, &e)) < 0)
+	if (p->blend == BLEND_CORE && colour_cell(p, src, &ck, &cj) >= 0 &&
+	    (cj == 0 || cj == p->colour_steps))
+		return class_add(p, src, key, cx, cy, ck + (cj != 0));
+	if ((nw = cell_nodes(p, src, key, cx, cy, &how, node, w, &e)) < 0 ||
+	    cell_make(p, key, node, w, nw, e.n, e.over, &how, &made) < 0)
 		return NULL;
-	/* what the cell is blended from, for the core's correction
-	 * (psf-blend=core): the nodes' own polyphase copies too, made
-	 * first, so that the cell is published whole */
-	/* a pair's colour cell keeps both classes' nodes of every position
-	 * weight (a class's weight may be 0: psf-blend=core's correction
-	 * reads them for the sources in the cell) */
-	for (int k = 0; k < 8; k++) {
-		cnode[k] = k < nw && (w[k] != 0 || (nw == 8 && w[k ^ 4] != 0)) ? node[k] : NULL;
-		cpoly[k] = NULL;
-		if (p->blend == BLEND_CORE && cnode[k] &&
-		    !(cpoly[k] = poly_add(p, (uint64_t)(uintptr_t)node[k], node[k], e.n, e.over)))
-			return NULL;
-	}
-	if (!(mix = blend_nodes(p, node, w, nw, (size_t)e.n * e.n)))
-		return NULL;
-	rc = poly_build(p, key, mix, e.n, e.over, &made);
-	free(mix);
-	if (rc < 0)
-		return NULL;
-	for (int k = 0; k < 8; k++) {
-		made.cnode[k] = cnode[k];
-		made.cweight[k] = cnode[k] ? w[k] : 0;
-		/* a class cell's nodes are those of either step (cpoly[k +
-		 * 4 e], point_epsf.c) */
-		made.cpoly[k] = how.cclass >= 0 && k >= 4 ? cpoly[k - 4] : cpoly[k];
-	}
-	made.cstep = how.cstep;
-	made.dcol = how.dcol;
-	made.cclass = how.cclass;
-	made.dpair[0] = how.dpair[0];
-	made.dpair[1] = how.dpair[1];
 	return poly_insert(p, &made);
 }
 

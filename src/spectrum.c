@@ -167,26 +167,32 @@ void colour_free(struct colour *c)
 	free(c);
 }
 
-/* SCA sca's tables, filled by the first thread that wants them. */
-static const struct sca_tables *tables(struct colour *c, int sca)
+/* SCA sca's tables filled, by the first thread that wants them. */
+static __attribute__((noinline)) void tables_once(struct colour *c, struct sca_tables *t, int sca)
+{
+	pthread_mutex_lock(&t->lock);
+	if (!t->done) {
+		tables_fill(c, sca);
+		__atomic_store_n(&t->done, 1, __ATOMIC_RELEASE);
+	}
+	pthread_mutex_unlock(&t->lock);
+}
+
+/* SCA sca's tables (a row's look-up: the filled test inline). */
+static inline const struct sca_tables *tables(struct colour *c, int sca)
 {
 	struct sca_tables *t = &c->t[sca - 1];
 
-	if (!__atomic_load_n(&t->done, __ATOMIC_ACQUIRE)) {
-		pthread_mutex_lock(&t->lock);
-		if (!t->done) {
-			tables_fill(c, sca);
-			__atomic_store_n(&t->done, 1, __ATOMIC_RELEASE);
-		}
-		pthread_mutex_unlock(&t->lock);
-	}
+	if (!__atomic_load_n(&t->done, __ATOMIC_ACQUIRE))
+		tables_once(c, t, sca);
 	return t;
 }
 
-/* Catmull-Rom through tab[] (n uniform nodes) at fractional index u. */
-static double spline(const double *tab, int n, double u)
+/* Catmull-Rom through tab[] (n uniform nodes) at fractional index u >= 0
+ * (so (int) u is its floor). */
+static inline double spline(const double *tab, int n, double u)
 {
-	int i = (int)floor(u);
+	int i = (int)u;
 
 	if (i < 1)
 		i = 1;

@@ -336,8 +336,8 @@ static void report_work(FILE *f, struct engine *g)
 	const struct scene_opts *o = g->o;
 	int first;
 
-	/* What the scene needed and so did: the models loaded, the FFT sizes
-	 * planned (Sersic convolution), the tiles drawn on before noise (the
+	/* What the scene needed and so did: the models loaded, the FFT plans
+	 * made (Sersic convolution), the tiles drawn on before noise (the
 	 * rest were never allocated), the noise stages that drew random
 	 * numbers (none: the random number code never ran). */
 	fprintf(f, "  \"work\": {\"models\": [");

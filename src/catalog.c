@@ -952,6 +952,11 @@ static int read_spectrum(struct catalog *c, const struct table_chunk *ch, size_t
 			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': not a finite "
 				       "slope: '%.40s'", ch->file, ch->line[i], name,
 				       table_text(ch, col[k], i));
+		if (k > 0 && fabs(c->spec_value[i]) > SPEC_BETA_MAX)
+			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': '%.40s' gives "
+				       "the slope beta = %.4g, steeper than +-%g", ch->file,
+				       ch->line[i], name, table_text(ch, col[k], i),
+				       c->spec_value[i], SPEC_BETA_MAX);
 	}
 	return 0;
 }

@@ -174,8 +174,9 @@ static int set_beta(const struct opt_arg *a, struct err *e)
 	char *end;
 	double v = strtod(a->value, &end);
 
-	if (*end || end == a->value || !isfinite(v))
-		return err_set(e, EXIT_INPUT, "--beta: want a finite slope, not '%s'", a->value);
+	if (*end || end == a->value || !(fabs(v) <= SPEC_BETA_MAX))
+		return err_set(e, EXIT_INPUT, "--beta: want a slope from %g to %g, not '%s'",
+			       -SPEC_BETA_MAX, SPEC_BETA_MAX, a->value);
 	*(double *)a->field = v;
 	return 0;
 }

@@ -22,6 +22,9 @@ enum spec_kind { SPEC_DEFAULT = 0, SPEC_BLACKBODY = 1, SPEC_POWER = 2 };
 
 #define SPEC_TEFF_MIN 1000.0    /* K, the range a teff cell may hold */
 #define SPEC_TEFF_MAX 100000.0
+#define SPEC_BETA_MAX 20.0     /* |beta| a beta cell, or the slope a colour
+				 * gives, may hold: 20 spans 10^11 in f_nu
+				 * across the bluest to the reddest filter */
 
 struct spectrum {
 	int kind;               /* enum spec_kind */

@@ -330,5 +330,29 @@ printf 'x,y,flux,teff,beta\n1,1,20,5000,\n1,1,20,5000,1\n' > both.csv
 refused both "both.csv:3: columns 'teff' and 'beta': give one spectrum per row"
 printf 'x,y,flux,color_f106_f158\n1,1,20,1e308\n' > huge.csv
 refused huge "huge.csv:2: column 'color_f106_f158': not a finite slope: '1e308'"
+printf 'x,y,flux,beta\n1,1,20,20\n1,1,20,-200\n' > steep.csv
+refused steep "steep.csv:3: column 'beta': '-200' gives the slope beta = -200, steeper than +-20"
+printf 'x,y,flux,color_f106_f158\n1,1,20,9.5\n' > steepc.csv
+refused steepc "steepc.csv:2: column 'color_f106_f158': '9.5' gives the slope beta = -21.93"
+
+# the steepest slopes allowed give finite counts: the flat counts times
+# the colour term summed here from the throughput table (term.py)
+cat > edge.csv <<EOF
+x,y,flux,beta
+500,500,20,20
+600,600,20,-20
+700,700,20,0
+EOF
+test_expect_success 'beta 20 and -20: finite counts, the colour term exact' '
+	"$WFS" --filter F146 --flux-unit jy --placed pe.csv -o edge.fits edge.csv &&
+	kb=$("$PY" term.py F146 1 beta 20 "$TOP/data") && kr=$("$PY" term.py F146 1 beta -20 "$TOP/data") &&
+	say "beta 20 x$kb, beta -20 x$kr" &&
+	"$PY" -c "
+import csv, math
+r = [float(x[\"flux\"]) for x in csv.DictReader(open(\"pe.csv\"))]
+assert all(math.isfinite(v) and v > 0 for v in r), r
+assert abs(r[0] / r[2] / $kb - 1) < 2e-5 and abs(r[1] / r[2] / $kr - 1) < 2e-5, (r, $kb, $kr)
+"
+'
 
 test_done

@@ -924,8 +924,10 @@ static void level1_reads(struct l1row *R, int gi)
 		for (; j < m; j++)
 			read_pixel(R, &G, i0 + j, w[j], &hp);
 	}
+#ifdef SIMD_X86
 	if (R->nz)
 		read8_slow_flush(R, &G);
+#endif
 }
 
 /*

@@ -132,8 +132,7 @@ static void philox4_cells(const struct rng *g, __m128i a0, uint32_t draw, uint32
 {
 	const __m128i m0 = _mm_set1_epi32((int)PHILOX_M0);
 	const __m128i m1 = _mm_set1_epi32((int)PHILOX_M1);
-	__m128i a1 = _mm_set1_epi32((int)draw);
-	__m128i a2 = _mm_set1_epi32((int)g->dom[0]);
+	__m128i a1 = _mm_set1_epi32((int)draw), a2 = _mm_set1_epi32((int)g->dom[0]);
 	__m128i a3 = _mm_set1_epi32((int)g->dom[1]);
 	uint32_t k0 = g->key[0], k1 = g->key[1];
 
@@ -188,8 +187,8 @@ static void philox8(const struct rng *g, uint32_t cell0, uint32_t draw,
 void rng_bits_cells(const struct rng *g, const uint32_t *cells, uint32_t draw, size_t n,
 		    uint32_t (*out)[4])
 {
-	for (size_t i = 0; i < n; i++)
-		rng_bits(g, cells[i], draw, out[i]);
+	while (n--)
+		rng_bits(g, *cells++, draw, *out++);
 }
 #endif
 
@@ -1053,7 +1052,7 @@ static double zig_slow_from(struct rng_cell *cp, int i, double u)
 	}
 }
 
-static double zig_slow(const struct rng *g, uint32_t cell, int i, double u)
+double rng_normal_slow(const struct rng *g, uint32_t cell, int i, double u)
 {
 	struct rng_cell c;
 
@@ -1063,19 +1062,11 @@ static double zig_slow(const struct rng *g, uint32_t cell, int i, double u)
 
 static inline double zig_normal(const struct rng *g, uint32_t cell, uint32_t hi, uint32_t lo)
 {
-	uint64_t w = (uint64_t)hi << 32 | lo;
-	int i = (int)(w & 0xff);
-	double u = (double)((int64_t)w >> 11) * 0x1p-52;
-	double x = u * zig_x[i];
+	double u, x;
+	int i = rng_zig_layer(hi, lo, &u);
 
-	if (fabs(x) < zig_x[i + 1])
-		return x;
-	return zig_slow(g, cell, i, u);
-}
-
-double rng_normal_slow(const struct rng *g, uint32_t cell, int i, double u)
-{
-	return zig_slow(g, cell, i, u);
+	x = u * zig_x[i];
+	return fabs(x) < zig_x[i + 1] ? x : rng_normal_slow(g, cell, i, u);
 }
 
 #ifdef SIMD_X86
@@ -1103,10 +1094,9 @@ zig8_avx512(const uint32_t (*w)[4], double *out)
 #endif
 
 /*
- * The slow cases of rng_normal_fill, put off and then drawn in groups:
- * each wants its cell's draw 1, and a scalar Philox call per case cost
- * as much as ~17 lanes of the bulk calls; rng_bits_cells() makes eight
- * at once.  Each case still takes the very numbers zig_slow() would.
+ * The slow cases of rng_normal_fill, put off and drawn in groups: a
+ * scalar Philox call for a case's draw 1 cost as much as ~17 lanes of the
+ * bulk calls.  Each case takes the very numbers rng_normal_slow() would.
  */
 #define ZIG_DEFER 16
 struct zig_defer {
@@ -1128,12 +1118,8 @@ void rng_normal_slow_n(const struct rng *g, const uint32_t *cell, const int *lay
 		for (size_t k = 0; k < m; k++) {
 			struct rng_cell c;
 
-			c.g = g;
-			c.cell = cell[i + k];
-			c.draw = 2;
-			c.buf[0] = rng_u01(w[k][0], w[k][1]);
-			c.buf[1] = rng_u01(w[k][2], w[k][3]);
-			c.left = 2;
+			rng_cell_preload(&c, g, cell[i + k], w[k]);
+			c.draw++; /* the preloaded call is draw 1 */
 			out[i + k] = zig_slow_from(&c, layer[i + k], u[i + k]);
 		}
 	}
@@ -1153,15 +1139,12 @@ static void zig_flush(const struct rng *g, struct zig_defer *d)
 static inline void zig_put(const struct rng *g, struct zig_defer *d, uint32_t cell,
 			   uint32_t hi, uint32_t lo, double *dst)
 {
-	uint64_t w = (uint64_t)hi << 32 | lo;
-	int i = (int)(w & 0xff);
-	double u = (double)((int64_t)w >> 11) * 0x1p-52;
-	double x = u * zig_x[i];
+	double u, x;
+	int i = rng_zig_layer(hi, lo, &u);
 
-	if (fabs(x) < zig_x[i + 1]) {
-		*dst = x;
+	*dst = x = u * zig_x[i]; /* a slow case's is written again */
+	if (fabs(x) < zig_x[i + 1])
 		return;
-	}
 	d->cell[d->n] = cell;
 	d->layer[d->n] = i;
 	d->u[d->n] = u;

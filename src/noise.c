@@ -598,8 +598,9 @@ static void post_plain(const struct chunk_pass *p, double *c, const double *zp,
 #define SIGN_BIT ((long long)0x8000000000000000ULL)
 
 static inline __attribute__((always_inline)) int
-pre8(const struct chunk_pass *p, double *c, double *zp, int n)
+pre8(const struct chunk_pass *pp, double *c, double *zp, int n)
 {
+	const struct chunk_pass P = *pp, *p = &P; /* c's stores do not reach it */
 	int i = 0;
 
 	for (; i + 8 <= n; i += 8) {
@@ -620,9 +621,10 @@ pre8(const struct chunk_pass *p, double *c, double *zp, int n)
 }
 
 static inline __attribute__((always_inline)) int
-post8(const struct chunk_pass *p, double *c, const double *zp, const double *zr,
+post8(const struct chunk_pass *pp, double *c, const double *zp, const double *zr,
       const double *zf, const double *zd, int n)
 {
+	const struct chunk_pass P = *pp, *p = &P; /* c's stores do not reach it */
 	int i = 0;
 
 	for (; i + 8 <= n; i += 8) {

@@ -309,6 +309,8 @@ void ramp_scratch_init(double *scratch)
 }
 
 /* The state of one row's level1() call, shared by its steps. */
+#define RAMP_SLOWZ 16
+
 struct l1row {
 	const struct ramp_pattern *p;
 	const struct ramp_det *d;
@@ -335,6 +337,12 @@ struct l1row {
 	 * zero where there is none */
 	const struct ramp_glow *glow;
 	double *Dx, *Wx;
+	/* read8_avx512()'s lanes whose only slow case is the read noise's
+	 * deviate, put off to be drawn RAMP_SLOWZ at a time */
+	int nz;
+	int zpix[RAMP_SLOWZ], zlayer[RAMP_SLOWZ];
+	uint32_t zcell[RAMP_SLOWZ];
+	double zu[RAMP_SLOWZ], zmm[RAMP_SLOWZ];
 };
 
 /* Before the first read: the rates (the dark current added where light
@@ -693,33 +701,52 @@ split8_avx512(const struct l1grp *G, __m512d Di, __m512i w23, __mmask8 *bad)
 	return W;
 }
 
-/* The lanes q of read8_avx512() whose only slow case is the read noise's
- * deviate (badz): that deviate alone, as read_pixel() would draw it, into
- * what it changes (the charge does not hold it); mm the lanes' measured
- * means. */
-static void read8_slow_noise(struct l1row *R, const struct l1grp *G, int i,
-			     const uint32_t (*w)[4], unsigned badz, const double mm[8])
+/* The read noise's deviates put off by read8_slow_noise(), drawn together
+ * (rng_normal_slow_n: the numbers rng_normal_bits() gives), into what
+ * they change (the charge does not hold them). */
+static void read8_slow_flush(struct l1row *R, const struct l1grp *G)
 {
 	const struct ramp_det *d = R->d;
+	double zq[RAMP_SLOWZ];
 
-	for (int q = 0; q < 8; q++) {
-		double zq, v;
+	rng_normal_slow_n(&G->g, R->zcell, R->zlayer, R->zu, (size_t)R->nz, zq);
+	for (int k = 0; k < R->nz; k++) {
+		int i = R->zpix[k];
+		double v;
 
-		if (!(badz >> q & 1))
-			continue;
-		zq = rng_normal_bits(&G->g, R->cell0 + (uint32_t)(i + q), w[q][0], w[q][1]);
 		if (R->ch) {
-			size_t o = (size_t)G->gi * R->cplane + (size_t)(i + q);
+			size_t o = (size_t)G->gi * R->cplane + (size_t)i;
 
-			R->own[o] = (float)(R->Q[i + q] + G->sn * zq);
+			R->own[o] = (float)(R->Q[i] + G->sn * zq[k]);
 			continue;
 		}
-		v = mm[q] + G->sn * zq;
+		v = R->zmm[k] + G->sn * zq[k];
 		if (v > d->sat_e)
 			v = d->sat_e;
 		v = round_even(v * G->inv_g);
-		R->out[(size_t)G->gi * R->plane + (size_t)(i + q)] =
+		R->out[(size_t)G->gi * R->plane + (size_t)i] =
 			(uint16_t)(v < 0 ? 0 : v > 65535 ? 65535 : v);
+	}
+	R->nz = 0;
+}
+
+/* The lanes q of read8_avx512() whose only slow case is the read noise's
+ * deviate (badz): that deviate put off, as read_pixel() would draw it;
+ * mm the lanes' measured means. */
+static void read8_slow_noise(struct l1row *R, const struct l1grp *G, int i,
+			     const uint32_t (*w)[4], unsigned badz, const double mm[8])
+{
+	for (int q = 0; q < 8; q++) {
+		int k = R->nz;
+
+		if (!(badz >> q & 1))
+			continue;
+		R->zpix[k] = i + q;
+		R->zcell[k] = R->cell0 + (uint32_t)(i + q);
+		R->zlayer[k] = rng_zig_layer(w[q][0], w[q][1], &R->zu[k]);
+		R->zmm[k] = mm[q];
+		if (++R->nz == RAMP_SLOWZ)
+			read8_slow_flush(R, G);
 	}
 }
 
@@ -897,6 +924,10 @@ static void level1_reads(struct l1row *R, int gi)
 		for (; j < m; j++)
 			read_pixel(R, &G, i0 + j, w[j], &hp);
 	}
+#ifdef SIMD_X86
+	if (R->nz)
+		read8_slow_flush(R, &G);
+#endif
 }
 
 /*

@@ -93,13 +93,12 @@ static inline void store4(__m128i x0, __m128i x1, __m128i x2, __m128i x3,
 	_mm_storeu_si128((__m128i *)out[3], _mm_unpackhi_epi64(t2, t3));
 }
 
-static void philox8(const struct rng *g, uint32_t cell0, uint32_t draw,
-		    uint32_t out[8][4])
+/* Philox of the eight cells a0 (lanes 0-3) and b0 (4-7) at draw. */
+static inline __attribute__((always_inline)) void
+philox8_cells(const struct rng *g, __m128i a0, __m128i b0, uint32_t draw, uint32_t out[8][4])
 {
 	const __m128i m0 = _mm_set1_epi32((int)PHILOX_M0);
 	const __m128i m1 = _mm_set1_epi32((int)PHILOX_M1);
-	__m128i a0 = _mm_add_epi32(_mm_set1_epi32((int)cell0), _mm_set_epi32(3, 2, 1, 0));
-	__m128i b0 = _mm_add_epi32(a0, _mm_set1_epi32(4));
 	__m128i a1 = _mm_set1_epi32((int)draw), b1 = a1;
 	__m128i a2 = _mm_set1_epi32((int)g->dom[0]), b2 = a2;
 	__m128i a3 = _mm_set1_epi32((int)g->dom[1]), b3 = a3;
@@ -127,12 +126,69 @@ static void philox8(const struct rng *g, uint32_t cell0, uint32_t draw,
 	store4(a0, a1, a2, a3, out);
 	store4(b0, b1, b2, b3, out + 4);
 }
+
+/* The same for four cells a0 (a group of four alone: half the work). */
+static void philox4_cells(const struct rng *g, __m128i a0, uint32_t draw, uint32_t out[4][4])
+{
+	const __m128i m0 = _mm_set1_epi32((int)PHILOX_M0);
+	const __m128i m1 = _mm_set1_epi32((int)PHILOX_M1);
+	__m128i a1 = _mm_set1_epi32((int)draw), a2 = _mm_set1_epi32((int)g->dom[0]);
+	__m128i a3 = _mm_set1_epi32((int)g->dom[1]);
+	uint32_t k0 = g->key[0], k1 = g->key[1];
+
+	for (int r = 0; r < 10; r++) {
+		__m128i ah0, al0, ah1, al1;
+
+		mulhilo4(a0, m0, &ah0, &al0);
+		mulhilo4(a2, m1, &ah1, &al1);
+		a0 = _mm_xor_si128(_mm_xor_si128(ah1, a1), _mm_set1_epi32((int)k0));
+		a2 = _mm_xor_si128(_mm_xor_si128(ah0, a3), _mm_set1_epi32((int)k1));
+		a1 = al1;
+		a3 = al0;
+		k0 += PHILOX_W0;
+		k1 += PHILOX_W1;
+	}
+	store4(a0, a1, a2, a3, out);
+}
+
+static void philox8(const struct rng *g, uint32_t cell0, uint32_t draw,
+		    uint32_t out[8][4])
+{
+	__m128i a0 = _mm_add_epi32(_mm_set1_epi32((int)cell0), _mm_set_epi32(3, 2, 1, 0));
+
+	philox8_cells(g, a0, _mm_add_epi32(a0, _mm_set1_epi32(4)), draw, out);
+}
+
+void rng_bits_cells(const struct rng *g, const uint32_t *cells, uint32_t draw, size_t n,
+		    uint32_t (*out)[4])
+{
+	for (size_t i = 0; i < n; i += 8) {
+		uint32_t c[8], tmp[8][4];
+		size_t m = n - i < 8 ? n - i : 8;
+
+		for (size_t l = 0; l < 8; l++)
+			c[l] = cells[i + (l < m ? l : m - 1)];
+		if (m <= 4)
+			philox4_cells(g, _mm_loadu_si128((const __m128i *)c), draw, tmp);
+		else
+			philox8_cells(g, _mm_loadu_si128((const __m128i *)c),
+				      _mm_loadu_si128((const __m128i *)(c + 4)), draw, tmp);
+		memcpy(out + i, tmp, m * sizeof(tmp[0]));
+	}
+}
 #else
 static void philox8(const struct rng *g, uint32_t cell0, uint32_t draw,
 		    uint32_t out[8][4])
 {
 	for (uint32_t l = 0; l < 8; l++)
 		rng_bits(g, cell0 + l, draw, out[l]);
+}
+
+void rng_bits_cells(const struct rng *g, const uint32_t *cells, uint32_t draw, size_t n,
+		    uint32_t (*out)[4])
+{
+	while (n--)
+		rng_bits(g, *cells++, draw, *out++);
 }
 #endif
 
@@ -966,11 +1022,12 @@ static const double zig_f[257] = {
 const double *const rng_zig_x = zig_x;
 const double *const rng_zig_f = zig_f;
 
-static double zig_slow(const struct rng *g, uint32_t cell, int i, double u)
+/* The slow cases of layer i and signed uniform u, taking uniforms from
+ * the cell stream c (its draws 1, 2, ...). */
+static double zig_slow_from(struct rng_cell *cp, int i, double u)
 {
-	struct rng_cell c;
+	struct rng_cell c = *cp;
 
-	rng_cell_init(&c, g, cell, 1);
 	for (;;) {
 		double x = u * zig_x[i];
 
@@ -995,21 +1052,21 @@ static double zig_slow(const struct rng *g, uint32_t cell, int i, double u)
 	}
 }
 
-static inline double zig_normal(const struct rng *g, uint32_t cell, uint32_t hi, uint32_t lo)
-{
-	uint64_t w = (uint64_t)hi << 32 | lo;
-	int i = (int)(w & 0xff);
-	double u = (double)((int64_t)w >> 11) * 0x1p-52;
-	double x = u * zig_x[i];
-
-	if (fabs(x) < zig_x[i + 1])
-		return x;
-	return zig_slow(g, cell, i, u);
-}
-
 double rng_normal_slow(const struct rng *g, uint32_t cell, int i, double u)
 {
-	return zig_slow(g, cell, i, u);
+	struct rng_cell c;
+
+	rng_cell_init(&c, g, cell, 1);
+	return zig_slow_from(&c, i, u);
+}
+
+static inline double zig_normal(const struct rng *g, uint32_t cell, uint32_t hi, uint32_t lo)
+{
+	double u, x;
+	int i = rng_zig_layer(hi, lo, &u);
+
+	x = u * zig_x[i];
+	return fabs(x) < zig_x[i + 1] ? x : rng_normal_slow(g, cell, i, u);
 }
 
 #ifdef SIMD_X86
@@ -1036,13 +1093,76 @@ zig8_avx512(const uint32_t (*w)[4], double *out)
 }
 #endif
 
+/*
+ * The slow cases of rng_normal_fill, put off and drawn in groups: a
+ * scalar Philox call for a case's draw 1 cost as much as ~17 lanes of the
+ * bulk calls.  Each case takes the very numbers rng_normal_slow() would.
+ */
+#define ZIG_DEFER 16
+struct zig_defer {
+	int n;
+	uint32_t cell[ZIG_DEFER];
+	int layer[ZIG_DEFER];
+	double u[ZIG_DEFER];
+	double *dst[ZIG_DEFER];
+};
+
+void rng_normal_slow_n(const struct rng *g, const uint32_t *cell, const int *layer,
+		       const double *u, size_t n, double *out)
+{
+	for (size_t i = 0; i < n; i += ZIG_DEFER) {
+		uint32_t w[ZIG_DEFER][4];
+		size_t m = n - i < ZIG_DEFER ? n - i : ZIG_DEFER;
+
+		rng_bits_cells(g, cell + i, 1, m, w);
+		for (size_t k = 0; k < m; k++) {
+			struct rng_cell c;
+
+			rng_cell_preload(&c, g, cell[i + k], w[k]);
+			c.draw++; /* the preloaded call is draw 1 */
+			out[i + k] = zig_slow_from(&c, layer[i + k], u[i + k]);
+		}
+	}
+}
+
+static void zig_flush(const struct rng *g, struct zig_defer *d)
+{
+	double z[ZIG_DEFER];
+
+	rng_normal_slow_n(g, d->cell, d->layer, d->u, (size_t)d->n, z);
+	for (int k = 0; k < d->n; k++)
+		*d->dst[k] = z[k];
+	d->n = 0;
+}
+
+/* zig_normal() into *dst, its slow case put off into d. */
+static inline void zig_put(const struct rng *g, struct zig_defer *d, uint32_t cell,
+			   uint32_t hi, uint32_t lo, double *dst)
+{
+	double u, x;
+	int i = rng_zig_layer(hi, lo, &u);
+
+	*dst = x = u * zig_x[i]; /* a slow case's is written again */
+	if (fabs(x) < zig_x[i + 1])
+		return;
+	d->cell[d->n] = cell;
+	d->layer[d->n] = i;
+	d->u[d->n] = u;
+	d->dst[d->n] = dst;
+	if (++d->n == ZIG_DEFER)
+		zig_flush(g, d);
+}
+
 void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, double *out)
 {
 	uint32_t w[64][4];
 	uint64_t i = first, end = first + n;
+	struct zig_defer d;
 #ifdef SIMD_X86
 	int wide = (simd_flags() & SIMD_AVX512) != 0;
 #endif
+
+	d.n = 0;
 
 	while (i < end) {
 		uint64_t p0 = i >> 1, p1 = ((end - 1) >> 1) + 1;
@@ -1056,22 +1176,24 @@ void rng_normal_fill(const struct rng *g, uint64_t first, size_t n, double *out)
 
 			for (int q = 0; slow; q++, slow >>= 1)
 				if (slow & 1)
-					out[q] = zig_normal(g, (uint32_t)(i + (uint64_t)q),
-							    w[k + (size_t)q / 2][q & 1 ? 2 : 0],
-							    w[k + (size_t)q / 2][q & 1 ? 3 : 1]);
+					zig_put(g, &d, (uint32_t)(i + (uint64_t)q),
+						w[k + (size_t)q / 2][q & 1 ? 2 : 0],
+						w[k + (size_t)q / 2][q & 1 ? 3 : 1], out + q);
 		}
 #endif
 		for (; k < np && i < end; k++) {
 			uint64_t pair = p0 + k;
 
 			if (i == 2 * pair) {
-				*out++ = zig_normal(g, (uint32_t)i, w[k][0], w[k][1]);
+				zig_put(g, &d, (uint32_t)i, w[k][0], w[k][1], out++);
 				i++;
 			}
 			if (i < end) {
-				*out++ = zig_normal(g, (uint32_t)i, w[k][2], w[k][3]);
+				zig_put(g, &d, (uint32_t)i, w[k][2], w[k][3], out++);
 				i++;
 			}
 		}
 	}
+	if (d.n)
+		zig_flush(g, &d);
 }

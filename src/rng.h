@@ -45,6 +45,12 @@ void rng_bits(const struct rng *g, uint32_t cell, uint32_t draw, uint32_t out[4]
 void rng_bits_n(const struct rng *g, uint32_t cell0, uint32_t draw, size_t n,
 		uint32_t (*out)[4]);
 
+/* The 128 bits of cells cells[0 .. n-1] (any cells) at draw into out,
+ * eight Philox calls at a time where SSE2 is available: the numbers of
+ * rng_bits(g, cells[k], draw), for the rare draws that are not in a row. */
+void rng_bits_cells(const struct rng *g, const uint32_t *cells, uint32_t draw, size_t n,
+		    uint32_t (*out)[4]);
+
 /* 53-bit uniforms from two 32-bit words: in [0, 1) and in (0, 1]. */
 static inline double rng_u01(uint32_t hi, uint32_t lo)
 {
@@ -195,6 +201,22 @@ extern const double *const rng_zig_f;
 /* The ziggurat's rare cases (a wedge or the tail) for layer i and signed
  * uniform u, from cell's draws 1, 2, ... of g. */
 double rng_normal_slow(const struct rng *g, uint32_t cell, int i, double u);
+
+/* rng_normal_slow(g, cell[k], layer[k], u[k]) into out[k] for k < n, the
+ * first Philox calls of the cells made eight at a time (rng_bits_cells):
+ * the same numbers, for callers that can put their slow cases off. */
+void rng_normal_slow_n(const struct rng *g, const uint32_t *cell, const int *layer,
+		       const double *u, size_t n, double *out);
+
+/* The layer and signed uniform of the 64 bits hi:lo, as
+ * rng_normal_bits() reads them (for rng_normal_slow_n()). */
+static inline int rng_zig_layer(uint32_t hi, uint32_t lo, double *u)
+{
+	uint64_t w = (uint64_t)hi << 32 | lo;
+
+	*u = (double)((int64_t)w >> 11) * 0x1p-52;
+	return (int)(w & 0xff);
+}
 
 /* A standard normal deviate from the 64 bits hi:lo by the ziggurat of
  * rng_normal_fill (8 bits pick the layer, the top 53 a signed uniform);

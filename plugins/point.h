@@ -238,13 +238,15 @@ struct core_args {
  * the threads first prepared, so the sums' last bits may vary; they are
  * only logged). */
 struct far_dep {
-	int sca;
 	int k;                  /* psf-halo-near=level: the level step of light
 				 * left out of the halo's array (r = 0), else
 				 * INT_MIN */
-	int slot;               /* the halo whose shape it is spread in: -1
+	short sca;
+	short slot;             /* the halo whose shape it is spread in: -1
 				 * the default spectrum's, else the colour
-				 * halo's index (hslot_at) */
+				 * halo's index (hslot_at: below classes x
+				 * 64 steps, far below 2^15); shorts keep a
+				 * deposit at 40 bytes, as before slots */
 	double r, x, y, light;
 };
 

@@ -204,7 +204,9 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 		return 0;
 	t->spread += light;
 	if (r > 0)
-		return dep_push(p, t, (struct far_dep){ sca, INT_MIN, slot, r, src->x, src->y, light });
+		return dep_push(p, t, (struct far_dep){ .k = INT_MIN, .sca = (short)sca,
+						 .slot = (short)slot, .r = r, .x = src->x,
+						 .y = src->y, .light = light });
 	if (!t->cnt[sca] && !(t->cnt[sca] = calloc((size_t)3 * n * n, sizeof(int64_t))))
 		return p->host->error(p->host->ctx, "out of memory");
 	far_cic(p, src->x, src->y, c, w);
@@ -225,7 +227,8 @@ int far_deposit_near(struct point *p, const struct wfs_source *src, double light
 	if (!(light > 0))
 		return 0;
 	t->spread += light;
-	return dep_push(p, t, (struct far_dep){ src->sca, k, slot, 0, src->x, src->y, light });
+	return dep_push(p, t, (struct far_dep){ .k = k, .sca = (short)src->sca, .slot = (short)slot,
+					   .r = 0, .x = src->x, .y = src->y, .light = light });
 }
 
 /* The model's value at pixel offset (dx, dy) outside the box of half-width

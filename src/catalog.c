@@ -639,6 +639,11 @@ fail:
 	return NULL;
 }
 
+int catalog_spectral(const struct catalog *c)
+{
+	return c->spectral;
+}
+
 /* The value of numeric column col in row i: from FITS directly, else
  * parsed from text. */
 static inline int cell_number(const struct table_chunk *ch, int col, size_t i,

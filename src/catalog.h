@@ -131,6 +131,10 @@ const char *catalog_roman_type(const char *t);
  * tests.) */
 int catalog_parse_double(const char *s, double *out);
 
+/* Whether the catalog (its first file, for a tree) has a spectrum column
+ * (teff, beta or color_F1_F2): known once it is open, before any row. */
+int catalog_spectral(const struct catalog *c);
+
 /* Rows read and raw bytes consumed so far, for reports. */
 unsigned long long catalog_rows(const struct catalog *c);
 unsigned long long catalog_bytes(const struct catalog *c);

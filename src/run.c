@@ -19,7 +19,6 @@
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
-#include <sys/stat.h>
 
 #include "asdf.h"
 #include "catalog.h"
@@ -422,24 +421,21 @@ static const char *opt_setting(const struct scene_opts *o, const char *key)
 	return v;
 }
 
-/* Whether the first chunk of a catalog file (not stdin, not a catalog
- * tree) has a spectrum column; a catalog that cannot be read counts as
- * none (the pass reports it). */
+/* Whether a catalog (not stdin, which is read once) has a spectrum
+ * column, from its header (a tree's: its first file's), no row read; a
+ * catalog that cannot be opened counts as none (the pass reports it). */
 static int catalog_has_spectra(const struct scene_opts *o, const char *path)
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
 				   .chunk_rows = o->chunk, .settings = o->settings,
 				   .epoch = o->epoch };
-	struct stat st;
 	struct err e = { 0 };
 	struct catalog *c;
-	struct rows r;
-	int has = 0;
+	int has;
 
-	if (!strcmp(path, "-") || stat(path, &st) < 0 || S_ISDIR(st.st_mode) ||
-	    !(c = catalog_open(path, &co, &e)))
+	if (!strcmp(path, "-") || !(c = catalog_open(path, &co, &e)))
 		return 0;
-	has = catalog_read(c, &r, &e) > 0 && r.spec_kind;
+	has = catalog_spectral(c);
 	catalog_close(c);
 	return has;
 }
@@ -457,11 +453,10 @@ static int catalog_has_spectra(const struct scene_opts *o, const char *path)
  * temperature on one SCA held 61 MB more with 4 steps, against this
  * bound's 158 MB (both families).
  */
-static double colour_halo_bytes(const struct scene_opts *o, char *const *catalogs)
+static double colour_halo_bytes(const struct scene_opts *o)
 {
 	const char *v;
 	double R = 256, N = 4, n = psf_default_classes(o->filter), arr;
-	int has = 0;
 
 	if (strcmp(o->psf, "builtin") || ((v = opt_setting(o, "psf-extent")) && strcmp(v, "noise")))
 		return 0;
@@ -472,10 +467,6 @@ static double colour_halo_bytes(const struct scene_opts *o, char *const *catalog
 	if ((v = opt_setting(o, "psf-colour-classes")))
 		n = atof(v);
 	if (!(N > 0) || !(R > 0) || !(n >= 2))
-		return 0;
-	for (char *const *cat = catalogs; *cat && !has; cat++)
-		has = catalog_has_spectra(o, *cat);
-	if (!has)
 		return 0;
 	arr = (4 * R + 1) * (4 * R + 1) * sizeof(float);
 	return 2 * n * arr + 2 * ((n - 1) * N + 1) * (arr + (2 * R + 3) * (2 * R + 3) * 2 + 40e3);
@@ -740,7 +731,27 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		for (int i = 0; i < n; i++)
 			x[i].persist = persist;
 	}
-	plan.colour = colour_halo_bytes(o, catalogs);
+	/* the colour halos counted only where they could change the plan,
+	 * and only when a catalog has a spectrum column (opening each
+	 * catalog to see costs some MB of buffers, left unspent otherwise) */
+	plan.colour = colour_halo_bytes(o);
+	if (plan.colour > 0) {
+		struct plan with = plan, without = plan;
+
+		without.colour = 0;
+		plan_passes(o, x, n, &with);
+		plan_passes(o, x, n, &without);
+		if (with.passes == without.passes && with.groups == without.groups &&
+		    with.per == without.per)
+			plan.colour = 0;
+		else {
+			int has = 0;
+
+			for (char *const *cat = catalogs; *cat && !has; cat++)
+				has = catalog_has_spectra(o, *cat);
+			plan.colour = has ? plan.colour : 0;
+		}
+	}
 	plan_passes(o, x, n, &plan);
 	plan_say(o, x, n, &plan);
 	if (stdin_for_passes(o, catalogs, &plan, &stdin_copy, e) < 0)

@@ -63,7 +63,7 @@ static const struct opt psf_options[] = {
 	  "square)", opt_choice, OFF(geometry)), .words = geometries },
 	{ OPT("teff", 0, "T", NULL, "the PSF of a blackbody of T K (1000 to 100000) instead "
 	  "of the default 5700 K", set_teff, OFF(teff)) },
-	{ OPT("beta", 0, "B", NULL, "the PSF of a power law f_nu ~ nu^B", set_beta,
+	{ OPT("beta", 0, "B", NULL, "the PSF of a power law f_nu ~ nu^B (-20 to 20)", set_beta,
 	  OFF(beta)) },
 	{ OPT("report", 0, NULL, NULL, "list the spectral classes of the filter on each SCA "
 	  "(their slopes and effective wavelengths) on standard output", opt_count,

@@ -365,3 +365,14 @@ int opt_parse(const struct opt_cmd *c, int argc, char **argv, void *base, struct
 	}
 	return optind;
 }
+
+const char *setting_last(const char *const *settings, const char *key)
+{
+	const char *hit = NULL;
+	size_t n = strlen(key);
+
+	for (const char *const *kv = settings; kv && *kv; kv++)
+		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
+			hit = *kv + n + 1;
+	return hit;
+}

@@ -123,6 +123,10 @@ opt_set_fn opt_show_help;   /* print --help on stdout, done */
  * messages as opt_double, opt_int and opt_choice, for an option named by
  * a->opt. */
 int opt_parse_double(const struct opt_arg *a, double *out, struct err *e);
+
+/* The value of the last "key=value" of settings (the --set list, NULL
+ * ended; NULL itself for none) whose key is key, or NULL. */
+const char *setting_last(const char *const *settings, const char *key);
 int opt_parse_ll(const struct opt_arg *a, long long *out, struct err *e);
 int opt_parse_choice(const struct opt_arg *a, struct err *e);
 

@@ -26,6 +26,7 @@
 #include "detector.h"
 #include "engine.h"
 #include "err.h"
+#include "options.h"
 #include "fftconv.h"
 #include "into.h"
 #include "noise.h"
@@ -409,18 +410,6 @@ static double run_bytes(const struct scene_opts *o)
 	return (o->level ? 110.0 : 40.0) * MIB;
 }
 
-/* The value of --set key (the last given), or NULL. */
-static const char *opt_setting(const struct scene_opts *o, const char *key)
-{
-	const char *v = NULL;
-	size_t n = strlen(key);
-
-	for (const char *const *kv = o->settings; kv && *kv; kv++)
-		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
-			v = *kv + n + 1;
-	return v;
-}
-
 /* Whether a catalog (not stdin, which is read once) has a spectrum
  * column, from its header (a tree's: its first file's), no row read; a
  * catalog that cannot be opened counts as none (the pass reports it). */
@@ -458,13 +447,13 @@ static double colour_halo_bytes(const struct scene_opts *o)
 	const char *v;
 	double R = 256, N = 4, n = psf_default_classes(o->filter), arr;
 
-	if (strcmp(o->psf, "builtin") || ((v = opt_setting(o, "psf-extent")) && strcmp(v, "noise")))
+	if (strcmp(o->psf, "builtin") || ((v = setting_last(o->settings, "psf-extent")) && strcmp(v, "noise")))
 		return 0;
-	if ((v = opt_setting(o, "psf-halo-colour-steps")))
+	if ((v = setting_last(o->settings, "psf-halo-colour-steps")))
 		N = atof(v);
-	if ((v = opt_setting(o, "psf-halo-radius")))
+	if ((v = setting_last(o->settings, "psf-halo-radius")))
 		R = atof(v);
-	if ((v = opt_setting(o, "psf-colour-classes")))
+	if ((v = setting_last(o->settings, "psf-colour-classes")))
 		n = atof(v);
 	if (!(N > 0) || !(R > 0) || !(n >= 2))
 		return 0;

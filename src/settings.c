@@ -16,6 +16,7 @@
 
 #include "engine.h"
 #include "err.h"
+#include "options.h"
 #include "noise.h"
 
 /* The scene's settings as text, fixed for the exposure: what host_setting()
@@ -134,11 +135,5 @@ const char *host_setting(void *ctx, const char *key)
 	if (!strcmp(key, "spectral-classes"))
 		return g->classes ? g->classes_str : NULL;
 	/* --set key=value: the last one given wins */
-	const char *hit = NULL;
-	size_t n = strlen(key);
-
-	for (const char *const *kv = g->o->settings; kv && *kv; kv++)
-		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
-			hit = *kv + n + 1;
-	return hit;
+	return setting_last(g->o->settings, key);
 }

@@ -27,6 +27,7 @@
 #include <fitsio.h>
 
 #include "err.h"
+#include "options.h"
 #include "tree.h"
 
 #define TREE_MAX_DEPTH 8        /* directory levels below the tree */
@@ -62,13 +63,7 @@ int tree_is_dir(const char *path)
 
 static const char *setting(const struct tree_opts *o, const char *key)
 {
-	const char *hit = NULL;
-	size_t n = strlen(key);
-
-	for (const char *const *kv = o->settings; kv && *kv; kv++)
-		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
-			hit = *kv + n + 1;
-	return hit;
+	return setting_last(o->settings, key);
 }
 
 /* "Npix=N.ext": N; "NAME_N.ext", "NAME-N.ext", "N.ext": N; else -1. */

@@ -22,6 +22,6 @@ export ASAN_OPTIONS
 
 test_expect_success "make fuzz FUZZ_SECONDS=$secs finds nothing" '
 	make -C "$TOP" --no-print-directory fuzz FUZZ_SECONDS=$secs > log 2>&1 ||
-		{ grep -E -A8 "ERROR|SUMMARY|crash-|Test unit written" log | head -n 40; false; }
+		{ grep -E -A8 "ERROR|SUMMARY|crash-|Test unit written|error:|undefined reference" log | head -n 40; false; }
 '
 test_done

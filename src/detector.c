@@ -116,16 +116,9 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 	return 0;
 }
 
-struct strip_job {
-	const struct detector *d;
-	int sca, y0, ny, T;
-	double *const *tiles;
-	atomic_int failed;
-};
-
 static void detector_tile(void *arg, int wid, size_t tx)
 {
-	struct strip_job *j = arg;
+	struct detector_run *j = arg;
 	int x0 = (int)tx * j->T;
 	int nx = x0 + j->T > WFS_NPIX ? WFS_NPIX - x0 : j->T;
 	struct noise_opts no = j->d->noise;
@@ -213,18 +206,37 @@ static int strip_persist(const struct detector *d, int sca, int y0, int ny,
 	return 0;
 }
 
-int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
-		   double *const *tiles, int ntx, int T)
+int detector_strip_start(struct detector_run *r, const struct detector *d, struct pool *pool,
+			 int sca, int y0, int ny, double *const *tiles, int ntx, int T)
 {
-	struct strip_job j = { .d = d, .sca = sca, .y0 = y0, .ny = ny, .T = T, .tiles = tiles };
-
+	*r = (struct detector_run){ .d = d, .pool = pool, .sca = sca, .y0 = y0, .ny = ny,
+				    .T = T, .tiles = tiles };
+	atomic_init(&r->failed, 0);
 	if (!d->active)
 		return 0;
 	if (d->persist && strip_persist(d, sca, y0, ny, tiles, ntx, T) < 0)
 		return -1;
-	atomic_init(&j.failed, 0);
-	pool_run(pool, detector_tile, &j, ntx);
-	return atomic_load(&j.failed) ? -1 : 0;
+	pool_start(pool, detector_tile, r, ntx);
+	r->started = 1;
+	return 0;
+}
+
+int detector_strip_wait(struct detector_run *r)
+{
+	if (r->started)
+		pool_wait(r->pool);
+	r->started = 0;
+	return atomic_load(&r->failed) ? -1 : 0;
+}
+
+int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
+		   double *const *tiles, int ntx, int T)
+{
+	struct detector_run r;
+
+	if (detector_strip_start(&r, d, pool, sca, y0, ny, tiles, ntx, T) < 0)
+		return -1;
+	return detector_strip_wait(&r);
 }
 
 void detector_level_setup(const struct detector *d, int sca, struct level_sca *L)

@@ -12,6 +12,7 @@
 #ifndef WFS_DETECTOR_H
 #define WFS_DETECTOR_H
 
+#include <stdatomic.h>
 #include <stddef.h>
 
 #include "instrument.h"
@@ -106,5 +107,25 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
  */
 int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
 		   double *const *tiles, int ntx, int T);
+
+/*
+ * The same in two halves, so that the caller can write the strip before
+ * while the pool works on this one: detector_strip_start() runs the
+ * persistence step (on the calling thread) and starts the tiles on pool,
+ * which must be idle; detector_strip_wait() waits for them.  Every start
+ * that returned 0 needs its wait, also after a failure elsewhere.  Returns
+ * 0, or -1 when a tile (or the persistence step) failed.
+ */
+struct detector_run {
+	const struct detector *d;
+	struct pool *pool;
+	int sca, y0, ny, T, started;
+	double *const *tiles;
+	atomic_int failed;
+};
+
+int detector_strip_start(struct detector_run *r, const struct detector *d, struct pool *pool,
+			 int sca, int y0, int ny, double *const *tiles, int ntx, int T);
+int detector_strip_wait(struct detector_run *r);
 
 #endif

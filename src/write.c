@@ -75,80 +75,130 @@ static double tile_sum(const double *t, int T, int y0, int y1, int nx)
 	return (s[0] + s[1]) + (s[2] + s[3]);
 }
 
+/* The strip of tiles ty of slot s: its drawn light for the report, and
+ * its missing tiles allocated when the detector stage will fill them. */
+static int strip_open(struct engine *g, int s, int ty, const struct detector *d)
+{
+	int T = g->tile, y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
+	int ya = g->ylo > y0 ? g->ylo - y0 : 0, yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
+	double **row = &g->slot[s].tile[ty * g->ntx];
+
+	for (int tx = 0; tx < g->ntx; tx++) {
+		int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
+
+		if (row[tx])
+			g->image_sum[g->slot[s].sca - 1] += tile_sum(row[tx], T, ya, yb, nx);
+		g->tiles_drawn += row[tx] != NULL;
+	}
+	g->tiles += g->ntx;
+	for (int tx = 0; d->active && tx < g->ntx; tx++)
+		if (!row[tx] && !(row[tx] = tile_alloc(T)))
+			return err_sys(g->e, "tile memory");
+	return 0;
+}
+
+/* Rows [ya, yb) of strip ty in float32 (strip), checked and written; its
+ * tiles freed. */
+static int strip_write(struct engine *g, struct writer *w, int s, int ty, float *strip)
+{
+	int T = g->tile, y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
+	int ya = g->ylo > y0 ? g->ylo - y0 : 0, yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
+	double **row = &g->slot[s].tile[ty * g->ntx];
+	ptrdiff_t k;
+
+	for (int y = ya; y < yb; y++)
+		for (int tx = 0; tx < g->ntx; tx++) {
+			int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+			float *out = strip + (size_t)(y - ya) * WFS_NPIX + x0;
+
+			if (row[tx])
+				for (int x = 0; x < nx; x++)
+					out[x] = (float)row[tx][(size_t)y * T + x];
+			else
+				memset(out, 0, nx * sizeof(float));
+		}
+	/* make_source bounds each source, but many sources on one pixel, or
+	 * a model that draws more than its flux or NaN, could still put an
+	 * infinity or NaN in the file. */
+	k = first_nonfinite(strip, (size_t)(yb - ya) * WFS_NPIX);
+	if (k >= 0) {
+		int px = (int)(k % WFS_NPIX) + 1, py = y0 + ya + (int)(k / WFS_NPIX) + 1;
+
+		if (isnan(strip[k]))
+			return err_set(g->e, EXIT_PLUGIN, "WFI%02d: pixel x=%d, y=%d (1-based) "
+				       "is NaN: a source model drew a value that is not a "
+				       "number", g->slot[s].sca, px, py);
+		return err_set(g->e, EXIT_INPUT, "WFI%02d: pixel x=%d, y=%d (1-based) is "
+			       "beyond the largest 32-bit float (3.4e38): the sources "
+			       "there sum to more than the image can hold",
+			       g->slot[s].sca, px, py);
+	}
+	if (w->ops->rows(w, strip, yb - ya, g->e) < 0)
+		return -1;
+	for (int tx = 0; tx < g->ntx; tx++) {
+		tile_free(row[tx], T);
+		row[tx] = NULL;
+	}
+	return 0;
+}
+
+/*
+ * The strips of tiles that hold the rows written, [ylo, yhi) (all of them
+ * but with --rows), in a pipeline: while the main thread converts and
+ * writes strip ty, the pool runs the detector stage on strip ty + 1, so
+ * that neither waits for the other (the write was a fifth of an empty
+ * focal plane's wall time with the workers idle).  --report's noise is the
+ * main thread's time starting and waiting for the stage, its write the
+ * time writing.  The bytes are those of any order: a strip's stage
+ * depends on its pixels only.
+ */
 static int write_slot(struct engine *g, struct writer *w, int s, const struct detector *d,
 		      float *strip)
 {
-	int T = g->tile;
+	int T = g->tile, ty0 = g->ylo / T, ty1 = (g->yhi + T - 1) / T;
 	struct product p = { .g = g, .slot = s, .sca = g->slot[s].sca, .level = DETECTOR_SCENE,
 			     .ylo = g->ylo, .yhi = g->yhi };
+	struct detector_run run[2];
+	double t0;
 
 	if (w->ops->sca_begin(w, &p, g->e) < 0)
 		return -1;
-	/* The strips of tiles that hold the rows written, [ylo, yhi): all of
-	 * them but with --rows. */
-	for (int ty = g->ylo / T; ty * T < g->yhi; ty++) {
-		int y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
-		int ya = g->ylo > y0 ? g->ylo - y0 : 0;
-		int yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
-		double **row = &g->slot[s].tile[ty * g->ntx];
-		double t0;
+	t0 = engine_clock();
+	if (ty0 < ty1 &&
+	    (strip_open(g, s, ty0, d) < 0 ||
+	     detector_strip_start(&run[ty0 & 1], d, g->pool, p.sca, ty0 * T,
+				  ty0 * T + T > WFS_NPIX ? WFS_NPIX - ty0 * T : T,
+				  &g->slot[s].tile[ty0 * g->ntx], g->ntx, T) < 0))
+		return g->e->code != EXIT_OK ? -1 :
+			err_set(g->e, EXIT_SYSTEM, "noise stage failed");
+	for (int ty = ty0; ty < ty1; ty++) {
+		struct detector_run *next = &run[(ty + 1) & 1];
+		int y1 = (ty + 1) * T, failed;
 
-		for (int tx = 0; tx < g->ntx; tx++) {
-			int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
-
-			if (row[tx])
-				g->image_sum[g->slot[s].sca - 1] += tile_sum(row[tx], T, ya, yb, nx);
+		if (detector_strip_wait(&run[ty & 1]) < 0) {
+			g->t_noise += engine_clock() - t0;
+			return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		}
-		for (int tx = 0; tx < g->ntx; tx++)
-			g->tiles_drawn += row[tx] != NULL;
-		g->tiles += g->ntx;
-		t0 = engine_clock();
-		if (d->active) {
-			for (int tx = 0; tx < g->ntx; tx++)
-				if (!row[tx] && !(row[tx] = tile_alloc(T)))
-					return err_sys(g->e, "tile memory");
-			if (detector_strip(d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T) < 0)
-				return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
-		}
+		if (ty + 1 < ty1 &&
+		    (strip_open(g, s, ty + 1, d) < 0 ||
+		     detector_strip_start(next, d, g->pool, p.sca, y1,
+					  y1 + T > WFS_NPIX ? WFS_NPIX - y1 : T,
+					  &g->slot[s].tile[(ty + 1) * g->ntx], g->ntx, T) < 0))
+			return g->e->code != EXIT_OK ? -1 :
+				err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		g->t_noise += engine_clock() - t0;
 		t0 = engine_clock();
-		for (int y = ya; y < yb; y++)
-			for (int tx = 0; tx < g->ntx; tx++) {
-				int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
-				float *out = strip + (size_t)(y - ya) * WFS_NPIX + x0;
-
-				if (row[tx])
-					for (int x = 0; x < nx; x++)
-						out[x] = (float)row[tx][(size_t)y * T + x];
-				else
-					memset(out, 0, nx * sizeof(float));
-			}
-		/* make_source bounds each source, but many sources on one
-		 * pixel, or a model that draws more than its flux or NaN,
-		 * could still put an infinity or NaN in the file. */
-		{
-			ptrdiff_t k = first_nonfinite(strip, (size_t)(yb - ya) * WFS_NPIX);
-			int px = (int)(k % WFS_NPIX) + 1, py = y0 + ya + (int)(k / WFS_NPIX) + 1;
-
-			if (k >= 0 && isnan(strip[k]))
-				return err_set(g->e, EXIT_PLUGIN, "WFI%02d: pixel x=%d, y=%d "
-					       "(1-based) is NaN: a source model drew a value "
-					       "that is not a number", g->slot[s].sca, px, py);
-			if (k >= 0)
-				return err_set(g->e, EXIT_INPUT, "WFI%02d: pixel x=%d, y=%d "
-					       "(1-based) is beyond the largest 32-bit float "
-					       "(3.4e38): the sources there sum to more than "
-					       "the image can hold", g->slot[s].sca, px, py);
-		}
-		if (w->ops->rows(w, strip, yb - ya, g->e) < 0)
-			return -1;
-		for (int tx = 0; tx < g->ntx; tx++) {
-			tile_free(row[tx], T);
-			row[tx] = NULL;
-		}
+		failed = strip_write(g, w, s, ty, strip);
 		g->t_write += engine_clock() - t0;
+		t0 = engine_clock();
+		if (failed < 0) {
+			if (ty + 1 < ty1)
+				detector_strip_wait(next);
+			return -1;
+		}
 		engine_progress(g, "writing", 0);
 	}
+	g->t_noise += engine_clock() - t0;
 	return w->ops->sca_end(w, g->e);
 }
 

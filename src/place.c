@@ -34,7 +34,7 @@ static int grow(void **p, size_t *cap, size_t need, size_t size)
 		return 0;
 	while (n < need)
 		n *= 2;
-	if (!(q = realloc(*p, n * size)))
+	if (!(q = pool_realloc_huge(*p, *cap * size, n * size)))
 		return -1;
 	*p = q;
 	*cap = n;

@@ -3,6 +3,7 @@
 #include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -180,17 +181,24 @@ static void *map_huge(size_t bytes)
 	return a;
 }
 
-void *pool_zalloc(size_t bytes)
+/* WFISCENE_NO_HUGEPAGE=1: plain pages everywhere */
+static int plain_pages(void)
 {
 	static int plain = -1;
-	void *p;
 
 	if (plain < 0) {
 		const char *s = getenv("WFISCENE_NO_HUGEPAGE");
 
 		plain = s && *s && *s != '0';
 	}
-	if (plain || !bytes || (bytes % HUGE_BYTES && HUGE_BYTES % bytes) ||
+	return plain;
+}
+
+void *pool_zalloc(size_t bytes)
+{
+	void *p;
+
+	if (plain_pages() || !bytes || (bytes % HUGE_BYTES && HUGE_BYTES % bytes) ||
 	    bytes % (size_t)sysconf(_SC_PAGESIZE))
 		return map(bytes);
 	if (bytes >= HUGE_BYTES)
@@ -213,4 +221,20 @@ void pool_zfree(void *p, size_t bytes)
 {
 	if (p)
 		munmap(p, bytes);
+}
+
+void *pool_realloc_huge(void *p, size_t old, size_t bytes)
+{
+	size_t whole = (bytes + HUGE_BYTES - 1) & ~(HUGE_BYTES - 1);
+	void *q;
+
+	if (bytes < HUGE_BYTES || plain_pages() || !(q = aligned_alloc(HUGE_BYTES, whole)))
+		return realloc(p, bytes);
+#ifdef MADV_HUGEPAGE
+	madvise(q, whole, MADV_HUGEPAGE);      /* before the first touch */
+#endif
+	if (p)
+		memcpy(q, p, old < bytes ? old : bytes);
+	free(p);
+	return q;
 }

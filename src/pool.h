@@ -34,6 +34,13 @@ void pool_free(struct pool *p);
 void *pool_zalloc(size_t bytes);
 void pool_zfree(void *p, size_t bytes);
 
+/* realloc() for a large array read in scattered order (place.c's
+ * placements, which settle_order() and the tiles visit out of order): from
+ * 2 MiB on, a new 2 MiB-aligned block the kernel is asked to back with huge
+ * pages, the first old bytes copied, so that scattered reads do not each
+ * miss the TLB.  free() frees it; NULL (p kept) when out of memory. */
+void *pool_realloc_huge(void *p, size_t old, size_t bytes);
+
 /* The number of online processors, at least 1. */
 int pool_cpus(void);
 

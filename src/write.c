@@ -148,8 +148,8 @@ static int strip_write(struct engine *g, struct writer *w, int s, int ty, float 
  * writes strip ty, the pool runs the detector stage on strip ty + 1, so
  * that neither waits for the other (the write was a fifth of an empty
  * focal plane's wall time with the workers idle).  --report's noise is the
- * main thread's time starting and waiting for the stage, its write the
- * time writing.  The bytes are those of any order: a strip's stage
+ * main thread's time opening strips, starting the stage and waiting for it
+ * (none without a stage), its write the time writing.  The bytes are those of any order: a strip's stage
  * depends on its pixels only.
  */
 static int write_slot(struct engine *g, struct writer *w, int s, const struct detector *d,
@@ -176,7 +176,7 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 		int y1 = (ty + 1) * T, failed;
 
 		if (detector_strip_wait(&run[ty & 1]) < 0) {
-			g->t_noise += engine_clock() - t0;
+			g->t_noise += d->active ? engine_clock() - t0 : 0;
 			return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		}
 		if (ty + 1 < ty1 &&
@@ -186,7 +186,7 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 					  &g->slot[s].tile[(ty + 1) * g->ntx], g->ntx, T) < 0))
 			return g->e->code != EXIT_OK ? -1 :
 				err_set(g->e, EXIT_SYSTEM, "noise stage failed");
-		g->t_noise += engine_clock() - t0;
+		g->t_noise += d->active ? engine_clock() - t0 : 0;
 		t0 = engine_clock();
 		failed = strip_write(g, w, s, ty, strip);
 		g->t_write += engine_clock() - t0;
@@ -198,7 +198,7 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 		}
 		engine_progress(g, "writing", 0);
 	}
-	g->t_noise += engine_clock() - t0;
+	g->t_noise += d->active ? engine_clock() - t0 : 0;
 	return w->ops->sca_end(w, g->e);
 }
 

@@ -181,6 +181,37 @@ test_expect_success 'a red and a blue star of the same counts: drawn with the eP
 	"$PY" widths.py rb.fits red.fits blue.fits
 '
 
+# psf-colour-classes: with 3 classes a family instead of F146's 4, the
+# report lists them (a family's ends unchanged), and the red star (its
+# row of rb.csv alone) is still within 1e-3 of the peak of its exact ePSF
+# with all its light (F146's 3 classes interpolate to 2.6e-4 of the peak
+# for blackbodies, BENCHMARKS.md "Colour"); 1, 17 and a word are refused,
+# exit 1, nothing written.
+printf 'x,y,flux,teff\n1001,1001,2000,3000\n' > red3.csv
+test_expect_success 'psf-colour-classes=3: three classes a family, the star within 1e-3' '
+	"$WFS" --filter F146 --set psf-colour-classes=3 --set psf-extent=stips \
+		--report r3.json -o red3.fits red3.csv &&
+	"$PY" -c "
+import json, numpy as np
+from astropy.io import fits
+c = json.load(open(\"r3.json\"))[\"psf_grids\"][\"spectral_classes\"]
+assert len(c) == 6 and c[0][\"beta\"] == 3 and c[2][\"beta\"] == -3, c
+assert c[3][\"teff\"] == 50000 and c[5][\"teff\"] == 2500, c
+assert [k[\"class\"] for k in c if k[\"grids\"]] == [4, 5], c
+a = fits.open(\"red3.fits\")[1].data.astype(float)
+b = fits.open(\"red.fits\")[1].data.astype(float)
+d = np.abs(a - b).max() / b.max()
+print(\"# 3 classes: max |3000 K - exact| %.2e of the peak; light %.6f %.6f\" % (d, a.sum(), b.sum()))
+assert d < 1e-3, d
+assert abs(a.sum() / b.sum() - 1) < 1e-4
+" &&
+	for v in 1 17 x; do
+		test_must_fail --status 1 "$WFS" --filter F146 --set psf-colour-classes=$v \
+			-o bad3.fits red3.csv 2>err &&
+		test_grep "psf-colour-classes" err && test ! -e bad3.fits || exit 1
+	done
+'
+
 # Colour sources in blended cells (psf-colour-steps, default 1) against
 # each blended at the source (0): 400 stars of random temperature and
 # slope, faint and bright; the same light for each (so a faint and a

@@ -7,8 +7,8 @@
  *  - a blue source has the shorter effective wavelength, and the
  *    effective wavelength of every spectrum lies inside its filter;
  *  - a hot blackbody tends to the Rayleigh-Jeans slope beta = 2;
- *  - the factor is the ratio of sums a user can check: for beta = 2 in
- *    F146 a direct sum over the table's samples.
+ *  - the factor is the ratio of sums a user can check: for beta = 2, in
+ *    every filter, a direct sum over data/throughput.tsv's samples.
  */
 #include <math.h>
 #include <stdio.h>
@@ -18,6 +18,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "spectrum.h"
+#include "throughput.h"
 
 int main(void)
 {
@@ -70,6 +71,47 @@ int main(void)
 		 * in slope, far less in the factor */
 		is_rel(fvh / colour_factor(c, 2, &(struct spectrum){ SPEC_BLACKBODY, 99999 }), 1,
 		       1e-5, "%s: smooth near the hot end", name);
+		/* the Rayleigh-Jeans limit: the hotter the blackbody, the
+		 * nearer its factor and effective wavelength to beta = 2's */
+		{
+			double lrj = colour_lam_eff(c, 2, &rj), d[3], dl[3];
+			const double T[3] = { 10000, 30000, 100000 };
+
+			for (int k = 0; k < 3; k++) {
+				struct spectrum bb = { SPEC_BLACKBODY, T[k] };
+
+				d[k] = fabs(colour_factor(c, 2, &bb) / frj - 1);
+				dl[k] = fabs(colour_lam_eff(c, 2, &bb) / lrj - 1);
+			}
+			ok(d[2] < d[1] && d[1] < d[0] && d[2] < 0.02,
+			   "%s: blackbodies tend to beta = 2 (factor off by %.3g, %.3g, %.3g "
+			   "at 1e4, 3e4, 1e5 K)", name, d[0], d[1], d[2]);
+			ok(dl[2] < dl[1] && dl[1] < dl[0] && dl[2] < 0.005,
+			   "%s: and so do their effective wavelengths (off by %.3g, %.3g, %.3g)",
+			   name, dl[0], dl[1], dl[2]);
+		}
+		/* the factor by hand for beta = 2: the photon-weighted mean of
+		 * (lam / pivot)^-2 over the SCA's effective area, from the
+		 * samples of data/throughput.tsv */
+		{
+			double *tl[WFS_NFILTER], *ta[WFS_NFILTER], sa = 0, sv = 0;
+			int tn[WFS_NFILTER];
+			struct err te = { 0 };
+
+			if (ok(throughput_read(tl, ta, tn, &te) == 0, "%s: throughput samples", name)) {
+				double pv = filter_get(f)->pivot;
+
+				for (int k = 0; k < tn[f]; k++) {
+					double a = ta[f][k * WFS_NSCA + 1], l = tl[f][k];
+
+					sa += a / l;
+					sv += a / l * (pv / l) * (pv / l);
+				}
+				is_rel(frj, sv / sa, 1e-7, "%s: beta = 2's factor %.6f is the sum by "
+				       "hand over %d samples", name, frj, tn[f]);
+				throughput_free(tl, ta);
+			}
+		}
 		diag("%s SCA02: factor beta=2 %.5f, 1e5 K %.5f, 5700 K %.5f, 2500 K %.5f", name,
 		     frj, fvh, colour_factor(c, 2, &(struct spectrum){ SPEC_BLACKBODY, 5700 }),
 		     colour_factor(c, 2, &cool));

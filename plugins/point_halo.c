@@ -294,7 +294,9 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 	n->kmin = INT_MAX;
 	n->kmax = INT_MIN;
 	if (!(n->st = malloc((size_t)side * side * sizeof(*n->st))) ||
-	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))))
+	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))) ||
+	    !(n->pmax = malloc((size_t)side * n->nseg * sizeof(*n->pmax))) ||
+	    !(n->qmax = malloc((size_t)side * n->nseg * sizeof(*n->qmax))))
 		return -1;
 	for (int b = 0; b < side * n->nseg; b++)
 		n->smax[b] = INT16_MIN;
@@ -312,6 +314,15 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 			n->st[(size_t)(dy + rc) * side + dx + rc] = (int16_t)st;
 			n->smax[b] = (int16_t)(st > n->smax[b] ? st : n->smax[b]);
 		}
+	for (int row = 0; row < side; row++) {
+		const int16_t *sm = n->smax + (size_t)row * n->nseg;
+		int16_t *pm = n->pmax + (size_t)row * n->nseg, *qm = n->qmax + (size_t)row * n->nseg;
+
+		for (int g = 0; g < n->nseg; g++)
+			pm[g] = g && pm[g - 1] > sm[g] ? pm[g - 1] : sm[g];
+		for (int g = n->nseg - 1; g >= 0; g--)
+			qm[g] = g < n->nseg - 1 && qm[g + 1] > sm[g] ? qm[g + 1] : sm[g];
+	}
 	if (n->kmin > n->kmax)
 		n->kmin = n->kmax = 0;
 	if (!(n->under = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))) ||
@@ -336,6 +347,8 @@ static void near_free(struct near *n)
 {
 	free(n->st);
 	free(n->smax);
+	free(n->pmax);
+	free(n->qmax);
 	free(n->under);
 	memset(n, 0, sizeof(*n));
 }
@@ -680,6 +693,48 @@ struct near_row {
 	long i0, iu, iv;            /* iv: the row's first sample row */
 };
 
+#ifdef SIMD_X86
+/*
+ * near_run's bilinear stretch, four pixels a step in AVX2: each pixel's
+ * two sample pairs (s, s + 1 and s + n, s + n + 1) read as two 8-byte
+ * loads and sorted into lanes, then the plain loop's products and sums in
+ * double in its order, and its test of the step, so the same bits.
+ * Returns the first pixel left to the plain loop.
+ */
+__attribute__((target("avx2,fma"))) static long near_bilinear_avx2(const float *s0, long o,
+								   long n, const double *w,
+								   const int16_t *st, int k,
+								   long a, long b, double *row)
+{
+	__m256d w0 = _mm256_set1_pd(w[0]), w1 = _mm256_set1_pd(w[1]);
+	__m256d w2 = _mm256_set1_pd(w[2]), w3 = _mm256_set1_pd(w[3]);
+	__m256i km = _mm256_set1_epi64x((long long)k - 1);
+	long dx;
+
+	for (dx = a; dx + 3 <= b; dx += 4) {
+		const float *p0 = s0 + o * dx, *p1 = p0 + o, *p2 = p1 + o, *p3 = p2 + o;
+		__m128 a01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p0),
+					  (const __m64 *)p1);
+		__m128 a23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p2),
+					  (const __m64 *)p3);
+		__m128 b01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p0 + n)),
+					  (const __m64 *)(p1 + n));
+		__m128 b23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p2 + n)),
+					  (const __m64 *)(p3 + n));
+		__m256d v = _mm256_mul_pd(w0, _mm256_cvtps_pd(_mm_shuffle_ps(a01, a23, 0x88)));
+		__m256i sv = _mm256_cvtepi16_epi64(_mm_loadl_epi64((const __m128i *)(st + dx)));
+		__m256d in = _mm256_castsi256_pd(_mm256_cmpgt_epi64(sv, km));
+
+		v = _mm256_add_pd(v, _mm256_mul_pd(w1, _mm256_cvtps_pd(_mm_shuffle_ps(a01, a23, 0xdd))));
+		v = _mm256_add_pd(v, _mm256_mul_pd(w2, _mm256_cvtps_pd(_mm_shuffle_ps(b01, b23, 0x88))));
+		v = _mm256_add_pd(v, _mm256_mul_pd(w3, _mm256_cvtps_pd(_mm_shuffle_ps(b01, b23, 0xdd))));
+		_mm256_storeu_pd(row + dx, _mm256_add_pd(_mm256_loadu_pd(row + dx),
+							 _mm256_and_pd(v, in)));
+	}
+	return dx;
+}
+#endif
+
 static inline void near_run(const struct near_row *q, const int16_t *st, int k, long a, long b,
 		     double *row)
 {
@@ -690,8 +745,13 @@ static inline void near_run(const struct near_row *q, const int16_t *st, int k, 
 	if (xa * xa + q->dy * q->dy < q->rin2 && xb * xb + q->dy * q->dy < q->rin2) {
 		/* all within the array's plain part: bilinear reads */
 		const float *s0 = h->a + q->iv * n + q->iu;
+		long dx = a;
 
-		for (long dx = a; dx <= b; dx++) {
+#ifdef SIMD_X86
+		if (simd_flags() & SIMD_AVX2)
+			dx = near_bilinear_avx2(s0, o, n, q->w, st, k, a, b, row);
+#endif
+		for (; dx <= b; dx++) {
 			const float *s = s0 + o * dx;
 			double v = q->w[0] * s[0] + q->w[1] * s[1] + q->w[2] * s[n] + q->w[3] * s[n + 1];
 
@@ -711,6 +771,41 @@ static inline void near_run(const struct near_row *q, const int16_t *st, int k, 
 		} else
 			row[dx] += q->flux * halo_value(h, ex, q->dy);
 	}
+}
+
+/* Narrow [*lo, *hi] (offsets from the nearest pixel) to the segments
+ * from the first to the last of row dyo whose step reaches k: those
+ * beyond draw nothing.  The row has one (pmax's last entry). */
+static inline void near_reach(const struct near *n, long dyo, int k, long *lo, long *hi)
+{
+	const int16_t *pm = n->pmax + (size_t)(dyo + n->rc) * n->nseg;
+	const int16_t *qm = n->qmax + (size_t)(dyo + n->rc) * n->nseg;
+	int a = 0, b = n->nseg - 1;
+
+	/* the first g with pm[g] >= k (pm rises), the last with qm[g] >= k
+	 * (qm falls) */
+	while (a < b) {
+		int m = (a + b) / 2;
+
+		if (pm[m] >= k)
+			b = m;
+		else
+			a = m + 1;
+	}
+	if (*lo < (long)a * NEAR_SEG - n->rc)
+		*lo = (long)a * NEAR_SEG - n->rc;
+	a = 0;
+	b = n->nseg - 1;
+	while (a < b) {
+		int m = (a + b + 1) / 2;
+
+		if (qm[m] >= k)
+			a = m;
+		else
+			b = m - 1;
+	}
+	if (*hi > (long)(a + 1) * NEAR_SEG - 1 - n->rc)
+		*hi = (long)(a + 1) * NEAR_SEG - 1 - n->rc;
 }
 
 /*
@@ -743,15 +838,18 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 		const int16_t *st, *sm;
 		int nc = 0;
 
-		if (labs(dyo) > n->rc || dy * dy >= rm2)
+		if (labs(dyo) > n->rc || dy * dy >= rm2 ||
+		    n->pmax[(size_t)(dyo + n->rc + 1) * n->nseg - 1] < k)
 			continue;
 		q.dy = dy;
 		span = sqrt(rm2 - dy * dy);
-		/* the chord (d2 < rm2, within n->rc) in offsets from i0 */
+		/* the chord (d2 < rm2, within n->rc) in offsets from i0, and
+		 * within the row's first and last segments that reach k */
 		lo = lfloor(x - span) + 1 - i0;
 		hi = lceil(x + span) - 1 - i0;
 		lo = lo < -n->rc ? -n->rc : lo;
 		hi = hi > n->rc ? n->rc : hi;
+		near_reach(n, dyo, k, &lo, &hi);
 		lo = lo < win->x0 - i0 ? win->x0 - i0 : lo;
 		hi = hi > win->x0 + win->nx - 1 - i0 ? win->x0 + win->nx - 1 - i0 : hi;
 		if (lo > hi)

@@ -1,0 +1,102 @@
+/*
+ * source.c - a catalog row as a source on one SCA: its flux in counts/s
+ * through its unit, zeropoint and spectrum, checked, and the facts the
+ * models read (place.c calls it for each placement, on any thread).
+ */
+#include <math.h>
+#include <string.h>
+
+#include "catalog.h"
+#include "engine.h"
+#include "err.h"
+#include "source.h"
+#include "spectrum.h"
+
+/* The row's flux in counts/s on SCA sca: a magnitude or flux density
+ * (f_nu at the filter's pivot wavelength) through the row's spectrum and
+ * the SCA's throughput (spectrum.h), a flat f_nu without one. */
+static double counts_on(const struct engine *g, const struct rows *r, size_t i, int sca)
+{
+	double v = r->flux[i], k = 1;
+
+	/* times 1 is exact: a row without a spectrum keeps its bytes */
+	if (r->unit[i] != UNIT_COUNTS && r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT &&
+	    !g->colour_band)
+		k = colour_factor(g->colour, sca, &(struct spectrum){ r->spec_kind[i],
+								       r->spec_value[i] });
+	switch (r->unit[i]) {
+	case UNIT_COUNTS:
+		return v;
+	case UNIT_ABMAG:
+		return pow(10.0, -0.4 * (v - filter_zeropoint(g->o->filter, sca,
+							      g->o->zp_stips))) * k;
+	default:
+		/* unit_to_counts() goes through the SCA's RTI zeropoint, as
+		 * 1 / PHOTFNU; STIPS's fixed zeropoint zs gives PHOTFNU's
+		 * ratio 10^(0.4 (zs - z_rti)) on top of it. */
+		if (g->o->zp_stips)
+			return v * unit_to_counts(g->o->filter, sca, r->unit[i]) *
+			       pow(10.0, 0.4 * (filter_stips_zp(g->o->filter) -
+						filter_get(g->o->filter)->zp_ab[sca - 1])) * k;
+		return v * unit_to_counts(g->o->filter, sca, r->unit[i]) * k;
+	}
+}
+
+/* Bright sources get the bigger ePSF boxes; a magnitude equal to a limit
+ * counts as the brighter class (STIPS drops such sources). */
+int source_psf_class(const struct engine *g, double mag)
+{
+	if (mag <= g->o->xbright_limit)
+		return WFS_PSF_XBRIGHT;
+	if (mag <= g->o->bright_limit)
+		return WFS_PSF_BRIGHT;
+	return WFS_PSF_NORMAL;
+}
+
+/* src's flux checked: positive, finite, and within what a float32 image
+ * holds.  model names the model that set the flux, NULL for the catalog. */
+int source_flux_check(const struct engine *g, const struct rows *r, size_t i,
+		      const struct wfs_source *src, const char *model, struct err *e)
+{
+	const char *what = model ? "becomes, by its model," : "converts to";
+
+	if (!isfinite(src->flux) || src->flux <= 0)
+		return err_set(e, EXIT_INPUT, "%s:%ld: flux %g %s %g counts/s "
+			       "on SCA %d: not a positive finite number", r->file,
+			       r->line[i], r->flux[i], what, src->flux, src->sca);
+	/* The image is float32 (at most 3.4e38): one source may bring up to
+	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
+	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
+		return err_set(e, EXIT_INPUT, "%s:%ld: flux %g %s %g %s on SCA %d, "
+			       "more than the 1e32 that one source may put in a "
+			       "float32 image", r->file, r->line[i], r->flux[i],
+			       model ? what : "gives",
+			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
+			       g->o->bunit_counts ? "counts" : "counts/s", src->sca);
+	return 0;
+}
+
+/* Fill src for row i on SCA sca at pixel (x, y): its flux there, checked,
+ * its magnitude and ePSF class, the catalog's facts, the exposure's date.
+ * On any thread.  Returns 0, or -1 with the error in e. */
+int source_fill(const struct engine *g, const struct rows *r, size_t i, const double *param,
+		int sca, double x, double y, struct wfs_source *src, struct err *e)
+{
+	memset(src, 0, sizeof(*src));
+	src->x = x;
+	src->y = y;
+	src->sca = sca;
+	src->flux = counts_on(g, r, i, sca);
+	src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
+	src->psf_class = source_psf_class(g, src->mag);
+	src->id = r->id[i];
+	src->param = param;
+	src->flux_meaning = g->flux_meaning;
+	src->mjd = g->x->date;
+	/* the spectral class of the row's effective wavelength (psf.h) */
+	src->colour = -1;
+	if (r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT && g->classes)
+		src->colour = psf_classes_of(g->classes, g->colour, sca, &(struct spectrum){
+						     r->spec_kind[i], r->spec_value[i] });
+	return source_flux_check(g, r, i, src, NULL, e);
+}

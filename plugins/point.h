@@ -153,15 +153,15 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
  * array's disc, its step st[(dy + rc) side + dx + rc], floor(FAR_STEPS
  * log2 vmax) of its largest value at any phase (INT16_MIN beyond the
  * disc); smax[(dy + rc) nseg + s] the largest step of row segment s,
- * offsets dx + rc in [s NEAR_SEG, (s + 1) NEAR_SEG); pmax and qmax the
- * same row's largest step of segments 0 .. s and of s .. nseg - 1 (so a
- * row's segments that reach a step lie between two binary searches).
+ * offsets dx + rc in [s NEAR_SEG, (s + 1) NEAR_SEG); fseg and lseg, at
+ * [(k - kmin) side + dy + rc], the first and the last segment of the row
+ * whose largest step reaches k (-1: none), for k from kmin to kmax.
  * under[k - kmin] is the light (phase 0) of the
  * offsets within the disc and outside the box of half-width hb whose step
  * is below k: what a source of level step k leaves to the diffuse grid
  * there. */
 struct near {
-	int16_t *st, *smax, *pmax, *qmax;
+	int16_t *st, *smax, *fseg, *lseg;
 	int rc, side, nseg, hb;
 	int kmin, kmax;
 	double *under;          /* steps kmin to kmax + 1 */

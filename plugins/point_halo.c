@@ -282,6 +282,33 @@ static double near_vmax(const struct halo *h, int dx, int dy)
 
 /* Set up n from halo h and the box half-width hb: 0, or -1 when out of
  * memory. */
+/* fseg and lseg (point.h, struct near): each row's segments in order,
+ * their running largest step handing each level it passes its first
+ * segment (and from the other end its last) */
+static int near_segments(struct near *n)
+{
+	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side;
+
+	if (!(n->fseg = malloc(nk * side * sizeof(*n->fseg))) ||
+	    !(n->lseg = malloc(nk * side * sizeof(*n->lseg))))
+		return -1;
+	for (size_t i = 0; i < nk * side; i++)
+		n->fseg[i] = n->lseg[i] = -1;
+	for (size_t row = 0; row < side; row++) {
+		const int16_t *sm = n->smax + row * n->nseg;
+		int m = n->kmin - 1;
+
+		for (int g = 0; g < n->nseg; g++)
+			for (; m < sm[g] && m < n->kmax; m++)
+				n->fseg[(size_t)(m + 1 - n->kmin) * side + row] = (int16_t)g;
+		m = n->kmin - 1;
+		for (int g = n->nseg - 1; g >= 0; g--)
+			for (; m < sm[g] && m < n->kmax; m++)
+				n->lseg[(size_t)(m + 1 - n->kmin) * side + row] = (int16_t)g;
+	}
+	return 0;
+}
+
 static int near_setup(struct near *n, const struct halo *h, int hb)
 {
 	int rc = (int)ceil(h->R) + 1, side = 2 * rc + 1;
@@ -294,9 +321,7 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 	n->kmin = INT_MAX;
 	n->kmax = INT_MIN;
 	if (!(n->st = malloc((size_t)side * side * sizeof(*n->st))) ||
-	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))) ||
-	    !(n->pmax = malloc((size_t)side * n->nseg * sizeof(*n->pmax))) ||
-	    !(n->qmax = malloc((size_t)side * n->nseg * sizeof(*n->qmax))))
+	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))))
 		return -1;
 	for (int b = 0; b < side * n->nseg; b++)
 		n->smax[b] = INT16_MIN;
@@ -314,17 +339,10 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 			n->st[(size_t)(dy + rc) * side + dx + rc] = (int16_t)st;
 			n->smax[b] = (int16_t)(st > n->smax[b] ? st : n->smax[b]);
 		}
-	for (int row = 0; row < side; row++) {
-		const int16_t *sm = n->smax + (size_t)row * n->nseg;
-		int16_t *pm = n->pmax + (size_t)row * n->nseg, *qm = n->qmax + (size_t)row * n->nseg;
-
-		for (int g = 0; g < n->nseg; g++)
-			pm[g] = g && pm[g - 1] > sm[g] ? pm[g - 1] : sm[g];
-		for (int g = n->nseg - 1; g >= 0; g--)
-			qm[g] = g < n->nseg - 1 && qm[g + 1] > sm[g] ? qm[g + 1] : sm[g];
-	}
 	if (n->kmin > n->kmax)
 		n->kmin = n->kmax = 0;
+	if (near_segments(n) < 0)
+		return -1;
 	if (!(n->under = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))) ||
 	    !(bin = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))))
 		return -1;
@@ -347,8 +365,8 @@ static void near_free(struct near *n)
 {
 	free(n->st);
 	free(n->smax);
-	free(n->pmax);
-	free(n->qmax);
+	free(n->fseg);
+	free(n->lseg);
 	free(n->under);
 	memset(n, 0, sizeof(*n));
 }
@@ -773,41 +791,6 @@ static inline void near_run(const struct near_row *q, const int16_t *st, int k, 
 	}
 }
 
-/* Narrow [*lo, *hi] (offsets from the nearest pixel) to the segments
- * from the first to the last of row dyo whose step reaches k: those
- * beyond draw nothing.  The row has one (pmax's last entry). */
-static inline void near_reach(const struct near *n, long dyo, int k, long *lo, long *hi)
-{
-	const int16_t *pm = n->pmax + (size_t)(dyo + n->rc) * n->nseg;
-	const int16_t *qm = n->qmax + (size_t)(dyo + n->rc) * n->nseg;
-	int a = 0, b = n->nseg - 1;
-
-	/* the first g with pm[g] >= k (pm rises), the last with qm[g] >= k
-	 * (qm falls) */
-	while (a < b) {
-		int m = (a + b) / 2;
-
-		if (pm[m] >= k)
-			b = m;
-		else
-			a = m + 1;
-	}
-	if (*lo < (long)a * NEAR_SEG - n->rc)
-		*lo = (long)a * NEAR_SEG - n->rc;
-	a = 0;
-	b = n->nseg - 1;
-	while (a < b) {
-		int m = (a + b + 1) / 2;
-
-		if (qm[m] >= k)
-			a = m;
-		else
-			b = m - 1;
-	}
-	if (*hi > (long)(a + 1) * NEAR_SEG - 1 - n->rc)
-		*hi = (long)(a + 1) * NEAR_SEG - 1 - n->rc;
-}
-
 /*
  * psf-halo-near=level: the pixels of the window within the array's disc
  * and radius r of the source, outside its box, whose step reaches k (the
@@ -822,6 +805,8 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	long i0 = lfloor(x + 0.5), j0 = lfloor(y + 0.5), o = h->over;
 	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
 	struct near_row q = { h, flux, x, 0, (h->R - h->taper) * (h->R - h->taper), { 0 }, i0, 0, 0 };
+	const int16_t *fl = NULL, *ll = NULL;
+	int g0 = 0, g1 = n->nseg - 1;
 
 	q.iu = lfloor(ux);
 	fu = ux - q.iu;
@@ -832,24 +817,38 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	q.w[2] = flux * h->s * (1 - fu) * fv;
 	q.w[3] = flux * h->s * fu * fv;
 	rm2 = r < h->R ? r * r : h->R * h->R;
+	/* beyond the steepest step nothing is drawn; below the lowest every
+	 * offset of the disc is (and a level below the table's is left to
+	 * the segments' own test) */
+	if (k > n->kmax)
+		return;
+	if (k >= n->kmin) {
+		fl = n->fseg + (size_t)(k - n->kmin) * n->side;
+		ll = n->lseg + (size_t)(k - n->kmin) * n->side;
+	}
 	for (int j = 0; j < win->ny; j++) {
 		long jj = win->y0 + j, dyo = jj - j0, lo, hi, cut[4];
 		double dy = jj - y, span;
 		const int16_t *st, *sm;
 		int nc = 0;
 
-		if (labs(dyo) > n->rc || dy * dy >= rm2 ||
-		    n->pmax[(size_t)(dyo + n->rc + 1) * n->nseg - 1] < k)
+		if (labs(dyo) > n->rc || dy * dy >= rm2)
 			continue;
+		if (fl) {       /* the row's segments that reach k */
+			g0 = fl[dyo + n->rc];
+			g1 = ll[dyo + n->rc];
+			if (g0 < 0)
+				continue;
+		}
 		q.dy = dy;
 		span = sqrt(rm2 - dy * dy);
-		/* the chord (d2 < rm2, within n->rc) in offsets from i0, and
-		 * within the row's first and last segments that reach k */
+		/* the chord (d2 < rm2, within n->rc) in offsets from i0, within
+		 * those segments */
 		lo = lfloor(x - span) + 1 - i0;
 		hi = lceil(x + span) - 1 - i0;
-		lo = lo < -n->rc ? -n->rc : lo;
+		lo = lo < (long)g0 * NEAR_SEG - n->rc ? (long)g0 * NEAR_SEG - n->rc : lo;
+		hi = hi > (long)(g1 + 1) * NEAR_SEG - 1 - n->rc ? (long)(g1 + 1) * NEAR_SEG - 1 - n->rc : hi;
 		hi = hi > n->rc ? n->rc : hi;
-		near_reach(n, dyo, k, &lo, &hi);
 		lo = lo < win->x0 - i0 ? win->x0 - i0 : lo;
 		hi = hi > win->x0 + win->nx - 1 - i0 ? win->x0 + win->nx - 1 - i0 : hi;
 		if (lo > hi)

@@ -153,15 +153,17 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
  * array's disc, its step st[(dy + rc) side + dx + rc], floor(FAR_STEPS
  * log2 vmax) of its largest value at any phase (INT16_MIN beyond the
  * disc); smax[(dy + rc) nseg + s] the largest step of row segment s,
- * offsets dx + rc in [s NEAR_SEG, (s + 1) NEAR_SEG); fseg and lseg, at
- * [(k - kmin) side + dy + rc], the first and the last segment of the row
- * whose largest step reaches k (-1: none), for k from kmin to kmax.
+ * offsets dx + rc in [s NEAR_SEG, (s + 1) NEAR_SEG).  For k from kmin to
+ * kmax, the row's runs of consecutive segments whose largest step reaches
+ * k are rs[2 t] .. rs[2 t + 1] (first and last segment) for t from
+ * ri[(k - kmin) side + dy + rc] up to the next entry of ri.
  * under[k - kmin] is the light (phase 0) of the
  * offsets within the disc and outside the box of half-width hb whose step
  * is below k: what a source of level step k leaves to the diffuse grid
  * there. */
 struct near {
-	int16_t *st, *smax, *fseg, *lseg;
+	int16_t *st, *smax, *rs;
+	int32_t *ri;
 	int rc, side, nseg, hb;
 	int kmin, kmax;
 	double *under;          /* steps kmin to kmax + 1 */

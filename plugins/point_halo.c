@@ -280,34 +280,46 @@ static double near_vmax(const struct halo *h, int dx, int dy)
 	return v;
 }
 
-/* Set up n from halo h and the box half-width hb: 0, or -1 when out of
- * memory. */
-/* fseg and lseg (point.h, struct near): each row's segments in order,
- * their running largest step handing each level it passes its first
- * segment (and from the other end its last) */
+/* The runs of segments (point.h, struct near: ri, rs) of every level and
+ * row, in that order: counted, then written. */
 static int near_segments(struct near *n)
 {
-	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side;
+	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side, t = 0;
 
-	if (!(n->fseg = malloc(nk * side * sizeof(*n->fseg))) ||
-	    !(n->lseg = malloc(nk * side * sizeof(*n->lseg))))
+	if (!(n->ri = malloc((nk * side + 1) * sizeof(*n->ri))))
 		return -1;
-	for (size_t i = 0; i < nk * side; i++)
-		n->fseg[i] = n->lseg[i] = -1;
-	for (size_t row = 0; row < side; row++) {
-		const int16_t *sm = n->smax + row * n->nseg;
-		int m = n->kmin - 1;
+	for (int pass = 0; pass < 2; pass++) {
+		t = 0;
+		for (size_t L = 0; L < nk; L++)
+			for (size_t row = 0; row < side; row++) {
+				const int16_t *sm = n->smax + row * n->nseg;
+				int k = n->kmin + (int)L;
 
-		for (int g = 0; g < n->nseg; g++)
-			for (; m < sm[g] && m < n->kmax; m++)
-				n->fseg[(size_t)(m + 1 - n->kmin) * side + row] = (int16_t)g;
-		m = n->kmin - 1;
-		for (int g = n->nseg - 1; g >= 0; g--)
-			for (; m < sm[g] && m < n->kmax; m++)
-				n->lseg[(size_t)(m + 1 - n->kmin) * side + row] = (int16_t)g;
+				if (pass)
+					n->ri[L * side + row] = (int32_t)t;
+				for (int g = 0; g < n->nseg; g++) {
+					if (sm[g] < k || (g && sm[g - 1] >= k))
+						continue;
+					if (pass) {
+						int e = g;
+
+						while (e + 1 < n->nseg && sm[e + 1] >= k)
+							e++;
+						n->rs[2 * t] = (int16_t)g;
+						n->rs[2 * t + 1] = (int16_t)e;
+					}
+					t++;
+				}
+			}
+		if (!pass && !(n->rs = malloc((t ? t : 1) * 2 * sizeof(*n->rs))))
+			return -1;
 	}
+	n->ri[nk * side] = (int32_t)t;
 	return 0;
 }
+
+/* Set up n from halo h and the box half-width hb: 0, or -1 when out of
+ * memory. */
 
 static int near_setup(struct near *n, const struct halo *h, int hb)
 {
@@ -365,8 +377,8 @@ static void near_free(struct near *n)
 {
 	free(n->st);
 	free(n->smax);
-	free(n->fseg);
-	free(n->lseg);
+	free(n->ri);
+	free(n->rs);
 	free(n->under);
 	memset(n, 0, sizeof(*n));
 }
@@ -805,7 +817,8 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	long i0 = lfloor(x + 0.5), j0 = lfloor(y + 0.5), o = h->over;
 	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
 	struct near_row q = { h, flux, x, 0, (h->R - h->taper) * (h->R - h->taper), { 0 }, i0, 0, 0 };
-	const int16_t *fl = NULL, *ll = NULL;
+	const int32_t *ri = NULL;
+	int32_t r0 = 0, r1 = 0;
 	int g0 = 0, g1 = n->nseg - 1;
 
 	q.iu = lfloor(ux);
@@ -822,10 +835,8 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	 * the segments' own test) */
 	if (k > n->kmax)
 		return;
-	if (k >= n->kmin) {
-		fl = n->fseg + (size_t)(k - n->kmin) * n->side;
-		ll = n->lseg + (size_t)(k - n->kmin) * n->side;
-	}
+	if (k >= n->kmin)
+		ri = n->ri + (size_t)(k - n->kmin) * n->side;
 	for (int j = 0; j < win->ny; j++) {
 		long jj = win->y0 + j, dyo = jj - j0, lo, hi, cut[4];
 		double dy = jj - y, span;
@@ -834,11 +845,13 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 
 		if (labs(dyo) > n->rc || dy * dy >= rm2)
 			continue;
-		if (fl) {       /* the row's segments that reach k */
-			g0 = fl[dyo + n->rc];
-			g1 = ll[dyo + n->rc];
-			if (g0 < 0)
+		if (ri) {       /* the row's runs of segments that reach k */
+			r0 = ri[dyo + n->rc];
+			r1 = ri[dyo + n->rc + 1];
+			if (r0 == r1)
 				continue;
+			g0 = n->rs[2 * r0];
+			g1 = n->rs[2 * r1 - 1];
 		}
 		q.dy = dy;
 		span = sqrt(rm2 - dy * dy);
@@ -865,8 +878,21 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 		st = n->st + (size_t)(dyo + n->rc) * n->side + n->rc;
 		sm = n->smax + (size_t)(dyo + n->rc) * n->nseg;
 		q.iv = lfloor(uy) + o * dyo;
-		for (int c = 0; c + 1 < nc; c += 2)
-			for (long a = cut[c]; a <= cut[c + 1];) {
+		for (int c = 0; c + 1 < nc; c += 2) {
+			/* the runs' parts in the cut range */
+			for (int32_t t = r0; ri && t < r1; t++) {
+				long a = (long)n->rs[2 * t] * NEAR_SEG - n->rc;
+				long e = (long)(n->rs[2 * t + 1] + 1) * NEAR_SEG - 1 - n->rc;
+
+				if (a > cut[c + 1])
+					break;
+				a = a > cut[c] ? a : cut[c];
+				e = e < cut[c + 1] ? e : cut[c + 1];
+				if (a <= e)
+					near_run(&q, st, k, a, e, win->pix + j * win->stride + i0 - win->x0);
+			}
+			/* a level below the table's: the segments' own test */
+			for (long a = cut[c]; !ri && a <= cut[c + 1];) {
 				/* the run of segments from a's that reach k */
 				long g = (a + n->rc) / NEAR_SEG, e = a - 1;
 
@@ -879,6 +905,7 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 					e = (g + 1) * NEAR_SEG - 1 - n->rc;
 				a = e + 1;
 			}
+		}
 	}
 }
 

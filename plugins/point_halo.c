@@ -731,7 +731,7 @@ struct near_row {
  * double in its order, and its test of the step, so the same bits.
  * Returns the first pixel left to the plain loop.
  */
-__attribute__((target("avx2,fma"))) static long near_bilinear_avx2(const float *s0, long o,
+__attribute__((target("avx2"))) static long near_bilinear_avx2(const float *s0, long o,
 								   long n, const double *w,
 								   const int16_t *st, int k,
 								   long a, long b, double *row)

@@ -229,16 +229,6 @@ int detector_strip_wait(struct detector_run *r)
 	return atomic_load(&r->failed) ? -1 : 0;
 }
 
-int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
-		   double *const *tiles, int ntx, int T)
-{
-	struct detector_run r;
-
-	if (detector_strip_start(&r, d, pool, sca, y0, ny, tiles, ntx, T) < 0)
-		return -1;
-	return detector_strip_wait(&r);
-}
-
 void detector_level_setup(const struct detector *d, int sca, struct level_sca *L)
 {
 	const struct geom_sca *geo = d->sky ? &d->sky->sca[sca - 1].geo : NULL;

@@ -2,12 +2,12 @@
  * detector.h - the detector stage: what happens to the light the models
  * drew, after rendering and before the image is written.
  *
- * write.c hands each strip of tiles of an SCA to detector_strip() once all
- * catalog chunks are drawn.  How far the detector is simulated is the
- * exposure's level; each level is a function of the drawn rates, the
- * options, the SCA and the absolute pixel coordinates only (never of the
- * tile size, tile order or thread count), so runs split by SCA or rows give
- * the same bytes.
+ * write.c hands each strip of tiles of an SCA to detector_strip_start()
+ * once all catalog chunks are drawn.  How far the detector is simulated
+ * is the exposure's level; each level is a function of the drawn rates,
+ * the options, the SCA and the absolute pixel coordinates only (never of
+ * the tile size, tile order or thread count), so runs split by SCA or rows
+ * give the same bytes.
  */
 #ifndef WFS_DETECTOR_H
 #define WFS_DETECTOR_H
@@ -32,7 +32,7 @@ enum detector_level {
 	/* The detector read up the ramp (ramp.c, levels.c): the resultants of
 	 * the MA table as 16-bit DN (level 1), or their ramp fits (level 2).
 	 * The SCA is written by level_write_sca() instead of strip by strip
-	 * through detector_strip(). */
+	 * through detector_strip_start(). */
 	DETECTOR_L1 = 1,
 	DETECTOR_L2 = 2,
 };
@@ -88,7 +88,7 @@ int detector_parse(const char *s, unsigned *parts, struct err *e);
 struct level_sca;
 
 /* The background of SCA sca at levels 1 and 2 (the sky's part per pixel
- * area in the SIAF geometry, as detector_strip has it) and the knobs of
+ * area in the SIAF geometry, as a scene's strips have it) and the knobs of
  * the ramp's approximations, into L. */
 void detector_level_setup(const struct detector *d, int sca, struct level_sca *L);
 
@@ -102,19 +102,13 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
  * Apply the stage to one strip of an SCA: tiles[0 .. ntx-1], each T x T
  * doubles (row stride T) holding the drawn counts/s of pixels
  * [tx T, tx T + T) x [y0, y0 + ny), clipped to the detector; every tile
- * MUST be allocated.  The tiles run in parallel on pool.  Returns 0, or -1
- * when a tile failed.
- */
-int detector_strip(const struct detector *d, struct pool *pool, int sca, int y0, int ny,
-		   double *const *tiles, int ntx, int T);
-
-/*
- * The same in two halves, so that the caller can write the strip before
- * while the pool works on this one: detector_strip_start() runs the
- * persistence step (on the calling thread) and starts the tiles on pool,
- * which must be idle; detector_strip_wait() waits for them.  Every start
- * that returned 0 needs its wait, also after a failure elsewhere.  Returns
- * 0, or -1 when a tile (or the persistence step) failed.
+ * MUST be allocated.  In two halves, so that the caller can write the
+ * strip before while the pool works on this one: detector_strip_start()
+ * runs the persistence step (on the calling thread) and starts the tiles
+ * on pool, in parallel, which must be idle; detector_strip_wait() waits
+ * for them.  Every start that returned 0 needs its wait, also after a
+ * failure elsewhere.  Each returns 0, or -1 when a tile (or the
+ * persistence step) failed.
  */
 struct detector_run {
 	const struct detector *d;

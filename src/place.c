@@ -386,7 +386,8 @@ static int in_pool(const struct engine *g, const struct placement *p)
 
 /* (always inlined: GCC 12 finds a function of prefetches alone pure and
  * drops its calls) */
-static inline __attribute__((always_inline)) void settle_prefetch(const struct settle_job *j, size_t n, size_t end)
+static inline __attribute__((always_inline)) void settle_prefetch(const struct settle_job *j,
+								   size_t n, size_t end)
 {
 	const struct rows *r = j->r;
 
@@ -400,7 +401,10 @@ static inline __attribute__((always_inline)) void settle_prefetch(const struct s
 		const struct placement *p = &j->b->p[j->order[n + SETTLE_AHEAD]];
 		size_t i = p->row;
 
-		__builtin_prefetch(p->src.param);
+		/* (src.param only of a placement of the pool: the main thread
+		 * may be settling the others now) */
+		if (in_pool(j->g, p))
+			__builtin_prefetch(p->src.param);
 		__builtin_prefetch(r->flux + i);
 		__builtin_prefetch(r->unit + i);
 		__builtin_prefetch(r->id + i);
@@ -497,9 +501,9 @@ out:
 
 /*
  * settle() for the batch's placements: place_pool's threads take those
- * whose model allows it (in settle_order()'s order), when there are enough of them to share, while
- * the main thread takes the rest in order.  Returns 0, or -1 with the
- * first failing placement's error in g->e.
+ * whose model allows it (in settle_order()'s order), when there are
+ * enough of them to share, while the main thread takes the rest in order.
+ * Returns 0, or -1 with the first failing placement's error in g->e.
  */
 static int settle_all(struct engine *g, const struct rows *r, struct batch *b)
 {

@@ -56,6 +56,7 @@ static void check(struct colour *c, int f, int n)
 	ok(kinds, "%s, %d classes: each class's spectrum given back", name, n);
 	ok(worst_self < 1e-3, "%s, %d classes: a class's own spectrum is that class on SCAs 1, 9, "
 	   "17 (worst %.2g)", name, n, worst_self);
+	/* (with 2 classes true by construction: the defaults and 6 test it) */
 	ok(worst_even < 1e-5, "%s, %d classes: evenly spaced on SCA 1 (worst %.2g micron)", name,
 	   n, worst_even);
 	/* (the end classes solved to the same wavelength, their parameters

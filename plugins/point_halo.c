@@ -817,9 +817,7 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	long i0 = lfloor(x + 0.5), j0 = lfloor(y + 0.5), o = h->over;
 	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
 	struct near_row q = { h, flux, x, 0, (h->R - h->taper) * (h->R - h->taper), { 0 }, i0, 0, 0 };
-	const int32_t *ri = NULL;
-	int32_t r0 = 0, r1 = 0;
-	int g0 = 0, g1 = n->nseg - 1;
+	const int32_t *ri;
 
 	q.iu = lfloor(ux);
 	fu = ux - q.iu;
@@ -830,37 +828,32 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	q.w[2] = flux * h->s * (1 - fu) * fv;
 	q.w[3] = flux * h->s * fu * fv;
 	rm2 = r < h->R ? r * r : h->R * h->R;
-	/* beyond the steepest step nothing is drawn; below the lowest every
-	 * offset of the disc is (and a level below the table's is left to
-	 * the segments' own test) */
+	/* beyond the steepest step nothing is drawn; below the lowest, every
+	 * offset of the disc, as at the lowest (halo_level's k is far above
+	 * the INT16_MIN of the offsets beyond it) */
 	if (k > n->kmax)
 		return;
-	if (k >= n->kmin)
-		ri = n->ri + (size_t)(k - n->kmin) * n->side;
+	ri = n->ri + (size_t)(k > n->kmin ? k - n->kmin : 0) * n->side;
 	for (int j = 0; j < win->ny; j++) {
 		long jj = win->y0 + j, dyo = jj - j0, lo, hi, cut[4];
 		double dy = jj - y, span;
-		const int16_t *st, *sm;
+		const int16_t *st;
+		int32_t r0, r1;
 		int nc = 0;
 
 		if (labs(dyo) > n->rc || dy * dy >= rm2)
 			continue;
-		if (ri) {       /* the row's runs of segments that reach k */
-			r0 = ri[dyo + n->rc];
-			r1 = ri[dyo + n->rc + 1];
-			if (r0 == r1)
-				continue;
-			g0 = n->rs[2 * r0];
-			g1 = n->rs[2 * r1 - 1];
-		}
+		/* the row's runs of segments that reach k */
+		r0 = ri[dyo + n->rc];
+		r1 = ri[dyo + n->rc + 1];
+		if (r0 == r1)
+			continue;
 		q.dy = dy;
 		span = sqrt(rm2 - dy * dy);
-		/* the chord (d2 < rm2, within n->rc) in offsets from i0, within
-		 * those segments */
+		/* the chord (d2 < rm2, within n->rc) in offsets from i0 */
 		lo = lfloor(x - span) + 1 - i0;
 		hi = lceil(x + span) - 1 - i0;
-		lo = lo < (long)g0 * NEAR_SEG - n->rc ? (long)g0 * NEAR_SEG - n->rc : lo;
-		hi = hi > (long)(g1 + 1) * NEAR_SEG - 1 - n->rc ? (long)(g1 + 1) * NEAR_SEG - 1 - n->rc : hi;
+		lo = lo < -n->rc ? -n->rc : lo;
 		hi = hi > n->rc ? n->rc : hi;
 		lo = lo < win->x0 - i0 ? win->x0 - i0 : lo;
 		hi = hi > win->x0 + win->nx - 1 - i0 ? win->x0 + win->nx - 1 - i0 : hi;
@@ -876,11 +869,10 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 		}
 		cut[nc++] = hi;
 		st = n->st + (size_t)(dyo + n->rc) * n->side + n->rc;
-		sm = n->smax + (size_t)(dyo + n->rc) * n->nseg;
 		q.iv = lfloor(uy) + o * dyo;
-		for (int c = 0; c + 1 < nc; c += 2) {
-			/* the runs' parts in the cut range */
-			for (int32_t t = r0; ri && t < r1; t++) {
+		/* each run's part in each cut range */
+		for (int c = 0; c + 1 < nc; c += 2)
+			for (int32_t t = r0; t < r1; t++) {
 				long a = (long)n->rs[2 * t] * NEAR_SEG - n->rc;
 				long e = (long)(n->rs[2 * t + 1] + 1) * NEAR_SEG - 1 - n->rc;
 
@@ -891,21 +883,6 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 				if (a <= e)
 					near_run(&q, st, k, a, e, win->pix + j * win->stride + i0 - win->x0);
 			}
-			/* a level below the table's: the segments' own test */
-			for (long a = cut[c]; !ri && a <= cut[c + 1];) {
-				/* the run of segments from a's that reach k */
-				long g = (a + n->rc) / NEAR_SEG, e = a - 1;
-
-				while (e < cut[c + 1] && sm[g] >= k)
-					e = (++g) * NEAR_SEG - 1 - n->rc;
-				e = e < cut[c + 1] ? e : cut[c + 1];
-				if (e >= a)
-					near_run(&q, st, k, a, e, win->pix + j * win->stride + i0 - win->x0);
-				else    /* a's segment does not: past it */
-					e = (g + 1) * NEAR_SEG - 1 - n->rc;
-				a = e + 1;
-			}
-		}
 	}
 }
 

@@ -75,9 +75,12 @@ static double tile_sum(const double *t, int T, int y0, int y1, int nx)
 	return (s[0] + s[1]) + (s[2] + s[3]);
 }
 
-/* The strip of tiles ty of slot s: its drawn light for the report, and
- * its missing tiles allocated when the detector stage will fill them. */
-static int strip_open(struct engine *g, int s, int ty, const struct detector *d)
+/* The strip of tiles ty of slot s: its drawn light for the report, its
+ * missing tiles allocated when the detector stage will fill them, and the
+ * stage started on them in run (the pool must be idle).  Returns 0, or -1
+ * with the error in g->e (and nothing started). */
+static int strip_start(struct engine *g, int s, int ty, const struct detector *d,
+		       struct detector_run *run)
 {
 	int T = g->tile, y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
 	int ya = g->ylo > y0 ? g->ylo - y0 : 0, yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
@@ -94,6 +97,8 @@ static int strip_open(struct engine *g, int s, int ty, const struct detector *d)
 	for (int tx = 0; d->active && tx < g->ntx; tx++)
 		if (!row[tx] && !(row[tx] = tile_alloc(T)))
 			return err_sys(g->e, "tile memory");
+	if (detector_strip_start(run, d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T) < 0)
+		return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 	return 0;
 }
 
@@ -164,28 +169,18 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 	if (w->ops->sca_begin(w, &p, g->e) < 0)
 		return -1;
 	t0 = engine_clock();
-	if (ty0 < ty1 &&
-	    (strip_open(g, s, ty0, d) < 0 ||
-	     detector_strip_start(&run[ty0 & 1], d, g->pool, p.sca, ty0 * T,
-				  ty0 * T + T > WFS_NPIX ? WFS_NPIX - ty0 * T : T,
-				  &g->slot[s].tile[ty0 * g->ntx], g->ntx, T) < 0))
-		return g->e->code != EXIT_OK ? -1 :
-			err_set(g->e, EXIT_SYSTEM, "noise stage failed");
+	if (ty0 < ty1 && strip_start(g, s, ty0, d, &run[ty0 & 1]) < 0)
+		return -1;
 	for (int ty = ty0; ty < ty1; ty++) {
 		struct detector_run *next = &run[(ty + 1) & 1];
-		int y1 = (ty + 1) * T, failed;
+		int failed;
 
 		if (detector_strip_wait(&run[ty & 1]) < 0) {
 			g->t_noise += d->active ? engine_clock() - t0 : 0;
 			return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		}
-		if (ty + 1 < ty1 &&
-		    (strip_open(g, s, ty + 1, d) < 0 ||
-		     detector_strip_start(next, d, g->pool, p.sca, y1,
-					  y1 + T > WFS_NPIX ? WFS_NPIX - y1 : T,
-					  &g->slot[s].tile[(ty + 1) * g->ntx], g->ntx, T) < 0))
-			return g->e->code != EXIT_OK ? -1 :
-				err_set(g->e, EXIT_SYSTEM, "noise stage failed");
+		if (ty + 1 < ty1 && strip_start(g, s, ty + 1, d, next) < 0)
+			return -1;
 		g->t_noise += d->active ? engine_clock() - t0 : 0;
 		t0 = engine_clock();
 		failed = strip_write(g, w, s, ty, strip);

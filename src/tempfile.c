@@ -36,6 +36,35 @@ static struct {
 	char name[PATH_MAX];
 } live[TEMPFILE_MAX];
 static pthread_mutex_t live_mu = PTHREAD_MUTEX_INITIALIZER;
+
+/*
+ * A temporary exists on disk from open(2) until live_add() has stored its
+ * name: a signal in that window would find it in no slot and leave it
+ * behind.  So a thread creates a temporary, and touches the registry at
+ * all, with the fatal signals blocked (no handler then runs on a thread
+ * holding live_mu or half-way through a creation), counted in creating;
+ * the handler, on whichever thread it runs, first raises dying and then
+ * waits for creating to reach zero.  A creator that finds dying raised
+ * waits for the handler's _exit instead (both are sequentially consistent
+ * atomics, so one of the two sees the other).
+ */
+static atomic_int creating, dying;
+
+static void fatal_block(sigset_t *old)
+{
+	sigset_t set;
+
+	sigemptyset(&set);
+	sigaddset(&set, SIGINT);
+	sigaddset(&set, SIGTERM);
+	sigaddset(&set, SIGHUP);
+	pthread_sigmask(SIG_BLOCK, &set, old);
+}
+
+static void fatal_restore(const sigset_t *old)
+{
+	pthread_sigmask(SIG_SETMASK, old, NULL);
+}
 static char signal_msg[128] = "wfiscene: interrupted; partial output removed\n";
 static size_t signal_len;
 
@@ -60,6 +89,9 @@ static int live_add(const char *name)
 
 static void live_forget(const char *name)
 {
+	sigset_t old;
+
+	fatal_block(&old);
 	pthread_mutex_lock(&live_mu);
 	for (int i = 0; i < TEMPFILE_MAX; i++)
 		if (atomic_load(&live[i].state) == SLOT_LIVE && !strcmp(live[i].name, name)) {
@@ -67,6 +99,7 @@ static void live_forget(const char *name)
 			break;
 		}
 	pthread_mutex_unlock(&live_mu);
+	fatal_restore(&old);
 }
 
 void tempfile_remove_all(void)
@@ -78,6 +111,14 @@ void tempfile_remove_all(void)
 
 static void on_fatal_signal(int sig)
 {
+	const struct timespec ms = { 0, 1000000 };
+
+	atomic_store(&dying, 1);
+	/* the creators run with these signals blocked, never stop for this
+	 * handler, and each takes an open(2) and a lock; ten seconds is
+	 * for a file system that hangs */
+	for (int i = 0; i < 10000 && atomic_load(&creating) > 0; i++)
+		nanosleep(&ms, NULL);
 	tempfile_remove_all();
 	if (write(STDERR_FILENO, signal_msg, signal_len) < 0)
 		_exit(EXIT_SIGNAL);
@@ -129,6 +170,38 @@ void tempfile_discard(char *tmp)
 	errno = saved;
 }
 
+/*
+ * Create tmp (O_EXCL) and register it, as one step for the signal handler
+ * (see creating above).  The descriptor; -1 with errno from open(2); -2
+ * when the registry is full (nothing left on disk).
+ */
+static int create_registered(const char *tmp)
+{
+	const struct timespec ms = { 0, 1000000 };
+	sigset_t old;
+	int fd, saved;
+
+	fatal_block(&old);
+	atomic_fetch_add(&creating, 1);
+	if (atomic_load(&dying)) {
+		/* a handler is removing the temporaries and will _exit */
+		atomic_fetch_sub(&creating, 1);
+		for (;;)
+			nanosleep(&ms, NULL);
+	}
+	fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+	saved = errno;
+	if (fd >= 0 && live_add(tmp) != 0) {
+		close(fd);
+		unlink(tmp);
+		fd = -2;
+	}
+	atomic_fetch_sub(&creating, 1);
+	fatal_restore(&old);
+	errno = saved;
+	return fd;
+}
+
 int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e)
 {
 	static const char alnum[] =
@@ -162,12 +235,10 @@ int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e)
 			suffix[i] = alnum[z % 62];
 		suffix[6] = 0;
 		snprintf(tmp, cap, "%.*s.%s.%s", (int)(base - path), path, base, suffix);
-		fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-		if (fd >= 0) {
-			if (live_add(tmp) == 0)
-				return fd;
-			close(fd);
-			unlink(tmp);
+		fd = create_registered(tmp);
+		if (fd >= 0)
+			return fd;
+		if (fd == -2) {
 			err_set(e, EXIT_SYSTEM, "%s: more than %d temporary files at once",
 				path, TEMPFILE_MAX);
 			tmp[0] = 0;

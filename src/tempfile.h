@@ -14,6 +14,9 @@
  * program is: reading, drawing, writing or merging.  A temporary is
  * registered by tempfile_beside() as it is created and leaves the registry
  * through tempfile_commit() (renamed) or tempfile_discard() (removed).
+ * Creating and registering is one step for the signal: the handler waits
+ * for creations under way, and a thread that starts one after the signal
+ * waits for the exit, so no thread leaves a file the handler did not see.
  */
 #ifndef WFS_TEMPFILE_H
 #define WFS_TEMPFILE_H

@@ -251,7 +251,12 @@ double halo_level(const struct point *p, double fl, int *k)
 	*k = INT_MIN;
 	if (!psf_near(p) || !(lev > 0) || !isfinite(lev))
 		return lev;
-	*k = (int)floor(FAR_STEPS * log2(p->halo_near * lev));
+	/* clamped so that the conversion stays defined when halo_near * lev
+	 * underflows to 0 or overflows (any k beyond the step map's INT16
+	 * range draws as its end does) */
+	double t = floor(FAR_STEPS * log2(p->halo_near * lev));
+
+	*k = !(t >= -(1 << 20)) ? -(1 << 20) : t > (1 << 20) ? (1 << 20) : (int)t;
 	return exp2((double)*k / FAR_STEPS);
 }
 

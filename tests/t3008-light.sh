@@ -230,6 +230,27 @@ assert abs(a.sum() / b.sum() - 1) < 1e-3
 	done
 '
 
+# An extreme factor: halo_near times the level underflows to 0 (1e-320,
+# every pixel of the array's disc drawn) or passes every step (1e300,
+# none drawn, all of the disc's light on the grid); either way finite
+# pixels and the light of the whole disc's drawing.
+test_expect_success 'psf-halo-near=1e-320 and 1e300: finite, the light kept' '
+	for f in 1e-320 1e300; do
+		"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag \
+			--set psf-halo-near=$f -o b12-$f.fits b12.csv || return 1
+	done &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+b = fits.getdata(\"b12-0.fits\", 1).astype(float)
+for f in (\"1e-320\", \"1e300\"):
+    a = fits.getdata(\"b12-%s.fits\" % f, 1).astype(float)
+    print(f, \"sums\", a.sum() / b.sum() - 1, \"peak\", a.max() / b.max() - 1)
+    assert np.isfinite(a).all() and abs(a.sum() / b.sum() - 1) < 1e-3
+    assert abs(a.max() / b.max() - 1) < 1e-3
+"
+'
+
 test_expect_success 'psf-halo-near: the same bytes with one thread and another tile size' '
 	"$PY" -c "
 import numpy as np

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "pool.h"
@@ -21,7 +22,19 @@ struct pool {
 	size_t ntasks;
 	atomic_size_t next;             /* next task index to claim */
 	int running;                    /* workers still in the current loop */
+	double *cpu;                    /* pool_start_timed's, or NULL */
 };
+
+/* The calling thread's CPU seconds (a system call, not the vDSO's: read
+ * once per worker and loop, not per task). */
+static double thread_cpu(void)
+{
+	struct timespec t;
+
+	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) < 0)
+		return 0;
+	return t.tv_sec + 1e-9 * t.tv_nsec;
+}
 
 struct start {
 	struct pool *p;
@@ -37,6 +50,7 @@ static void *worker_main(void *v)
 
 	free(st);
 	for (;;) {
+		double *cpu;
 		size_t t;
 
 		pthread_mutex_lock(&p->mu);
@@ -47,10 +61,18 @@ static void *worker_main(void *v)
 			return NULL;
 		}
 		seen = p->generation;
+		cpu = p->cpu;
 		pthread_mutex_unlock(&p->mu);
 
-		while ((t = atomic_fetch_add(&p->next, 1)) < p->ntasks)
-			p->fn(p->arg, id, t);
+		if ((t = atomic_fetch_add(&p->next, 1)) < p->ntasks) {
+			double c0 = cpu ? thread_cpu() : 0;
+
+			do
+				p->fn(p->arg, id, t);
+			while ((t = atomic_fetch_add(&p->next, 1)) < p->ntasks);
+			if (cpu)
+				cpu[id] += thread_cpu() - c0;
+		}
 
 		pthread_mutex_lock(&p->mu);
 		if (--p->running == 0)
@@ -104,7 +126,13 @@ int pool_threads(const struct pool *p)
 
 void pool_start(struct pool *p, pool_fn fn, void *arg, size_t ntasks)
 {
+	pool_start_timed(p, fn, arg, ntasks, NULL);
+}
+
+void pool_start_timed(struct pool *p, pool_fn fn, void *arg, size_t ntasks, double *cpu)
+{
 	pthread_mutex_lock(&p->mu);
+	p->cpu = cpu;
 	p->fn = fn;
 	p->arg = arg;
 	p->ntasks = ntasks;
@@ -126,6 +154,12 @@ void pool_wait(struct pool *p)
 void pool_run(struct pool *p, pool_fn fn, void *arg, size_t ntasks)
 {
 	pool_start(p, fn, arg, ntasks);
+	pool_wait(p);
+}
+
+void pool_run_timed(struct pool *p, pool_fn fn, void *arg, size_t ntasks, double *cpu)
+{
+	pool_start_timed(p, fn, arg, ntasks, cpu);
 	pool_wait(p);
 }
 

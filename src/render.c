@@ -57,18 +57,6 @@ void render_errors_collect(struct engine *g)
 #define RENDER_ROWS_AHEAD 2
 #define RENDER_ROWS_MAX 24
 
-/* The calling thread's CPU seconds: the render stage's cost in --report,
- * which a shared machine's load does not inflate as it does the wall
- * clock (a worker waiting for a core is busy by the wall clock). */
-static double thread_cpu(void)
-{
-	struct timespec t;
-
-	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) < 0)
-		return 0;
-	return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-
 /* Worker: render every placement of one active tile, in placement order. */
 void render_tile(void *arg, int wid, size_t task)
 {
@@ -80,7 +68,7 @@ void render_tile(void *arg, int wid, size_t task)
 	int x0 = tx * T, y0 = ty * T;
 	double *tile = g->slot[t / g->ntile].tile[lt];
 
-	double t0 = engine_clock(), c0 = thread_cpu();
+	double t0 = engine_clock();
 
 	if (atomic_load(&g->failed))
 		return;
@@ -140,7 +128,6 @@ void render_tile(void *arg, int wid, size_t task)
 	}
 	host_worker(NULL);
 	g->t_render[wid] += engine_clock() - t0;
-	g->t_render_cpu[wid] += thread_cpu() - c0;
 }
 
 /*
@@ -167,7 +154,7 @@ static void gather_task(void *arg, int wid, size_t task)
 	struct worker *w = &g->w[wid];
 	int s = (int)(task / j->nmodel), m = (int)(task % j->nmodel);
 	struct plugin *pl = &g->plugins.p[m];
-	double t0 = engine_clock(), c0 = thread_cpu();
+	double t0 = engine_clock();
 	int r;
 
 	/* an SCA is gathered in the pass that draws it (run.c) */
@@ -180,7 +167,6 @@ static void gather_task(void *arg, int wid, size_t task)
 		j->lit[s][m] = r > 0;
 	host_worker(NULL);
 	g->t_render[wid] += engine_clock() - t0;
-	g->t_render_cpu[wid] += thread_cpu() - c0;
 }
 
 static void spread_task(void *arg, int wid, size_t task)
@@ -196,7 +182,7 @@ static void spread_task(void *arg, int wid, size_t task)
 	int ya = y0 > g->ylo - margin ? y0 : g->ylo - margin;
 	int yb = y0 + T < g->yhi + margin ? y0 + T : g->yhi + margin;
 	double *tile = g->slot[s].tile[lt];
-	double t0 = engine_clock(), c0 = thread_cpu();
+	double t0 = engine_clock();
 	struct wfs_window win;
 
 	if (atomic_load(&g->failed) || !tile)
@@ -222,7 +208,6 @@ static void spread_task(void *arg, int wid, size_t task)
 	}
 	host_worker(NULL);
 	g->t_render[wid] += engine_clock() - t0;
-	g->t_render_cpu[wid] += thread_cpu() - c0;
 }
 
 int render_spread(struct engine *g)
@@ -245,7 +230,7 @@ int render_spread(struct engine *g)
 		free(j);
 		return 0;
 	}
-	pool_run(g->pool, gather_task, j, (size_t)g->nslot * j->nmodel);
+	pool_run_timed(g->pool, gather_task, j, (size_t)g->nslot * j->nmodel, g->t_render_cpu);
 	render_errors_collect(g);
 	if (atomic_load(&g->failed) || g->e->code != EXIT_OK)
 		goto fail;
@@ -276,7 +261,8 @@ int render_spread(struct engine *g)
 		j->tslot[j->ntask++] = s;
 	}
 	if (j->ntask) {
-		pool_run(g->pool, spread_task, j, (size_t)j->ntask * g->ntile);
+		pool_run_timed(g->pool, spread_task, j, (size_t)j->ntask * g->ntile,
+			       g->t_render_cpu);
 		render_errors_collect(g);
 	}
 fail:

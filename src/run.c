@@ -285,7 +285,8 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				if (place_bin(g[i], b) < 0)
 					break;
 				g[i]->rendering = b;
-				pool_start(g[i]->pool, render_tile, g[i], b->nactive);
+				pool_start_timed(g[i]->pool, render_tile, g[i], b->nactive,
+						 g[i]->t_render_cpu);
 				pending = g[i];
 				tb = engine_clock();
 			}

@@ -26,6 +26,7 @@
 #include "err.h"
 #include "input.h"
 #include "table_build.h"
+#include "tempfile.h"
 
 /* Text of one chunk at most this size: a table with very wide string
  * columns is read in fewer rows per chunk. */
@@ -223,22 +224,18 @@ static int open_failed(struct table_fits *x, int status, const char *name,
 /* Copy the decompressed input to an unlinked temporary file, open it. */
 static int spool(struct table_fits *x, struct input *in, struct err *e)
 {
-	const char *dir = getenv("TMPDIR");
-	char name[4096];
+	char name[PATH_MAX];
 	char *buf;
 	int fd, status = 0;
 	ssize_t r;
 
-	if (!dir || !*dir)
-		dir = "/tmp";
-	snprintf(name, sizeof(name), "%s/wfiscene-fits-XXXXXX", dir);
-	fd = mkstemp(name);
-	if (fd < 0)
-		return err_sys(e, "%s: cannot create a temporary file in %s", input_name(in), dir);
+	/* registered, so that a signal during the copy removes it too */
+	if ((fd = tempfile_scratch(input_name(in), "wfiscene-fits", name, sizeof(name), e)) < 0)
+		return -1;
 	buf = malloc(1u << 20);
 	if (!buf) {
 		close(fd);
-		unlink(name);
+		tempfile_discard(name);
 		return err_set(e, EXIT_SYSTEM, "out of memory");
 	}
 	while ((r = input_read(in, buf, 1u << 20, e)) > 0) {
@@ -263,7 +260,7 @@ static int spool(struct table_fits *x, struct input *in, struct err *e)
 	free(buf);
 	if (r < 0) {
 		close(fd);
-		unlink(name);
+		tempfile_discard(name);
 		return -1;
 	}
 	struct stat st;
@@ -271,7 +268,7 @@ static int spool(struct table_fits *x, struct input *in, struct err *e)
 	fits_open_diskfile(&x->f, name, READONLY, &status);
 	/* cfitsio holds its own descriptor: the name can go now, so the
 	 * file disappears however the run ends. */
-	unlink(name);
+	tempfile_discard(name);
 	x->fd = fd;
 	if (status)
 		return open_failed(x, status, input_name(in), e);

@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <poll.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdatomic.h>
@@ -111,14 +112,16 @@ void tempfile_remove_all(void)
 
 static void on_fatal_signal(int sig)
 {
-	const struct timespec ms = { 0, 1000000 };
-
-	atomic_store(&dying, 1);
+	/* one handler: a second signal on another thread waits for the
+	 * first one's _exit */
+	if (atomic_exchange(&dying, 1))
+		for (;;)
+			pause();
 	/* the creators run with these signals blocked, never stop for this
-	 * handler, and each takes an open(2) and a lock; ten seconds is
-	 * for a file system that hangs */
+	 * handler, and each takes an open(2) and a lock; about ten seconds
+	 * (poll(2) is async-signal-safe) is for a file system that hangs */
 	for (int i = 0; i < 10000 && atomic_load(&creating) > 0; i++)
-		nanosleep(&ms, NULL);
+		poll(NULL, 0, 1);
 	tempfile_remove_all();
 	if (write(STDERR_FILENO, signal_msg, signal_len) < 0)
 		_exit(EXIT_SIGNAL);
@@ -171,13 +174,14 @@ void tempfile_discard(char *tmp)
 }
 
 /*
- * Create tmp (O_EXCL) and register it, as one step for the signal handler
- * (see creating above).  The descriptor; -1 with errno from open(2); -2
- * when the registry is full (nothing left on disk).
+ * Create tmp and register it, as one step for the signal handler (see
+ * creating above): with O_EXCL under the name tmp, or (unique) by
+ * mkstemp(3) from the template tmp, which it completes.  The descriptor;
+ * -1 with errno from open(2) or mkstemp(3); -2 when the registry is full
+ * (nothing left on disk).
  */
-static int create_registered(const char *tmp)
+static int create_registered(char *tmp, int unique)
 {
-	const struct timespec ms = { 0, 1000000 };
 	sigset_t old;
 	int fd, saved;
 
@@ -187,9 +191,9 @@ static int create_registered(const char *tmp)
 		/* a handler is removing the temporaries and will _exit */
 		atomic_fetch_sub(&creating, 1);
 		for (;;)
-			nanosleep(&ms, NULL);
+			pause();
 	}
-	fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+	fd = unique ? mkstemp(tmp) : open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
 	saved = errno;
 	if (fd >= 0 && live_add(tmp) != 0) {
 		close(fd);
@@ -235,7 +239,7 @@ int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e)
 			suffix[i] = alnum[z % 62];
 		suffix[6] = 0;
 		snprintf(tmp, cap, "%.*s.%s.%s", (int)(base - path), path, base, suffix);
-		fd = create_registered(tmp);
+		fd = create_registered(tmp, 0);
 		if (fd >= 0)
 			return fd;
 		if (fd == -2) {
@@ -268,20 +272,37 @@ int tempfile_open_output(const char *path, char *tmp, size_t cap, struct err *e)
 	return tempfile_beside(path, tmp, cap, e);
 }
 
-int tempfile_unnamed(const char *what, struct err *e)
+int tempfile_scratch(const char *what, const char *stem, char *name, size_t cap,
+		     struct err *e)
 {
 	const char *dir = getenv("TMPDIR");
-	char name[PATH_MAX];
 	int fd;
 
+	name[0] = 0;
 	if (!dir || !*dir)
 		dir = "/tmp";
-	if (snprintf(name, sizeof(name), "%s/wfiscene-XXXXXX", dir) >= (int)sizeof(name))
+	if (snprintf(name, cap, "%s/%s-XXXXXX", dir, stem) >= (int)cap) {
+		name[0] = 0;
 		return err_set(e, EXIT_SYSTEM, "%s: cannot create a temporary file in %s: "
 			       "the name is too long", what, dir);
-	if ((fd = mkstemp(name)) < 0)
-		return err_sys(e, "%s: cannot create a temporary file in %s", what, dir);
-	unlink(name);
+	}
+	if ((fd = create_registered(name, 1)) == -2)
+		err_set(e, EXIT_SYSTEM, "%s: more than %d temporary files at once", what,
+			TEMPFILE_MAX);
+	else if (fd < 0)
+		err_sys(e, "%s: cannot create a temporary file in %s", what, dir);
+	if (fd < 0)
+		name[0] = 0;
+	return fd;
+}
+
+int tempfile_unnamed(const char *what, struct err *e)
+{
+	char name[PATH_MAX];
+	int fd = tempfile_scratch(what, "wfiscene", name, sizeof(name), e);
+
+	if (fd >= 0)
+		tempfile_discard(name);
 	return fd;
 }
 

@@ -91,6 +91,17 @@ int tempfile_open_output(const char *path, char *tmp, size_t cap, struct err *e)
 int tempfile_unnamed(const char *what, struct err *e);
 
 /*
+ * A scratch file that must keep its name for a while (a library opens it
+ * by name): "$TMPDIR/STEM-XXXXXX" (or /tmp), its name in name (cap bytes),
+ * registered as a temporary, so that a fatal signal removes it; the caller
+ * removes it with tempfile_discard(name) as soon as the name is no longer
+ * needed.  Returns a descriptor open for reading and writing, or -1 with
+ * name "" and tempfile_unnamed()'s message recorded (exit 2).
+ */
+int tempfile_scratch(const char *what, const char *stem, char *name, size_t cap,
+		     struct err *e);
+
+/*
  * Copy the rest of stdin (as it comes: compressed bytes stay compressed)
  * to an unnamed temporary that then takes stdin's place (descriptor 0),
  * at its start, so that it can be read again after lseek(0, 0, SEEK_SET).

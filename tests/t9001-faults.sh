@@ -90,6 +90,21 @@ test_expect_success 'SIGINT while reading removes the --placed temporary' '
 	test -z "$(ls -A | grep -v "^err$\|^in$\|^during$")"
 '
 
+# A FITS catalog on stdin is copied to a scratch file that cfitsio opens
+# by name: a signal during the copy removes it too.
+test_expect_success 'SIGINT while a FITS catalog on stdin is copied: exit 4, no scratch file' '
+	d=$TRASH/sig-fits && mkdir -p "$d/tmp" && cd "$d" &&
+	printf "x,y,flux\n1000,1000,500\n1100,1200,50\n" | "$BUILD/contrib/csv2fits" cat.fits &&
+	mkfifo in &&
+	{ TMPDIR=$d/tmp "$WFS" --filter F129 --sca 1 --psf "$PSF" -o out.fits - < in 2> err & } &&
+	pid=$! && exec 3> in && head -c 2880 cat.fits >&3 &&
+	{ wait_sigterm Cgt $pid; i=0; while [ $i -lt 300 ] && ! ls tmp | grep -q "^wfiscene-fits-"; do
+		sleep 0.1; i=$((i + 1)); done; ls tmp > during; kill -INT $pid; }; wait $pid; rc=$?
+	exec 3>&-
+	test $rc -eq 4 && test_grep "^wfiscene-fits-" during && test -z "$(ls -A tmp)" &&
+	test -z "$(ls -A | grep -v "^err$\|^in$\|^during$\|^tmp$\|^cat.fits$")"
+'
+
 # signal_writing SIG: 6 SCAs with noise take long enough to write that the
 # signal arrives once the temporary file exists.
 signal_writing() {

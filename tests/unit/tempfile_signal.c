@@ -12,6 +12,7 @@
 #include <limits.h>
 #include <pthread.h>
 #include <signal.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -23,7 +24,7 @@
 #include "tempfile.h"
 #include "tap.h"
 
-static char out_path[PATH_MAX];
+static char out_path[PATH_MAX + 16];
 
 static void *churn(void *arg)
 {
@@ -60,13 +61,15 @@ static int entries(const char *dir)
 
 int main(void)
 {
-	char dir[] = "/tmp/wfs-tempsig-XXXXXX";
-	int rounds = 400, bad_status = 0, left = 0;
+	const char *tmpdir = getenv("TMPDIR");
+	char dir[PATH_MAX];
+	int rounds = 400, bad_status = 0, left = 0, r;
 
+	snprintf(dir, sizeof(dir), "%s/wfs-tempsig-XXXXXX", tmpdir && *tmpdir ? tmpdir : "/tmp");
 	if (!mkdtemp(dir))
 		skip_all("no temporary directory");
 	snprintf(out_path, sizeof(out_path), "%s/out.fits", dir);
-	for (int r = 0; r < rounds; r++) {
+	for (r = 0; r < rounds; r++) {
 		/* 0 to 2 ms in 97 steps, so the signal lands at every phase of
 		 * the loop's create, close and remove */
 		struct timespec delay = { 0, 20000L * ((r * 37) % 97) + 200000L };
@@ -79,8 +82,11 @@ int main(void)
 		if (pid == 0) {
 			pthread_t t;
 
-			/* the signal must find the policy set: say so first */
+			/* the signal must find the policy set: say so first;
+			 * a child the signal does not end is ended by the
+			 * alarm (a status other than 4) */
 			tempfile_signals("tempfile_signal");
+			alarm(20);
 			if (!freopen("/dev/null", "w", stderr) || write(ready[1], "", 1) != 1)
 				_exit(3);
 			pthread_create(&t, NULL, churn, NULL);
@@ -113,6 +119,7 @@ int main(void)
 				closedir(d);
 		}
 	}
+	ok(r == rounds, "%d of %d rounds run (pipe and fork)", r, rounds);
 	ok(bad_status == 0, "every interrupted child exits %d (%d of %d did not)", EXIT_SIGNAL,
 	   bad_status, rounds);
 	ok(left == 0, "no temporary left behind by a signal (%d of %d rounds left one)", left,

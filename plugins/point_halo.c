@@ -252,11 +252,12 @@ double halo_level(const struct point *p, double fl, int *k)
 	if (!psf_near(p) || !(lev > 0) || !isfinite(lev))
 		return lev;
 	/* clamped so that the conversion stays defined when halo_near * lev
-	 * underflows to 0 or overflows (any k beyond the step map's INT16
-	 * range draws as its end does) */
+	 * underflows to 0 or overflows: from above the step map's INT16_MIN,
+	 * the mark of offsets with no step, which a k at or below it would
+	 * draw (a k beyond the map's steps draws as their end does) */
 	double t = floor(FAR_STEPS * log2(p->halo_near * lev));
 
-	*k = !(t >= -(1 << 20)) ? -(1 << 20) : t > (1 << 20) ? (1 << 20) : (int)t;
+	*k = !(t > INT16_MIN) ? INT16_MIN + 1 : t > (1 << 20) ? (1 << 20) : (int)t;
 	return exp2((double)*k / FAR_STEPS);
 }
 

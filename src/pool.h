@@ -24,7 +24,8 @@ void pool_run(struct pool *p, pool_fn fn, void *arg, size_t ntasks);
 /* The same, each worker that runs tasks of the loop adding its thread CPU
  * seconds in them to cpu[worker] (read before its first task and after its
  * last: a per-task reading is a system call, which cost a 10^7-row sky
- * scene ~1.9 million of them). */
+ * scene ~1.9 million of them).  cpu has pool_threads(p) entries and stays
+ * valid until pool_wait() returns; read it after that. */
 void pool_start_timed(struct pool *p, pool_fn fn, void *arg, size_t ntasks, double *cpu);
 void pool_run_timed(struct pool *p, pool_fn fn, void *arg, size_t ntasks, double *cpu);
 void pool_free(struct pool *p);

@@ -2,7 +2,11 @@
 differ from it, for --into's tests.
 
     asdf_rewrite.py IN.asdf OUT.asdf [--gwcs MODE] [--compress NAME=zlib|lz4]...
-                    [--corrupt NAME] [--md5]
+                    [--corrupt NAME] [--md5] [OUT2.asdf [options]...]...
+
+Each OUT is IN rewritten as the options after it (up to the next OUT)
+say; several OUTs in one call read IN once and compress and sum each
+block once, sparing python3-asdf's start-up and the work per OUT.
 
 --gwcs MODE     meta.wcs replaced by a gwcs built and serialized by
                 python3-gwcs and python3-asdf, as romancal's assign_wcs and
@@ -42,10 +46,17 @@ warnings.simplefilter("ignore")
 nd._datatype_names.setdefault("float16", "f2")
 
 args = sys.argv[1:]
-src, dst = args[0], args[1]
-opts = {"compress": {}, "gwcs": None, "corrupt": None, "md5": False}
-i = 2
+if len(args) < 2 or args[1].startswith("--"):
+    sys.exit("usage: " + __doc__.splitlines()[3].strip() + " ...")
+src = args[0]
+outs = []  # (OUT, its options)
+i = 1
 while i < len(args):
+    if not args[i].startswith("--"):
+        outs.append((args[i], {"compress": {}, "gwcs": None, "corrupt": None, "md5": False}))
+        i += 1
+        continue
+    opts = outs[-1][1]
     if args[i] == "--compress":
         k, v = args[i + 1].split("=")
         opts["compress"][k] = v
@@ -125,34 +136,46 @@ def gwcs_yaml(mode):
     return "    " + lines[0] + "\n" + "".join("    " + ln + "\n" for ln in lines[1:])
 
 
-if opts["gwcs"]:
-    m = re.search(r"^    wcs: .*\n((?:      .*\n|    -.*\n)*)", tree, re.M)
-    assert m, "no meta.wcs"
-    tree = tree[:m.start()] + gwcs_yaml(opts["gwcs"]) + tree[m.end():]
+compressed = {}  # (block, compression): its stored bytes
+md5s = {}  # block: python3-asdf's MD5, of the array's bytes before compression
+gwcs = {}  # mode: its yaml
+for dst, opts in outs:
+    text = tree
+    if opts["gwcs"]:
+        if opts["gwcs"] not in gwcs:
+            gwcs[opts["gwcs"]] = gwcs_yaml(opts["gwcs"])
+        m = re.search(r"^    wcs: .*\n((?:      .*\n|    -.*\n)*)", text, re.M)
+        assert m, "no meta.wcs"
+        text = text[:m.start()] + gwcs[opts["gwcs"]] + text[m.end():]
 
-out = io.BytesIO()
-out.write(tree.encode())
-where = []
-for k, data in enumerate(blocks):
-    name = [n for n, b in source.items() if b == k]
-    comp = opts["compress"].get(name[0]) if name else None
-    stored = data
-    if comp:
-        buf = io.BytesIO()
-        asdf.compression.compress(buf, np.frombuffer(data, np.uint8), comp)
-        stored = buf.getvalue()
-    if name and opts["corrupt"] == name[0]:
-        b = bytearray(stored)
-        b[len(b) // 2] ^= 0xFF
-        b[len(b) // 2 + 1] ^= 0x5A
-        stored = bytes(b)
-    # python3-asdf's MD5 is of the array's bytes, before compression
-    md5 = hashlib.md5(data).digest() if opts["md5"] or comp else b"\0" * 16
-    where.append(out.tell())
-    out.write(b"\xd3BLK" + struct.pack(">HI4sQQQ16s", 48, 0,
-                                       (comp or "").encode().ljust(4, b"\0"),
-                                       len(stored), len(stored), len(data), md5))
-    out.write(stored)
-out.write(b"#ASDF BLOCK INDEX\n%YAML 1.1\n---\n" +
-          "".join("- %d\n" % w for w in where).encode() + b"...\n")
-open(dst, "wb").write(out.getvalue())
+    with open(dst, "wb") as out:
+        out.write(text.encode())
+        where = []
+        for k, data in enumerate(blocks):
+            name = [n for n, b in source.items() if b == k]
+            comp = opts["compress"].get(name[0]) if name else None
+            stored = data
+            if comp:
+                if (k, comp) not in compressed:
+                    buf = io.BytesIO()
+                    asdf.compression.compress(buf, np.frombuffer(data, np.uint8), comp)
+                    compressed[k, comp] = buf.getvalue()
+                stored = compressed[k, comp]
+            if name and opts["corrupt"] == name[0]:
+                b = bytearray(stored)
+                b[len(b) // 2] ^= 0xFF
+                b[len(b) // 2 + 1] ^= 0x5A
+                stored = bytes(b)
+            if opts["md5"] or comp:
+                if k not in md5s:
+                    md5s[k] = hashlib.md5(data).digest()
+                md5 = md5s[k]
+            else:
+                md5 = b"\0" * 16
+            where.append(out.tell())
+            out.write(b"\xd3BLK" + struct.pack(">HI4sQQQ16s", 48, 0,
+                                               (comp or "").encode().ljust(4, b"\0"),
+                                               len(stored), len(stored), len(data), md5))
+            out.write(stored)
+        out.write(b"#ASDF BLOCK INDEX\n%YAML 1.1\n---\n" +
+                  "".join("- %d\n" % w for w in where).encode() + b"...\n")

@@ -1,17 +1,29 @@
-"""Compare the arrays of two ASDF files of wfiscene, and say how the
-second one's blocks are stored.
+"""Compare the arrays of ASDF files of wfiscene, pair by pair, and say
+how the second file of each pair stores its blocks.
 
-    asdf_same.py A.asdf B.asdf [none|zlib|lz4] [--lz4-as-asdf]
+    asdf_same.py A.asdf B.asdf [none|zlib|lz4] [--lz4-as-asdf] [--checksums]
+                 [A2.asdf B2.asdf [none|zlib|lz4] [--lz4-as-asdf] [--checksums]]...
 
-Every ndarray under `roman` of A equals B's (NaN equal to NaN).  With a
-compression named, every block of B is stored so (its header's
-compression field).  --lz4-as-asdf: each lz4 block of B holds, byte for
-byte, what python3-asdf's own lz4 compressor makes of the array.  Prints
-"ok" and the sizes, or fails with an assertion.
+For each pair A B: every ndarray under `roman` of A equals B's (NaN equal
+to NaN).  With a compression named, every block of B is stored so (its
+header's compression field).  --lz4-as-asdf: each lz4 block of B holds,
+byte for byte, what python3-asdf's own lz4 compressor makes of the array.
+--checksums: B is opened as asdf_checksum.py opens a file, with
+python3-asdf's checksum checks on, and its arrays read: an MD5 that
+python3-asdf checks and finds wrong fails (python3-asdf 2.14 checks the
+first block, data, read on opening; those it finds through the block
+index it does not).  The words after a pair are for that pair alone.
+
+Several pairs in one call spare python3-asdf's start-up (seconds) per
+pair, and an A named in several pairs is read once.  Prints "ok B: " and
+the sizes for each pair in turn, or stops at the first failure, the pair
+named, with exit 1.
 """
+import mmap
 import re
 import struct
 import sys
+import traceback
 import warnings
 
 import numpy as np
@@ -22,51 +34,101 @@ import asdf.tags.core.ndarray as nd
 warnings.simplefilter("ignore")
 nd._datatype_names.setdefault("float16", "f2")
 
-a_path, b_path = sys.argv[1], sys.argv[2]
-want = sys.argv[3] if len(sys.argv) > 3 and not sys.argv[3].startswith("--") else None
-as_asdf = "--lz4-as-asdf" in sys.argv
+FIELD = {"none": b"\0\0\0\0", "zlib": b"zlib", "lz4": b"lz4\0"}
 
 
-def blocks(path):
-    """The header fields and stored bytes of each block, by the Standard."""
-    raw = open(path, "rb").read()
-    off = raw.index(b"\n...\n") + 5
+def parse(argv):
+    """The pairs: [a, b, compression or None, lz4-as-asdf, checksums]."""
+    pairs, files = [], []
+    for arg in argv:
+        if arg in FIELD or arg in ("--lz4-as-asdf", "--checksums"):
+            if files or not pairs:
+                sys.exit("asdf_same.py: %s before a pair A B" % arg)
+            if arg in FIELD:
+                pairs[-1][2] = arg
+            else:
+                pairs[-1][3 if arg == "--lz4-as-asdf" else 4] = True
+        elif arg.startswith("--"):
+            sys.exit("asdf_same.py: unknown option " + arg)
+        else:
+            files.append(arg)
+            if len(files) == 2:
+                pairs.append(files + [None, False, False])
+                files = []
+    if files or not pairs:
+        sys.exit("usage: " + __doc__.splitlines()[3].strip())
+    return pairs
+
+
+def blocks(raw):
+    """The header fields and the offset of the stored bytes of each block,
+    by the Standard."""
+    off = raw.find(b"\n...\n") + 5
     out = []
     while raw[off:off + 4] == b"\xd3BLK":
         hs = struct.unpack(">H", raw[off + 4:off + 6])[0]
         flags, comp, alloc, used, size = struct.unpack(">I4sQQQ", raw[off + 6:off + 38])
-        out.append((comp, used, size, raw[off + 6 + hs:off + 6 + hs + used]))
+        out.append((comp, used, size, off + 6 + hs))
         off += 6 + hs + alloc
     return out
 
 
-tree = open(b_path, "rb").read()
-tree = tree[:tree.index(b"\n...\n")].decode()
-source = {m.group(1): int(m.group(2)) for m in
-          re.finditer(r"^  (\w+): !core/ndarray-1\.1\.0\n\s+source: (\d+)", tree, re.M)}
-field = {"none": b"\0\0\0\0", "zlib": b"zlib", "lz4": b"lz4\0"}
-bb = blocks(b_path)
-if want:
-    for k, (comp, used, size, _) in enumerate(bb):
-        assert comp == field[want], (k, comp)
-        assert want != "none" or used == size, k
-with asdf.open(a_path, copy_arrays=True) as a, asdf.open(b_path, copy_arrays=True) as b:
-    ra, rb = a.tree["roman"], b.tree["roman"]
+def arrays(path, checksums=False):
+    """The ndarrays under `roman` of a file, read by python3-asdf."""
+    with asdf.open(path, copy_arrays=True, validate_checksums=checksums) as af:
+        return [(k, np.asarray(v)) for k, v in af.tree["roman"].items() if k != "meta"]
+
+
+def equal(x, y):
+    """np.array_equal(x, y, equal_nan=True), sooner when x and y have one
+    dtype and shape and the same bytes (then every value is the same)."""
+    if x.dtype == y.dtype and x.shape == y.shape and np.array_equal(
+            np.ascontiguousarray(x).reshape(-1).view(np.uint8),
+            np.ascontiguousarray(y).reshape(-1).view(np.uint8)):
+        return True
+    return np.array_equal(x, y, equal_nan=True)
+
+
+cache = {}
+
+
+def check(a_path, b_path, want, as_asdf, checksums):
+    with open(b_path, "rb") as f:
+        raw = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+    tree = raw[:raw.find(b"\n...\n")].decode()
+    source = {m.group(1): int(m.group(2)) for m in
+              re.finditer(r"^  (\w+): !core/ndarray-1\.1\.0\n\s+source: (\d+)", tree, re.M)}
+    bb = blocks(raw)
+    if want:
+        for k, (comp, used, size, _) in enumerate(bb):
+            assert comp == FIELD[want], (k, comp)
+            assert want != "none" or used == size, k
+    if a_path not in cache:
+        cache[a_path] = arrays(a_path)
+    rb = dict(arrays(b_path, checksums))
     n = 0
-    for k, v in ra.items():
-        if k == "meta":
-            continue
-        x, y = np.asarray(v), np.asarray(rb[k])
+    for k, x in cache[a_path]:
+        y = rb[k]
         assert x.dtype == y.dtype and x.shape == y.shape, (k, x.dtype, y.dtype)
-        assert np.array_equal(x, y, equal_nan=True), k
+        assert equal(x, y), k
         n += 1
         if as_asdf:
             src = source[k]
-            comp, used, size, data = bb[src]
+            comp, used, size, at = bb[src]
             assert comp == b"lz4\0", (k, comp)
             mine = b"".join(asdf.compression._get_compressor("lz4").compress(
                 memoryview(np.ascontiguousarray(y).ravel())))
-            assert mine == data, "%s: lz4 bytes differ from python3-asdf's" % k
+            assert mine == raw[at:at + used], "%s: lz4 bytes differ from python3-asdf's" % k
     assert n >= 3, n
-print("ok %d arrays equal; %d blocks, %d of %d bytes stored" %
-      (n, len(bb), sum(x[1] for x in bb), sum(x[2] for x in bb)))
+    raw.close()
+    return "ok %s: %d arrays equal; %d blocks, %d of %d bytes stored" % (
+        b_path, n, len(bb), sum(x[1] for x in bb), sum(x[2] for x in bb))
+
+
+for a, b, want, as_asdf, checksums in parse(sys.argv[1:]):
+    try:
+        line = check(a, b, want, as_asdf, checksums)
+    except Exception as e:  # an assertion, or python3-asdf refusing a checksum
+        traceback.print_exc()
+        sys.exit("asdf_same.py: %s against %s: %s: %s" % (b, a, type(e).__name__, e))
+    print(line, flush=True)

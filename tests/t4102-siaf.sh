@@ -18,12 +18,13 @@ check() {
 	test_expect_success "SIAF chain: $name" "
 		\"\$PY\" \"\$TOP/tests/siaf_check.py\" make \"\$SIAF\" $ra $dec $pa $ref 12 $seed \
 			> cat.csv &&
-		\"\$WFS\" --filter F129 --sca 1-18 --compress gzip --psf \"\$PSF\" \
+		\"\$WFS\" --filter F129 --sca 1-18 --psf \"\$PSF\" \
 			--ra $ra --dec $dec --pa $pa --pointing-ref $ref \
 			-o img.fits --placed placed.csv cat.csv &&
 		\"\$PY\" \"\$TOP/tests/siaf_check.py\" compare \"\$SIAF\" $ra $dec $pa $ref \
 			cat.csv placed.csv &&
-		\"\$PY\" \"\$TOP/tests/siaf_check.py\" sip \"\$SIAF\" $ra $dec $pa $ref img.fits
+		\"\$PY\" \"\$TOP/tests/siaf_check.py\" sip \"\$SIAF\" $ra $dec $pa $ref img.fits &&
+		rm img.fits
 	"
 }
 check 'PA 30 about WFI01' 10 20 30 wfi01 1

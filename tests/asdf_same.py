@@ -12,13 +12,18 @@ byte for byte, what python3-asdf's own lz4 compressor makes of the array.
 python3-asdf's checksum checks on, and its arrays read: an MD5 that
 python3-asdf checks and finds wrong fails (python3-asdf 2.14 checks the
 first block, data, read on opening; those it finds through the block
-index it does not).  The words after a pair are for that pair alone.
+index it does not).  So the MD5 in every array's block header is also
+checked here against the array's bytes before compression (python3-asdf's
+convention, which wfiscene writes where it writes one) and the count of
+those that match printed.
+The words after a pair are for that pair alone.
 
 Several pairs in one call spare python3-asdf's start-up (seconds) per
 pair, and an A named in several pairs is read once.  Prints "ok B: " and
 the sizes for each pair in turn, or stops at the first failure, the pair
 named, with exit 1.
 """
+import hashlib
 import mmap
 import re
 import struct
@@ -68,7 +73,7 @@ def blocks(raw):
     while raw[off:off + 4] == b"\xd3BLK":
         hs = struct.unpack(">H", raw[off + 4:off + 6])[0]
         flags, comp, alloc, used, size = struct.unpack(">I4sQQQ", raw[off + 6:off + 38])
-        out.append((comp, used, size, off + 6 + hs))
+        out.append((comp, used, size, off + 6 + hs, bytes(raw[off + 38:off + 54])))
         off += 6 + hs + alloc
     return out
 
@@ -100,7 +105,7 @@ def check(a_path, b_path, want, as_asdf, checksums):
               re.finditer(r"^  (\w+): !core/ndarray-1\.1\.0\n\s+source: (\d+)", tree, re.M)}
     bb = blocks(raw)
     if want:
-        for k, (comp, used, size, _) in enumerate(bb):
+        for k, (comp, used, size, _, _) in enumerate(bb):
             assert comp == FIELD[want], (k, comp)
             assert want != "none" or used == size, k
     if a_path not in cache:
@@ -114,15 +119,24 @@ def check(a_path, b_path, want, as_asdf, checksums):
         n += 1
         if as_asdf:
             src = source[k]
-            comp, used, size, at = bb[src]
+            comp, used, size, at, _ = bb[src]
             assert comp == b"lz4\0", (k, comp)
             mine = b"".join(asdf.compression._get_compressor("lz4").compress(
                 memoryview(np.ascontiguousarray(y).ravel())))
             assert mine == raw[at:at + used], "%s: lz4 bytes differ from python3-asdf's" % k
     assert n >= 3, n
+    summed = 0
+    if checksums:
+        for k, y in rb.items():
+            md5 = bb[source[k]][4]
+            if md5 != bytes(16):
+                got = hashlib.md5(np.ascontiguousarray(y).tobytes()).digest()
+                assert got == md5, "%s: block %d's MD5 is not that of its data" % (k, source[k])
+                summed += 1
     raw.close()
-    return "ok %s: %d arrays equal; %d blocks, %d of %d bytes stored" % (
-        b_path, n, len(bb), sum(x[1] for x in bb), sum(x[2] for x in bb))
+    return "ok %s: %d arrays equal; %d blocks, %d of %d bytes stored%s" % (
+        b_path, n, len(bb), sum(x[1] for x in bb), sum(x[2] for x in bb),
+        "; %d MD5s right" % summed if checksums else "")
 
 
 for a, b, want, as_asdf, checksums in parse(sys.argv[1:]):

@@ -134,12 +134,13 @@ test_expect_success '--into refuses a truncated file, a wrong block size or chec
 	test_must_fail --status 1 inj size.asdf 2> err && test_grep "size.asdf: block 0" err &&
 	test_must_fail --status 1 inj sum.asdf 2> err && test_grep "sum.asdf: block 0: its MD5" err &&
 	inj good.asdf &&
-	"$PY" "$TOP/tests/asdf_break.py" out.asdf bad2.asdf md5 0 &&
-	test_must_fail "$PY" "$TOP/tests/asdf_checksum.py" out.asdf bad2.asdf > sums &&
+	"$PY" "$TOP/tests/asdf_break.py" out.asdf bad2.asdf md5 0 bad3.asdf md5 3 &&
+	test_must_fail "$PY" "$TOP/tests/asdf_checksum.py" out.asdf bad2.asdf bad3.asdf > sums &&
 	cat sums && test_grep "^out.asdf: ok" sums && test_grep "^bad2.asdf: FAILED" sums &&
+	test_grep "^bad3.asdf: FAILED .*block 3.s MD5" sums &&
 	rm out.asdf &&
 	! ls -a | grep -q "out\.asdf" &&
-	rm cut.asdf size.asdf sum.asdf good.asdf bad2.asdf
+	rm cut.asdf size.asdf sum.asdf good.asdf bad2.asdf bad3.asdf
 '
 
 test_expect_success 'what an ASDF file does not hold is refused, nothing written' '

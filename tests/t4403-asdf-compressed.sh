@@ -122,6 +122,8 @@ test_expect_success '--into our own compressed file: kept compressed, or stored 
 	"$PY" "$TOP/tests/asdf_same.py" out_u.asdf in_lz4.asdf lz4 out_u.asdf in_zlib.asdf zlib \
 		out_u.asdf in_to.asdf lz4 out_u.asdf in_no.asdf none --checksums > out &&
 	say "$(cat out)" && test "$(grep -c "^ok" out)" = 4 &&
+	# c.asdf carried an MD5 in every block: in_no.asdf keeps one each, right
+	grep "^ok in_no.asdf: .* \([0-9]*\) blocks, .*; \1 MD5s right" out &&
 	if have_shared && [ -x "$CHECK" ]; then
 		"$CHECK" --expect wfi_image in_lz4.asdf in_zlib.asdf in_to.asdf in_no.asdf
 	fi

@@ -13,19 +13,16 @@ import hashlib
 import struct
 import sys
 
+from asdf_blocks import blocks
+
 args = sys.argv[1:]
 if len(args) < 4 or (len(args) - 1) % 3:
     sys.exit("usage: " + __doc__.splitlines()[3].strip())
 src = open(args[0], "rb").read()
+bb = blocks(src)
 for i in range(1, len(args), 3):
     dst, what, k = args[i], args[i + 1], int(args[i + 2])
-    pos = src.index(b"\xd3BLK")
-    for _ in range(k):
-        hs = struct.unpack(">H", src[pos + 4:pos + 6])[0]
-        alloc = struct.unpack(">Q", src[pos + 14:pos + 22])[0]
-        pos = pos + 6 + hs + alloc
-    hs = struct.unpack(">H", src[pos + 4:pos + 6])[0]
-    used = struct.unpack(">Q", src[pos + 22:pos + 30])[0]
+    pos, used = bb[k].head, bb[k].used
     b = bytearray(src[pos:pos + 54])  # the block's magic and header
     if what == "size":
         b[22:30] = struct.pack(">Q", used + 8)
@@ -35,8 +32,7 @@ for i in range(1, len(args), 3):
     elif what == "md5":
         b[38:54] = bytes(range(1, 17))
     elif what == "md5-right":
-        data = src[pos + 6 + hs:pos + 6 + hs + used]
-        b[38:54] = hashlib.md5(data).digest()
+        b[38:54] = hashlib.md5(src[bb[k].at:bb[k].at + used]).digest()
     else:
         sys.exit("asdf_break.py: unknown change " + what)
     with open(dst, "wb") as f:

@@ -15,8 +15,6 @@ in one call spare python3-asdf's start-up per file.
 """
 import hashlib
 import mmap
-import re
-import struct
 import sys
 import warnings
 
@@ -24,35 +22,17 @@ import numpy as np
 import asdf
 import asdf.tags.core.ndarray as nd
 
+from asdf_blocks import blocks, sources
+
 warnings.simplefilter("ignore")
 nd._datatype_names.setdefault("float16", "f2")
-
-
-def md5s(path):
-    """The MD5 field of each block, by the Standard, and the block of each
-    ndarray under `roman` (its source), from the file's own bytes."""
-    with open(path, "rb") as f:
-        raw = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
-    end = raw.find(b"\n...\n")
-    tree = raw[:end].decode()
-    source = {m.group(1): int(m.group(2)) for m in
-              re.finditer(r"^  (\w+): !core/ndarray-1\.1\.0\n\s+source: (\d+)", tree, re.M)}
-    off, out = end + 5, []
-    while raw[off:off + 4] == b"\xd3BLK":
-        hs = struct.unpack(">H", raw[off + 4:off + 6])[0]
-        alloc = struct.unpack(">Q", raw[off + 14:off + 22])[0]
-        out.append(bytes(raw[off + 38:off + 54]))
-        off += 6 + hs + alloc
-    raw.close()
-    return out, source
-
-
 if len(sys.argv) < 2:
     sys.exit("usage: " + __doc__.splitlines()[4].strip())
 bad = 0
 for path in sys.argv[1:]:
     try:
-        sums, source = md5s(path)
+        with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as raw:
+            sums, source = [b.md5 for b in blocks(raw)], sources(raw)
         n = 0
         with asdf.open(path, validate_checksums=True) as af:
             roman = af.tree["roman"]

@@ -42,6 +42,9 @@ import asdf
 import asdf.compression
 import asdf.tags.core.ndarray as nd
 
+import asdf_blocks
+from asdf_blocks import sources, tree_end
+
 warnings.simplefilter("ignore")
 nd._datatype_names.setdefault("float16", "f2")
 
@@ -71,24 +74,15 @@ while i < len(args):
         sys.exit("asdf_rewrite.py: unknown option " + args[i])
 
 raw = open(src, "rb").read()
-end = raw.index(b"\n...\n") + 5
+end = tree_end(raw)
 tree = raw[:end].decode()
 
-# the blocks: header fields big-endian after the magic and header size
+# the blocks' data, and which block each top-level array of roman is
 blocks = []
-off = end
-while raw[off:off + 4] == b"\xd3BLK":
-    hs = struct.unpack(">H", raw[off + 4:off + 6])[0]
-    flags, comp, alloc, used, size = struct.unpack(">I4sQQQ", raw[off + 6:off + 38])
-    assert comp == b"\0\0\0\0", "the input's blocks must be uncompressed"
-    data = raw[off + 6 + hs:off + 6 + hs + used]
-    blocks.append(data)
-    off += 6 + hs + alloc
-
-# which block each top-level array of roman is
-source = {}
-for m in re.finditer(r"^  (\w+): !core/ndarray-1\.1\.0\n\s+source: (\d+)", tree, re.M):
-    source[m.group(1)] = int(m.group(2))
+for b in asdf_blocks.blocks(raw):
+    assert b.comp == b"\0\0\0\0", "the input's blocks must be uncompressed"
+    blocks.append(raw[b.at:b.at + b.used])
+source = sources(raw)
 
 
 def gwcs_yaml(mode):

@@ -25,8 +25,6 @@ named, with exit 1.
 """
 import hashlib
 import mmap
-import re
-import struct
 import sys
 import traceback
 import warnings
@@ -35,6 +33,8 @@ import numpy as np
 import asdf
 import asdf.compression
 import asdf.tags.core.ndarray as nd
+
+from asdf_blocks import blocks, sources
 
 warnings.simplefilter("ignore")
 nd._datatype_names.setdefault("float16", "f2")
@@ -65,19 +65,6 @@ def parse(argv):
     return pairs
 
 
-def blocks(raw):
-    """The header fields and the offset of the stored bytes of each block,
-    by the Standard."""
-    off = raw.find(b"\n...\n") + 5
-    out = []
-    while raw[off:off + 4] == b"\xd3BLK":
-        hs = struct.unpack(">H", raw[off + 4:off + 6])[0]
-        flags, comp, alloc, used, size = struct.unpack(">I4sQQQ", raw[off + 6:off + 38])
-        out.append((comp, used, size, off + 6 + hs, bytes(raw[off + 38:off + 54])))
-        off += 6 + hs + alloc
-    return out
-
-
 def arrays(path, checksums=False):
     """The ndarrays under `roman` of a file, read by python3-asdf."""
     with asdf.open(path, copy_arrays=True, validate_checksums=checksums) as af:
@@ -100,14 +87,12 @@ cache = {}
 def check(a_path, b_path, want, as_asdf, checksums):
     with open(b_path, "rb") as f:
         raw = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
-    tree = raw[:raw.find(b"\n...\n")].decode()
-    source = {m.group(1): int(m.group(2)) for m in
-              re.finditer(r"^  (\w+): !core/ndarray-1\.1\.0\n\s+source: (\d+)", tree, re.M)}
+    source = sources(raw)
     bb = blocks(raw)
     if want:
-        for k, (comp, used, size, _, _) in enumerate(bb):
-            assert comp == FIELD[want], (k, comp)
-            assert want != "none" or used == size, k
+        for k, b in enumerate(bb):
+            assert b.comp == FIELD[want], (k, b.comp)
+            assert want != "none" or b.used == b.size, k
     if a_path not in cache:
         cache[a_path] = arrays(a_path)
     rb = dict(arrays(b_path, checksums))
@@ -118,24 +103,23 @@ def check(a_path, b_path, want, as_asdf, checksums):
         assert equal(x, y), k
         n += 1
         if as_asdf:
-            src = source[k]
-            comp, used, size, at, _ = bb[src]
-            assert comp == b"lz4\0", (k, comp)
+            b = bb[source[k]]
+            assert b.comp == b"lz4\0", (k, b.comp)
             mine = b"".join(asdf.compression._get_compressor("lz4").compress(
                 memoryview(np.ascontiguousarray(y).ravel())))
-            assert mine == raw[at:at + used], "%s: lz4 bytes differ from python3-asdf's" % k
+            assert mine == raw[b.at:b.at + b.used], "%s: lz4 bytes differ from python3-asdf's" % k
     assert n >= 3, n
     summed = 0
     if checksums:
         for k, y in rb.items():
-            md5 = bb[source[k]][4]
+            md5 = bb[source[k]].md5
             if md5 != bytes(16):
                 got = hashlib.md5(np.ascontiguousarray(y).tobytes()).digest()
                 assert got == md5, "%s: block %d's MD5 is not that of its data" % (k, source[k])
                 summed += 1
     raw.close()
     return "ok %s: %d arrays equal; %d blocks, %d of %d bytes stored%s" % (
-        b_path, n, len(bb), sum(x[1] for x in bb), sum(x[2] for x in bb),
+        b_path, n, len(bb), sum(b.used for b in bb), sum(b.size for b in bb),
         "; %d MD5s right" % summed if checksums else "")
 
 

@@ -326,7 +326,6 @@ static int near_segments(struct near *n)
 
 /* Set up n from halo h and the box half-width hb: 0, or -1 when out of
  * memory. */
-
 static int near_setup(struct near *n, const struct halo *h, int hb)
 {
 	int rc = (int)ceil(h->R) + 1, side = 2 * rc + 1;
@@ -835,8 +834,8 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	q.w[3] = flux * h->s * fu * fv;
 	rm2 = r < h->R ? r * r : h->R * h->R;
 	/* beyond the steepest step nothing is drawn; below the lowest, every
-	 * offset of the disc, as at the lowest (halo_level's k is far above
-	 * the INT16_MIN of the offsets beyond it) */
+	 * offset of the disc, as at the lowest (halo_level keeps k above the
+	 * INT16_MIN of the offsets beyond it) */
 	if (k > n->kmax)
 		return;
 	ri = n->ri + (size_t)(k > n->kmin ? k - n->kmin : 0) * n->side;

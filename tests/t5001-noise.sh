@@ -27,28 +27,33 @@ print("%.9g %.9g %.9g %.9g %d" % (med, 1.4826 * np.median(np.abs(f - med)),
       f.min(), f.max(), d.size - f.size))
 PYEOF
 
-# same_hdus.py A B: every image HDU of B is in A (by EXTNAME) with equal data.
+# same_hdus.py A B...: every image HDU of each B is in A (by EXTNAME) with
+# equal data (A read once, one python3 start for all the Bs).
 cat > same_hdus.py <<\PYEOF
 import sys
 import numpy as np
 from astropy.io import fits
 a = {h.name: h.data for h in fits.open(sys.argv[1]) if h.is_image and h.data is not None}
-for h in fits.open(sys.argv[2]):
-    if h.is_image and h.data is not None:
-        if h.name not in a or not np.array_equal(a[h.name], h.data):
-            print("HDU %s differs" % h.name)
-            sys.exit(1)
+for b in sys.argv[2:]:
+    for h in fits.open(b):
+        if h.is_image and h.data is not None:
+            if h.name not in a or not np.array_equal(a[h.name], h.data):
+                print("%s: HDU %s differs from %s's" % (b, h.name, sys.argv[1]))
+                sys.exit(1)
 PYEOF
 
-# corr.py A HDU_A B HDU_B: correlation of two images, as |r| * sqrt(N).
+# corr.py A HDU_A B HDU_B [A HDU_A B HDU_B...]: correlation of two images,
+# as |r| * sqrt(N), one line per pair (one python3 start for all).
 cat > corr.py <<\PYEOF
 import sys
 import numpy as np
 from astropy.io import fits
-x = np.asarray(fits.open(sys.argv[1])[sys.argv[2]].data, dtype=np.float64).ravel()
-y = np.asarray(fits.open(sys.argv[3])[sys.argv[4]].data, dtype=np.float64).ravel()
-r = np.corrcoef(x, y)[0, 1]
-print("%.3f" % (abs(r) * np.sqrt(x.size)))
+for i in range(1, len(sys.argv), 4):
+    a, ha, b, hb = sys.argv[i:i + 4]
+    x = np.asarray(fits.open(a)[ha].data, dtype=np.float64).ravel()
+    y = np.asarray(fits.open(b)[hb].data, dtype=np.float64).ravel()
+    r = np.corrcoef(x, y)[0, 1]
+    print("%.3f" % (abs(r) * np.sqrt(x.size)))
 PYEOF
 
 within() { awk -v g="$1" -v w="$2" -v t="$3" 'BEGIN { d = g - w; if (d < 0) d = -d; exit !(d <= t) }'; }
@@ -116,16 +121,19 @@ test_expect_success 'runs split by SCA give the HDUs of one run' '
 	run --sca 1,2,17 --noise all --background avg --exptime 100 --seed 5 -o whole.fits two.csv &&
 	run --sca 1,2 --noise all --background avg --exptime 100 --seed 5 -o part1.fits two.csv &&
 	run --sca 17 --noise all --background avg --exptime 100 --seed 5 --threads 1 -o part2.fits two.csv &&
-	$PY same_hdus.py whole.fits part1.fits && $PY same_hdus.py whole.fits part2.fits
+	$PY same_hdus.py whole.fits part1.fits part2.fits
 '
 test_expect_success 'different SCAs, filters and seeds never share a noise pattern' '
 	run --sca 1 --noise poisson,readnoise --background avg --exptime 100 --seed 5 --filter F158 -o f158.fits none.csv &&
 	run --sca 1 --noise all --background avg --exptime 100 --seed 6 -o s6.fits none.csv &&
-	$PY corr.py whole.fits WFI01 whole.fits WFI02 > r1 &&
-	$PY corr.py whole.fits WFI01 f158.fits WFI01 > r2 &&
-	$PY corr.py whole.fits WFI17 s6.fits WFI01 > r3 &&
+	$PY corr.py whole.fits WFI01 whole.fits WFI02 whole.fits WFI01 f158.fits WFI01 \
+		whole.fits WFI17 s6.fits WFI01 > r &&
+	test $(wc -l < r) = 3 &&
+	sed -n 1p r > r1 && sed -n 2p r > r2 && sed -n 3p r > r3 &&
 	cat r1 r2 r3 &&
-	within "$(cat r1)" 0 5 && within "$(cat r2)" 0 5 && within "$(cat r3)" 0 5
+	{ within "$(cat r1)" 0 5 || { echo "WFI01 and WFI02 of one run correlate: $(cat r1)"; false; }; } &&
+	{ within "$(cat r2)" 0 5 || { echo "F129 and F158 on WFI01 correlate: $(cat r2)"; false; }; } &&
+	{ within "$(cat r3)" 0 5 || { echo "seeds 5 (WFI17) and 6 (WFI01) correlate: $(cat r3)"; false; }; }
 '
 # Every combination is scanned on image regions by tests/unit/noise_tiles;
 # here three extreme corners go through the whole program.

@@ -79,7 +79,11 @@ struct poly {
 	/* or a class cell (cclass >= 0: the blend of one class, which the
 	 * pairs cclass - 1, cclass and cclass, cclass + 1 share at their end
 	 * steps): the two pairs' differences, dpair[0] of the pair below
-	 * (its step 1) and dpair[1] of the pair above (its step 0) */
+	 * (its step 1) and dpair[1] of the pair above (its step 0).  A class
+	 * cell may be published before its pairs are made (as the neighbour
+	 * of another class's pair): each is set once, by class_add(), from
+	 * NULL to the pair's one published difference, with release order,
+	 * and read with acquire order (cell_pair) */
 	int cclass;
 	const struct poly *dpair[2];
 };
@@ -93,7 +97,7 @@ static inline const struct poly *cell_pair(const struct poly *cell, int a, doubl
 		return cell->dcol;
 	}
 	*g = a == cell->cclass ? 0 : 1;
-	return cell->dpair[a == cell->cclass];
+	return __atomic_load_n(&cell->dpair[a == cell->cclass], __ATOMIC_ACQUIRE);
 }
 
 /* Pixels [x0, x1) x [y0, y1), 0-based; empty when x0 >= x1 or y0 >= y1. */
@@ -286,6 +290,8 @@ struct point {
 				 * sources (0: they are blended per source) */
 	int nclasses;           /* the host's spectral classes, two families of
 				 * nclasses / 2 (setting spectral-classes) */
+	uint64_t classes_seen;  /* bit k: a source has wanted class k's cell
+				 * (class_add; __atomic builtins) */
 	int extent;             /* psf-extent: EXTENT_NOISE or EXTENT_STIPS */
 	double extent_noise;    /* psf-extent-noise: fraction of sigma */
 	double extent_max;      /* psf-extent-max: largest radius, pixels */

@@ -449,10 +449,11 @@ static int cell_make(struct point *p, uint64_t key, const float *const node[8],
 	return 0;
 }
 
-/* Class k's blend at (cx, cy) of the source's SCA and size class, into
- * *made, unpublished: a class cell (nodes kept, psf-blend=core's copies
- * made) when cell is set, else a bare copy to take a difference from.
- * Returns 0, or -1 with an error recorded. */
+/* Class k's blend at the position of the cell under key (centre cx, cy)
+ * of the source's SCA and size class, into *made, unpublished: a class
+ * cell (its nodes kept, psf-blend=core's copies made) when cell is set,
+ * else a bare copy to take a difference from.  Returns 0, or -1 with an
+ * error recorded. */
 static int class_blend(struct point *p, const struct wfs_source *src, uint64_t key, double cx,
 		       double cy, int k, int cell, struct poly *made)
 {
@@ -478,53 +479,82 @@ static int class_blend(struct point *p, const struct wfs_source *src, uint64_t k
 	return rc;
 }
 
+/* Class k's cell there: the published one, else made and published with
+ * no pairs yet.  NULL with an error recorded. */
+static struct poly *class_cell(struct point *p, const struct wfs_source *src, uint64_t key,
+			       double cx, double cy, int k)
+{
+	struct poly made, *c = (struct poly *)poly_find(p, class_key(p, key, k));
+
+	if (c)
+		return c;
+	if (class_blend(p, src, key, cx, cy, k, 1, &made) < 0)
+		return NULL;
+	return poly_insert(p, &made);
+}
+
+/* Whether a source has wanted class k's cell; marks k when mark is set. */
+static int class_seen(struct point *p, int k, int mark)
+{
+	uint64_t bit = (uint64_t)1 << k;
+
+	if (__atomic_load_n(&p->classes_seen, __ATOMIC_RELAXED) & bit)
+		return 1;
+	if (mark)
+		__atomic_fetch_or(&p->classes_seen, bit, __ATOMIC_RELAXED);
+	return 0;
+}
+
 /*
  * psf-blend=core: class K's cell at the position of the cell under key
  * (centre cx, cy), with the differences of the pairs about K (dpair: the
- * upper class's blend less the lower's) published first.  A difference
- * not yet made is taken plane by plane (and table by table) from K's
- * blend and its neighbour's: the neighbour's cell when it is published,
- * else the neighbour's four nodes blended here and dropped after (so the
- * cells kept are those the sources use).  Before, a difference was
- * blended from the pair's eight nodes and built anew.  Returns the cell;
- * NULL with an error recorded.
+ * upper class's blend less the lower's) published and set in it.  A
+ * difference not yet made is taken plane by plane (and table by table)
+ * from K's cell and its neighbour's: the neighbour's published cell; else,
+ * when a source anywhere has wanted the neighbour's class (class_seen),
+ * its cell made and kept (its own other pair set when a source first
+ * wants it there), so that in a scene of many colours each class cell of
+ * a position is blended once (blending it here and again later was 40 %
+ * of the blends of 10^6 stars of random colours in F146); else the
+ * neighbour blended here and dropped after, so that a scene of one colour
+ * keeps the cells its sources use.  A pair is set once, from NULL to its
+ * one published difference (poly_insert() keeps the first of two
+ * threads'), so threads that set it at once store the same pointer.
+ * Before, the pairs were set before the cell was published.  Returns the
+ * cell; NULL with an error recorded.
  */
 static struct poly *class_add(struct point *p, const struct wfs_source *src, uint64_t key,
 			      double cx, double cy, int K)
 {
 	int n = p->nclasses / 2, lo = K % n > 0, hi = K % n < n - 1;
-	struct poly made, *c = (struct poly *)poly_find(p, class_key(p, key, K));
+	struct poly *c;
 
-	if (c)
-		return c;
-	if (class_blend(p, src, key, cx, cy, K, 1, &made) < 0)
+	class_seen(p, K, 1);
+	if (!(c = class_cell(p, src, key, cx, cy, K)))
 		return NULL;
 	for (int s = 0; s < 2; s++) {
-		int nb = s ? K + 1 : K - 1, a = s ? K : K - 1;
-		const struct poly *d = NULL, *nc;
+		int nb = s ? K + 1 : K - 1, a = s ? K : K - 1, rc;
+		const struct poly *d, *nc;
 		struct poly tmp, dm;
-		int rc = 0;
 
-		made.dpair[s] = NULL;
-		if (!(s ? hi : lo) || (made.dpair[s] = poly_find(p, pair_key(key, a))))
+		if (!(s ? hi : lo) || __atomic_load_n(&c->dpair[s], __ATOMIC_ACQUIRE))
 			continue;
-		if (!(nc = poly_find(p, class_key(p, key, nb)))) {
-			if (class_blend(p, src, key, cx, cy, nb, 0, &tmp) < 0) {
-				poly_drop(&made);
+		if (!(d = poly_find(p, pair_key(key, a)))) {
+			if (!(nc = poly_find(p, class_key(p, key, nb))) && class_seen(p, nb, 0) &&
+			    !(nc = class_cell(p, src, key, cx, cy, nb)))
 				return NULL;
-			}
-			nc = &tmp;
+			if (!nc && class_blend(p, src, key, cx, cy, nb, 0, &tmp) < 0)
+				return NULL;
+			rc = poly_diff(p, pair_key(key, a), s ? (nc ? nc : &tmp) : c,
+				       s ? c : (nc ? nc : &tmp), &dm);
+			if (!nc)
+				poly_drop(&tmp);
+			if (rc < 0 || !(d = poly_insert(p, &dm)))
+				return NULL;
 		}
-		rc = poly_diff(p, pair_key(key, a), s ? nc : &made, s ? &made : nc, &dm);
-		if (nc == &tmp)
-			poly_drop(&tmp);
-		if (rc < 0 || !(d = poly_insert(p, &dm))) {
-			poly_drop(&made);
-			return NULL;
-		}
-		made.dpair[s] = d;
+		__atomic_store_n(&c->dpair[s], d, __ATOMIC_RELEASE);
 	}
-	return poly_insert(p, &made);
+	return c;
 }
 
 /* The nodes a cell is blended from at its centre (cx, cy), into node[]
@@ -593,16 +623,17 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 	struct wfs_epsf e;
 	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
 	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
-	struct poly *c = (struct poly *)poly_find(p, key), made, how;
+	struct poly *c, made, how;
 	const float *node[8];
 	double w[8];
 	int nw, ck, cj;
 
-	if (c)
-		return c;
+	/* a class cell: found there, its pairs checked (class_add) */
 	if (p->blend == BLEND_CORE && colour_cell(p, src, &ck, &cj) >= 0 &&
 	    (cj == 0 || cj == p->colour_steps))
 		return class_add(p, src, key, cx, cy, ck + (cj != 0));
+	if ((c = (struct poly *)poly_find(p, key)))
+		return c;
 	if ((nw = cell_nodes(p, src, key, cx, cy, &how, node, w, &e)) < 0 ||
 	    cell_make(p, key, node, w, nw, e.n, e.over, &how, &made) < 0)
 		return NULL;

@@ -157,6 +157,9 @@ int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n
 /* The spectral class (fam n + u) of spectrum s on SCA sca. */
 double psf_classes_of(const struct psf_classes *pc, struct colour *c, int sca,
 		      const struct spectrum *s);
+/* The same from the spectrum's effective wavelength lam on SCA sca and its
+ * family fam (1: a blackbody, 0: a power law). */
+double psf_classes_at(const struct psf_classes *pc, int sca, int fam, double lam);
 /* The spectrum of spectral class k (0 .. 2 n - 1) into kind and value. */
 void psf_classes_spectrum(const struct psf_classes *pc, int k, int *kind, double *value);
 

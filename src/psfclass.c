@@ -101,9 +101,12 @@ int psf_classes_make(struct psf_classes *pc, struct colour *c, int filter, int n
 double psf_classes_of(const struct psf_classes *pc, struct colour *c, int sca,
 		      const struct spectrum *s)
 {
-	int fam = s->kind == SPEC_BLACKBODY;
+	return psf_classes_at(pc, sca, s->kind == SPEC_BLACKBODY, colour_lam_eff(c, sca, s));
+}
+
+double psf_classes_at(const struct psf_classes *pc, int sca, int fam, double lam)
+{
 	const double *l = pc->lam[sca - 1][fam];
-	double lam = colour_lam_eff(c, sca, s);
 	int k;
 
 	if (!(lam > l[0]))

@@ -15,15 +15,11 @@
 /* The row's flux in counts/s on SCA sca: a magnitude or flux density
  * (f_nu at the filter's pivot wavelength) through the row's spectrum and
  * the SCA's throughput (spectrum.h), a flat f_nu without one. */
-static double counts_on(const struct engine *g, const struct rows *r, size_t i, int sca)
+static double counts_on(const struct engine *g, const struct rows *r, size_t i, int sca,
+			double k)
 {
-	double v = r->flux[i], k = 1;
+	double v = r->flux[i];
 
-	/* times 1 is exact: a row without a spectrum keeps its bytes */
-	if (r->unit[i] != UNIT_COUNTS && r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT &&
-	    !g->colour_band)
-		k = colour_factor(g->colour, sca, &(struct spectrum){ r->spec_kind[i],
-								       r->spec_value[i] });
 	switch (r->unit[i]) {
 	case UNIT_COUNTS:
 		return v;
@@ -82,11 +78,24 @@ int source_flux_check(const struct engine *g, const struct rows *r, size_t i,
 int source_fill(const struct engine *g, const struct rows *r, size_t i, const double *param,
 		int sca, double x, double y, struct wfs_source *src, struct err *e)
 {
+	int spec = r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT;
+	struct spectrum sp = { spec ? r->spec_kind[i] : SPEC_DEFAULT, spec ? r->spec_value[i] : 0 };
+	/* the colour term (times 1 is exact: a row without a spectrum keeps
+	 * its bytes) and the effective wavelength, in one look-up */
+	int term = spec && r->unit[i] != UNIT_COUNTS && !g->colour_band;
+	double k = 1, lam = 0;
+
+	if (term && g->classes)
+		colour_both(g->colour, sca, &sp, &k, &lam);
+	else if (term)
+		k = colour_factor(g->colour, sca, &sp);
+	else if (spec && g->classes)
+		lam = colour_lam_eff(g->colour, sca, &sp);
 	memset(src, 0, sizeof(*src));
 	src->x = x;
 	src->y = y;
 	src->sca = sca;
-	src->flux = counts_on(g, r, i, sca);
+	src->flux = counts_on(g, r, i, sca, k);
 	src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
 	src->psf_class = source_psf_class(g, src->mag);
 	src->id = r->id[i];
@@ -95,8 +104,7 @@ int source_fill(const struct engine *g, const struct rows *r, size_t i, const do
 	src->mjd = g->x->date;
 	/* the spectral class of the row's effective wavelength (psf.h) */
 	src->colour = -1;
-	if (r->spec_kind && r->spec_kind[i] != SPEC_DEFAULT && g->classes)
-		src->colour = psf_classes_of(g->classes, g->colour, sca, &(struct spectrum){
-						     r->spec_kind[i], r->spec_value[i] });
+	if (spec && g->classes)
+		src->colour = psf_classes_at(g->classes, sca, sp.kind == SPEC_BLACKBODY, lam);
 	return source_flux_check(g, r, i, src, NULL, e);
 }

@@ -204,29 +204,49 @@ static inline double spline(const double *tab, int n, double u)
 					      t * (3 * (p1 - p2) + p3 - p0)));
 }
 
-/* The table value of s: ln factor (which = 0) or lam_eff (1); 0 with *out
- * set, or -1 when s is outside the tables. */
-static int table_value(struct colour *c, int sca, const struct spectrum *s, int which,
-		       double *out)
+/* s's tables on SCA sca, ln factor and lam_eff, of n nodes, and its
+ * fractional index u there; 0, or -1 when s is outside the tables. */
+static int table_at(struct colour *c, int sca, const struct spectrum *s, const double **lnf,
+		    const double **lam, int *n, double *u)
 {
 	const struct sca_tables *t;
 
 	if (s->kind == SPEC_POWER && s->value >= BETA_LO && s->value <= BETA_HI) {
 		t = tables(c, sca);
-		*out = spline(which ? t->lam_beta : t->lnf_beta, NBETA,
-			      (s->value - BETA_LO) / BETA_STEP);
+		*lnf = t->lnf_beta;
+		*lam = t->lam_beta;
+		*n = NBETA;
+		*u = (s->value - BETA_LO) / BETA_STEP;
 		return 0;
 	}
 	if (s->kind == SPEC_BLACKBODY) {
-		double u = 1000.0 / s->value;
+		double v = 1000.0 / s->value;
 
-		if (u >= U_LO && u <= U_HI) {
+		if (v >= U_LO && v <= U_HI) {
 			t = tables(c, sca);
-			*out = spline(which ? t->lam_bb : t->lnf_bb, NU, (u - U_LO) / U_STEP);
+			*lnf = t->lnf_bb;
+			*lam = t->lam_bb;
+			*n = NU;
+			*u = (v - U_LO) / U_STEP;
 			return 0;
 		}
 	}
 	return -1;
+}
+
+/* The table value of s: ln factor (which = 0) or lam_eff (1); 0 with *out
+ * set, or -1 when s is outside the tables. */
+static int table_value(struct colour *c, int sca, const struct spectrum *s, int which,
+		       double *out)
+{
+	const double *lnf, *lam;
+	double u;
+	int n;
+
+	if (table_at(c, sca, s, &lnf, &lam, &n, &u) < 0)
+		return -1;
+	*out = spline(which ? lam : lnf, n, u);
+	return 0;
 }
 
 double colour_factor(struct colour *c, int sca, const struct spectrum *s)
@@ -252,4 +272,26 @@ double colour_lam_eff(struct colour *c, int sca, const struct spectrum *s)
 		return v;
 	colour_exact(c, sca, s, &f, &v);
 	return v;
+}
+
+void colour_both(struct colour *c, int sca, const struct spectrum *s, double *factor,
+		 double *lam_eff)
+{
+	const double *lnf, *lam;
+	double u;
+	int n;
+
+	if (s->kind == SPEC_DEFAULT) {
+		*factor = 1;
+		*lam_eff = colour_lam_eff(c, sca, s);
+		return;
+	}
+	if (table_at(c, sca, s, &lnf, &lam, &n, &u) < 0) {
+		colour_exact(c, sca, s, factor, lam_eff);
+	} else {
+		*factor = exp(spline(lnf, n, u));
+		*lam_eff = spline(lam, n, u);
+	}
+	if (s->kind == SPEC_POWER && s->value == 0)
+		*factor = 1;
 }

@@ -58,6 +58,9 @@ struct colour *colour_new(int filter, struct err *e);
 void colour_free(struct colour *c);
 double colour_factor(struct colour *c, int sca, const struct spectrum *s);
 double colour_lam_eff(struct colour *c, int sca, const struct spectrum *s);
+/* Both of s in one look-up, the same numbers as the two calls. */
+void colour_both(struct colour *c, int sca, const struct spectrum *s, double *factor,
+		 double *lam_eff);
 
 /* The same as sums over the throughput, without tables: the reference the
  * tables are measured against. */

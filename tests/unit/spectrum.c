@@ -37,22 +37,32 @@ int main(void)
 		ok(colour_factor(c, 1, &flat) == 1 && colour_factor(c, 7, &none) == 1,
 		   "%s: a flat f_nu keeps the AB zeropoint's counts exactly", name);
 		srand(f + 1);
+		int both_same = 1;
+
 		for (int i = 0; i < 400; i++) {
 			int sca = 1 + i % WFS_NSCA;
 			struct spectrum s;
-			double fx, lx;
+			double fx, lx, fb, lb;
 
 			if (i % 2) {
 				s.kind = SPEC_POWER;
-				s.value = -8 + 16.0 * rand() / RAND_MAX;
+				/* beyond the table too (summed directly) */
+				s.value = -9 + 18.0 * rand() / RAND_MAX;
 			} else {
 				s.kind = SPEC_BLACKBODY;
-				s.value = exp(log(1000) + log(100.0) * rand() / RAND_MAX);
+				s.value = exp(log(900) + log(130.0) * rand() / RAND_MAX);
 			}
+			if (i == 2)
+				s = flat;
 			colour_exact(c, sca, &s, &fx, &lx);
+			colour_both(c, sca, &s, &fb, &lb);
+			both_same &= fb == colour_factor(c, sca, &s) &&
+				     lb == colour_lam_eff(c, sca, &s);
 			worst_f = fmax(worst_f, fabs(colour_factor(c, sca, &s) / fx - 1));
 			worst_l = fmax(worst_l, fabs(colour_lam_eff(c, sca, &s) / lx - 1));
 		}
+		ok(both_same, "%s: colour_both gives the same numbers as colour_factor and "
+		   "colour_lam_eff, in and beyond the tables", name);
 		ok(worst_f < 1e-7, "%s: table's colour factor within 1e-7 of the sum (worst %.2g)",
 		   name, worst_f);
 		ok(worst_l < 1e-7, "%s: table's effective wavelength within 1e-7 of the sum "

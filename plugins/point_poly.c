@@ -348,15 +348,22 @@ static long colour_cell(const struct point *p, const struct wfs_source *src, int
 	return (long)(*k + (*j == s)) * (s + 1) + (*j == s ? 0 : *j);
 }
 
-uint64_t cell_key(const struct point *p, const struct wfs_source *src)
+/* The key of the cell holding src, whose colour cell is cc (colour_cell). */
+static uint64_t key_of(const struct point *p, const struct wfs_source *src, long cc)
 {
 	uint64_t cx = (uint64_t)(int64_t)floor(src->x / p->cell) & 0xffff;
 	uint64_t cy = (uint64_t)(int64_t)floor(src->y / p->cell) & 0xffff;
-	int k, j;
-	uint64_t q = (uint64_t)(colour_cell(p, src, &k, &j) + 1) & 0x7fff;
+	uint64_t q = (uint64_t)(cc + 1) & 0x7fff;
 
 	return 1 | (uint64_t)src->sca << 1 | (uint64_t)src->psf_class << 8 | cx << 16 | cy << 32 |
 	       q << 48;
+}
+
+uint64_t cell_key(const struct point *p, const struct wfs_source *src)
+{
+	int k, j;
+
+	return key_of(p, src, colour_cell(p, src, &k, &j));
 }
 
 /* The blend of the nw arrays node[] with weights w[] (a weight 0 skipped),
@@ -619,18 +626,18 @@ static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t ke
  * with an error recorded when it fails. */
 struct poly *cell_add(struct point *p, const struct wfs_source *src)
 {
-	uint64_t key = cell_key(p, src);
+	int nw, ck, cj;
+	long cc = colour_cell(p, src, &ck, &cj);
+	uint64_t key = key_of(p, src, cc);
 	struct wfs_epsf e;
 	double cx = (floor(src->x / p->cell) + 0.5) * p->cell - 0.5;
 	double cy = (floor(src->y / p->cell) + 0.5) * p->cell - 0.5;
 	struct poly *c, made, how;
 	const float *node[8];
 	double w[8];
-	int nw, ck, cj;
 
 	/* a class cell: found there, its pairs checked (class_add) */
-	if (p->blend == BLEND_CORE && colour_cell(p, src, &ck, &cj) >= 0 &&
-	    (cj == 0 || cj == p->colour_steps))
+	if (p->blend == BLEND_CORE && cc >= 0 && (cj == 0 || cj == p->colour_steps))
 		return class_add(p, src, key, cx, cy, ck + (cj != 0));
 	if ((c = (struct poly *)poly_find(p, key)))
 		return c;

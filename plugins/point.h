@@ -80,10 +80,11 @@ struct poly {
 	 * pairs cclass - 1, cclass and cclass, cclass + 1 share at their end
 	 * steps): the two pairs' differences, dpair[0] of the pair below
 	 * (its step 1) and dpair[1] of the pair above (its step 0).  A class
-	 * cell may be published before its pairs are made (as the neighbour
-	 * of another class's pair): each is set once, by class_add(), from
-	 * NULL to the pair's one published difference, with release order,
-	 * and read with acquire order (cell_pair) */
+	 * cell is published before its pairs are made: class_add() stores
+	 * each from NULL to the pair's one published difference (several
+	 * threads may store the same pointer), with release order, before a
+	 * source in the cell is prepared; read with acquire order
+	 * (cell_pair) */
 	int cclass;
 	const struct poly *dpair[2];
 };

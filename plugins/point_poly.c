@@ -19,6 +19,11 @@
  * key added in an earlier chunk never passes a slot being filled, as that
  * slot was empty when the key went in; the ordering makes the table safe
  * for any probe, an absent key's included, without relying on that.)
+ * One field is written after its slot is published: a class cell's pair
+ * differences, dpair[0] and dpair[1] (class_add), each stored from NULL
+ * to the pair's one published difference, maybe by several threads at
+ * once with the same pointer, with release order, and loaded with
+ * acquire order.
  */
 #include <math.h>
 #include <stdatomic.h>
@@ -500,11 +505,15 @@ static struct poly *class_cell(struct point *p, const struct wfs_source *src, ui
 	return poly_insert(p, &made);
 }
 
-/* Whether a source has wanted class k's cell; marks k when mark is set. */
+/* Whether a source has wanted class k's cell; marks k when mark is set.
+ * (The host's classes are at most 2 PSF_COLOUR_MAX = 32; a class beyond
+ * 63 is never marked, so its neighbours are blended and dropped.) */
 static int class_seen(struct point *p, int k, int mark)
 {
-	uint64_t bit = (uint64_t)1 << k;
+	uint64_t bit = k < 64 ? (uint64_t)1 << k : 0;
 
+	if (!bit)
+		return 0;
 	if (__atomic_load_n(&p->classes_seen, __ATOMIC_RELAXED) & bit)
 		return 1;
 	if (mark)
@@ -615,7 +624,8 @@ static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t ke
 	if (p->blend == BLEND_CORE) {
 		if (!(c = class_add(p, src, key, cx, cy, ck)))
 			return -1;
-		how->dcol = c->dpair[1];
+		/* set (class_add), maybe stored again by another thread */
+		how->dcol = __atomic_load_n(&c->dpair[1], __ATOMIC_ACQUIRE);
 	}
 	return nw;
 }

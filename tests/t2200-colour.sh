@@ -247,6 +247,25 @@ assert abs(a.sum() / b.sum() - 1) < 1e-5
 	"$PY" "$TOP/tests/fitsinfo.py" --same t1.fits cells.fits
 '
 
+# Pair cells (psf-colour-steps above 1): a cell between two classes takes
+# its pair's difference from the lower class's cell, which threads may
+# make and complete at once (point_poly.c, class_add).
+test_expect_success 'psf-colour-steps=4: within 1e-3 of the per-source blends, the same bytes on 1 and 3 threads' '
+	"$WFS" --filter F146 --set psf-colour-steps=4 --threads 1 -o p1.fits field.csv &&
+	"$WFS" --filter F146 --set psf-colour-steps=4 --threads 3 --tile 300 -o p3.fits field.csv &&
+	"$PY" "$TOP/tests/fitsinfo.py" --same p1.fits p3.fits &&
+	"$PY" -c "
+import numpy as np
+from astropy.io import fits
+a = fits.open(\"p1.fits\")[1].data.astype(float)
+b = fits.open(\"src.fits\")[1].data.astype(float)
+d = np.abs(a - b).max() / b.max()
+print(\"# psf-colour-steps=4: max |cells - per source| %.2e of the peak\" % d)
+assert d < 1e-3 and abs(a.sum() / b.sum() - 1) < 1e-5, (d, a.sum(), b.sum())
+" &&
+	rm p1.fits p3.fits
+'
+
 # Spectra beyond the classes' span take the end class: the coolest and
 # hottest temperatures, slopes beyond the colour tables (|beta| > 8,
 # summed per row); every star drawn, finite, with its ePSF's light.

@@ -46,20 +46,31 @@ int main(void)
 
 			if (i % 2) {
 				s.kind = SPEC_POWER;
-				/* beyond the table too (summed directly) */
-				s.value = -9 + 18.0 * rand() / RAND_MAX;
+				s.value = -8 + 16.0 * rand() / RAND_MAX;
 			} else {
 				s.kind = SPEC_BLACKBODY;
-				s.value = exp(log(900) + log(130.0) * rand() / RAND_MAX);
+				s.value = exp(log(1000) + log(100.0) * rand() / RAND_MAX);
 			}
-			if (i == 2)
-				s = flat;
 			colour_exact(c, sca, &s, &fx, &lx);
 			colour_both(c, sca, &s, &fb, &lb);
 			both_same &= fb == colour_factor(c, sca, &s) &&
 				     lb == colour_lam_eff(c, sca, &s);
 			worst_f = fmax(worst_f, fabs(colour_factor(c, sca, &s) / fx - 1));
 			worst_l = fmax(worst_l, fabs(colour_lam_eff(c, sca, &s) / lx - 1));
+		}
+		/* beyond the tables (summed directly), the flat spectrum and
+		 * the default one */
+		for (int i = 0; i < 6; i++) {
+			struct spectrum s = i == 0 ? (struct spectrum){ SPEC_POWER, -9.5 } :
+					    i == 1 ? (struct spectrum){ SPEC_POWER, 12 } :
+					    i == 2 ? (struct spectrum){ SPEC_BLACKBODY, 950 } :
+					    i == 3 ? (struct spectrum){ SPEC_BLACKBODY, 2e5 } :
+					    i == 4 ? flat : none;
+			double fb, lb;
+
+			colour_both(c, 1 + i, &s, &fb, &lb);
+			both_same &= fb == colour_factor(c, 1 + i, &s) &&
+				     lb == colour_lam_eff(c, 1 + i, &s);
 		}
 		ok(both_same, "%s: colour_both gives the same numbers as colour_factor and "
 		   "colour_lam_eff, in and beyond the tables", name);

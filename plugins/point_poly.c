@@ -550,7 +550,7 @@ static struct poly *class_add(struct point *p, const struct wfs_source *src, uin
 		return NULL;
 	for (int s = 0; s < 2; s++) {
 		int nb = s ? K + 1 : K - 1, a = s ? K : K - 1, rc;
-		const struct poly *d, *nc;
+		const struct poly *d, *nc, *o;  /* o: the neighbour's blend */
 		struct poly tmp, dm;
 
 		if (!(s ? hi : lo) || __atomic_load_n(&c->dpair[s], __ATOMIC_ACQUIRE))
@@ -561,8 +561,8 @@ static struct poly *class_add(struct point *p, const struct wfs_source *src, uin
 				return NULL;
 			if (!nc && class_blend(p, src, key, cx, cy, nb, 0, &tmp) < 0)
 				return NULL;
-			rc = poly_diff(p, pair_key(key, a), s ? (nc ? nc : &tmp) : c,
-				       s ? c : (nc ? nc : &tmp), &dm);
+			o = nc ? nc : &tmp;
+			rc = poly_diff(p, pair_key(key, a), s ? o : c, s ? c : o, &dm);
 			if (!nc)
 				poly_drop(&tmp);
 			if (rc < 0 || !(d = poly_insert(p, &dm)))

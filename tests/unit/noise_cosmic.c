@@ -11,7 +11,7 @@
 #include "noise.h"
 #include "instrument.h"
 
-enum { S = WFS_NPIX };
+enum { S = WFS_NPIX, B = S / 4 };
 #define NPIX ((double)S * S)
 #define W_C 0.88127             /* template centre weight */
 #define W_E 0.028748            /* template edge weight */
@@ -33,6 +33,25 @@ static double *sca_image(double t, double resid, int sca)
 	noise_tile(&o, sca, 0, 0, 2000, 2000, a, S);
 	noise_tile(&o, sca, 2000, 0, S - 2000, 2000, a + 2000, S);
 	noise_tile(&o, sca, 0, 2000, 2000, S - 2000, a + 2000 * (size_t)S, S);
+	return a;
+}
+
+/* Rows [0, rows) of the SCA at full width, as one tile: the same pixels
+ * as those rows of sca_image (noise_tiles pins that the cut does not
+ * matter). */
+static double *sca_band(double t, int sca, int rows)
+{
+	struct noise_opts o;
+	double *a = calloc((size_t)S * rows, sizeof(double));
+
+	noise_opts_default(&o);
+	o.stages = NOISE_COSMIC;
+	o.exptime = t;
+	o.cosmic_residual = 1;
+	o.seed = 99;
+	o.filter = F087;
+	o.counts = 1;
+	noise_tile(&o, sca, 0, 0, S, rows, a, S);
 	return a;
 }
 
@@ -187,7 +206,13 @@ int main(void)
 	 * sum_p (E_p^2 + E_p) sum_k w_k w_k', k' the template pixel to the
 	 * right of k.  Standard errors from the fourth moments of the data,
 	 * with one independent sample per 6 x 5 pixels (pixels further apart
-	 * share no centre). */
+	 * share no centre).  A band of B rows is sample enough: a quarter of
+	 * the SCA leaves 5 sigmas at 1.1% of the mean, 2.3% of the variance
+	 * and 21% of the covariance, where the defects this is for move them (a
+	 * population lost or doubled at the switch: the mean by 11% or more;
+	 * the charge left in the centre's pixel: the variance by 28%, the
+	 * covariance by 100%; a centre's hits given one draw's electrons
+	 * times their count: the variance at 1e9 s by 100% or more). */
 	{
 		static const double ts[] = { 1.98e5, 2e5, 1e6, 1e9 };
 		double w[3][3], sum = 0, w2 = 0, w11 = 0;
@@ -209,12 +234,12 @@ int main(void)
 			double want_c = lambda * e2 * w11;
 			double m = 0, v = 0, c = 0, v4 = 0, c4 = 0, n = 0, neff;
 
-			a = sca_image(ts[k], 1, 5 + (int)k);
-			for (int y = 1; y < S - 1; y++)
+			a = sca_band(ts[k], 5 + (int)k, B);
+			for (int y = 1; y < B - 1; y++)
 				for (int x = 1; x < S - 2; x++)
 					m += a[(size_t)y * S + x], n++;
 			m /= n;
-			for (int y = 1; y < S - 1; y++)
+			for (int y = 1; y < B - 1; y++)
 				for (int x = 1; x < S - 2; x++) {
 					double d = a[(size_t)y * S + x] - m;
 					double dd = d * (a[(size_t)y * S + x + 1] - m);

@@ -81,21 +81,23 @@ with fits.open(path) as h:
 sys.exit(1 if bad else 0)
 EOF
 
-# eclpos.py DATE DLON BETA: "ra dec" of ecliptic latitude BETA and
-# longitude DLON from the Sun on DATE (J2000), by astropy.
+# eclpos.py DATE DLON BETA [DLON BETA]...: "DLON BETA ra dec", a line
+# for each pair, of ecliptic latitude BETA and longitude DLON from the Sun
+# on DATE (J2000), by astropy.  One call for the whole test: astropy's
+# start-up is most of it.
 cat > eclpos.py <<'EOF'
 import sys, warnings
 warnings.simplefilter('ignore')
 from astropy.time import Time
 from astropy.coordinates import SkyCoord, BarycentricMeanEcliptic, GeocentricMeanEcliptic, get_sun
 import astropy.units as u
-date, dlon, beta = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+date, pairs = sys.argv[1], sys.argv[2:]
 lsun = get_sun(Time(date, scale='utc')).transform_to(GeocentricMeanEcliptic(equinox='J2000')).lon.deg
-c = SkyCoord((lsun + dlon) * u.deg, beta * u.deg,
-             frame=BarycentricMeanEcliptic(equinox='J2000')).icrs
-print('%.6f %.6f' % (c.ra.deg, c.dec.deg))
+for dlon, beta in zip(pairs[::2], pairs[1::2]):
+    c = SkyCoord((lsun + float(dlon)) * u.deg, float(beta) * u.deg,
+                 frame=BarycentricMeanEcliptic(equinox='J2000')).icrs
+    print('%s %s %.6f %.6f' % (dlon, beta, c.ra.deg, c.dec.deg))
 EOF
-
 D1=2027-03-01T00:00
 D2=2027-08-30T14:24       # 182.6 days later
 sky() {  # sky NAME DATE RA DEC [options]: a boresight pointing
@@ -103,6 +105,9 @@ sky() {  # sky NAME DATE RA DEC [options]: a boresight pointing
 	run --background sky --date "$_d" --ra "$_r" --dec "$_c" --pointing-ref boresight \
 		--report "$_n.json" -o "$_n.fits" "$@"
 }
+"$PY" eclpos.py $D1 60 0 90 0 120 0 -60 0 -90 0 -120 0 60 60 90 20 40 0 140 0 6 1 \
+	> eclpos.txt
+eclpos() { sed -n "s/^$1 $2 //p" eclpos.txt; }  # eclpos DLON BETA: "ra dec" on $D1
 check() { "$PY" sky_check.py "$1.fits" "$1.json" "$2" "${3:-project}" "${4:-F129}" "$SHARED/roman"; }
 
 if have_shared; then
@@ -111,12 +116,12 @@ if have_shared; then
 	'
 	for e in 60 90 120 -60 -90 -120; do
 		test_expect_success "on the ecliptic $e degrees from the Sun" '
-			set -- $("$PY" eclpos.py $D1 '$e' 0) &&
+			set -- $(eclpos '$e' 0) &&
 			sky ecl'$e' $D1 $1 $2 && check ecl'$e' $D1
 		'
 	done
 	test_expect_success 'one field on two dates six months apart: both match, and differ' '
-		set -- $("$PY" eclpos.py $D1 60 60) &&
+		set -- $(eclpos 60 60) &&
 		sky first $D1 $1 $2 && check first $D1 &&
 		sky second $D2 $1 $2 && check second $D2 &&
 		"$PY" -c "import json
@@ -124,7 +129,7 @@ a, b = (json.load(open(n + \".json\"))[\"background\"][\"sca\"][0][\"total\"] fo
 assert a > 1.2 * b, (a, b)"
 	'
 	test_expect_success '--zodi etc: the table at its own scale' '
-		set -- $("$PY" eclpos.py $D1 90 20) &&
+		set -- $(eclpos 90 20) &&
 		sky etc $D1 $1 $2 --zodi etc && check etc $D1 etc &&
 		sky proj $D1 $1 $2 && check proj $D1 &&
 		"$PY" -c "import json
@@ -238,7 +243,7 @@ assert b[\"model\"] == \"number\" and all(x[\"total\"] == 2.5 for x in b[\"sca\"
 # Refused: the boresight 40 degrees from the Sun, and 140.
 for e in 40 140; do
 	test_expect_success "a pointing $e degrees from the Sun is refused, nothing written" '
-		set -- $("$PY" eclpos.py $D1 '$e' 0) &&
+		set -- $(eclpos '$e' 0) &&
 		test_must_fail --status 1 sky near$e $D1 $1 $2 --placed near$e.csv 2>err &&
 		test_grep "is '$e'\.[0-9] degrees from the Sun on 2027-03-01T00:00:00.000" err &&
 		test_grep "Roman points 54-126 degrees" err &&
@@ -248,20 +253,20 @@ for e in 40 140; do
 	'
 done
 test_expect_success 'with a date, even without a sky background' '
-	set -- $("$PY" eclpos.py $D1 40 0) &&
+	set -- $(eclpos 40 0) &&
 	test_must_fail --status 1 run --date $D1 --ra $1 --dec $2 --pointing-ref boresight \
 		-o plain.fits 2>err &&
 	test_grep "degrees from the Sun" err && ! test -e plain.fits
 '
 test_expect_success '--allow-sun-angle simulates it' '
-	set -- $("$PY" eclpos.py $D1 40 0) &&
+	set -- $(eclpos 40 0) &&
 	sky near $D1 $1 $2 --allow-sun-angle &&
 	"$PY" -c "import json
 b = json.load(open(\"near.json\"))[\"background\"]
 assert 39.5 < b[\"sun_angle\"] < 40.5 and b[\"sca\"][0][\"total\"] > 2, b"
 '
 test_expect_success 'closer to the Sun than the table reaches: refused even so' '
-	set -- $("$PY" eclpos.py $D1 6 1) &&
+	set -- $(eclpos 6 1) &&
 	test_must_fail --status 1 sky sun $D1 $1 $2 --allow-sun-angle 2>err &&
 	test_grep "no value that close to the Sun" err && ! test -e sun.fits
 '

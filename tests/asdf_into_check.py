@@ -1,11 +1,14 @@
 """Check an injection into a level-2 ASDF file.
 
-    asdf_into_check.py BEFORE.asdf AFTER.asdf PLACED.csv GAIN RA DEC
+    asdf_into_check.py BEFORE.asdf AFTER.asdf PLACED.csv GAIN RA DEC [SAME.asdf]
 
 The light added to data (DN/s) peaks at the placed position, which the
 file's gwcs gives for the source's RA and Dec within 0.01 pixel;
 var_poisson grows by the added rate over gain x effective exposure time
-(within float16's rounding); every other array is unchanged.
+(within float16's rounding); every other array is unchanged.  With
+SAME.asdf: AFTER's data, var_poisson, err, dq and amp33 equal SAME's (NaN
+equal to NaN), checked after the rest, and "same" printed (AFTER read
+once).
 """
 import csv
 import sys
@@ -20,6 +23,7 @@ nd._datatype_names.setdefault("float16", "f2")
 
 before, after, placed = sys.argv[1:4]
 gain, ra0, dec0 = (float(v) for v in sys.argv[4:7])
+same = sys.argv[7] if len(sys.argv) > 7 else None
 rows = list(csv.DictReader(open(placed)))
 assert len(rows) == 1, rows
 x0, y0 = float(rows[0]["x"]) - 1, float(rows[0]["y"]) - 1
@@ -44,4 +48,10 @@ with asdf.open(before, copy_arrays=True) as a, asdf.open(after, copy_arrays=True
             np.ascontiguousarray(v).reshape(-1).view(np.uint8))) or \
             np.array_equal(u, v, equal_nan=True), k
     print("added %.1f DN/s at (%d, %d); var_poisson +%.3f" % (d.sum(), x, y, vp.sum()))
-print("ok")
+    print("ok")
+    if same:
+        with asdf.open(same) as c:
+            for k in ("data", "var_poisson", "err", "dq", "amp33"):
+                assert np.array_equal(np.asarray(rb[k]), np.asarray(c.tree["roman"][k]),
+                                      equal_nan=True), k
+        print("same")

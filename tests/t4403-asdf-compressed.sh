@@ -31,21 +31,15 @@ test_expect_success 'a level 2 file, its blocks compressed by python3-asdf' '
 	head -n 2 grid.csv > one.csv
 '
 
+# One python3 call checks the injection into c.asdf and that out_c.asdf
+# holds out_u.asdf's arrays (out_c.asdf decompressed once).
 test_expect_success '--into the compressed file: the image of the uncompressed one' '
 	"$WFS" --filter F158 --sca 9 --into c.asdf -o out_c.asdf --placed p.csv one.csv &&
 	"$WFS" --filter F158 --sca 9 --into l2.asdf -o out_u.asdf one.csv &&
 	ra=$(sed -n 2p one.csv | cut -d, -f1) && dec=$(sed -n 2p one.csv | cut -d, -f2) &&
-	"$PY" "$TOP/tests/asdf_into_check.py" c.asdf out_c.asdf p.csv 2 "$ra" "$dec" > out &&
-	say "$(cat out)" && test_grep "^ok" out &&
-	"$PY" -c "
-import sys, warnings, numpy as np, asdf, asdf.tags.core.ndarray as nd
-warnings.simplefilter(\"ignore\")
-nd._datatype_names.setdefault(\"float16\", \"f2\")
-with asdf.open(\"out_c.asdf\") as a, asdf.open(\"out_u.asdf\") as b:
-    for k in (\"data\", \"var_poisson\", \"err\", \"dq\", \"amp33\"):
-        assert np.array_equal(np.asarray(a.tree[\"roman\"][k]), np.asarray(b.tree[\"roman\"][k]),
-                              equal_nan=True), k
-print(\"same\")" > out && test_grep same out &&
+	"$PY" "$TOP/tests/asdf_into_check.py" c.asdf out_c.asdf p.csv 2 "$ra" "$dec" \
+		out_u.asdf > out &&
+	say "$(cat out)" && test_grep "^ok" out && test_grep "^same" out &&
 	if have_shared && [ -x "$CHECK" ]; then "$CHECK" --expect wfi_image out_c.asdf; fi
 '
 

@@ -14,15 +14,15 @@ echo "ra,dec,flux" > none.csv
 run() { "$WFS" --geometry stips --filter F129 --sca 1,9,18 --rows 1-2 -q "$@" none.csv; }
 
 # sky_check.py FITS REPORT DATE NORM FILTER: every image HDU's BKGRATE and
-# BKGZODI against the table interpolated here at the HDU's RA_APER/DEC_APER.
+# BKGZODI against the table interpolated here at the HDU's RA_APER/DEC_APER,
+# taken to the ecliptic by the rotation and the Sun's longitude on DATE that
+# astropy gave eclpos.py (frame.json): astropy's start-up, a second a call,
+# once.
 cat > sky_check.py <<'EOF'
 import json, sys, warnings
 import numpy as np
 warnings.simplefilter('ignore')
 from astropy.io import fits
-from astropy.time import Time
-from astropy.coordinates import SkyCoord, BarycentricMeanEcliptic, GeocentricMeanEcliptic, get_sun
-import astropy.units as u
 
 path, report, date, norm, filt, shared = sys.argv[1:7]
 etc = {'F062': 'R062', 'F087': 'Z087', 'F106': 'Y106', 'F129': 'J129', 'F158': 'H158',
@@ -55,8 +55,8 @@ def table(beta, dlon):
     return (v[0] * (1 - fx) * (1 - fy) + v[1] * (1 - fx) * fy +
             v[2] * fx * (1 - fy) + v[3] * fx * fy)
 
-tm = Time(date, scale='utc')
-lsun = get_sun(tm).transform_to(GeocentricMeanEcliptic(equinox='J2000')).lon.deg
+frame = json.load(open('frame.json'))
+lsun, rot = frame['lsun'][date], np.array(frame['icrs_to_ecliptic'])
 scale = rate('zodiacal_light.ecsv') / val[val > 0].min() if norm == 'project' else 3.960 * 0.0121
 thermal = rate('internal_thermal_backgrounds.ecsv')
 rep = {b['sca']: b for b in json.load(open(report))['background']['sca']}
@@ -64,11 +64,12 @@ bad = 0
 with fits.open(path) as h:
     for hdu in h[1:]:
         hd = hdu.header
-        c = SkyCoord(hd['RA_APER'] * u.deg, hd['DEC_APER'] * u.deg).transform_to(
-            BarycentricMeanEcliptic(equinox='J2000'))
-        dlon = (c.lon.deg - lsun + 180) % 360 - 180
+        ra, dec = np.radians(hd['RA_APER']), np.radians(hd['DEC_APER'])
+        v = rot @ [np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)]
+        lat = np.degrees(np.arctan2(v[2], np.hypot(v[0], v[1])))
+        dlon = (np.degrees(np.arctan2(v[1], v[0])) - lsun + 180) % 360 - 180
         r = rep[int(hd['EXTNAME'][3:])]['r_sca']
-        zodi = table(c.lat.deg, dlon) * scale * r
+        zodi = table(lat, dlon) * scale * r
         want = zodi + thermal
         got = hd['BKGRATE']
         pix = float(hdu.data[0, 0])
@@ -76,27 +77,41 @@ with fits.open(path) as h:
               abs(hd['BKGTHERM'] - thermal) < 1e-9 and abs(pix / got - 1) < 1e-6)
         bad += not ok
         print('%s beta %7.3f dlon %8.3f: BKGRATE %.5f, here %.5f (zodi %.5f, r %.4f), '
-              'pixel %.5f %s' % (hd['EXTNAME'], c.lat.deg, dlon, got, want, zodi, r, pix,
+              'pixel %.5f %s' % (hd['EXTNAME'], lat, dlon, got, want, zodi, r, pix,
                                  'ok' if ok else 'BAD'))
 sys.exit(1 if bad else 0)
 EOF
 
-# eclpos.py DATE DLON BETA [DLON BETA]...: "DLON BETA ra dec", a line
-# for each pair, of ecliptic latitude BETA and longitude DLON from the Sun
-# on DATE (J2000), by astropy.  One call for the whole test: astropy's
+# eclpos.py DATE [--sun DATE]... DLON BETA [DLON BETA]...: "DLON BETA ra
+# dec", a line for each pair, of ecliptic latitude BETA and longitude DLON
+# from the Sun on DATE (J2000), by astropy; and frame.json for
+# sky_check.py: the Sun's ecliptic longitude on each DATE, and the
+# rotation from ICRS to the barycentric mean ecliptic (J2000: a rotation,
+# which astropy does by a matrix).  One call for the whole test: astropy's
 # start-up is most of it.
 cat > eclpos.py <<'EOF'
-import sys, warnings
+import json, sys, warnings
 warnings.simplefilter('ignore')
+import numpy as np
 from astropy.time import Time
 from astropy.coordinates import SkyCoord, BarycentricMeanEcliptic, GeocentricMeanEcliptic, get_sun
 import astropy.units as u
-date, pairs = sys.argv[1], sys.argv[2:]
-lsun = get_sun(Time(date, scale='utc')).transform_to(GeocentricMeanEcliptic(equinox='J2000')).lon.deg
-for dlon, beta in zip(pairs[::2], pairs[1::2]):
-    c = SkyCoord((lsun + float(dlon)) * u.deg, float(beta) * u.deg,
+args = sys.argv[1:]
+dates = [args.pop(0)]
+while args[0] == '--sun':
+    dates.append(args[1])
+    args = args[2:]
+lsun = {d: get_sun(Time(d, scale='utc')).transform_to(GeocentricMeanEcliptic(equinox='J2000')).lon.deg
+        for d in dates}
+for dlon, beta in zip(args[::2], args[1::2]):
+    c = SkyCoord((lsun[dates[0]] + float(dlon)) * u.deg, float(beta) * u.deg,
                  frame=BarycentricMeanEcliptic(equinox='J2000')).icrs
     print('%s %s %.6f %.6f' % (dlon, beta, c.ra.deg, c.dec.deg))
+e = SkyCoord(x=[1, 0, 0], y=[0, 1, 0], z=[0, 0, 1], representation_type='cartesian',
+             frame='icrs').transform_to(BarycentricMeanEcliptic(equinox='J2000'))
+e.representation_type = 'cartesian'
+rot = [list(e.x.value), list(e.y.value), list(e.z.value)]  # column j: where axis j goes
+json.dump({'lsun': lsun, 'icrs_to_ecliptic': rot}, open('frame.json', 'w'))
 EOF
 D1=2027-03-01T00:00
 D2=2027-08-30T14:24       # 182.6 days later
@@ -105,8 +120,8 @@ sky() {  # sky NAME DATE RA DEC [options]: a boresight pointing
 	run --background sky --date "$_d" --ra "$_r" --dec "$_c" --pointing-ref boresight \
 		--report "$_n.json" -o "$_n.fits" "$@"
 }
-"$PY" eclpos.py $D1 60 0 90 0 120 0 -60 0 -90 0 -120 0 60 60 90 20 40 0 140 0 6 1 \
-	> eclpos.txt
+"$PY" eclpos.py $D1 --sun $D2 60 0 90 0 120 0 -60 0 -90 0 -120 0 60 60 90 20 40 0 140 0 \
+	6 1 > eclpos.txt
 eclpos() { sed -n "s/^$1 $2 //p" eclpos.txt; }  # eclpos DLON BETA: "ra dec" on $D1
 check() { "$PY" sky_check.py "$1.fits" "$1.json" "$2" "${3:-project}" "${4:-F129}" "$SHARED/roman"; }
 

@@ -485,33 +485,45 @@ uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 
 /* The blend of the nw arrays node[] with weights w[] (a weight 0 skipped),
  * summed in double in the order given, into a new float array of nn
- * samples; NULL with an error recorded. */
+ * samples; NULL with an error recorded.  Each sample is 0 + the first
+ * product + the next ..., as a sum from 0 (-0 becomes +0): in one pass for
+ * four arrays (a cell of one spectrum), else a block of samples at a time
+ * on the stack, so that no array of nn doubles is written and read again
+ * (a cell of the faint class is 31 000 samples). */
 static float *blend_nodes(struct point *p, const float *const node[8], const double w[8],
 			  int nw, size_t nn)
 {
 	float *mix = malloc(nn * sizeof(float));
-	double *v = malloc(nn * sizeof(double));
-	int first = 1;
+	const float *nd[8];
+	double wk[8], v[256];
+	int m = 0;
 
-	if (!mix || !v) {
-		free(mix);
-		free(v);
+	if (!mix) {
 		p->host->error(p->host->ctx, "out of memory");
 		return NULL;
 	}
-	/* 0 + the first product, as a sum from 0 (-0 becomes +0) */
 	for (int k = 0; k < nw; k++)
-		if (w[k] != 0 && first) {
-			for (size_t i = 0; i < nn; i++)
-				v[i] = 0.0 + w[k] * node[k][i];
-			first = 0;
-		} else if (w[k] != 0) {
-			for (size_t i = 0; i < nn; i++)
-				v[i] += w[k] * node[k][i];
+		if (w[k] != 0) {
+			nd[m] = node[k];
+			wk[m++] = w[k];
 		}
-	for (size_t i = 0; i < nn; i++)
-		mix[i] = first ? 0.0f : (float)v[i];
-	free(v);
+	if (m == 4) {           /* a cell of one spectrum: one pass */
+		for (size_t i = 0; i < nn; i++)
+			mix[i] = (float)((((0.0 + wk[0] * nd[0][i]) + wk[1] * nd[1][i]) +
+					  wk[2] * nd[2][i]) + wk[3] * nd[3][i]);
+		return mix;
+	}
+	for (size_t i0 = 0; i0 < nn; i0 += 256) {
+		size_t nb = nn - i0 < 256 ? nn - i0 : 256;
+
+		for (size_t i = 0; i < nb; i++)
+			v[i] = 0.0;
+		for (int k = 0; k < m; k++)
+			for (size_t i = 0; i < nb; i++)
+				v[i] += wk[k] * nd[k][i0 + i];
+		for (size_t i = 0; i < nb; i++)
+			mix[i0 + i] = (float)v[i];
+	}
 	return mix;
 }
 

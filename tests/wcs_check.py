@@ -9,12 +9,13 @@
 import csv
 import sys
 
-import numpy as np
-from astropy.io import fits
-from astropy.wcs import WCS
-
 
 def make(path, n, seed):
+    # imported here: compare needs neither, and they are most of a call
+    import numpy as np
+    from astropy.io import fits
+    from astropy.wcs import WCS
+
     rng = np.random.default_rng(seed)
     print("id,ra,dec,flux,sca,xtrue,ytrue")
     k = 0

@@ -129,7 +129,21 @@ wfs_install() {
 }
 
 have_shared() { [ -d "$SHARED/roman" ]; }
-have_python() { "$PY" -c 'import numpy, astropy' 2>/dev/null; }
+# have_modules MODULE...: each is installed (found, not imported: importing
+# numpy and astropy took 0.25 s of every test, gwcs a second); prints the
+# first that is not.
+have_modules() {
+	"$PY" -c 'import importlib.util, sys
+for m in sys.argv[1:]:
+    try:
+        found = importlib.util.find_spec(m) is not None
+    except ImportError:
+        found = False
+    if not found:
+        print(m)
+        sys.exit(1)' "$@" 2>/dev/null
+}
+have_python() { have_modules numpy astropy >/dev/null; }
 
 # Skip the whole script cleanly.
 skip_all() { echo "1..0 # SKIP $*"; exit 0; }
@@ -141,9 +155,8 @@ require_modules() {
 	_pkgs=$1
 	shift
 	require_python
-	for _m in "$@"; do
-		"$PY" -c "import $_m" 2>/dev/null || skip_all "python3 module $_m is absent (Debian packages $_pkgs)"
-	done
+	_m=$(have_modules "$@") ||
+		skip_all "python3 module ${_m:-$*} is absent (Debian packages $_pkgs)"
 }
 # A ThreadSanitizer build (make check SANITIZE=thread) runs several times
 # slower in several times the memory: tests of memory bounds skip there.

@@ -31,15 +31,21 @@ assert fits.getdata(\"red.fits\").shape == (1, 4 * $R + 1, 4 * $R + 1)
 
 # region(PATH, X, Y, LO, HI, OVER, EXT): the light outside the square of
 # half-width LO and within HI of a star at (X, Y) over the image's (or a
-# grid's, OVER samples a pixel) whole
-printf '%s\n' 'import numpy as np' 'from astropy.io import fits' '' \
+# grid's, OVER samples a pixel) whole.  The mask is made in the square of
+# half-width HI about the star, which holds all its pixels (the same
+# pixels, summed in the same order, as a mask of the whole image).
+printf '%s\n' 'import math' 'import numpy as np' 'from astropy.io import fits' '' \
+	'def window(shape, x, y, r):' \
+	'    return tuple(slice(max(0, math.floor(c - r)), min(n, math.ceil(c + r) + 1))' \
+	'                 for c, n in ((y, shape[0]), (x, shape[1])))' '' \
 	'def region(path, x, y, lo, hi, over=1, ext=1):' \
 	'    a = fits.getdata(path, ext).astype(float)' \
 	'    a = a[0] if a.ndim == 3 else a' \
-	'    j, i = np.indices(a.shape)' \
+	'    w = window(a.shape, x, y, hi * over)' \
+	'    j, i = np.mgrid[w]' \
 	'    dx, dy = (i - x) / over, (j - y) / over' \
 	'    m = (np.maximum(abs(dx), abs(dy)) >= lo) & (np.hypot(dx, dy) < hi)' \
-	'    return a[m].sum() / a.sum()' > region.py
+	'    return a[w][m].sum() / a.sum()' > region.py
 
 # one bright star, 1e7 counts/s, at the same sub-pixel position of the
 # same SCA, so that only the spectrum differs: its 88-pixel box (the halo
@@ -125,9 +131,12 @@ test_expect_success 'the diffuse light of a red and a blue star has their halos 
 	"$PY" -c "
 import numpy as np
 from astropy.io import fits
+from region import window
 x, y = 2000.3, 2100.6
-g = lambda p: fits.getdata(p, 1).astype(float)
-j, i = np.indices(g(\"g3000.fits\").shape)
+# the rings reach 63 px: the square of that half-width about the star
+w = window((4088, 4088), x, y, 63)
+g = lambda p: fits.getdata(p, 1)[w].astype(float)
+j, i = np.mgrid[w]
 d = np.hypot(i - x, j - y)
 def left(k, t):
     a = g(\"%s%d.fits\" % (k, t)) - g(\"n%d.fits\" % t)

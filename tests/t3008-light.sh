@@ -112,7 +112,9 @@ import numpy as np
 r = np.random.default_rng(7)
 n = 1000000
 x = r.uniform(1000, 2000, n); y = r.uniform(1000, 3088, n); m = r.uniform(22, 27, n)
-np.savetxt(\"crowd.csv\", np.c_[x, y, m], fmt=\"%.3f\", delimiter=\",\", header=\"x,y,flux\", comments=\"\")
+# the bytes np.savetxt(fmt=\"%.3f\") writes, in a third of its time
+with open(\"crowd.csv\", \"w\") as f:
+    f.write(\"x,y,flux\\n\" + \"\".join([\"%.3f,%.3f,%.3f\\n\" % v for v in zip(x.tolist(), y.tolist(), m.tolist())]))
 " &&
 	"$WFS" --filter F129 --sca 1 --exptime 139.8 --flux-unit abmag --report crowd.json \
 		-o crowd.fits crowd.csv &&

@@ -486,8 +486,8 @@ uint64_t cell_key(const struct point *p, const struct wfs_source *src)
 /* The blend of the nw arrays node[] with weights w[] (a weight 0 skipped),
  * summed in double in the order given, into a new float array of nn
  * samples; NULL with an error recorded.  Each sample is 0 + the first
- * product + the next ..., as a sum from 0 (-0 becomes +0): in one pass for
- * four arrays (a cell of one spectrum), else a block of samples at a time
+ * product + the next ..., as a sum from 0 (-0 becomes +0): in one pass when
+ * four weights are not 0 (most cells), else a block of samples at a time
  * on the stack, so that no array of nn doubles is written and read again
  * (a cell of the faint class is 31 000 samples). */
 static float *blend_nodes(struct point *p, const float *const node[8], const double w[8],
@@ -507,7 +507,7 @@ static float *blend_nodes(struct point *p, const float *const node[8], const dou
 			nd[m] = node[k];
 			wk[m++] = w[k];
 		}
-	if (m == 4) {           /* a cell of one spectrum: one pass */
+	if (m == 4) {           /* one pass */
 		for (size_t i = 0; i < nn; i++)
 			mix[i] = (float)((((0.0 + wk[0] * nd[0][i]) + wk[1] * nd[1][i]) +
 					  wk[2] * nd[2][i]) + wk[3] * nd[3][i]);

@@ -32,6 +32,7 @@ as the ASDF Standard says.
 """
 import hashlib
 import io
+import mmap
 import re
 import struct
 import sys
@@ -73,7 +74,9 @@ while i < len(args):
     else:
         sys.exit("asdf_rewrite.py: unknown option " + args[i])
 
-raw = open(src, "rb").read()
+# IN memory-mapped, its blocks views of the map: no copy of its 300 MB
+with open(src, "rb") as f:
+    raw = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
 end = tree_end(raw)
 tree = raw[:end].decode()
 
@@ -81,7 +84,7 @@ tree = raw[:end].decode()
 blocks = []
 for b in asdf_blocks.blocks(raw):
     assert b.comp == b"\0\0\0\0", "the input's blocks must be uncompressed"
-    blocks.append(raw[b.at:b.at + b.used])
+    blocks.append(memoryview(raw)[b.at:b.at + b.used])
 source = sources(raw)
 
 

@@ -29,7 +29,9 @@ level, apath, fpath, sca = int(sys.argv[1]), sys.argv[2], sys.argv[3], int(sys.a
 name = "WFI%02d" % sca
 h = fits.open(fpath)
 corr = bool(h[name].header.get("RNCORR", False))
-with asdf.open(apath, copy_arrays=True) as af:
+# memory-mapped (its blocks are uncompressed), not copied: all is read
+# inside the with
+with asdf.open(apath, copy_arrays=False) as af:
     r = af.tree["roman"]
     meta = r["meta"]
     assert meta["instrument"]["detector"] == name, meta["instrument"]

@@ -27,7 +27,9 @@ same = sys.argv[7] if len(sys.argv) > 7 else None
 rows = list(csv.DictReader(open(placed)))
 assert len(rows) == 1, rows
 x0, y0 = float(rows[0]["x"]) - 1, float(rows[0]["y"]) - 1
-with asdf.open(before, copy_arrays=True) as a, asdf.open(after, copy_arrays=True) as b:
+# uncompressed blocks memory-mapped, not copied (python3-asdf's default); all is
+# read inside the with
+with asdf.open(before, copy_arrays=False) as a, asdf.open(after, copy_arrays=False) as b:
     ra, rb = a.tree["roman"], b.tree["roman"]
     d = np.asarray(rb["data"], float) - np.asarray(ra["data"], float)
     y, x = np.unravel_index(np.argmax(d), d.shape)

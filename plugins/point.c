@@ -282,7 +282,6 @@ static int point_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
 	pthread_mutex_init(&p->lock, NULL);
-	pthread_mutex_init(&p->slab_lock, NULL);
 	p->serial = atomic_fetch_add(&serials, 1) + 1;
 	kernels_choose(p);
 	for (int i = 0; i < SCA_SLOTS; i++)
@@ -375,7 +374,6 @@ fail:
 	poly_free_all(p);
 	free(p->chs);
 	pthread_mutex_destroy(&p->lock);
-	pthread_mutex_destroy(&p->slab_lock);
 	free(p);
 	return -1;
 }
@@ -395,6 +393,8 @@ static void point_fini(void *state)
 		all.nhalo += t->nhalo;
 		all.npoint += t->npoint;
 		all.spread += t->spread;
+		for (int s = 0; s < SCA_SLOTS; s++)
+			free(t->cnt[s]);
 		free(t->dep);
 		free(t);
 	}
@@ -406,7 +406,6 @@ static void point_fini(void *state)
 	far_free(p);
 	hslot_free_all(p);
 	pthread_mutex_destroy(&p->lock);
-	pthread_mutex_destroy(&p->slab_lock);
 	free(p);
 }
 

@@ -65,8 +65,6 @@ struct poly {
 	 * and kept in float (a rectangle's sum to ~1e-8 of the flux) */
 	float *sat;
 	int nee;                /* centre / over */
-	int carved;             /* plane and sat carved from the point model's
-				 * blocks (slab_get), freed with them at fini */
 	double *ee;             /* ee[h], h = 1..nee: see ee_table() */
 	/* a blended cell: the nodes and weights it was blended from, and
 	 * (psf-blend=core) the nodes' own polyphase copies */
@@ -267,8 +265,7 @@ struct tally {
 	double spread;          /* of left, what went to the diffuse grid */
 	long long nhalo, npoint;
 	/* psf-diffuse=grid: per SCA, the thread's grid of light left out,
-	 * in three integer counters per cell (point_far.c), from the slab
-	 * (slab_get, freed with it); NULL until used */
+	 * in two integer counters per cell (point_far.c); NULL until used */
 	int64_t *cnt[SCA_SLOTS];
 	/* and the light beyond the radii of sources with a halo, each
 	 * spread with the wing beyond its own radius (far_deposit) */
@@ -328,12 +325,6 @@ struct point {
 	struct tally *tallies;  /* one per thread that prepared */
 	void (*sum_rows)(double *, ptrdiff_t, int, int, const struct rows_args *);
 	double (*core_rows)(const struct core_args *, float *);
-	/* the arrays of the copies the table keeps, carved in turn from
-	 * blocks asked to be backed by huge pages (point_poly.c, slab_get) */
-	pthread_mutex_t slab_lock;
-	struct slab_block *slab; /* newest first */
-	char *slab_cur;
-	size_t slab_left;
 	struct poly *slot;      /* nslots of them, a power of two */
 	_Atomic uint64_t *keys; /* slot[i]'s key once published (point_poly.c) */
 	size_t nslots;
@@ -428,9 +419,6 @@ static inline double box_half_of(const struct wfs_source *src)
 void kernels_choose(struct point *p);
 
 /* point_poly.c */
-/* bytes of the point model's slab (point_poly.c), zeroed, 64-byte aligned,
- * kept until fini (poly_free_all); NULL when out of memory.  Any thread. */
-void *slab_get(struct point *p, size_t bytes);
 int poly_table_init(struct point *p);
 int cell_in_range(const struct point *p, const struct wfs_source *src);
 const struct poly *poly_find(const struct point *p, uint64_t key);

@@ -207,7 +207,7 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 		return dep_push(p, t, (struct far_dep){ .k = INT_MIN, .sca = (short)sca,
 						 .slot = (short)slot, .r = r, .x = src->x,
 						 .y = src->y, .light = light });
-	if (!t->cnt[sca] && !(t->cnt[sca] = slab_get(p, (size_t)3 * n * n * sizeof(int64_t))))
+	if (!t->cnt[sca] && !(t->cnt[sca] = calloc((size_t)3 * n * n, sizeof(int64_t))))
 		return p->host->error(p->host->ctx, "out of memory");
 	far_cic(p, src->x, src->y, c, w);
 	for (int k = 0; k < 4; k++)

@@ -29,7 +29,6 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 
 #include "point.h"
 
@@ -73,115 +72,6 @@ const struct poly *poly_find(const struct point *p, uint64_t key)
 	size_t empty;
 
 	return poly_probe((struct point *)p, key, &empty);
-}
-
-/*
- * The planes and tables of the copies the table keeps are carved in turn
- * from blocks of SLAB_BYTES (or one block of a larger array's own size),
- * 2 MiB-aligned and asked to be backed by huge pages, and freed together
- * at fini: a faint-star scene reads a few hundred copies of 330 KB each in
- * scattered order, and on 4 KiB pages each was some 80 page faults and as
- * many TLB entries (10^6 stars of random teff in F146: 70 600 faults on
- * 4 KiB pages, 23 300 carved).  WFISCENE_NO_HUGEPAGE=1 keeps the blocks on
- * plain pages, as the host's tiles (pool.h).  The diffuse grid's counters
- * (point_far.c), 1.8 MB an SCA and thread met in scattered order, come
- * from it too.  A copy another thread beat into the table leaves its
- * carving unused until fini (two threads making the same copy at once:
- * rare, and bounded by the table).
- */
-#define HUGE_BYTES ((size_t)2 << 20)
-#define SLAB_BYTES ((size_t)16 << 20)
-
-struct slab_block {
-	struct slab_block *next;
-	void *base;
-	size_t bytes;
-};
-
-static int slab_plain_pages(void)
-{
-	const char *s = getenv("WFISCENE_NO_HUGEPAGE");
-
-	return s && *s && *s != '0';
-}
-
-/* A new block of at least bytes (a multiple of HUGE_BYTES), 2 MiB-aligned;
- * NULL when the kernel refuses. */
-static struct slab_block *slab_block_new(size_t bytes)
-{
-	struct slab_block *b = malloc(sizeof(*b));
-	char *m, *a;
-	size_t head;
-
-	if (!b)
-		return NULL;
-	m = mmap(NULL, bytes + HUGE_BYTES, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS,
-		 -1, 0);
-	if (m == MAP_FAILED) {
-		free(b);
-		return NULL;
-	}
-	a = (char *)(((uintptr_t)m + HUGE_BYTES - 1) & ~(uintptr_t)(HUGE_BYTES - 1));
-	head = (size_t)(a - m);
-	if (head)
-		munmap(m, head);
-	munmap(a + bytes, HUGE_BYTES - head);
-#ifdef MADV_HUGEPAGE
-	if (!slab_plain_pages())
-		madvise(a, bytes, MADV_HUGEPAGE);       /* advice: refused, plain pages */
-#endif
-	b->base = a;
-	b->bytes = bytes;
-	return b;
-}
-
-void *slab_get(struct point *p, size_t bytes)
-{
-	void *r = NULL;
-
-	bytes = (bytes + 63) & ~(size_t)63;
-	pthread_mutex_lock(&p->slab_lock);
-	if (p->slab_left < bytes) {
-		size_t want = bytes > SLAB_BYTES ? (bytes + HUGE_BYTES - 1) & ~(HUGE_BYTES - 1) :
-			      SLAB_BYTES;
-		struct slab_block *b = slab_block_new(want);
-
-		if (b) {
-			b->next = p->slab;
-			p->slab = b;
-			p->slab_cur = b->base;
-			p->slab_left = b->bytes;
-		}
-	}
-	if (p->slab_left >= bytes) {
-		r = p->slab_cur;
-		p->slab_cur += bytes;
-		p->slab_left -= bytes;
-	}
-	pthread_mutex_unlock(&p->slab_lock);
-	return r;
-}
-
-static void slab_free_all(struct point *p)
-{
-	for (struct slab_block *b = p->slab, *next; b; b = next) {
-		next = b->next;
-		munmap(b->base, b->bytes);
-		free(b);
-	}
-	p->slab = NULL;
-	p->slab_cur = NULL;
-	p->slab_left = 0;
-}
-
-/* q's plane (np floats) and table (ns), carved when the copy is to be
- * kept, else from malloc(); 0, or -1 when out of memory. */
-static int poly_arrays(struct point *p, struct poly *q, size_t np, size_t ns, int kept)
-{
-	q->carved = kept;
-	q->plane = kept ? slab_get(p, np * sizeof(float)) : malloc(np * sizeof(float));
-	q->sat = kept ? slab_get(p, ns * sizeof(float)) : malloc(ns * sizeof(float));
-	return q->plane && q->sat ? 0 : -1;
 }
 
 /* Make slot i, filled, visible to every probe. */
@@ -244,10 +134,8 @@ static void sat_table(struct poly *q, double *row)
  * table, or one that failed). */
 static void poly_drop(struct poly *q)
 {
-	if (!q->carved) {
-		free(q->plane);
-		free(q->sat);
-	}
+	free(q->plane);
+	free(q->sat);
 	free(q->ee);
 	q->plane = q->sat = NULL;
 	q->ee = NULL;
@@ -284,23 +172,21 @@ static void plane_fill(struct poly *q, const float *node)
 }
 
 /* The polyphase copy of an n x n ePSF array under key, into *q, outside
- * the table: any thread, no lock; its arrays carved when it is to be kept
- * (inserted), else malloc()ed.  Returns 0, or -1 with an error recorded
+ * the table: any thread, no lock.  Returns 0, or -1 with an error recorded
  * (poly_drop() then has nothing to free). */
 static int poly_build(struct point *p, uint64_t key, const float *node, int n, int over,
-		      int kept, struct poly *q)
+		      struct poly *q)
 {
 	int m = (n + over - 1) / over + 2 * PAD + 1;
 	double *row;
-	int rc;
 
 	*q = (struct poly){ .key = key, .n = n, .over = over, .centre = (n - 1) / 2, .m = m };
 	q->nee = q->centre / over;
-	rc = poly_arrays(p, q, (size_t)over * over * m * m + VSLACK,
-			 (size_t)over * over * (m + 1) * (m + 1), kept);
+	q->plane = malloc(((size_t)over * over * m * m + VSLACK) * sizeof(float));
+	q->sat = malloc((size_t)over * over * (m + 1) * (m + 1) * sizeof(float));
 	q->ee = malloc(((size_t)q->nee + 1) * sizeof(double));
 	row = malloc((size_t)(m + 1) * sizeof(double));
-	if (rc < 0 || !q->ee || !row) {
+	if (!q->plane || !q->sat || !q->ee || !row) {
 		free(row);
 		poly_drop(q);
 		return p->host->error(p->host->ctx, "out of memory");
@@ -325,8 +211,10 @@ static int poly_diff(struct point *p, uint64_t key, const struct poly *hi,
 
 	*q = (struct poly){ .key = key, .n = hi->n, .over = o, .centre = hi->centre, .m = m,
 			    .nee = hi->nee };
+	q->plane = malloc(np * sizeof(float));
+	q->sat = malloc(ns * sizeof(float));
 	q->ee = malloc(((size_t)q->nee + 1) * sizeof(double));
-	if (poly_arrays(p, q, np, ns, 1) < 0 || !q->ee) {
+	if (!q->plane || !q->sat || !q->ee) {
 		poly_drop(q);
 		return p->host->error(p->host->ctx, "out of memory");
 	}
@@ -376,7 +264,7 @@ struct poly *poly_add(struct point *p, uint64_t key, const float *node, int n, i
 
 	if (q)
 		return q;
-	if (poly_build(p, key, node, n, over, 1, &made) < 0)
+	if (poly_build(p, key, node, n, over, &made) < 0)
 		return NULL;
 	return poly_insert(p, &made);
 }
@@ -566,7 +454,7 @@ static int cell_make(struct point *p, uint64_t key, const float *const node[8],
 	}
 	if (!(mix = blend_nodes(p, node, w, nw, (size_t)n * n)))
 		return -1;
-	rc = poly_build(p, key, mix, n, over, 1, made);
+	rc = poly_build(p, key, mix, n, over, made);
 	free(mix);
 	if (rc < 0)
 		return -1;
@@ -610,7 +498,7 @@ static int class_blend(struct point *p, const struct wfs_source *src, uint64_t k
 		return cell_make(p, class_key(p, key, k), node, w, 4, e.n, e.over, &how, made);
 	if (!(mix = blend_nodes(p, node, w, 4, (size_t)e.n * e.n)))
 		return -1;
-	rc = poly_build(p, 0, mix, e.n, e.over, 0, made);
+	rc = poly_build(p, 0, mix, e.n, e.over, made);
 	free(mix);
 	return rc;
 }
@@ -784,13 +672,10 @@ struct poly *cell_add(struct point *p, const struct wfs_source *src)
 void poly_free_all(struct point *p)
 {
 	for (size_t i = 0; p->slot && i < p->nslots; i++) {
-		if (!p->slot[i].carved) {
-			free(p->slot[i].plane);
-			free(p->slot[i].sat);
-		}
+		free(p->slot[i].plane);
+		free(p->slot[i].sat);
 		free(p->slot[i].ee);
 	}
-	slab_free_all(p);
 	free(p->slot);
 	free((void *)p->keys);
 	p->slot = NULL;

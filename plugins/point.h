@@ -131,6 +131,12 @@ struct draw {
 	double wn[8];
 	const struct poly *cp[8];
 	double cw[8];
+	/* a colour source's pair difference at its cell's centre (the cell's
+	 * dcol or dpair) and its weight f - g on the cell, drawn in the core
+	 * with the cell's taps (Keys' cubic) where the core is cubic, else
+	 * one more bilinear correction (render_one); NULL: none */
+	const struct poly *dk;
+	double dkw;
 	struct geom g;
 	struct zone box;        /* every pixel it lights */
 	struct zone core;       /* Keys' cubic (or psf-blend=core's bilinear
@@ -229,6 +235,9 @@ struct rows_args {
  *   v = bw[0] t[1][1] + bw[1] t[1][2] + bw[2] t[2][1] + bw[3] t[2][2] bilinear
  *   kv = v + sum over k of cw[k] ct[k]         psf-blend=core's correction
  *
+ * With dbase (a colour source's pair difference, Keys only) each tap of
+ * the cell is t[b][a] + ds d[b][a] (fmaf) before Keys' weights.
+ *
  * every product but the first of a sum fused (fmaf), in this order, so
  * that the AVX2 build and the plain one give the same bits; and K, the sum
  * of kv over the core, in double (lanes l and l + 4 to accumulator l). */
@@ -236,10 +245,10 @@ struct core_args {
 	/* tap (a, b) of core row c, pixel i: base + ty[b] + tx[a] + c m + i;
 	 * the correction's array k, bilinear tap (a, b): cbase[k] + ty[b + 1]
 	 * + tx[a + 1] + c m + i */
-	const float *base, *cbase[8];
+	const float *base, *cbase[8], *dbase;
 	ptrdiff_t tx[4], ty[4], m;
 	int ncor, keys, nc, nk;
-	float kx[4], ky[4], bw[4], cw[32];
+	float kx[4], ky[4], bw[4], cw[32], ds;
 };
 
 /* What one thread's prepare() calls counted, psf-extent=noise: the flux

@@ -163,7 +163,20 @@ static double core_plain(const struct core_args *a, float *kvb)
 				const float *r = a->base + o + i0 + l;
 				float v, e = 0;
 
-				if (a->keys) {
+				if (a->keys && a->dbase) {
+					const float *q = a->dbase + o + i0 + l;
+
+					v = 0;
+					for (int b = 0; b < 4; b++) {
+						const float *rb = r + a->ty[b], *qb = q + a->ty[b];
+						float h = a->kx[0] * fmaf(a->ds, qb[a->tx[0]], rb[a->tx[0]]);
+
+						h = fmaf(a->kx[1], fmaf(a->ds, qb[a->tx[1]], rb[a->tx[1]]), h);
+						h = fmaf(a->kx[2], fmaf(a->ds, qb[a->tx[2]], rb[a->tx[2]]), h);
+						h = fmaf(a->kx[3], fmaf(a->ds, qb[a->tx[3]], rb[a->tx[3]]), h);
+						v = b ? fmaf(a->ky[b], h, v) : a->ky[0] * h;
+					}
+				} else if (a->keys) {
 					v = 0;
 					for (int b = 0; b < 4; b++) {
 						const float *rb = r + a->ty[b];
@@ -218,7 +231,26 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 			__m256 v, e = _mm256_setzero_ps();
 			__m256i in;
 
-			if (a->keys) {
+			if (a->keys && a->dbase) {
+				const float *q = a->dbase + o + i0;
+				__m256 ds = _mm256_set1_ps(a->ds);
+
+				v = _mm256_setzero_ps();
+				for (int b = 0; b < 4; b++) {
+					const float *rb = r + a->ty[b], *qb = q + a->ty[b];
+					__m256 h = _mm256_mul_ps(kx0, _mm256_fmadd_ps(
+						ds, _mm256_loadu_ps(qb + x0), _mm256_loadu_ps(rb + x0)));
+
+					h = _mm256_fmadd_ps(kx1, _mm256_fmadd_ps(ds, _mm256_loadu_ps(qb + x1),
+										 _mm256_loadu_ps(rb + x1)), h);
+					h = _mm256_fmadd_ps(kx2, _mm256_fmadd_ps(ds, _mm256_loadu_ps(qb + x2),
+										 _mm256_loadu_ps(rb + x2)), h);
+					h = _mm256_fmadd_ps(kx3, _mm256_fmadd_ps(ds, _mm256_loadu_ps(qb + x3),
+										 _mm256_loadu_ps(rb + x3)), h);
+					v = b ? _mm256_fmadd_ps(_mm256_set1_ps(a->ky[b]), h, v) :
+						_mm256_mul_ps(_mm256_set1_ps(a->ky[0]), h);
+				}
+			} else if (a->keys) {
 				v = _mm256_setzero_ps();
 				for (int b = 0; b < 4; b++) {
 					const float *rb = r + a->ty[b];

@@ -51,7 +51,9 @@
  * 362 pixels, first order, and that change lives in the core: there the
  * source's own blend is restored, as the bilinear difference (source's
  * blend - cell's) from the nodes added to the cell's Keys value, a small
- * field whose interpolation error is small.  The core is drawn first into
+ * field whose interpolation error is small (for a source with a spectrum
+ * the pair's difference, a larger field, is added to the cell's own Keys
+ * taps instead: point_epsf.c, cell_correction_colour).  The core is drawn first into
  * a small float buffer, then every row of the window in one call, straight
  * into the tile (sum_rows_avx2).  The copies and blends are made in
  * prepare(), which the host calls in its main thread before render() sees

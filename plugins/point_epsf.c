@@ -301,8 +301,9 @@ static void cell_correction(const struct poly *cell, double flux, const double w
  * cell's centre and its colour's from class e (BENCHMARKS.md, "Colour").
  * Five arrays instead of the eight of the exact blend.  D is read with the
  * cell's own taps (d->dk, render_one): where the core is Keys' cubic, a
- * bilinear D missed the curvature of the pair's difference at the peak,
- * 1.3e-3 of it for a star on a pixel's centre half-way between classes. */
+ * bilinear D missed the curvature of the pair's difference at the peak:
+ * up to 1.75e-3 of it for stars half-way between the ePSF's samples (1/8
+ * pixel off a pixel's centre; t2200). */
 static void cell_correction_colour(const struct point *p, const struct wfs_source *src,
 				   const struct poly *cell, const double w[4], struct draw *d)
 {

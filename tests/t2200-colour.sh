@@ -255,7 +255,8 @@ test_expect_success 'colour cells: the same light and within 1e-3 of the peak of
 # samples (1/8 pixel off a pixel's centre, where a bilinear read errs
 # most), at temperatures across the classes: the pair's difference read
 # with the cell's own Keys taps keeps each within 5e-4 of the peak of the
-# per-source blend (read bilinearly, 1.75e-3 here).
+# per-source blend (when the difference was read bilinearly, before
+# 2026-11-29: 1.75e-3).
 "$PY" - > centred.csv <<'EOF'
 print("x,y,flux,teff")
 for i, t in enumerate((2500, 3000, 4200, 5800, 8000, 11345, 15000, 20000, 30000, 45000)):

@@ -16,18 +16,24 @@ enum { S = WFS_NPIX, B = S / 4 };
 #define W_C 0.88127             /* template centre weight */
 #define W_E 0.028748            /* template edge weight */
 
+/* The cosmic-ray stage alone, for an exposure of t s and residual resid. */
+static void cosmic_opts(struct noise_opts *o, double t, double resid)
+{
+	noise_opts_default(o);
+	o->stages = NOISE_COSMIC;
+	o->exptime = t;
+	o->cosmic_residual = resid;
+	o->seed = 99;
+	o->filter = F087;
+	o->counts = 1;
+}
+
 static double *sca_image(double t, double resid, int sca)
 {
 	struct noise_opts o;
 	double *a = calloc((size_t)S * S, sizeof(double));
 
-	noise_opts_default(&o);
-	o.stages = NOISE_COSMIC;
-	o.exptime = t;
-	o.cosmic_residual = resid;
-	o.seed = 99;
-	o.filter = F087;
-	o.counts = 1;
+	cosmic_opts(&o, t, resid);
 	/* four tiles, in no particular order */
 	noise_tile(&o, sca, 2000, 2000, S - 2000, S - 2000, a + 2000 * (size_t)S + 2000, S);
 	noise_tile(&o, sca, 0, 0, 2000, 2000, a, S);
@@ -44,13 +50,7 @@ static double *sca_band(double t, int sca, int rows)
 	struct noise_opts o;
 	double *a = calloc((size_t)S * rows, sizeof(double));
 
-	noise_opts_default(&o);
-	o.stages = NOISE_COSMIC;
-	o.exptime = t;
-	o.cosmic_residual = 1;
-	o.seed = 99;
-	o.filter = F087;
-	o.counts = 1;
+	cosmic_opts(&o, t, 1);
 	noise_tile(&o, sca, 0, 0, S, rows, a, S);
 	return a;
 }

@@ -43,9 +43,16 @@ print(r)" "$@"
 
 cpu=$(sed -n 's/^model name[[:space:]]*: *//p' /proc/cpuinfo 2>/dev/null | head -n 1)
 flags=$(grep -m 1 '^flags' /proc/cpuinfo 2>/dev/null | grep -o -w -e avx2 -e fma -e avx512f | tr '\n' ' ')
+# A virtual machine's name string may say only "Intel(R) Xeon(R) Processor":
+# the family and model numbers tell the part (6/85 Skylake-SP or Cascade
+# Lake, 6/106 Ice Lake, 6/143 Sapphire Rapids, 6/207 Emerald Rapids), and
+# the L1d and L2 sizes what the engine's working sets meet.
+family=$(sed -n 's/^cpu family[[:space:]]*: *//p' /proc/cpuinfo 2>/dev/null | head -n 1)
+model=$(sed -n 's/^model[[:space:]]*: *//p' /proc/cpuinfo 2>/dev/null | head -n 1)
+cache() { cat "/sys/devices/system/cpu/cpu0/cache/index$1/size" 2>/dev/null || echo '?'; }
 echo "# wfiscene benchmarks, $(date -u +%Y-%m-%d), $(nproc) cores, $(uname -m)"
 echo
-echo "CPU: ${cpu:-unknown} (${flags% }); L2 per core: $(cat /sys/devices/system/cpu/cpu0/cache/index2/size 2>/dev/null || echo '?');"
+echo "CPU: ${cpu:-unknown}, family ${family:-?} model ${model:-?} (${flags% }); L1d $(cache 0), L2 $(cache 2) per core;"
 echo "load at the start: $(cut -d ' ' -f 1-3 /proc/loadavg 2>/dev/null).  Absolute figures hold for this"
 echo "machine only; the ratios are taken in one run, interleaved."
 echo

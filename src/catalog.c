@@ -77,7 +77,8 @@ struct catalog {
 	int c_pmra, c_pmdec, c_plx, c_epoch;
 	double *pmra, *pmdec, *plx, *epoch;
 	/* the spectrum (spectrum.h): the teff, beta and color_F1_F2 columns,
-	 * or -1; spectral is 1 when any exists.  A colour's filters and the
+	 * or -1; spectral the families they name (catalog_spectral), 0 when
+	 * none exists.  A colour's filters and the
 	 * factor that turns it into beta. */
 	int spectral;
 	int c_teff, c_beta, c_colour;
@@ -438,7 +439,8 @@ static int spectrum_plan(struct catalog *c, const char *where, struct err *e)
 		c->colour_to_beta = 1 / (2.5 * log10(filter_get(a)->pivot /
 						      filter_get(b)->pivot));
 	}
-	c->spectral = c->c_teff >= 0 || c->c_beta >= 0 || c->c_colour >= 0;
+	c->spectral = (c->c_teff >= 0 ? SPECTRAL_BLACKBODY : 0) |
+		      (c->c_beta >= 0 || c->c_colour >= 0 ? SPECTRAL_POWER : 0);
 	return 0;
 }
 

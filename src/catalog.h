@@ -131,8 +131,12 @@ const char *catalog_roman_type(const char *t);
  * tests.) */
 int catalog_parse_double(const char *s, double *out);
 
-/* Whether the catalog (its first file, for a tree) has a spectrum column
- * (teff, beta or color_F1_F2): known once it is open, before any row. */
+/* Whether the catalog (its first file, for a tree) has a spectrum column,
+ * known once it is open, before any row: 0, or the families its columns
+ * name, SPECTRAL_BLACKBODY (teff) or'd with SPECTRAL_POWER (beta or
+ * color_F1_F2). */
+#define SPECTRAL_BLACKBODY 1
+#define SPECTRAL_POWER 2
 int catalog_spectral(const struct catalog *c);
 
 /* Rows read and raw bytes consumed so far, for reports. */

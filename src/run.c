@@ -411,23 +411,24 @@ static double run_bytes(const struct scene_opts *o)
 	return (o->level ? 110.0 : 40.0) * MIB;
 }
 
-/* Whether a catalog (not stdin, which is read once) has a spectrum
- * column, from its header (a tree's: its first file's), no row read; a
- * catalog that cannot be opened counts as none (the pass reports it). */
-static int catalog_has_spectra(const struct scene_opts *o, const char *path)
+/* The families of spectra a catalog (not stdin, which is read once) names
+ * (catalog_spectral), from its header (a tree's: its first file's), no row
+ * read; a catalog that cannot be opened counts as none (the pass reports
+ * it). */
+static int catalog_families(const struct scene_opts *o, const char *path)
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
 				   .chunk_rows = o->chunk, .settings = o->settings,
 				   .epoch = o->epoch };
 	struct err e = { 0 };
 	struct catalog *c;
-	int has;
+	int fam;
 
 	if (!strcmp(path, "-") || !(c = catalog_open(path, &co, &e)))
 		return 0;
-	has = catalog_spectral(c);
+	fam = catalog_spectral(c);
 	catalog_close(c);
-	return has;
+	return fam;
 }
 
 /*
@@ -462,7 +463,46 @@ static double colour_halo_bytes(const struct scene_opts *o)
 	return 2 * n * arr + 2 * ((n - 1) * N + 1) * (arr + (2 * R + 3) * (2 * R + 3) * 2 + 40e3);
 }
 
-/* An SCA's bytes; colour, its colour halos' (colour_halo_bytes). */
+/*
+ * The colour cells an SCA may hold (point.so with psf-blend core or cell,
+ * the built-in PSF) when the catalogs name the spectral families fam
+ * (catalog_spectral), an upper bound: at each of the (ceil(4088 / C) +
+ * 2)^2 positions of psf-cell C, for each family, the cells of the
+ * (n - 1) N + 1 steps between its n classes (psf-colour-classes n,
+ * psf-colour-steps N) and its n - 1 pair differences, and the family's
+ * node copies (9 n), each a polyphase copy of the faint class's ePSF with
+ * its summed-area tables (PSF_OVER^2 (m^2 + (m + 1)^2) floats, m = ceil(177
+ * / PSF_OVER) + 5).  The bright classes' cells (psf-blend=cell) are left
+ * out: a bright star makes its own position's only.  Measured (BENCHMARKS.md,
+ * "Sixth sitting"): 10^6 faint stars of random teff on one SCA held 57 MB
+ * more than without the column in F158 and 165 MB in F146, against this
+ * bound's 104 and 241 MB.
+ */
+static double colour_cell_bytes(const struct scene_opts *o, int fam)
+{
+	const char *v;
+	double C = 512, N = 1, n = psf_default_classes(o->filter), side, m, poly;
+	int nf = !!(fam & SPECTRAL_BLACKBODY) + !!(fam & SPECTRAL_POWER);
+
+	if (strcmp(o->psf, "builtin") ||
+	    ((v = setting_last(o->settings, "psf-blend")) && !strcmp(v, "source")))
+		return 0;
+	if ((v = setting_last(o->settings, "psf-cell")))
+		C = atof(v);
+	if ((v = setting_last(o->settings, "psf-colour-steps")))
+		N = atof(v);
+	if ((v = setting_last(o->settings, "psf-colour-classes")))
+		n = atof(v);
+	if (!(C >= 1) || !(N >= 1) || !(n >= 2))
+		return 0;
+	side = ceil(WFS_NPIX / C) + 2;
+	m = ceil((double)psf_class_n[0] / PSF_OVER) + 5;
+	poly = PSF_OVER * PSF_OVER * (m * m + (m + 1) * (m + 1)) * sizeof(float);
+	return nf * (side * side * ((n - 1) * N + 1 + (n - 1)) + 9 * n) * poly;
+}
+
+/* An SCA's bytes; colour, its colour halos' and cells' (colour_halo_bytes,
+ * colour_cell_bytes). */
 static double sca_bytes(const struct scene_opts *o, double colour)
 {
 	double rows = o->row_first ? o->row_last - o->row_first + 1 : WFS_NPIX;
@@ -513,7 +553,7 @@ struct plan {
 	int groups;             /* SCA groups of each exposure (per is 1) */
 	int passes;             /* over the catalogs in all */
 	double budget;          /* bytes */
-	double colour;          /* an SCA's colour halos, bytes */
+	double colour;          /* an SCA's colour halos and cells, bytes */
 };
 
 static void plan_passes(const struct scene_opts *o, const struct exposure *x, int n,
@@ -721,10 +761,12 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		for (int i = 0; i < n; i++)
 			x[i].persist = persist;
 	}
-	/* the colour halos counted only where they could change the plan,
-	 * and only when a catalog has a spectrum column (opening each
-	 * catalog to see costs some MB of buffers, left unspent otherwise) */
-	plan.colour = colour_halo_bytes(o);
+	/* the colour halos and cells counted only where they could change
+	 * the plan (both families), and then for the families the catalogs'
+	 * spectrum columns name (opening each catalog to see costs some MB of
+	 * buffers, left unspent otherwise) */
+	plan.colour = colour_halo_bytes(o) +
+		      colour_cell_bytes(o, SPECTRAL_BLACKBODY | SPECTRAL_POWER);
 	if (plan.colour > 0) {
 		struct plan with = plan, without = plan;
 
@@ -732,14 +774,15 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		plan_passes(o, x, n, &with);
 		plan_passes(o, x, n, &without);
 		if (with.passes == without.passes && with.groups == without.groups &&
-		    with.per == without.per)
+		    with.per == without.per) {
 			plan.colour = 0;
-		else {
-			int has = 0;
+		} else {
+			int fam = 0;
 
-			for (char *const *cat = catalogs; *cat && !has; cat++)
-				has = catalog_has_spectra(o, *cat);
-			plan.colour = has ? plan.colour : 0;
+			for (char *const *cat = catalogs;
+			     *cat && fam != (SPECTRAL_BLACKBODY | SPECTRAL_POWER); cat++)
+				fam |= catalog_families(o, *cat);
+			plan.colour = fam ? colour_halo_bytes(o) + colour_cell_bytes(o, fam) : 0;
 		}
 	}
 	plan_passes(o, x, n, &plan);

@@ -164,23 +164,45 @@ assert abs(a / b - 1) < 1e-4, (a, b)
 "
 '
 
-# --memory's per-SCA estimate counts the colour halos a catalog with a
-# spectrum column may make (an upper bound: with 64-pixel halos, 4 classes
-# a family and 4 steps, 10 MiB), so that the same budget splits its SCAs
-# into more groups
-test_expect_success 'the memory estimate counts the colour halos' '
+# --memory's per-SCA estimate counts the colour halos and cells a catalog
+# with a spectrum column may make (upper bounds: with 64-pixel halos, 4
+# classes a family and 4 steps, 10 MiB of halos; the teff family's cells
+# at 100 positions, 229 MiB), so that the same budget splits its SCAs into
+# more groups: each term, and none without a spectrum column
+test_expect_success 'the memory estimate counts the colour halos and cells' '
 	printf "x,y,flux\n2000.3,2100.6,20\n" > nospec.csv &&
-	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
-		-o nospec%d.fits nospec.csv 2> err0 &&
-	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
-		-o spec%d.fits faint.csv 2> err1 &&
-	"$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
-		--set psf-halo-colour-steps=0 -o specn%d.fits faint.csv 2> err2 &&
-	cat err0 err1 err2 | grep passes &&
+	est() { "$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
+		-o est%d.fits "$@" 2>&1 | grep passes; } &&
+	est nospec.csv > err0 &&
+	est faint.csv > err1 &&
+	est --set psf-halo-colour-steps=0 faint.csv > err2 &&
+	est --set psf-colour-steps=0 faint.csv > err3 &&
+	est --set psf-colour-steps=0 --set psf-halo-colour-steps=0 faint.csv > err4 &&
+	cat err0 err1 err2 err3 err4 &&
 	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err0 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (194 MB each" err1 &&
-	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err2
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (423 MB each" err1 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (413 MB each" err2 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (194 MB each" err3 &&
+	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err4
 '
+
+# The budget holds with the colour cells: 10^5 faint stars of random teff
+# on each of two SCAs make every cell (165 MB an SCA in F146); the
+# estimate without them put both SCAs in one pass under --memory 450 and
+# the run peaked at 673 MiB
+if [ -x /usr/bin/time ]; then
+	test_expect_success '--memory holds a crowded colour catalog on two SCAs' '
+		"$BUILD/contrib/starfield" -n 100000 -x -s 1 |
+			awk -F, "BEGIN { OFS = \",\"; srand(3) } NR == 1 { print \$0, \"teff\", \"sca\"; next }
+				{ t = exp(log(2500) + rand() * log(20)); print \$0, t, 1; print \$0, t, 2 }" > crowd.csv &&
+		/usr/bin/time -f %M -o rss "$WFS" --filter F146 --sca 1,2 --flux-unit abmag \
+			--memory 450 --set psf-extent=stips -v -o /dev/null crowd.csv 2> err &&
+		test_grep "2 SCAs in 2 passes over the catalogs, 1 at most at a time" err &&
+		say "peak $(cat rss) KiB" && test "$(cat rss)" -le $((450 * 1024))
+	'
+else
+	test_skip '--memory holds a crowded colour catalog on two SCAs' '/usr/bin/time is absent (Debian package time)'
+fi
 
 test_expect_success 'the same bytes with one thread and another tile size' '
 	star 1e7 4200 > mid.csv && run m2.fits mid.csv &&

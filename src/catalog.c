@@ -547,6 +547,9 @@ static int catalog_plan(struct catalog *c, struct err *e)
 
 	if (stips_plan(c, type, lc, where, e) < 0)
 		return -1;
+	/* rows that may name their model (read_type) */
+	if (c->spectral && c->c_type >= 0 && c->stips != STIPS_GENERIC)
+		c->spectral |= SPECTRAL_TYPED;
 
 	if (roman_plan(c, lc, where, e) < 0)
 		return -1;

@@ -134,9 +134,11 @@ int catalog_parse_double(const char *s, double *out);
 /* Whether the catalog (its first file, for a tree) has a spectrum column,
  * known once it is open, before any row: 0, or the families its columns
  * name, SPECTRAL_BLACKBODY (teff) or'd with SPECTRAL_POWER (beta or
- * color_F1_F2). */
+ * color_F1_F2), and SPECTRAL_TYPED when its rows may also name their
+ * model (a type column: galaxies, say). */
 #define SPECTRAL_BLACKBODY 1
 #define SPECTRAL_POWER 2
+#define SPECTRAL_TYPED 4
 int catalog_spectral(const struct catalog *c);
 
 /* Rows read and raw bytes consumed so far, for reports. */

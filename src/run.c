@@ -464,41 +464,55 @@ static double colour_halo_bytes(const struct scene_opts *o)
 }
 
 /*
- * The colour cells an SCA may hold (point.so with psf-blend core or cell,
- * the built-in PSF) when the catalogs name the spectral families fam
- * (catalog_spectral), an upper bound: at each of the (ceil(4088 / C) +
- * 2)^2 positions of psf-cell C, for each family, the cells of the
- * (n - 1) N + 1 steps between its n classes (psf-colour-classes n,
- * psf-colour-steps N) and its n - 1 pair differences, and the family's
- * node copies (9 n), each a polyphase copy of the faint class's ePSF with
- * its summed-area tables (PSF_OVER^2 (m^2 + (m + 1)^2) floats, m = ceil(177
- * / PSF_OVER) + 5).  The bright classes' cells (psf-blend=cell) are left
- * out: a bright star makes its own position's only.  Measured (BENCHMARKS.md,
- * "Sixth sitting"): 10^6 faint stars of random teff on one SCA held 57 MB
- * more than without the column in F158 and 165 MB in F146, against this
- * bound's 104 and 241 MB.
+ * What spectra add to an SCA (built-in PSF) when the catalogs name the
+ * spectral families fam (catalog_spectral), an upper bound, for each
+ * family of n classes (psf-colour-classes): the classes' grids of the
+ * faint size class (n grids of 9 nodes of 177^2 floats); point.so's colour
+ * cells (psf-blend core or cell): at each of the (ceil(4088 / C) + 2)^2
+ * positions of psf-cell C, the cells of the (n - 1) M + 1 steps between
+ * the classes (psf-colour-steps M) and the n - 1 pair differences, and 9 n
+ * node copies, each a polyphase copy with its summed-area tables
+ * (PSF_OVER^2 (m^2 + (m + 1)^2) floats, m = ceil(177 / PSF_OVER) + 5); and
+ * when rows may name their model (SPECTRAL_TYPED), the grids galaxies are
+ * convolved with, the (n - 1)(G - 1) blends between the classes at
+ * psf-colour-galaxy-steps G, 9 nodes of 177^2 floats each.  The bright
+ * size classes are left out: a bright source makes its own position's
+ * cells and its own step's blend only.  Measured (BENCHMARKS.md, "Sixth
+ * sitting"): 10^6 faint stars of random teff on one SCA held 57 MB more
+ * than without the column in F158 and 165 MB in F146, against this
+ * bound's 106 and 245 MB; 10^4 faint galaxies of random beta in F146 108
+ * MB more, against the 110 MB of its grids and blends.
  */
 static double colour_cell_bytes(const struct scene_opts *o, int fam)
 {
 	const char *v;
-	double C = 512, N = 1, n = psf_default_classes(o->filter), side, m, poly;
+	double C = 512, M = 1, G = 32, n = psf_default_classes(o->filter);
+	double nn = psf_class_n[0], grid = 9 * nn * nn * sizeof(float), side, m, poly, b;
 	int nf = !!(fam & SPECTRAL_BLACKBODY) + !!(fam & SPECTRAL_POWER);
 
-	if (strcmp(o->psf, "builtin") ||
-	    ((v = setting_last(o->settings, "psf-blend")) && !strcmp(v, "source")))
+	if (strcmp(o->psf, "builtin") || !nf)
 		return 0;
 	if ((v = setting_last(o->settings, "psf-cell")))
 		C = atof(v);
 	if ((v = setting_last(o->settings, "psf-colour-steps")))
-		N = atof(v);
+		M = atof(v);
+	if ((v = setting_last(o->settings, "psf-colour-galaxy-steps")))
+		G = atof(v);
 	if ((v = setting_last(o->settings, "psf-colour-classes")))
 		n = atof(v);
-	if (!(C >= 1) || !(N >= 1) || !(n >= 2))
+	if (!(n >= 2))
 		return 0;
-	side = ceil(WFS_NPIX / C) + 2;
-	m = ceil((double)psf_class_n[0] / PSF_OVER) + 5;
-	poly = PSF_OVER * PSF_OVER * (m * m + (m + 1) * (m + 1)) * sizeof(float);
-	return nf * (side * side * ((n - 1) * N + 1 + (n - 1)) + 9 * n) * poly;
+	b = n * grid;
+	if (fam & SPECTRAL_TYPED && G > 1)
+		b += (n - 1) * (G - 1) * grid;
+	if (C >= 1 && M >= 1 &&
+	    !((v = setting_last(o->settings, "psf-blend")) && !strcmp(v, "source"))) {
+		side = ceil(WFS_NPIX / C) + 2;
+		m = ceil(nn / PSF_OVER) + 5;
+		poly = PSF_OVER * PSF_OVER * (m * m + (m + 1) * (m + 1)) * sizeof(float);
+		b += (side * side * ((n - 1) * M + 1 + (n - 1)) + 9 * n) * poly;
+	}
+	return nf * b;
 }
 
 /* An SCA's bytes; colour, its colour halos' and cells' (colour_halo_bytes,
@@ -766,7 +780,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	 * spectrum columns name (opening each catalog to see costs some MB of
 	 * buffers, left unspent otherwise) */
 	plan.colour = colour_halo_bytes(o) +
-		      colour_cell_bytes(o, SPECTRAL_BLACKBODY | SPECTRAL_POWER);
+		      colour_cell_bytes(o, SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED);
 	if (plan.colour > 0) {
 		struct plan with = plan, without = plan;
 
@@ -780,7 +794,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 			int fam = 0;
 
 			for (char *const *cat = catalogs;
-			     *cat && fam != (SPECTRAL_BLACKBODY | SPECTRAL_POWER); cat++)
+			     *cat && fam != (SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED);
+			     cat++)
 				fam |= catalog_families(o, *cat);
 			plan.colour = fam ? colour_halo_bytes(o) + colour_cell_bytes(o, fam) : 0;
 		}

@@ -469,8 +469,7 @@ static double colour_halo_bytes(const struct scene_opts *o)
  * family of n classes (psf-colour-classes): the classes' grids of the
  * faint size class (n grids of 9 nodes of 177^2 floats); point.so's colour
  * cells (psf-blend core or cell): at each of the (ceil(4088 / C) + 2)^2
- * positions of psf-cell C (with --rows, those of the strip's rows of
- * positions and one either side), the cells of the (n - 1) M + 1 steps between
+ * positions of psf-cell C, the cells of the (n - 1) M + 1 steps between
  * the classes (psf-colour-steps M) and the n - 1 pair differences, and 9 n
  * node copies, each a polyphase copy with its summed-area tables
  * (PSF_OVER^2 (m^2 + (m + 1)^2) floats, m = ceil(177 / PSF_OVER) + 5); and
@@ -508,15 +507,10 @@ static double colour_cell_bytes(const struct scene_opts *o, int fam)
 		b += (n - 1) * (G - 1) * grid;
 	if (C >= 1 && M >= 1 &&
 	    !((v = setting_last(o->settings, "psf-blend")) && !strcmp(v, "source"))) {
-		/* --rows: the strip's rows of positions (ceil(rows / C) + 1 at
-		 * most) and one either side */
-		double rows = o->row_first ? o->row_last - o->row_first + 1 : WFS_NPIX;
-
 		side = ceil(WFS_NPIX / C) + 2;
 		m = ceil(nn / PSF_OVER) + 5;
 		poly = PSF_OVER * PSF_OVER * (m * m + (m + 1) * (m + 1)) * sizeof(float);
-		b += (side * fmin(side, ceil(rows / C) + 3) * ((n - 1) * M + 1 + (n - 1)) + 9 * n) *
-		     poly;
+		b += (side * side * ((n - 1) * M + 1 + (n - 1)) + 9 * n) * poly;
 	}
 	return nf * b;
 }

@@ -384,6 +384,29 @@ int psfgrids_open_user(struct engine *g)
 	return 0;
 }
 
+void psfgrids_drop_colour(struct engine *g, int sca)
+{
+	for (int c = 0; g->cgrid && c < GRID_CLASSES; c++)
+		for (int k = 0; k < g->ncgrid; k++) {
+			struct psf_grid **cg = &g->cgrid[((size_t)(sca - 1) * GRID_CLASSES + c) *
+							 g->ncgrid + k];
+
+			psf_grid_free(*cg);
+			*cg = NULL;
+		}
+	/* the galaxies' blends: kept, an SCA group's would stay to the run's
+	 * end (some 100 MB an SCA in F146) */
+	if (g->classes && g->classes->blend) {
+		size_t per = (size_t)SOURCE_CLASSES * g->ncgrid * (g->classes->gsteps + 1);
+		struct psf_grid **b = g->classes->blend + (size_t)(sca - 1) * per;
+
+		for (size_t i = 0; i < per; i++) {
+			psf_grid_free(b[i]);
+			b[i] = NULL;
+		}
+	}
+}
+
 void psfgrids_drop(struct engine *g, int sca)
 {
 	struct psf_grid **gr = g->grid[sca - 1];
@@ -393,14 +416,7 @@ void psfgrids_drop(struct engine *g, int sca)
 			psf_grid_free(gr[c]);
 		gr[c] = NULL;
 	}
-	for (int c = 0; g->cgrid && c < GRID_CLASSES; c++)
-		for (int k = 0; k < g->ncgrid; k++) {
-			struct psf_grid **cg = &g->cgrid[((size_t)(sca - 1) * GRID_CLASSES + c) *
-							 g->ncgrid + k];
-
-			psf_grid_free(*cg);
-			*cg = NULL;
-		}
+	psfgrids_drop_colour(g, sca);
 }
 
 void psfgrids_free(struct engine *g)

@@ -350,13 +350,16 @@ static int models_restart(struct engine *g)
 			return -1;
 		}
 	}
-	/* (not the first SCA's: every pass measures the reach of sky rows
-	 * on it, place.c) */
-	for (int s = 1; s < g->nslot; s++)
+	/* (not the first SCA's default grids: every pass measures the reach
+	 * of sky rows on it, place.c; its colour grids go) */
+	for (int s = 0; s < g->nslot; s++)
 		if (g->pass_slots >> s & 1) {
-			if (g->x->report && report_grids_note(g, g->slot[s].sca) < 0)
+			if (g->x->report && report_grids_note(g, g->slot[s].sca, s > 0) < 0)
 				return -1;
-			psfgrids_drop(g, g->slot[s].sca);
+			if (s)
+				psfgrids_drop(g, g->slot[s].sca);
+			else
+				psfgrids_drop_colour(g, g->slot[s].sca);
 		}
 	return 0;
 }
@@ -414,7 +417,7 @@ static double run_bytes(const struct scene_opts *o)
 /* The families of spectra a catalog (not stdin, which is read once) names
  * (catalog_spectral), from its header (a tree's: its first file's), no row
  * read; a catalog that cannot be opened counts as none (the pass reports
- * it). */
+ * it), and so does stdin (wfiscene(1), --memory). */
 static int catalog_families(const struct scene_opts *o, const char *path)
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
@@ -429,6 +432,15 @@ static int catalog_families(const struct scene_opts *o, const char *path)
 	fam = catalog_spectral(c);
 	catalog_close(c);
 	return fam;
+}
+
+/* A --set key's last value, NULL when unset or empty (the models then
+ * take their default). */
+static const char *set_value(const struct scene_opts *o, const char *key)
+{
+	const char *v = setting_last(o->settings, key);
+
+	return v && *v ? v : NULL;
 }
 
 /*
@@ -449,13 +461,13 @@ static double colour_halo_bytes(const struct scene_opts *o)
 	const char *v;
 	double R = 256, N = 4, n = psf_default_classes(o->filter), arr;
 
-	if (strcmp(o->psf, "builtin") || ((v = setting_last(o->settings, "psf-extent")) && strcmp(v, "noise")))
+	if (strcmp(o->psf, "builtin") || ((v = set_value(o, "psf-extent")) && strcmp(v, "noise")))
 		return 0;
-	if ((v = setting_last(o->settings, "psf-halo-colour-steps")))
+	if ((v = set_value(o, "psf-halo-colour-steps")))
 		N = atof(v);
-	if ((v = setting_last(o->settings, "psf-halo-radius")))
+	if ((v = set_value(o, "psf-halo-radius")))
 		R = atof(v);
-	if ((v = setting_last(o->settings, "psf-colour-classes")))
+	if ((v = set_value(o, "psf-colour-classes")))
 		n = atof(v);
 	if (!(N > 0) || !(R > 0) || !(n >= 2))
 		return 0;
@@ -492,25 +504,24 @@ static double colour_cell_bytes(const struct scene_opts *o, int fam)
 
 	if (strcmp(o->psf, "builtin") || !nf)
 		return 0;
-	if ((v = setting_last(o->settings, "psf-cell")))
+	if ((v = set_value(o, "psf-cell")))
 		C = atof(v);
-	if ((v = setting_last(o->settings, "psf-colour-steps")))
+	if ((v = set_value(o, "psf-colour-steps")))
 		M = atof(v);
-	if ((v = setting_last(o->settings, "psf-colour-galaxy-steps")))
+	if ((v = set_value(o, "psf-colour-galaxy-steps")))
 		G = atof(v);
-	if ((v = setting_last(o->settings, "psf-colour-classes")))
+	if ((v = set_value(o, "psf-colour-classes")))
 		n = atof(v);
 	if (!(n >= 2))
 		return 0;
-	b = n * grid;
+	m = ceil(nn / PSF_OVER) + 5;
+	poly = PSF_OVER * PSF_OVER * (m * m + (m + 1) * (m + 1)) * sizeof(float);
+	b = n * grid + 9 * n * poly;
 	if (fam & SPECTRAL_TYPED && G > 1)
 		b += (n - 1) * (G - 1) * grid;
-	if (C >= 1 && M >= 1 &&
-	    !((v = setting_last(o->settings, "psf-blend")) && !strcmp(v, "source"))) {
+	if (C >= 1 && M >= 1 && !((v = set_value(o, "psf-blend")) && !strcmp(v, "source"))) {
 		side = ceil(WFS_NPIX / C) + 2;
-		m = ceil(nn / PSF_OVER) + 5;
-		poly = PSF_OVER * PSF_OVER * (m * m + (m + 1) * (m + 1)) * sizeof(float);
-		b += (side * side * ((n - 1) * M + 1 + (n - 1)) + 9 * n) * poly;
+		b += side * side * ((n - 1) * M + 1 + (n - 1)) * poly;
 	}
 	return nf * b;
 }

@@ -161,6 +161,15 @@ require_modules() {
 # A ThreadSanitizer build (make check SANITIZE=thread) runs several times
 # slower in several times the memory: tests of memory bounds skip there.
 tsan_build() { grep -qa __tsan_init "$WFS" 2>/dev/null; }
+# So does an AddressSanitizer build (make check SANITIZE=1), whose shadow
+# memory and quarantine of freed blocks are not the program's: sanitizer
+# names which of the two, or fails.
+sanitizer() {
+	if tsan_build; then echo ThreadSanitizer
+	elif grep -qa __asan_init "$WFS" 2>/dev/null; then echo AddressSanitizer
+	else return 1
+	fi
+}
 
 test_done() {
 	echo "1..$test_count"

@@ -42,8 +42,8 @@ test_expect_success '-o - streams the same bytes as a file' '
 # cfitsio's own "-" would hold the whole file (here 3 SCAs, 200 MB) in
 # memory; wfiscene streams it.  Its exit status (time passes it on) is kept
 # aside: a pipeline's status is that of wc.
-if tsan_build; then
-	test_skip '-o - of 3 SCAs runs in bounded memory' 'ThreadSanitizer build: its shadow memory is not ours'
+if san=$(sanitizer); then
+	test_skip '-o - of 3 SCAs runs in bounded memory' "$san build: its shadow memory is not ours"
 elif [ -x /usr/bin/time ]; then
 	test_expect_success '-o - of 3 SCAs (200 MB) runs in bounded memory' '
 		{ /usr/bin/time -f %M -o rss "$WFS" --filter F129 --psf "$PSF" --sca 1-3 \

@@ -168,9 +168,10 @@ assert abs(a / b - 1) < 1e-4, (a, b)
 # may add (upper bounds for faint sources; 4 classes a family in F146):
 # with 64-pixel halos and 4 steps 10 MiB of halos; the teff family's class
 # grids and node copies, 15 MiB, and its cells at 100 positions, 218 MiB;
-# with a type column (galaxies) its 93 blends at 32 steps, 100 MiB.  So the
-# same budget splits its SCAs into more groups: each term, and none without
-# a spectrum column.
+# with a type column (galaxies) its 93 blends at 32 steps, 100 MiB; the
+# power laws' (beta) as much, and both families (two columns, or two
+# catalogs) twice.  So the same budget splits its SCAs into more groups:
+# each term, and none without a spectrum column.
 test_expect_success 'the memory estimate counts the colour halos, cells and blends' '
 	printf "x,y,flux\n2000.3,2100.6,20\n" > nospec.csv &&
 	printf "x,y,flux,type,n,re,phi,ratio,teff\n2000.3,2100.6,20,sersic,1,3,0,1,4000\n" > gal.csv &&
@@ -183,14 +184,22 @@ test_expect_success 'the memory estimate counts the colour halos, cells and blen
 	est --set psf-colour-steps=0 --set psf-halo-colour-steps=0 faint.csv > err4 &&
 	est gal.csv > err5 &&
 	est --set psf-colour-galaxy-steps=0 gal.csv > err6 &&
-	cat err0 err1 err2 err3 err4 err5 err6 &&
+	printf "x,y,flux,beta\n2000.3,2100.6,20,1\n" > beta.csv &&
+	printf "x,y,flux,teff,beta\n2000.3,2100.6,20,3000,\n1500.2,1500.7,5,,1\n" > both.csv &&
+	est beta.csv > err7 &&
+	est both.csv > err8 &&
+	est faint.csv beta.csv > err9 &&
+	cat err0 err1 err2 err3 err4 err5 err6 err7 err8 err9 &&
 	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err0 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err1 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (417 MB each" err2 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (209 MB each" err3 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (199 MB each" err4 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (527 MB each" err5 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err6
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err6 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err7 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (661 MB each" err8 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (661 MB each" err9
 '
 
 # The budget holds with the colour cells: 10^5 faint stars of random teff

@@ -479,12 +479,13 @@ static double colour_halo_bytes(const struct scene_opts *o)
  * What spectra add to an SCA (built-in PSF) when the catalogs name the
  * spectral families fam (catalog_spectral), an upper bound, for each
  * family of n classes (psf-colour-classes): the classes' grids of the
- * faint size class (n grids of 9 nodes of 177^2 floats); point.so's colour
- * cells (psf-blend core or cell): at each of the (ceil(4088 / C) + 2)^2
+ * faint size class (n grids of 9 nodes of 177^2 floats) and point.so's
+ * 9 n copies of their nodes, each a polyphase copy with its summed-area
+ * tables (PSF_OVER^2 (m^2 + (m + 1)^2) floats, m = ceil(177 / PSF_OVER) +
+ * 5); its colour cells, as large each (psf-blend core or cell, and
+ * psf-colour-steps M at least 1): at each of the (ceil(4088 / C) + 2)^2
  * positions of psf-cell C, the cells of the (n - 1) M + 1 steps between
- * the classes (psf-colour-steps M) and the n - 1 pair differences, and 9 n
- * node copies, each a polyphase copy with its summed-area tables
- * (PSF_OVER^2 (m^2 + (m + 1)^2) floats, m = ceil(177 / PSF_OVER) + 5); and
+ * the classes and the n - 1 pair differences; and
  * when rows may name their model (SPECTRAL_TYPED), the grids galaxies are
  * convolved with, the (n - 1)(G - 1) blends between the classes at
  * psf-colour-galaxy-steps G, 9 nodes of 177^2 floats each.  The bright

@@ -231,12 +231,10 @@ const struct psf_grid *psfgrids_get(const struct engine *g, int sca, int cls);
 int psfgrids_need(struct engine *g, int sca, int cls, struct err *e);
 int psfgrids_open_user(struct engine *g);
 void psfgrids_free(struct engine *g);
-/* SCA groups (run.c): the grids of SCA sca freed, once it is written and
- * its light gathered (the pool idle); report_grids_note() first.  _colour:
- * its spectral classes' grids and galaxies' blends only (the first SCA,
- * whose default grids every pass uses). */
+/* SCA groups (run.c): the grids of SCA sca freed, its spectral classes'
+ * and galaxies' blends too, once it is written and its light gathered
+ * (the pool idle); report_grids_note() first. */
 void psfgrids_drop(struct engine *g, int sca);
-void psfgrids_drop_colour(struct engine *g, int sca);
 /* The spectral classes for a scene with spectra (the builtin PSF only):
  * made once, from the setting psf-colour-classes.
  * Returns 0 or -1. */
@@ -285,9 +283,8 @@ int placed_chunk_end(struct engine *g);
 int placed_merge(struct engine *g);
 int report_write(struct engine *g);
 /* What the report says of SCA sca's PSF grids, kept before they are freed
- * (psfgrids_drop; without boxes, its spectral classes' only, before
- * psfgrids_drop_colour); its memory freed by report_notes_free.  0 or -1. */
-int report_grids_note(struct engine *g, int sca, int boxes);
+ * (psfgrids_drop); its memory freed by report_notes_free.  0 or -1. */
+int report_grids_note(struct engine *g, int sca);
 void report_notes_free(struct engine *g);
 
 #endif

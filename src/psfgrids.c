@@ -384,7 +384,8 @@ int psfgrids_open_user(struct engine *g)
 	return 0;
 }
 
-void psfgrids_drop_colour(struct engine *g, int sca)
+/* SCA sca's spectral classes' grids and galaxies' blends freed. */
+static void drop_colour(struct engine *g, int sca)
 {
 	for (int c = 0; g->cgrid && c < GRID_CLASSES; c++)
 		for (int k = 0; k < g->ncgrid; k++) {
@@ -416,7 +417,7 @@ void psfgrids_drop(struct engine *g, int sca)
 			psf_grid_free(gr[c]);
 		gr[c] = NULL;
 	}
-	psfgrids_drop_colour(g, sca);
+	drop_colour(g, sca);
 }
 
 void psfgrids_free(struct engine *g)

@@ -369,8 +369,7 @@ static void report_work(FILE *f, struct engine *g)
  * a pass freed (SCA groups, run.c) from the note taken just before.
  */
 struct grid_note {
-	unsigned char noted[WFS_NSCA];  /* the boxes (n, lo) */
-	unsigned char noted_cls[WFS_NSCA];
+	unsigned char noted[WFS_NSCA];
 	int n[WFS_NSCA][3];             /* samples; 0: not listed */
 	double lo[WFS_NSCA][3];
 	unsigned char *cls;             /* [sca][class][k]: ncls a class */
@@ -408,12 +407,12 @@ static int grid_class(struct engine *g, int sca, int c, int k)
 {
 	const struct grid_note *gn = g->grid_note;
 
-	if (!gn || !gn->noted_cls[sca - 1])
+	if (!gn || !gn->noted[sca - 1])
 		return psfgrids_colour_get(g, sca, c, k) != NULL;
 	return k < gn->ncls && gn->cls[((size_t)(sca - 1) * 4 + c) * gn->ncls + k];
 }
 
-int report_grids_note(struct engine *g, int sca, int boxes)
+int report_grids_note(struct engine *g, int sca)
 {
 	struct grid_note *gn = g->grid_note;
 	int ncls = g->classes ? 2 * g->classes->n : 0;
@@ -425,7 +424,7 @@ int report_grids_note(struct engine *g, int sca, int boxes)
 			return err_sys(g->e, "report");
 		gn->ncls = ncls;
 	}
-	for (int c = 0; boxes && c < 3; c++)
+	for (int c = 0; c < 3; c++)
 		if (!grid_box_live(g, sca, c, &gn->n[sca - 1][c], &gn->lo[sca - 1][c]))
 			gn->n[sca - 1][c] = 0;
 	/* the spectral classes' grids, their halos (class 3) too */
@@ -433,8 +432,7 @@ int report_grids_note(struct engine *g, int sca, int boxes)
 		for (int k = 0; k < gn->ncls; k++)
 			gn->cls[((size_t)(sca - 1) * 4 + c) * gn->ncls + k] =
 				psfgrids_colour_get(g, sca, c, k) != NULL;
-	gn->noted[sca - 1] |= boxes;
-	gn->noted_cls[sca - 1] = 1;
+	gn->noted[sca - 1] = 1;
 	return 0;
 }
 

@@ -350,16 +350,14 @@ static int models_restart(struct engine *g)
 			return -1;
 		}
 	}
-	/* (not the first SCA's default grids: every pass measures the reach
-	 * of sky rows on it, place.c; its colour grids go) */
-	for (int s = 0; s < g->nslot; s++)
+	/* (not the first SCA's, its spectral classes' and galaxies' blends
+	 * too: every pass measures the reach of sky rows on it, place.c,
+	 * which would make them again; run_first_bytes() counts them) */
+	for (int s = 1; s < g->nslot; s++)
 		if (g->pass_slots >> s & 1) {
-			if (g->x->report && report_grids_note(g, g->slot[s].sca, s > 0) < 0)
+			if (g->x->report && report_grids_note(g, g->slot[s].sca) < 0)
 				return -1;
-			if (s)
-				psfgrids_drop(g, g->slot[s].sca);
-			else
-				psfgrids_drop_colour(g, g->slot[s].sca);
+			psfgrids_drop(g, g->slot[s].sca);
 		}
 	return 0;
 }
@@ -434,8 +432,9 @@ static int catalog_families(const struct scene_opts *o, const char *path)
 	return fam;
 }
 
-/* A --set key's last value, NULL when unset or empty (the models then
- * take their default). */
+/* A --set key's last value, NULL when unset or empty (point.so then takes
+ * its default; the host refuses an empty psf-colour-classes,
+ * psf-colour-galaxy-steps or psf-halo-radius when the run starts). */
 static const char *set_value(const struct scene_opts *o, const char *key)
 {
 	const char *v = setting_last(o->settings, key);
@@ -461,7 +460,8 @@ static double colour_halo_bytes(const struct scene_opts *o)
 	const char *v;
 	double R = 256, N = 4, n = psf_default_classes(o->filter), arr;
 
-	if (strcmp(o->psf, "builtin") || ((v = set_value(o, "psf-extent")) && strcmp(v, "noise")))
+	if (strcmp(o->psf, "builtin") ||
+	    ((v = set_value(o, "psf-extent")) && strcmp(v, "noise")))
 		return 0;
 	if ((v = set_value(o, "psf-halo-colour-steps")))
 		N = atof(v);
@@ -494,9 +494,10 @@ static double colour_halo_bytes(const struct scene_opts *o)
  * sitting"): 10^6 faint stars of random teff on one SCA held 57 MB more
  * than without the column in F158 and 165 MB in F146, against this
  * bound's 106 and 245 MB; 10^4 faint galaxies of random beta in F146 108
- * MB more, against the 110 MB of its grids and blends.
+ * MB more, against the 110 MB of its grids and blends.  Without cells,
+ * the host's grids and blends alone (what the first SCA keeps all run).
  */
-static double colour_cell_bytes(const struct scene_opts *o, int fam)
+static double colour_cell_bytes(const struct scene_opts *o, int fam, int cells)
 {
 	const char *v;
 	double C = 512, M = 1, G = 32, n = psf_default_classes(o->filter);
@@ -517,10 +518,11 @@ static double colour_cell_bytes(const struct scene_opts *o, int fam)
 		return 0;
 	m = ceil(nn / PSF_OVER) + 5;
 	poly = PSF_OVER * PSF_OVER * (m * m + (m + 1) * (m + 1)) * sizeof(float);
-	b = n * grid + 9 * n * poly;
+	b = n * grid + (cells ? 9 * n * poly : 0);
 	if (fam & SPECTRAL_TYPED && G > 1)
 		b += (n - 1) * (G - 1) * grid;
-	if (C >= 1 && M >= 1 && !((v = set_value(o, "psf-blend")) && !strcmp(v, "source"))) {
+	if (cells && C >= 1 && M >= 1 &&
+	    !((v = set_value(o, "psf-blend")) && !strcmp(v, "source"))) {
 		side = ceil(WFS_NPIX / C) + 2;
 		b += side * side * ((n - 1) * M + 1 + (n - 1)) * poly;
 	}
@@ -580,6 +582,8 @@ struct plan {
 	int passes;             /* over the catalogs in all */
 	double budget;          /* bytes */
 	double colour;          /* an SCA's colour halos and cells, bytes */
+	double first;           /* the first SCA's colour grids, kept all run
+				 * (models_restart), bytes */
 };
 
 static void plan_passes(const struct scene_opts *o, const struct exposure *x, int n,
@@ -591,11 +595,11 @@ static void plan_passes(const struct scene_opts *o, const struct exposure *x, in
 	p->budget = o->memory_mb > 0 ? o->memory_mb * MIB : 0.5 * memory_available();
 	for (int i = 0; i < n; i++)
 		each = fmax(each, exposure_bytes(o, &x[i], p->colour));
-	k = floor((p->budget - run_bytes(o)) / each);
+	k = floor((p->budget - run_bytes(o) - p->first) / each);
 	p->per = k < 1 ? 1 : k >= n ? n : (int)k;
 	p->groups = 1;
 	if (k < 1 && nsca > 1) {
-		double fit = floor((p->budget - run_bytes(o)) / sca_bytes(o, p->colour));
+		double fit = floor((p->budget - run_bytes(o) - p->first) / sca_bytes(o, p->colour));
 		int at_once = fit < 1 ? 1 : fit >= nsca ? nsca : (int)fit;
 
 		p->groups = (nsca + at_once - 1) / at_once;
@@ -792,16 +796,18 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	 * spectrum columns name (opening each catalog to see costs some MB of
 	 * buffers, left unspent otherwise) */
 	plan.colour = colour_halo_bytes(o) +
-		      colour_cell_bytes(o, SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED);
+		      colour_cell_bytes(o, SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED, 1);
+	plan.first = colour_halo_bytes(o) +
+		     colour_cell_bytes(o, SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED, 0);
 	if (plan.colour > 0) {
 		struct plan with = plan, without = plan;
 
-		without.colour = 0;
+		without.colour = without.first = 0;
 		plan_passes(o, x, n, &with);
 		plan_passes(o, x, n, &without);
 		if (with.passes == without.passes && with.groups == without.groups &&
 		    with.per == without.per) {
-			plan.colour = 0;
+			plan.colour = plan.first = 0;
 		} else {
 			int fam = 0;
 
@@ -809,7 +815,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 			     *cat && fam != (SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED);
 			     cat++)
 				fam |= catalog_families(o, *cat);
-			plan.colour = fam ? colour_halo_bytes(o) + colour_cell_bytes(o, fam) : 0;
+			plan.colour = fam ? colour_halo_bytes(o) + colour_cell_bytes(o, fam, 1) : 0;
+			plan.first = fam ? colour_halo_bytes(o) + colour_cell_bytes(o, fam, 0) : 0;
 		}
 	}
 	plan_passes(o, x, n, &plan);

@@ -95,4 +95,18 @@ test_expect_success 'stdin that cannot be kept: exit 2, nothing written' '
 	test_grep "/nonexistent" err &&
 	! test -e no.fits
 '
+# With spectra the first SCA's classes' grids stay all run (every pass
+# measures the sky rows' reach on it): the report counts each grid once,
+# as one pass does
+test_expect_success 'a catalog with spectra: the same bytes and report' '
+	awk -F, "BEGIN { OFS = \",\"; srand(2) } NR == 1 { print \$0, \"teff\"; next }
+		{ print \$0, exp(log(2500) + rand() * log(20)) }" sky.csv > skyc.csv &&
+	run -o c1.fits --report c1.json skyc.csv &&
+	run --memory 100 -v -o c4.fits --report c4.json skyc.csv 2> err &&
+	test_grep "4 SCAs in 4 passes over the catalogs" err &&
+	cmp c1.fits c4.fits &&
+	untimed c1.json > c1.txt && untimed c4.json > c4.txt &&
+	test_cmp c1.txt c4.txt
+'
+
 test_done

@@ -170,8 +170,10 @@ assert abs(a / b - 1) < 1e-4, (a, b)
 # grids and node copies, 15 MiB, and its cells at 100 positions, 218 MiB;
 # with a type column (galaxies) its 93 blends at 32 steps, 100 MiB; the
 # power laws' (beta) as much, and both families (two columns, or two
-# catalogs) twice.  So the same budget splits its SCAs into more groups:
-# each term, and none without a spectrum column.
+# catalogs) twice; with --rows the strip's tiles but every position's
+# cells, as every star of the SCA is prepared before the strip is cut.  So
+# the same budget splits its SCAs into more groups: each term, and none
+# without a spectrum column.
 test_expect_success 'the memory estimate counts the colour halos, cells and blends' '
 	printf "x,y,flux\n2000.3,2100.6,20\n" > nospec.csv &&
 	printf "x,y,flux,type,n,re,phi,ratio,teff\n2000.3,2100.6,20,sersic,1,3,0,1,4000\n" > gal.csv &&
@@ -189,7 +191,8 @@ test_expect_success 'the memory estimate counts the colour halos, cells and blen
 	est beta.csv > err7 &&
 	est both.csv > err8 &&
 	est faint.csv beta.csv > err9 &&
-	cat err0 err1 err2 err3 err4 err5 err6 err7 err8 err9 &&
+	est --rows 2040-2055 faint.csv > err10 &&
+	cat err0 err1 err2 err3 err4 err5 err6 err7 err8 err9 err10 &&
 	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err0 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err1 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (417 MB each" err2 &&
@@ -199,7 +202,8 @@ test_expect_success 'the memory estimate counts the colour halos, cells and blen
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err6 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err7 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (661 MB each" err8 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (661 MB each" err9
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (661 MB each" err9 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (300 MB each" err10
 '
 
 # The budget holds with the colour cells: 10^5 faint stars of random teff

@@ -384,9 +384,15 @@ int psfgrids_open_user(struct engine *g)
 	return 0;
 }
 
-/* SCA sca's spectral classes' grids and galaxies' blends freed. */
-static void drop_colour(struct engine *g, int sca)
+void psfgrids_drop(struct engine *g, int sca)
 {
+	struct psf_grid **gr = g->grid[sca - 1];
+
+	for (int c = WFS_PSF_HALO; c >= 0; c--) {
+		if (gr[c] && (c == 0 || gr[c] != gr[0]))
+			psf_grid_free(gr[c]);
+		gr[c] = NULL;
+	}
 	for (int c = 0; g->cgrid && c < GRID_CLASSES; c++)
 		for (int k = 0; k < g->ncgrid; k++) {
 			struct psf_grid **cg = &g->cgrid[((size_t)(sca - 1) * GRID_CLASSES + c) *
@@ -406,18 +412,6 @@ static void drop_colour(struct engine *g, int sca)
 			b[i] = NULL;
 		}
 	}
-}
-
-void psfgrids_drop(struct engine *g, int sca)
-{
-	struct psf_grid **gr = g->grid[sca - 1];
-
-	for (int c = WFS_PSF_HALO; c >= 0; c--) {
-		if (gr[c] && (c == 0 || gr[c] != gr[0]))
-			psf_grid_free(gr[c]);
-		gr[c] = NULL;
-	}
-	drop_colour(g, sca);
 }
 
 void psfgrids_free(struct engine *g)

@@ -442,6 +442,14 @@ static const char *set_value(const struct scene_opts *o, const char *key)
 	return v && *v ? v : NULL;
 }
 
+/* set_value() as a number, or dflt. */
+static double set_number(const struct scene_opts *o, const char *key, double dflt)
+{
+	const char *v = set_value(o, key);
+
+	return v ? atof(v) : dflt;
+}
+
 /*
  * The colour halos an SCA may hold (point.so, psf-extent=noise with the
  * built-in PSF) when a catalog has a spectrum column, an upper bound: the
@@ -457,18 +465,12 @@ static const char *set_value(const struct scene_opts *o, const char *key)
  */
 static double colour_halo_bytes(const struct scene_opts *o)
 {
-	const char *v;
-	double R = 256, N = 4, n = psf_default_classes(o->filter), arr;
+	const char *v = set_value(o, "psf-extent");
+	double N = set_number(o, "psf-halo-colour-steps", 4), R = set_number(o, "psf-halo-radius", 256);
+	double n = set_number(o, "psf-colour-classes", psf_default_classes(o->filter)), arr;
 
-	if (strcmp(o->psf, "builtin") ||
-	    ((v = set_value(o, "psf-extent")) && strcmp(v, "noise")))
+	if (strcmp(o->psf, "builtin") || (v && strcmp(v, "noise")))
 		return 0;
-	if ((v = set_value(o, "psf-halo-colour-steps")))
-		N = atof(v);
-	if ((v = set_value(o, "psf-halo-radius")))
-		R = atof(v);
-	if ((v = set_value(o, "psf-colour-classes")))
-		n = atof(v);
 	if (!(N > 0) || !(R > 0) || !(n >= 2))
 		return 0;
 	arr = (4 * R + 1) * (4 * R + 1) * sizeof(float);
@@ -499,30 +501,21 @@ static double colour_halo_bytes(const struct scene_opts *o)
  */
 static double colour_cell_bytes(const struct scene_opts *o, int fam, int cells)
 {
-	const char *v;
-	double C = 512, M = 1, G = 32, n = psf_default_classes(o->filter);
+	const char *v = set_value(o, "psf-blend");
+	double C = set_number(o, "psf-cell", 512), M = set_number(o, "psf-colour-steps", 1);
+	double G = set_number(o, "psf-colour-galaxy-steps", 32);
+	double n = set_number(o, "psf-colour-classes", psf_default_classes(o->filter));
 	double nn = psf_class_n[0], grid = 9 * nn * nn * sizeof(float), side, m, poly, b;
 	int nf = !!(fam & SPECTRAL_BLACKBODY) + !!(fam & SPECTRAL_POWER);
 
-	if (strcmp(o->psf, "builtin") || !nf)
-		return 0;
-	if ((v = set_value(o, "psf-cell")))
-		C = atof(v);
-	if ((v = set_value(o, "psf-colour-steps")))
-		M = atof(v);
-	if ((v = set_value(o, "psf-colour-galaxy-steps")))
-		G = atof(v);
-	if ((v = set_value(o, "psf-colour-classes")))
-		n = atof(v);
-	if (!(n >= 2))
+	if (strcmp(o->psf, "builtin") || !nf || !(n >= 2))
 		return 0;
 	m = ceil(nn / PSF_OVER) + 5;
 	poly = PSF_OVER * PSF_OVER * (m * m + (m + 1) * (m + 1)) * sizeof(float);
 	b = n * grid + (cells ? 9 * n * poly : 0);
 	if (fam & SPECTRAL_TYPED && G > 1)
 		b += (n - 1) * (G - 1) * grid;
-	if (cells && C >= 1 && M >= 1 &&
-	    !((v = set_value(o, "psf-blend")) && !strcmp(v, "source"))) {
+	if (cells && C >= 1 && M >= 1 && !(v && !strcmp(v, "source"))) {
 		side = ceil(WFS_NPIX / C) + 2;
 		b += side * side * ((n - 1) * M + 1 + (n - 1)) * poly;
 	}
@@ -585,6 +578,17 @@ struct plan {
 	double first;           /* the first SCA's colour grids, kept all run
 				 * (models_restart), bytes */
 };
+
+/* p's colour and first for the spectral families fam (none: 0). */
+#define SPECTRAL_ALL (SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED)
+
+static void plan_colour(const struct scene_opts *o, int fam, struct plan *p)
+{
+	double halos = fam ? colour_halo_bytes(o) : 0;
+
+	p->colour = halos + colour_cell_bytes(o, fam, 1);
+	p->first = halos + colour_cell_bytes(o, fam, 0);
+}
 
 static void plan_passes(const struct scene_opts *o, const struct exposure *x, int n,
 			struct plan *p)
@@ -795,28 +799,22 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 	 * the plan (both families), and then for the families the catalogs'
 	 * spectrum columns name (opening each catalog to see costs some MB of
 	 * buffers, left unspent otherwise) */
-	plan.colour = colour_halo_bytes(o) +
-		      colour_cell_bytes(o, SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED, 1);
-	plan.first = colour_halo_bytes(o) +
-		     colour_cell_bytes(o, SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED, 0);
+	plan_colour(o, SPECTRAL_ALL, &plan);
 	if (plan.colour > 0) {
 		struct plan with = plan, without = plan;
 
-		without.colour = without.first = 0;
+		plan_colour(o, 0, &without);
 		plan_passes(o, x, n, &with);
 		plan_passes(o, x, n, &without);
 		if (with.passes == without.passes && with.groups == without.groups &&
 		    with.per == without.per) {
-			plan.colour = plan.first = 0;
+			plan_colour(o, 0, &plan);
 		} else {
 			int fam = 0;
 
-			for (char *const *cat = catalogs;
-			     *cat && fam != (SPECTRAL_BLACKBODY | SPECTRAL_POWER | SPECTRAL_TYPED);
-			     cat++)
+			for (char *const *cat = catalogs; *cat && fam != SPECTRAL_ALL; cat++)
 				fam |= catalog_families(o, *cat);
-			plan.colour = fam ? colour_halo_bytes(o) + colour_cell_bytes(o, fam, 1) : 0;
-			plan.first = fam ? colour_halo_bytes(o) + colour_cell_bytes(o, fam, 0) : 0;
+			plan_colour(o, fam, &plan);
 		}
 	}
 	plan_passes(o, x, n, &plan);

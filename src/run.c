@@ -17,6 +17,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -415,7 +416,8 @@ static double run_bytes(const struct scene_opts *o)
 /* The families of spectra a catalog (not stdin, which is read once) names
  * (catalog_spectral), from its header (a tree's: its first file's), no row
  * read; a catalog that cannot be opened counts as none (the pass reports
- * it), and so does stdin (wfiscene(1), --memory). */
+ * it), and so do stdin and a named pipe or device, which opening here
+ * would drain (wfiscene(1), --memory). */
 static int catalog_families(const struct scene_opts *o, const char *path)
 {
 	struct catalog_opts co = { .filter = o->filter, .flux_unit = o->flux_unit,
@@ -423,9 +425,12 @@ static int catalog_families(const struct scene_opts *o, const char *path)
 				   .epoch = o->epoch };
 	struct err e = { 0 };
 	struct catalog *c;
+	struct stat st;
 	int fam;
 
-	if (!strcmp(path, "-") || !(c = catalog_open(path, &co, &e)))
+	if (!strcmp(path, "-") || (stat(path, &st) == 0 && !S_ISREG(st.st_mode) &&
+				   !S_ISDIR(st.st_mode)) ||
+	    !(c = catalog_open(path, &co, &e)))
 		return 0;
 	fam = catalog_spectral(c);
 	catalog_close(c);

@@ -206,6 +206,17 @@ test_expect_success 'the memory estimate counts the colour halos, cells and blen
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (300 MB each" err10
 '
 
+# A catalog given as a named pipe is not opened to look for spectra: that
+# drained it, and the run, one pass without the colour bound, waited on
+# the empty pipe for ever
+test_expect_success 'a named pipe catalog is read once, by the run' '
+	rm -f pipe && mkfifo pipe &&
+	{ cat nospec.csv > pipe & } &&
+	timeout 120 "$WFS" --filter F146 --sca 1,2,3,4 --memory 1000 --set psf-halo-radius=$R \
+		-v -o /dev/null pipe 2> err &&
+	test_grep "1 rows read" err && ! grep -q "passes over" err
+'
+
 # The budget holds with the colour cells: 10^5 faint stars of random teff
 # on each of two SCAs make every cell (165 MB an SCA in F146); the
 # estimate without them put both SCAs in one pass under --memory 450 and

@@ -52,10 +52,10 @@
  * source's own blend is restored, as the bilinear difference (source's
  * blend - cell's) from the nodes added to the cell's Keys value, a small
  * field whose interpolation error is small (for a source with a spectrum
- * the pair's difference, a larger field, is added to the cell's own Keys
- * taps instead: point_epsf.c, cell_correction_colour).  The core is drawn first into
- * a small float buffer, then every row of the window in one call, straight
- * into the tile (sum_rows_avx2).  The copies and blends are made in
+ * its pair's two class cells, blended by its colour, are read on the
+ * cell's own Keys taps instead: point_epsf.c, cell_correction_colour).
+ * The core is drawn first into a small float buffer, then every row of
+ * the window in one call, straight into the tile (sum_rows_avx2).  The copies and blends are made in
  * prepare(), which the host calls in its main thread before render() sees
  * the source, so render() neither allocates nor locks.
  *

@@ -72,33 +72,41 @@ struct poly {
 	double cweight[8];
 	const struct poly *cpoly[8];
 	/* a colour cell: its step between the pair's classes (0 to 1), and
-	 * the pair's difference at the cell's centre, class a + 1 less class
-	 * a (cell_add): psf-blend=core's colour correction */
+	 * the two classes' cells at its centre, ends[0] of class a and
+	 * ends[1] of a + 1 (cell_add): psf-blend=core's colour correction */
 	double cstep;
-	const struct poly *dcol;
+	const struct poly *ends[2];
 	/* or a class cell (cclass >= 0: the blend of one class, which the
 	 * pairs cclass - 1, cclass and cclass, cclass + 1 share at their end
-	 * steps): the two pairs' differences, dpair[0] of the pair below
-	 * (its step 1) and dpair[1] of the pair above (its step 0).  A class
-	 * cell is published before its pairs are made: class_add() stores
-	 * each from NULL to the pair's one published difference (several
-	 * threads may store the same pointer), with release order, before a
-	 * source in the cell is prepared; read with acquire order
-	 * (cell_pair) */
+	 * steps): its neighbours' cells at the same position, nbr[0] of class
+	 * cclass - 1 and nbr[1] of cclass + 1.  A class cell is published
+	 * before its neighbours are found: class_add() stores each from NULL
+	 * to the neighbour's one published cell (several threads may store
+	 * the same pointer), with release order, before a source in the cell
+	 * is prepared; read with acquire order (cell_pair) */
 	int cclass;
-	const struct poly *dpair[2];
+	const struct poly *nbr[2];
 };
 
 /* A colour cell's step g (0 to 1) between the classes a, a + 1 of a
- * source's pair, and the pair's difference at the cell's centre. */
-static inline const struct poly *cell_pair(const struct poly *cell, int a, double *g)
+ * source's pair, and the two classes' cells at the cell's centre into
+ * end[]; 0, or -1 when one is not set. */
+static inline int cell_pair(const struct poly *cell, int a, double *g, const struct poly *end[2])
 {
 	if (cell->cclass < 0) {
 		*g = cell->cstep;
-		return cell->dcol;
+		end[0] = cell->ends[0];
+		end[1] = cell->ends[1];
+	} else if (a == cell->cclass) {
+		*g = 0;
+		end[0] = cell;
+		end[1] = __atomic_load_n(&cell->nbr[1], __ATOMIC_ACQUIRE);
+	} else {
+		*g = 1;
+		end[0] = __atomic_load_n(&cell->nbr[0], __ATOMIC_ACQUIRE);
+		end[1] = cell;
 	}
-	*g = a == cell->cclass ? 0 : 1;
-	return __atomic_load_n(&cell->dpair[a == cell->cclass], __ATOMIC_ACQUIRE);
+	return end[0] && end[1] ? 0 : -1;
 }
 
 /* Pixels [x0, x1) x [y0, y1), 0-based; empty when x0 >= x1 or y0 >= y1. */
@@ -131,12 +139,14 @@ struct draw {
 	double wn[8];
 	const struct poly *cp[8];
 	double cw[8];
-	/* a colour source's pair difference at its cell's centre (the cell's
-	 * dcol or dpair) and its weight f - g on the cell, drawn in the core
-	 * with the cell's taps (Keys' cubic) where the core is cubic, else
-	 * one more bilinear correction (render_one); NULL: none */
-	const struct poly *dk;
-	double dkw;
+	/* a colour source's core, the blend (1 - f) A + f B of its pair's
+	 * class cells A, B at its cell's centre (which equals the cell plus
+	 * (f - g) (B - A)): kb the one nearer the cell's step, weight kbw,
+	 * and dk the other, weight dkw; drawn with the cell's taps (Keys'
+	 * cubic) where the core is cubic, else dk as one more bilinear
+	 * correction (render_one); dk NULL: none (kb is then the cell) */
+	const struct poly *kb, *dk;
+	double kbw, dkw;
 	struct geom g;
 	struct zone box;        /* every pixel it lights */
 	struct zone core;       /* Keys' cubic (or psf-blend=core's bilinear
@@ -237,8 +247,9 @@ struct rows_args {
  *   v = bw[0] t[1][1] + bw[1] t[1][2] + bw[2] t[2][1] + bw[3] t[2][2] bilinear
  *   kv = v + sum over k of cw[k] ct[k]         psf-blend=core's correction
  *
- * With dbase (a colour source's pair difference, Keys only) each tap of
- * the cell is t[b][a] + ds d[b][a] (fmaf) before Keys' weights.
+ * With dbase (a colour source's other class cell, Keys only) each tap of
+ * its nearer class's cell is t[b][a] + ds d[b][a] (fmaf) before Keys'
+ * weights, ds the other class's weight over the nearer's.
  *
  * every product but the first of a sum fused (fmaf), in this order, so
  * that the AVX2 build and the plain one give the same bits; and K, the sum
@@ -302,8 +313,6 @@ struct point {
 				 * sources (0: they are blended per source) */
 	int nclasses;           /* the host's spectral classes, two families of
 				 * nclasses / 2 (setting spectral-classes) */
-	uint64_t classes_seen;  /* bit k: a source has wanted class k's cell
-				 * (class_add; __atomic builtins) */
 	int extent;             /* psf-extent: EXTENT_NOISE or EXTENT_STIPS */
 	double extent_noise;    /* psf-extent-noise: fraction of sigma */
 	double extent_max;      /* psf-extent-max: largest radius, pixels */

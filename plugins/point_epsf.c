@@ -292,27 +292,31 @@ static void cell_correction(const struct poly *cell, double flux, const double w
  *
  *   sum_k w_k (A_k + f D_k),  D_k = B_k - A_k;
  *
- * with E_k the nodes of the class nearer g (e = 0 or 1), the cell plus
+ * with A and B the two classes' cells at the cell's centre (its ends, or a
+ * class cell and its neighbour) and E_k the nodes of the class nearer g
+ * (e = 0 or 1),
  *
- *   sum_k (w_k - c_k) E_k + (f - g) D,  D = sum_k c_k D_k (the cell's dcol)
+ *   (1 - f) A + f B + sum_k (w_k - c_k) E_k
  *
  * is that blend less (f - e) sum_k (w_k - c_k) D_k: the change of the
  * pair's difference across the grid, times the source's offset from the
  * cell's centre and its colour's from class e (BENCHMARKS.md, "Colour").
- * Five arrays instead of the eight of the exact blend.  D is read with the
- * cell's own taps (d->dk, render_one): where the core is Keys' cubic, a
- * bilinear D missed the curvature of the pair's difference at the peak:
- * up to 1.75e-3 of it for stars half-way between the ePSF's samples (1/8
- * pixel off a pixel's centre; t2200). */
-static void cell_correction_colour(const struct point *p, const struct wfs_source *src,
-				   const struct poly *cell, const double w[4], struct draw *d)
+ * Six arrays instead of the eight of the exact blend, A and B read with
+ * the cell's own taps (render_one): where the core is Keys' cubic, a
+ * bilinear B - A missed the curvature of the pair's difference at the
+ * peak: up to 1.75e-3 of it for stars half-way between the ePSF's
+ * samples (1/8 pixel off a pixel's centre; t2200).  Returns 0, or -1 when
+ * a class cell is missing. */
+static int cell_correction_colour(const struct point *p, const struct wfs_source *src,
+				  const struct poly *cell, const double w[4], struct draw *d)
 {
 	double f, g, flux = src->flux;
-	const struct poly *dcol;
+	const struct poly *end[2];
 	int a, e;
 
 	point_pair(p, colour_of(p, src), &a, &f);
-	dcol = cell_pair(cell, a, &g);
+	if (cell_pair(cell, a, &g, end) < 0)
+		return p->host->error(p->host->ctx, "colour cell not prepared");
 	e = g >= 0.5;
 	d->ncor = 0;
 	for (int k = 0; k < 4; k++)
@@ -320,26 +324,30 @@ static void cell_correction_colour(const struct point *p, const struct wfs_sourc
 			d->cp[d->ncor] = cell->cpoly[k + 4 * e];
 			d->cw[d->ncor++] = flux * w[k] - flux * (cell->cweight[k] + cell->cweight[k + 4]);
 		}
-	d->dk = dcol;
-	d->dkw = f - g;
+	d->kb = end[e];
+	d->kbw = e ? f : 1 - f;
+	d->dk = end[!e];
+	d->dkw = e ? 1 - f : f;
+	return 0;
 }
 
-/* T of a colour source in its pair's cell (one_array), from the same five
- * arrays: sum_k w_k E_k + (f - e) D over the zone z. */
+/* T of a colour source in its pair's cell (one_array), from the same six
+ * arrays: sum_k w_k E_k + (f - e) (B - A) over the zone z. */
 static double colour_total(const struct point *p, const struct wfs_source *src,
 			   const struct poly *cell, const struct geom *gm, struct zone z)
 {
 	double f, g, t = 0;
-	const struct poly *dcol;
+	const struct poly *end[2];
 	int a, e;
 
 	point_pair(p, colour_of(p, src), &a, &f);
-	dcol = cell_pair(cell, a, &g);
+	if (cell_pair(cell, a, &g, end) < 0)
+		return NAN;
 	e = g >= 0.5;
 	for (int k = 0; k < 4; k++)
 		if (cell->cpoly[k + 4 * e])
 			t += src->aux[4 + k] * bil_sum(cell->cpoly[k + 4 * e], gm, z);
-	return src->flux * (t + (f - e) * bil_sum(dcol, gm, z));
+	return src->flux * (t + (f - e) * (bil_sum(end[1], gm, z) - bil_sum(end[0], gm, z)));
 }
 
 /* How src is drawn in render(), its box and what prepare() found in aux:
@@ -352,15 +360,16 @@ static int plan(const struct point *p, const struct wfs_source *src, struct draw
 	if (colour_of(p, src) >= 0 && src->aux[3] < 0)
 		blend = BLEND_SOURCE;
 	d->ncor = 0;
-	d->dk = NULL;
+	d->kb = d->dk = NULL;
 	if (blend != BLEND_SOURCE && !isnan(src->aux[4])) {
 		/* the cell found by prepare(), and its nodes are the source's */
 		d->nn = 1;
 		d->pl[0] = &p->slot[(size_t)src->aux[3]];
 		d->wn[0] = src->flux;
-		if (blend == BLEND_CORE && colour_of(p, src) >= 0)
-			cell_correction_colour(p, src, d->pl[0], src->aux + 4, d);
-		else if (blend == BLEND_CORE)
+		if (blend == BLEND_CORE && colour_of(p, src) >= 0) {
+			if (cell_correction_colour(p, src, d->pl[0], src->aux + 4, d) < 0)
+				return -1;
+		} else if (blend == BLEND_CORE)
 			cell_correction(d->pl[0], src->flux, src->aux + 4, d);
 	} else {
 		if ((d->nn = source_polys(p, src, blend, d->pl, d->wn)) < 0)
@@ -419,16 +428,16 @@ struct prep {
 };
 
 /* A colour source in a class cell (psf-blend=core): its arrays as the
- * five of colour_total() and the core's correction, the cell's class's
+ * six of colour_total() and the core's correction, the cell's class's
  * nodes at the source's position weights (to aux[4..7]) and the pair's
- * difference at the cell's centre times the source's colour less the
- * cell's, so that the other class's nodes are neither looked up nor read
- * (their enclosed light in box_cut() is the difference's).  Returns 0, 1
- * when a node of the source is not the cell's (prep_nodes() then takes
- * the source's own), or -1. */
+ * two class cells times the source's colour less the cell's, f - g on
+ * the upper and g - f on the lower, so that the other class's nodes are
+ * neither looked up nor read (their enclosed light in box_cut() is the
+ * class cells' difference's).  Returns 0, 1 when a node of the source is
+ * not the cell's (prep_nodes() then takes the source's own), or -1. */
 static int prep_class(struct point *p, struct wfs_source *src, struct prep *r)
 {
-	const struct poly *cell = r->cell, *dcol;
+	const struct poly *cell = r->cell, *end[2];
 	struct wfs_epsf e;
 	double f, g, w[4] = { 0 };
 	int a, nn = 0;
@@ -437,7 +446,7 @@ static int prep_class(struct point *p, struct wfs_source *src, struct prep *r)
 				 cell->cclass, &e) < 0)
 		return -1;
 	point_pair(p, colour_of(p, src), &a, &f);
-	if (!(dcol = cell_pair(cell, a, &g)))
+	if (cell_pair(cell, a, &g, end) < 0)
 		return 1;
 	for (int k = 0; k < 4; k++) {
 		int j;
@@ -452,8 +461,10 @@ static int prep_class(struct point *p, struct wfs_source *src, struct prep *r)
 		r->node[nn] = cell->cpoly[j];
 		r->w[nn++] = e.weight[k];
 	}
-	r->node[nn] = dcol;
+	r->node[nn] = end[1];
 	r->w[nn++] = f - g;
+	r->node[nn] = end[0];
+	r->w[nn++] = g - f;
 	r->nn = nn;
 	for (int j = 0; j < 4; j++)
 		src->aux[4 + j] += w[j];
@@ -743,14 +754,16 @@ static inline __attribute__((always_inline)) int render_one(const struct point *
 		struct core_args ca = { .ncor = d->ncor, .keys = d->keys, .nc = nc,
 					.nk = kb - ka, .m = m };
 		ptrdiff_t at = (ptrdiff_t)d->core.y0 * m + d->core.x0;
+		/* a colour source's nearer class cell, or the cell */
+		double kw = d->dk ? fl * d->kbw : fl;
 
-		ca.base = q->plane + at;
+		ca.base = (d->dk ? d->kb : q)->plane + at;
 		for (int a = 0; a < 4; a++) {
 			ca.tx[a] = g->tx[a];
 			ca.ty[a] = g->ty[a];
 			ca.kx[a] = (float)g->kx[a];
-			ca.ky[a] = (float)(g->ky[a] * fl);
-			ca.bw[a] = (float)(fl * g->by[a >> 1] * g->bx[a & 1]);
+			ca.ky[a] = (float)(g->ky[a] * kw);
+			ca.bw[a] = (float)(kw * g->by[a >> 1] * g->bx[a & 1]);
 		}
 		for (int c = 0; c < d->ncor; c++) {
 			ca.cbase[c] = d->cp[c]->plane + at;
@@ -759,7 +772,7 @@ static inline __attribute__((always_inline)) int render_one(const struct point *
 		}
 		if (d->dk && d->keys) {
 			ca.dbase = d->dk->plane + at;
-			ca.ds = (float)d->dkw;
+			ca.ds = (float)(d->dkw / d->kbw);
 		} else if (d->dk) {     /* bilinear core: one more correction */
 			ca.cbase[ca.ncor] = d->dk->plane + at;
 			for (int t = 0; t < 4; t++)

@@ -163,8 +163,8 @@ static double core_plain(const struct core_args *a, float *kvb)
 				const float *r = a->base + o + i0 + l;
 				float v, e = 0;
 
-				/* with the pair's difference written out apart from
-				 * the cell alone, as in core_avx2 */
+				/* with the other class's cell written out apart
+				 * from the cell alone, as in core_avx2 */
 				if (a->keys && a->dbase) {
 					const float *q = a->dbase + o + i0 + l;
 
@@ -233,7 +233,7 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 			__m256 v, e = _mm256_setzero_ps();
 			__m256i in;
 
-			/* a colour source's Keys taps with its pair's difference,
+			/* a colour source's Keys taps with its other class's cell,
 			 * written out apart from the cell alone's: one loop for
 			 * both, with a test per tap that the compiler keeps, ran
 			 * 8-14 % more instructions here for stars without one */

@@ -19,11 +19,11 @@
  * key added in an earlier chunk never passes a slot being filled, as that
  * slot was empty when the key went in; the ordering makes the table safe
  * for any probe, an absent key's included, without relying on that.)
- * One field is written after its slot is published: a class cell's pair
- * differences, dpair[0] and dpair[1] (class_add), each stored from NULL
- * to the pair's one published difference, maybe by several threads at
- * once with the same pointer, with release order, and loaded with
- * acquire order.
+ * One field is written after its slot is published: a class cell's
+ * neighbours, nbr[0] and nbr[1] (class_add), each stored from NULL to the
+ * neighbour's one published class cell, maybe by several threads at once
+ * with the same pointer, with release order, and loaded with acquire
+ * order.
  */
 #include <math.h>
 #include <stdatomic.h>
@@ -198,35 +198,6 @@ static int poly_build(struct point *p, uint64_t key, const float *node, int n, i
 	return 0;
 }
 
-/* The difference hi - lo of two copies of one layout, under key, into *q
- * (planes, tables and enclosed light each the difference of the two's, in
- * double rounded to float): linear, so it is the copy of the difference
- * of their arrays to the rounding of either.  Returns 0, or -1 with an
- * error recorded. */
-static int poly_diff(struct point *p, uint64_t key, const struct poly *hi,
-		     const struct poly *lo, struct poly *q)
-{
-	int o = hi->over, m = hi->m;
-	size_t np = (size_t)o * o * m * m + VSLACK, ns = (size_t)o * o * (m + 1) * (m + 1);
-
-	*q = (struct poly){ .key = key, .n = hi->n, .over = o, .centre = hi->centre, .m = m,
-			    .nee = hi->nee };
-	q->plane = malloc(np * sizeof(float));
-	q->sat = malloc(ns * sizeof(float));
-	q->ee = malloc(((size_t)q->nee + 1) * sizeof(double));
-	if (!q->plane || !q->sat || !q->ee) {
-		poly_drop(q);
-		return p->host->error(p->host->ctx, "out of memory");
-	}
-	for (size_t i = 0; i < np; i++)
-		q->plane[i] = (float)((double)hi->plane[i] - lo->plane[i]);
-	for (size_t i = 0; i < ns; i++)
-		q->sat[i] = (float)((double)hi->sat[i] - lo->sat[i]);
-	for (int h = 0; h <= q->nee; h++)
-		q->ee[h] = hi->ee[h] - lo->ee[h];
-	return 0;
-}
-
 /*
  * Put the copy *q into the table and publish it, unless a copy under its
  * key got there first (then *q is dropped and that one returned): the
@@ -283,9 +254,6 @@ static size_t slots_wanted(const struct point *p, long c)
 	size_t cells = p->blend == BLEND_SOURCE ? 0 : side * side * WFS_SCA_COUNT *
 		       (p->blend == BLEND_CELL ? 3 : 1) * (1 + (size_t)p->colour_cells);
 
-	/* and per position the colour cells' pair differences (class_add) */
-	if (p->colour_cells)
-		cells += cells / (1 + (size_t)p->colour_cells) * (size_t)p->nclasses;
 	return 2 * (cells + POLY_NODES);
 }
 
@@ -422,13 +390,6 @@ static uint64_t class_key(const struct point *p, uint64_t key, int k)
 	return (key & ~(0x7fffULL << 48)) | (uint64_t)((long)k * (p->colour_steps + 1) + 1) << 48;
 }
 
-/* The key of the difference of the class pair k, k + 1 there: the pair
- * in place of the step, and the top bit set (cell keys never have it). */
-static uint64_t pair_key(uint64_t key, int k)
-{
-	return (key & ~(0x7fffULL << 48)) | (uint64_t)(k + 1) << 48 | 1ULL << 63;
-}
-
 /* A cell blended from the nw arrays node[] (n x n, over) with weights w[]
  * into *made, unpublished, with how's colour fields; psf-blend=core: the
  * nodes' own polyphase copies made (and published) first, so that the
@@ -466,121 +427,65 @@ static int cell_make(struct point *p, uint64_t key, const float *const node[8],
 		made->cpoly[k] = how->cclass >= 0 && k >= 4 ? cpoly[k - 4] : cpoly[k];
 	}
 	made->cstep = how->cstep;
-	made->dcol = how->dcol;
+	made->ends[0] = how->ends[0];
+	made->ends[1] = how->ends[1];
 	made->cclass = how->cclass;
-	made->dpair[0] = how->dpair[0];
-	made->dpair[1] = how->dpair[1];
+	made->nbr[0] = made->nbr[1] = NULL;
 	return 0;
 }
 
-/* Class k's blend at the position of the cell under key (centre cx, cy)
- * of the source's SCA and size class, into *made, unpublished: a class
- * cell (its nodes kept, psf-blend=core's copies made) when cell is set,
- * else a bare copy to take a difference from.  Returns 0, or -1 with an
- * error recorded. */
-static int class_blend(struct point *p, const struct wfs_source *src, uint64_t key, double cx,
-		       double cy, int k, int cell, struct poly *made)
+/* Class k's cell at the position of the cell under key (centre cx, cy)
+ * of the source's SCA and size class: the published one, else made (its
+ * nodes kept, psf-blend=core's copies made) and published with no
+ * neighbours yet.  NULL with an error recorded. */
+static struct poly *class_cell(struct point *p, const struct wfs_source *src, uint64_t key,
+			       double cx, double cy, int k)
 {
+	struct poly made, how = { .cclass = k }, *c = (struct poly *)poly_find(p, class_key(p, key, k));
 	struct wfs_epsf e;
-	struct poly how = { .cclass = k };
 	const float *node[8] = { NULL };
 	double w[8] = { 0 };
-	float *mix;
-	int rc;
 
+	if (c)
+		return c;
 	if (p->host->epsf_colour(p->host->ctx, src->sca, cx, cy, src->psf_class, k, &e) < 0)
-		return -1;
+		return NULL;
 	for (int i = 0; i < 4; i++) {
 		node[i] = e.node[i];
 		w[i] = e.weight[i];
 	}
-	if (cell)
-		return cell_make(p, class_key(p, key, k), node, w, 4, e.n, e.over, &how, made);
-	if (!(mix = blend_nodes(p, node, w, 4, (size_t)e.n * e.n)))
-		return -1;
-	rc = poly_build(p, 0, mix, e.n, e.over, made);
-	free(mix);
-	return rc;
-}
-
-/* Class k's cell there: the published one, else made and published with
- * no pairs yet.  NULL with an error recorded. */
-static struct poly *class_cell(struct point *p, const struct wfs_source *src, uint64_t key,
-			       double cx, double cy, int k)
-{
-	struct poly made, *c = (struct poly *)poly_find(p, class_key(p, key, k));
-
-	if (c)
-		return c;
-	if (class_blend(p, src, key, cx, cy, k, 1, &made) < 0)
+	if (cell_make(p, class_key(p, key, k), node, w, 4, e.n, e.over, &how, &made) < 0)
 		return NULL;
 	return poly_insert(p, &made);
 }
 
-/* Whether a source has wanted class k's cell; marks k when mark is set.
- * (The host's classes are at most 2 PSF_COLOUR_MAX = 32; a class beyond
- * 63 is never marked, so its neighbours are blended and dropped.) */
-static int class_seen(struct point *p, int k, int mark)
-{
-	uint64_t bit = k < 64 ? (uint64_t)1 << k : 0;
-
-	if (!bit)
-		return 0;
-	if (__atomic_load_n(&p->classes_seen, __ATOMIC_RELAXED) & bit)
-		return 1;
-	if (mark)
-		__atomic_fetch_or(&p->classes_seen, bit, __ATOMIC_RELAXED);
-	return 0;
-}
-
 /*
  * psf-blend=core: class K's cell at the position of the cell under key
- * (centre cx, cy), with the differences of the pairs about K (dpair: the
- * upper class's blend less the lower's) published and set in it.  A
- * difference not yet made is taken plane by plane (and table by table)
- * from K's cell and its neighbour's: the neighbour's published cell; else,
- * when a source anywhere has wanted the neighbour's class (class_seen),
- * its cell made and kept (its own other pair set when a source first
- * wants it there), so that in a scene of many colours each class cell of
- * a position is blended once (blending it here and again later was 40 %
- * of the blends of 10^6 stars of random colours in F146); else the
- * neighbour blended here and dropped after, so that a scene of one colour
- * keeps the cells its sources use.  A pair is set once, from NULL to its
- * one published difference (poly_insert() keeps the first of two
- * threads'), so threads that set it at once store the same pointer.
- * Before, the pairs were set before the cell was published.  Returns the
+ * (centre cx, cy), with its neighbours' cells there (the classes K - 1
+ * and K + 1 of its family, where they are) made or found, published and
+ * set in it: a colour source of either pair about K reads both classes'
+ * cells in its core (cell_correction_colour).  A neighbour is set once,
+ * from NULL to its one published cell (poly_insert() keeps the first of
+ * two threads'), so threads that set it at once store the same pointer.
+ * Before, the neighbours were set before the cell was published.  (The
+ * pairs' differences were kept as arrays of their own before: in a scene
+ * of many colours, three more arrays per position in F146.)  Returns the
  * cell; NULL with an error recorded.
  */
 static struct poly *class_add(struct point *p, const struct wfs_source *src, uint64_t key,
 			      double cx, double cy, int K)
 {
 	int n = p->nclasses / 2, lo = K % n > 0, hi = K % n < n - 1;
-	struct poly *c;
+	struct poly *c, *nc;
 
-	class_seen(p, K, 1);
 	if (!(c = class_cell(p, src, key, cx, cy, K)))
 		return NULL;
 	for (int s = 0; s < 2; s++) {
-		int nb = s ? K + 1 : K - 1, a = s ? K : K - 1, rc;
-		const struct poly *d, *nc, *o;  /* o: the neighbour's blend */
-		struct poly tmp, dm;
-
-		if (!(s ? hi : lo) || __atomic_load_n(&c->dpair[s], __ATOMIC_ACQUIRE))
+		if (!(s ? hi : lo) || __atomic_load_n(&c->nbr[s], __ATOMIC_ACQUIRE))
 			continue;
-		if (!(d = poly_find(p, pair_key(key, a)))) {
-			if (!(nc = poly_find(p, class_key(p, key, nb))) && class_seen(p, nb, 0) &&
-			    !(nc = class_cell(p, src, key, cx, cy, nb)))
-				return NULL;
-			if (!nc && class_blend(p, src, key, cx, cy, nb, 0, &tmp) < 0)
-				return NULL;
-			o = nc ? nc : &tmp;
-			rc = poly_diff(p, pair_key(key, a), s ? o : c, s ? c : o, &dm);
-			if (!nc)
-				poly_drop(&tmp);
-			if (rc < 0 || !(d = poly_insert(p, &dm)))
-				return NULL;
-		}
-		__atomic_store_n(&c->dpair[s], d, __ATOMIC_RELEASE);
+		if (!(nc = class_cell(p, src, key, cx, cy, s ? K + 1 : K - 1)))
+			return NULL;
+		__atomic_store_n(&c->nbr[s], nc, __ATOMIC_RELEASE);
 	}
 	return c;
 }
@@ -589,7 +494,7 @@ static struct poly *class_add(struct point *p, const struct wfs_source *src, uin
  * and w[] (returns how many, or -1), and its colour fields into *how: the
  * default spectrum's four, a class cell's four of its class (cclass;
  * psf-blend=core's come from class_add), or a pair cell's eight at step
- * f, with psf-blend=core the pair's difference (dcol). */
+ * f, with psf-blend=core the two classes' cells (ends). */
 static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t key, double cx,
 		      double cy, struct poly *how, const float *node[8], double w[8],
 		      struct wfs_epsf *e)
@@ -600,7 +505,7 @@ static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t ke
 
 	how->cclass = -1;
 	how->cstep = 0;
-	how->dcol = how->dpair[0] = how->dpair[1] = NULL;
+	how->ends[0] = how->ends[1] = how->nbr[0] = how->nbr[1] = NULL;
 	if (colour_cell(p, src, &ck, &cj) < 0) {
 		if (p->host->epsf(p->host->ctx, src->sca, cx, cy, src->psf_class, e) < 0)
 			return -1;
@@ -637,7 +542,8 @@ static int cell_nodes(struct point *p, const struct wfs_source *src, uint64_t ke
 		if (!(c = class_add(p, src, key, cx, cy, ck)))
 			return -1;
 		/* set (class_add), maybe stored again by another thread */
-		how->dcol = __atomic_load_n(&c->dpair[1], __ATOMIC_ACQUIRE);
+		how->ends[0] = c;
+		how->ends[1] = __atomic_load_n(&c->nbr[1], __ATOMIC_ACQUIRE);
 	}
 	return nw;
 }

@@ -492,15 +492,15 @@ static double colour_halo_bytes(const struct scene_opts *o)
  * 5); its colour cells, as large each (psf-blend core or cell, and
  * psf-colour-steps M at least 1): at each of the (ceil(4088 / C) + 2)^2
  * positions of psf-cell C, the cells of the (n - 1) M + 1 steps between
- * the classes and the n - 1 pair differences; and
+ * the classes (the n class cells among them); and
  * when rows may name their model (SPECTRAL_TYPED), the grids galaxies are
  * convolved with, the (n - 1)(G - 1) blends between the classes at
  * psf-colour-galaxy-steps G, 9 nodes of 177^2 floats each.  The bright
  * size classes are left out: a bright source makes its own position's
- * cells and its own step's blend only.  Measured (BENCHMARKS.md, "Sixth
- * sitting"): 10^6 faint stars of random teff on one SCA held 57 MB more
- * than without the column in F158 and 165 MB in F146, against this
- * bound's 106 and 245 MB; 10^4 faint galaxies of random beta in F146 108
+ * cells and its own step's blend only.  Measured (BENCHMARKS.md, "Seventh
+ * sitting"): 10^6 faint stars of random teff on one SCA held 33 MB more
+ * than without the column in F158 and 96 MB in F146, against this
+ * bound's 73 and 147 MB; 10^4 faint galaxies of random beta in F146 108
  * MB more, against the 110 MB of its grids and blends.  Without cells,
  * the host's grids and blends alone (what the first SCA keeps all run).
  */
@@ -522,7 +522,7 @@ static double colour_cell_bytes(const struct scene_opts *o, int fam, int cells)
 		b += (n - 1) * (G - 1) * grid;
 	if (cells && C >= 1 && M >= 1 && !(v && !strcmp(v, "source"))) {
 		side = ceil(WFS_NPIX / C) + 2;
-		b += side * side * ((n - 1) * M + 1 + (n - 1)) * poly;
+		b += side * side * ((n - 1) * M + 1) * poly;
 	}
 	return nf * b;
 }

@@ -167,10 +167,10 @@ assert abs(a / b - 1) < 1e-4, (a, b)
 # --memory's per-SCA estimate counts what a catalog with a spectrum column
 # may add (upper bounds for faint sources; 4 classes a family in F146):
 # with 64-pixel halos and 4 steps 10 MiB of halos; the teff family's class
-# grids and node copies, 15 MiB, and its cells at 100 positions, 218 MiB;
-# with a type column (galaxies) its 93 blends at 32 steps, 100 MiB; the
-# power laws' (beta) as much, and both families (two columns, or two
-# catalogs) twice; with --rows the strip's tiles but every position's
+# grids and node copies, 15 MiB, and its 4 class cells at 100 positions,
+# 125 MiB; with a type column (galaxies) its 93 blends at 32 steps, 100
+# MiB; the power laws' (beta) as much, and both families (two columns, or
+# two catalogs) twice; with --rows the strip's tiles but every position's
 # cells, as every star of the SCA is prepared before the strip is cut.  So
 # the same budget splits its SCAs into more groups: each term, and none
 # without a spectrum column.
@@ -194,16 +194,16 @@ test_expect_success 'the memory estimate counts the colour halos, cells and blen
 	est --rows 2040-2055 faint.csv > err10 &&
 	cat err0 err1 err2 err3 err4 err5 err6 err7 err8 err9 err10 &&
 	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err0 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err1 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (417 MB each" err2 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (334 MB each" err1 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (324 MB each" err2 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (209 MB each" err3 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (199 MB each" err4 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (527 MB each" err5 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err6 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (427 MB each" err7 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (661 MB each" err8 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (661 MB each" err9 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (300 MB each" err10
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (434 MB each" err5 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (334 MB each" err6 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (334 MB each" err7 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (474 MB each" err8 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (474 MB each" err9 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (207 MB each" err10
 '
 
 # A catalog given as a named pipe is not opened to look for spectra: that
@@ -218,7 +218,7 @@ test_expect_success 'a named pipe catalog is read once, by the run' '
 '
 
 # The budget holds with the colour cells: 10^5 faint stars of random teff
-# on each of two SCAs make every cell (165 MB an SCA in F146); the
+# on each of two SCAs make every cell (93 MB an SCA in F146); the
 # estimate without them put both SCAs in one pass under --memory 450 and
 # the run peaked at 673 MiB
 if san=$(sanitizer); then

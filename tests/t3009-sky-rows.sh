@@ -75,6 +75,47 @@ edge = [k for k, v in a.items() if min(float(v[0]), float(v[1]), 4089 - float(v[
 assert len(edge) > 10, len(edge)
 "
 '
+# A sky row is culled from an SCA it lies farther from than its reach:
+# faint rows take the 88-pixel box's without being planned (reach_faint),
+# bright ones their halo's.  Bright stars 5 to 400 pixels outside SCA 1,
+# given on the sky and as pixel rows at the same places (the pixel path
+# culls by the drawn box): the same light on the SCA.  (With every row's
+# reach taken as the box's, 43 of the 60 were culled, a quarter of the
+# light lost.)
+test_expect_success 'bright sky rows beyond an SCA light it as pixel rows do' '
+	printf "id,x,y,sca,mag\n1,2000,2000,1,20\n" > one.csv &&
+	run --sca 1 -o wcs.fits one.csv &&
+	"$PY" -c "
+import random
+from astropy.io import fits
+from astropy.wcs import WCS
+w = WCS([h for h in fits.open(\"wcs.fits\") if h.data is not None][0].header)
+random.seed(3)
+with open(\"bsky.csv\", \"w\") as s, open(\"bpix.csv\", \"w\") as p:
+    print(\"id,ra,dec,mag\", file=s)
+    print(\"id,x,y,sca,mag\", file=p)
+    for i in range(60):
+        d, t = random.uniform(5, 400), random.uniform(-300, 4400)
+        x, y = [(-d, t), (4089 + d, t), (t, -d), (t, 4089 + d)][i % 4]
+        mag = random.uniform(8, 14)
+        ra, dec = w.all_pix2world([[x, y]], 1)[0]
+        print(\"%d,%.10f,%.10f,%.3f\" % (i + 1, ra, dec, mag), file=s)
+        print(\"%d,%.6f,%.6f,1,%.3f\" % (i + 1, x, y, mag), file=p)
+" &&
+	run --sca 1 --exptime 1000 --report bs.json -o bs.fits bsky.csv &&
+	run --sca 1 --exptime 1000 -o bp.fits bpix.csv &&
+	"$PY" -c "
+import json
+import numpy as np
+from astropy.io import fits
+r = json.load(open(\"bs.json\"))[\"rows\"]
+assert r[\"placements\"] == 60 and r[\"culled_far\"] == 0, r
+a, b = (fits.getdata(f).astype(float) for f in (\"bs.fits\", \"bp.fits\"))
+assert b.sum() > 1e5, b.sum()
+assert abs(a.sum() / b.sum() - 1) < 1e-6, (a.sum(), b.sum())
+assert np.abs(a - b).max() < 1e-4 * b.max(), np.abs(a - b).max()
+"
+'
 # Two bad rows in one chunk, in different parts of it: the first in the
 # file is the one reported, whichever thread reads it.
 test_expect_success 'the first bad row is reported, for any threads' '

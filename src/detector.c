@@ -127,6 +127,10 @@ static void detector_tile(void *arg, int wid, size_t tx)
 	double *tile = j->tiles[tx];
 	double sky = j->d->bkg_sky[j->sca - 1], thermal = j->d->bkg_pixel[j->sca - 1];
 
+	if (!j->d->active) {
+		j->done(j->done_arg, tx);
+		return;
+	}
 	/* The background comes in two parts: the sky's light, per nominal
 	 * 0.11" pixel, and the internal thermal glow, per detector pixel.  In
 	 * the SIAF geometry each pixel gets the sky's part times its own area,
@@ -151,6 +155,8 @@ static void detector_tile(void *arg, int wid, size_t tx)
 	}
 	if (noise_tile(&no, j->sca, x0, j->y0, nx, j->ny, tile, j->T) < 0)
 		atomic_store(&j->failed, 1);
+	else if (j->done)
+		j->done(j->done_arg, tx);
 }
 
 /*
@@ -207,14 +213,15 @@ static int strip_persist(const struct detector *d, int sca, int y0, int ny,
 }
 
 int detector_strip_start(struct detector_run *r, const struct detector *d, struct pool *pool,
-			 int sca, int y0, int ny, double *const *tiles, int ntx, int T)
+			 int sca, int y0, int ny, double *const *tiles, int ntx, int T,
+			 void (*done)(void *, size_t), void *done_arg)
 {
 	*r = (struct detector_run){ .d = d, .pool = pool, .sca = sca, .y0 = y0, .ny = ny,
-				    .T = T, .tiles = tiles };
+				    .T = T, .tiles = tiles, .done = done, .done_arg = done_arg };
 	atomic_init(&r->failed, 0);
-	if (!d->active)
+	if (!d->active && !done)
 		return 0;
-	if (d->persist && strip_persist(d, sca, y0, ny, tiles, ntx, T) < 0)
+	if (d->active && d->persist && strip_persist(d, sca, y0, ny, tiles, ntx, T) < 0)
 		return -1;
 	pool_start(pool, detector_tile, r, ntx);
 	r->started = 1;

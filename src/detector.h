@@ -108,7 +108,10 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
  * on pool, in parallel, which must be idle; detector_strip_wait() waits
  * for them.  Every start that returned 0 needs its wait, also after a
  * failure elsewhere.  Each returns 0, or -1 when a tile (or the
- * persistence step) failed.
+ * persistence step) failed.  With done set, the pool calls it for each
+ * tile once the stage is through with it (done_arg, tile tx), also when
+ * the stage is the identity (a tile never drawn on is then NULL): the
+ * writer's conversion, beside the stage.
  */
 struct detector_run {
 	const struct detector *d;
@@ -116,10 +119,13 @@ struct detector_run {
 	int sca, y0, ny, T, started;
 	double *const *tiles;
 	atomic_int failed;
+	void (*done)(void *done_arg, size_t tx);
+	void *done_arg;
 };
 
 int detector_strip_start(struct detector_run *r, const struct detector *d, struct pool *pool,
-			 int sca, int y0, int ny, double *const *tiles, int ntx, int T);
+			 int sca, int y0, int ny, double *const *tiles, int ntx, int T,
+			 void (*done)(void *, size_t), void *done_arg);
 int detector_strip_wait(struct detector_run *r);
 
 #endif

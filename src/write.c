@@ -29,7 +29,6 @@
 #include "pool.h"
 #include "product.h"
 
-/* The first pixel of a[0 .. n-1] that is not a finite float, or -1. */
 /* The first of a[0 .. n-1] that is infinite or NaN (its exponent bits all
  * ones), or -1: counted 1024 at a time in a loop the compiler vectorises,
  * then looked for one by one in the block that has one. */
@@ -75,12 +74,48 @@ static double tile_sum(const double *t, int T, int y0, int y1, int nx)
 	return (s[0] + s[1]) + (s[2] + s[3]);
 }
 
+/* A strip's float32 rows, made on the pool beside the detector stage:
+ * rows [ya, yb) of strip ty of tiles (WFS_NPIX floats a row), and for
+ * each tile the index in out of its first value a float cannot hold, in
+ * row order (-1: none). */
+struct strip_f32 {
+	int T, ya, yb;
+	double *const *row;
+	float *out;
+	ptrdiff_t *bad;
+};
+
+/* Tile tx of the strip into its columns of out (zeros for a tile never
+ * drawn on), and its bad[tx]. */
+static void strip_convert(void *arg, size_t tx)
+{
+	struct strip_f32 *c = arg;
+	int T = c->T, x0 = (int)tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
+	const double *t = c->row[tx];
+
+	c->bad[tx] = -1;
+	for (int y = c->ya; y < c->yb; y++) {
+		float *out = c->out + (size_t)(y - c->ya) * WFS_NPIX + x0;
+		ptrdiff_t k;
+
+		if (!t) {
+			memset(out, 0, nx * sizeof(float));
+			continue;
+		}
+		for (int x = 0; x < nx; x++)
+			out[x] = (float)t[(size_t)y * T + x];
+		if (c->bad[tx] < 0 && (k = first_nonfinite(out, nx)) >= 0)
+			c->bad[tx] = (out - c->out) + k;
+	}
+}
+
 /* The strip of tiles ty of slot s: its drawn light for the report, its
  * missing tiles allocated when the detector stage will fill them, and the
- * stage started on them in run (the pool must be idle).  Returns 0, or -1
- * with the error in g->e (and nothing started). */
+ * stage started on them in run (the pool must be idle), with the rows
+ * written made into c.  Returns 0, or -1 with the error in g->e (and
+ * nothing started). */
 static int strip_start(struct engine *g, int s, int ty, const struct detector *d,
-		       struct detector_run *run)
+		       struct detector_run *run, struct strip_f32 *c)
 {
 	int T = g->tile, y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
 	int ya = g->ylo > y0 ? g->ylo - y0 : 0, yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
@@ -97,39 +132,35 @@ static int strip_start(struct engine *g, int s, int ty, const struct detector *d
 	for (int tx = 0; d->active && tx < g->ntx; tx++)
 		if (!row[tx] && !(row[tx] = tile_alloc(T)))
 			return err_sys(g->e, "tile memory");
-	if (detector_strip_start(run, d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T) < 0)
+	c->T = T;
+	c->ya = ya;
+	c->yb = yb;
+	c->row = row;
+	if (detector_strip_start(run, d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T,
+				 strip_convert, c) < 0)
 		return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 	return 0;
 }
 
-/* Rows [ya, yb) of strip ty in float32 (strip), checked and written; its
- * tiles freed. */
-static int strip_write(struct engine *g, struct writer *w, int s, int ty, float *strip)
+/* Strip ty's rows in float32 (c, made by the pool), checked and written;
+ * its tiles freed. */
+static int strip_write(struct engine *g, struct writer *w, int s, int ty,
+		       const struct strip_f32 *c)
 {
-	int T = g->tile, y0 = ty * T, ny = y0 + T > WFS_NPIX ? WFS_NPIX - y0 : T;
-	int ya = g->ylo > y0 ? g->ylo - y0 : 0, yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
+	int y0 = ty * g->tile;
 	double **row = &g->slot[s].tile[ty * g->ntx];
-	ptrdiff_t k;
+	ptrdiff_t k = -1;
 
-	for (int y = ya; y < yb; y++)
-		for (int tx = 0; tx < g->ntx; tx++) {
-			int x0 = tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
-			float *out = strip + (size_t)(y - ya) * WFS_NPIX + x0;
-
-			if (row[tx])
-				for (int x = 0; x < nx; x++)
-					out[x] = (float)row[tx][(size_t)y * T + x];
-			else
-				memset(out, 0, nx * sizeof(float));
-		}
 	/* make_source bounds each source, but many sources on one pixel, or
 	 * a model that draws more than its flux or NaN, could still put an
-	 * infinity or NaN in the file. */
-	k = first_nonfinite(strip, (size_t)(yb - ya) * WFS_NPIX);
+	 * infinity or NaN in the file: the first in row order */
+	for (int tx = 0; tx < g->ntx; tx++)
+		if (c->bad[tx] >= 0 && (k < 0 || c->bad[tx] < k))
+			k = c->bad[tx];
 	if (k >= 0) {
-		int px = (int)(k % WFS_NPIX) + 1, py = y0 + ya + (int)(k / WFS_NPIX) + 1;
+		int px = (int)(k % WFS_NPIX) + 1, py = y0 + c->ya + (int)(k / WFS_NPIX) + 1;
 
-		if (isnan(strip[k]))
+		if (isnan(c->out[k]))
 			return err_set(g->e, EXIT_PLUGIN, "WFI%02d: pixel x=%d, y=%d (1-based) "
 				       "is NaN: a source model drew a value that is not a "
 				       "number", g->slot[s].sca, px, py);
@@ -138,10 +169,10 @@ static int strip_write(struct engine *g, struct writer *w, int s, int ty, float 
 			       "there sum to more than the image can hold",
 			       g->slot[s].sca, px, py);
 	}
-	if (w->ops->rows(w, strip, yb - ya, g->e) < 0)
+	if (w->ops->rows(w, c->out, c->yb - c->ya, g->e) < 0)
 		return -1;
 	for (int tx = 0; tx < g->ntx; tx++) {
-		tile_free(row[tx], T);
+		tile_free(row[tx], g->tile);
 		row[tx] = NULL;
 	}
 	return 0;
@@ -149,16 +180,19 @@ static int strip_write(struct engine *g, struct writer *w, int s, int ty, float 
 
 /*
  * The strips of tiles that hold the rows written, [ylo, yhi) (all of them
- * but with --rows), in a pipeline: while the main thread converts and
- * writes strip ty, the pool runs the detector stage on strip ty + 1, so
- * that neither waits for the other (the write was a fifth of an empty
- * focal plane's wall time with the workers idle).  --report's noise is the
- * main thread's time opening strips, starting the stage and waiting for it
- * (none without a stage), its write the time writing.  The bytes are those of any order: a strip's stage
- * depends on its pixels only.
+ * but with --rows), in a pipeline: while the main thread writes strip ty,
+ * the pool runs the detector stage on strip ty + 1 and converts it to
+ * float32, into the other of conv[2], so that neither waits for the other
+ * (the write was a fifth of an empty focal plane's wall time with the
+ * workers idle; then, the conversion on the main thread, half of the
+ * writing's time at the end of 10^7 sky rows on 18 SCAs).  --report's
+ * noise is the main thread's time opening strips, starting the stage and
+ * waiting for it (none without a stage), its write the time writing.  The
+ * bytes are those of any order: a strip's stage depends on its pixels
+ * only.
  */
 static int write_slot(struct engine *g, struct writer *w, int s, const struct detector *d,
-		      float *strip)
+		      struct strip_f32 conv[2])
 {
 	int T = g->tile, ty0 = g->ylo / T, ty1 = (g->yhi + T - 1) / T;
 	struct product p = { .g = g, .slot = s, .sca = g->slot[s].sca, .level = DETECTOR_SCENE,
@@ -169,7 +203,7 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 	if (w->ops->sca_begin(w, &p, g->e) < 0)
 		return -1;
 	t0 = engine_clock();
-	if (ty0 < ty1 && strip_start(g, s, ty0, d, &run[ty0 & 1]) < 0)
+	if (ty0 < ty1 && strip_start(g, s, ty0, d, &run[ty0 & 1], &conv[ty0 & 1]) < 0)
 		return -1;
 	for (int ty = ty0; ty < ty1; ty++) {
 		struct detector_run *next = &run[(ty + 1) & 1];
@@ -179,11 +213,11 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 			g->t_noise += d->active ? engine_clock() - t0 : 0;
 			return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		}
-		if (ty + 1 < ty1 && strip_start(g, s, ty + 1, d, next) < 0)
+		if (ty + 1 < ty1 && strip_start(g, s, ty + 1, d, next, &conv[(ty + 1) & 1]) < 0)
 			return -1;
 		g->t_noise += d->active ? engine_clock() - t0 : 0;
 		t0 = engine_clock();
-		failed = strip_write(g, w, s, ty, strip);
+		failed = strip_write(g, w, s, ty, &conv[ty & 1]);
 		g->t_write += engine_clock() - t0;
 		t0 = engine_clock();
 		if (failed < 0) {
@@ -331,12 +365,17 @@ int write_exposure(struct engine *g)
 	struct exposure later = *x;
 	struct detector d;
 	int per_sca = (name_fields(x->output) & NAME_SCA) != 0;
-	float *strip = malloc((size_t)g->tile * WFS_NPIX * sizeof(float));
+	float *strip = malloc(2 * (size_t)g->tile * WFS_NPIX * sizeof(float));
 	struct writer *w = g->out;
+	ptrdiff_t *bad = malloc(2 * (size_t)g->ntx * sizeof(ptrdiff_t));
+	struct strip_f32 conv[2] = {
+		{ .out = strip, .bad = bad },
+		{ .out = strip ? strip + (size_t)g->tile * WFS_NPIX : NULL, .bad = bad ? bad + g->ntx : NULL }
+	};
 
 	g->out = NULL;
 	later.persist = NULL;
-	if (!strip) {
+	if (!strip || !bad) {
 		err_sys(g->e, "output buffer");
 		goto fail;
 	}
@@ -364,7 +403,7 @@ int write_exposure(struct engine *g)
 			    !(w = ops->open(g, path, g->e)))
 				goto fail;
 		}
-		if ((d.level == DETECTOR_SCENE ? write_slot(g, w, s, &d, strip) :
+		if ((d.level == DETECTOR_SCENE ? write_slot(g, w, s, &d, conv) :
 		     write_slot_level(g, w, s, &d)) < 0)
 			goto fail;
 		if (per_sca || s == g->nslot - 1) {
@@ -387,10 +426,12 @@ int write_exposure(struct engine *g)
 	}
 	g->out = w;
 	free(strip);
+	free(bad);
 	return 0;
 fail:
 	if (w)
 		w->ops->abort(w);
 	free(strip);
+	free(bad);
 	return -1;
 }

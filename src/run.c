@@ -399,18 +399,20 @@ static int finish(struct engine *g, struct timespec t0)
  * peak (BENCHMARKS.md, "Memory in passes"): for every SCA drawn at once,
  * 4088 columns of doubles for each row drawn (its tiles: a crowded field
  * touches every one) and SCA_BYTES more for its PSF grids, the models'
- * state for it and its placements; and RUN_BYTES once, the catalog's
+ * state for it and its placements; and run_bytes() once, the catalog's
  * chunks and the program (more at levels 1 and 2: the ramps of the SCA
  * being written).  Measured on 10^6 sky rows over the focal plane: 172 MiB
  * an SCA at the scene level and 183 MiB at level 2, of which 127.5 MiB
- * are tiles; 33 and 104 MiB besides.
+ * are tiles; 33 and 104 MiB besides.  A chunk's rows, every one placed,
+ * hold some 510 bytes each (10^6 faint stars on one SCA: 230 MiB at the
+ * 65536 rows of --chunk, 327 MiB at 262144): 512 a row of --chunk.
  */
 #define MIB (1024.0 * 1024.0)
 #define SCA_BYTES (56.0 * MIB)
 
 static double run_bytes(const struct scene_opts *o)
 {
-	return (o->level ? 110.0 : 40.0) * MIB;
+	return (o->level ? 78.0 : 8.0) * MIB + 512.0 * (double)o->chunk;
 }
 
 /* The families of spectra a catalog (not stdin, which is read once) names

@@ -336,11 +336,11 @@ struct point {
 	 * order; its counters are per thread (struct tally) */
 	pthread_mutex_t lock;
 	struct hslot hs[SCA_SLOTS]; /* per SCA, the default spectrum's halo */
-	/* per SCA and size class, the flux at or below which reach() need
-	 * not plan a source (reach_faint, point_halo.c; the host's thread
-	 * only), once reach_known is set */
-	double reach_flux[SCA_SLOTS][3];
-	char reach_known[SCA_SLOTS][3];
+	/* per SCA and size class, the flux at or below which prepare() (k =
+	 * 0) and reach() (k = 1) need not plan a source (faint_flux,
+	 * point_halo.c), once faint_known is set (release order, under lock) */
+	double faint_at[2][SCA_SLOTS][3];
+	_Atomic char faint_known[2][SCA_SLOTS][3];
 	/* psf-halo-colour-steps (0: every source has the default's halo),
 	 * and the colour halos: chs[(sca nclasses + cls) halo_steps + step],
 	 * NULL until made (point_halo.c) */

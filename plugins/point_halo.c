@@ -523,9 +523,9 @@ static int plan(struct point *p, const struct wfs_source *src, struct plan *q)
 }
 
 /* Whether a source of flux fl (the SCA and size class of src) is planned
- * faint with its SCA's default halo, which reaches no farther than
- * XBRIGHT_HALF (noise_reach): 1, 0, or -1. */
-static int reach_inside(struct point *p, const struct wfs_source *src, double fl)
+ * faint with its SCA's default halo, and for reach, also reaches no
+ * farther than XBRIGHT_HALF (noise_reach): 1, 0, or -1. */
+static int faint_inside(struct point *p, const struct wfs_source *src, double fl, int reach)
 {
 	struct wfs_source t = *src;
 	struct hslot *hs;
@@ -534,52 +534,72 @@ static int reach_inside(struct point *p, const struct wfs_source *src, double fl
 	t.flux = fl;
 	if (!(hs = slot_default(p, &t)) || plan_with(p, &t, hs, &q) < 0)
 		return -1;
-	return q.faint && far_radius(p, halo_radius(&hs->h, q.lev, p->extent_max)) + 1 <=
-				  XBRIGHT_HALF;
+	return q.faint && (!reach || far_radius(p, halo_radius(&hs->h, q.lev, p->extent_max)) +
+						 1 <= XBRIGHT_HALF);
 }
 
 /*
  * The flux at or below which every source of src's SCA and size class is
  * planned faint with the default halo (so a spectrum's halo is not looked
- * at) and reaches no farther than XBRIGHT_HALF, so that noise_reach()
- * need not plan it: both hold up to some flux and not beyond, as the
- * drawing level falls and the halo's radius grows with the flux.  Found
- * once by bisection (on the host's thread, as reach() is), a flux where
- * they hold; 0 when they hold for none.  Sky rows are planned here before
- * they are placed, 10^7 of them for a scene of 10^7 rows.  Returns 0 or
- * -1.
+ * at), and for reach also reaches no farther than XBRIGHT_HALF: both hold
+ * up to some flux and not beyond, as the drawing level falls and the
+ * halo's radius grows with the flux.  Found once by bisection, a flux
+ * where they hold (0 when they hold for none), so that noise_prepare() and
+ * noise_reach() need not plan the faint sources: sky rows are planned by
+ * reach() before they are placed, 10^7 of them for a scene of 10^7 rows,
+ * and every source by prepare().  Any thread: each that finds it unknown
+ * computes it, and the first stores it.  Returns 0 or -1.
  */
-static int reach_faint(struct point *p, const struct wfs_source *src, double *flux)
+static int faint_flux(struct point *p, const struct wfs_source *src, int reach, double *flux)
 {
-	int cls = src->psf_class;
+	int sca = src->sca, cls = src->psf_class;
 	double lo = 1e-30, hi = 1e32;
 	int in;
 
-	if (p->reach_known[src->sca][cls]) {
-		*flux = p->reach_flux[src->sca][cls];
+	if (atomic_load_explicit(&p->faint_known[reach][sca][cls], memory_order_acquire)) {
+		*flux = p->faint_at[reach][sca][cls];
 		return 0;
 	}
-	if ((in = reach_inside(p, src, lo)) < 0)
+	if ((in = faint_inside(p, src, lo, reach)) < 0)
 		return -1;
 	if (!in)
 		lo = 0;
-	else if ((in = reach_inside(p, src, hi)) < 0)
+	else if ((in = faint_inside(p, src, hi, reach)) < 0)
 		return -1;
 	else if (in)
 		lo = hi;
 	for (int it = 0; lo > 0 && lo < hi && it < 200 && hi / lo > 1 + 1e-12; it++) {
 		double mid = sqrt(lo) * sqrt(hi);
 
-		if ((in = reach_inside(p, src, mid)) < 0)
+		if ((in = faint_inside(p, src, mid, reach)) < 0)
 			return -1;
 		if (in)
 			lo = mid;
 		else
 			hi = mid;
 	}
-	p->reach_flux[src->sca][cls] = *flux = lo;
-	p->reach_known[src->sca][cls] = 1;
+	pthread_mutex_lock(&p->lock);
+	if (!atomic_load_explicit(&p->faint_known[reach][sca][cls], memory_order_relaxed)) {
+		p->faint_at[reach][sca][cls] = lo;
+		atomic_store_explicit(&p->faint_known[reach][sca][cls], 1, memory_order_release);
+	}
+	*flux = p->faint_at[reach][sca][cls];
+	pthread_mutex_unlock(&p->lock);
 	return 0;
+}
+
+/* Whether src may skip plan() as faint with its default halo (faint_flux,
+ * for reach or not): 1, 0, or -1. */
+static int plan_skips(struct point *p, const struct wfs_source *src, int reach)
+{
+	double faint;
+
+	if (!(src->flux > 0) || src->psf_class < 0 || src->psf_class > 2 || src->sca < 1 ||
+	    src->sca >= SCA_SLOTS)
+		return 0;
+	if (faint_flux(p, src, reach, &faint) < 0)
+		return -1;
+	return src->flux <= faint;
 }
 
 /* point_reach() with psf-extent=noise: the radius the source's plan
@@ -587,14 +607,11 @@ static int reach_faint(struct point *p, const struct wfs_source *src, double *fl
 int noise_reach(struct point *p, const struct wfs_source *src, double *pixels)
 {
 	struct plan q;
-	double r, faint;
+	double r;
+	int skip;
 
-	if (*pixels >= XBRIGHT_HALF && src->psf_class >= 0 && src->psf_class < 3) {
-		if (reach_faint(p, src, &faint) < 0)
-			return -1;
-		if (src->flux <= faint)
-			return 0;
-	}
+	if (*pixels >= XBRIGHT_HALF && (skip = plan_skips(p, src, 1)) != 0)
+		return skip < 0 ? -1 : 0;
 	if (plan(p, src, &q) < 0)
 		return -1;
 	r = far_radius(p, halo_radius(&q.hs->h, q.lev, p->extent_max)) + 1;
@@ -620,10 +637,21 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 	struct tally *t;
 	double r, half, fl = src->flux, drawn = 0, left;
 	struct zone box;
-	int cut;
+	int cut, skip;
 
-	if (plan(p, src, &q) < 0)
+	/* a faint source's plan, as plan() would make it (of which only the
+	 * halo, the core's scale and the box are read below) */
+	if (p->extent_min <= 0 && (skip = plan_skips(p, src, 0)) != 0) {
+		if (skip < 0 || !(q.hs = slot_default(p, src)) ||
+		    (q.c = core_scale(p, src, q.hs)) < 0)
+			return -1;
+		q.cap = q.hs->chalf[src->psf_class];
+		q.faint = 1;
+		q.r = q.lev = 0;
+		q.k = INT_MIN;
+	} else if (plan(p, src, &q) < 0) {
 		return -1;
+	}
 	h = &q.hs->h;
 	r = q.r;
 	fs = *src;

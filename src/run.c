@@ -729,15 +729,25 @@ out:
 }
 
 /* A run of several passes over a catalog given as '-': stdin copied to a
- * temporary once (tempfile.h), read from its start by each pass. */
+ * temporary once (tempfile.h), read from its start by each pass.  A named
+ * pipe or a device can be read only once: refused (a second pass opened a
+ * pipe whose writer had gone, and waited for ever). */
 static int stdin_for_passes(const struct scene_opts *o, char *const *catalogs,
 			    const struct plan *p, int *copied, struct err *e)
 {
 	long long bytes;
+	struct stat st;
 
 	*copied = 0;
 	if (p->passes < 2)
 		return 0;
+	for (char *const *cat = catalogs; *cat; cat++)
+		if (strcmp(*cat, "-") && stat(*cat, &st) == 0 && !S_ISREG(st.st_mode) &&
+		    !S_ISDIR(st.st_mode))
+			return err_set(e, EXIT_INPUT, "%s: not a regular file, so read only once, "
+				       "and this run makes %d passes over the catalogs "
+				       "(--memory): give a file, or pipe it to stdin ('-'), "
+				       "which is kept in a temporary file", *cat, p->passes);
 	for (char *const *cat = catalogs; *cat; cat++)
 		if (!strcmp(*cat, "-")) {
 			if ((bytes = tempfile_spool_stdin(e)) < 0) {

@@ -216,6 +216,18 @@ test_expect_success 'a named pipe catalog is read once, by the run' '
 		-v -o /dev/null pipe 2> err &&
 	test_grep "1 rows read" err && ! grep -q "passes over" err
 '
+# and in a run of several passes it is refused at once (a second pass
+# opened the pipe again and waited for ever), the same rows on stdin read
+# from a temporary copy by every pass
+test_expect_success 'a named pipe catalog is refused in a run of several passes' '
+	rm -f pipe2 && mkfifo pipe2 &&
+	test_must_fail --status 1 timeout 120 "$WFS" --filter F146 --sca 1,2,3,4 --memory 420 \
+		--set psf-halo-radius=$R -o /dev/null pipe2 2> err &&
+	test_grep "pipe2: not a regular file, so read only once, and this run makes 2 passes" err &&
+	cat nospec.csv | timeout 120 "$WFS" --filter F146 --sca 1,2,3,4 --memory 420 \
+		--set psf-halo-radius=$R -v -o /dev/null - 2> err &&
+	test_grep "in 2 passes over the catalogs" err && test_grep "1 rows read" err
+'
 
 # The budget holds with the colour cells: 10^5 faint stars of random teff
 # on each of two SCAs make every cell (93 MB an SCA in F146); the

@@ -543,7 +543,8 @@ static int faint_inside(struct point *p, const struct wfs_source *src, double fl
  * planned faint with the default halo (so a spectrum's halo is not looked
  * at), and for reach also reaches no farther than XBRIGHT_HALF: both hold
  * up to some flux and not beyond, as the drawing level falls and the
- * halo's radius grows with the flux.  Found once by bisection, a flux
+ * halo's radius grows with the flux (not with psf-extent-min, whose box
+ * follows the radius: the callers leave it out).  Found once by bisection, a flux
  * where they hold (0 when they hold for none), so that noise_prepare() and
  * noise_reach() need not plan the faint sources: sky rows are planned by
  * reach() before they are placed, 10^7 of them for a scene of 10^7 rows,
@@ -610,7 +611,9 @@ int noise_reach(struct point *p, const struct wfs_source *src, double *pixels)
 	double r;
 	int skip;
 
-	if (*pixels >= XBRIGHT_HALF && (skip = plan_skips(p, src, 1)) != 0)
+	/* (not with psf-extent-min, whose box is the halo's radius: the faint
+	 * test is then not one way in the flux) */
+	if (*pixels >= XBRIGHT_HALF && p->extent_min <= 0 && (skip = plan_skips(p, src, 1)) != 0)
 		return skip < 0 ? -1 : 0;
 	if (plan(p, src, &q) < 0)
 		return -1;

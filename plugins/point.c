@@ -55,9 +55,10 @@
  * its pair's two class cells, blended by its colour, are read on the
  * cell's own Keys taps instead: point_epsf.c, cell_correction_colour).
  * The core is drawn first into a small float buffer, then every row of
- * the window in one call, straight into the tile (sum_rows_avx2).  The copies and blends are made in
- * prepare(), which the host calls in its main thread before render() sees
- * the source, so render() neither allocates nor locks.
+ * the window in one call, straight into the tile (sum_rows_avx2).  The
+ * copies and blends are made in prepare(), which the host calls in its
+ * main thread before render() sees the source, so render() neither
+ * allocates nor locks.
  *
  * Approximations, each a setting (wfiscene(1) POINT SOURCES has their
  * measured error and cost):

@@ -150,8 +150,8 @@ struct draw {
 	struct geom g;
 	struct zone box;        /* every pixel it lights */
 	struct zone core;       /* Keys' cubic (or psf-blend=core's bilinear
-				 * correction, and a colour source's pair
-				 * difference on the Keys taps), not scaled
+				 * correction, and a colour source's other
+				 * class cell on the Keys taps), not scaled
 				 * by f */
 	struct zone wing;       /* bilinear; beyond it the nearest sample */
 };

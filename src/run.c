@@ -500,8 +500,8 @@ static double colour_halo_bytes(const struct scene_opts *o)
  * psf-colour-galaxy-steps G, 9 nodes of 177^2 floats each.  The bright
  * size classes are left out: a bright source makes its own position's
  * cells and its own step's blend only.  Measured (BENCHMARKS.md, "Seventh
- * sitting"): 10^6 faint stars of random teff on one SCA held 33 MB more
- * than without the column in F158 and 96 MB in F146, against this
+ * sitting"): 10^6 faint stars of random teff on one SCA held 32 MB more
+ * than without the column in F158 and 93 MB in F146, against this
  * bound's 73 and 147 MB; 10^4 faint galaxies of random beta in F146 108
  * MB more, against the 110 MB of its grids and blends.  Without cells,
  * the host's grids and blends alone (what the first SCA keeps all run).

@@ -187,9 +187,9 @@ static int strip_write(struct engine *g, struct writer *w, int s, int ty,
  * workers idle; then, the conversion on the main thread, half of the
  * writing's time at the end of 10^7 sky rows on 18 SCAs).  --report's
  * noise is the main thread's time opening strips, starting the stage and
- * waiting for it (none without a stage), its write the time writing.  The
- * bytes are those of any order: a strip's stage depends on its pixels
- * only.
+ * waiting for it, its write the time writing (and, without a stage,
+ * waiting for the conversion).  The bytes are those of any order: a
+ * strip's stage depends on its pixels only.
  */
 static int write_slot(struct engine *g, struct writer *w, int s, const struct detector *d,
 		      struct strip_f32 conv[2])
@@ -210,12 +210,12 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 		int failed;
 
 		if (detector_strip_wait(&run[ty & 1]) < 0) {
-			g->t_noise += d->active ? engine_clock() - t0 : 0;
+			*(d->active ? &g->t_noise : &g->t_write) += engine_clock() - t0;
 			return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		}
 		if (ty + 1 < ty1 && strip_start(g, s, ty + 1, d, next, &conv[(ty + 1) & 1]) < 0)
 			return -1;
-		g->t_noise += d->active ? engine_clock() - t0 : 0;
+		*(d->active ? &g->t_noise : &g->t_write) += engine_clock() - t0;
 		t0 = engine_clock();
 		failed = strip_write(g, w, s, ty, &conv[ty & 1]);
 		g->t_write += engine_clock() - t0;
@@ -227,7 +227,7 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 		}
 		engine_progress(g, "writing", 0);
 	}
-	g->t_noise += d->active ? engine_clock() - t0 : 0;
+	*(d->active ? &g->t_noise : &g->t_write) += engine_clock() - t0;
 	return w->ops->sca_end(w, g->e);
 }
 

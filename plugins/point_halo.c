@@ -544,12 +544,13 @@ static int faint_inside(struct point *p, const struct wfs_source *src, double fl
  * at), and for reach also reaches no farther than XBRIGHT_HALF: both hold
  * up to some flux and not beyond, as the drawing level falls and the
  * halo's radius grows with the flux (not with psf-extent-min, whose box
- * follows the radius: the callers leave it out).  Found once by bisection, a flux
- * where they hold (0 when they hold for none), so that noise_prepare() and
- * noise_reach() need not plan the faint sources: sky rows are planned by
- * reach() before they are placed, 10^7 of them for a scene of 10^7 rows,
- * and every source by prepare().  Any thread: each that finds it unknown
- * computes it, and the first stores it.  Returns 0 or -1.
+ * follows the radius: plan_skips() leaves it out).  Found once by
+ * bisection, a flux where they hold (0 when they hold for none), so that
+ * noise_prepare() and noise_reach() need not plan the faint sources: sky
+ * rows are planned by reach() before they are placed, 10^7 of them for a
+ * scene of 10^7 rows, and every source by prepare().  Any thread: each
+ * that finds it unknown computes it, and the first stores it.  Returns 0
+ * or -1.
  */
 static int faint_flux(struct point *p, const struct wfs_source *src, int reach, double *flux)
 {
@@ -590,12 +591,13 @@ static int faint_flux(struct point *p, const struct wfs_source *src, int reach, 
 }
 
 /* Whether src may skip plan() as faint with its default halo (faint_flux,
- * for reach or not): 1, 0, or -1. */
+ * for reach or not): 1, 0, or -1.  Never under psf-extent-min, whose box
+ * is the halo's radius: the faint test is then not one way in the flux. */
 static int plan_skips(struct point *p, const struct wfs_source *src, int reach)
 {
 	double faint;
 
-	if (!(src->flux > 0) || src->psf_class < 0 || src->psf_class > 2 || src->sca < 1 ||
+	if (p->extent_min > 0 || !(src->flux > 0) || src->psf_class < 0 || src->psf_class > 2 || src->sca < 1 ||
 	    src->sca >= SCA_SLOTS)
 		return 0;
 	if (faint_flux(p, src, reach, &faint) < 0)
@@ -611,9 +613,7 @@ int noise_reach(struct point *p, const struct wfs_source *src, double *pixels)
 	double r;
 	int skip;
 
-	/* (not with psf-extent-min, whose box is the halo's radius: the faint
-	 * test is then not one way in the flux) */
-	if (*pixels >= XBRIGHT_HALF && p->extent_min <= 0 && (skip = plan_skips(p, src, 1)) != 0)
+	if (*pixels >= XBRIGHT_HALF && (skip = plan_skips(p, src, 1)) != 0)
 		return skip < 0 ? -1 : 0;
 	if (plan(p, src, &q) < 0)
 		return -1;
@@ -644,7 +644,7 @@ int noise_prepare(struct point *p, struct wfs_source *src)
 
 	/* a faint source's plan, as plan() would make it (of which only the
 	 * halo, the core's scale and the box are read below) */
-	if (p->extent_min <= 0 && (skip = plan_skips(p, src, 0)) != 0) {
+	if ((skip = plan_skips(p, src, 0)) != 0) {
 		if (skip < 0 || !(q.hs = slot_default(p, src)) ||
 		    (q.c = core_scale(p, src, q.hs)) < 0)
 			return -1;

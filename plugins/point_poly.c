@@ -441,7 +441,8 @@ static int cell_make(struct point *p, uint64_t key, const float *const node[8],
 static struct poly *class_cell(struct point *p, const struct wfs_source *src, uint64_t key,
 			       double cx, double cy, int k)
 {
-	struct poly made, how = { .cclass = k }, *c = (struct poly *)poly_find(p, class_key(p, key, k));
+	struct poly made, how = { .cclass = k };
+	struct poly *c = (struct poly *)poly_find(p, class_key(p, key, k));
 	struct wfs_epsf e;
 	const float *node[8] = { NULL };
 	double w[8] = { 0 };

@@ -415,6 +415,16 @@ static double run_bytes(const struct scene_opts *o)
 	return (o->level ? 78.0 : 8.0) * MIB + 512.0 * (double)o->chunk;
 }
 
+/* Whether catalog path can be read only once: stdin ('-'), a named pipe
+ * or a device (not a regular file nor a tree's directory). */
+static int read_once(const char *path)
+{
+	struct stat st;
+
+	return !strcmp(path, "-") ||
+	       (stat(path, &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode));
+}
+
 /* The families of spectra a catalog (not stdin, which is read once) names
  * (catalog_spectral), from its header (a tree's: its first file's), no row
  * read; a catalog that cannot be opened counts as none (the pass reports
@@ -427,12 +437,9 @@ static int catalog_families(const struct scene_opts *o, const char *path)
 				   .epoch = o->epoch };
 	struct err e = { 0 };
 	struct catalog *c;
-	struct stat st;
 	int fam;
 
-	if (!strcmp(path, "-") || (stat(path, &st) == 0 && !S_ISREG(st.st_mode) &&
-				   !S_ISDIR(st.st_mode)) ||
-	    !(c = catalog_open(path, &co, &e)))
+	if (read_once(path) || !(c = catalog_open(path, &co, &e)))
 		return 0;
 	fam = catalog_spectral(c);
 	catalog_close(c);
@@ -473,7 +480,8 @@ static double set_number(const struct scene_opts *o, const char *key, double dfl
 static double colour_halo_bytes(const struct scene_opts *o)
 {
 	const char *v = set_value(o, "psf-extent");
-	double N = set_number(o, "psf-halo-colour-steps", 4), R = set_number(o, "psf-halo-radius", 256);
+	double N = set_number(o, "psf-halo-colour-steps", 4);
+	double R = set_number(o, "psf-halo-radius", 256);
 	double n = set_number(o, "psf-colour-classes", psf_default_classes(o->filter)), arr;
 
 	if (strcmp(o->psf, "builtin") || (v && strcmp(v, "noise")))
@@ -736,14 +744,12 @@ static int stdin_for_passes(const struct scene_opts *o, char *const *catalogs,
 			    const struct plan *p, int *copied, struct err *e)
 {
 	long long bytes;
-	struct stat st;
 
 	*copied = 0;
 	if (p->passes < 2)
 		return 0;
 	for (char *const *cat = catalogs; *cat; cat++)
-		if (strcmp(*cat, "-") && stat(*cat, &st) == 0 && !S_ISREG(st.st_mode) &&
-		    !S_ISDIR(st.st_mode))
+		if (strcmp(*cat, "-") && read_once(*cat))
 			return err_set(e, EXIT_INPUT, "%s: not a regular file, so read only once, "
 				       "and this run makes %d passes over the catalogs "
 				       "(--memory): give a file, or pipe it to stdin ('-'), "

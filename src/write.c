@@ -198,6 +198,8 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 	struct product p = { .g = g, .slot = s, .sca = g->slot[s].sca, .level = DETECTOR_SCENE,
 			     .ylo = g->ylo, .yhi = g->yhi };
 	struct detector_run run[2];
+	/* the main thread's waits: the stage's, or without one the conversion's */
+	double *waits = d->active ? &g->t_noise : &g->t_write;
 	double t0;
 
 	if (w->ops->sca_begin(w, &p, g->e) < 0)
@@ -210,12 +212,12 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 		int failed;
 
 		if (detector_strip_wait(&run[ty & 1]) < 0) {
-			*(d->active ? &g->t_noise : &g->t_write) += engine_clock() - t0;
+			*waits += engine_clock() - t0;
 			return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
 		}
 		if (ty + 1 < ty1 && strip_start(g, s, ty + 1, d, next, &conv[(ty + 1) & 1]) < 0)
 			return -1;
-		*(d->active ? &g->t_noise : &g->t_write) += engine_clock() - t0;
+		*waits += engine_clock() - t0;
 		t0 = engine_clock();
 		failed = strip_write(g, w, s, ty, &conv[ty & 1]);
 		g->t_write += engine_clock() - t0;
@@ -227,7 +229,7 @@ static int write_slot(struct engine *g, struct writer *w, int s, const struct de
 		}
 		engine_progress(g, "writing", 0);
 	}
-	*(d->active ? &g->t_noise : &g->t_write) += engine_clock() - t0;
+	*waits += engine_clock() - t0;
 	return w->ops->sca_end(w, g->e);
 }
 
@@ -368,10 +370,7 @@ int write_exposure(struct engine *g)
 	float *strip = malloc(2 * (size_t)g->tile * WFS_NPIX * sizeof(float));
 	struct writer *w = g->out;
 	ptrdiff_t *bad = malloc(2 * (size_t)g->ntx * sizeof(ptrdiff_t));
-	struct strip_f32 conv[2] = {
-		{ .out = strip, .bad = bad },
-		{ .out = strip ? strip + (size_t)g->tile * WFS_NPIX : NULL, .bad = bad ? bad + g->ntx : NULL }
-	};
+	struct strip_f32 conv[2] = { { .out = strip, .bad = bad }, { 0 } };
 
 	g->out = NULL;
 	later.persist = NULL;
@@ -379,6 +378,8 @@ int write_exposure(struct engine *g)
 		err_sys(g->e, "output buffer");
 		goto fail;
 	}
+	conv[1].out = strip + (size_t)g->tile * WFS_NPIX;
+	conv[1].bad = bad + g->ntx;
 	if (detector_init(&d, o, g->pass ? &later : x, g->e) < 0)
 		goto fail;
 	if (g->pass && x->persist) {

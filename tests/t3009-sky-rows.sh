@@ -67,17 +67,19 @@ assert len(ids) - len(set(ids)) < 0.05 * len(ids), (len(ids), len(set(ids)))
 # --chunk's default grows with the SCAs (16384 rows an SCA, from 65536 to
 # 262144): a sky catalog over the focal plane puts few rows in each tile
 # of a smaller chunk
+chunk_is() {
+	"$PY" -c "import json, sys; c = json.load(open(sys.argv[1]))[\"settings\"][\"chunk\"]
+assert c == int(sys.argv[2]), c" "$1" "$2"
+}
 test_expect_success 'the default chunk is 16384 rows an SCA, 65536 to 262144' '
 	printf "id,x,y,sca,mag\n" > none.csv &&
 	for c in "1 65536" "1-4 65536" "1-8 131072" "1-18 262144"; do
 		set -- $c &&
 		run --sca $1 --report rc.json -o /dev/null none.csv &&
-		"$PY" -c "import json; c = json.load(open(\"rc.json\"))[\"settings\"][\"chunk\"]; assert c == $2, c" ||
-		return 1
+		chunk_is rc.json $2 || return 1
 	done &&
 	run --sca 1-18 --chunk 777 --report rc.json -o /dev/null none.csv &&
-	"$PY" -c "import json; assert json.load(open(\"rc.json\"))[\"settings\"][\"chunk\"] == 777" &&
-	"$PY" -c "import json; assert json.load(open(\"r1.json\"))[\"settings\"][\"chunk\"] == 262144"
+	chunk_is rc.json 777 && chunk_is r1.json 262144
 '
 test_expect_success 'rows near SCA edges keep their pixels when read in other chunks' '
 	"$PY" -c "

@@ -8,8 +8,9 @@
  *     <immintrin.h>, included here); code of such a loop sits under
  *     #ifdef SIMD_X86.  -DWFS_NO_SIMD builds none of them.
  *   when run: simd_flags() says which instructions this process may use;
- *     with WFISCENE_NO_SIMD set (to anything) none, so that the tests can
- *     compare the vector and the plain loops on a machine that has the
+ *     with WFISCENE_NO_SIMD set to "avx512" none of AVX-512, set to
+ *     anything else none at all, so that the tests can compare the vector
+ *     loops of each width and the plain loops on a machine that has the
  *     instructions.
  *
  * It is all static inline and needs no symbol of the host, so a built-in
@@ -21,6 +22,7 @@
 
 #include <stdatomic.h>
 #include <stdlib.h>
+#include <string.h>
 
 #if defined(__GNUC__) && defined(__x86_64__) && !defined(WFS_NO_SIMD)
 #define SIMD_X86 1
@@ -56,11 +58,13 @@ static inline int simd_flags(void)
 		return f;
 	f = 0;
 #ifdef SIMD_X86
-	if (!getenv("WFISCENE_NO_SIMD")) {
+	const char *no = getenv("WFISCENE_NO_SIMD");
+
+	if (!no || !strcmp(no, "avx512")) {
 		__builtin_cpu_init();
 		if (__builtin_cpu_supports("avx2"))
 			f |= SIMD_AVX2;
-		if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq"))
+		if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") && !no)
 			f |= SIMD_AVX512;
 		if (__builtin_cpu_supports("fma"))
 			f |= SIMD_FMA;

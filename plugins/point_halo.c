@@ -337,7 +337,8 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 	n->hb = hb;
 	n->kmin = INT_MAX;
 	n->kmax = INT_MIN;
-	if (!(n->st = malloc((size_t)side * side * sizeof(*n->st))) ||
+	/* 8 more steps: the AVX-512 loop reads a row's last 8 at once */
+	if (!(n->st = calloc((size_t)side * side + 8, sizeof(*n->st))) ||
 	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))))
 		return -1;
 	for (int b = 0; b < side * n->nseg; b++)
@@ -825,70 +826,143 @@ struct near_row {
 	long i0, iu, iv;            /* iv: the row's first sample row */
 };
 
+/* The bilinear value of pixel dx of row q, as every path below computes
+ * it (the same products and sums in double). */
+static inline double near_value(const struct near_row *q, long dx)
+{
+	const struct halo *h = q->h;
+	const float *s = h->a + q->iv * h->n + q->iu + h->over * dx;
+
+	return q->w[0] * s[0] + q->w[1] * s[1] + q->w[2] * s[h->n] + q->w[3] * s[h->n + 1];
+}
+
+/* Pixels dx in [a, b] of row q, every one in the array's plain part: each
+ * adds its bilinear value where its step reaches k, and 0 elsewhere. */
+static inline void near_span_c(const struct near_row *q, const int16_t *st, int k, long a,
+			       long b, double *row)
+{
+	for (long dx = a; dx <= b; dx++) {
+		double v = near_value(q, dx);
+
+		row[dx] += st[dx] >= k ? v : 0;
+	}
+}
+
 #ifdef SIMD_X86
 /*
- * near_run's bilinear stretch, four pixels a step in AVX2: each pixel's
- * two sample pairs (s, s + 1 and s + n, s + n + 1) read as two 8-byte
- * loads and sorted into lanes, then the plain loop's products and sums in
- * double in its order, and its test of the step, so the same bits.
- * Returns the first pixel left to the plain loop.
+ * near_span_c four pixels a step in AVX2, in the same order of products
+ * and sums, so the same bits.  At the built-in two samples a pixel, four
+ * pixels' samples are eight consecutive floats of each sample row: one
+ * load a row, its even and odd samples sorted into halves; at other
+ * samplings each pixel's two samples are one 8-byte load.
  */
-__attribute__((target("avx2"))) static long near_bilinear_avx2(const float *s0, long o,
-								   long n, const double *w,
-								   const int16_t *st, int k,
-								   long a, long b, double *row)
+__attribute__((target("avx2"))) static inline void
+near_span_avx2(const struct near_row *q, const int16_t *st, int k, long a, long b, double *row)
 {
-	__m256d w0 = _mm256_set1_pd(w[0]), w1 = _mm256_set1_pd(w[1]);
-	__m256d w2 = _mm256_set1_pd(w[2]), w3 = _mm256_set1_pd(w[3]);
+	const struct halo *h = q->h;
+	const float *s0 = h->a + q->iv * h->n + q->iu;
+	long o = h->over, n = h->n, dx;
+	__m256d w0 = _mm256_set1_pd(q->w[0]), w1 = _mm256_set1_pd(q->w[1]);
+	__m256d w2 = _mm256_set1_pd(q->w[2]), w3 = _mm256_set1_pd(q->w[3]);
 	__m256i km = _mm256_set1_epi64x((long long)k - 1);
-	long dx;
+	__m256i eo = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
 
 	for (dx = a; dx + 3 <= b; dx += 4) {
-		const float *p0 = s0 + o * dx, *p1 = p0 + o, *p2 = p1 + o, *p3 = p2 + o;
-		__m128 a01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p0),
-					  (const __m64 *)p1);
-		__m128 a23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p2),
-					  (const __m64 *)p3);
-		__m128 b01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p0 + n)),
-					  (const __m64 *)(p1 + n));
-		__m128 b23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p2 + n)),
-					  (const __m64 *)(p3 + n));
-		__m256d v = _mm256_mul_pd(w0, _mm256_cvtps_pd(_mm_shuffle_ps(a01, a23, 0x88)));
+		__m128 e0, o0, e1, o1;
 		__m256i sv = _mm256_cvtepi16_epi64(_mm_loadl_epi64((const __m128i *)(st + dx)));
-		__m256d in = _mm256_castsi256_pd(_mm256_cmpgt_epi64(sv, km));
+		__m256d in = _mm256_castsi256_pd(_mm256_cmpgt_epi64(sv, km)), v;
 
-		v = _mm256_add_pd(v, _mm256_mul_pd(w1, _mm256_cvtps_pd(_mm_shuffle_ps(a01, a23, 0xdd))));
-		v = _mm256_add_pd(v, _mm256_mul_pd(w2, _mm256_cvtps_pd(_mm_shuffle_ps(b01, b23, 0x88))));
-		v = _mm256_add_pd(v, _mm256_mul_pd(w3, _mm256_cvtps_pd(_mm_shuffle_ps(b01, b23, 0xdd))));
+		if (o == 2) {
+			__m256 u = _mm256_permutevar8x32_ps(_mm256_loadu_ps(s0 + 2 * dx), eo);
+			__m256 l = _mm256_permutevar8x32_ps(_mm256_loadu_ps(s0 + 2 * dx + n), eo);
+
+			e0 = _mm256_castps256_ps128(u);
+			o0 = _mm256_extractf128_ps(u, 1);
+			e1 = _mm256_castps256_ps128(l);
+			o1 = _mm256_extractf128_ps(l, 1);
+		} else {
+			const float *p0 = s0 + o * dx, *p1 = p0 + o, *p2 = p1 + o, *p3 = p2 + o;
+			__m128 a01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p0),
+						  (const __m64 *)p1);
+			__m128 a23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p2),
+						  (const __m64 *)p3);
+			__m128 b01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p0 + n)),
+						  (const __m64 *)(p1 + n));
+			__m128 b23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p2 + n)),
+						  (const __m64 *)(p3 + n));
+
+			e0 = _mm_shuffle_ps(a01, a23, 0x88);
+			o0 = _mm_shuffle_ps(a01, a23, 0xdd);
+			e1 = _mm_shuffle_ps(b01, b23, 0x88);
+			o1 = _mm_shuffle_ps(b01, b23, 0xdd);
+		}
+		v = _mm256_mul_pd(w0, _mm256_cvtps_pd(e0));
+		v = _mm256_add_pd(v, _mm256_mul_pd(w1, _mm256_cvtps_pd(o0)));
+		v = _mm256_add_pd(v, _mm256_mul_pd(w2, _mm256_cvtps_pd(e1)));
+		v = _mm256_add_pd(v, _mm256_mul_pd(w3, _mm256_cvtps_pd(o1)));
 		_mm256_storeu_pd(row + dx, _mm256_add_pd(_mm256_loadu_pd(row + dx),
 							 _mm256_and_pd(v, in)));
 	}
-	return dx;
+	near_span_c(q, st, k, dx, b, row);
 }
 #endif
 
-static inline void near_run(const struct near_row *q, const int16_t *st, int k, long a, long b,
-		     double *row)
+/* near_span_c eight pixels a step in AVX-512 F, at two samples a pixel
+ * (near_span_avx2 at others), the same bits: a row segment of the step
+ * map a step. */
+__attribute__((target("avx512f,avx2"))) static inline void
+near_span_avx512(const struct near_row *q, const int16_t *st, int k, long a, long b, double *row)
 {
 	const struct halo *h = q->h;
-	long o = h->over, n = h->n;
+	const float *s0 = h->a + q->iv * h->n + q->iu;
+	long n = h->n, dx;
+	__m512d w0 = _mm512_set1_pd(q->w[0]), w1 = _mm512_set1_pd(q->w[1]);
+	__m512d w2 = _mm512_set1_pd(q->w[2]), w3 = _mm512_set1_pd(q->w[3]);
+	__m512i km = _mm512_set1_epi64((long long)k - 1);
+	__m512i eo = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15);
+
+	if (h->over != 2) {
+		near_span_avx2(q, st, k, a, b, row);
+		return;
+	}
+	for (dx = a; dx <= b; dx += 8) {
+		/* the last step's pixels beyond b masked off (the step map's
+		 * allocation runs on past its last row) */
+		__mmask8 tm = b - dx >= 7 ? 0xff : (__mmask8)((1u << (b - dx + 1)) - 1);
+		__mmask16 tf = b - dx >= 7 ? 0xffff : (__mmask16)((1u << 2 * (b - dx + 1)) - 1);
+		__m512i sv = _mm512_cvtepi16_epi64(_mm_loadu_si128((const __m128i *)(st + dx)));
+		__mmask8 in = _mm512_mask_cmpgt_epi64_mask(tm, sv, km);
+		/* even samples (s[0], s[n]) in the low halves, odd in the high */
+		__m512 u = _mm512_permutexvar_ps(eo, _mm512_maskz_loadu_ps(tf, s0 + 2 * dx));
+		__m512 l = _mm512_permutexvar_ps(eo, _mm512_maskz_loadu_ps(tf, s0 + 2 * dx + n));
+		__m256 uo = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(u), 1));
+		__m256 lo = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(l), 1));
+		__m512d v = _mm512_mul_pd(w0, _mm512_cvtps_pd(_mm512_castps512_ps256(u)));
+
+		v = _mm512_add_pd(v, _mm512_mul_pd(w1, _mm512_cvtps_pd(uo)));
+		v = _mm512_add_pd(v, _mm512_mul_pd(w2, _mm512_cvtps_pd(_mm512_castps512_ps256(l))));
+		v = _mm512_add_pd(v, _mm512_mul_pd(w3, _mm512_cvtps_pd(lo)));
+		_mm512_mask_storeu_pd(row + dx, tm,
+				      _mm512_add_pd(_mm512_maskz_loadu_pd(tm, row + dx),
+						    _mm512_maskz_mov_pd(in, v)));
+	}
+}
+
+/* Any pixels dx in [a, b] of row q whose step reaches k: the bilinear
+ * read within the array's plain part, halo_value() beyond it. */
+static inline void near_run(const struct near_row *q, const int16_t *st, int k, long a, long b,
+			    double *row)
+{
 	double xa = q->i0 + a - q->x, xb = q->i0 + b - q->x;
 
 	if (xa * xa + q->dy * q->dy < q->rin2 && xb * xb + q->dy * q->dy < q->rin2) {
-		/* all within the array's plain part: bilinear reads */
-		const float *s0 = h->a + q->iv * n + q->iu;
-		long dx = a;
-
 #ifdef SIMD_X86
-		if (simd_flags() & SIMD_AVX2)
-			dx = near_bilinear_avx2(s0, o, n, q->w, st, k, a, b, row);
-#endif
-		for (; dx <= b; dx++) {
-			const float *s = s0 + o * dx;
-			double v = q->w[0] * s[0] + q->w[1] * s[1] + q->w[2] * s[n] + q->w[3] * s[n + 1];
-
-			row[dx] += st[dx] >= k ? v : 0;
+		if (simd_flags() & SIMD_AVX2) {
+			near_span_avx2(q, st, k, a, b, row);
+			return;
 		}
+#endif
+		near_span_c(q, st, k, a, b, row);
 		return;
 	}
 	for (long dx = a; dx <= b; dx++) {
@@ -896,13 +970,69 @@ static inline void near_run(const struct near_row *q, const int16_t *st, int k, 
 
 		if (st[dx] < k)
 			continue;
-		if (d2 < q->rin2) {
-			const float *s = h->a + q->iv * n + q->iu + o * dx;
-
-			row[dx] += q->w[0] * s[0] + q->w[1] * s[1] + q->w[2] * s[n] + q->w[3] * s[n + 1];
-		} else
-			row[dx] += q->flux * halo_value(h, ex, q->dy);
+		if (d2 < q->rin2)
+			row[dx] += near_value(q, dx);
+		else
+			row[dx] += q->flux * halo_value(q->h, ex, q->dy);
 	}
+}
+
+typedef void near_span_fn(const struct near_row *q, const int16_t *st, int k, long a, long b,
+			  double *row);
+
+/* Row q's runs t in [r0, r1) of n's segments (offsets from the source's
+ * pixel), each cut to the ranges cut[c] .. cut[c + 1], c even: `span`
+ * draws each part.  Inlined with its span, so that each is one loop. */
+static inline __attribute__((always_inline)) void
+near_runs(near_span_fn *span, const struct near_row *q, const struct near *n, int32_t r0,
+	  int32_t r1, const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+	for (int c = 0; c + 1 < nc; c += 2)
+		for (int32_t t = r0; t < r1; t++) {
+			long a = (long)n->rs[2 * t] * NEAR_SEG - n->rc;
+			long e = (long)(n->rs[2 * t + 1] + 1) * NEAR_SEG - 1 - n->rc;
+
+			if (a > cut[c + 1])
+				break;
+			a = a > cut[c] ? a : cut[c];
+			e = e < cut[c + 1] ? e : cut[c + 1];
+			if (a <= e)
+				span(q, st, k, a, e, row);
+		}
+}
+
+/* near_runs of a row whose every pixel drawn is in the array's plain
+ * part, in the widest vectors this process may use. */
+#ifdef SIMD_X86
+__attribute__((target("avx512f,avx2"))) static void
+near_plain_avx512(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+		const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+	near_runs(near_span_avx512, q, n, r0, r1, cut, nc, st, k, row);
+}
+
+__attribute__((target("avx2"))) static void
+near_plain_avx2(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+		const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+	near_runs(near_span_avx2, q, n, r0, r1, cut, nc, st, k, row);
+}
+#endif
+
+static void near_plain(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+		       const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+#ifdef SIMD_X86
+	if (simd_flags() & SIMD_AVX512) {
+		near_plain_avx512(q, n, r0, r1, cut, nc, st, k, row);
+		return;
+	}
+	if (simd_flags() & SIMD_AVX2) {
+		near_plain_avx2(q, n, r0, r1, cut, nc, st, k, row);
+		return;
+	}
+#endif
+	near_runs(near_span_c, q, n, r0, r1, cut, nc, st, k, row);
 }
 
 /*
@@ -920,6 +1050,8 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
 	struct near_row q = { h, flux, x, 0, (h->R - h->taper) * (h->R - h->taper), { 0 }, i0, 0, 0 };
 	const int32_t *ri;
+	double rp, rp2;
+	long jlo, jhi;
 
 	q.iu = lfloor(ux);
 	fu = ux - q.iu;
@@ -936,12 +1068,26 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	if (k > n->kmax)
 		return;
 	ri = n->ri + (size_t)(k > n->kmin ? k - n->kmin : 0) * n->side;
-	for (int j = 0; j < win->ny; j++) {
+	/* a row whose runs' ends lie this far inside both the chord and the
+	 * array's plain part (by more than the chord's rounding) draws all of
+	 * them as plain reads, without the chord or the per-run tests */
+	rp = sqrt(rm2 < q.rin2 ? rm2 : q.rin2) - 1e-6;
+	rp2 = rp > 0 ? rp * rp : -1;
+	/* the window's rows that can meet the disc (each is tested below) */
+	jlo = lfloor(y - sqrt(rm2)) - 1 - win->y0;
+	jhi = lceil(y + sqrt(rm2)) + 1 - win->y0;
+	jlo = jlo > j0 - n->rc - win->y0 ? jlo : j0 - n->rc - win->y0;
+	jhi = jhi < j0 + n->rc - win->y0 ? jhi : j0 + n->rc - win->y0;
+	jlo = jlo > 0 ? jlo : 0;
+	jhi = jhi < win->ny - 1 ? jhi : win->ny - 1;
+	for (long j = jlo; j <= jhi; j++) {
 		long jj = win->y0 + j, dyo = jj - j0, lo, hi, cut[4];
-		double dy = jj - y, span;
+		long wl = win->x0 - i0, wh = win->x0 + win->nx - 1 - i0;
+		double dy = jj - y, xa, xb;
+		double *row = win->pix + j * win->stride + i0 - win->x0;
 		const int16_t *st;
 		int32_t r0, r1;
-		int nc = 0;
+		int nc = 0, plain;
 
 		if (labs(dyo) > n->rc || dy * dy >= rm2)
 			continue;
@@ -951,16 +1097,27 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 		if (r0 == r1)
 			continue;
 		q.dy = dy;
-		span = sqrt(rm2 - dy * dy);
-		/* the chord (d2 < rm2, within n->rc) in offsets from i0 */
-		lo = lfloor(x - span) + 1 - i0;
-		hi = lceil(x + span) - 1 - i0;
-		lo = lo < -n->rc ? -n->rc : lo;
+		/* the runs' extent within the window */
+		lo = (long)n->rs[2 * r0] * NEAR_SEG - n->rc;
+		hi = (long)(n->rs[2 * r1 - 1] + 1) * NEAR_SEG - 1 - n->rc;
+		lo = lo < wl ? wl : lo;
+		hi = hi > wh ? wh : hi;
 		hi = hi > n->rc ? n->rc : hi;
-		lo = lo < win->x0 - i0 ? win->x0 - i0 : lo;
-		hi = hi > win->x0 + win->nx - 1 - i0 ? win->x0 + win->nx - 1 - i0 : hi;
 		if (lo > hi)
 			continue;
+		xa = i0 + lo - x;
+		xb = i0 + hi - x;
+		plain = xa * xa + dy * dy < rp2 && xb * xb + dy * dy < rp2;
+		if (!plain) {
+			/* the chord (d2 < rm2, within n->rc) in offsets from i0 */
+			double span = sqrt(rm2 - dy * dy);
+			long cl = lfloor(x - span) + 1 - i0, ch = lceil(x + span) - 1 - i0;
+
+			lo = lo < cl ? cl : lo;
+			hi = hi > ch ? ch : hi;
+			if (lo > hi)
+				continue;
+		}
 		cut[nc++] = lo;
 		if (jj >= box.y0 && jj < box.y1 && box.x1 - 1 - i0 >= lo && box.x0 - i0 <= hi) {
 			if (box.x0 - i0 - 1 >= lo)
@@ -973,18 +1130,10 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 		st = n->st + (size_t)(dyo + n->rc) * n->side + n->rc;
 		q.iv = lfloor(uy) + o * dyo;
 		/* each run's part in each cut range */
-		for (int c = 0; c + 1 < nc; c += 2)
-			for (int32_t t = r0; t < r1; t++) {
-				long a = (long)n->rs[2 * t] * NEAR_SEG - n->rc;
-				long e = (long)(n->rs[2 * t + 1] + 1) * NEAR_SEG - 1 - n->rc;
-
-				if (a > cut[c + 1])
-					break;
-				a = a > cut[c] ? a : cut[c];
-				e = e < cut[c + 1] ? e : cut[c + 1];
-				if (a <= e)
-					near_run(&q, st, k, a, e, win->pix + j * win->stride + i0 - win->x0);
-			}
+		if (plain)
+			near_plain(&q, n, r0, r1, cut, nc, st, k, row);
+		else
+			near_runs(near_run, &q, n, r0, r1, cut, nc, st, k, row);
 	}
 }
 

@@ -195,14 +195,19 @@ static double core_plain(const struct core_args *a, float *kvb)
 					v = fmaf(a->bw[2], r[a->ty[2] + a->tx[1]], v);
 					v = fmaf(a->bw[3], r[a->ty[2] + a->tx[2]], v);
 				}
+				/* each tap's sum over the corrections apart, then
+				 * the four summed in pairs, as in core_avx2 */
+				float e1 = 0, e2 = 0, e3 = 0;
+
 				for (int k = 0; k < a->ncor; k++) {
 					const float *rk = a->cbase[k] + o + i0 + l;
 
 					e = fmaf(a->cw[4 * k], rk[a->ty[1] + a->tx[1]], e);
-					e = fmaf(a->cw[4 * k + 1], rk[a->ty[1] + a->tx[2]], e);
-					e = fmaf(a->cw[4 * k + 2], rk[a->ty[2] + a->tx[1]], e);
-					e = fmaf(a->cw[4 * k + 3], rk[a->ty[2] + a->tx[2]], e);
+					e1 = fmaf(a->cw[4 * k + 1], rk[a->ty[1] + a->tx[2]], e1);
+					e2 = fmaf(a->cw[4 * k + 2], rk[a->ty[2] + a->tx[1]], e2);
+					e3 = fmaf(a->cw[4 * k + 3], rk[a->ty[2] + a->tx[2]], e3);
 				}
+				e = (e + e1) + (e2 + e3);
 				kv[i0 + l] = lane[l] = v + e;
 			}
 			for (int l = 0; l < 4; l++)
@@ -274,15 +279,21 @@ __attribute__((target("avx2,fma"))) static double core_avx2(const struct core_ar
 				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[2]), _mm256_loadu_ps(r + y21), v);
 				v = _mm256_fmadd_ps(_mm256_set1_ps(a->bw[3]), _mm256_loadu_ps(r + y22), v);
 			}
+			/* each tap's sum over the corrections apart (four short
+			 * chains of dependent FMAs instead of one long one), then
+			 * the four summed in pairs */
+			__m256 e1 = e, e2 = e, e3 = e;
+
 			for (int q = 0; q < a->ncor; q++) {
 				const float *rk = a->cbase[q] + o + i0;
 				const float *w = a->cw + 4 * q;
 
 				e = _mm256_fmadd_ps(_mm256_set1_ps(w[0]), _mm256_loadu_ps(rk + y11), e);
-				e = _mm256_fmadd_ps(_mm256_set1_ps(w[1]), _mm256_loadu_ps(rk + y12), e);
-				e = _mm256_fmadd_ps(_mm256_set1_ps(w[2]), _mm256_loadu_ps(rk + y21), e);
-				e = _mm256_fmadd_ps(_mm256_set1_ps(w[3]), _mm256_loadu_ps(rk + y22), e);
+				e1 = _mm256_fmadd_ps(_mm256_set1_ps(w[1]), _mm256_loadu_ps(rk + y12), e1);
+				e2 = _mm256_fmadd_ps(_mm256_set1_ps(w[2]), _mm256_loadu_ps(rk + y21), e2);
+				e3 = _mm256_fmadd_ps(_mm256_set1_ps(w[3]), _mm256_loadu_ps(rk + y22), e3);
 			}
+			e = _mm256_add_ps(_mm256_add_ps(e, e1), _mm256_add_ps(e2, e3));
 			v = _mm256_add_ps(v, e);
 			_mm256_storeu_ps(kv + i0, v);
 			in = _mm256_cmpgt_epi32(nk, _mm256_add_epi32(lanes, _mm256_set1_epi32(i0)));

@@ -751,12 +751,20 @@ static inline __attribute__((always_inline)) int render_one(const struct point *
 	};
 
 	if (nc > 0) {
-		struct core_args ca = { .ncor = d->ncor, .keys = d->keys, .nc = nc,
-					.nk = kb - ka, .m = m };
+		/* set field by field: a zeroing initialiser cleared its 350
+		 * bytes a star, of which a faint star's core uses a third */
+		struct core_args ca;
 		ptrdiff_t at = (ptrdiff_t)d->core.y0 * m + d->core.x0;
 		/* a colour source's nearer class cell, or the cell */
 		double kw = d->dk ? fl * d->kbw : fl;
 
+		ca.ncor = d->ncor;
+		ca.keys = d->keys;
+		ca.nc = nc;
+		ca.nk = kb - ka;
+		ca.m = m;
+		ca.dbase = NULL;
+		ca.ds = 0;
 		ca.base = (d->dk ? d->kb : q)->plane + at;
 		for (int a = 0; a < 4; a++) {
 			ca.tx[a] = g->tx[a];

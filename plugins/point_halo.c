@@ -1002,7 +1002,7 @@ near_runs(near_span_fn *span, const struct near_row *q, const struct near *n, in
 }
 
 /* near_runs of a row whose every pixel drawn is in the array's plain
- * part, in the widest vectors this process may use. */
+ * part, in AVX-512, AVX2 or plain C (near_plain_choose). */
 #ifdef SIMD_X86
 __attribute__((target("avx512f,avx2"))) static void
 near_plain_avx512(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
@@ -1019,20 +1019,25 @@ near_plain_avx2(const struct near_row *q, const struct near *n, int32_t r0, int3
 }
 #endif
 
-static void near_plain(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
-		       const long *cut, int nc, const int16_t *st, int k, double *row)
+static void near_plain_c(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+			 const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+	near_runs(near_span_c, q, n, r0, r1, cut, nc, st, k, row);
+}
+
+typedef void near_plain_fn(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+			   const long *cut, int nc, const int16_t *st, int k, double *row);
+
+/* near_plain_*() in the widest vectors this process may use */
+static near_plain_fn *near_plain_choose(void)
 {
 #ifdef SIMD_X86
-	if (simd_flags() & SIMD_AVX512) {
-		near_plain_avx512(q, n, r0, r1, cut, nc, st, k, row);
-		return;
-	}
-	if (simd_flags() & SIMD_AVX2) {
-		near_plain_avx2(q, n, r0, r1, cut, nc, st, k, row);
-		return;
-	}
+	if (simd_flags() & SIMD_AVX512)
+		return near_plain_avx512;
+	if (simd_flags() & SIMD_AVX2)
+		return near_plain_avx2;
 #endif
-	near_runs(near_span_c, q, n, r0, r1, cut, nc, st, k, row);
+	return near_plain_c;
 }
 
 /*
@@ -1051,11 +1056,12 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 	struct near_row q = { h, flux, x, 0, (h->R - h->taper) * (h->R - h->taper), { 0 }, i0, 0, 0 };
 	const int32_t *ri;
 	double rp, rp2;
-	long jlo, jhi;
+	long jlo, jhi, iv0;
+	near_plain_fn *plain_rows = near_plain_choose();
 
 	q.iu = lfloor(ux);
 	fu = ux - q.iu;
-	q.iv = lfloor(uy);
+	iv0 = q.iv = lfloor(uy);
 	fv = uy - q.iv;
 	q.w[0] = flux * h->s * (1 - fu) * (1 - fv);
 	q.w[1] = flux * h->s * fu * (1 - fv);
@@ -1128,10 +1134,10 @@ static void near_render(const struct halo *h, const struct near *n, double flux,
 		}
 		cut[nc++] = hi;
 		st = n->st + (size_t)(dyo + n->rc) * n->side + n->rc;
-		q.iv = lfloor(uy) + o * dyo;
+		q.iv = iv0 + o * dyo;
 		/* each run's part in each cut range */
 		if (plain)
-			near_plain(&q, n, r0, r1, cut, nc, st, k, row);
+			plain_rows(&q, n, r0, r1, cut, nc, st, k, row);
 		else
 			near_runs(near_run, &q, n, r0, r1, cut, nc, st, k, row);
 	}

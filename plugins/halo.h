@@ -79,8 +79,9 @@ static inline double halo_bilinear(const struct halo *h, double u, double v)
 	return (1 - fv) * ((1 - fu) * p[0] + fu * p[1]) + fv * ((1 - fu) * p[h->n] + fu * p[h->n + 1]);
 }
 
-/* atan2(y, x) + pi in turns of HALO_NT bins, to ~2e-6 of a turn (a
- * minimax polynomial for atan on [0, 1]; the bins are 1e-3 of a turn). */
+/* atan2(y, x) + pi in turns of HALO_NT bins, to 2.7e-4 of a bin (a
+ * minimax polynomial for atan on [0, 1], within 1.7e-6 rad of it there;
+ * the bins are 1e-3 of a turn). */
 static inline double halo_bin(double y, double x)
 {
 	double ax = fabs(x), ay = fabs(y), mx = ax > ay ? ax : ay, mn = ax > ay ? ay : ax;
@@ -225,11 +226,12 @@ static inline void halo_setup_amplitude(struct halo *h, double *square_out, doub
 				disc += v;
 			if (d >= HALO_BAND * R && d < R) {
 				/* the bin of atan2(dy, dx): halo_bin() is within
-				 * 3e-4 bins of it (measured over every band sample
-				 * of arrays of 64 to 4096 samples' half-width),
-				 * so away from a bin's edges its floor is the
-				 * same; near them (0.4 % of the samples), atan2
-				 * itself (a third of the set-up's time before) */
+				 * 2.7e-4 bins of it for any direction (its
+				 * polynomial's largest error on [0, 1]), so away
+				 * from a bin's edges its floor is the same; near
+				 * them (0.4 % of the samples, the axes and
+				 * diagonals among them), atan2 itself (a third of
+				 * the set-up's time before) */
 				double t = halo_bin(dy, dx), fr = t - floor(t);
 				int k = fr > HALO_BIN_EDGE && fr < 1 - HALO_BIN_EDGE ?
 						(int)t :

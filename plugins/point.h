@@ -439,8 +439,9 @@ static inline double box_half_of(const struct wfs_source *src)
 #define psf_near(p) ((p)->halo_near > 0 && (p)->diffuse == DIFFUSE_GRID)
 
 /* point_kernels.c: set p's inner loops, the AVX2 ones where the processor
- * has AVX2 and FMA and WFISCENE_NO_SIMD is unset (the plain loops give the
- * same bits; the variable is for testing that they do). */
+ * has AVX2 and FMA and simd_flags() allows them (WFISCENE_NO_SIMD unset or
+ * "avx512"; the plain loops give the same bits, the variable is for
+ * testing that they do). */
 void kernels_choose(struct point *p);
 
 /* point_poly.c */

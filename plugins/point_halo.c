@@ -337,7 +337,9 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 	n->hb = hb;
 	n->kmin = INT_MAX;
 	n->kmax = INT_MIN;
-	/* 8 more steps: the AVX-512 loop reads a row's last 8 at once */
+	/* the AVX-512 loop reads 8 steps from any pixel of a row, up to 7
+	 * past its end: into the next row, or into these 8 past the last
+	 * (whose offsets, beyond the disc, have no step anyway) */
 	if (!(n->st = calloc((size_t)side * side + 8, sizeof(*n->st))) ||
 	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))))
 		return -1;
@@ -905,11 +907,9 @@ near_span_avx2(const struct near_row *q, const int16_t *st, int k, long a, long 
 	}
 	near_span_c(q, st, k, dx, b, row);
 }
-#endif
 
 /* near_span_c eight pixels a step in AVX-512 F, at two samples a pixel
- * (near_span_avx2 at others), the same bits: a row segment of the step
- * map a step. */
+ * (near_span_avx2 at others), the same bits, the last step masked. */
 __attribute__((target("avx512f,avx2"))) static inline void
 near_span_avx512(const struct near_row *q, const int16_t *st, int k, long a, long b, double *row)
 {
@@ -926,8 +926,8 @@ near_span_avx512(const struct near_row *q, const int16_t *st, int k, long a, lon
 		return;
 	}
 	for (dx = a; dx <= b; dx += 8) {
-		/* the last step's pixels beyond b masked off (the step map's
-		 * allocation runs on past its last row) */
+		/* the last step's pixels beyond b masked off (its steps are
+		 * read unmasked, up to 7 past b: see near_setup) */
 		__mmask8 tm = b - dx >= 7 ? 0xff : (__mmask8)((1u << (b - dx + 1)) - 1);
 		__mmask16 tf = b - dx >= 7 ? 0xffff : (__mmask16)((1u << 2 * (b - dx + 1)) - 1);
 		__m512i sv = _mm512_cvtepi16_epi64(_mm_loadu_si128((const __m128i *)(st + dx)));
@@ -947,6 +947,7 @@ near_span_avx512(const struct near_row *q, const int16_t *st, int k, long a, lon
 						    _mm512_maskz_mov_pd(in, v)));
 	}
 }
+#endif
 
 /* Any pixels dx in [a, b] of row q whose step reaches k: the bilinear
  * read within the array's plain part, halo_value() beyond it. */

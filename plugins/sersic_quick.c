@@ -524,8 +524,9 @@ static int quick_block(const struct sersic_gal *g, const void *opt, double x0, d
 	return 1;
 }
 
-/* The vector profile (AVX-512 or AVX2 with FMA) where the CPU has it and WFISCENE_NO_SIMD is not set
- * (the tests compare the two): chosen once per process, as a run with
+/* The vector profile (AVX-512 or AVX2 with FMA) where the CPU has it and
+ * simd_flags() allows it (WFISCENE_NO_SIMD=avx512 keeps AVX2; the tests
+ * compare them): chosen once per process, as a run with
  * several exposures makes a state per exposure while others draw. */
 static pthread_once_t quick_profile_once = PTHREAD_ONCE_INIT;
 

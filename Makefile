@@ -237,6 +237,12 @@ lint-man:
 		{ echo "lint-man: mandoc is not installed (Debian package mandoc)" >&2; exit 1; }
 	$(Q)mandoc -Tlint -W style man/*
 
+## lint-nosimd: compile every source as -DWFS_NO_SIMD builds it (no vector loops), syntax only
+lint-nosimd: $(B)/psf_src.h
+	$(Q)for f in $(wildcard src/*.c plugins/*.c); do \
+		$(CC) $(ALL_CFLAGS) -Werror -DWFS_NO_SIMD -fsyntax-only $$f || exit 1; \
+	done
+
 ## install: install the program, plugins, header, pkg-config file, man pages
 install: all
 	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(PLUGINDIR) $(DESTDIR)$(INCLUDEDIR)/wfiscene \
@@ -257,7 +263,7 @@ clean:
 help:
 	@sed -n 's/^## //p' $(MAKEFILE_LIST)
 
-.PHONY: all deps check unit demo demo-bulge bench bench-render fuzz lint-man install clean help validate FORCE
+.PHONY: all deps check unit demo demo-bulge bench bench-render fuzz lint-man lint-nosimd install clean help validate FORCE
 
 ## validate: the paper's 1000-star photometry test and the load tests (slow; installs python3-matplotlib for the plot)
 validate:

@@ -3,7 +3,7 @@
 # it, directly or through others (a file A "calls" B when A's object uses a
 # symbol B's defines, as nm shows them), no source file is over 1,200
 # lines, no function of src/ or plugins/ is over 120, and vector code
-# sits under simd.h's one switch.  A plugin's own
+# sits under simd.h's one switch (and compiles out with it).  A plugin's own
 # units may call each other; they are not in build/obj.
 . "$(dirname "$0")/lib.sh"
 
@@ -104,5 +104,11 @@ test_expect_success 'vector code is guarded by simd.h alone' '
 	(cd "$TOP" && grep -n -E "__x86_64__|#if(def|ndef)? [A-Z_0-9]*AVX|defined\([A-Z_0-9]*AVX" \
 		src/*.[ch] plugins/*.[ch] | grep -v "^src/simd.h:") > ad_hoc ;
 	test ! -s ad_hoc || { cat ad_hoc; false; }
+'
+# ... and every source still compiles where that switch is off
+# (-DWFS_NO_SIMD, or a processor other than x86-64): a vector loop left
+# outside it broke that build once, unseen.
+test_expect_success 'every source compiles without the vector loops (make lint-nosimd)' '
+	make -s -C "$TOP" lint-nosimd > out 2>&1 || { cat out; false; }
 '
 test_done

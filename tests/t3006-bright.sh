@@ -104,25 +104,41 @@ json.dump(r, open(\"s2.json\", \"w\"))" &&
 '
 # The halo's pixels above the level are drawn by vector loops of two
 # widths (AVX-512 eight pixels a step, AVX2 four) and a plain loop, each
-# taken where the processor has it: all three the same bits, on a field
-# whose stars' halos cross tile edges, each other and their boxes, at
-# every sub-pixel phase.
-test_expect_success 'bright stars: the AVX-512, AVX2 and plain loops draw the same bits' '
+# taken where the processor has it: the same bits, on a field whose
+# stars' halos cross tile edges, each other and their boxes, at every
+# sub-pixel phase.  Each width is compared where this processor has it.
+grep -q '^flags.* avx2' /proc/cpuinfo 2>/dev/null && has_avx2=1 || has_avx2=
+grep -q '^flags.* avx512f' /proc/cpuinfo 2>/dev/null && has_avx512=1 || has_avx512=
+test_expect_success 'bright stars: a field of halos, drawn with the plain loops' '
 	"$BUILD/contrib/starfield" -n 400 -x -m 12 -M 20 -s 9 > br.csv &&
-	"$WFS" --filter F158 --flux-unit abmag --exptime 139.8 --rows 1-1200 -o v.fits br.csv &&
-	WFISCENE_NO_SIMD=avx512 "$WFS" --filter F158 --flux-unit abmag --exptime 139.8 \
-		--rows 1-1200 -o v2.fits br.csv &&
 	WFISCENE_NO_SIMD=1 "$WFS" --filter F158 --flux-unit abmag --exptime 139.8 \
 		--rows 1-1200 -o p.fits br.csv &&
-	test_cmp v.fits v2.fits &&
-	test_cmp v.fits p.fits &&
 	"$PY" -c "
 from astropy.io import fits
 import numpy as np
-a = fits.getdata(\"v.fits\", 1)
+a = fits.getdata(\"p.fits\", 1)
 assert (a != 0).mean() > 0.2, (a != 0).mean()
 "
 '
+if [ -n "$has_avx2" ]; then
+	test_expect_success 'bright stars: the AVX2 loops draw the same bits as the plain ones' '
+		WFISCENE_NO_SIMD=avx512 "$WFS" --filter F158 --flux-unit abmag --exptime 139.8 \
+			--rows 1-1200 -o v2.fits br.csv &&
+		test_cmp p.fits v2.fits
+	'
+else
+	test_skip 'bright stars: the AVX2 loops draw the same bits as the plain ones' \
+		'this processor has no AVX2'
+fi
+if [ -n "$has_avx512" ]; then
+	test_expect_success 'bright stars: the AVX-512 loops draw the same bits as the plain ones' '
+		"$WFS" --filter F158 --flux-unit abmag --exptime 139.8 --rows 1-1200 -o v.fits br.csv &&
+		test_cmp p.fits v.fits
+	'
+else
+	test_skip 'bright stars: the AVX-512 loops draw the same bits as the plain ones' \
+		'this processor has no AVX-512'
+fi
 test_expect_success 'psf-extent=stips: the square boxes of STIPS, the light beyond them left out' '
 	"$WFS" --filter F158 --flux-unit abmag --set psf-extent=stips -o st.fits two.csv &&
 	"$PY" -c "

@@ -338,6 +338,65 @@ done
 rm -f "$W/bright.csv"
 
 echo
+echo "## Two goals' ratios: bright stars against STIPS's boxes, spectra against none"
+echo
+echo "Each ratio from paired rounds: in every round each run of the pair in"
+echo "turn, each right after a process touched 600 MB (a virtual machine slow to"
+echo "give back freed memory makes the first run of a round pay for it"
+echo "otherwise); the median of the rounds' ratios.  CPU is --report's"
+echo "cpu_user + cpu_system, render + set-up its render_cpu + project_place."
+echo "The AB 15-26 mix (issue 34's goal: CPU at most 1.5x STIPS's boxes): 10^5"
+echo "stars uniform on SCA 1 and uniform in AB 15-26 (the magnitudes by awk,"
+echo "\`srand(11)\`; mawk's numbers), \`wfiscene --filter F158 --flux-unit abmag"
+echo "--noise all --exptime 139.8 [--set psf-extent=stips]\`.  Spectra (issue"
+echo "30's goal: render + set-up at most 1.2x): 10^6 faint stars on SCA 1"
+echo "(\`starfield -n 1000000 -x -s 1\`), and the same rows with a \`teff\`"
+echo "column log-uniform in 2500-50 000 K (awk, \`srand(7)\`)."
+echo
+echo "| pair | filter | rounds | run A CPU s (median) | run B CPU s (median) | CPU B / A | render + set-up B / A |"
+echo "|---|---|---|---|---|---|---|"
+cc -O2 -o "$W/firsttouch" contrib/bench/firsttouch.c
+nr=5; nmix=100000; ncol=$big
+[ "$quick" = 1 ] && nr=3 && nmix=20000
+"$GEN" -n $nmix -x -s 11 -m 15 -M 26 |
+	awk -F, 'BEGIN { OFS = ","; srand(11) } NR > 1 { $4 = sprintf("%.3f", 15 + 11 * rand()) } { print }' \
+	> "$W/mix.csv"
+"$GEN" -n $ncol -x -s 1 > "$W/plain.csv"
+awk -F, 'BEGIN { srand(7) } NR == 1 { print $0 ",teff"; next }
+	{ printf "%s,%.1f\n", $0, 2500 * exp(rand() * log(20)) }' "$W/plain.csv" > "$W/teff.csv"
+# pair LABEL FILTER "ARGS A" "ARGS B": one table row from nr paired rounds
+pair() {
+	: > "$W/pair.txt"
+	for k in $(seq $nr); do
+		for ab in A B; do
+			[ $ab = A ] && args=$3 || args=$4
+			"$W/firsttouch" 600 > /dev/null
+			"$WFS" --filter $2 --flux-unit abmag $args --report "$W/rp.json" -o /dev/null ||
+				exit 1
+			echo "$k $ab $(json "$W/rp.json" seconds cpu_user) $(json "$W/rp.json" seconds cpu_system)" \
+				"$(json "$W/rp.json" seconds render_cpu) $(json "$W/rp.json" seconds project_place)" \
+				>> "$W/pair.txt"
+		done
+	done
+	awk -v l="$1" -v f=$2 -v n=$nr '
+	function median(a, m,   i, j, t) {
+		for (i = 1; i <= m; i++) for (j = i + 1; j <= m; j++) if (a[j] < a[i]) { t = a[i]; a[i] = a[j]; a[j] = t }
+		return m % 2 ? a[(m + 1) / 2] : (a[m / 2] + a[m / 2 + 1]) / 2 }
+	$2 == "A" { ca[$1] = $3 + $4; ra[$1] = $5 + $6 }
+	$2 == "B" { cb[$1] = $3 + $4; rb[$1] = $5 + $6 }
+	END {
+		for (k = 1; k <= n; k++) { x[k] = ca[k]; y[k] = cb[k]; c[k] = cb[k] / ca[k]; r[k] = rb[k] / ra[k] }
+		printf "| %s | %s | %d | %.3f | %.3f | %.3f | %.3f |\n", l, f, n, median(x, n), median(y, n), median(c, n), median(r, n) }' "$W/pair.txt"
+}
+mixargs="--noise all --exptime 139.8"
+pair "AB 15-26 mix, $nmix stars: STIPS's boxes (A), the default (B)" F158 \
+	"$mixargs --set psf-extent=stips $W/mix.csv" "$mixargs $W/mix.csv"
+for f in F146 F158; do
+	pair "$ncol faint stars: no spectrum (A), teff (B)" $f "$W/plain.csv" "$W/teff.csv"
+done
+rm -f "$W/mix.csv" "$W/plain.csv" "$W/teff.csv" "$W/pair.txt"
+
+echo
 echo "## 10^7 sky rows on 18 SCAs, end to end"
 echo
 echo "Stars given by RA/Dec over a 0.9 degree square about the boresight (AB"

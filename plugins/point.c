@@ -94,8 +94,10 @@
  * Files: this one holds the settings, init/fini and the callbacks;
  * point_epsf.c a source's ePSF box, point_poly.c the polyphase copies,
  * point_kernels.c the inner loops, point_halo.c psf-extent=noise's halo
- * (the model itself in halo.h, shared with contrib/bench/halo.c), and
- * point.h what they share.
+ * (the model itself in halo.h, shared with contrib/bench/halo.c),
+ * point_near.c its pixels above the level (psf-halo-near), point_far.c
+ * the light left out, spread on the diffuse grid, and point.h what they
+ * share.
  */
 #include <math.h>
 #include <stdatomic.h>

@@ -10,6 +10,7 @@
  *   point_epsf.c     a source's ePSF box: its plan, flux factor and drawing
  *   point_kernels.c  the inner loops (plain and AVX2, the same bits)
  *   point_halo.c     psf-extent=noise: the halo beyond the box
+ *   point_near.c     psf-halo-near: the halo's pixels above the level
  *   point_far.c      psf-diffuse=grid: the light left out, spread per tile
  */
 #ifndef WFS_POINT_H
@@ -171,7 +172,7 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
 #define FAR_STEPS 4
 #define NEAR_SEG 8              /* offsets of a row segment of the step map */
 
-/* The halo's array, pixel by pixel (point_halo.c, near_setup): for every
+/* The halo's array, pixel by pixel (point_near.c, near_setup): for every
  * pixel offset (dx, dy) from the pixel nearest a source within the
  * array's disc, its step st[(dy + rc) side + dx + rc], floor(FAR_STEPS
  * log2 vmax) of its largest value at any phase (INT16_MIN beyond the
@@ -467,6 +468,17 @@ int noise_render(struct point *p, const struct wfs_source *src, const struct wfs
 int noise_reach(struct point *p, const struct wfs_source *src, double *pixels);
 double halo_level(const struct point *p, double flux, int *k);
 void hslot_free_all(struct point *p);
+
+/* point_near.c: psf-halo-near; near_of() sets up slot s's step map and
+ * runs on first use (the box's half-width hb), near_under() is the light
+ * (over the flux) a source of level step k leaves to the grid within the
+ * array's disc, near_render() draws a source's pixels of level step k or
+ * above within radius r, outside its box, into win */
+const struct near *near_of(struct point *p, struct hslot *s, int hb);
+double near_under(const struct near *n, int k);
+void near_free(struct near *n);
+void near_render(const struct halo *h, const struct near *n, double flux, double x, double y,
+		 double r, int k, struct zone box, const struct wfs_window *win);
 
 /* The colour halo idx of SCA sca once made (NULL before), or with idx -1
  * the SCA's default one. */

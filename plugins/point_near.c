@@ -1,0 +1,501 @@
+/*
+ * point_near.c - psf-halo-near: within a bright source's halo array, only
+ * the pixels at or above its drawing level are drawn.  The step map of
+ * each halo (per pixel offset from the source's pixel, the level step of
+ * its largest value at any phase), its runs of row segments per level
+ * step, and the light each step leaves to the diffuse grid; and the
+ * drawing of a source's runs in a window, in AVX-512, AVX2 or plain C
+ * (the same bits).
+ */
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "point.h"
+
+/* The largest value of pixel offset (dx, dy) from the pixel nearest a
+ * source at any phase (|phase| <= 1/2): the samples its bilinear read may
+ * take, and in the hand-over to the tail the tail at its corners. */
+static double near_vmax(const struct halo *h, int dx, int dy)
+{
+	int o = h->over, hw = (o + 1) / 2;
+	double v = 0, d = sqrt((double)dx * dx + (double)dy * dy);
+
+	for (int j = -hw; j <= hw; j++)
+		for (int i = -hw; i <= hw; i++) {
+			long u = h->c + (long)o * dx + i, w = h->c + (long)o * dy + j;
+
+			if (u >= 0 && w >= 0 && u < h->n && w < h->n && h->a[w * h->n + u] * h->s > v)
+				v = h->a[w * h->n + u] * h->s;
+		}
+	if (d + 0.75 > h->R - h->taper)
+		for (int c = 0; c < 5; c++) {
+			double t = halo_tail(h, dx + (c < 4 ? (c & 1) - 0.5 : 0),
+					     dy + (c < 4 ? (c >> 1) - 0.5 : 0));
+
+			v = t > v ? t : v;
+		}
+	return v;
+}
+
+/* The runs of segments (point.h, struct near: ri, rs) of every level and
+ * row, in that order: counted, then written. */
+static int near_segments(struct near *n)
+{
+	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side, t = 0;
+
+	if (!(n->ri = malloc((nk * side + 1) * sizeof(*n->ri))))
+		return -1;
+	for (int pass = 0; pass < 2; pass++) {
+		t = 0;
+		for (size_t L = 0; L < nk; L++)
+			for (size_t row = 0; row < side; row++) {
+				const int16_t *sm = n->smax + row * n->nseg;
+				int k = n->kmin + (int)L;
+
+				if (pass)
+					n->ri[L * side + row] = (int32_t)t;
+				for (int g = 0; g < n->nseg; g++) {
+					if (sm[g] < k || (g && sm[g - 1] >= k))
+						continue;
+					if (pass) {
+						int e = g;
+
+						while (e + 1 < n->nseg && sm[e + 1] >= k)
+							e++;
+						n->rs[2 * t] = (int16_t)g;
+						n->rs[2 * t + 1] = (int16_t)e;
+					}
+					t++;
+				}
+			}
+		if (!pass && !(n->rs = malloc((t ? t : 1) * 2 * sizeof(*n->rs))))
+			return -1;
+	}
+	n->ri[nk * side] = (int32_t)t;
+	return 0;
+}
+
+/* Set up n from halo h and the box half-width hb: 0, or -1 when out of
+ * memory. */
+static int near_setup(struct near *n, const struct halo *h, int hb)
+{
+	int rc = (int)ceil(h->R) + 1, side = 2 * rc + 1;
+	double *bin = NULL;
+
+	n->rc = rc;
+	n->side = side;
+	n->nseg = (side + NEAR_SEG - 1) / NEAR_SEG;
+	n->hb = hb;
+	n->kmin = INT_MAX;
+	n->kmax = INT_MIN;
+	/* the AVX-512 loop reads 8 steps from any pixel of a row, up to 7
+	 * past its end: into the next row, or into these 8 past the last
+	 * (whose offsets, beyond the disc, have no step anyway) */
+	if (!(n->st = calloc((size_t)side * side + 8, sizeof(*n->st))) ||
+	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))))
+		return -1;
+	for (int b = 0; b < side * n->nseg; b++)
+		n->smax[b] = INT16_MIN;
+	for (int dy = -rc; dy <= rc; dy++)
+		for (int dx = -rc; dx <= rc; dx++) {
+			double vm = 0, d = sqrt((double)dx * dx + (double)dy * dy);
+			int st = INT16_MIN, b = (dy + rc) * n->nseg + (dx + rc) / NEAR_SEG;
+
+			if (d < h->R + 1 && (vm = near_vmax(h, dx, dy)) > 0) {
+				st = (int)floor(FAR_STEPS * log2(vm));
+				st = st <= INT16_MIN ? INT16_MIN + 1 : st;
+				n->kmin = st < n->kmin ? st : n->kmin;
+				n->kmax = st > n->kmax ? st : n->kmax;
+			}
+			n->st[(size_t)(dy + rc) * side + dx + rc] = (int16_t)st;
+			n->smax[b] = (int16_t)(st > n->smax[b] ? st : n->smax[b]);
+		}
+	if (n->kmin > n->kmax)
+		n->kmin = n->kmax = 0;
+	if (near_segments(n) < 0)
+		return -1;
+	if (!(n->under = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))) ||
+	    !(bin = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))))
+		return -1;
+	/* the light of each step's offsets within the disc outside the box */
+	for (int dy = -rc; dy <= rc; dy++)
+		for (int dx = -rc; dx <= rc; dx++) {
+			int st = n->st[(size_t)(dy + rc) * side + dx + rc];
+
+			if (st >= n->kmin && (double)dx * dx + (double)dy * dy < h->R * h->R &&
+			    (abs(dx) >= hb || abs(dy) >= hb))
+				bin[st - n->kmin] += halo_value(h, dx, dy);
+		}
+	for (int k = 1; k <= n->kmax - n->kmin + 1; k++)
+		n->under[k] = n->under[k - 1] + bin[k - 1];
+	free(bin);
+	return 0;
+}
+
+void near_free(struct near *n)
+{
+	free(n->st);
+	free(n->smax);
+	free(n->ri);
+	free(n->rs);
+	free(n->under);
+	memset(n, 0, sizeof(*n));
+}
+
+/* The light (over the flux) a source of level step k leaves to the grid
+ * within the array's disc. */
+double near_under(const struct near *n, int k)
+{
+	if (k <= n->kmin)
+		return 0;
+	return n->under[(k > n->kmax + 1 ? n->kmax + 1 : k) - n->kmin];
+}
+
+/* Slot s's lists, set up on first use under the lock (the box: hb). */
+const struct near *near_of(struct point *p, struct hslot *s, int hb)
+{
+	struct near *n = &s->near;
+	int ok = 1;
+
+	if (atomic_load_explicit(&s->near_ready, memory_order_acquire))
+		return n;
+	pthread_mutex_lock(&p->lock);
+	if (!atomic_load_explicit(&s->near_ready, memory_order_relaxed)) {
+		if ((ok = near_setup(n, &s->h, hb) == 0))
+			atomic_store_explicit(&s->near_ready, 1, memory_order_release);
+		else
+			near_free(n);
+	}
+	pthread_mutex_unlock(&p->lock);
+	if (!ok) {
+		p->host->error(p->host->ctx, "out of memory for the halo's pixel lists");
+		return NULL;
+	}
+	return n;
+}
+
+/* near_render's pixels i0 + dx of window row `row` for dx in [a, b],
+ * those whose step (st, indexed by dx) reaches k. */
+struct near_row {
+	const struct halo *h;
+	double flux, x, dy, rin2, w[4];
+	long i0, iu, iv;            /* iv: the row's first sample row */
+};
+
+/* The bilinear value of pixel dx of row q, as every path below computes
+ * it (the same products and sums in double). */
+static inline double near_value(const struct near_row *q, long dx)
+{
+	const struct halo *h = q->h;
+	const float *s = h->a + q->iv * h->n + q->iu + h->over * dx;
+
+	return q->w[0] * s[0] + q->w[1] * s[1] + q->w[2] * s[h->n] + q->w[3] * s[h->n + 1];
+}
+
+/* Pixels dx in [a, b] of row q, every one in the array's plain part: each
+ * adds its bilinear value where its step reaches k, and 0 elsewhere. */
+static inline void near_span_c(const struct near_row *q, const int16_t *st, int k, long a,
+			       long b, double *row)
+{
+	for (long dx = a; dx <= b; dx++) {
+		double v = near_value(q, dx);
+
+		row[dx] += st[dx] >= k ? v : 0;
+	}
+}
+
+#ifdef SIMD_X86
+/*
+ * near_span_c four pixels a step in AVX2, in the same order of products
+ * and sums, so the same bits.  At the built-in two samples a pixel, four
+ * pixels' samples are eight consecutive floats of each sample row: one
+ * load a row, its even and odd samples sorted into halves; at other
+ * samplings each pixel's two samples are one 8-byte load.
+ */
+__attribute__((target("avx2"))) static inline void
+near_span_avx2(const struct near_row *q, const int16_t *st, int k, long a, long b, double *row)
+{
+	const struct halo *h = q->h;
+	const float *s0 = h->a + q->iv * h->n + q->iu;
+	long o = h->over, n = h->n, dx;
+	__m256d w0 = _mm256_set1_pd(q->w[0]), w1 = _mm256_set1_pd(q->w[1]);
+	__m256d w2 = _mm256_set1_pd(q->w[2]), w3 = _mm256_set1_pd(q->w[3]);
+	__m256i km = _mm256_set1_epi64x((long long)k - 1);
+	__m256i eo = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+
+	for (dx = a; dx + 3 <= b; dx += 4) {
+		__m128 e0, o0, e1, o1;
+		__m256i sv = _mm256_cvtepi16_epi64(_mm_loadl_epi64((const __m128i *)(st + dx)));
+		__m256d in = _mm256_castsi256_pd(_mm256_cmpgt_epi64(sv, km)), v;
+
+		if (o == 2) {
+			__m256 u = _mm256_permutevar8x32_ps(_mm256_loadu_ps(s0 + 2 * dx), eo);
+			__m256 l = _mm256_permutevar8x32_ps(_mm256_loadu_ps(s0 + 2 * dx + n), eo);
+
+			e0 = _mm256_castps256_ps128(u);
+			o0 = _mm256_extractf128_ps(u, 1);
+			e1 = _mm256_castps256_ps128(l);
+			o1 = _mm256_extractf128_ps(l, 1);
+		} else {
+			const float *p0 = s0 + o * dx, *p1 = p0 + o, *p2 = p1 + o, *p3 = p2 + o;
+			__m128 a01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p0),
+						  (const __m64 *)p1);
+			__m128 a23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p2),
+						  (const __m64 *)p3);
+			__m128 b01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p0 + n)),
+						  (const __m64 *)(p1 + n));
+			__m128 b23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p2 + n)),
+						  (const __m64 *)(p3 + n));
+
+			e0 = _mm_shuffle_ps(a01, a23, 0x88);
+			o0 = _mm_shuffle_ps(a01, a23, 0xdd);
+			e1 = _mm_shuffle_ps(b01, b23, 0x88);
+			o1 = _mm_shuffle_ps(b01, b23, 0xdd);
+		}
+		v = _mm256_mul_pd(w0, _mm256_cvtps_pd(e0));
+		v = _mm256_add_pd(v, _mm256_mul_pd(w1, _mm256_cvtps_pd(o0)));
+		v = _mm256_add_pd(v, _mm256_mul_pd(w2, _mm256_cvtps_pd(e1)));
+		v = _mm256_add_pd(v, _mm256_mul_pd(w3, _mm256_cvtps_pd(o1)));
+		_mm256_storeu_pd(row + dx, _mm256_add_pd(_mm256_loadu_pd(row + dx),
+							 _mm256_and_pd(v, in)));
+	}
+	near_span_c(q, st, k, dx, b, row);
+}
+
+/* near_span_c eight pixels a step in AVX-512 F, at two samples a pixel
+ * (near_span_avx2 at others), the same bits, the last step masked. */
+__attribute__((target("avx512f,avx2"))) static inline void
+near_span_avx512(const struct near_row *q, const int16_t *st, int k, long a, long b, double *row)
+{
+	const struct halo *h = q->h;
+	const float *s0 = h->a + q->iv * h->n + q->iu;
+	long n = h->n, dx;
+	__m512d w0 = _mm512_set1_pd(q->w[0]), w1 = _mm512_set1_pd(q->w[1]);
+	__m512d w2 = _mm512_set1_pd(q->w[2]), w3 = _mm512_set1_pd(q->w[3]);
+	__m512i km = _mm512_set1_epi64((long long)k - 1);
+	__m512i eo = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15);
+
+	if (h->over != 2) {
+		near_span_avx2(q, st, k, a, b, row);
+		return;
+	}
+	for (dx = a; dx <= b; dx += 8) {
+		/* the last step's pixels beyond b masked off (its steps are
+		 * read unmasked, up to 7 past b: see near_setup) */
+		__mmask8 tm = b - dx >= 7 ? 0xff : (__mmask8)((1u << (b - dx + 1)) - 1);
+		__mmask16 tf = b - dx >= 7 ? 0xffff : (__mmask16)((1u << 2 * (b - dx + 1)) - 1);
+		__m512i sv = _mm512_cvtepi16_epi64(_mm_loadu_si128((const __m128i *)(st + dx)));
+		__mmask8 in = _mm512_mask_cmpgt_epi64_mask(tm, sv, km);
+		/* even samples (s[0], s[n]) in the low halves, odd in the high */
+		__m512 u = _mm512_permutexvar_ps(eo, _mm512_maskz_loadu_ps(tf, s0 + 2 * dx));
+		__m512 l = _mm512_permutexvar_ps(eo, _mm512_maskz_loadu_ps(tf, s0 + 2 * dx + n));
+		__m256 uo = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(u), 1));
+		__m256 lo = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(l), 1));
+		__m512d v = _mm512_mul_pd(w0, _mm512_cvtps_pd(_mm512_castps512_ps256(u)));
+
+		v = _mm512_add_pd(v, _mm512_mul_pd(w1, _mm512_cvtps_pd(uo)));
+		v = _mm512_add_pd(v, _mm512_mul_pd(w2, _mm512_cvtps_pd(_mm512_castps512_ps256(l))));
+		v = _mm512_add_pd(v, _mm512_mul_pd(w3, _mm512_cvtps_pd(lo)));
+		_mm512_mask_storeu_pd(row + dx, tm,
+				      _mm512_add_pd(_mm512_maskz_loadu_pd(tm, row + dx),
+						    _mm512_maskz_mov_pd(in, v)));
+	}
+}
+#endif
+
+/* Any pixels dx in [a, b] of row q whose step reaches k: the bilinear
+ * read within the array's plain part, halo_value() beyond it. */
+static inline void near_run(const struct near_row *q, const int16_t *st, int k, long a, long b,
+			    double *row)
+{
+	double xa = q->i0 + a - q->x, xb = q->i0 + b - q->x;
+
+	if (xa * xa + q->dy * q->dy < q->rin2 && xb * xb + q->dy * q->dy < q->rin2) {
+#ifdef SIMD_X86
+		if (simd_flags() & SIMD_AVX2) {
+			near_span_avx2(q, st, k, a, b, row);
+			return;
+		}
+#endif
+		near_span_c(q, st, k, a, b, row);
+		return;
+	}
+	for (long dx = a; dx <= b; dx++) {
+		double ex = q->i0 + dx - q->x, d2 = ex * ex + q->dy * q->dy;
+
+		if (st[dx] < k)
+			continue;
+		if (d2 < q->rin2)
+			row[dx] += near_value(q, dx);
+		else
+			row[dx] += q->flux * halo_value(q->h, ex, q->dy);
+	}
+}
+
+typedef void near_span_fn(const struct near_row *q, const int16_t *st, int k, long a, long b,
+			  double *row);
+
+/* Row q's runs t in [r0, r1) of n's segments (offsets from the source's
+ * pixel), each cut to the ranges cut[c] .. cut[c + 1], c even: `span`
+ * draws each part.  Inlined with its span, so that each is one loop. */
+static inline __attribute__((always_inline)) void
+near_runs(near_span_fn *span, const struct near_row *q, const struct near *n, int32_t r0,
+	  int32_t r1, const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+	for (int c = 0; c + 1 < nc; c += 2)
+		for (int32_t t = r0; t < r1; t++) {
+			long a = (long)n->rs[2 * t] * NEAR_SEG - n->rc;
+			long e = (long)(n->rs[2 * t + 1] + 1) * NEAR_SEG - 1 - n->rc;
+
+			if (a > cut[c + 1])
+				break;
+			a = a > cut[c] ? a : cut[c];
+			e = e < cut[c + 1] ? e : cut[c + 1];
+			if (a <= e)
+				span(q, st, k, a, e, row);
+		}
+}
+
+/* near_runs of a row whose every pixel drawn is in the array's plain
+ * part, in AVX-512, AVX2 or plain C (near_plain_choose). */
+#ifdef SIMD_X86
+__attribute__((target("avx512f,avx2"))) static void
+near_plain_avx512(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+		const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+	near_runs(near_span_avx512, q, n, r0, r1, cut, nc, st, k, row);
+}
+
+__attribute__((target("avx2"))) static void
+near_plain_avx2(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+		const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+	near_runs(near_span_avx2, q, n, r0, r1, cut, nc, st, k, row);
+}
+#endif
+
+static void near_plain_c(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+			 const long *cut, int nc, const int16_t *st, int k, double *row)
+{
+	near_runs(near_span_c, q, n, r0, r1, cut, nc, st, k, row);
+}
+
+typedef void near_plain_fn(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
+			   const long *cut, int nc, const int16_t *st, int k, double *row);
+
+/* near_plain_*() in the widest vectors this process may use */
+static near_plain_fn *near_plain_choose(void)
+{
+#ifdef SIMD_X86
+	if (simd_flags() & SIMD_AVX512)
+		return near_plain_avx512;
+	if (simd_flags() & SIMD_AVX2)
+		return near_plain_avx2;
+#endif
+	return near_plain_c;
+}
+
+/*
+ * psf-halo-near=level: the pixels of the window within the array's disc
+ * and radius r of the source, outside its box, whose step reaches k (the
+ * step map of near_setup, row by row, skipping the segments none of
+ * whose pixels reach k), flux times the halo model; the bilinear weights from
+ * the pixel nearest the source, so that they do not depend on the window.
+ */
+SIMD_CLONES("avx2,fma", "default")
+void near_render(const struct halo *h, const struct near *n, double flux, double x,
+			double y, double r, int k, struct zone box, const struct wfs_window *win)
+{
+	long i0 = lfloor(x + 0.5), j0 = lfloor(y + 0.5), o = h->over;
+	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
+	struct near_row q = { h, flux, x, 0, (h->R - h->taper) * (h->R - h->taper), { 0 }, i0, 0, 0 };
+	const int32_t *ri;
+	double rp, rp2;
+	long jlo, jhi, iv0;
+	near_plain_fn *plain_rows = near_plain_choose();
+
+	q.iu = lfloor(ux);
+	fu = ux - q.iu;
+	iv0 = q.iv = lfloor(uy);
+	fv = uy - q.iv;
+	q.w[0] = flux * h->s * (1 - fu) * (1 - fv);
+	q.w[1] = flux * h->s * fu * (1 - fv);
+	q.w[2] = flux * h->s * (1 - fu) * fv;
+	q.w[3] = flux * h->s * fu * fv;
+	rm2 = r < h->R ? r * r : h->R * h->R;
+	/* beyond the steepest step nothing is drawn; below the lowest, every
+	 * offset of the disc, as at the lowest (halo_level keeps k above the
+	 * INT16_MIN of the offsets beyond it) */
+	if (k > n->kmax)
+		return;
+	ri = n->ri + (size_t)(k > n->kmin ? k - n->kmin : 0) * n->side;
+	/* a row whose runs' ends lie this far inside both the chord and the
+	 * array's plain part (by more than the chord's rounding) draws all of
+	 * them as plain reads, without the chord or the per-run tests */
+	rp = sqrt(rm2 < q.rin2 ? rm2 : q.rin2) - 1e-6;
+	rp2 = rp > 0 ? rp * rp : -1;
+	/* the window's rows that can meet the disc (each is tested below) */
+	jlo = lfloor(y - sqrt(rm2)) - 1 - win->y0;
+	jhi = lceil(y + sqrt(rm2)) + 1 - win->y0;
+	jlo = jlo > j0 - n->rc - win->y0 ? jlo : j0 - n->rc - win->y0;
+	jhi = jhi < j0 + n->rc - win->y0 ? jhi : j0 + n->rc - win->y0;
+	jlo = jlo > 0 ? jlo : 0;
+	jhi = jhi < win->ny - 1 ? jhi : win->ny - 1;
+	for (long j = jlo; j <= jhi; j++) {
+		long jj = win->y0 + j, dyo = jj - j0, lo, hi, cut[4];
+		long wl = win->x0 - i0, wh = win->x0 + win->nx - 1 - i0;
+		double dy = jj - y, xa, xb;
+		double *row = win->pix + j * win->stride + i0 - win->x0;
+		const int16_t *st;
+		int32_t r0, r1;
+		int nc = 0, plain;
+
+		if (labs(dyo) > n->rc || dy * dy >= rm2)
+			continue;
+		/* the row's runs of segments that reach k */
+		r0 = ri[dyo + n->rc];
+		r1 = ri[dyo + n->rc + 1];
+		if (r0 == r1)
+			continue;
+		q.dy = dy;
+		/* the runs' extent within the window */
+		lo = (long)n->rs[2 * r0] * NEAR_SEG - n->rc;
+		hi = (long)(n->rs[2 * r1 - 1] + 1) * NEAR_SEG - 1 - n->rc;
+		lo = lo < wl ? wl : lo;
+		hi = hi > wh ? wh : hi;
+		hi = hi > n->rc ? n->rc : hi;
+		if (lo > hi)
+			continue;
+		xa = i0 + lo - x;
+		xb = i0 + hi - x;
+		plain = xa * xa + dy * dy < rp2 && xb * xb + dy * dy < rp2;
+		if (!plain) {
+			/* the chord (d2 < rm2, within n->rc) in offsets from i0 */
+			double span = sqrt(rm2 - dy * dy);
+			long cl = lfloor(x - span) + 1 - i0, ch = lceil(x + span) - 1 - i0;
+
+			lo = lo < cl ? cl : lo;
+			hi = hi > ch ? ch : hi;
+			if (lo > hi)
+				continue;
+		}
+		cut[nc++] = lo;
+		if (jj >= box.y0 && jj < box.y1 && box.x1 - 1 - i0 >= lo && box.x0 - i0 <= hi) {
+			if (box.x0 - i0 - 1 >= lo)
+				cut[nc++] = box.x0 - i0 - 1;
+			else
+				nc = 0;
+			cut[nc++] = box.x1 - i0;
+		}
+		cut[nc++] = hi;
+		st = n->st + (size_t)(dyo + n->rc) * n->side + n->rc;
+		q.iv = iv0 + o * dyo;
+		/* each run's part in each cut range */
+		if (plain)
+			plain_rows(&q, n, r0, r1, cut, nc, st, k, row);
+		else
+			near_runs(near_run, &q, n, r0, r1, cut, nc, st, k, row);
+	}
+}

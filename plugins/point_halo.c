@@ -226,9 +226,14 @@ static double core_scale(struct point *p, const struct wfs_source *src, struct h
 			return -1;
 		fine = (1 - g) * fine + g * core_light(&e, &half);
 	}
+	/* a box wider than the array (psf-halo-radius below the box's
+	 * half-width) takes the model's tail where the array has no sample */
 	for (int j = -half + 1; j < half; j++)
 		for (int i = -half + 1; i < half; i++)
-			far += h->s * h->a[(size_t)(h->c + h->over * j) * h->n + h->c + h->over * i];
+			far += abs(h->over * i) <= h->c && abs(h->over * j) <= h->c ?
+				       h->s * h->a[(size_t)(h->c + h->over * j) * h->n + h->c +
+						   h->over * i] :
+				       halo_value(h, i, j);
 	pthread_mutex_lock(&p->lock);
 	if (!atomic_load_explicit(ready, memory_order_relaxed)) {
 		s->cfac[cls] = fine > 0 && far > 0 ? far / fine : 1;

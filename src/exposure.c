@@ -32,26 +32,37 @@ static int is_number(const char *s, double *v)
  * of ra, dec, pa, name, seed, date (any case), each at most once, ra, dec
  * and pa among them, in another order than "ra dec pa name seed date".
  * role[k] is then field k's place in that order and the return 1; 0 for a
- * header in that order or of other words, read by position as before
- * headers could name columns.
+ * header in that order or with a word of its own, read by position as
+ * before headers could name columns; -1 with the error in e for one of
+ * those words alone that names one twice or leaves out ra, dec or pa (it
+ * cannot be read either way: by position its data would be misread).
  */
-static int pointings_header(char **field, int nf, int *role)
+static int pointings_header(char **field, int nf, int *role, const char *file, int lineno,
+			    struct err *e)
 {
 	static const char *const names[6] = { "ra", "dec", "pa", "name", "seed", "date" };
 	unsigned seen = 0;
+	int twice = -1;
 
 	for (int k = 0; k < nf; k++) {
 		role[k] = -1;
 		for (int r = 0; r < 6; r++)
-			if (!strcasecmp(field[k], names[r]) && !(seen >> r & 1)) {
+			if (!strcasecmp(field[k], names[r])) {
 				role[k] = r;
+				if (seen >> r & 1 && twice < 0)
+					twice = k;
 				seen |= 1u << r;
 			}
 		if (role[k] < 0)
 			return 0;
 	}
+	if (twice >= 0)
+		return err_set(e, EXIT_INPUT, "%s:%d: the header names column '%s' twice", file,
+			       lineno, field[twice]);
 	if ((seen & 7) != 7)
-		return 0;
+		return err_set(e, EXIT_INPUT, "%s:%d: the header names columns but not %s: a "
+			       "pointing needs ra, dec and pa", file, lineno,
+			       !(seen & 1) ? "ra" : !(seen & 2) ? "dec" : "pa");
 	/* the usual order ("ra dec pa name"): read by position, as before,
 	 * so that lines may go on past the header's last name */
 	for (int k = 0; k < nf; k++)
@@ -171,10 +182,11 @@ static int read_pointings(const struct scene_opts *o, struct exposure **out, int
 			continue;
 		if (!seen_data++ && !is_number(field[0], &v[0])) {
 			/* a header line, which may name the columns */
-			if (tok || !pointings_header(field, nf, role))
-				nrole = 0;
-			else
-				nrole = nf;
+			int h = tok ? 0 : pointings_header(field, nf, role, o->pointings, lineno, e);
+
+			if (h < 0)
+				goto fail;
+			nrole = h ? nf : 0;
 			continue;
 		}
 		if (nrole) {

@@ -58,4 +58,17 @@ test_expect_success 'a bad pointings line is named, and nothing is written' '
 	test_must_fail --status 2 run --pointings nosuch.txt -o "d_%s.fits" stars.csv 2> err &&
 	test_grep "nosuch.txt" err
 '
+# A header of the column words alone must be one that can be read: one
+# naming a column twice, or leaving out pa, was read past once, and its
+# lines then misread by position (an exposure at RA 30, Dec 10, PA 20).
+test_expect_success 'a header that names a column twice, or leaves out pa, is refused' '
+	printf "pa ra dec pa\n30 10 20 40\n" > twice.txt &&
+	test_must_fail --status 1 run --pointings twice.txt -o "t_%s.fits" stars.csv 2> err &&
+	test_grep "twice.txt:1: the header names column .pa. twice" err && ! ls t_* 2> /dev/null &&
+	printf "date ra dec\n2027-05-15 10 20\n" > nopa.txt &&
+	test_must_fail --status 1 run --pointings nopa.txt -o "n_%s.fits" stars.csv 2> err &&
+	test_grep "nopa.txt:1: the header names columns but not pa" err && ! ls n_* 2> /dev/null &&
+	printf "RA Dec PA Comment\n10 20 0 kept\n" > own.txt &&
+	run --pointings own.txt -o "o_%s.fits" stars.csv && test -s o_kept.fits
+'
 test_done

@@ -179,12 +179,10 @@ static int unit_code(const char *s)
 	return 0;
 }
 
+/* The column named name (lower-case), or -1. */
 static int col_of(const struct table *t, const char *name)
 {
-	for (int i = 0; i < table_ncol(t); i++)
-		if (strcmp(table_colname(t, i), name) == 0)
-			return i;
-	return -1;
+	return table_column(t, name);
 }
 
 static int alloc_rows(struct catalog *c, struct err *e)
@@ -598,7 +596,8 @@ static int catalog_plan(struct catalog *c, struct err *e)
 		if (!c->flux_unit)
 			return err_set(e, EXIT_INPUT,
 				       "%s: column '%s': unknown unit '%s' (want counts/s, mag(AB), Jy or maggies)",
-				       name, table_colname(t, c->c_flux), cu);
+				       table_colunit_place(t, c->c_flux),
+				       table_colname(t, c->c_flux), cu);
 	}
 	return plan_numbers(c, where, e);
 }
@@ -812,12 +811,22 @@ static int read_flux(struct catalog *c, const struct table_chunk *ch, size_t i,
 				return -1;
 		}
 		if (u == UNIT_MAGGIES || u == UNIT_NMGY) {
+			const char *un = u == UNIT_NMGY ? "nanomaggies" : "maggies";
+
 			if (!(f > 0))
 				return err_set(e, EXIT_INPUT,
 					       "%s:%ld: column '%s': flux must be positive: '%.40s'",
 					       fn, ch->line[i], cn, table_text(ch, c->c_flux, i));
 			f = (u == UNIT_NMGY ? 22.5 : 0.0) - 2.5 * log10(f);
 			u = UNIT_ABMAG;
+			/* the message says what the cell holds, not only the
+			 * magnitude it became */
+			if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)
+				return err_set(e, EXIT_INPUT,
+					       "%s:%ld: column '%s': %.40s %s is AB %g, out of the "
+					       "magnitude range [%g, %g]", fn, ch->line[i], cn,
+					       table_text(ch, c->c_flux, i), un, f,
+					       CATALOG_MAG_MIN, CATALOG_MAG_MAX);
 		}
 		if (u == UNIT_ABMAG) {
 			if (f < CATALOG_MAG_MIN || f > CATALOG_MAG_MAX)

@@ -6,6 +6,7 @@
  * the catalog reads through and table_build.h for what the readers use.
  */
 #include <ctype.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
@@ -16,7 +17,8 @@
 
 struct table_col {
 	char *name;
-	char *unit;
+	char *unit;             /* the unit, then after its NUL the place it
+	                           was given ("" when not known) */
 	enum table_kind kind;
 };
 
@@ -30,6 +32,12 @@ struct table {
 	enum table_format fmt;
 	struct table_col *col;
 	int ncol, col_cap;
+	/* The columns by name: an open-addressing hash of column index + 1
+	 * (0 an empty slot), nslot a power of two at least twice ncol, so
+	 * that a header of a million names is checked for duplicates, and
+	 * its columns found, in time linear in its length. */
+	int *slot;
+	size_t nslot;
 	struct table_kv *meta;
 	int nmeta, meta_cap;
 	long header_line;
@@ -72,11 +80,58 @@ void table_unquote(const char **s, size_t *n)
 	}
 }
 
+/* FNV-1a, its bits then mixed (MurmurHash3's finaliser) so that the
+ * low bits the slots use depend on every byte of the name. */
+static uint64_t name_hash(const char *s)
+{
+	uint64_t h = 14695981039346656037u;
+
+	for (; *s; s++)
+		h = (h ^ (unsigned char)*s) * 1099511628211u;
+	h ^= h >> 33;
+	h *= 0xff51afd7ed558ccdu;
+	h ^= h >> 33;
+	h *= 0xc4ceb9fe1a85ec53u;
+	h ^= h >> 33;
+	return h;
+}
+
+/* The slot of name: the one holding it, or the empty one where it would
+ * go. */
+static size_t find_slot(const struct table *t, const char *name)
+{
+	size_t mask = t->nslot - 1, i = (size_t)name_hash(name) & mask;
+
+	while (t->slot[i] && strcmp(t->col[t->slot[i] - 1].name, name) != 0)
+		i = (i + 1) & mask;
+	return i;
+}
+
+/* Room in the hash for one more column. */
+static int grow_slots(struct table *t)
+{
+	size_t n = t->nslot ? t->nslot : 32;
+	int *s;
+
+	if (2 * ((size_t)t->ncol + 1) <= t->nslot)
+		return 0;
+	while (2 * ((size_t)t->ncol + 1) > n)
+		n *= 2;
+	if (!(s = calloc(n, sizeof(*s))))
+		return -1;
+	free(t->slot);
+	t->slot = s;
+	t->nslot = n;
+	for (int c = 0; c < t->ncol; c++)
+		t->slot[find_slot(t, t->col[c].name)] = c + 1;
+	return 0;
+}
+
 int table_add_column(struct table *t, const char *name, size_t len,
 		     struct err *e)
 {
 	char *lc;
-	int i;
+	size_t k;
 
 	table_trim(&name, &len);
 	if (len >= 2 && name[0] == '"' && name[len - 1] == '"')
@@ -93,23 +148,31 @@ int table_add_column(struct table *t, const char *name, size_t len,
 		t->col = c;
 		t->col_cap = cap;
 	}
+	if (grow_slots(t) < 0)
+		return table_oom(e);
 	lc = table_memdup0(name, len);
 	if (!lc)
 		return table_oom(e);
 	for (char *p = lc; *p; p++)
 		*p = (char)tolower((unsigned char)*p);
-	for (i = 0; i < t->ncol; i++)
-		if (strcmp(t->col[i].name, lc) == 0) {
-			err_set(e, EXIT_INPUT, "%s:%ld: duplicate column '%s' (columns %d and %d)",
-				t->name, t->header_line, lc, i + 1, t->ncol + 1);
-			free(lc);
-			return -1;
-		}
+	k = find_slot(t, lc);
+	if (t->slot[k]) {
+		err_set(e, EXIT_INPUT, "%s:%ld: duplicate column '%s' (columns %d and %d)",
+			t->name, t->header_line, lc, t->slot[k], t->ncol + 1);
+		free(lc);
+		return -1;
+	}
+	t->slot[k] = t->ncol + 1;
 	t->col[t->ncol].name = lc;
 	t->col[t->ncol].unit = NULL;
 	t->col[t->ncol].kind = TABLE_TEXT;
 	t->ncol++;
 	return 0;
+}
+
+int table_column(const struct table *t, const char *name)
+{
+	return t->nslot ? t->slot[find_slot(t, name)] - 1 : -1;
 }
 
 int table_add_meta(struct table *t, const char *key, size_t klen,
@@ -152,12 +215,23 @@ int table_add_meta(struct table *t, const char *key, size_t klen,
 int table_set_unit(struct table *t, int col, const char *unit, size_t len,
 		   struct err *e)
 {
+	return table_set_unit_at(t, col, unit, len, NULL, e);
+}
+
+int table_set_unit_at(struct table *t, int col, const char *unit, size_t len,
+		      const char *where, struct err *e)
+{
+	size_t nn = where ? strlen(t->name) : 0, wn = where ? strlen(where) : 0;
 	char *u;
 
 	table_unquote(&unit, &len);
-	u = table_memdup0(unit, len);
+	u = malloc(len + 1 + nn + wn + 1);
 	if (!u)
 		return table_oom(e);
+	memcpy(u, unit, len);
+	u[len] = 0;
+	memcpy(u + len + 1, t->name, nn);
+	memcpy(u + len + 1 + nn, where ? where : "", wn + 1);
 	free(t->col[col].unit);
 	t->col[col].unit = u;
 	return 0;
@@ -194,6 +268,15 @@ long table_header_line(const struct table *t) { return t->header_line; }
 const char *table_colunit(const struct table *t, int c)
 {
 	return t->col[c].unit ? t->col[c].unit : "";
+}
+
+const char *table_colunit_place(const struct table *t, int c)
+{
+	const char *u = t->col[c].unit;
+
+	if (!u || !u[strlen(u) + 1])
+		return t->name;
+	return u + strlen(u) + 1;
 }
 
 const char *table_meta(const struct table *t, const char *key)
@@ -252,6 +335,7 @@ void table_close(struct table *t)
 		free(t->col[i].unit);
 	}
 	free(t->col);
+	free(t->slot);
 	for (int i = 0; i < t->nmeta; i++) {
 		free(t->meta[i].key);
 		free(t->meta[i].val);

@@ -77,6 +77,13 @@ int table_ncol(const struct table *t);
 const char *table_colname(const struct table *t, int col);
 const char *table_colunit(const struct table *t, int col);
 enum table_kind table_colkind(const struct table *t, int col);
+/* Where the column's unit was given, to begin a message about it:
+ * "cat.ecsv:5", "cat.fits[1] TUNIT3", or the table's name when the reader
+ * did not say.  Valid as long as the table. */
+const char *table_colunit_place(const struct table *t, int col);
+/* The index of the column named name (lower-case, as table_colname()
+ * gives), or -1; a hash look-up, not a scan of the columns. */
+int table_column(const struct table *t, const char *name);
 /* Line of the header (for messages about columns), 0 for FITS. */
 long table_header_line(const struct table *t);
 /* Metadata value of key (case-insensitive), or NULL. */

@@ -59,6 +59,11 @@ int table_add_meta(struct table *t, const char *key, size_t klen,
 		   const char *val, size_t vlen, struct err *e);
 int table_set_unit(struct table *t, int col, const char *unit, size_t len,
 		   struct err *e);
+/* table_set_unit(), and where the unit was given, what follows the
+ * table's name in table_colunit_place(): ":5" for line 5, "[1] TUNIT3"
+ * for a FITS keyword; NULL when not known. */
+int table_set_unit_at(struct table *t, int col, const char *unit, size_t len,
+		      const char *where, struct err *e);
 void table_set_kind(struct table *t, int col, enum table_kind kind);
 
 /* Helpers of the core the readers share. */

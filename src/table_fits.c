@@ -429,9 +429,13 @@ static int read_columns(struct table_fits *x, int first, struct err *e)
 		if (status)
 			return err_fits(e, status, "%s: column %d", x->fname, i + 1);
 		if (first) {
+			char where[FLEN_KEYWORD + 16];
+
 			if (table_add_column(x->t, name, strlen(name), e) < 0)
 				return -1;
-			if (unit[0] && table_set_unit(x->t, i, unit, strlen(unit), e) < 0)
+			/* the unit's place for messages: kw is its TUNITn */
+			snprintf(where, sizeof(where), "[%d] %s", x->hdu - 1, kw);
+			if (unit[0] && table_set_unit_at(x->t, i, unit, strlen(unit), where, e) < 0)
 				return -1;
 		} else if (strcasecmp(name, table_colname(x->t, i)) != 0) {
 			return err_set(e, EXIT_INPUT,

@@ -6,9 +6,10 @@
  * lines come from table_lines.c's buffer; the columns, units and metadata
  * go to the table core through table_build.h.
  */
+#include <ctype.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 #include "err.h"
 #include "table_text.h"
@@ -32,7 +33,7 @@ static int ipac_header(struct text_reader *t, char *ls, char *le, struct err *e)
 {
 	int np = 0;
 	int which = 0;
-	char *s, *x;
+	char *s, *x, where[32];
 
 	for (char *p = ls; p < le; p++)
 		if (*p == '|')
@@ -85,6 +86,7 @@ static int ipac_header(struct text_reader *t, char *ls, char *le, struct err *e)
 					       "%s:%ld: IPAC header line has %d pipes, the name line has %d",
 					       t->name, t->line, k, np);
 		}
+		snprintf(where, sizeof(where), ":%ld", t->line);
 		s = memchr(s, '|', (size_t)(x - s)) + 1;
 		for (int i = 0; i + 1 < np; i++) {
 			const char *c = s, *b = memchr(s, '|', (size_t)(x - s));
@@ -92,7 +94,7 @@ static int ipac_header(struct text_reader *t, char *ls, char *le, struct err *e)
 
 			s = (char *)b + 1;
 			table_trim(&c, &n);
-			if (which == 2 && n && table_set_unit(t->tab, i, c, n, e) < 0)
+			if (which == 2 && n && table_set_unit_at(t->tab, i, c, n, where, e) < 0)
 				return -1;
 			if (which == 3 && n) {
 				t->null[i] = table_memdup0(c, n);
@@ -148,6 +150,7 @@ static int flow_pairs(const char *s, const char *e,
 struct ecsv_col {
 	struct text_reader *t;
 	char *name, *unit;
+	long unit_line;         /* the line of the unit, for messages */
 };
 
 static int ecsv_meta_pair(void *ctx, const char *k, size_t kn, const char *v,
@@ -180,6 +183,7 @@ static int ecsv_col_pair(void *ctx, const char *k, size_t kn, const char *v,
 		c->unit = table_memdup0(v, vn);
 		if (!c->unit)
 			return table_oom(e);
+		c->unit_line = c->t->line;
 	}
 	return 0;
 }
@@ -188,6 +192,7 @@ struct ecsv_state {
 	char *section;          /* current top-level key */
 	struct ecsv_col cur;
 	char **unit_name, **unit_val;
+	long *unit_line;
 	int nunit, unit_cap;
 };
 
@@ -197,6 +202,7 @@ static int ecsv_flush_col(struct ecsv_state *st, struct err *e)
 		if (st->nunit == st->unit_cap) {
 			int cap = st->unit_cap ? 2 * st->unit_cap : 16;
 			char **a = realloc(st->unit_name, (size_t)cap * sizeof(*a));
+			long *l;
 
 			if (!a)
 				return table_oom(e);
@@ -205,10 +211,15 @@ static int ecsv_flush_col(struct ecsv_state *st, struct err *e)
 			if (!a)
 				return table_oom(e);
 			st->unit_val = a;
+			l = realloc(st->unit_line, (size_t)cap * sizeof(*l));
+			if (!l)
+				return table_oom(e);
+			st->unit_line = l;
 			st->unit_cap = cap;
 		}
 		st->unit_name[st->nunit] = st->cur.name;
 		st->unit_val[st->nunit] = st->cur.unit;
+		st->unit_line[st->nunit] = st->cur.unit_line;
 		st->nunit++;
 	} else {
 		free(st->cur.unit);
@@ -325,7 +336,7 @@ static int ecsv_header(struct text_reader *t, struct ecsv_state *st, struct err 
 /* Read the header of a text table.  Returns 0, or -1. */
 int text_header(struct text_reader *t, struct err *e)
 {
-	struct ecsv_state st = { 0 };
+	struct ecsv_state st = { .cur.t = t };
 	char *s, *x;
 	int r, rc = -1;
 
@@ -394,11 +405,23 @@ int text_header(struct text_reader *t, struct err *e)
 				goto out;
 		(void)save;
 	}
-	for (int i = 0; i < st.nunit; i++)
-		for (int c = 0; c < table_ncol(t->tab); c++)
-			if (st.unit_val[i] && strcasecmp(st.unit_name[i], table_colname(t->tab, c)) == 0 &&
-			    table_set_unit(t->tab, c, st.unit_val[i], strlen(st.unit_val[i]), e) < 0)
-				goto out;
+	/* The datatype entries' units, each to its column (names match
+	 * case-insensitively; the columns' are lower-case). */
+	for (int i = 0; i < st.nunit; i++) {
+		char where[32];
+		int c;
+
+		if (!st.unit_val[i])
+			continue;
+		for (char *p = st.unit_name[i]; *p; p++)
+			*p = (char)tolower((unsigned char)*p);
+		if ((c = table_column(t->tab, st.unit_name[i])) < 0)
+			continue;
+		snprintf(where, sizeof(where), ":%ld", st.unit_line[i]);
+		if (table_set_unit_at(t->tab, c, st.unit_val[i], strlen(st.unit_val[i]),
+				      where, e) < 0)
+			goto out;
+	}
 	rc = 0;
 out:
 	for (int i = 0; i < st.nunit; i++) {
@@ -407,6 +430,7 @@ out:
 	}
 	free(st.unit_name);
 	free(st.unit_val);
+	free(st.unit_line);
 	free(st.section);
 	free(st.cur.name);
 	free(st.cur.unit);

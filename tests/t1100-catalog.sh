@@ -59,6 +59,27 @@ else
 	test_skip 'astropy FITS, ECSV and IPAC tables' 'no python3 with astropy (Debian package python3-astropy)'
 fi
 
+# Very wide headers: each column name is checked against the others, and
+# an ECSV unit matched to its column, through a hash, not by comparing
+# every pair, which took minutes for 200 000 columns (the 16 MiB header
+# line may hold two million).  Not timed: a quadratic reader shows as a
+# test that does not end.
+test_expect_success 'a CSV catalog of 200 000 columns and one row' '
+	{ printf "x,y,flux," && seq 0 199999 | sed "s/^/c/" | paste -s -d, - &&
+	  printf "100,100,500," && seq 200000 | sed "s/.*/1/" | paste -s -d, -; } > wide.csv &&
+	run --rows 90-110 --placed wide-p.csv -o wide.fits wide.csv &&
+	test_grep "^1,1,100.0000,100.0000,500," wide-p.csv
+'
+test_expect_success 'an ECSV catalog of 200 000 columns with units, and one row' '
+	{ printf "%s\n" "# %ECSV 1.0" "# ---" "# datatype:" "# - {name: x, datatype: float64}" \
+		"# - {name: y, datatype: float64}" "# - {name: flux, unit: ct/s, datatype: float64}" &&
+	  seq 0 199999 | sed "s/.*/# - {name: c&, unit: m, datatype: int64}/" &&
+	  printf "x y flux " && seq 0 199999 | sed "s/^/c/" | paste -s -d" " - &&
+	  printf "100 100 500 " && seq 200000 | sed "s/.*/1/" | paste -s -d" " -; } > wide.ecsv &&
+	run --rows 90-110 --placed wide-e.csv -o wide-e.fits wide.ecsv &&
+	test_grep "^1,1,100.0000,100.0000,500," wide-e.csv
+'
+
 # Per-row units of a STIPS mixed catalog, converted as STIPS converts them
 # (stips-behaviour.md 5.2: Jy / PHOTFNU, 'p' 1e23 h / (PHOTFNU AREA), 'e'
 # 1e23 / (PHOTFNU AREA nu)) with either zeropoint table.  The expected

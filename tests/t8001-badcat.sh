@@ -142,6 +142,24 @@ refused "$G/header-17MiB.csv" 1 ":1: line longer than 16 MiB"
 head -c 300 "$WFS" > "$G/executable.csv"
 refused "$G/executable.csv" 1 ":1: binary data: byte 0x7f at byte 1 of the line"
 
+# A flux in maggies or nanomaggies out of the magnitude range: the message
+# gives the value as written and the magnitude it is.
+printf 'x,y,flux,units\n100,100,1e-30,maggies\n' > "$G/maggies-faint.csv"
+refused "$G/maggies-faint.csv" 1 ":2: column 'flux': 1e-30 maggies is AB 75, out of the magnitude range [-20, 50]"
+printf 'x,y,flux,units\n100,100,10,nmgy\n100,100,1e30,nmgy\n' > "$G/nmgy-bright.csv"
+refused "$G/nmgy-bright.csv" 1 ":3: column 'flux': 1e30 nanomaggies is AB -52.5, out of the magnitude range [-20, 50]"
+printf '\\fluxunit=maggies\nx,y,flux\n100,100,1e10\n' > "$G/fluxunit-maggies.csv"
+refused "$G/fluxunit-maggies.csv" 1 ":3: column 'flux': 1e10 maggies is AB -25, out of the magnitude range [-20, 50]"
+
+# An unknown unit in a column's header names the line it is on.
+printf '%s\n' '# %ECSV 1.0' '# ---' '# datatype:' '# - {name: x, datatype: float64}' \
+	'# - {name: y, datatype: float64}' '# - name: Flux' '#   unit: furlong' \
+	'#   datatype: float64' 'x y flux' '100 100 5' > "$G/unit.ecsv"
+refused "$G/unit.ecsv" 1 "unit.ecsv:7: column 'flux': unknown unit 'furlong' (want counts/s, mag(AB), Jy or maggies)"
+printf '%s\n' '\ a comment' '|    x|    y|   flux|' '|double|double|double|' \
+	'|     |     |furlong|' '  100   100       5' > "$G/unit.tbl"
+refused "$G/unit.tbl" 1 "unit.tbl:4: column 'flux': unknown unit 'furlong' (want counts/s"
+
 seq 1 20000 | sed 's/.*/270,-30,&/' | sed '1i ra,dec,flux' > "$G/many.csv"
 zstd -q -c "$G/many.csv" > "$G/many.csv.zst"
 gzip -n -c "$G/many.csv" > "$G/many.csv.gz"
@@ -214,6 +232,9 @@ if have_python; then
 		fits.Column(name="dec", format="D", array=[-30.0]), c]).writeto(d + "/complex-flux.fits")
 	Table({"ra": [270.0], "dec": [np.nan], "flux": [100.0]}).write(d + "/nan-dec.fits")
 	Table({"ra": [270.0], "dec": [-30.0], "flux": [-1.0]}).write(d + "/neg-flux.fits")
+	fits.BinTableHDU.from_columns([fits.Column(name="ra", format="D", array=[270.0]),
+		fits.Column(name="dec", format="D", array=[-30.0]),
+		fits.Column(name="flux", format="D", unit="furlong", array=[1.0])]).writeto(d + "/unit.fits")
 	EOF
 	refused "$G/str-ra.fits" 1 ": column 'ra' is a string column, not a number"
 	refused "$G/str-flux.fits" 1 ": column 'flux' is a string column, not a number"
@@ -222,6 +243,7 @@ if have_python; then
 	refused "$G/complex-flux.fits" 1 "column 'flux'"
 	refused "$G/nan-dec.fits" 1 "[1]:1: column 'dec': not a finite number"
 	refused "$G/neg-flux.fits" 1 "[1]:1: column 'flux': flux must be positive"
+	refused "$G/unit.fits" 1 "unit.fits[1] TUNIT3: column 'flux': unknown unit 'furlong'"
 	head -c 4000 "$G/str-ra.fits" > "$G/cut.fits"
 	refused "$G/cut.fits" 1 "cut.fits: truncated FITS file"
 	# cut inside the primary header, inside the table's data, and the data

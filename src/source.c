@@ -63,7 +63,9 @@ int source_flux_check(const struct engine *g, const struct rows *r, size_t i,
 	/* The image is float32 (at most 3.4e38): one source may bring up to
 	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
 	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
-		return err_set(e, EXIT_INPUT, "%s:%ld: flux %g %s %g %s on SCA %d, "
+		/* nine digits, so that a value just past 1e32 does not read
+		 * as 1e+32 */
+		return err_set(e, EXIT_INPUT, "%s:%ld: flux %.9g %s %.9g %s on SCA %d, "
 			       "more than the 1e32 that one source may put in a "
 			       "float32 image", r->file, r->line[i], r->flux[i],
 			       model ? what : "gives",

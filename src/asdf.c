@@ -878,7 +878,12 @@ void asdf_out_abort(struct asdf_out *a)
 }
 
 /* IEEE 754 binary16 of f, rounded to nearest even: the exponent rebiased
- * from 127 to 15, subnormals below 2^-14, infinity beyond 65504. */
+ * from 127 to 15, subnormals below 2^-14.  A finite f that rounds beyond
+ * 65504 (|f| >= 65520) saturates to +-65504, the largest finite half,
+ * rather than overflowing to infinity as IEEE rounding would: RAD stores
+ * chisq and the variances as float16, and a cosmic-ray pixel's chisq
+ * past 65504 is a large number, not an infinite one.  Infinity and NaN
+ * stay so. */
 uint16_t asdf_half(float f)
 {
 	uint32_t x;
@@ -894,7 +899,7 @@ uint16_t asdf_half(float f)
 		return sign | 0x7c00 | (man ? 0x200 : 0);
 	exp -= 127 - 15;
 	if (exp >= 31)
-		return sign | 0x7c00;
+		return sign | 0x7bff;
 	if (exp <= 0) {
 		/* subnormal: the implicit bit made explicit, shifted */
 		uint32_t m, half, rest;
@@ -915,8 +920,8 @@ uint16_t asdf_half(float f)
 		uint32_t h = (uint32_t)exp << 10 | m;
 
 		if (rest > 0x1000 || (rest == 0x1000 && (m & 1)))
-			h++;    /* may carry into the exponent: still right */
-		return sign | (uint16_t)(h >= 0x7c00 ? 0x7c00 : h);
+			h++;    /* may carry into the exponent: still right, or past 65504 */
+		return sign | (uint16_t)(h >= 0x7c00 ? 0x7bff : h);
 	}
 }
 

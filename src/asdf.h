@@ -192,7 +192,8 @@ int asdf_out_commit(struct asdf_out *a, struct err *e);
 /* Remove the temporary and free a.  NULL is a no-op. */
 void asdf_out_abort(struct asdf_out *a);
 
-/* float to IEEE half (round to nearest even; beyond 65504 infinity). */
+/* float to IEEE half (round to nearest even; a finite float beyond 65504
+ * saturates to +-65504, infinity and NaN stay so). */
 uint16_t asdf_half(float f);
 float asdf_half_to_float(uint16_t h);
 

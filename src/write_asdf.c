@@ -683,14 +683,26 @@ static int put_amp33(struct asdf_writer *aw, int k, const struct level_strip *s,
 }
 
 /* n floats to IEEE halves (asdf_half's rounding), eight at a time by
- * F16C where the machine has it (every AVX2 machine does): the same bits */
+ * F16C where the machine has it (every AVX2 machine does): the same bits.
+ * F16C overflows a finite float past 65504 to infinity; asdf_half
+ * saturates it, so such a float is first made +-65504 (|f| in (65504,
+ * 65520) rounds there anyway, so nothing else changes).  A NaN fails both
+ * comparisons and infinity the second: they pass as they are. */
 #ifdef SIMD_X86
 __attribute__((target("avx2,f16c"))) static void half8(const float *f, uint16_t *h, size_t n)
 {
-	for (size_t i = 0; i + 8 <= n; i += 8)
+	const __m256 sign = _mm256_set1_ps(-0.0f), max = _mm256_set1_ps(65504.0f);
+	const __m256 inf = _mm256_set1_ps(INFINITY);
+
+	for (size_t i = 0; i + 8 <= n; i += 8) {
+		__m256 v = _mm256_loadu_ps(f + i), a = _mm256_andnot_ps(sign, v);
+		__m256 over = _mm256_and_ps(_mm256_cmp_ps(a, max, _CMP_GT_OQ),
+					    _mm256_cmp_ps(a, inf, _CMP_LT_OQ));
+
+		v = _mm256_blendv_ps(v, _mm256_or_ps(_mm256_and_ps(v, sign), max), over);
 		_mm_storeu_si128((__m128i *)(h + i),
-				 _mm256_cvtps_ph(_mm256_loadu_ps(f + i),
-						 _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+				 _mm256_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+	}
 }
 #endif
 

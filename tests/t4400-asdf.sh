@@ -20,6 +20,49 @@ test_expect_success 'level 2: a wfi_image file, its arrays the FITS level 2 over
 	test_grep "^ok" out
 '
 
+# A cosmic-ray jump makes its pixel's chisq far larger than float16's
+# largest finite value, 65504: about 1300 pixels of five faint stars'
+# SCA at the default MA table (4) and at table 3.  They hold 65504, not
+# infinity; no float16 array has an infinity; a DO_NOT_USE pixel's chisq
+# is NaN.  f16.py FILE...: prints each file's count at 65504.
+cat > f16.py <<'EOF'
+import sys
+import warnings
+
+import numpy as np
+import asdf
+import asdf.tags.core.ndarray as nd
+
+warnings.simplefilter("ignore")
+nd._datatype_names.setdefault("float16", "f2")
+for path in sys.argv[1:]:
+    with asdf.open(path, copy_arrays=False) as af:
+        r = af.tree["roman"]
+        dq = np.asarray(r["dq"])
+        for k in ("err", "var_poisson", "var_rnoise", "chisq", "dumo"):
+            x = np.asarray(r[k])
+            assert x.dtype == np.float16, (path, k, x.dtype)
+            assert not np.isinf(x).any(), (path, k, np.isinf(x).sum())
+        c = np.asarray(r["chisq"])
+        top = c == np.float16(65504)
+        assert not (c > np.float16(65504)).any() and not (c < 0).any(), path
+        assert (dq[top] & 4).all(), (path, "65504 without JUMP_DET", ((dq[top] & 4) == 0).sum())
+        assert np.isnan(c[(dq & 1) != 0]).all(), (path, "DO_NOT_USE, chisq not NaN")
+        print(path, int(top.sum()))
+EOF
+
+test_expect_success 'level 2: a chisq beyond float16 is 65504, no float16 array infinite' '
+	"$BUILD/contrib/starfield" -n 5 -x -m 18 -M 22 -s 1 > s5.csv &&
+	: > top.out &&
+	for t in 4 3; do
+		"$WFS" --filter F158 --level 2 --ma-table $t -o s5_$t.asdf s5.csv &&
+		"$PY" f16.py s5_$t.asdf >> top.out && rm s5_$t.asdf || return 1
+	done &&
+	say "at 65504:" $(cat top.out) &&
+	test $(wc -l < top.out) = 2 &&
+	while read f n; do test "$n" -ge 1000 || return 1; done < top.out
+'
+
 if have_shared && [ -x "$CHECK" ]; then
 test_expect_success 'level 2 validates against RAD 2.1.0; a broken file does not' '
 	"$CHECK" --expect wfi_image l2.asdf &&

@@ -77,12 +77,15 @@ static double tile_sum(const double *t, int T, int y0, int y1, int nx)
 /* A strip's float32 rows, made on the pool beside the detector stage:
  * rows [ya, yb) of strip ty of tiles (WFS_NPIX floats a row), and for
  * each tile the index in out of its first value a float cannot hold, in
- * row order (-1: none). */
+ * row order (-1: none); with sums set (no detector stage: the tiles are
+ * as drawn), each drawn tile's tile_sum() too, for the report. */
 struct strip_f32 {
 	int T, ya, yb;
 	double *const *row;
 	float *out;
 	ptrdiff_t *bad;
+	double *sum;
+	int sums;               /* whether the pool sums (else the main thread) */
 };
 
 /* Tile tx of the strip into its columns of out (zeros for a tile never
@@ -94,6 +97,8 @@ static void strip_convert(void *arg, size_t tx)
 	const double *t = c->row[tx];
 
 	c->bad[tx] = -1;
+	if (c->sums)
+		c->sum[tx] = t ? tile_sum(t, T, c->ya, c->yb, nx) : 0;
 	for (int y = c->ya; y < c->yb; y++) {
 		float *out = c->out + (size_t)(y - c->ya) * WFS_NPIX + x0;
 		ptrdiff_t k;
@@ -121,10 +126,13 @@ static int strip_start(struct engine *g, int s, int ty, const struct detector *d
 	int ya = g->ylo > y0 ? g->ylo - y0 : 0, yb = g->yhi < y0 + ny ? g->yhi - y0 : ny;
 	double **row = &g->slot[s].tile[ty * g->ntx];
 
+	/* the drawn light: here before a detector stage changes the tiles,
+	 * else by the pool beside the conversion (strip_write adds it up in
+	 * the same order), so that the pool need not wait for it */
 	for (int tx = 0; tx < g->ntx; tx++) {
 		int nx = tx * T + T > WFS_NPIX ? WFS_NPIX - tx * T : T;
 
-		if (row[tx])
+		if (row[tx] && d->active)
 			g->image_sum[g->slot[s].sca - 1] += tile_sum(row[tx], T, ya, yb, nx);
 		g->tiles_drawn += row[tx] != NULL;
 	}
@@ -136,6 +144,7 @@ static int strip_start(struct engine *g, int s, int ty, const struct detector *d
 	c->ya = ya;
 	c->yb = yb;
 	c->row = row;
+	c->sums = !d->active;
 	if (detector_strip_start(run, d, g->pool, g->slot[s].sca, y0, ny, row, g->ntx, T,
 				 strip_convert, c) < 0)
 		return err_set(g->e, EXIT_SYSTEM, "noise stage failed");
@@ -151,6 +160,10 @@ static int strip_write(struct engine *g, struct writer *w, int s, int ty,
 	double **row = &g->slot[s].tile[ty * g->ntx];
 	ptrdiff_t k = -1;
 
+	/* the drawn light the pool summed, in the order strip_start would */
+	for (int tx = 0; c->sums && tx < g->ntx; tx++)
+		if (row[tx])
+			g->image_sum[g->slot[s].sca - 1] += c->sum[tx];
 	/* make_source bounds each source, but many sources on one pixel, or
 	 * a model that draws more than its flux or NaN, could still put an
 	 * infinity or NaN in the file: the first in row order */
@@ -370,16 +383,18 @@ int write_exposure(struct engine *g)
 	float *strip = malloc(2 * (size_t)g->tile * WFS_NPIX * sizeof(float));
 	struct writer *w = g->out;
 	ptrdiff_t *bad = malloc(2 * (size_t)g->ntx * sizeof(ptrdiff_t));
-	struct strip_f32 conv[2] = { { .out = strip, .bad = bad }, { 0 } };
+	double *sum = malloc(2 * (size_t)g->ntx * sizeof(double));
+	struct strip_f32 conv[2] = { { .out = strip, .bad = bad, .sum = sum }, { 0 } };
 
 	g->out = NULL;
 	later.persist = NULL;
-	if (!strip || !bad) {
+	if (!strip || !bad || !sum) {
 		err_sys(g->e, "output buffer");
 		goto fail;
 	}
 	conv[1].out = strip + (size_t)g->tile * WFS_NPIX;
 	conv[1].bad = bad + g->ntx;
+	conv[1].sum = sum + g->ntx;
 	if (detector_init(&d, o, g->pass ? &later : x, g->e) < 0)
 		goto fail;
 	if (g->pass && x->persist) {
@@ -428,11 +443,13 @@ int write_exposure(struct engine *g)
 	g->out = w;
 	free(strip);
 	free(bad);
+	free(sum);
 	return 0;
 fail:
 	if (w)
 		w->ops->abort(w);
 	free(strip);
 	free(bad);
+	free(sum);
 	return -1;
 }

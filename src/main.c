@@ -40,6 +40,7 @@ struct scene_cmd {
 	 * them reachable). */
 	const char *settings[MAX_SETTINGS + 1];
 	int nset;
+	unsigned char given[MAX_SETTINGS];     /* from --set itself */
 };
 
 #define OFF(f) offsetof(struct scene_cmd, f)
@@ -250,8 +251,21 @@ static int set_setting(const struct opt_arg *a, struct err *e)
 	if (!eq || eq == a->value || c->nset == MAX_SETTINGS)
 		return err_set(e, EXIT_INPUT, "--set: expected KEY=VALUE (at most %d), "
 			       "got '%s'", MAX_SETTINGS, a->value);
+	c->given[c->nset] = 1;
 	c->settings[c->nset++] = a->value;
 	return 0;
+}
+
+/* Each --set whose key nothing in the run asked for (no model the run
+ * used declares it, and wfiscene does not read it there): most likely a
+ * misspelt key, which would otherwise change nothing without a word. */
+static void warn_unread(const struct scene_cmd *c)
+{
+	for (int i = 0; i < c->nset; i++)
+		if (c->given[i] && !setting_was_read(i))
+			fprintf(stderr, "wfiscene: warning: --set %.*s: nothing in this run "
+				"reads it (a model the run did not use, or a misspelt key)\n",
+				(int)(strchr(c->settings[i], '=') - c->settings[i]), c->settings[i]);
 }
 
 /* Options that are shortcuts for --set NAME=VALUE: once the value is
@@ -592,8 +606,10 @@ int main(int argc, char **argv)
 	if (check_options(&cmd.o, &e) < 0)
 		return fail(&e);
 	cmd.o.settings = cmd.settings;
+	setting_watch(cmd.settings);
 	if (scene_run(&cmd.o, first < argc ? argv + first : stdin_only, &e) < 0)
 		return fail(&e);
+	warn_unread(&cmd);
 	if (!strcmp(cmd.o.output, "-") && (fflush(stdout) != 0 || ferror(stdout))) {
 		err_sys(&e, "writing stdout");
 		return fail(&e);

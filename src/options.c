@@ -7,6 +7,7 @@
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -366,13 +367,36 @@ int opt_parse(const struct opt_cmd *c, int argc, char **argv, void *base, struct
 	return optind;
 }
 
+/* The list setting_watch() follows, and which of its entries a
+ * setting_last() has asked for (any thread: the host and the models read
+ * settings from several). */
+static const char *const *watched;
+static atomic_uchar watched_read[SETTINGS_WATCH_MAX];
+
+void setting_watch(const char *const *settings)
+{
+	watched = settings;
+	for (int i = 0; i < SETTINGS_WATCH_MAX; i++)
+		atomic_store_explicit(&watched_read[i], 0, memory_order_relaxed);
+}
+
+int setting_was_read(int i)
+{
+	return i >= 0 && i < SETTINGS_WATCH_MAX &&
+	       atomic_load_explicit(&watched_read[i], memory_order_relaxed);
+}
+
 const char *setting_last(const char *const *settings, const char *key)
 {
 	const char *hit = NULL;
 	size_t n = strlen(key);
 
 	for (const char *const *kv = settings; kv && *kv; kv++)
-		if (!strncmp(*kv, key, n) && (*kv)[n] == '=')
+		if (!strncmp(*kv, key, n) && (*kv)[n] == '=') {
 			hit = *kv + n + 1;
+			if (settings == watched && kv - settings < SETTINGS_WATCH_MAX)
+				atomic_store_explicit(&watched_read[kv - settings], 1,
+						      memory_order_relaxed);
+		}
 	return hit;
 }

@@ -127,6 +127,12 @@ int opt_parse_double(const struct opt_arg *a, double *out, struct err *e);
 /* The value of the last "key=value" of settings (the --set list, NULL
  * ended; NULL itself for none) whose key is key, or NULL. */
 const char *setting_last(const char *const *settings, const char *key);
+/* Follow which entries of settings (at most SETTINGS_WATCH_MAX) any
+ * setting_last() on it asks for, from now on: setting_was_read(i) says
+ * whether entry i's key has been asked for. */
+#define SETTINGS_WATCH_MAX 256
+void setting_watch(const char *const *settings);
+int setting_was_read(int i);
 int opt_parse_ll(const struct opt_arg *a, long long *out, struct err *e);
 int opt_parse_choice(const struct opt_arg *a, struct err *e);
 

@@ -108,4 +108,19 @@ test_expect_success 'a model reading a key it neither declares nor model.h lists
 	check "$TOP/plugins" model.h > bad &&
 	test_grep "^point: pixel-sigma\$" bad && test_grep "^sersic_quick: pixel-sigma\$" bad
 '
+# A --set key that nothing in the run reads (a misspelt key, or a model's
+# setting in a run that does not use the model) changes nothing: the run
+# says so on standard error, and still succeeds.
+test_expect_success 'a --set nothing in the run reads is named in a warning' '
+	printf "x,y,mag\n100.5,100.5,20\n" > one.csv &&
+	printf "x,y,mag,type,n,re,phi,ratio\n100.5,100.5,20,sersic,1,3,0,0.5\n" > gal.csv &&
+	"$WFS" --filter F158 --flux-unit abmag --rows 90-110 --set psf-halo-radus=64 \
+		--set psf-core=3 --set sersic-trunc=0.01 -o a.fits one.csv 2> err &&
+	test_grep "warning: --set psf-halo-radus: nothing in this run reads it" err &&
+	test_grep "warning: --set sersic-trunc: nothing in this run reads it" err &&
+	! grep -q "psf-core" err &&
+	"$WFS" --filter F158 --flux-unit abmag --rows 90-110 --set sersic-trunc=0.01 \
+		-o b.fits gal.csv 2> err &&
+	! grep -q "warning" err
+'
 test_done

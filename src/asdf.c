@@ -13,6 +13,7 @@
 #include <zlib.h>
 
 #include "asdf.h"
+#include "options.h"
 #include "date.h"
 #include "err.h"
 #include "pool.h"
@@ -305,15 +306,9 @@ static int zlib_level = 6;
 
 int asdf_compression_setting(const char *const *settings, int *c, struct err *e)
 {
-	static const char key[] = "asdf-compression=", lkey[] = "asdf-zlib-level=";
-	const char *v = NULL, *lv = NULL;
+	const char *v = setting_last(settings, "asdf-compression");
+	const char *lv = setting_last(settings, "asdf-zlib-level");
 
-	for (const char *const *kv = settings; kv && *kv; kv++) {
-		if (!strncmp(*kv, key, sizeof(key) - 1))
-			v = *kv + sizeof(key) - 1;
-		if (!strncmp(*kv, lkey, sizeof(lkey) - 1))
-			lv = *kv + sizeof(lkey) - 1;
-	}
 	if (lv) {
 		if (lv[0] < '1' || lv[0] > '9' || lv[1])
 			return err_set(e, EXIT_INPUT, "--set asdf-zlib-level=%s: expected a "

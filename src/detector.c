@@ -15,6 +15,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "levels.h"
+#include "options.h"
 #include "persist.h"
 #include "pool.h"
 #include "scene.h"
@@ -67,18 +68,15 @@ int detector_init(struct detector *d, const struct scene_opts *o, const struct e
 	d->exptime = o->exptime;
 	d->parts = o->detector;
 	/* --set poisson-normal=N (the last one given wins) */
-	for (const char *const *kv = o->settings; kv && *kv; kv++) {
-		static const char key[] = "poisson-normal=";
-		const char *v = *kv + sizeof(key) - 1;
-		char *end;
-		double val;
+	const char *pn = setting_last(o->settings, "poisson-normal");
 
-		if (strncmp(*kv, key, sizeof(key) - 1))
-			continue;
-		val = strtod(v, &end);
-		if (end == v || *end || isnan(val) || val < 10)
+	if (pn) {
+		char *end;
+		double val = strtod(pn, &end);
+
+		if (end == pn || *end || isnan(val) || val < 10)
 			return err_set(e, EXIT_INPUT, "--set poisson-normal=%s: expected a mean "
-				       "of 10 or more (inf: always the exact count)", v);
+				       "of 10 or more (inf: always the exact count)", pn);
 		d->poisson_normal = val;
 	}
 	for (int s = 0; s < WFS_NSCA; s++) {

@@ -40,6 +40,7 @@
 #include "data.h"
 #include "err.h"
 #include "exposure.h"
+#include "options.h"
 #include "persist.h"
 #include "tempfile.h"
 
@@ -147,21 +148,17 @@ double persist_scale(const struct persist *p, double x)
 static int knob(const char *const *settings, const char *key, double lo, double hi, double *v,
 		struct err *e)
 {
-	size_t len = strlen(key);
+	const char *s = setting_last(settings, key);
+	char *end;
+	double x;
 
-	for (const char *const *kv = settings; kv && *kv; kv++) {
-		const char *s = *kv + len + 1;
-		char *end;
-		double x;
-
-		if (strncmp(*kv, key, len) || (*kv)[len] != '=')
-			continue;
-		x = strtod(s, &end);
-		if (end == s || *end || !(x >= lo && x <= hi))
-			return err_set(e, EXIT_INPUT, "--set %s=%s: expected a number from %g "
-				       "to %g", key, s, lo, hi);
-		*v = x;
-	}
+	if (!s)
+		return 0;
+	x = strtod(s, &end);
+	if (end == s || *end || !(x >= lo && x <= hi))
+		return err_set(e, EXIT_INPUT, "--set %s=%s: expected a number from %g "
+			       "to %g", key, s, lo, hi);
+	*v = x;
 	return 0;
 }
 

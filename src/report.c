@@ -23,6 +23,7 @@
 #include "engine.h"
 #include "err.h"
 #include "fftconv.h"
+#include "options.h"
 #include "tempfile.h"
 
 int side_check(const char *path, struct err *e)
@@ -64,11 +65,8 @@ static int side_close(FILE *f, const char *path, char *tmp, int keep, struct err
  * (1), wfiscene's (0), or -1 for an unknown one. */
 static int placed_convention_roman(const struct engine *g)
 {
-	const char *hit = NULL;
+	const char *hit = setting_last(g->o->settings, "placed");
 
-	for (const char *const *kv = g->o->settings; kv && *kv; kv++)
-		if (!strncmp(*kv, "placed=", 7))
-			hit = *kv + 7;
 	if (!hit || !strcasecmp(hit, "wfiscene"))
 		return 0;
 	if (!strcasecmp(hit, "romanisim"))

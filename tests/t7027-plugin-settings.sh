@@ -121,6 +121,10 @@ test_expect_success 'a --set nothing in the run reads is named in a warning' '
 	! grep -q "psf-core" err &&
 	"$WFS" --filter F158 --flux-unit abmag --rows 90-110 --set sersic-trunc=0.01 \
 		-o b.fits gal.csv 2> err &&
+	! grep -q "warning" err &&
+	"$WFS" --filter F158 --flux-unit abmag --rows 90-110 --set placed=romanisim \
+		--placed p.ecsv --set poisson-normal=50 --noise poisson --set psf-core=3 \
+		-o c.fits one.csv 2> err &&
 	! grep -q "warning" err
 '
 test_done

@@ -173,7 +173,12 @@ test_expect_success 'a state of other SCAs or rows is refused, naming the file; 
 	head -c 150 keep.bin > short.bin &&
 	test_must_fail --status 1 run --level 1 --pointings pts-b.txt --persistence-state short.bin \
 		-o "bad_%s.fits" bright.csv 2> err &&
-	test_grep "short.bin: persistence state damaged or truncated" err && ! test -e bad_b.fits
+	test_grep "short.bin: persistence state damaged or truncated" err && ! test -e bad_b.fits &&
+	# a state that cannot be saved is refused before any image is written
+	# (it once left the images behind, the run failing only at the end)
+	test_must_fail --status 2 run --level 1 --pointings pts-b.txt \
+		--persistence-state nosuchdir/state.bin -o "bad_%s.fits" bright.csv 2> err &&
+	test_grep "nosuchdir/state.bin: cannot create temporary file" err && ! test -e bad_b.fits
 '
 
 test_expect_success 'exposures out of date order, and options that do not fit, are refused' '

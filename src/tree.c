@@ -66,7 +66,9 @@ static const char *setting(const struct tree_opts *o, const char *key)
 	return setting_last(o->settings, key);
 }
 
-/* "Npix=N.ext": N; "NAME_N.ext", "NAME-N.ext", "N.ext": N; else -1. */
+/* "Npix=N.ext": N; "NAME_N.ext", "NAME-N.ext", "N.ext": N; -2 for such a
+ * name whose N has more than 18 digits (no HEALPix pixel is that large);
+ * else -1. */
 static long long name_pixel(const char *base, int *hats)
 {
 	const char *dot = strchr(base, '.');
@@ -84,8 +86,11 @@ static long long name_pixel(const char *base, int *hats)
 		if (p == base + len || (p > base && p[-1] != '_' && p[-1] != '-'))
 			return -1;
 	}
+	for (const char *q = p; q < base + len; q++)
+		if (!isdigit((unsigned char)*q))
+			return -1;
 	if (base + len - p > 18)
-		return -1;
+		return -2;
 	for (; p < base + len; p++) {
 		if (!isdigit((unsigned char)*p))
 			return -1;
@@ -163,8 +168,12 @@ static int walk(struct tree *t, const char *dir, int depth, int order,
 			int hats;
 			long long pix = name_pixel(de->d_name, &hats);
 
-			if (pix >= 0 && (!glob || fnmatch(glob, de->d_name, 0) == 0)) {
-				if (hats && order < 0)
+			if (pix != -1 && (!glob || fnmatch(glob, de->d_name, 0) == 0)) {
+				if (pix == -2)
+					rc = err_set(e, EXIT_INPUT, "%s: a pixel number of more "
+						     "than 18 digits: no HEALPix pixel is that large",
+						     path);
+				else if (hats && order < 0)
 					rc = err_set(e, EXIT_INPUT,
 						     "%s: a HATS file 'Npix=N' outside a 'Norder=K' directory",
 						     path);

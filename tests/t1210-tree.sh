@@ -244,6 +244,13 @@ test_expect_success 'bad trees are refused with the file or setting at fault' '
 	test_grep "tree-nside: NSIDE .two.: want an integer" err &&
 	test_must_fail --status 1 "$WFS" $POINT --set tree-margin=-1 -o x.fits bad 2> err &&
 	test_grep "tree-margin=-1: want arcseconds" err &&
+	test ! -e x.fits &&
+	# a pixel number too long for any pixel: refused, not passed over
+	# with its rows (it once was)
+	mkdir huge && cp bad/s_1.csv huge/s_1.csv &&
+	cp bad/s_1.csv huge/s_9223372036854775807.csv &&
+	test_must_fail --status 1 "$WFS" $POINT --set tree-nside=1 -o x.fits huge 2> err &&
+	test_grep "huge/s_9223372036854775807.csv: a pixel number of more than 18 digits" err &&
 	test ! -e x.fits
 '
 test_done

@@ -112,8 +112,8 @@ static int set_count(const struct opt_arg *a, struct err *e)
 	long v = strtol(a->value, &end, 10);
 
 	if (*end || end == a->value || v < 1 || v > 100000)
-		return err_set(e, EXIT_INPUT, "%s: not a positive integer: '%s'", a->given,
-			       a->value);
+		return err_set(e, EXIT_INPUT, "%s: not an integer from 1 to 100000: '%s'",
+			       a->given, a->value);
 	*(int *)a->field = (int)v;
 	return 0;
 }

@@ -127,6 +127,8 @@ test_expect_success 'bad filter, size or kind: exit 1 naming the value, no file'
 	test_grep "177, 353 or 705" err &&
 	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 --kind nope -o bad.fits 2>err &&
 	test_grep "nope" err &&
+	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 --grid 1000000 -o bad.fits 2>err &&
+	test_grep "grid: not an integer from 1 to 100000: .1000000." err &&
 	test_must_fail --status 1 $WFS psf --filter F129 --sca 99 -o bad.fits 2>err &&
 	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 2>err &&
 	! test -f bad.fits

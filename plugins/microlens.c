@@ -11,6 +11,7 @@
  * so the star's flux is baseline (fs A(u) + 1 - fs).  Without a date the
  * star has its baseline flux.
  */
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 
@@ -48,8 +49,11 @@ static void microlens_fini(void *state)
 	free(state);
 }
 
-/* A(u) written so that it neither overflows for small u nor loses digits
- * for large u: (u^2 + 2) / (u sqrt(u^2 + 4)). */
+/* A(u) = (u^2 + 2) / (u sqrt(u^2 + 4)), as written, for u whose square is
+ * a finite double (u below 1.3e154); microlens_prepare() handles the
+ * rest.  For u below 1.5e-154 u^2 underflows to 0 or a subnormal, and the
+ * formula is 2 / (2u) = 1/u, which is A to the last bit (the next term is
+ * 3u/8); it overflows to infinity for u below 1 / DBL_MAX (5.6e-309). */
 static double magnification(double u)
 {
 	return (u * u + 2) / (u * sqrt(u * u + 4));
@@ -61,7 +65,7 @@ static int microlens_prepare(void *state, struct wfs_source *src)
 	const struct wfs_host *h = m->host;
 	double mjd = m->mjd;
 	const double *p = src->param;
-	double u0 = fabs(p[C_U0]), te = p[C_TE], fs = p[C_FS], tau, u;
+	double u0 = fabs(p[C_U0]), te = p[C_TE], fs = p[C_FS], tau, u, a, f;
 
 	if (!(te > 0 && te <= 1e6))
 		return h->error(h->ctx, "column 'te': want days from 0 to 1e6, not %g", te);
@@ -73,11 +77,31 @@ static int microlens_prepare(void *state, struct wfs_source *src)
 	if (WFS_HAS(h->size, struct wfs_host, source_size) &&
 	    WFS_HAS(h->source_size, struct wfs_source, mjd))
 		mjd = src->mjd;
-	if (isnan(mjd))
+	/* Without a date, or without light from the source (fs = 0), the
+	 * star has its baseline flux exactly, however large A is. */
+	if (isnan(mjd) || fs == 0)
 		return 0;
+	/* hypot() keeps u finite while tau^2 overflows; tau itself, or
+	 * mjd - t0, is infinite when t0 is far from the date or te tiny.
+	 * Then, and wherever u^2 overflows (u above 1.3e154), A = 1 + 2/u^4
+	 * - ... is 1 to the last bit, and the star has its baseline flux.
+	 * (t0 is finite, so u is never NaN: the catalog has no NaN.) */
 	tau = (mjd - p[C_T0]) / te;
 	u = hypot(u0, tau);
-	src->flux *= fs * magnification(u) + 1 - fs;
+	if (isinf(u * u))
+		return 0;
+	a = magnification(u);
+	if (isinf(a))
+		/* u below 1 / DBL_MAX, where A = 1/u (see magnification()):
+		 * the magnified flux baseline fs / u may still be a double
+		 * for a faint enough star. */
+		f = src->flux * fs / u + src->flux * (1 - fs);
+	else
+		f = src->flux * (fs * a + 1 - fs);
+	/* A star past DBL_MAX counts/s is past the 1e32 the host allows one
+	 * source: give it the largest double, so that the host refuses it
+	 * with that limit rather than as "not a finite number". */
+	src->flux = isinf(f) ? DBL_MAX : f;
 	return 0;
 }
 

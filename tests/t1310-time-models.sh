@@ -119,4 +119,52 @@ test_expect_success 'bad parameters are refused with the row and column' '
 	test_grep "huge.csv:2: flux .* by its model" err &&
 	! test -e bad.fits
 '
+# Extreme but valid parameters, each row on its own.  Where u is past
+# 1e154 (te tiny, or t0 far from the date) A = 1 + 2/u^4 is 1 to the last
+# bit, and with fs = 0 the star is its baseline whatever A is: each such
+# star is drawn exactly as a point source of the catalog's flux.
+xrun() { "$WFS" --filter F158 --sca 1 --ra 150 --dec 0 --rows 1-200 --date 61540.3 "$@"; }
+test_expect_success 'lensed stars at extreme u or with fs = 0: the baseline, finite' '
+	printf "id,x,y,mag,type\n1,100,100,20,point\n" > pt.csv &&
+	xrun -o pt.fits --placed pt_p.csv pt.csv &&
+	k=0 &&
+	for row in 61540.2,1e-300,1e-300,1 1e300,1,1,1 1e150,1e-6,1,1 \
+		-1.7e308,1e-300,1,1 61540.3,1,1e-310,0 61540.3,1,5e-324,0
+	do
+		k=$((k + 1)) &&
+		printf "id,x,y,mag,type,t0,te,u0,fs\n1,100,100,20,microlens,%s\n" \
+			"$row" > ext.csv &&
+		xrun -o ext_$k.fits --placed ext_$k.csv ext.csv &&
+		test "$(cut -d, -f5 ext_$k.csv)" = "$(cut -d, -f5 pt_p.csv)" ||
+		{ echo "row $row: $(cat ext_$k.csv)"; exit 1; }
+	done &&
+	"$PY" -c "
+import glob
+import numpy as np
+from astropy.io import fits
+b = fits.getdata(\"pt.fits\", 1)
+names = sorted(glob.glob(\"ext_*.fits\"))
+assert len(names) == 6, names
+for n in names:
+    a = fits.getdata(n, 1)
+    print(n, a.sum(), b.sum())
+    assert np.isfinite(a).all() and a.sum() > 0, n
+    assert (a == b).all(), n
+"
+'
+test_expect_success '... and A past the largest double is refused by the 1e32 limit, not NaN' '
+	for u0 in 1e-310 5e-324
+	do
+		printf "id,x,y,mag,type,t0,te,u0,fs\n1,100,100,20,microlens,61540.3,1,%s,1\n" \
+			"$u0" > tiny.csv &&
+		test_must_fail --status 1 xrun -o bad.fits tiny.csv 2> err &&
+		test_grep "tiny.csv:2: flux 20 becomes, by its model, .* more than the 1e32" err &&
+		! grep -qi nan err && ! test -e bad.fits || exit 1
+	done &&
+	# A faint enough star (flux 1e-300) is magnified by A = 1/u = 1e310
+	# to a finite 1e10, as the formula has it.
+	printf "id,x,y,flux,type,t0,te,u0,fs\n1,100,100,1e-300,microlens,61540.3,1,1e-310,1\n" > faint.csv &&
+	xrun -o faint.fits --placed faint_p.csv faint.csv &&
+	test "$(sed -n 2p faint_p.csv | cut -d, -f5)" = 1e+10
+'
 test_done

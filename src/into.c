@@ -4,6 +4,7 @@
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,6 +19,7 @@
 #include "instrument.h"
 #include "into.h"
 #include "into_asdf.h"
+#include "scene.h"
 #include "sky.h"
 #include "tempfile.h"
 
@@ -27,6 +29,8 @@ struct into_hdu {
 	long nx, ny;
 	struct wcsprm wcs;      /* the image's celestial WCS, set */
 	double ra, dec, pa;     /* centre and position angle of +y there */
+	char filter[FLEN_VALUE];/* FILTER, its own or the primary's; "" none */
+	char bunit[FLEN_VALUE]; /* BUNIT, the same way */
 };
 
 struct into {
@@ -38,7 +42,32 @@ struct into {
 	struct into_asdf *asdf; /* a Roman level-2 ASDF file (into_asdf.h) */
 	double ra, dec, pa;
 	int boresight;
+	char filter0[FLEN_VALUE];       /* the primary header's FILTER and */
+	char bunit0[FLEN_VALUE];        /* BUNIT, for HDUs without their own */
 };
+
+/* The SCA of an HDU name or DETECTOR value "WFInn" (1 to 18), else 0. */
+static int wfi_number(const char *name)
+{
+	int s;
+
+	if (strlen(name) != 5 || strncasecmp(name, "WFI", 3) ||
+	    !isdigit((unsigned char)name[3]) || !isdigit((unsigned char)name[4]))
+		return 0;
+	s = atoi(name + 3);
+	return s >= 1 && s <= WFS_NSCA ? s : 0;
+}
+
+/* String keyword key of the current HDU into v ("" when it has none). */
+static void read_str(fitsfile *f, const char *key, char *v)
+{
+	int status = 0;
+
+	if (fits_read_key(f, TSTRING, key, v, NULL, &status)) {
+		v[0] = '\0';
+		fits_clear_errmsg();
+	}
+}
 
 /* Split "file[hdu]" into the file and the HDU text (NULL when none). */
 static int split_spec(struct into *in, const char *spec, char **hdu, struct err *e)
@@ -103,6 +132,25 @@ static int read_hdu(struct into *in, fitsfile *f, int hdu, int sca,
 		return err_set(e, EXIT_INPUT, "%s: not a two-dimensional image", where);
 	if (fits_get_img_size(f, 2, nax, &status))
 		return err_fits(e, status, "%s", where);
+	/* The PSF, zeropoint and pixel response are the SCA's the HDU stands
+	 * for: an HDU that names another SCA (EXTNAME or DETECTOR WFInn) is
+	 * not drawn with --sca's, as an ASDF image of another SCA is not */
+	for (int k = 0; k < 2; k++) {
+		static const char *const key[2] = { "EXTNAME", "DETECTOR" };
+		char v[FLEN_VALUE];
+		int s;
+
+		read_str(f, key[k], v);
+		if ((s = wfi_number(v)) && s != sca)
+			return err_set(e, EXIT_INPUT, "%s holds WFI%02d: give --sca %d (and that "
+				       "SCA only)", where, s, s);
+	}
+	read_str(f, "FILTER", h->filter);
+	read_str(f, "BUNIT", h->bunit);
+	if (!h->filter[0])
+		snprintf(h->filter, sizeof(h->filter), "%s", in->filter0);
+	if (!h->bunit[0])
+		snprintf(h->bunit, sizeof(h->bunit), "%s", in->bunit0);
 	if (nax[0] > WFS_NPIX || nax[1] > WFS_NPIX)
 		return err_set(e, EXIT_INPUT, "%s: %ld x %ld pixels, larger than an SCA (%d x %d)",
 			       where, nax[0], nax[1], WFS_NPIX, WFS_NPIX);
@@ -136,14 +184,20 @@ out:
 	return rc;
 }
 
-/* The primary header's pointing (a wfiscene image), if it has one. */
+/* The primary header's pointing (a wfiscene image), if it has one, and
+ * its FILTER and BUNIT. */
 static void read_pointing(struct into *in, fitsfile *f)
 {
 	int status = 0, type;
 	char ref[FLEN_VALUE] = "";
 
-	if (fits_movabs_hdu(f, 1, &type, &status) ||
-	    fits_read_key(f, TDOUBLE, "RA_TARG", &in->ra, NULL, &status) ||
+	if (fits_movabs_hdu(f, 1, &type, &status)) {
+		fits_clear_errmsg();
+		return;
+	}
+	read_str(f, "FILTER", in->filter0);
+	read_str(f, "BUNIT", in->bunit0);
+	if (fits_read_key(f, TDOUBLE, "RA_TARG", &in->ra, NULL, &status) ||
 	    fits_read_key(f, TDOUBLE, "DEC_TARG", &in->dec, NULL, &status) ||
 	    fits_read_key(f, TDOUBLE, "PA_APER", &in->pa, NULL, &status)) {
 		fits_clear_errmsg();
@@ -165,7 +219,7 @@ static int read_by_name(struct into *in, fitsfile *f, int nhdu, unsigned mask, i
 
 	for (int k = 1; k <= nhdu; k++) {
 		char name[FLEN_VALUE] = "";
-		int type, naxis = 0, s;
+		int type, naxis = 0;
 
 		if (fits_movabs_hdu(f, k, &type, &status)) {
 			err_fits(e, status, "--into %s", in->path);
@@ -181,10 +235,8 @@ static int read_by_name(struct into *in, fitsfile *f, int nhdu, unsigned mask, i
 			fits_clear_errmsg();
 			continue;
 		}
-		if (strlen(name) == 5 && !strncasecmp(name, "WFI", 3) &&
-		    isdigit((unsigned char)name[3]) && isdigit((unsigned char)name[4]) &&
-		    (s = atoi(name + 3)) >= 1 && s <= WFS_NSCA && !found[s])
-			found[s] = k;
+		if (wfi_number(name) && !found[wfi_number(name)])
+			found[wfi_number(name)] = k;
 	}
 	for (int s = 1; s <= WFS_NSCA; s++) {
 		if (!(mask & (1u << (s - 1))))
@@ -304,8 +356,47 @@ void into_catalogs(struct into *in, char *const *catalogs)
 		into_asdf_catalogs(in->asdf, catalogs);
 }
 
-int into_apply(const struct into *in, struct sky *sky, struct err *e)
+/*
+ * The light is drawn in the run's filter and unit and added as it is: an
+ * image of another filter (its FILTER, or an ASDF image's
+ * meta.instrument.optical_element, naming another of wfiscene's filters)
+ * or another of wfiscene's units (BUNIT 'counts/s' or 'counts') is
+ * refused.  An image without them, or with a filter or unit wfiscene does
+ * not write, is taken as it is.
+ */
+static int check_light(const struct into *in, const struct scene_opts *o, struct err *e)
 {
+	const char *want_filter = filter_get(o->filter)->name;
+	const char *want_unit = o->bunit_counts ? "counts" : "counts/s";
+
+	if (in->asdf) {
+		const char *f = into_asdf_filter(in->asdf);
+
+		if (f && filter_lookup(f) >= 0 && filter_lookup(f) != o->filter)
+			return err_set(e, EXIT_INPUT, "%s is in %s (meta.instrument.optical_element): "
+				       "give --filter %s, not %s", in->path, f, f, want_filter);
+		return 0;
+	}
+	for (int k = 0; k < in->nh; k++) {
+		const struct into_hdu *h = &in->h[k];
+
+		if (filter_lookup(h->filter) >= 0 && filter_lookup(h->filter) != o->filter)
+			return err_set(e, EXIT_INPUT, "%s[%d] is in %s (FILTER): give --filter %s, "
+				       "not %s", in->path, h->hdu - 1, h->filter, h->filter,
+				       want_filter);
+		if ((!strcasecmp(h->bunit, "counts/s") || !strcasecmp(h->bunit, "counts")) &&
+		    strcasecmp(h->bunit, want_unit))
+			return err_set(e, EXIT_INPUT, "%s[%d] is in %s (BUNIT): give --bunit %s, "
+				       "not %s", in->path, h->hdu - 1, h->bunit, h->bunit, want_unit);
+	}
+	return 0;
+}
+
+int into_apply(const struct into *in, struct sky *sky, const struct scene_opts *o,
+	       struct err *e)
+{
+	if (check_light(in, o, e) < 0)
+		return -1;
 	if (in->asdf)
 		return into_asdf_apply(in->asdf, sky, e);
 	for (int k = 0; k < in->nh; k++) {

@@ -17,13 +17,18 @@
 #include <stddef.h>
 
 struct err;
+struct scene_opts;
 struct sky;
 struct into;
 struct pool;
 
 /* Open spec ("IMAGE.fits" or "IMAGE.fits[N]") for the SCAs in mask (bit
- * s-1 for SCA s) and read each mapped HDU's size and WCS.  NULL with a
- * message naming the file and HDU at fault. */
+ * s-1 for SCA s) and read each mapped HDU's size, WCS, FILTER and BUNIT
+ * (the HDU's own, else the primary header's).  An HDU whose EXTNAME or
+ * DETECTOR is WFInn stands for SCA nn only: mapped to another SCA (as the
+ * file's only image, or named in spec) it is refused, as an ASDF image of
+ * another SCA is.  NULL with a message naming the file and HDU at fault
+ * (exit 1 for what the file holds). */
 struct into *into_open(const char *spec, unsigned mask, struct err *e);
 
 /* The pointing to simulate: the primary header's RA_TARG, DEC_TARG,
@@ -32,10 +37,16 @@ struct into *into_open(const char *spec, unsigned mask, struct err *e);
 void into_pointing(const struct into *in, double *ra, double *dec, double *pa,
 		   int *boresight);
 
-/* Give the mapped SCAs of sky the images' WCSs and centres.  Refuses an
+/* Give the mapped SCAs of sky the images' WCSs and centres.  The light is
+ * drawn in o's filter and unit: an image whose FILTER (ASDF:
+ * meta.instrument.optical_element) names another of wfiscene's filters,
+ * or whose BUNIT is the other of 'counts/s' and 'counts', is refused
+ * here, before anything is drawn or written (an image without them, or
+ * with values wfiscene does not write, is taken as it is).  Refuses an
  * image larger than an SCA or reaching farther from its centre than an
- * SCA's window.  Returns 0 or -1. */
-int into_apply(const struct into *in, struct sky *sky, struct err *e);
+ * SCA's window.  Returns 0 or -1 (exit 1 for the image). */
+int into_apply(const struct into *in, struct sky *sky, const struct scene_opts *o,
+	       struct err *e);
 
 /* The engine's scene of SCA sca (HDU WFInn of the FITS file at path):
  * its first nx x ny pixels into out, and where asked the number of

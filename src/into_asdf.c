@@ -38,6 +38,7 @@ enum { A_DATA, A_VP, A_ERR, A_N };
 struct into_asdf {
 	struct asdf_in *in;
 	int sca;
+	char filter[16];        /* meta.instrument.optical_element, "" none */
 	double ra_ref, dec_ref, roll_ref, v2_ref, v3_ref;
 	double teff;            /* s: the Poisson variance's time */
 	double va;              /* meta.velocity_aberration.scale_factor, 1 without */
@@ -244,6 +245,11 @@ struct into_asdf *into_asdf_open(const char *path, unsigned mask, struct err *e)
 			ia->sca);
 		goto fail;
 	}
+	/* checked against --filter by into_apply (into.h) */
+	det = at(asdf_in_root(ia->in), "/roman/meta/instrument/optical_element");
+	dn = det && fy_node_is_scalar(det) ? fy_node_get_scalar0(det) : NULL;
+	if (dn)
+		snprintf(ia->filter, sizeof(ia->filter), "%s", dn);
 	if (number(ia->in, "/roman/meta/wcsinfo/ra_ref", &ia->ra_ref, e) < 0 ||
 	    number(ia->in, "/roman/meta/wcsinfo/dec_ref", &ia->dec_ref, e) < 0 ||
 	    number(ia->in, "/roman/meta/wcsinfo/roll_ref", &ia->roll_ref, e) < 0 ||
@@ -336,6 +342,11 @@ void into_asdf_pointing(const struct into_asdf *ia, double *ra, double *dec, dou
 int into_asdf_sca(const struct into_asdf *ia)
 {
 	return ia->sca;
+}
+
+const char *into_asdf_filter(const struct into_asdf *ia)
+{
+	return ia->filter[0] ? ia->filter : NULL;
 }
 
 static void swap_bytes(void *p, size_t n, size_t size)

@@ -56,4 +56,7 @@ int into_asdf_compose(struct into_asdf *ia, const char *path, int compression,
 
 void into_asdf_free(struct into_asdf *ia);
 
+/* The image's meta.instrument.optical_element, NULL without one. */
+const char *into_asdf_filter(const struct into_asdf *ia);
+
 #endif

@@ -676,7 +676,7 @@ static int pass_engine(struct engine *g, const struct scene_opts *o, struct expo
 		       struct into *into, struct timespec t0, int first, struct err *e)
 {
 	if (engine_init(g, o, x, pool, place_pool, e) < 0 ||
-	    (into && into_apply(into, &g->sky, e) < 0))
+	    (into && into_apply(into, &g->sky, o, e) < 0))
 		return -1;
 	if ((x->placed && placed_open(g) < 0) || (x->report && side_check(x->report, e) < 0))
 		return -1;

@@ -1,6 +1,8 @@
 #!/bin/sh
 # --into: sources added to an existing image, placed by its own WCS.  The
 # difference image is a run on an empty image; the header and WCS are kept.
+# An image of another SCA, filter or unit is refused before anything is
+# written.
 . "$(dirname "$0")/lib.sh"
 require_python
 
@@ -174,5 +176,58 @@ fits.PrimaryHDU(np.zeros((10, 10), np.float32)).writeto(\"nowcs.fits\")" &&
 	test_must_fail --status 2 "$WFS" --filter F129 --into missing.fits -o x.fits b.csv 2> err &&
 	test_grep "missing.fits" err &&
 	test ! -e x.fits
+'
+# The light is drawn with the SCA's PSF and zeropoint, in --filter and
+# --bunit: an image that says it is another (EXTNAME or DETECTOR WFInn,
+# FILTER or ASDF optical_element, BUNIT) is refused, and nothing written.
+test_expect_success 'an HDU of another SCA (EXTNAME or DETECTOR) is refused, nothing written' '
+	"$WFS" --filter F129 --ra 10 --dec 20 --pa 30 --sca 1 -o one.fits a.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 2 --into one.fits -o x.fits \
+		--placed x.csv b.csv 2> err &&
+	test_grep "one.fits\[1\] holds WFI01: give --sca 1 (and that SCA only)" err &&
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 4 --into "base.fits[WFI01]" \
+		-o x.fits b.csv 2> err &&
+	test_grep "base.fits\[1\] holds WFI01: give --sca 1 " err &&
+	"$PY" -c "
+from astropy.io import fits
+h = fits.open(\"zero.fits\")
+h[0].header[\"DETECTOR\"] = \"WFI03\"
+h.writeto(\"det3.fits\")" &&
+	test_must_fail --status 1 "$WFS" --filter F129 --into det3.fits -o x.fits b.csv 2> err &&
+	test_grep "det3.fits\[0\] holds WFI03: give --sca 3 " err &&
+	test ! -e x.fits && test ! -e x.csv &&
+	"$WFS" --filter F129 --sca 3 --into det3.fits -o y3.fits b.csv &&
+	"$WFS" --filter F129 --sca 1 --into one.fits --placed y1.csv -o y1.fits b.csv &&
+	test_cmp empty.csv y1.csv &&
+	"$PY" check.py one.fits y1.fits empty.fits WFI01 WFI01
+'
+test_expect_success 'an image of another filter (FILTER, ASDF optical_element) is refused' '
+	test_must_fail --status 1 "$WFS" --filter F158 --sca 1 --into one.fits -o x.fits \
+		--placed x.csv b.csv 2> err &&
+	test_grep "one.fits\[1\] is in F129 (FILTER): give --filter F129, not F158" err &&
+	test ! -e x.fits && test ! -e x.csv &&
+	"$WFS" --filter F129 --ra 10 --dec 20 --pa 30 --sca 1 --level 2 --detector none \
+		-o l2.asdf b.csv &&
+	test_must_fail --status 1 "$WFS" --filter F158 --into l2.asdf -o x.asdf \
+		--placed x.csv b.csv 2> err &&
+	test_grep "l2.asdf is in F129 (meta.instrument.optical_element): give --filter F129, not F158" err &&
+	test ! -e x.asdf && test ! -e x.csv &&
+	"$WFS" --filter f129 --into l2.asdf -o y.asdf b.csv &&
+	test -s y.asdf
+'
+test_expect_success 'an image in the other unit (BUNIT counts/s or counts) is refused' '
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 1 --bunit counts --exptime 100 \
+		--into one.fits -o x.fits --placed x.csv b.csv 2> err &&
+	test_grep "one.fits\[1\] is in counts/s (BUNIT): give --bunit counts/s, not counts" err &&
+	"$WFS" --filter F129 --ra 10 --dec 20 --pa 30 --sca 1 --bunit counts --exptime 100 \
+		-o cnt.fits a.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 1 --into cnt.fits -o x.fits \
+		--placed x.csv b.csv 2> err &&
+	test_grep "cnt.fits\[1\] is in counts (BUNIT): give --bunit counts, not counts/s" err &&
+	test ! -e x.fits && test ! -e x.csv &&
+	"$WFS" --filter F129 --sca 1 --bunit counts --exptime 100 --into cnt.fits -o yc.fits b.csv &&
+	"$WFS" --filter F129 --ra 10 --dec 20 --pa 30 --sca 1 --bunit counts --exptime 100 \
+		-o cempty.fits b.csv &&
+	"$PY" check.py cnt.fits yc.fits cempty.fits WFI01 WFI01
 '
 test_done

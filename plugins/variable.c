@@ -28,6 +28,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "wfiscene/model.h"
 
@@ -64,9 +65,16 @@ static int read_curve(struct variable *v, const char *path)
 	FILE *f = fopen(path, "r");
 	char line[512];
 	int cap = 0, lineno = 0;
+	struct stat st;
 
 	if (!f)
 		return h->error(h->ctx, "variable-curve %s: %s", path, strerror(errno));
+	/* a directory opens, and then reads as empty */
+	if (fstat(fileno(f), &st) == 0 && S_ISDIR(st.st_mode)) {
+		fclose(f);
+		return h->error(h->ctx, "variable-curve %s: is a directory, not a light curve",
+				path);
+	}
 	snprintf(v->curve_name, sizeof(v->curve_name), "%s", path);
 	while (fgets(line, sizeof(line), f)) {
 		char *p = strchr(line, '#'), *end;

@@ -114,6 +114,9 @@ test_expect_success 'bad parameters are refused with the row and column' '
 	printf "0 0\nzero 1\n" > badcurve.txt &&
 	test_must_fail --status 3 run --set variable-curve=badcurve.txt -o bad.fits bad.csv 2> err &&
 	test_grep "badcurve.txt:2: want two numbers" err &&
+	mkdir curvedir &&
+	test_must_fail --status 3 run --set variable-curve=curvedir -o bad.fits bad.csv 2> err &&
+	test_grep "variable-curve curvedir: is a directory" err &&
 	printf "ra,dec,mag,type,t0,te,u0\n268,-29,20,microlens,61500,20,1e-300\n" > huge.csv &&
 	test_must_fail --status 1 run --date 61500 -o bad.fits huge.csv 2> err &&
 	test_grep "huge.csv:2: flux .* by its model" err &&

@@ -271,7 +271,10 @@ void render_threads_stop(struct engine *g);
 /* write.c */
 int write_exposure(struct engine *g);
 
-/* report.c */
+/* report.c: whether a side file (--report, the persistence state) can be
+ * written at path, checked before the run draws anything: a directory is
+ * refused (exit 1), a device taken as it is, and otherwise the temporary
+ * it will be written through is made beside it and removed (exit 2). */
 int side_check(const char *path, struct err *e);
 int placed_open(struct engine *g);
 int placed_close(struct engine *g, int keep);

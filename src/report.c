@@ -29,8 +29,9 @@
 int side_check(const char *path, struct err *e)
 {
 	const char *slash = strrchr(path, '/');
-	char dir[PATH_MAX];
+	char dir[PATH_MAX], tmp[PATH_MAX];
 	struct stat st;
+	int fd;
 
 	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode))
 		return S_ISDIR(st.st_mode) ?
@@ -39,6 +40,13 @@ int side_check(const char *path, struct err *e)
 		 slash ? path : ".");
 	if (access(dir, W_OK | X_OK))
 		return err_sys(e, "%s: cannot write in '%s'", path, dir);
+	/* access() passes some directories that take no file (/proc, a
+	 * read-only mount for root): the temporary the file will be written
+	 * through, made and removed */
+	if ((fd = tempfile_beside(path, tmp, sizeof(tmp), e)) < 0)
+		return -1;
+	close(fd);
+	tempfile_discard(tmp);
 	return 0;
 }
 

@@ -654,22 +654,6 @@ static void plan_say(const struct scene_opts *o, const struct exposure *x, int n
 			exposure_bytes(o, &x[0], p->colour) / MIB);
 }
 
-/* Whether the persistence state can be saved at path: its temporary
- * made beside it, as persist_save() will, and removed again (a directory
- * that access() calls writable may still refuse it, as /proc does). */
-static int state_probe(const char *path, struct err *e)
-{
-	char tmp[PATH_MAX];
-	int fd = tempfile_open_output(path, tmp, sizeof(tmp), e);
-
-	if (fd < 0)
-		return -1;
-	close(fd);
-	if (tmp[0])
-		unlink(tmp);
-	return 0;
-}
-
 /* Engine g[i] for exposure x[i], ready for the catalogs. */
 static int pass_engine(struct engine *g, const struct scene_opts *o, struct exposure *x,
 		       int groups, struct pool *pool, struct pool *place_pool,
@@ -833,7 +817,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 			goto out;
 		/* the state is saved after the images are written: a place it
 		 * cannot be saved in is refused now, before any image is */
-		if (o->persistence_state && state_probe(o->persistence_state, e) < 0)
+		if (o->persistence_state && side_check(o->persistence_state, e) < 0)
 			goto out;
 		for (int i = 0; i < n; i++)
 			x[i].persist = persist;

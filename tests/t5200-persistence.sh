@@ -178,7 +178,7 @@ test_expect_success 'a state of other SCAs or rows is refused, naming the file; 
 	# (it once left the images behind, the run failing only at the end)
 	test_must_fail --status 2 run --level 1 --pointings pts-b.txt \
 		--persistence-state nosuchdir/state.bin -o "bad_%s.fits" bright.csv 2> err &&
-	test_grep "nosuchdir/state.bin: cannot create temporary file" err && ! test -e bad_b.fits
+	test_grep "nosuchdir/state.bin: cannot write in" err && ! test -e bad_b.fits
 '
 
 test_expect_success 'exposures out of date order, and options that do not fit, are refused' '

@@ -4,7 +4,6 @@
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
-#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -219,7 +218,7 @@ static int read_by_name(struct into *in, fitsfile *f, int nhdu, unsigned mask, i
 
 	for (int k = 1; k <= nhdu; k++) {
 		char name[FLEN_VALUE] = "";
-		int type, naxis = 0;
+		int type, naxis = 0, s;
 
 		if (fits_movabs_hdu(f, k, &type, &status)) {
 			err_fits(e, status, "--into %s", in->path);
@@ -235,8 +234,8 @@ static int read_by_name(struct into *in, fitsfile *f, int nhdu, unsigned mask, i
 			fits_clear_errmsg();
 			continue;
 		}
-		if (wfi_number(name) && !found[wfi_number(name)])
-			found[wfi_number(name)] = k;
+		if ((s = wfi_number(name)) && !found[s])
+			found[s] = k;
 	}
 	for (int s = 1; s <= WFS_NSCA; s++) {
 		if (!(mask & (1u << (s - 1))))

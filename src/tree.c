@@ -91,11 +91,8 @@ static long long name_pixel(const char *base, int *hats)
 			return -1;
 	if (base + len - p > 18)
 		return -2;
-	for (; p < base + len; p++) {
-		if (!isdigit((unsigned char)*p))
-			return -1;
+	for (; p < base + len; p++)
 		v = v * 10 + (*p - '0');
-	}
 	return v;
 }
 

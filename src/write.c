@@ -28,6 +28,7 @@
 #include "levels.h"
 #include "pool.h"
 #include "product.h"
+#include "simd.h"
 
 /* The first of a[0 .. n-1] that is infinite or NaN (its exponent bits all
  * ones), or -1: counted 1024 at a time in a loop the compiler vectorises,
@@ -51,26 +52,69 @@ static ptrdiff_t first_nonfinite(const float *a, size_t n)
 	return -1;
 }
 
+/* Row r's nx values added to the four running sums s[x & 3] in column
+ * order (tile_sum's order), and with out converted to float into it;
+ * returns whether a float came out infinite or NaN.  The AVX2 loop keeps
+ * s[k] in lane k, so both give the same bits. */
+static int row_fold_c(const double *r, float *out, int nx, double *s)
+{
+	int bad = 0;
+
+	for (int x = 0; x < nx; x++) {
+		if (out) {
+			out[x] = (float)r[x];
+			bad |= !isfinite(out[x]);
+		}
+		s[x & 3] += r[x];
+	}
+	return bad;
+}
+
+#ifdef SIMD_X86
+__attribute__((target("avx2"))) static int row_fold_avx2(const double *r, float *out, int nx,
+							 double *s)
+{
+	__m256d acc = _mm256_loadu_pd(s);
+	__m128i em = _mm_set1_epi32(0x7f800000), bad = _mm_setzero_si128();
+	int x = 0;
+
+	if (out)
+		for (; x + 4 <= nx; x += 4) {
+			__m256d v = _mm256_loadu_pd(r + x);
+			__m128 f = _mm256_cvtpd_ps(v);
+
+			acc = _mm256_add_pd(acc, v);
+			_mm_storeu_ps(out + x, f);
+			bad = _mm_or_si128(bad, _mm_cmpeq_epi32(
+							_mm_and_si128(_mm_castps_si128(f), em), em));
+		}
+	else
+		for (; x + 4 <= nx; x += 4)
+			acc = _mm256_add_pd(acc, _mm256_loadu_pd(r + x));
+	_mm256_storeu_pd(s, acc);
+	return row_fold_c(r + x, out ? out + x : NULL, nx - x, s) |
+	       !_mm_testz_si128(bad, bad);
+}
+#endif
+
+static int row_fold(const double *r, float *out, int nx, double *s)
+{
+#ifdef SIMD_X86
+	if (simd_flags() & SIMD_AVX2)
+		return row_fold_avx2(r, out, nx, s);
+#endif
+	return row_fold_c(r, out, nx, s);
+}
+
 /* The sum of rows [y0, y1) of a tile of side T, nx pixels each: the
  * drawn light of --report.  Four running sums over the columns, added at
  * the end, so that the adds need not wait for one another. */
 static double tile_sum(const double *t, int T, int y0, int y1, int nx)
 {
 	double s[4] = { 0, 0, 0, 0 };
-	int x4 = nx & ~3;
 
-	for (int y = y0; y < y1; y++) {
-		const double *r = t + (size_t)y * T;
-
-		for (int x = 0; x < x4; x += 4) {
-			s[0] += r[x];
-			s[1] += r[x + 1];
-			s[2] += r[x + 2];
-			s[3] += r[x + 3];
-		}
-		for (int x = x4; x < nx; x++)
-			s[x & 3] += r[x];
-	}
+	for (int y = y0; y < y1; y++)
+		row_fold(t + (size_t)y * T, NULL, nx, s);
 	return (s[0] + s[1]) + (s[2] + s[3]);
 }
 
@@ -95,10 +139,9 @@ static void strip_convert(void *arg, size_t tx)
 	struct strip_f32 *c = arg;
 	int T = c->T, x0 = (int)tx * T, nx = x0 + T > WFS_NPIX ? WFS_NPIX - x0 : T;
 	const double *t = c->row[tx];
+	double s[4] = { 0, 0, 0, 0 };
 
 	c->bad[tx] = -1;
-	if (c->sums)
-		c->sum[tx] = t ? tile_sum(t, T, c->ya, c->yb, nx) : 0;
 	for (int y = c->ya; y < c->yb; y++) {
 		float *out = c->out + (size_t)(y - c->ya) * WFS_NPIX + x0;
 		ptrdiff_t k;
@@ -107,11 +150,13 @@ static void strip_convert(void *arg, size_t tx)
 			memset(out, 0, nx * sizeof(float));
 			continue;
 		}
-		for (int x = 0; x < nx; x++)
-			out[x] = (float)t[(size_t)y * T + x];
-		if (c->bad[tx] < 0 && (k = first_nonfinite(out, nx)) >= 0)
+		/* converted, checked and (for the report) summed in one pass */
+		if (row_fold(t + (size_t)y * T, out, nx, s) && c->bad[tx] < 0 &&
+		    (k = first_nonfinite(out, nx)) >= 0)
 			c->bad[tx] = (out - c->out) + k;
 	}
+	if (c->sums)
+		c->sum[tx] = (s[0] + s[1]) + (s[2] + s[3]);
 }
 
 /* The strip of tiles ty of slot s: its drawn light for the report, its

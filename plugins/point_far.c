@@ -782,13 +782,14 @@ out:
 	return rc;
 }
 
+SIMD_CLONES("avx2,fma", "default")
 int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
 {
 	struct point *p = state;
 	const double *c = p->far[sca];
-	int n = p->far_n;
+	int n = p->far_n, nr = 0, *rs;
 	long *ia;
-	double *fx, *rv, *tmp;
+	double *fx, *rv;
 	long a0, a1;
 
 	if (!c)
@@ -808,12 +809,15 @@ int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
 					return 1;
 		return 0;
 	}
-	if (!(ia = p->host->scratch(thread, (size_t)win->nx * (sizeof(long) + 2 * sizeof(double)) +
-				    (size_t)n * sizeof(double))))
+	if (!(ia = p->host->scratch(thread, (size_t)win->nx * (sizeof(long) + sizeof(double)) +
+				    (size_t)n * sizeof(double) +
+				    (size_t)(win->nx + 1) * sizeof(int))))
 		return p->host->error(p->host->ctx, "out of scratch memory");
 	fx = (double *)(ia + win->nx);
-	tmp = fx + win->nx;
-	rv = tmp + win->nx;
+	rv = fx + win->nx;
+	rs = (int *)(rv + n);
+	/* the columns in runs between two cells' centres, rs[q] to
+	 * rs[q + 1], the same for every row */
 	for (int i = 0; i < win->nx; i++) {
 		double u = far_u(p, win->x0 + i);
 		long a = lfloor(u);
@@ -821,7 +825,10 @@ int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
 		a = a < 0 ? 0 : a > n - 2 ? n - 2 : a;
 		ia[i] = a;
 		fx[i] = u - a;
+		if (!i || a != ia[i - 1])
+			rs[nr++] = i;
 	}
+	rs[nr] = win->nx;
 	a0 = ia[0];
 	a1 = ia[win->nx - 1] + 1;
 	for (int j = 0; j < win->ny; j++) {
@@ -836,21 +843,14 @@ int far_spread(void *state, void *thread, int sca, const struct wfs_window *win)
 		c1 = c0 + n;
 		for (long a = a0; a <= a1; a++)
 			rv[a] = c0[a] + fy * (c1[a] - c0[a]);
-		/* a run of pixels between two cells' centres at a time, so
-		 * that the loops vectorise */
-		for (int i = 0; i < win->nx;) {
-			long a = ia[i];
+		/* a run at a time, so that the loop vectorises */
+		for (int q = 0; q < nr; q++) {
+			long a = ia[rs[q]];
 			double r0 = rv[a], dr = rv[a + 1] - rv[a];
-			int e = i;
 
-			while (e < win->nx && ia[e] == a)
-				e++;
-			for (int k = i; k < e; k++)
-				tmp[k] = r0 + fx[k] * dr;
-			i = e;
+			for (int k = rs[q]; k < rs[q + 1]; k++)
+				row[k] += r0 + fx[k] * dr;
 		}
-		for (int i = 0; i < win->nx; i++)
-			row[i] += tmp[i];
 	}
 	return 0;
 }

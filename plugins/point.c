@@ -287,6 +287,8 @@ static int point_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
 	pthread_mutex_init(&p->lock, NULL);
+	for (int i = 0; i < SCA_SLOTS; i++)
+		pthread_mutex_init(&p->hs_lock[i], NULL);
 	p->serial = atomic_fetch_add(&serials, 1) + 1;
 	kernels_choose(p);
 	for (int i = 0; i < SCA_SLOTS; i++)
@@ -379,6 +381,8 @@ fail:
 	poly_free_all(p);
 	free(p->chs);
 	pthread_mutex_destroy(&p->lock);
+	for (int i = 0; i < SCA_SLOTS; i++)
+		pthread_mutex_destroy(&p->hs_lock[i]);
 	free(p);
 	return -1;
 }
@@ -411,6 +415,8 @@ static void point_fini(void *state)
 	far_free(p);
 	hslot_free_all(p);
 	pthread_mutex_destroy(&p->lock);
+	for (int i = 0; i < SCA_SLOTS; i++)
+		pthread_mutex_destroy(&p->hs_lock[i]);
 	free(p);
 }
 
@@ -462,6 +468,19 @@ static int point_reach(void *state, const struct wfs_source *src, double *pixels
 	return noise_reach(p, src, pixels);
 }
 
+/* Set up SCA sca's default halo and what a faint source's prepare()
+ * finds from it (model.h, prime), so that an idle worker does it while
+ * the host reads the first rows. */
+static int point_prime(void *state, void *thread, int sca)
+{
+	struct point *p = state;
+
+	(void)thread;
+	if (sca < 1 || sca >= SCA_SLOTS || p->extent != EXTENT_NOISE)
+		return 0;
+	return noise_prime(p, sca);
+}
+
 static const struct wfs_model point_model = {
 	.abi = WFS_ABI_VERSION,
 	.size = sizeof(struct wfs_model),
@@ -483,6 +502,7 @@ static const struct wfs_model point_model = {
 	.gather = far_gather,
 	.spread = far_spread,
 	.roman_type = "PSF",
+	.prime = point_prime,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

@@ -337,6 +337,8 @@ struct point {
 	 * order; its counters are per thread (struct tally) */
 	pthread_mutex_t lock;
 	struct hslot hs[SCA_SLOTS]; /* per SCA, the default spectrum's halo */
+	pthread_mutex_t hs_lock[SCA_SLOTS]; /* each taken to set up hs[] (so that
+					     * two SCAs are set up at once) */
 	/* per SCA and size class, the flux at or below which prepare() (k =
 	 * 0) and reach() (k = 1) need not plan a source (faint_flux,
 	 * point_halo.c), once faint_known is set (release order, under lock) */
@@ -466,6 +468,7 @@ struct tally *tally_of(struct point *p);
 int noise_prepare(struct point *p, struct wfs_source *src);
 int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
 int noise_reach(struct point *p, const struct wfs_source *src, double *pixels);
+int noise_prime(struct point *p, int sca);
 double halo_level(const struct point *p, double flux, int *k);
 void hslot_free_all(struct point *p);
 

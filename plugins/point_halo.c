@@ -39,7 +39,7 @@ static int slot_fail(struct point *p, int sca, int n, int over)
 }
 
 /* The default spectrum's halo of the source's SCA, set up on first use by
- * one thread under the lock. */
+ * one thread under that SCA's lock. */
 static struct hslot *slot_default(struct point *p, const struct wfs_source *src)
 {
 	struct hslot *s = &p->hs[src->sca];
@@ -50,12 +50,12 @@ static struct hslot *slot_default(struct point *p, const struct wfs_source *src)
 		return s;
 	if (p->host->epsf(p->host->ctx, src->sca, src->x, src->y, WFS_PSF_HALO, &e) < 0)
 		return NULL;
-	pthread_mutex_lock(&p->lock);
+	pthread_mutex_lock(&p->hs_lock[src->sca]);
 	if (!atomic_load_explicit(&s->ready, memory_order_relaxed)) {
 		if ((ok = slot_setup(p, s, e.node[0], NULL, 0, e.n, e.over) == 0))
 			atomic_store_explicit(&s->ready, 1, memory_order_release);
 	}
-	pthread_mutex_unlock(&p->lock);
+	pthread_mutex_unlock(&p->hs_lock[src->sca]);
 	if (!ok) {
 		slot_fail(p, src->sca, e.n, e.over);
 		return NULL;
@@ -447,6 +447,24 @@ static int plan_skips(struct point *p, const struct wfs_source *src, int reach)
 	if (faint_flux(p, src, reach, &faint) < 0)
 		return -1;
 	return src->flux <= faint;
+}
+
+/* model.h prime(): SCA sca's default halo, the core's scale of the faint
+ * class, and the fluxes up to which prepare() and reach() skip plan(),
+ * found for a stand-in faint source at the SCA's centre (none of them
+ * depends on which source asks first). */
+int noise_prime(struct point *p, int sca)
+{
+	struct wfs_source t = { .x = SCA_CENTRE, .y = SCA_CENTRE, .flux = 1, .sca = sca,
+				.psf_class = WFS_PSF_NORMAL, .mjd = NAN, .colour = -1 };
+	struct hslot *hs;
+	double faint;
+
+	if (!(hs = slot_default(p, &t)) || core_scale(p, &t, hs) < 0)
+		return -1;
+	if (p->extent_min > 0)
+		return 0;
+	return faint_flux(p, &t, 0, &faint) < 0 || faint_flux(p, &t, 1, &faint) < 0 ? -1 : 0;
 }
 
 /* point_reach() with psf-extent=noise: the radius the source's plan

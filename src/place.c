@@ -86,6 +86,17 @@ static int resolve_type(struct engine *g, const char *name)
 	return m;
 }
 
+int place_point_model(struct engine *g)
+{
+	int n0 = g->plugins.n, m = resolve_type(g, "point");
+
+	if (m < 0) {
+		plugins_forget(&g->plugins, n0);
+		err_clear(g->e);
+	}
+	return m;
+}
+
 /* The chunk's column index of each column model m reads (-1 if absent). */
 static int model_columns(struct engine *g, const struct rows *r, int m)
 {

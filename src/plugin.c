@@ -391,6 +391,23 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	return idx;
 }
 
+void plugins_forget(struct plugins *ps, int n)
+{
+	for (int i = n; i < ps->n; i++) {
+		struct plugin *pl = &ps->p[i];
+
+		if (pl->ready && pl->m->fini)
+			pl->m->fini(pl->state);
+		if (pl->handle)
+			lt_dlclose(pl->handle);
+		if (pl->dl)
+			dlclose(pl->dl);
+		memset(pl, 0, sizeof(*pl));
+	}
+	if (n < ps->n)
+		ps->n = n;
+}
+
 void plugins_free(struct plugins *ps)
 {
 	for (int i = 0; i < ps->n; i++) {

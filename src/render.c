@@ -57,6 +57,19 @@ void render_errors_collect(struct engine *g)
 #define RENDER_ROWS_AHEAD 2
 #define RENDER_ROWS_MAX 24
 
+void render_prime(void *arg, int wid, size_t task)
+{
+	struct engine *g = arg;
+	struct worker *w = &g->w[wid];
+	const struct plugin *pl = &g->plugins.p[g->prime_model];
+
+	host_worker(w);
+	w->place = 1;
+	if (pl->m->prime(pl->state, w, g->slot[task].sca) < 0)
+		err_clear(&w->err);
+	w->place = 0;
+}
+
 /* Worker: render every placement of one active tile, in placement order. */
 void render_tile(void *arg, int wid, size_t task)
 {

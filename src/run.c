@@ -224,6 +224,46 @@ static void tree_note(struct engine **g, int ng, struct catalog *c, const char *
 	}
 }
 
+/*
+ * The first rows of a point source on an SCA wait while a place thread
+ * sets the SCA up (the point model's halo, some 25 ms), and the main
+ * thread with them.  So where that set-up is sure to be needed, the idle
+ * render workers do it (wfs_model prime) while the main thread reads the
+ * first chunk: one exposure of one SCA, a catalog without a type column
+ * (every row a point) or a spectrum (whose classes place_batch() sets up
+ * before the model is loaded, which reads them), a regular file of at
+ * least PRIME_BYTES (so that an
+ * empty or nearly empty catalog does not load and set up what it never
+ * uses).  The images are the same either way; WFISCENE_NO_PRIME set to
+ * anything but 0 turns it off.  Returns g when the workers were started
+ * (pool_wait() before the pool's next loop), else NULL.
+ */
+#define PRIME_BYTES 65536
+
+static struct engine *prime_start(struct engine *g, int ng, const char *path,
+				  const struct catalog *c)
+{
+	const char *off = getenv("WFISCENE_NO_PRIME");
+	const struct wfs_model *md;
+	struct stat st;
+	int m;
+
+	if ((off && *off && strcmp(off, "0")) || ng != 1 || g->nslot != 1 || catalog_typed(c) ||
+	    catalog_spectral(c) ||
+	    stat(path, &st) < 0 || !S_ISREG(st.st_mode) || st.st_size < PRIME_BYTES ||
+	    (m = place_point_model(g)) < 0)
+		return NULL;
+	md = g->plugins.p[m].m;
+	if (!WFS_HAS(md->size, struct wfs_model, prime) || !md->prime ||
+	    !WFS_HAS(md->size, struct wfs_model, flags) || !(md->flags & WFS_PARALLEL_PREPARE))
+		return NULL;
+	g->prime_model = m;
+	host_log(g, 1, "%s: SCA %d set up by the workers while the first rows are read", md->name,
+		 g->slot[0].sca);
+	pool_start(g->pool, render_prime, g, (size_t)g->nslot);
+	return g;
+}
+
 static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			const struct scene_opts *o, struct err *e)
 {
@@ -231,6 +271,7 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				   .chunk_rows = o->chunk, .settings = o->settings,
 				   .epoch = o->epoch, .pool = g[0]->place_pool };
 	struct engine *pending = NULL;  /* whose batch the pool is drawing */
+	struct engine *primer = NULL;   /* whose SCAs the pool is setting up */
 	struct tree_disc *disc = NULL;
 	int cur = 0, rc = -1;
 
@@ -245,6 +286,8 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 
 		if (!c)
 			goto out;
+		if (cat == catalogs)
+			primer = prime_start(g[0], ng, *cat, c);
 		/* Column indices belong to a catalog: the next one may order
 		 * its columns differently (rows lives at the same address). */
 		for (int i = 0; i < ng; i++)
@@ -281,6 +324,10 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 					}
 					pending = NULL;
 				}
+				if (primer) {
+					pool_wait(primer->pool);
+					primer = NULL;
+				}
 				/* the pool is idle: bin, allocate tiles, start */
 				engine_progress(g[i], "rendering", 0);
 				if (place_bin(g[i], b) < 0)
@@ -303,6 +350,8 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 	rc = 0;
 out:
 	free(disc);
+	if (primer)
+		pool_wait(primer->pool);
 	if (pending) {
 		double ta = engine_clock();
 

@@ -146,4 +146,30 @@ test_expect_success 'its refusal and a thread'"'"'s failure, in either order' '
 		test_grep "^wfiscene: sq2.csv:1000: flux 1e+40" err && ! test -e b.fits || return 1
 	done
 '
+# wfs_model prime: one SCA, a catalog of points of 64 KiB or more without a
+# type column, so the render workers set the SCA up while the first rows
+# are read.  The image must be the one drawn without it, and a model that
+# cannot start must be reported by the first row as without it.
+test_expect_success 'an SCA set up ahead of the rows: the same image' '
+	awk "BEGIN { srand(5); print \"x,y,mag\"; for (i = 0; i < 4000; i++)
+		printf \"%.3f,%.3f,%.3f\\n\", 1 + rand() * 4087, 1 + rand() * 4087,
+		       15 + rand() * 12 }" > prime.csv &&
+	test $(wc -c < prime.csv) -ge 65536 &&
+	"$WFS" --filter F158 --sca 3 --flux-unit abmag -v -o p1.fits prime.csv 2> log1 &&
+	test_grep "point: SCA 3 set up by the workers" log1 &&
+	WFISCENE_NO_PRIME=1 "$WFS" --filter F158 --sca 3 --flux-unit abmag -v -o p0.fits \
+		prime.csv 2> log0 &&
+	! grep "set up by the workers" log0 &&
+	cmp p0.fits p1.fits &&
+	"$WFS" --filter F158 --sca 3 --flux-unit abmag --threads 1 -o p2.fits prime.csv &&
+	cmp p0.fits p2.fits
+'
+test_expect_success 'a model that cannot start: the first row reports it, as without' '
+	test_must_fail --status 3 "$WFS" --filter F158 --sca 3 --flux-unit abmag \
+		--set psf-cell=20 -o p3.fits prime.csv 2> err1 &&
+	test_must_fail --status 3 env WFISCENE_NO_PRIME=1 "$WFS" --filter F158 --sca 3 \
+		--flux-unit abmag --set psf-cell=20 -o p3.fits prime.csv 2> err0 &&
+	test_cmp err0 err1 && test_grep "^wfiscene: prime.csv:2: model .point." err1
+'
+
 test_done

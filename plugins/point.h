@@ -283,6 +283,8 @@ struct far_dep {
 	double r, x, y, light;
 };
 
+#define FAR_RING 16
+
 struct tally {
 	double requested, left;
 	double spread;          /* of left, what went to the diffuse grid */
@@ -290,6 +292,15 @@ struct tally {
 	/* psf-diffuse=grid: per SCA, the thread's grid of light left out,
 	 * in two integer counters per cell (point_far.c); NULL until used */
 	int64_t *cnt[SCA_SLOTS];
+	/* the last FAR_RING deposits into them, held back with their cells
+	 * fetched ahead (far_deposit): the grid is too large for the cache,
+	 * and a deposit waited for its cells */
+	struct far_pend {
+		int sca;
+		uint32_t c0;    /* cells c0, c0 + 1, c0 + n, c0 + n + 1 */
+		double v[4];
+	} ring[FAR_RING];
+	unsigned long long nring;       /* deposits ever held */
 	/* and the light beyond the radii of sources with a halo, each
 	 * spread with the wing beyond its own radius (far_deposit) */
 	struct far_dep *dep;

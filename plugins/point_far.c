@@ -175,6 +175,13 @@ static void far_cic(const struct point *p, double x, double y, size_t c[4], doub
 		c[k] = (size_t)(b + (k >> 1)) * n + a + (k & 1);
 }
 
+/* A held deposit q into the counters cnt of its SCA (n cells a row). */
+static inline void far_pend_add(int64_t *cnt, const struct far_pend *q, int n)
+{
+	for (int k = 0; k < 4; k++)
+		far_add(cnt, q->c0 + (size_t)(k >> 1) * n + (k & 1), q->v[k]);
+}
+
 /* One more deposit in the thread's list. */
 static int dep_push(struct point *p, struct tally *t, struct far_dep d)
 {
@@ -195,6 +202,7 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 {
 	struct tally *t = tally_of(p);
 	int n = p->far_n, sca = src->sca;
+	struct far_pend *q;
 	size_t c[4];
 	double w[4];
 
@@ -210,8 +218,21 @@ int far_deposit(struct point *p, const struct wfs_source *src, double light, dou
 	if (!t->cnt[sca] && !(t->cnt[sca] = calloc((size_t)3 * n * n, sizeof(int64_t))))
 		return p->host->error(p->host->ctx, "out of memory");
 	far_cic(p, src->x, src->y, c, w);
+	/* the deposit FAR_RING ago added now, its cells fetched by then;
+	 * this one's asked for (two cells a row, 48 bytes: two lines at most) */
+	q = &t->ring[t->nring % FAR_RING];
+	if (t->nring++ >= FAR_RING)
+		far_pend_add(t->cnt[q->sca], q, n);
+	q->sca = sca;
+	q->c0 = (uint32_t)c[0];
 	for (int k = 0; k < 4; k++)
-		far_add(t->cnt[sca], c[k], light * w[k]);
+		q->v[k] = light * w[k];
+	for (int r = 0; r < 2; r++) {
+		const char *a = (const char *)(t->cnt[sca] + 3 * c[2 * r]);
+
+		__builtin_prefetch(a, 1);
+		__builtin_prefetch(a + 47, 1);
+	}
 	return 0;
 }
 
@@ -738,10 +759,18 @@ int far_gather(void *state, void *thread, int sca)
 	if (dense) {
 		if (work_slot(p, sca, &w, -1) < 0)
 			goto out;
-		for (struct tally *t = p->tallies; t; t = t->next)
+		for (struct tally *t = p->tallies; t; t = t->next) {
+			unsigned long long h = t->nring > FAR_RING ? t->nring - FAR_RING : 0;
+
 			if (t->cnt[sca])
 				for (size_t i = 0; i < 3 * nc; i++)
 					cnt[i] += t->cnt[sca][i];
+			/* and the deposits still held (read only: SCAs are
+			 * gathered on several threads at once) */
+			for (; h < t->nring; h++)
+				if (t->ring[h % FAR_RING].sca == sca)
+					far_pend_add(cnt, &t->ring[h % FAR_RING], n);
+		}
 		for (size_t i = 0; i < nc; i++)
 			w.g[i] = far_light(cnt, i);
 		if (level_spread(p, thread, w.h, &w, 0, w.outbox, c) < 0)

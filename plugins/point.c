@@ -468,9 +468,8 @@ static int point_reach(void *state, const struct wfs_source *src, double *pixels
 	return noise_reach(p, src, pixels);
 }
 
-/* Set up SCA sca's default halo and what a faint source's prepare()
- * finds from it (model.h, prime), so that an idle worker does it while
- * the host reads the first rows. */
+/* Set up SCA sca's default halo (model.h, prime), so that an idle worker
+ * does it while the host reads the first rows. */
 static int point_prime(void *state, void *thread, int sca)
 {
 	struct point *p = state;

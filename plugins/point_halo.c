@@ -449,22 +449,16 @@ static int plan_skips(struct point *p, const struct wfs_source *src, int reach)
 	return src->flux <= faint;
 }
 
-/* model.h prime(): SCA sca's default halo, the core's scale of the faint
- * class, and the fluxes up to which prepare() and reach() skip plan(),
- * found for a stand-in faint source at the SCA's centre (none of them
- * depends on which source asks first). */
+/* model.h prime(): SCA sca's default halo, which every source's plan()
+ * sets up (slot_default); not the scales of a class or its faint flux,
+ * which only that class's sources make, and which a kernel of the diffuse
+ * light reads when they are there (far_gather's box). */
 int noise_prime(struct point *p, int sca)
 {
 	struct wfs_source t = { .x = SCA_CENTRE, .y = SCA_CENTRE, .flux = 1, .sca = sca,
 				.psf_class = WFS_PSF_NORMAL, .mjd = NAN, .colour = -1 };
-	struct hslot *hs;
-	double faint;
 
-	if (!(hs = slot_default(p, &t)) || core_scale(p, &t, hs) < 0)
-		return -1;
-	if (p->extent_min > 0)
-		return 0;
-	return faint_flux(p, &t, 0, &faint) < 0 || faint_flux(p, &t, 1, &faint) < 0 ? -1 : 0;
+	return slot_default(p, &t) ? 0 : -1;
 }
 
 /* point_reach() with psf-extent=noise: the radius the source's plan

@@ -164,6 +164,9 @@ $(B)/tests/%: tests/unit/%.c tests/unit/tap.h $(B)/libwfs.a | $(B)/tests
 	@echo "  CC      $@"
 	$(Q)$(CC) $(ALL_CFLAGS) -Itests/unit $(LDFLAGS) -o $@ $< $(B)/libwfs.a $(ALL_LIBS)
 
+# a unit test of a plugin's header rebuilds when the header changes
+$(B)/tests/halo_amplitude: plugins/halo.h
+
 $(B)/contrib/%: contrib/%.c | $(B)/contrib
 	@echo "  CC      $@"
 	$(Q)$(CC) -std=c11 -D_DEFAULT_SOURCE $(WARN_FLAGS) $(CFLAGS) $(LDFLAGS) -o $@ $< -lzstd -lm

@@ -187,6 +187,15 @@ static inline void halo_free(struct halo *h)
 	h->env = h->cum = NULL;
 }
 
+/* The distance of sample offset (u, dy over) from the centre, in pixels,
+ * as halo_setup_amplitude() tests it. */
+static inline double halo_dist(int u, double dy, int over)
+{
+	double dx = (double)u / over;
+
+	return sqrt(dx * dx + dy * dy);
+}
+
 /* The tail's amplitude A(t): the mean of value * d^alpha over the band's
  * samples in each direction bin, from every sample of the array; *square
  * and *disc get the sample sums of the whole array and of the disc, for
@@ -215,16 +224,46 @@ static inline void halo_setup_amplitude(struct halo *h, double *square_out, doub
 		}
 	/* d by sqrt rather than hypot (a third of the set-up's time): for the
 	 * grids' power-of-two oversampling dx^2 + dy^2 is exact, and the two
-	 * agree */
-	for (int j = 0; j < n; j++)
-		for (int i = 0; i < n; i++) {
-			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
-			double d = sqrt(dx * dx + dy * dy), v = a[(size_t)j * n + i];
+	 * agree.  d grows with |i - c| along a row, so the disc (d < R) and
+	 * the band (d >= HALO_BAND R) are ranges of |i - c|, found with the
+	 * same test at their ends (halo_dist), and each sum still takes its
+	 * samples in the order of the array */
+	for (int j = 0; j < n; j++) {
+		const float *row = a + (size_t)j * n;
+		double dy = (double)(j - c) / over;
+		int ur = -1, ub, lo, hi;
 
-			square += v;
-			if (d < R)
-				disc += v;
-			if (d >= HALO_BAND * R && d < R) {
+		for (int i = 0; i < n; i++)
+			square += row[i];
+		/* the disc: |i - c| <= ur; the band: ub <= |i - c| <= ur */
+		if (halo_dist(0, dy, over) < R) {
+			ur = (int)(sqrt(R * R - dy * dy) * over);
+			ur = ur > c ? c : ur;
+			while (ur < c && halo_dist(ur + 1, dy, over) < R)
+				ur++;
+			while (ur > 0 && !(halo_dist(ur, dy, over) < R))
+				ur--;
+		}
+		if (ur < 0)
+			continue;
+		for (int i = c - ur; i <= c + ur; i++)
+			disc += row[i];
+		/* the first u in 0 .. ur at or beyond the band's inner edge (ur +
+		 * 1: none), from an estimate */
+		ub = (int)(sqrt(fmax(0, HALO_BAND * R * HALO_BAND * R - dy * dy)) * over);
+		ub = ub > ur + 1 ? ur + 1 : ub;
+		while (ub > 0 && halo_dist(ub - 1, dy, over) >= HALO_BAND * R)
+			ub--;
+		while (ub <= ur && !(halo_dist(ub, dy, over) >= HALO_BAND * R))
+			ub++;
+		if (ub > ur)
+			continue;
+		/* the band's samples left of the centre, then right of it */
+		for (int side = 0; side < 2; side++) {
+			lo = side ? (ub ? c + ub : c + 1) : c - ur;
+			hi = side ? c + ur : c - ub;
+			for (int i = lo; i <= hi; i++) {
+				double dx = (double)(i - c) / over, v = row[i];
 				/* the bin of atan2(dy, dx): halo_bin() is within
 				 * 2.7e-4 bins of it for any direction (its
 				 * polynomial's largest error on [0, 1]), so away
@@ -239,10 +278,11 @@ static inline void halo_setup_amplitude(struct halo *h, double *square_out, doub
 
 				k = k >= HALO_NT ? HALO_NT - 1 : k;
 				h->A[k] += v * (dpow ? dpow[(size_t)abs(i - c) * (c + 1) + abs(j - c)]
-						     : pow(d, alpha));
+						     : pow(sqrt(dx * dx + dy * dy), alpha));
 				cnt[k]++;
 			}
 		}
+	}
 	free(dpow);
 	/* A bin is a direction's mean; an empty one (a small array) takes
 	 * its neighbour's */

@@ -259,6 +259,10 @@ int place_bin(struct engine *g, struct batch *b);
  * index when it loads, else -1 with nothing recorded and nothing kept, so
  * that the first row loads it again and reports why it cannot. */
 int place_point_model(struct engine *g);
+/* The spectra's tables (the colour terms, the spectral classes), made
+ * before the first row with a spectrum is placed, or before the model
+ * that reads the classes is loaded: 0, or -1 with the error in g->e. */
+int place_colour_init(struct engine *g);
 
 /* render.c */
 void render_tile(void *arg, int wid, size_t task);

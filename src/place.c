@@ -86,6 +86,22 @@ static int resolve_type(struct engine *g, const char *name)
 	return m;
 }
 
+int place_colour_init(struct engine *g)
+{
+	const char *cc;
+
+	if (g->colour)
+		return 0;
+	cc = host_setting(g, "colour-counts");
+	if (cc && strcmp(cc, "pivot") && strcmp(cc, "band"))
+		return err_set(g->e, EXIT_INPUT, "colour-counts: expected pivot or band, not '%s'",
+			       cc);
+	g->colour_band = cc && !strcmp(cc, "band");
+	if (!(g->colour = colour_new(g->o->filter, g->e)) || psfgrids_colour_init(g) < 0)
+		return -1;
+	return 0;
+}
+
 int place_point_model(struct engine *g)
 {
 	int n0 = g->plugins.n, m = resolve_type(g, "point");
@@ -1033,16 +1049,8 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	struct err stopped, *perr;
 
 	b->n = b->nparam = 0;
-	if (r->spec_kind && !g->colour) {
-		const char *cc = host_setting(g, "colour-counts");
-
-		if (cc && strcmp(cc, "pivot") && strcmp(cc, "band"))
-			return err_set(g->e, EXIT_INPUT, "colour-counts: expected pivot or "
-				       "band, not '%s'", cc);
-		g->colour_band = cc && !strcmp(cc, "band");
-		if (!(g->colour = colour_new(g->o->filter, g->e)) || psfgrids_colour_init(g) < 0)
-			return -1;
-	}
+	if (r->spec_kind && place_colour_init(g) < 0)
+		return -1;
 	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)
 		return err_sys(g->e, "rows");
 	/* all per-row arrays share cap_rows: grow them together (a failed

@@ -230,13 +230,14 @@ static void tree_note(struct engine **g, int ng, struct catalog *c, const char *
  * thread with them.  So where that set-up is sure to be needed, the idle
  * render workers do it (wfs_model prime) while the main thread reads the
  * first chunk: one exposure of one SCA, a catalog without a type column
- * (every row a point) or a spectrum (whose classes place_batch() sets up
- * before the model is loaded, which reads them), a regular file of at
- * least PRIME_BYTES (so that an
+ * (every row a point; with spectra, their classes are made first, as
+ * place_batch() would, since the model reads them when it starts), a
+ * regular file of at least PRIME_BYTES (so that an
  * empty or nearly empty catalog does not load and set up what it never
  * uses).  The images are the same either way; WFISCENE_NO_PRIME set to
  * anything but 0 turns it off.  Returns g when the workers were started
- * (pool_wait() before the pool's next loop), else NULL.
+ * (pool_wait() before the pool's next loop), else NULL, with g->e set
+ * when the spectra's tables failed (as the first row would fail).
  */
 #define PRIME_BYTES 65536
 
@@ -249,9 +250,10 @@ static struct engine *prime_start(struct engine *g, int ng, const char *path,
 	int m;
 
 	if ((off && *off && strcmp(off, "0")) || ng != 1 || g->nslot != 1 || catalog_typed(c) ||
-	    catalog_spectral(c) ||
-	    stat(path, &st) < 0 || !S_ISREG(st.st_mode) || st.st_size < PRIME_BYTES ||
-	    (m = place_point_model(g)) < 0)
+	    stat(path, &st) < 0 || !S_ISREG(st.st_mode) || st.st_size < PRIME_BYTES)
+		return NULL;
+	/* the model reads the spectral classes when it starts */
+	if ((catalog_spectral(c) && place_colour_init(g) < 0) || (m = place_point_model(g)) < 0)
 		return NULL;
 	md = g->plugins.p[m].m;
 	if (!WFS_HAS(md->size, struct wfs_model, prime) || !md->prime ||
@@ -286,8 +288,11 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 
 		if (!c)
 			goto out;
-		if (cat == catalogs)
-			primer = prime_start(g[0], ng, *cat, c);
+		if (cat == catalogs && !(primer = prime_start(g[0], ng, *cat, c)) &&
+		    e->code != EXIT_OK) {
+			catalog_close(c);
+			goto out;
+		}
 		/* Column indices belong to a catalog: the next one may order
 		 * its columns differently (rows lives at the same address). */
 		for (int i = 0; i < ng; i++)

@@ -155,19 +155,32 @@ test_expect_success 'an SCA set up ahead of the rows: the same image' '
 		printf \"%.3f,%.3f,%.3f\\n\", 1 + rand() * 4087, 1 + rand() * 4087,
 		       15 + rand() * 12 }" > prime.csv &&
 	test $(wc -c < prime.csv) -ge 65536 &&
-	"$WFS" --filter F158 --sca 3 --flux-unit abmag -v -o p1.fits prime.csv 2> log1 &&
-	test_grep "point: SCA 3 set up by the workers" log1 &&
-	WFISCENE_NO_PRIME=1 "$WFS" --filter F158 --sca 3 --flux-unit abmag -v -o p0.fits \
+	"$WFS" --filter F158 --sca 1 --flux-unit abmag -v -o p1.fits prime.csv 2> log1 &&
+	test_grep "point: SCA 1 set up by the workers" log1 &&
+	WFISCENE_NO_PRIME=1 "$WFS" --filter F158 --sca 1 --flux-unit abmag -v -o p0.fits \
 		prime.csv 2> log0 &&
 	! grep "set up by the workers" log0 &&
 	cmp p0.fits p1.fits &&
-	"$WFS" --filter F158 --sca 3 --flux-unit abmag --threads 1 -o p2.fits prime.csv &&
+	"$WFS" --filter F158 --sca 1 --flux-unit abmag --threads 1 -o p2.fits prime.csv &&
 	cmp p0.fits p2.fits
 '
+test_expect_success 'with spectra (their classes made first): the same image' '
+	awk -F, -v OFS=, "BEGIN { srand(6) } NR == 1 { print \$0, \"teff\"; next }
+		{ print \$0, int(2500 + rand() * 30000) }" prime.csv > primet.csv &&
+	"$WFS" --filter F146 --sca 1 --flux-unit abmag -v -o t1.fits primet.csv 2> log1 &&
+	test_grep "point: SCA 1 set up by the workers" log1 &&
+	WFISCENE_NO_PRIME=1 "$WFS" --filter F146 --sca 1 --flux-unit abmag -o t0.fits primet.csv &&
+	cmp t0.fits t1.fits &&
+	test_must_fail --status 1 "$WFS" --filter F146 --sca 1 --flux-unit abmag \
+		--set colour-counts=zz -o t2.fits primet.csv 2> err1 &&
+	test_must_fail --status 1 env WFISCENE_NO_PRIME=1 "$WFS" --filter F146 --sca 1 \
+		--flux-unit abmag --set colour-counts=zz -o t2.fits primet.csv 2> err0 &&
+	test_cmp err0 err1 && ! test -e t2.fits
+'
 test_expect_success 'a model that cannot start: the first row reports it, as without' '
-	test_must_fail --status 3 "$WFS" --filter F158 --sca 3 --flux-unit abmag \
+	test_must_fail --status 3 "$WFS" --filter F158 --sca 1 --flux-unit abmag \
 		--set psf-cell=20 -o p3.fits prime.csv 2> err1 &&
-	test_must_fail --status 3 env WFISCENE_NO_PRIME=1 "$WFS" --filter F158 --sca 3 \
+	test_must_fail --status 3 env WFISCENE_NO_PRIME=1 "$WFS" --filter F158 --sca 1 \
 		--flux-unit abmag --set psf-cell=20 -o p3.fits prime.csv 2> err0 &&
 	test_cmp err0 err1 && test_grep "^wfiscene: prime.csv:2: model .point." err1
 '

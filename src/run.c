@@ -262,7 +262,8 @@ static struct engine *prime_start(struct engine *g, int ng, const char *path,
 	g->prime_model = m;
 	host_log(g, 1, "%s: SCA %d set up by the workers while the first rows are read", md->name,
 		 g->slot[0].sca);
-	pool_start(g->pool, render_prime, g, (size_t)g->nslot);
+	/* the set-up's CPU counts as the workers' (render_cpu) */
+	pool_start_timed(g->pool, render_prime, g, (size_t)g->nslot, g->t_render_cpu);
 	return g;
 }
 

@@ -410,16 +410,7 @@ void plugins_forget(struct plugins *ps, int n)
 
 void plugins_free(struct plugins *ps)
 {
-	for (int i = 0; i < ps->n; i++) {
-		struct plugin *pl = &ps->p[i];
-
-		if (pl->ready && pl->m->fini)
-			pl->m->fini(pl->state);
-		if (pl->handle)
-			lt_dlclose(pl->handle);
-		if (pl->dl)
-			dlclose(pl->dl);
-	}
+	plugins_forget(ps, 0);
 	if (ps->path)
 		lt_dlexit();
 	free(ps->path);

@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <zlib.h>
 
@@ -619,10 +620,21 @@ struct asdf_out *asdf_out_open(const char *path, int compression, struct pool *p
 {
 	struct asdf_out *a;
 	size_t n = TEMPFILE_SIZE(path);
+	struct stat st;
 
 	if (!strcmp(path, "-")) {
 		err_set(e, EXIT_INPUT, "-o -: an ASDF file is written at offsets and needs a "
 			"file, not stdout");
+		return NULL;
+	}
+	/* written to a temporary beside it and renamed over it: never over
+	 * a device or a named pipe (as root, /dev/null itself) */
+	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
+		if (S_ISDIR(st.st_mode))
+			err_set(e, EXIT_INPUT, "%s: is a directory", path);
+		else
+			err_set(e, EXIT_INPUT, "%s: not a regular file; an ASDF file's blocks "
+				"are written at offsets and it replaces NAME when done", path);
 		return NULL;
 	}
 	if (!(a = calloc(1, sizeof(*a))) || !(a->path = strdup(path)) ||

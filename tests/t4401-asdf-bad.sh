@@ -54,4 +54,20 @@ test_expect_success '--compress with ASDF output: refused, naming the ASDF setti
 	! ls -a | grep -q "c\.asdf"
 '
 
+# An ASDF file is made beside its name and renamed over it: a named pipe or
+# a device given as -o would be replaced (as root, /dev/null itself).
+test_expect_success 'ASDF to a named pipe or a device: refused, the node kept' '
+	mkfifo pipe &&
+	test_must_fail --status 1 run --level 2 --format asdf -o pipe inj.csv 2> err &&
+	test_grep "pipe: not a regular file; an ASDF file" err && test -p pipe &&
+	if test "$(id -u)" = 0 && mknod -m 666 null c 1 3; then
+		test_must_fail --status 1 run --level 1 --format asdf -o null inj.csv 2> err &&
+		test_grep "null: not a regular file" err && test -c null &&
+		mknod -m 666 null1 c 1 3 &&
+		test_must_fail --status 1 run --level 2 --format asdf --sca 1,2 -o "null%d" \
+			inj.csv 2> err &&
+		test_grep "^wfiscene: null1: not a regular file" err && test -c null1
+	fi
+'
+
 test_done

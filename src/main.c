@@ -46,7 +46,7 @@ struct scene_cmd {
 
 #define OFF(f) offsetof(struct scene_cmd, f)
 
-static opt_set_fn set_filter, set_sca, set_rows, set_setting, set_model_number,
+static opt_set_fn set_stage_knob, set_filter, set_sca, set_rows, set_setting, set_model_number,
 	set_model_int, set_model_word, set_flux_unit, set_psf, set_background, set_noise,
 	set_seed, set_version, set_date, set_exptime, set_level, set_ma_table, set_detector,
 	set_format;
@@ -151,14 +151,14 @@ static const struct opt scene_options[] = {
 	  "outside 54-126 deg)", opt_store_lo, OFF(o.allow_sun)), .lo = 1 },
 	{ OPT("noise", 0, "LIST", "none", "none, all, or poisson,readnoise,dark,flat,cosmic",
 	  set_noise, OFF(o.noise)) },
-	{ OPT("readnoise", 0, "E", STR(NOISE_READNOISE), "read noise in e-", opt_double,
+	{ OPT("readnoise", 0, "E", STR(NOISE_READNOISE), "read noise in e-", set_stage_knob,
 	  OFF(o.readnoise)), .lo = 0, .hi = 1e6 },
 	{ OPT("dark-current", 0, "R", STR(NOISE_DARK_CURRENT), "dark current in e-/s/pixel",
-	  opt_double, OFF(o.dark_current)), .lo = 0, .hi = 1e6 },
+	  set_stage_knob, OFF(o.dark_current)), .lo = 0, .hi = 1e6 },
 	{ OPT("cosmic-rate", 0, "R", STR(NOISE_COSMIC_RATE), "hits/cm^2/s per population",
-	  opt_double, OFF(o.cosmic_rate)), .lo = 0, .hi = 1e6 },
+	  set_stage_knob, OFF(o.cosmic_rate)), .lo = 0, .hi = 1e6 },
 	{ OPT("cosmic-residual", 0, "F", STR(NOISE_COSMIC_RESIDUAL), "fraction of each hit kept",
-	  opt_double, OFF(o.cosmic_residual)), .lo = 0, .hi = 1 },
+	  set_stage_knob, OFF(o.cosmic_residual)), .lo = 0, .hi = 1 },
 	{ OPT("seed", 0, "N", "1234", "random seed", set_seed, OFF(o.seed)) },
 	OPT_SECTION("Detector levels:"),
 	{ OPT("level", 0, "L", "scene", "scene (rates), 1 (resultants in DN) or 2 (ramp fits)",
@@ -366,6 +366,18 @@ static int set_exptime(const struct opt_arg *a, struct err *e)
 	return opt_double(a, e);
 }
 
+/* As opt_double, remembering the first of the scene's noise stages'
+ * settings given on the command line (levels 1 and 2 take the
+ * detector's own). */
+static int set_stage_knob(const struct opt_arg *a, struct err *e)
+{
+	struct scene_cmd *c = a->base;
+
+	if (a->value != a->opt->def && !c->o.stage_knob)
+		c->o.stage_knob = a->opt->name;
+	return opt_double(a, e);
+}
+
 static int set_ma_table(const struct opt_arg *a, struct err *e)
 {
 	struct scene_cmd *c = a->base;
@@ -557,6 +569,11 @@ static int check_options(struct scene_opts *o, struct err *e)
 			return err_set(e, EXIT_INPUT, "--noise with --level %s: levels 1 and 2 "
 				       "simulate the detector's noise themselves (see wfiscene(1), "
 				       "DETECTOR LEVELS)", lv);
+		if (o->stage_knob)
+			return err_set(e, EXIT_INPUT, "--%s with --level %s: it sets the scene "
+				       "level's noise stages; levels 1 and 2 take the detector's "
+				       "own read noise, dark current and cosmic rays (see "
+				       "wfiscene(1), DETECTOR LEVELS)", o->stage_knob, lv);
 		if (o->bunit_counts)
 			return err_set(e, EXIT_INPUT, "--bunit counts with --level %s: level 1 "
 				       "is in DN and level 2 in counts/s", lv);

@@ -68,6 +68,8 @@ struct scene_opts {
 	int ma_table;                   /* --ma-table: read pattern of levels 1, 2 */
 	int exptime_given;              /* --exptime was on the command line */
 	int ma_table_given;             /* --ma-table was on the command line */
+	const char *stage_knob;         /* the first of --readnoise, --dark-current,
+	                                   --cosmic-rate, --cosmic-residual given */
 	unsigned detector;              /* --detector: enum detector_part bits */
 	int detector_given;             /* --detector was on the command line */
 	const char *persistence_state;  /* --persistence-state FILE or NULL */

@@ -154,7 +154,12 @@ test_expect_success 'options that do not go with the levels are refused' '
 	test_must_fail --status 1 run --level 3 -o bad.fits none.csv 2> err &&
 	test_grep "expected scene, 1 or 2" err && ! test -e bad.fits &&
 	test_must_fail --status 1 run --level 1 --bunit counts -o bad.fits none.csv 2> err &&
-	test_grep "DN" err && ! test -e bad.fits
+	test_grep "DN" err && ! test -e bad.fits &&
+	for o in readnoise=0 dark-current=1000 cosmic-rate=1e6 cosmic-residual=1; do
+		test_must_fail --status 1 run --level 2 --$o -o bad.fits none.csv 2> err &&
+		test_grep "^wfiscene: --${o%=*} with --level 2: it sets the scene level" err &&
+		! test -e bad.fits || return 1
+	done
 '
 
 test_expect_success 'wfiscene(1) states the constants of data/detector.tsv' '

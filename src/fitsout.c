@@ -809,15 +809,18 @@ int fitsout_group_begin(struct fitsout *f, int nhdu, const struct fitsout_hdu *h
 		return err_set(e, EXIT_INPUT, "%s: the planes of --level 1 and 2 are "
 			       "written side by side, which tile compression cannot do: "
 			       "leave out --compress", f->name);
+	/* asked before anything is written, so that a pipe gets no header */
+	if (lseek(f->fd, 0, SEEK_CUR) < 0)
+		return err_set(e, EXIT_INPUT, "%s: the planes of --level 1 and 2 are "
+			       "written side by side and need a file that can seek "
+			       "(not a pipe or stdout)", f->name);
 	if (f->state == ST_EMPTY && fitsout_primary(f, NULL, 0, e))
 		return -1;
 	if (wflush(f, e))
 		return -1;
 	off = (long long)lseek(f->fd, 0, SEEK_CUR);
 	if (off < 0)
-		return err_set(e, EXIT_INPUT, "%s: the planes of --level 1 and 2 are "
-			       "written side by side and need a file that can seek "
-			       "(not a pipe or stdout)", f->name);
+		return err_sys(e, "%s", f->name);
 	free(f->grp);
 	if (!(f->grp = calloc((size_t)nhdu, sizeof(*f->grp))))
 		return err_sys(e, "%s", f->name);

@@ -555,6 +555,7 @@ static int check_options(struct scene_opts *o, struct err *e)
 			       "--exptime)", o->ma_table);
 	if (o->level != LEVEL_SCENE) {
 		struct ramp_pattern p;
+		struct stat st;
 		const char *lv = o->level == LEVEL_1 ? "1" : "2";
 
 		if (ramp_pattern_get(o->ma_table, &p, e) < 0)
@@ -584,6 +585,11 @@ static int check_options(struct scene_opts *o, struct err *e)
 		if (!strcmp(o->output, "-"))
 			return err_set(e, EXIT_INPUT, "-o - with --level %s: the planes are "
 				       "written side by side and need a file, not stdout", lv);
+		if (!name_fields(o->output) && stat(o->output, &st) == 0 &&
+		    (S_ISFIFO(st.st_mode) || S_ISSOCK(st.st_mode)))
+			return err_set(e, EXIT_INPUT, "-o %s with --level %s: the planes are "
+				       "written side by side and need a file that can seek, not "
+				       "a pipe", o->output, lv);
 	}
 	/* the parts of the detector model: all the data supports at levels
 	 * 1 and 2, none at the scene level, unless --detector says */

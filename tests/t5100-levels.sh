@@ -145,6 +145,9 @@ test_expect_success 'options that do not go with the levels are refused' '
 	test_grep "simulate the detector" err && ! test -e bad.fits &&
 	test_must_fail --status 1 run --level 1 -o - none.csv > /dev/null 2> err &&
 	test_grep "need a file" err &&
+	mkfifo pipe && test_must_fail --status 1 run --level 1 -o pipe none.csv 2> err &&
+	test_grep "pipe with --level 1: .*need a file that can seek, not a pipe" err &&
+	test -p pipe &&
 	test_must_fail --status 1 run --level 2 --compress rice -o bad.fits none.csv 2> err &&
 	test_grep "uncompressed" err && ! test -e bad.fits &&
 	test_must_fail --status 1 run --level 2 --ma-table 2 -o bad.fits none.csv 2> err &&

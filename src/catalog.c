@@ -705,7 +705,11 @@ static int integer_value(const struct table_chunk *ch, int col, size_t i,
 		/* A FITS double: what its text would give. */
 		if (cell_number(ch, col, i, colname, &d, e) < 0)
 			return -1;
-		if (d != floor(d) || fabs(d) > 9.2e18)
+		if (d == floor(d) && fabs(d) > 9.2e18)
+			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': %.200s is out of range "
+				       "(at most %lld in magnitude)", ch->file, ch->line[i],
+				       colname, table_text(ch, col, i), LLONG_MAX);
+		if (d != floor(d))
 			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': not an integer: '%.200s'",
 				       ch->file, ch->line[i], colname, table_text(ch, col, i));
 		*out = (long long)d;
@@ -727,7 +731,11 @@ static int integer_value(const struct table_chunk *ch, int col, size_t i,
 	/* "12.0", "1e3", or a long number: exact if it is an integer. */
 	if (cell_number(ch, col, i, colname, &d, e) < 0)
 		return -1;
-	if (d != floor(d) || fabs(d) > 9.2e18)
+	if (d == floor(d) && fabs(d) > 9.2e18)
+		return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': %.200s is out of range "
+			       "(at most %lld in magnitude)", ch->file, ch->line[i], colname, s,
+			       LLONG_MAX);
+	if (d != floor(d))
 		return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': not an integer: '%.200s'",
 			       ch->file, ch->line[i], colname, s);
 	*out = (long long)d;

@@ -672,6 +672,27 @@ static long fits_read(void *rd, struct table_chunk *c, struct err *e)
 				cell[k] = s;
 			}
 			used += 2 * n;
+		} else if (fc->type == TULONGLONG) {
+			/* unsigned 64-bit (K with TZERO 2^63): exact in the
+			 * text too, 2^63 and beyond as well */
+			unsigned long long *u = (unsigned long long *)x->ibuf;
+			double *d = x->num + (size_t)i * x->chunk_rows;
+
+			fits_read_colnull(x->f, TULONGLONG, fc->num, first, 1, (LONGLONG)n, u,
+					  x->lbuf, &anynul, &status);
+			for (size_t k = 0; k < n; k++) {
+				char *s = x->arena + used + k * fc->text_width;
+
+				if (x->lbuf[k]) {
+					s[0] = 0;
+					d[k] = NAN;
+				} else {
+					snprintf(s, fc->text_width, "%llu", u[k]);
+					d[k] = (double)u[k];
+				}
+				cell[k] = s;
+			}
+			used += n * fc->text_width;
 		} else if (is_integer_type(fc->type)) {
 			LONGLONG nul = LLONG_MIN;
 			double *d = x->num + (size_t)i * x->chunk_rows;

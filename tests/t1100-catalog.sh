@@ -55,6 +55,29 @@ t.write(\"ap.fits\"); t.write(\"ap.ecsv\"); t.write(\"ap.ipac\", format=\"ascii.
 		run -o f1.fits ap.fits && run -o f2.fits ap.ecsv && run -o f3.fits ap.ipac &&
 		gzip -c ap.fits | run -o f4.fits
 	'
+	# unsigned 64-bit ids (astropy writes uint64 as K with TZERO 2^63):
+	# exact, and 2^63 on refused as out of range, not as "not an integer"
+	test_expect_success 'uint64 ids from FITS and ECSV: exact, or refused as too large' '
+		"$PY" -c "
+import numpy as np
+from astropy.table import Table
+ids = np.array([2**53 + 1, 2**53, 2**63 - 1], dtype=np.uint64)
+t = Table({\"id\": ids, \"x\": [100.0, 200.0, 300.0], \"y\": [100.0] * 3, \"flux\": [1e3] * 3})
+t.write(\"u64.fits\"); t.write(\"u64.ecsv\")
+t[\"id\"][2] = 2**63 + 5
+t.write(\"u64big.fits\"); t.write(\"u64big.ecsv\")
+" &&
+		for f in u64.fits u64.ecsv; do
+			"$WFS" --filter F129 --rows 90-110 --placed p.csv -o u.fits $f &&
+			cut -d, -f1 p.csv > ids && printf "%s\\n" id 9007199254740993 \
+				9007199254740992 9223372036854775807 > want && test_cmp want ids ||
+			return 1
+		done &&
+		test_must_fail --status 1 "$WFS" --filter F129 -o u.fits u64big.fits 2> err &&
+		test_grep "u64big.fits.1.:3: column .id.: 9223372036854775813 is out of range" err &&
+		test_must_fail --status 1 "$WFS" --filter F129 -o u.fits u64big.ecsv 2> err &&
+		test_grep "column .id.: 9223372036854775813 is out of range" err
+	'
 else
 	test_skip 'astropy FITS, ECSV and IPAC tables' 'no python3 with astropy (Debian package python3-astropy)'
 fi

@@ -404,9 +404,9 @@ static int plan_numbers(struct catalog *c, const char *where, struct err *e)
 
 /*
  * The spectrum's columns (wfiscene-catalog(5) SPECTRA): teff, beta, or one
- * color_F1_F2, the AB colour m(F1) - m(F2) of two filters (F1 != F2),
+ * color_F1_F2 (or colour_F1_F2), the AB colour m(F1) - m(F2) of two filters (F1 != F2),
  * which gives beta = colour / (2.5 log10(l1 / l2)) with l the filters'
- * pivot wavelengths.  A column name that starts "color_" but names no two
+ * pivot wavelengths.  A column name that starts "color_" or "colour_" but names no two
  * known filters is an error, not a column left unread.
  */
 static int spectrum_plan(struct catalog *c, const char *where, struct err *e)
@@ -419,20 +419,21 @@ static int spectrum_plan(struct catalog *c, const char *where, struct err *e)
 	for (int i = 0; i < table_ncol(t); i++) {
 		const char *n = table_colname(t, i);
 		char f1[8], f2[8];
-		int a, b, len = 0;
+		int a, b, len = 0, skip = !strncmp(n, "colour_", 7) ? 7 : 6;
 
-		if (strncmp(n, "color_", 6))
+		/* the British spelling too, as the program's own settings have */
+		if (strncmp(n, "color_", 6) && strncmp(n, "colour_", 7))
 			continue;
 		if (c->c_colour >= 0)
 			return err_set(e, EXIT_INPUT, "%s%s: columns '%s' and '%s': give one "
 				       "colour column", table_name(t), where,
 				       table_colname(t, c->c_colour), n);
-		if (sscanf(n + 6, "%7[^_]_%7[^_]%n", f1, f2, &len) != 2 || n[6 + len] ||
+		if (sscanf(n + skip, "%7[^_]_%7[^_]%n", f1, f2, &len) != 2 || n[skip + len] ||
 		    (a = filter_lookup(f1)) < 0 || (b = filter_lookup(f2)) < 0 || a == b)
 			return err_set(e, EXIT_INPUT, "%s%s: column '%s': want color_F1_F2 "
-				       "with two different filters of F062 F087 F106 F129 F158 "
-				       "F184 F213 F146, e.g. color_f106_f158", table_name(t),
-				       where, n);
+				       "(or colour_F1_F2) with two different filters of F062 F087 "
+				       "F106 F129 F158 F184 F213 F146, e.g. color_f106_f158",
+				       table_name(t), where, n);
 		c->c_colour = i;
 		c->colour_to_beta = 1 / (2.5 * log10(filter_get(a)->pivot /
 						      filter_get(b)->pivot));
@@ -986,7 +987,7 @@ static int read_spectrum(struct catalog *c, const struct table_chunk *ch, size_t
 				       table_text(ch, col[k], i));
 		if (k > 0 && fabs(c->spec_value[i]) > SPEC_BETA_MAX)
 			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': '%.40s' gives "
-				       "the slope beta = %.4g, steeper than +-%g", ch->file,
+				       "the slope beta = %.9g, steeper than +-%g", ch->file,
 				       ch->line[i], name, table_text(ch, col[k], i),
 				       c->spec_value[i], SPEC_BETA_MAX);
 	}

@@ -396,7 +396,7 @@ refused hot "hot.csv:2: column 'teff': 100001 K is outside 1000 to 100000 K"
 printf 'x,y,flux,beta\n1,1,20,1\n1,1,20,inf\n' > inf.csv
 refused inf "inf.csv:3: column 'beta': not a finite number: 'inf'"
 printf 'x,y,flux,color_f106_f999\n1,1,20,0.5\n' > unk.csv
-refused unk "unk.csv:1: column 'color_f106_f999': want color_F1_F2 with two different filters"
+refused unk "unk.csv:1: column 'color_f106_f999': want color_F1_F2 (or colour_F1_F2) with two different filters"
 printf 'x,y,flux,color_f158_f158\n1,1,20,0.5\n' > same.csv
 refused same "same.csv:1: column 'color_f158_f158': want color_F1_F2"
 printf 'x,y,flux,teff,beta\n1,1,20,5000,\n1,1,20,5000,1\n' > both.csv
@@ -406,7 +406,20 @@ refused huge "huge.csv:2: column 'color_f106_f158': not a finite slope: '1e308'"
 printf 'x,y,flux,beta\n1,1,20,20\n1,1,20,-200\n' > steep.csv
 refused steep "steep.csv:3: column 'beta': '-200' gives the slope beta = -200, steeper than +-20"
 printf 'x,y,flux,color_f106_f158\n1,1,20,9.5\n' > steepc.csv
-refused steepc "steepc.csv:2: column 'color_f106_f158': '9.5' gives the slope beta = -21.93"
+refused steepc "steepc.csv:2: column 'color_f106_f158': '9.5' gives the slope beta = -21.92"
+# the slope in full: 20.0001 is not "20"
+printf 'x,y,flux,beta\n1,1,20,20.0001\n' > steep2.csv
+refused steep2 "steep2.csv:2: column 'beta': '20.0001' gives the slope beta = 20.0001, steeper"
+# the British spelling is the same column
+printf 'x,y,flux,colour_f106_f158\n1,1,20,30\n' > steepb.csv
+refused steepb "steepb.csv:2: column 'colour_f106_f158': '30' gives the slope beta = -69.2"
+test_expect_success 'colour_F1_F2 reads as color_F1_F2' '
+	printf "x,y,flux,colour_f106_f158\n500,500,20,-0.5\n" > cb.csv &&
+	printf "x,y,flux,color_f106_f158\n500,500,20,-0.5\n" > ca.csv &&
+	"$WFS" --filter F146 --flux-unit abmag -o cb.fits cb.csv &&
+	"$WFS" --filter F146 --flux-unit abmag -o ca.fits ca.csv && cmp ca.fits cb.fits
+'
+
 
 # the steepest slopes allowed give finite counts: the flat counts times
 # the colour term summed here from the throughput table (term.py)

@@ -34,11 +34,13 @@ int opt_parse_double(const struct opt_arg *a, double *out, struct err *e)
 	char *end;
 	double v;
 
-	errno = 0;
 	v = strtod(s, &end);
-	if (end == s || *end || errno == ERANGE || !isfinite(v))
+	if (end == s || *end || isnan(v))
 		return err_set(e, EXIT_INPUT, "--%s: not a number: '%s'", a->opt->name, s);
-	if (v < a->opt->lo || v > a->opt->hi)
+	/* past the largest double is out of range; below the smallest (a
+	 * value strtod() rounds to a subnormal or 0 with ERANGE) is read as
+	 * that, as the catalog's numbers are */
+	if (isinf(v) || v < a->opt->lo || v > a->opt->hi)
 		return err_set(e, EXIT_INPUT, "--%s: %s is out of range [%g, %g]",
 			       a->opt->name, s, a->opt->lo, a->opt->hi);
 	*out = v;

@@ -43,7 +43,14 @@ test_expect_success '--exptime must be a positive number' '
 	test_must_fail --status 1 "$WFS" --filter F129 --exptime abc -o o.fits cat.csv 2> err &&
 	test_grep "exptime: not a number: .abc." err &&
 	test_must_fail --status 1 "$WFS" --filter F129 --exptime -5 -o o.fits cat.csv 2> err &&
-	test_grep "out of range" err
+	test_grep "out of range" err &&
+	test_must_fail --status 1 "$WFS" --filter F129 --exptime 1e999 -o o.fits cat.csv 2> err &&
+	test_grep "exptime: 1e999 is out of range" err &&
+	test_must_fail --status 1 "$WFS" --filter F129 --exptime nan -o o.fits cat.csv 2> err &&
+	test_grep "exptime: not a number: .nan." err
+'
+test_expect_success 'a number below the smallest double reads as 0 or a subnormal' '
+	"$WFS" --filter F129 --ra=1e-320 --dec=-4e-324 -o tiny.fits cat.csv
 '
 test_expect_success '--dec outside [-90, 90] is refused' '
 	test_must_fail --status 1 "$WFS" --filter F129 --dec 91 -o o.fits cat.csv 2> err &&

@@ -300,12 +300,15 @@ static int next_table(struct catalog *c, struct err *e)
 	return open_table(c, tree_path(c->tree, c->tree_next++), e) < 0 ? -1 : 1;
 }
 
-/* The column a numeric meaning needs must not be a FITS string column. */
+/* The column a numeric meaning needs must not be a FITS string or logical
+ * column. */
 static int want_number(struct catalog *c, int col, struct err *e)
 {
-	if (col >= 0 && table_colkind(c->t, col) == TABLE_STRING)
-		return err_set(e, EXIT_INPUT, "%s: column '%s' is a string column, not a number",
-			       table_name(c->t), table_colname(c->t, col));
+	if (col >= 0 && (table_colkind(c->t, col) == TABLE_STRING ||
+			 table_colkind(c->t, col) == TABLE_LOGICAL))
+		return err_set(e, EXIT_INPUT, "%s: column '%s' is a %s column, not a number",
+			       table_name(c->t), table_colname(c->t, col),
+			       table_colkind(c->t, col) == TABLE_LOGICAL ? "logical" : "string");
 	return 0;
 }
 

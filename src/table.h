@@ -26,7 +26,7 @@ enum table_format { TABLE_CSV, TABLE_WS, TABLE_IPAC, TABLE_ECSV, TABLE_FITS,
 
 /* What a column holds: text formats say nothing (TEXT); FITS tables say
  * whether the column is numeric or a string. */
-enum table_kind { TABLE_TEXT, TABLE_NUMBER, TABLE_STRING };
+enum table_kind { TABLE_TEXT, TABLE_NUMBER, TABLE_STRING, TABLE_LOGICAL };
 
 /* The longest line (or quoted row) a text table may have. */
 #ifndef TABLE_MAX_LINE

@@ -458,7 +458,7 @@ static int read_columns(struct table_fits *x, int first, struct err *e)
 		} else if (repeat != 1) {
 			goto vector;
 		} else if (type == TLOGICAL) {
-			kind = TABLE_STRING;
+			kind = TABLE_LOGICAL;   /* text "T" or "F" */
 			tw = 2;
 		} else {
 			kind = TABLE_NUMBER;

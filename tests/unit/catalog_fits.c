@@ -201,6 +201,25 @@ static void test_errors(void)
 	}
 	fails(p, "str.fits: column 'ra' is a string column, not a number", "ra as a string");
 
+	/* flux as a logical column: named as one. */
+	p = fpath("logical.fits");
+	{
+		char *names[] = { "ra", "dec", "flux" };
+		char *forms[] = { "D", "D", "L" };
+		double d = 1;
+		char l = 1;
+
+		remove(p);
+		fits_create_file(&f, p, &status);
+		fits_create_tbl(f, BINARY_TBL, 1, 3, names, forms, NULL, NULL, &status);
+		fits_write_col(f, TDOUBLE, 1, 1, 1, 1, &d, &status);
+		fits_write_col(f, TDOUBLE, 2, 1, 1, 1, &d, &status);
+		fits_write_col(f, TLOGICAL, 3, 1, 1, 1, &l, &status);
+		fits_close_file(f, &status);
+	}
+	fails(p, "logical.fits: column 'flux' is a logical column, not a number",
+	      "flux as a logical");
+
 	p = fpath("vec.fits");
 	{
 		char *names[] = { "ra", "dec", "flux" };

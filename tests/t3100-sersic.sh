@@ -265,7 +265,8 @@ test_expect_success 'extreme galaxies give finite images, a vanishing one a poin
 	500.3,100.6,1000,sersic-precise,0.05,1e-9,10,1
 	700.3,100.6,1000,sersic,20,0.01,10,1
 	900.3,100.6,1000,sersic-precise,1,3,33,1e-300
-	2000,2000,1000,sersic,1,1e300,10,0.5
+	2000,2000,1000,sersic-precise,1,1e300,10,0.5
+	2500,2500,1000,sersic,1,1e6,10,0.5
 	1500.3,300.6,1000,sersic,1,2000,77,0.01
 	-500,-500,1000,sersic-precise,4,20,10,0.7
 	0.5,1000,1000,sersic,1,3,0,1
@@ -285,6 +286,12 @@ import sys
 p, a, b = (float(v) for v in open(\"sums\"))
 sys.exit(not (abs(a / p - 1) < 1e-4 and abs(b / p - 1) < 1e-4))
 "
+'
+test_expect_success 'sersic-quick refuses a half-light radius past 1e6 pixels' '
+	printf "x,y,flux,type,n,re,phi,ratio\n2000,2000,1000,sersic,1,1.5e6,0,1\n" > big.csv &&
+	test_must_fail --status 1 "$WFS" --filter F129 -o big.fits big.csv 2> err &&
+	test_grep "big.csv:2: model .sersic-quick.: column .re.: 1500000 pixels is beyond" err &&
+	! test -e big.fits
 '
 test_expect_success 'a galaxy centred on the detector'"'"'s edge or corner puts half or a quarter of its light on it' '
 	printf "x,y,flux,type,n,re,phi,ratio\n0.5,1000,1000,sersic,1,3,0,1\n" > edge.csv &&

@@ -622,6 +622,43 @@ static const char *fits_text(void *rd, int col, size_t row)
 	return s;
 }
 
+/* n rows from first of integer column i, as integers so that large ids
+ * stay exact in the text: its cells' text at arena + used, its numbers
+ * (NaN where empty).  An unsigned 64-bit column (K with TZERO 2^63) as
+ * such, 2^63 and beyond too. */
+static void read_integers(struct table_fits *x, int i, LONGLONG first, size_t n, size_t used,
+			  int *status)
+{
+	struct fits_col *fc = &x->col[i];
+	const char **cell = x->text[i];
+	double *d = x->num + (size_t)i * x->chunk_rows;
+	unsigned long long *u = (unsigned long long *)x->ibuf;
+	LONGLONG nul = LLONG_MIN;
+	int anynul = 0, uns = fc->type == TULONGLONG;
+
+	if (uns)
+		fits_read_colnull(x->f, TULONGLONG, fc->num, first, 1, (LONGLONG)n, u, x->lbuf,
+				  &anynul, status);
+	else
+		fits_read_col(x->f, TLONGLONG, fc->num, first, 1, (LONGLONG)n, &nul, x->ibuf,
+			      &anynul, status);
+	for (size_t k = 0; k < n; k++) {
+		char *s = x->arena + used + k * fc->text_width;
+
+		if (uns ? x->lbuf[k] != 0 : x->ibuf[k] == LLONG_MIN) {
+			s[0] = 0;
+			d[k] = NAN;
+		} else if (uns) {
+			snprintf(s, fc->text_width, "%llu", u[k]);
+			d[k] = (double)u[k];
+		} else {
+			format_integer(s, x->ibuf[k]);
+			d[k] = (double)x->ibuf[k];
+		}
+		cell[k] = s;
+	}
+}
+
 static long fits_read(void *rd, struct table_chunk *c, struct err *e)
 {
 	struct table_fits *x = rd;
@@ -672,46 +709,8 @@ static long fits_read(void *rd, struct table_chunk *c, struct err *e)
 				cell[k] = s;
 			}
 			used += 2 * n;
-		} else if (fc->type == TULONGLONG) {
-			/* unsigned 64-bit (K with TZERO 2^63): exact in the
-			 * text too, 2^63 and beyond as well */
-			unsigned long long *u = (unsigned long long *)x->ibuf;
-			double *d = x->num + (size_t)i * x->chunk_rows;
-
-			fits_read_colnull(x->f, TULONGLONG, fc->num, first, 1, (LONGLONG)n, u,
-					  x->lbuf, &anynul, &status);
-			for (size_t k = 0; k < n; k++) {
-				char *s = x->arena + used + k * fc->text_width;
-
-				if (x->lbuf[k]) {
-					s[0] = 0;
-					d[k] = NAN;
-				} else {
-					snprintf(s, fc->text_width, "%llu", u[k]);
-					d[k] = (double)u[k];
-				}
-				cell[k] = s;
-			}
-			used += n * fc->text_width;
-		} else if (is_integer_type(fc->type)) {
-			LONGLONG nul = LLONG_MIN;
-			double *d = x->num + (size_t)i * x->chunk_rows;
-
-			/* As integers, so large ids stay exact in the text. */
-			fits_read_col(x->f, TLONGLONG, fc->num, first, 1, (LONGLONG)n,
-				      &nul, x->ibuf, &anynul, &status);
-			for (size_t k = 0; k < n; k++) {
-				char *s = x->arena + used + k * fc->text_width;
-
-				if (x->ibuf[k] == LLONG_MIN) {
-					s[0] = 0;
-					d[k] = NAN;
-				} else {
-					format_integer(s, x->ibuf[k]);
-					d[k] = (double)x->ibuf[k];
-				}
-				cell[k] = s;
-			}
+		} else if (fc->type == TULONGLONG || is_integer_type(fc->type)) {
+			read_integers(x, i, first, n, used, &status);
 			used += n * fc->text_width;
 		} else {
 			double nul = NAN;

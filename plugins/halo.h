@@ -237,7 +237,7 @@ static inline void halo_setup_amplitude(struct halo *h, double *square_out, doub
 			square += row[i];
 		/* the disc: |i - c| <= ur; the band: ub <= |i - c| <= ur */
 		if (halo_dist(0, dy, over) < R) {
-			ur = (int)(sqrt(R * R - dy * dy) * over);
+			ur = (int)(sqrt(fmax(0, R * R - dy * dy)) * over);
 			ur = ur > c ? c : ur;
 			while (ur < c && halo_dist(ur + 1, dy, over) < R)
 				ur++;

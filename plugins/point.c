@@ -469,7 +469,7 @@ static int point_reach(void *state, const struct wfs_source *src, double *pixels
 }
 
 /* Set up SCA sca's default halo (model.h, prime), so that an idle worker
- * does it while the host reads the first rows. */
+ * does it while the host places the first rows. */
 static int point_prime(void *state, void *thread, int sca)
 {
 	struct point *p = state;

@@ -422,17 +422,23 @@ static int spectrum_plan(struct catalog *c, const char *where, struct err *e)
 	for (int i = 0; i < table_ncol(t); i++) {
 		const char *n = table_colname(t, i);
 		char f1[8], f2[8];
-		int a, b, len = 0, skip = !strncmp(n, "colour_", 7) ? 7 : 6;
+		int a, b, len = 0, british = !strncmp(n, "colour_", 7), skip = british ? 7 : 6;
+		int two;
 
-		/* the British spelling too, as the program's own settings have */
-		if (strncmp(n, "color_", 6) && strncmp(n, "colour_", 7))
+		if (strncmp(n, "color_", 6) && !british)
+			continue;
+		two = sscanf(n + skip, "%7[^_]_%7[^_]%n", f1, f2, &len) == 2 && !n[skip + len] &&
+		      (a = filter_lookup(f1)) >= 0 && (b = filter_lookup(f2)) >= 0 && a != b;
+		/* the British spelling too, as the program's own settings have
+		 * it, where it names two filters (a column colour_index stays
+		 * a column of the user's) */
+		if (british && !two)
 			continue;
 		if (c->c_colour >= 0)
 			return err_set(e, EXIT_INPUT, "%s%s: columns '%s' and '%s': give one "
 				       "colour column", table_name(t), where,
 				       table_colname(t, c->c_colour), n);
-		if (sscanf(n + skip, "%7[^_]_%7[^_]%n", f1, f2, &len) != 2 || n[skip + len] ||
-		    (a = filter_lookup(f1)) < 0 || (b = filter_lookup(f2)) < 0 || a == b)
+		if (!two)
 			return err_set(e, EXIT_INPUT, "%s%s: column '%s': want color_F1_F2 "
 				       "(or colour_F1_F2) with two different filters of F062 F087 "
 				       "F106 F129 F158 F184 F213 F146, e.g. color_f106_f158",
@@ -709,7 +715,7 @@ static int integer_value(const struct table_chunk *ch, int col, size_t i,
 		/* A FITS double: what its text would give. */
 		if (cell_number(ch, col, i, colname, &d, e) < 0)
 			return -1;
-		if (d == floor(d) && fabs(d) > 9.2e18)
+		if (d == floor(d) && (d >= 0x1p63 || d < -0x1p63))
 			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': %.200s is out of range "
 				       "(at most %lld in magnitude)", ch->file, ch->line[i],
 				       colname, table_text(ch, col, i), LLONG_MAX);
@@ -735,7 +741,7 @@ static int integer_value(const struct table_chunk *ch, int col, size_t i,
 	/* "12.0", "1e3", or a long number: exact if it is an integer. */
 	if (cell_number(ch, col, i, colname, &d, e) < 0)
 		return -1;
-	if (d == floor(d) && fabs(d) > 9.2e18)
+	if (d == floor(d) && (d >= 0x1p63 || d < -0x1p63))
 		return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': %.200s is out of range "
 			       "(at most %lld in magnitude)", ch->file, ch->line[i], colname, s,
 			       LLONG_MAX);

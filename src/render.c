@@ -65,9 +65,12 @@ void render_prime(void *arg, int wid, size_t task)
 
 	host_worker(w);
 	w->place = 1;
-	if (pl->m->prime(pl->state, w, g->slot[task].sca) < 0)
-		err_clear(&w->err);
+	(void)pl->m->prime(pl->state, w, g->slot[task].sca);
+	/* dropped whatever it returned: the first row that needs the same
+	 * set-up meets an error again and reports it */
+	err_clear(&w->err);
 	w->place = 0;
+	host_worker(NULL);
 }
 
 /* Worker: render every placement of one active tile, in placement order. */

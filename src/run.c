@@ -228,8 +228,8 @@ static void tree_note(struct engine **g, int ng, struct catalog *c, const char *
  * The first rows of a point source on an SCA wait while a place thread
  * sets the SCA up (the point model's halo, some 25 ms), and the main
  * thread with them.  So where that set-up is sure to be needed, the idle
- * render workers do it (wfs_model prime) while the main thread reads the
- * first chunk: one exposure of one SCA, a catalog without a type column
+ * render workers do it (wfs_model prime) while the first chunk, read, is
+ * placed: one exposure of one SCA, a catalog without a type column
  * (every row a point; with spectra, their classes are made first, as
  * place_batch() would, since the model reads them when it starts), a
  * regular file of at least PRIME_BYTES (so that an
@@ -249,7 +249,7 @@ static struct engine *prime_start(struct engine *g, int ng, const char *path,
 	struct stat st;
 	int m;
 
-	if ((off && *off && strcmp(off, "0")) || ng != 1 || g->nslot != 1 || catalog_typed(c) ||
+	if ((off && strcmp(off, "0")) || ng != 1 || g->nslot != 1 || catalog_typed(c) ||
 	    stat(path, &st) < 0 || !S_ISREG(st.st_mode) || st.st_size < PRIME_BYTES)
 		return NULL;
 	/* the model reads the spectral classes when it starts */
@@ -260,8 +260,8 @@ static struct engine *prime_start(struct engine *g, int ng, const char *path,
 	    !WFS_HAS(md->size, struct wfs_model, flags) || !(md->flags & WFS_PARALLEL_PREPARE))
 		return NULL;
 	g->prime_model = m;
-	host_log(g, 1, "%s: SCA %d set up by the workers while the first rows are read", md->name,
-		 g->slot[0].sca);
+	host_log(g, 1, "%s: SCA %d primed by the workers while the first rows are placed",
+		 md->name, g->slot[0].sca);
 	/* the set-up's CPU counts as the workers' (render_cpu) */
 	pool_start_timed(g->pool, render_prime, g, (size_t)g->nslot, g->t_render_cpu);
 	return g;
@@ -289,11 +289,6 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 
 		if (!c)
 			goto out;
-		if (cat == catalogs && !(primer = prime_start(g[0], ng, *cat, c)) &&
-		    e->code != EXIT_OK) {
-			catalog_close(c);
-			goto out;
-		}
 		/* Column indices belong to a catalog: the next one may order
 		 * its columns differently (rows lives at the same address). */
 		for (int i = 0; i < ng; i++)
@@ -305,6 +300,12 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				break;
 			tb = engine_clock();
 			g[0]->t_read += tb - ta;
+			/* the first rows are in: the workers set up while they
+			 * are placed (an error there is the one place_batch()
+			 * would meet first, and stops the run as it would) */
+			if (cat == catalogs && !g[0]->rows_read && !g[0]->pass &&
+			    !(primer = prime_start(g[0], ng, *cat, c)) && e->code != EXIT_OK)
+				break;
 			for (int i = 0; i < ng; i++) {
 				struct batch *b = &g[i]->b[cur];
 

@@ -413,11 +413,15 @@ refused steep2 "steep2.csv:2: column 'beta': '20.0001' gives the slope beta = 20
 # the British spelling is the same column
 printf 'x,y,flux,colour_f106_f158\n1,1,20,30\n' > steepb.csv
 refused steepb "steepb.csv:2: column 'colour_f106_f158': '30' gives the slope beta = -69.2"
-test_expect_success 'colour_F1_F2 reads as color_F1_F2' '
+test_expect_success 'colour_F1_F2 reads as color_F1_F2; colour_index is a column of ours' '
 	printf "x,y,flux,colour_f106_f158\n500,500,20,-0.5\n" > cb.csv &&
 	printf "x,y,flux,color_f106_f158\n500,500,20,-0.5\n" > ca.csv &&
 	"$WFS" --filter F146 --flux-unit abmag -o cb.fits cb.csv &&
-	"$WFS" --filter F146 --flux-unit abmag -o ca.fits ca.csv && cmp ca.fits cb.fits
+	"$WFS" --filter F146 --flux-unit abmag -o ca.fits ca.csv && cmp ca.fits cb.fits &&
+	printf "x,y,flux,colour_index\n500,500,20,0.7\n" > ci.csv &&
+	printf "x,y,flux\n500,500,20\n" > cn.csv &&
+	"$WFS" --filter F146 --flux-unit abmag -o ci.fits ci.csv &&
+	"$WFS" --filter F146 --flux-unit abmag -o cn.fits cn.csv && cmp ci.fits cn.fits
 '
 
 

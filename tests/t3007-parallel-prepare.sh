@@ -156,10 +156,10 @@ test_expect_success 'an SCA set up ahead of the rows: the same image' '
 		       15 + rand() * 12 }" > prime.csv &&
 	test $(wc -c < prime.csv) -ge 65536 &&
 	"$WFS" --filter F158 --sca 1 --flux-unit abmag -v -o p1.fits prime.csv 2> log1 &&
-	test_grep "point: SCA 1 set up by the workers" log1 &&
+	test_grep "point: SCA 1 primed by the workers" log1 &&
 	WFISCENE_NO_PRIME=1 "$WFS" --filter F158 --sca 1 --flux-unit abmag -v -o p0.fits \
 		prime.csv 2> log0 &&
-	! grep "set up by the workers" log0 &&
+	! grep "primed by the workers" log0 &&
 	cmp p0.fits p1.fits &&
 	"$WFS" --filter F158 --sca 1 --flux-unit abmag --threads 1 -o p2.fits prime.csv &&
 	cmp p0.fits p2.fits
@@ -168,7 +168,7 @@ test_expect_success 'with spectra (their classes made first): the same image' '
 	awk -F, -v OFS=, "BEGIN { srand(6) } NR == 1 { print \$0, \"teff\"; next }
 		{ print \$0, int(2500 + rand() * 30000) }" prime.csv > primet.csv &&
 	"$WFS" --filter F146 --sca 1 --flux-unit abmag -v -o t1.fits primet.csv 2> log1 &&
-	test_grep "point: SCA 1 set up by the workers" log1 &&
+	test_grep "point: SCA 1 primed by the workers" log1 &&
 	WFISCENE_NO_PRIME=1 "$WFS" --filter F146 --sca 1 --flux-unit abmag -o t0.fits primet.csv &&
 	cmp t0.fits t1.fits &&
 	test_must_fail --status 1 "$WFS" --filter F146 --sca 1 --flux-unit abmag \
@@ -176,6 +176,29 @@ test_expect_success 'with spectra (their classes made first): the same image' '
 	test_must_fail --status 1 env WFISCENE_NO_PRIME=1 "$WFS" --filter F146 --sca 1 \
 		--flux-unit abmag --set colour-counts=zz -o t2.fits primet.csv 2> err0 &&
 	test_cmp err0 err1 && ! test -e t2.fits
+'
+test_expect_success 'priming changes no error and no warning' '
+	awk -F, -v OFS=, "NR == 12 { \$3 = \"abc\" } { print }" primet.csv > badrow.csv &&
+	for v in 0 1; do
+		test_must_fail --status 1 env WFISCENE_NO_PRIME=$v "$WFS" --filter F146 --sca 1 \
+			--flux-unit abmag --set colour-counts=zz -o b.fits badrow.csv 2> err$v ||
+		return 1
+	done &&
+	test_cmp err0 err1 && test_grep "badrow.csv:12: column .mag.: not a number" err1 &&
+	{ head -1 prime.csv && awk "BEGIN { for (i = 0; i < 3000; i++) print \"# a row left out of this catalog\" }"; } \
+		> empty.csv && test $(wc -c < empty.csv) -ge 65536 &&
+	for v in 0 1; do
+		WFISCENE_NO_PRIME=$v "$WFS" --filter F158 --sca 1 --flux-unit abmag --set psf-wing=6 \
+			--report r$v.json -o e$v.fits empty.csv 2> w$v || return 1
+	done &&
+	test_cmp w0 w1 && test_grep "psf-wing" w1 && cmp e0.fits e1.fits &&
+	"$PY" -c "
+import json
+a, b = (json.load(open(f)) for f in (\"r0.json\", \"r1.json\"))
+for r in (a, b):
+    del r[\"seconds\"]
+assert a == b, [k for k in a if a[k] != b[k]]
+"
 '
 test_expect_success 'a model that cannot start: the first row reports it, as without' '
 	test_must_fail --status 3 "$WFS" --filter F158 --sca 1 --flux-unit abmag \

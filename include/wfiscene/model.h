@@ -615,14 +615,15 @@ struct wfs_model {
 	/* Edition 10.  prime(state, thread, sca): set up now what the first
 	 * prepare() of a source on SCA sca would set up (its PSF's tables, a
 	 * bright star's halo), so that the host can have it done by an idle
-	 * worker while it reads the catalog's first rows.  The host MAY call
+	 * worker while it places the catalog's first rows.  The host MAY call
 	 * it once for each SCA of an exposure, before or while the first
 	 * rows are prepared, on a worker thread (thread as for render(), but
-	 * host->epsf() and epsf_colour() load as in prepare()), for several
-	 * SCAs at once.  It MUST NOT change what any later call gives: only
-	 * what prepare() would make anyway, with the same values.  Returns 0,
-	 * or -1 (the host drops an error recorded then: the first row that
-	 * needs the same set-up meets it again and reports it).  Only for a
+	 * host->epsf(), epsf_colour() and epsf_blend() load as in prepare()),
+	 * for several SCAs at once.  It MUST NOT change what any later call
+	 * gives: only what prepare() would make anyway, with the same values.
+	 * Returns 0 or -1; the host drops whatever error it recorded (the
+	 * first row that needs the same set-up meets it again and reports
+	 * it).  Only for a
 	 * model with WFS_PARALLEL_PREPARE; MAY be NULL (and absent). */
 	int (*prime)(void *state, void *thread, int sca);
 };

@@ -468,18 +468,6 @@ static int point_reach(void *state, const struct wfs_source *src, double *pixels
 	return noise_reach(p, src, pixels);
 }
 
-/* Set up SCA sca's default halo (model.h, prime), so that an idle worker
- * does it while the host places the first rows. */
-static int point_prime(void *state, void *thread, int sca)
-{
-	struct point *p = state;
-
-	(void)thread;
-	if (sca < 1 || sca >= SCA_SLOTS || p->extent != EXTENT_NOISE)
-		return 0;
-	return noise_prime(p, sca);
-}
-
 static const struct wfs_model point_model = {
 	.abi = WFS_ABI_VERSION,
 	.size = sizeof(struct wfs_model),
@@ -501,7 +489,6 @@ static const struct wfs_model point_model = {
 	.gather = far_gather,
 	.spread = far_spread,
 	.roman_type = "PSF",
-	.prime = point_prime,
 };
 
 WFS_EXPORT const struct wfs_model *wfs_model_entry(uint32_t host_abi)

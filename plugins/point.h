@@ -479,7 +479,6 @@ struct tally *tally_of(struct point *p);
 int noise_prepare(struct point *p, struct wfs_source *src);
 int noise_render(struct point *p, const struct wfs_source *src, const struct wfs_window *win);
 int noise_reach(struct point *p, const struct wfs_source *src, double *pixels);
-int noise_prime(struct point *p, int sca);
 double halo_level(const struct point *p, double flux, int *k);
 void hslot_free_all(struct point *p);
 

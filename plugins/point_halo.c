@@ -449,18 +449,6 @@ static int plan_skips(struct point *p, const struct wfs_source *src, int reach)
 	return src->flux <= faint;
 }
 
-/* model.h prime(): SCA sca's default halo, which every source's plan()
- * sets up (slot_default); not the scales of a class or its faint flux,
- * which only that class's sources make, and which a kernel of the diffuse
- * light reads when they are there (far_gather's box). */
-int noise_prime(struct point *p, int sca)
-{
-	struct wfs_source t = { .x = SCA_CENTRE, .y = SCA_CENTRE, .flux = 1, .sca = sca,
-				.psf_class = WFS_PSF_NORMAL, .mjd = NAN, .colour = -1 };
-
-	return slot_default(p, &t) ? 0 : -1;
-}
-
 /* point_reach() with psf-extent=noise: the radius the source's plan
  * draws to, when it is beyond *pixels. */
 int noise_reach(struct point *p, const struct wfs_source *src, double *pixels)

@@ -877,11 +877,6 @@ const char *catalog_roman_type(const char *t)
 	return !strcasecmp(t, "psf") ? "point" : !strcasecmp(t, "ser") ? "sersic" : NULL;
 }
 
-int catalog_typed(const struct catalog *c)
-{
-	return c->c_type >= 0 && c->stips != STIPS_GENERIC;
-}
-
 /* Row i's model name, lower-case ("point" by default). */
 static void read_type(struct catalog *c, const struct table_chunk *ch, size_t i)
 {

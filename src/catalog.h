@@ -141,10 +141,6 @@ int catalog_parse_double(const char *s, double *out);
 #define SPECTRAL_TYPED 4
 int catalog_spectral(const struct catalog *c);
 
-/* Whether the catalog's rows may name a type (a type column); without one
- * every row is of type point. */
-int catalog_typed(const struct catalog *c);
-
 /* Rows read and raw bytes consumed so far, for reports. */
 unsigned long long catalog_rows(const struct catalog *c);
 unsigned long long catalog_bytes(const struct catalog *c);

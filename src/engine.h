@@ -157,7 +157,6 @@ struct engine {
 
 	struct type_cache types[PLUGIN_MAX];
 	int ntypes;
-	int prime_model;                /* the model render_prime() sets up */
 	int colidx[PLUGIN_MAX][MAX_COLUMNS];
 	const struct rows *colidx_rows[PLUGIN_MAX];
 
@@ -255,21 +254,9 @@ void tile_free(double *p, int T);
 /* place.c */
 int place_batch(struct engine *g, const struct rows *r, struct batch *b);
 int place_bin(struct engine *g, struct batch *b);
-/* The model of rows of type "point", loaded for run.c's priming: its
- * index when it loads, else -1 with nothing recorded and nothing kept, so
- * that the first row loads it again and reports why it cannot. */
-int place_point_model(struct engine *g);
-/* The spectra's tables (the colour terms, the spectral classes), made
- * before the first row with a spectrum is placed, or before the model
- * that reads the classes is loaded: 0, or -1 with the error in g->e. */
-int place_colour_init(struct engine *g);
 
 /* render.c */
 void render_tile(void *arg, int wid, size_t task);
-/* model.h prime() of slot task's SCA by model g->prime_model, on worker
- * wid (allowed to load PSF grids as place_pool's threads are); a failure
- * is dropped: the first row that needs the same set-up reports it. */
-void render_prime(void *arg, int wid, size_t task);
 /* After pool_wait(): the workers' errors into g->e (the failure on the
  * lowest tile, unless the main thread recorded one first), records
  * cleared.  Main thread only. */

@@ -86,7 +86,10 @@ static int resolve_type(struct engine *g, const char *name)
 	return m;
 }
 
-int place_colour_init(struct engine *g)
+/* The spectra's tables (the colour terms, the spectral classes), made
+ * before the first row with a spectrum is placed: 0, or -1 with the
+ * error in g->e. */
+static int place_colour_init(struct engine *g)
 {
 	const char *cc;
 
@@ -100,17 +103,6 @@ int place_colour_init(struct engine *g)
 	if (!(g->colour = colour_new(g->o->filter, g->e)) || psfgrids_colour_init(g) < 0)
 		return -1;
 	return 0;
-}
-
-int place_point_model(struct engine *g)
-{
-	int n0 = g->plugins.n, m = resolve_type(g, "point");
-
-	if (m < 0) {
-		plugins_forget(&g->plugins, n0);
-		err_clear(g->e);
-	}
-	return m;
 }
 
 /* The chunk's column index of each column model m reads (-1 if absent). */

@@ -391,9 +391,9 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	return idx;
 }
 
-void plugins_forget(struct plugins *ps, int n)
+void plugins_free(struct plugins *ps)
 {
-	for (int i = n; i < ps->n; i++) {
+	for (int i = 0; i < ps->n; i++) {
 		struct plugin *pl = &ps->p[i];
 
 		if (pl->ready && pl->m->fini)
@@ -402,15 +402,7 @@ void plugins_forget(struct plugins *ps, int n)
 			lt_dlclose(pl->handle);
 		if (pl->dl)
 			dlclose(pl->dl);
-		memset(pl, 0, sizeof(*pl));
 	}
-	if (n < ps->n)
-		ps->n = n;
-}
-
-void plugins_free(struct plugins *ps)
-{
-	plugins_forget(ps, 0);
 	if (ps->path)
 		lt_dlexit();
 	free(ps->path);

@@ -80,9 +80,5 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e);
 
 /* Call fini() of every model and unload them. */
 void plugins_free(struct plugins *ps);
-/* Unload the models loaded from index n on (a load that failed ahead of
- * the rows: the first row that asks loads it again, and reports why it
- * cannot). */
-void plugins_forget(struct plugins *ps, int n);
 
 #endif

@@ -57,22 +57,6 @@ void render_errors_collect(struct engine *g)
 #define RENDER_ROWS_AHEAD 2
 #define RENDER_ROWS_MAX 24
 
-void render_prime(void *arg, int wid, size_t task)
-{
-	struct engine *g = arg;
-	struct worker *w = &g->w[wid];
-	const struct plugin *pl = &g->plugins.p[g->prime_model];
-
-	host_worker(w);
-	w->place = 1;
-	(void)pl->m->prime(pl->state, w, g->slot[task].sca);
-	/* dropped whatever it returned: the first row that needs the same
-	 * set-up meets an error again and reports it */
-	err_clear(&w->err);
-	w->place = 0;
-	host_worker(NULL);
-}
-
 /* Worker: render every placement of one active tile, in placement order. */
 void render_tile(void *arg, int wid, size_t task)
 {

@@ -224,49 +224,6 @@ static void tree_note(struct engine **g, int ng, struct catalog *c, const char *
 	}
 }
 
-/*
- * The first rows of a point source on an SCA wait while a place thread
- * sets the SCA up (the point model's halo, some 25 ms), and the main
- * thread with them.  So where that set-up is sure to be needed, the idle
- * render workers do it (wfs_model prime) while the first chunk, read, is
- * placed: one exposure of one SCA, a catalog without a type column
- * (every row a point; with spectra, their classes are made first, as
- * place_batch() would, since the model reads them when it starts), a
- * regular file of at least PRIME_BYTES (so that an
- * empty or nearly empty catalog does not load and set up what it never
- * uses).  The images are the same either way; WFISCENE_NO_PRIME set to
- * anything but 0 turns it off.  Returns g when the workers were started
- * (pool_wait() before the pool's next loop), else NULL, with g->e set
- * when the spectra's tables failed (as the first row would fail).
- */
-#define PRIME_BYTES 65536
-
-static struct engine *prime_start(struct engine *g, int ng, const char *path,
-				  const struct catalog *c)
-{
-	const char *off = getenv("WFISCENE_NO_PRIME");
-	const struct wfs_model *md;
-	struct stat st;
-	int m;
-
-	if ((off && strcmp(off, "0")) || ng != 1 || g->nslot != 1 || catalog_typed(c) ||
-	    stat(path, &st) < 0 || !S_ISREG(st.st_mode) || st.st_size < PRIME_BYTES)
-		return NULL;
-	/* the model reads the spectral classes when it starts */
-	if ((catalog_spectral(c) && place_colour_init(g) < 0) || (m = place_point_model(g)) < 0)
-		return NULL;
-	md = g->plugins.p[m].m;
-	if (!WFS_HAS(md->size, struct wfs_model, prime) || !md->prime ||
-	    !WFS_HAS(md->size, struct wfs_model, flags) || !(md->flags & WFS_PARALLEL_PREPARE))
-		return NULL;
-	g->prime_model = m;
-	host_log(g, 1, "%s: SCA %d primed by the workers while the first rows are placed",
-		 md->name, g->slot[0].sca);
-	/* the set-up's CPU counts as the workers' (render_cpu) */
-	pool_start_timed(g->pool, render_prime, g, (size_t)g->nslot, g->t_render_cpu);
-	return g;
-}
-
 static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 			const struct scene_opts *o, struct err *e)
 {
@@ -274,7 +231,6 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				   .chunk_rows = o->chunk, .settings = o->settings,
 				   .epoch = o->epoch, .pool = g[0]->place_pool };
 	struct engine *pending = NULL;  /* whose batch the pool is drawing */
-	struct engine *primer = NULL;   /* whose SCAs the pool is setting up */
 	struct tree_disc *disc = NULL;
 	int cur = 0, rc = -1;
 
@@ -300,12 +256,6 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				break;
 			tb = engine_clock();
 			g[0]->t_read += tb - ta;
-			/* the first rows are in: the workers set up while they
-			 * are placed (an error there is the one place_batch()
-			 * would meet first, and stops the run as it would) */
-			if (cat == catalogs && !g[0]->rows_read && !g[0]->pass &&
-			    !(primer = prime_start(g[0], ng, *cat, c)) && e->code != EXIT_OK)
-				break;
 			for (int i = 0; i < ng; i++) {
 				struct batch *b = &g[i]->b[cur];
 
@@ -331,10 +281,6 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 					}
 					pending = NULL;
 				}
-				if (primer) {
-					pool_wait(primer->pool);
-					primer = NULL;
-				}
 				/* the pool is idle: bin, allocate tiles, start */
 				engine_progress(g[i], "rendering", 0);
 				if (place_bin(g[i], b) < 0)
@@ -357,8 +303,6 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 	rc = 0;
 out:
 	free(disc);
-	if (primer)
-		pool_wait(primer->pool);
 	if (pending) {
 		double ta = engine_clock();
 

@@ -178,10 +178,10 @@ extern "C" {
  * thread_start()'s return value; 6 wfs_model.column_roles
  * (enum wfs_column_role) and roman_type; 7 wfs_host.convolve_sum; 8
  * wfs_host.epsf_blend; 9 epsf_colour() of the halo (class 3) gives the
- * spectral class's own halo; 10 wfs_model.prime.  A plugin MAY test
+ * spectral class's own halo.  A plugin MAY test
  * it at compile time to keep one source for several editions; at run time
  * the sizes decide (WFS_HAS), never the edition. */
-#define WFS_ABI_EDITION 10
+#define WFS_ABI_EDITION 9
 
 /* Whether a struct of `size` bytes (the other side's size field) has
  * member m: WFS_HAS(host->source_size, struct wfs_source, flux_meaning). */
@@ -611,21 +611,6 @@ struct wfs_model {
 	 * re, ratio and phi as the four roles, as hosts before edition 6
 	 * did by name. */
 	const int *column_roles;
-
-	/* Edition 10.  prime(state, thread, sca): set up now what the first
-	 * prepare() of a source on SCA sca would set up (its PSF's tables, a
-	 * bright star's halo), so that the host can have it done by an idle
-	 * worker while it places the catalog's first rows.  The host MAY call
-	 * it once for each SCA of an exposure, before or while the first
-	 * rows are prepared, on a worker thread (thread as for render(), but
-	 * host->epsf(), epsf_colour() and epsf_blend() load as in prepare()),
-	 * for several SCAs at once.  It MUST NOT change what any later call
-	 * gives: only what prepare() would make anyway, with the same values.
-	 * Returns 0 or -1; the host drops whatever error it recorded (the
-	 * first row that needs the same set-up meets it again and reports
-	 * it).  Only for a
-	 * model with WFS_PARALLEL_PREPARE; MAY be NULL (and absent). */
-	int (*prime)(void *state, void *thread, int sca);
 };
 
 /*

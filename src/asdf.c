@@ -615,28 +615,34 @@ struct asdf_out {
 	int failed;
 };
 
+int asdf_out_target(const char *path, struct err *e)
+{
+	struct stat st;
+
+	/* never renamed over a device or a named pipe (as root, /dev/null
+	 * itself) */
+	if (stat(path, &st) < 0 || S_ISREG(st.st_mode))
+		return 0;
+	if (S_ISDIR(st.st_mode))
+		return err_set(e, EXIT_INPUT, "%s: is a directory", path);
+	return err_set(e, EXIT_INPUT, "%s: not a regular file; an ASDF file's blocks are "
+		       "written at offsets and it replaces NAME when done, which would "
+		       "replace a device or a named pipe", path);
+}
+
 struct asdf_out *asdf_out_open(const char *path, int compression, struct pool *pool,
 			       struct err *e)
 {
 	struct asdf_out *a;
 	size_t n = TEMPFILE_SIZE(path);
-	struct stat st;
 
 	if (!strcmp(path, "-")) {
 		err_set(e, EXIT_INPUT, "-o -: an ASDF file is written at offsets and needs a "
 			"file, not stdout");
 		return NULL;
 	}
-	/* written to a temporary beside it and renamed over it: never over
-	 * a device or a named pipe (as root, /dev/null itself) */
-	if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
-		if (S_ISDIR(st.st_mode))
-			err_set(e, EXIT_INPUT, "%s: is a directory", path);
-		else
-			err_set(e, EXIT_INPUT, "%s: not a regular file; an ASDF file's blocks "
-				"are written at offsets and it replaces NAME when done", path);
+	if (asdf_out_target(path, e) < 0)
 		return NULL;
-	}
 	if (!(a = calloc(1, sizeof(*a))) || !(a->path = strdup(path)) ||
 	    !(a->tmp = malloc(n))) {
 		err_sys(e, "%s", path);

@@ -175,6 +175,11 @@ struct asdf_out;
 struct asdf_out *asdf_out_open(const char *path, int compression, struct pool *pool,
 			       struct err *e);
 
+/* Whether path may take an ASDF file: absent or a regular file (a file
+ * made beside it is renamed over it, which would replace a device or a
+ * named pipe).  0, or -1 with a message (exit 1). */
+int asdf_out_target(const char *path, struct err *e);
+
 /* Write tree t and the headers of nblock blocks of bytes[k] bytes each
  * (elements of itemsize[k] bytes), and reserve their data.  0 or -1 with a
  * message. */

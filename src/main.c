@@ -10,6 +10,7 @@
 #include <strings.h>
 #include <unistd.h>
 
+#include "asdf.h"
 #include "background.h"
 #include "catalog.h"
 #include "commands.h"
@@ -457,8 +458,6 @@ static int fail(const struct err *e)
  * in Roman's own geometry, one file per SCA, written at offsets. */
 static int check_asdf(const struct scene_opts *o, struct err *e)
 {
-	struct stat st;
-
 	if (strcmp(o->compress, "none"))
 		return err_set(e, EXIT_INPUT, "--compress %s with ASDF: FITS tile compression; "
 			       "an ASDF file's blocks take --set asdf-compression=zlib or lz4",
@@ -481,13 +480,17 @@ static int check_asdf(const struct scene_opts *o, struct err *e)
 	if ((o->sca_mask & (o->sca_mask - 1)) && !(name_fields(o->output) & NAME_SCA))
 		return err_set(e, EXIT_INPUT, "-o %s: an ASDF file holds one SCA; put %%d in "
 			       "the name for one file per SCA (-o NAME_WFI%%02d.asdf)", o->output);
-	/* (a name with fields is checked as each file is opened: asdf_out_open) */
-	if (!name_fields(o->output) && stat(o->output, &st) == 0 && S_ISDIR(st.st_mode))
-		return err_set(e, EXIT_INPUT, "-o %s: is a directory", o->output);
-	if (!name_fields(o->output) && stat(o->output, &st) == 0 && !S_ISREG(st.st_mode))
-		return err_set(e, EXIT_INPUT, "-o %s: not a regular file; an ASDF file's blocks "
-			       "are written at offsets and it replaces NAME when done, which "
-			       "would replace a device or a named pipe", o->output);
+	/* every file's name before anything is drawn, unless it takes an
+	 * exposure's name (checked as each file is opened: asdf_out_open) */
+	for (int sca = 1; sca <= WFS_NSCA && !(name_fields(o->output) & NAME_EXPOSURE); sca++) {
+		char name[4096];
+
+		if (!(o->sca_mask >> (sca - 1) & 1))
+			continue;
+		if (name_expand(name, sizeof(name), "-o", o->output, sca, NULL, e) < 0 ||
+		    asdf_out_target(name, e) < 0)
+			return -1;
+	}
 	return 0;
 }
 

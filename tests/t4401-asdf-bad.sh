@@ -63,10 +63,11 @@ test_expect_success 'ASDF to a named pipe or a device: refused, the node kept' '
 	if test "$(id -u)" = 0 && mknod -m 666 null c 1 3; then
 		test_must_fail --status 1 run --level 1 --format asdf -o null inj.csv 2> err &&
 		test_grep "null: not a regular file" err && test -c null &&
-		mknod -m 666 null1 c 1 3 &&
+		mknod -m 666 null2 c 1 3 &&
 		test_must_fail --status 1 run --level 2 --format asdf --sca 1,2 -o "null%d" \
 			inj.csv 2> err &&
-		test_grep "^wfiscene: null1: not a regular file" err && test -c null1
+		test_grep "^wfiscene: null2: not a regular file" err && test -c null2 &&
+		! test -e null1
 	fi
 '
 

@@ -407,10 +407,11 @@ static int plan_numbers(struct catalog *c, const char *where, struct err *e)
 
 /*
  * The spectrum's columns (wfiscene-catalog(5) SPECTRA): teff, beta, or one
- * color_F1_F2 (or colour_F1_F2), the AB colour m(F1) - m(F2) of two filters (F1 != F2),
- * which gives beta = colour / (2.5 log10(l1 / l2)) with l the filters'
- * pivot wavelengths.  A column name that starts "color_" or "colour_" but names no two
- * known filters is an error, not a column left unread.
+ * color_F1_F2 (or colour_F1_F2), the AB colour m(F1) - m(F2) of two
+ * filters (F1 != F2), which gives beta = colour / (2.5 log10(l1 / l2))
+ * with l the filters' pivot wavelengths.  A column name that starts
+ * "color_" but names no two known filters is an error, not a column left
+ * unread; one that starts "colour_" is then the user's own.
  */
 static int spectrum_plan(struct catalog *c, const char *where, struct err *e)
 {
@@ -711,43 +712,32 @@ static int integer_value(const struct table_chunk *ch, int col, size_t i,
 	int neg = 0, nd = 0;
 	double d;
 
-	if (!s) {
-		/* A FITS double: what its text would give. */
-		if (cell_number(ch, col, i, colname, &d, e) < 0)
-			return -1;
-		if (d == floor(d) && (d >= 0x1p63 || d < -0x1p63))
-			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': %.200s is out of range "
-				       "(at most %lld in magnitude)", ch->file, ch->line[i],
-				       colname, table_text(ch, col, i), LLONG_MAX);
-		if (d != floor(d))
-			return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': not an integer: '%.200s'",
-				       ch->file, ch->line[i], colname, table_text(ch, col, i));
-		*out = (long long)d;
-		return 0;
+	if (s) {
+		while (*p == ' ')
+			p++;
+		if (*p == '-' || *p == '+')
+			neg = *p++ == '-';
+		for (; *p >= '0' && *p <= '9' && nd < 19; p++, nd++)
+			v = v * 10 + (unsigned long long)(*p - '0');
+		while (*p == ' ')
+			p++;
+		/* 19 digits cannot wrap 64 bits; the sign bit must stay clear. */
+		if (nd && !*p && v <= (unsigned long long)LLONG_MAX) {
+			*out = neg ? -(long long)v : (long long)v;
+			return 0;
+		}
 	}
-	while (*p == ' ')
-		p++;
-	if (*p == '-' || *p == '+')
-		neg = *p++ == '-';
-	for (; *p >= '0' && *p <= '9' && nd < 19; p++, nd++)
-		v = v * 10 + (unsigned long long)(*p - '0');
-	while (*p == ' ')
-		p++;
-	/* 19 digits cannot wrap 64 bits; the sign bit must stay clear. */
-	if (nd && !*p && v <= (unsigned long long)LLONG_MAX) {
-		*out = neg ? -(long long)v : (long long)v;
-		return 0;
-	}
-	/* "12.0", "1e3", or a long number: exact if it is an integer. */
+	/* "12.0", "1e3", a long number, or a FITS double (what its text would
+	 * give): exact if it is an integer */
 	if (cell_number(ch, col, i, colname, &d, e) < 0)
 		return -1;
 	if (d == floor(d) && (d >= 0x1p63 || d < -0x1p63))
 		return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': %.200s is out of range "
-			       "(at most %lld in magnitude)", ch->file, ch->line[i], colname, s,
-			       LLONG_MAX);
+			       "(at most %lld in magnitude)", ch->file, ch->line[i], colname,
+			       table_text(ch, col, i), LLONG_MAX);
 	if (d != floor(d))
 		return err_set(e, EXIT_INPUT, "%s:%ld: column '%s': not an integer: '%.200s'",
-			       ch->file, ch->line[i], colname, s);
+			       ch->file, ch->line[i], colname, table_text(ch, col, i));
 	*out = (long long)d;
 	return 0;
 }

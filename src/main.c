@@ -99,7 +99,7 @@ static const struct opt scene_options[] = {
 	  "line); "
 	  "-o, --placed and --report then need a %s for the name", opt_string,
 	  OFF(o.pointings)) },
-	{ OPT("memory", 0, "MB", "half the RAM", "memory for the exposures (or an exposure's "
+	{ OPT("memory", 0, "MB", "half the RAM, at most 2000 at levels 1 and 2", "memory for the exposures (or an exposure's "
 	  "SCAs) drawn at once; the rest in later passes over the catalogs", opt_double,
 	  OFF(o.memory_mb)),
 	  .lo = 1, .hi = 1e9, .flags = OPT_SHOW_DEFAULT },

@@ -575,8 +575,26 @@ static double memory_available(void)
 }
 
 /*
+ * The budget without --memory: half of memory_available(), the other half
+ * left to the page cache the outputs go through and to other programs; at
+ * levels 1 and 2 at most LEVEL_BUDGET.  There the ramps take most of the
+ * run (some 35 of the 38 s of 10^7 sky rows on 18 SCAs), so a second pass
+ * over the catalogs costs a few per cent for half the peak: 1.7 GB instead
+ * of 3.3 (BENCHMARKS.md, "Tenth sitting").  At the scene level a pass is
+ * most of the run, and memory is spent first.
+ */
+#define LEVEL_BUDGET (2000.0 * MIB)
+
+static double default_budget(const struct scene_opts *o)
+{
+	double half = 0.5 * memory_available();
+
+	return o->level ? fmin(half, LEVEL_BUDGET) : half;
+}
+
+/*
  * How a run's exposures are drawn: as many exposures at once as the memory
- * budget (--memory, by default half of memory_available()) holds at
+ * budget (--memory, by default default_budget()) holds at
  * exposure_bytes() each besides run_bytes(); the others wait for later
  * passes over the catalogs, so a series of hundreds of exposures of one
  * field needs the memory of a few.  When not even one exposure fits, each
@@ -611,7 +629,7 @@ static void plan_passes(const struct scene_opts *o, const struct exposure *x, in
 	double each = 0, k;
 	int nsca = __builtin_popcount(x[0].sca_mask);
 
-	p->budget = o->memory_mb > 0 ? o->memory_mb * MIB : 0.5 * memory_available();
+	p->budget = o->memory_mb > 0 ? o->memory_mb * MIB : default_budget(o);
 	for (int i = 0; i < n; i++)
 		each = fmax(each, exposure_bytes(o, &x[i], p->colour));
 	k = floor((p->budget - run_bytes(o) - p->first) / each);

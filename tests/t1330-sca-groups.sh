@@ -87,6 +87,30 @@ test_expect_success 'a row refused by the last group: exit 1, no file left' '
 	test_grep "bad.csv:2: .*Sérsic index must be > 0" err &&
 	! ls | grep -q "^bad_"
 '
+# Without --memory, levels 1 and 2 take at most 2000 MB (half the RAM when
+# that is less): all 18 SCAs in two passes of nine.  The scene level takes
+# half the RAM.  A bad row stops each run in its first pass, before any
+# ramp is drawn.
+test_expect_success 'the default budget: 2000 MB at levels 1 and 2' '
+	printf "id,x,y,sca,flux,type,n,re,ratio,phi\n1,100,2048,4,20,sersic,-1,3,0.5,0\n" \
+		> bad18.csv &&
+	half=$(awk "/^MemTotal:/ { print int(\$2 / 2048) }" /proc/meminfo) &&
+	for L in 1 2; do
+		test_must_fail --status 1 "$WFS" --filter F158 --sca 1-18 --level $L \
+			--background avg -v -o "l18_%d.fits" bad18.csv 2> err &&
+		test_grep "bad18.csv:2: .*Sérsic index must be > 0" err &&
+		if test "$half" -ge 2000 && ! grep -q "[0-9]" /sys/fs/cgroup/memory.max 2>/dev/null
+		then
+			test_grep "18 SCAs in 2 passes over the catalogs, 9 at most at a time (184 MB each, 2000 MB of memory)" err
+		else
+			test_grep "18 SCAs in [0-9]* passes over the catalogs" err
+		fi || return 1
+	done &&
+	test_must_fail --status 1 "$WFS" --filter F158 --sca 1-18 -v -o l18.fits bad18.csv \
+		2> err &&
+	! grep -q "2000 MB of memory" err &&
+	! ls | grep -q "^l18"
+'
 test_expect_success 'stdin that cannot be kept: exit 2, nothing written' '
 	test_must_fail --status 2 env TMPDIR=/nonexistent "$WFS" --filter F158 --ra 10 \
 		--dec 20 --pointing-ref boresight --sca 1-4 --flux-unit abmag \

@@ -76,6 +76,10 @@ extern const int sersic_roles[SERSIC_NCOL];
  * whatever the galaxy's brightness; sersic-noise-eps may raise it for
  * faint galaxies. */
 #define SERSIC_NOISE_EPS 1e-2
+/* Where more than this fraction of a galaxy's light may be cut and fall off
+ * its SCA, the light kept on the SCA is set by integrals over its pixels
+ * (prepare), not by renormalising to the whole flux. */
+#define SERSIC_OFF_TOL 2e-4      /* above sersic-precise's default cut, 1e-4 */
 
 /* Where prepare() leaves its results in src->aux. */
 enum {

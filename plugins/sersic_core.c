@@ -437,6 +437,60 @@ static const char *sersic_num(char buf[32], double v)
 }
 
 /*
+ * src's finf (and its log intensity: lnk is ln F_inf / I0) such that the
+ * truncated profile puts on the SCA's pixels the light the untruncated
+ * one does, each integral exact to SERSIC_OFF_TOL / 100 of the flux, but
+ * at most the whole flux (finf at most flux / pt); unchanged when the
+ * truncated profile puts none there (nothing of it is drawn).
+ */
+static void sersic_keep_sca_light(struct wfs_source *src, double lnk)
+{
+	double x0 = -0.5 - src->x, x1 = WFS_SCA_SIDE - 0.5 - src->x;
+	double y0 = -0.5 - src->y, y1 = WFS_SCA_SIDE - 0.5 - src->y;
+	double tol = 0.01 * SERSIC_OFF_TOL, cut, whole;
+	struct sersic_gal g;
+
+	sersic_unpack(src, &g);
+	g.finf = 1.0;
+	cut = sersic_rect_polar(&g, x0, x1, y0, y1, tol, 1);
+	g.rho_t = g.rho_t2 = INFINITY;
+	g.qt = 0.0;
+	g.pt = 1.0;
+	whole = sersic_rect_polar(&g, x0, x1, y0, y1, tol, 1);
+	if (!(cut > 0) || !(whole >= 0))
+		return;
+	/* at least the flux (the two differ by rounding where the cut holds
+	 * the whole SCA), never more than the whole flux: the SCA may see
+	 * mostly the wing beyond the cut, not to be pushed into the few
+	 * pixels inside */
+	src->aux[AUX_FINF] = src->flux * fmin(fmax(whole / cut, 1.0), 1.0 / src->aux[AUX_PT]);
+	src->aux[AUX_LNI0] = log(src->aux[AUX_FINF]) - lnk;
+}
+
+/*
+ * A bound on the light of a galaxy at src's position that falls off its
+ * SCA (b, n: the profile; ra, rb: the semi-axes drawn), as a fraction of
+ * its flux: the light beyond the largest ellipse of its shape that fits
+ * inside the SCA's pixels, Q(2n, x) at that ellipse.  An ellipse of radius
+ * rho reaches rho sqrt(ra^2 cos^2 + rb^2 sin^2) along x (the same with sin
+ * and cos swapped along y), so the one that touches the nearest edge has
+ * rho its distance over that reach; 1 for a centre off the SCA.
+ */
+static double sersic_off_sca(const struct wfs_source *src, double b, double n,
+			     double ra, double rb)
+{
+	double th = (src->param[SERSIC_PHI] + 90.0) * (M_PI / 180.0), c = cos(th), s = sin(th);
+	double hx = sqrt(c * c * ra * ra + s * s * rb * rb), hy = sqrt(s * s * ra * ra + c * c * rb * rb);
+	double lo = -0.5, hi = WFS_SCA_SIDE - 0.5;
+	double dx = fmin(src->x - lo, hi - src->x), dy = fmin(src->y - lo, hi - src->y);
+	double rho = fmin(dx / hx, dy / hy);
+
+	if (!(rho > 0))
+		return 1.0;
+	return sersic_gamma_q(2 * n, b * exp(log(rho) / n));
+}
+
+/*
  * Validate a row and fill src->aux.  eps is the truncation fraction.  With
  * flux meaning "ie", src->flux is the intensity at r_e and is replaced by
  * the total, q included.
@@ -558,6 +612,13 @@ int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
 	src->aux[AUX_QT] = qt;
 	src->aux[AUX_PSFH] = 0;
 	src->aux[AUX_PSFALL] = 0;
+	/* ... but where part of the light cut would fall off the SCA, putting
+	 * it all back would brighten what is drawn (by 25 % for r_e 1e5 pixels
+	 * at the default sersic-noise-eps): the SCA then gets the light the
+	 * whole profile puts on it, the two integrals over its pixels exact. */
+	if (!beyond && src->flux > 0 &&
+	    fmin(qt, sersic_off_sca(src, b, n, ra, rb)) > SERSIC_OFF_TOL)
+		sersic_keep_sca_light(src, lnk);
 	return 0;
 }
 

@@ -1365,7 +1365,7 @@ next:
 
 	/* The cut by the noise, for a galaxy whose light sinks into it. */
 	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
-		struct gal g = { 100.37, 200.81, 1000, cases[i][0], cases[i][1], 20, 0.6 };
+		struct gal g = { 2043.37, 2040.81, 1000, cases[i][0], cases[i][1], 20, 0.6 };
 		const int hb = 160, nb = 2 * hb + 1;
 		double *img[2], tot[2];
 		struct wfs_box fp[2];
@@ -1401,7 +1401,54 @@ next:
 		free(img[0]);
 		free(img[1]);
 	}
+	/* ... and at the SCA's edge, where much of what it cuts falls off
+	 * the SCA: the SCA gets the light the whole profile puts on it, not
+	 * the light cut put back (which made it 0.5-25 % too bright). */
+	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
+		struct gal g = { 30.37, 4060.81, 1000, cases[i][0], cases[i][1], 20, 0.6 };
+		const int hb = 400, nb = 2 * hb + 1;
+		double *img, on = 0, want;
+		struct wfs_box fp;
+		struct model md;
+		struct wfs_source src;
+		struct ref r;
+		double param[4];
+		int ox, oy;
+
+		/* a faint galaxy (the noise 30 times the last loop's), so that
+		 * sersic-noise-eps lets the cut leave out up to a fifth of it */
+		mock_set(&mock, "sersic-noise-cut", "0.01");
+		mock_set(&mock, "pixel-sigma", "30");
+		model_init(&md, m);
+		img = draw(&md, &g, hb, 64, &ox, &oy);
+		prepare(&md, &g, &src, param);
+		md.m->footprint(md.state, &src, &fp);
+		model_fini(&md);
+		if (!ok(img && fp.x0 >= ox && fp.x1 <= ox + nb && fp.y0 >= oy && fp.y1 <= oy + nb,
+			"sersic-noise-cut at the SCA's corner, n %g re %g: drawn, its footprint "
+			"inside the window", g.n, g.re)) {
+			free(img);
+			continue;
+		}
+		for (int y = 0; y < nb; y++)
+			for (int x = 0; x < nb; x++)
+				if (ox + x >= 0 && ox + x < 4088 && oy + y >= 0 && oy + y < 4088)
+					on += img[(size_t)y * nb + x];
+		/* the SCA as the window's part, which holds the centre, and two
+		 * rectangles beyond it (x0, x1: the window's part's sides) */
+		ref_setup(&r, &g);
+		double x0 = fmax(ox, 0) - 0.5, x1 = fmin(ox + nb, 4088) - 0.5;
+		double y0 = fmax(oy, 0) - 0.5, y1 = fmin(oy + nb, 4088) - 0.5;
+		want = ref_rect(&r, x0 - g.x, x1 - g.x, y0 - g.y, y1 - g.y, 1e-9 * g.flux) +
+		       ref_rect(&r, x1 - g.x, 4087.5 - g.x, -0.5 - g.y, 4087.5 - g.y, 1e-9 * g.flux) +
+		       ref_rect(&r, -0.5 - g.x, x1 - g.x, -0.5 - g.y, y0 - g.y, 1e-9 * g.flux);
+		ok(fabs(on / want - 1) < 2e-3,
+		   "sersic-noise-cut at the SCA's corner, n %g re %g: the SCA's light %.6g, the "
+		   "whole profile's on it %.6g (%.2e)", g.n, g.re, on, want, on / want - 1);
+		free(img);
+	}
 	mock_set(&mock, "sersic-noise-cut", "0");
+	mock_set(&mock, "pixel-sigma", "1");
 	mock_set(&mock, "sersic-convolve", "yes");
 }
 

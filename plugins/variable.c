@@ -230,6 +230,12 @@ static int variable_prepare(void *state, struct wfs_source *src)
 	if (!(period > 0 && period <= 1e7) && !(shape == 3 && period == 0))
 		return h->error(h->ctx, "column 'period': want days from 0 to 1e7 "
 				"(0 only with shape 3), not %g", period);
+	/* a periodic row reads the curve as phases, which wrap at 1 */
+	if (shape == 3 && period > 0 && (v->cx[0] < 0 || v->cx[v->ncurve - 1] > 1))
+		return h->error(h->ctx, "column 'period': %g days reads variable-curve %s as "
+				"phases from 0 to 1, but its first column runs from %.9g to %.9g "
+				"(MJDs want period 0)", period, v->curve_name, v->cx[0],
+				v->cx[v->ncurve - 1]);
 	if (!(fabs(p[C_AMPLITUDE]) <= 20))
 		return h->error(h->ctx, "column 'amplitude': want at most 20 mag, not %g",
 				p[C_AMPLITUDE]);

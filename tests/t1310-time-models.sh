@@ -117,6 +117,14 @@ test_expect_success 'bad parameters are refused with the row and column' '
 	mkdir curvedir &&
 	test_must_fail --status 3 run --set variable-curve=curvedir -o bad.fits bad.csv 2> err &&
 	test_grep "variable-curve curvedir: is a directory" err &&
+	printf "0 0\n0.5 0.3\n1.5 0\n" > mjdish.txt &&
+	test_must_fail --status 1 run --set variable-curve=mjdish.txt -o bad.fits bad.csv 2> err &&
+	test_grep "bad.csv:2: model .variable.: column .period.: 1 days reads variable-curve mjdish.txt as phases from 0 to 1, but its first column runs from 0 to 1.5" err &&
+	printf "0 0\n0.5 0.3\n1 0\n" > whole.txt &&
+	run --set variable-curve=whole.txt -o whole.fits bad.csv &&
+	printf "ra,dec,mag,type,period,amplitude,shape\n268,-29,20,variable,0,1,3\n" > mjd.csv &&
+	run --set variable-curve=mjdish.txt -o mjd.fits mjd.csv &&
+	rm -f whole.fits mjd.fits &&
 	printf "ra,dec,mag,type,t0,te,u0\n268,-29,20,microlens,61500,20,1e-300\n" > huge.csv &&
 	test_must_fail --status 1 run --date 61500 -o bad.fits huge.csv 2> err &&
 	test_grep "huge.csv:2: flux .* by its model" err &&

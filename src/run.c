@@ -415,6 +415,14 @@ static double run_bytes(const struct scene_opts *o)
 	return (o->level ? 78.0 : 8.0) * MIB + 512.0 * (double)o->chunk;
 }
 
+/* What each exposure drawn at once beyond the first adds for a chunk of
+ * --chunk rows: its engine's own two batches (engine.h), a placement and
+ * its tile index for every row at most; run_bytes() counts the first's. */
+static double batch_bytes(const struct scene_opts *o)
+{
+	return 2.0 * (sizeof(struct placement) + sizeof(uint32_t)) * (double)o->chunk;
+}
+
 /* Whether catalog path can be read only once: stdin ('-'), a named pipe
  * or a device (not a regular file nor a tree's directory). */
 static int read_once(const char *path)
@@ -595,7 +603,8 @@ static double default_budget(const struct scene_opts *o)
 /*
  * How a run's exposures are drawn: as many exposures at once as the memory
  * budget (--memory, by default default_budget()) holds at
- * exposure_bytes() each besides run_bytes(); the others wait for later
+ * exposure_bytes() each (and batch_bytes() for each but the first)
+ * besides run_bytes(); the others wait for later
  * passes over the catalogs, so a series of hundreds of exposures of one
  * field needs the memory of a few.  When not even one exposure fits, each
  * is drawn alone in groups of SCAs, as many at once as fit (at least one),
@@ -632,7 +641,7 @@ static void plan_passes(const struct scene_opts *o, const struct exposure *x, in
 	p->budget = o->memory_mb > 0 ? o->memory_mb * MIB : default_budget(o);
 	for (int i = 0; i < n; i++)
 		each = fmax(each, exposure_bytes(o, &x[i], p->colour));
-	k = floor((p->budget - run_bytes(o) - p->first) / each);
+	k = floor((p->budget - run_bytes(o) - p->first + batch_bytes(o)) / (each + batch_bytes(o)));
 	p->per = k < 1 ? 1 : k >= n ? n : (int)k;
 	p->groups = 1;
 	if (k < 1 && nsca > 1) {

@@ -179,6 +179,60 @@ static int unit_code(const char *s)
 	return 0;
 }
 
+/* The name a message gives unit u (enum flux_unit). */
+static const char *unit_name(int u)
+{
+	switch (u) {
+	case UNIT_COUNTS:
+		return "counts/s";
+	case UNIT_ABMAG:
+		return "AB mag";
+	case UNIT_JY:
+		return "Jy";
+	case UNIT_PHOT:
+		return "STIPS unit p";
+	case UNIT_ERG:
+		return "STIPS unit e";
+	case UNIT_MAGGIES:
+		return "maggies";
+	case UNIT_NMGY:
+		return "nanomaggies";
+	}
+	return "unknown unit";
+}
+
+const char *rows_flux_text(const struct rows *r, size_t i, char *buf, size_t size)
+{
+	const char *s, *us;
+	char num[32];
+	size_t n;
+	int u = r->flux_unit;
+
+	if (r->flux_col < 0 || r->flux_col >= r->ncol) {
+		snprintf(buf, size, "flux %.9g", r->flux[i]);
+		return buf;
+	}
+	/* The cell as written.  A FITS double has no text until rows_text()
+	 * writes it into the reader's buffer, which another thread may be
+	 * reading: its text is made here, as table_fits.c makes it. */
+	s = r->text[r->flux_col][i];
+	if (!s) {
+		snprintf(num, sizeof(num), "%.17g", r->num[r->flux_col][i]);
+		s = num;
+	}
+	while (*s == ' ' || *s == '\t')
+		s++;
+	for (n = strlen(s); n && (s[n - 1] == ' ' || s[n - 1] == '\t'); n--)
+		;
+	/* the row's units cell, when it has one, else the column's unit
+	 * (read_flux() has refused any cell that names no unit) */
+	if (r->units_col >= 0 && (us = r->text[r->units_col][i]) && unit_code(us))
+		u = unit_code(us);
+	snprintf(buf, size, "column '%s': %.*s (%s)", r->colname[r->flux_col],
+		 (int)(n < 40 ? n : 40), s, unit_name(u));
+	return buf;
+}
+
 /* The column named name (lower-case), or -1. */
 static int col_of(const struct table *t, const char *name)
 {
@@ -1002,6 +1056,11 @@ static void rows_fill(struct catalog *c, struct rows *r, const struct table_chun
 	r->sca = c->sca;
 	r->flux = c->flux;
 	r->unit = c->unit;
+	/* as read_flux() reads them */
+	r->flux_col = c->c_flux >= 0 ? c->c_flux : c->c_mag;
+	r->units_col = c->c_flux >= 0 && c->c_units >= 0 && c->stips != STIPS_INTERNAL ?
+		c->c_units : -1;
+	r->flux_unit = c->c_flux >= 0 ? c->flux_unit : UNIT_ABMAG;
 	r->type = c->type;
 	r->id = c->id;
 	if (c->motion) {
@@ -1089,6 +1148,7 @@ long catalog_read(struct catalog *c, struct rows *r, struct err *e)
 
 	memset(r, 0, sizeof(*r));
 	r->sky_angle_col = -1;
+	r->flux_col = r->units_col = -1;
 	for (;;) {
 		n = c->t ? table_read(c->t, &ch, e) : 0;
 		if (n != 0)

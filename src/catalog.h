@@ -64,6 +64,13 @@ struct rows {
 	int *sca;               /* SCA of x, y; 0 = the scene's first SCA */
 	double *flux;           /* value in unit[i] (NaN never passes: an error) */
 	unsigned char *unit;    /* enum flux_unit of each row */
+	/* Where the flux came from, for messages (rows_flux_text): its
+	 * column, the 'units' column that may give a row its unit (-1 for
+	 * none), and the column's own unit, maggies and nanomaggies as such
+	 * (unit[] holds them as UNIT_ABMAG). */
+	int flux_col;
+	int units_col;
+	int flux_unit;
 	const char **type;      /* model name, lower-case; "point" by default */
 	long long *id;          /* the id column, else the 1-based row number */
 	/* Proper motion (mas/yr; pmra includes cos dec), parallax (mas) and
@@ -98,6 +105,13 @@ struct rows {
 
 /* The text of cell (col, i); see text above. */
 const char *rows_text(const struct rows *r, int col, size_t i);
+
+/* Row i's flux as the catalog gave it, for a message about it: its column,
+ * the cell's text and the unit it was read in, as "column 'mag': 20 (AB
+ * mag)" or "column 'f158': 1e-9 (maggies)".  Writes at most size bytes
+ * to buf (as snprintf) and returns buf.  Reads only, so it may run on any
+ * thread; it is not for the per-row path. */
+const char *rows_flux_text(const struct rows *r, size_t i, char *buf, size_t size);
 
 struct catalog;
 

@@ -50,26 +50,31 @@ int source_psf_class(const struct engine *g, double mag)
 }
 
 /* src's flux checked: positive, finite, and within what a float32 image
- * holds.  model names the model that set the flux, NULL for the catalog. */
+ * holds.  model names the model that set the flux, NULL for the catalog.
+ * The message names the row's flux as the catalog gave it (its column,
+ * value and unit: rows_flux_text), made only on failure. */
 int source_flux_check(const struct engine *g, const struct rows *r, size_t i,
 		      const struct wfs_source *src, const char *model, struct err *e)
 {
-	const char *what = model ? "becomes, by its model," : "converts to";
+	double image = src->flux * (g->o->bunit_counts ? g->o->exptime : 1);
+	char given[160];
 
 	if (!isfinite(src->flux) || src->flux <= 0)
-		return err_set(e, EXIT_INPUT, "%s:%ld: flux %g %s %g counts/s "
+		return err_set(e, EXIT_INPUT, "%s:%ld: %s %s %g counts/s "
 			       "on SCA %d: not a positive finite number", r->file,
-			       r->line[i], r->flux[i], what, src->flux, src->sca);
+			       r->line[i], rows_flux_text(r, i, given, sizeof(given)),
+			       model ? "becomes, by its model," : "converts to",
+			       src->flux, src->sca);
 	/* The image is float32 (at most 3.4e38): one source may bring up to
 	 * 1e32 in the image's unit, so no sum of sources can overflow it. */
-	if (src->flux * (g->o->bunit_counts ? g->o->exptime : 1) > 1e32)
+	if (image > 1e32)
 		/* nine digits, so that a value just past 1e32 does not read
 		 * as 1e+32 */
-		return err_set(e, EXIT_INPUT, "%s:%ld: flux %.9g %s %.9g %s on SCA %d, "
+		return err_set(e, EXIT_INPUT, "%s:%ld: %s %s %.9g %s on SCA %d, "
 			       "more than the 1e32 that one source may put in a "
-			       "float32 image", r->file, r->line[i], r->flux[i],
-			       model ? what : "gives",
-			       src->flux * (g->o->bunit_counts ? g->o->exptime : 1),
+			       "float32 image", r->file, r->line[i],
+			       rows_flux_text(r, i, given, sizeof(given)),
+			       model ? "becomes, by its model," : "gives", image,
 			       g->o->bunit_counts ? "counts" : "counts/s", src->sca);
 	return 0;
 }

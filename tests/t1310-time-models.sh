@@ -127,7 +127,7 @@ test_expect_success 'bad parameters are refused with the row and column' '
 	rm -f whole.fits mjd.fits &&
 	printf "ra,dec,mag,type,t0,te,u0\n268,-29,20,microlens,61500,20,1e-300\n" > huge.csv &&
 	test_must_fail --status 1 run --date 61500 -o bad.fits huge.csv 2> err &&
-	test_grep "huge.csv:2: flux .* by its model" err &&
+	test_grep "huge.csv:2: column .mag.: 20 (AB mag) becomes, by its model" err &&
 	! test -e bad.fits
 '
 # Extreme but valid parameters, each row on its own.  Where u is past
@@ -169,7 +169,7 @@ test_expect_success '... and A past the largest double is refused by the 1e32 li
 		printf "id,x,y,mag,type,t0,te,u0,fs\n1,100,100,20,microlens,61540.3,1,%s,1\n" \
 			"$u0" > tiny.csv &&
 		test_must_fail --status 1 xrun -o bad.fits tiny.csv 2> err &&
-		test_grep "tiny.csv:2: flux 20 becomes, by its model, .* more than the 1e32" err &&
+		test_grep "tiny.csv:2: column .mag.: 20 (AB mag) becomes, by its model, .* more than the 1e32" err &&
 		! grep -qi nan err && ! test -e bad.fits || exit 1
 	done &&
 	# A faint enough star (flux 1e-300) is magnified by A = 1/u = 1e310

@@ -69,14 +69,14 @@ test_expect_success 'refused: a flux beyond what a float32 image holds (1e32 per
 	d=$(mktemp -d "$TRASH/run.XXXXXX") && cd "$d" &&
 	printf "x,y,flux\n100,100,10\n200,100,1e300\n" > huge.csv &&
 	test_must_fail --status 1 "$WFS" --filter F129 -o out.fits huge.csv 2> err &&
-	test_grep "huge.csv:3: flux 1e+300 gives 1e+300 counts/s on SCA 1, more than the 1e32" err &&
+	test_grep "huge.csv:3: column .flux.: 1e300 (counts/s) gives 1e+300 counts/s on SCA 1, more than the 1e32" err &&
 	printf "x,y,flux\n100,100,1.0000001e32\n" > edge.csv &&
 	test_must_fail --status 1 "$WFS" --filter F129 -o out.fits edge.csv 2> err &&
-	test_grep "edge.csv:2: flux 1.0000001e+32 gives 1.0000001e+32 counts/s on SCA 1" err &&
+	test_grep "edge.csv:2: column .flux.: 1.0000001e32 (counts/s) gives 1.0000001e+32 counts/s on SCA 1" err &&
 	printf "x,y,flux\n100,100,1e30\n" > big.csv &&
 	test_must_fail --status 1 "$WFS" --filter F129 --bunit counts --exptime 1000 \
 		-o out.fits big.csv 2> err &&
-	test_grep "big.csv:2: flux 1e+30 gives 1e+33 counts" err &&
+	test_grep "big.csv:2: column .flux.: 1e30 (counts/s) gives 1e+33 counts" err &&
 	test "$(ls -A | sort | tr "\n" " ")" = "big.csv edge.csv err huge.csv "
 '
 refused $B/mag-99.csv 1 ":2: column 'mag': magnitude out of range [-20, 50]: '99'"

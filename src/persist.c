@@ -30,7 +30,10 @@
  * the current at which romanisim stops tracking a pixel), so the state
  * holds the cores of bright stars, not the sky.
  */
+#include <ctype.h>
 #include <errno.h>
+#include <float.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -38,6 +41,7 @@
 #include <unistd.h>
 
 #include "data.h"
+#include "date.h"
 #include "err.h"
 #include "exposure.h"
 #include "options.h"
@@ -46,6 +50,10 @@
 
 #define PERSIST_MAGIC "wfiscene-persistence 1"
 #define LAG_KEEP 30.0           /* s after an exposure's end: the keep rule */
+#define GAP_MAX 1e9             /* s: --set persistence-gap's upper bound */
+#define REFERENCE_MIN 1e3       /* e-: --set persistence-reference's lower bound */
+#define EXPTIME_MAX 1e12        /* s: --exptime's upper bound (main.c) */
+#define DATE_SLACK 1e-6         /* s an exposure may begin before the last ends */
 
 static double curve_at(const struct persist_curve *c, double u)
 {
@@ -202,8 +210,8 @@ struct persist *persist_new(unsigned sca_mask, int ylo, int yhi,
 	}
 	if (knob(settings, "persistence-floor", 1e-6, 1e3, &p->floor, e) < 0 ||
 	    knob(settings, "persistence-flag", 0, 1e6, &p->flag, e) < 0 ||
-	    knob(settings, "persistence-gap", 0, 1e9, &p->gap, e) < 0 ||
-	    knob(settings, "persistence-reference", 1e3, 1e7, &ref, e) < 0)
+	    knob(settings, "persistence-gap", 0, GAP_MAX, &p->gap, e) < 0 ||
+	    knob(settings, "persistence-reference", REFERENCE_MIN, 1e7, &ref, e) < 0)
 		goto fail;
 	p->ref_response = fermi(p, ref);
 	for (int s = 1; s <= WFS_NSCA; s++) {
@@ -294,7 +302,7 @@ int persist_begin(struct persist *p, const char *name, double mjd, double exptim
 {
 	double t0 = isnan(mjd) ? (p->have_last ? p->last_end + p->gap : 0) : mjd * 86400.0;
 
-	if (p->have_last && t0 < p->last_end - 1e-6)
+	if (p->have_last && t0 < p->last_end - DATE_SLACK)
 		return err_set(e, EXIT_INPUT, "persistence: exposure%s%s begins %.3f s before "
 			       "the previous one ends: the exposures of a series must be in "
 			       "date order, each after the one before (or leave persistence "
@@ -355,7 +363,10 @@ int persist_add(struct persist *p, int sca, int y, int x0, int n, const double *
 
 		if (!(fluence[i] >= xk))
 			continue;
-		s = persist_scale(p, fluence[i]);
+		/* an infinite fluence (an image that overflowed) as the largest
+		 * finite one: the state holds only finite amplitudes, which
+		 * persist_load() takes back */
+		s = persist_scale(p, fluence[i] < DBL_MAX ? fluence[i] : DBL_MAX);
 		if (s * g < p->floor)
 			continue;
 		if (list_push(l, (uint32_t)y * WFS_NPIX + (uint32_t)(x0 + i), (float)s, p->t1) < 0)
@@ -509,95 +520,268 @@ static void mask_text(unsigned mask, char *buf, size_t cap)
 			len += (size_t)snprintf(buf + len, cap - len, "%s%d", len ? "," : "", s);
 }
 
+/* The reader of a state file: its name and the line it is at, for the
+ * messages. */
+struct state_in {
+	FILE *f;
+	const char *path;
+	int lineno;
+	char buf[256];
+};
+
+/* A file that ends too soon (or a line too long to be the program's),
+ * where the reader is: -1 with a message, exit 1, or 2 if it could not be
+ * read. */
+static int state_short(const struct state_in *in, const char *want, struct err *e)
+{
+	if (ferror(in->f))
+		return err_sys(e, "%s: persistence state", in->path);
+	return err_set(e, EXIT_INPUT, "%s:%d: persistence state damaged or truncated: "
+		       "expected '%s'", in->path, in->lineno, want);
+}
+
+/* The next header line, which must be form's key and a blank (form is
+ * "key WHAT ...", for the message): the rest in *val.  0 or -1 with a
+ * message. */
+static int state_line(struct state_in *in, const char *form, const char **val, struct err *e)
+{
+	size_t k = strcspn(form, " ");
+
+	in->lineno++;
+	if (line(in->f, in->buf, sizeof(in->buf)) < 0)
+		return state_short(in, form, e);
+	if (strncmp(in->buf, form, k) || in->buf[k] != ' ')
+		return err_set(e, EXIT_INPUT, "%s:%d: expected '%s': '%s'", in->path, in->lineno,
+			       form, in->buf);
+	*val = in->buf + k + 1;
+	return 0;
+}
+
+/* A decimal integer at s, nothing before it, into *v: the character after
+ * it, or NULL when s holds none or one beyond a long. */
+static const char *int_at(const char *s, long *v)
+{
+	char *end;
+
+	if (*s != '-' && !(*s >= '0' && *s <= '9'))
+		return NULL;
+	errno = 0;
+	*v = strtol(s, &end, 10);
+	return end == s || errno ? NULL : end;
+}
+
+/*
+ * What persist_save() can write, which persist_load() takes and nothing
+ * else.  Times are s on the clock of MJD x 86400 (persist_begin): an
+ * exposure with a date begins within date_parse()'s years 1800-2200, one
+ * without 60 s (the gap, at most GAP_MAX) after the one before, or at 0,
+ * and lasts at most --exptime's EXPTIME_MAX; so the end of the last of N
+ * exposures is at most the start of 2201 plus N (GAP_MAX + EXPTIME_MAX).
+ * A pixel's stimulus ended at an exposure's end: not after the state's
+ * end, but for persist_begin's DATE_SLACK (with the rounding of the times
+ * it compares) that each exposure may take the end back by.  Amplitudes
+ * are above 0 (the floor is) and at most that of the largest fluence
+ * (persist_add takes an infinite one as that) against the least reference
+ * allowed.
+ */
+static double time_min(void)
+{
+	return date_mjd(1800, 1, 1, 0, 0, 0) * 86400.0;
+}
+
+static double time_max(long exposures)
+{
+	return date_mjd(2201, 1, 1, 0, 0, 0) * 86400.0 +
+	       (double)exposures * (GAP_MAX + EXPTIME_MAX);
+}
+
+static double time_late(double end, long exposures)
+{
+	return end + (double)exposures * (DATE_SLACK + 8 * DBL_EPSILON * fabs(end));
+}
+
+static double scale_max(const struct persist *p)
+{
+	return fermi(p, DBL_MAX) / fermi(p, REFERENCE_MIN);
+}
+
+/* The header after the magic line into *mask, *first, *last (1-based),
+ * *exposures and *end (NaN: none).  0 or -1 with a message. */
+static int state_header(struct state_in *in, const struct persist *p, unsigned *mask,
+			long *first, long *last, long *exposures, double *end, struct err *e)
+{
+	char want[64], got[64];
+	const char *v, *s;
+	char *stop;
+	long sca, prev = 0;
+
+	if (state_line(in, "scas S ...", &v, e) < 0)
+		return -1;
+	for (s = v;; s++) {
+		if (!(s = int_at(s, &sca)) || sca <= prev || sca > WFS_NSCA || (*s && *s != ' '))
+			return err_set(e, EXIT_INPUT, "%s:%d: scas '%s': expected SCA numbers "
+				       "from 1 to %d, ascending, each once", in->path, in->lineno,
+				       v, WFS_NSCA);
+		*mask |= 1u << (sca - 1);
+		prev = sca;
+		if (!*s)
+			break;
+	}
+	if (state_line(in, "rows FIRST LAST", &v, e) < 0)
+		return -1;
+	if (!(s = int_at(v, first)) || *s != ' ' || !(s = int_at(s + 1, last)) || *s ||
+	    *first < 1 || *last < *first || *last > WFS_NPIX)
+		return err_set(e, EXIT_INPUT, "%s:%d: rows '%s': expected the first and last "
+			       "science rows, from 1 to %d, the first not after the last",
+			       in->path, in->lineno, v, WFS_NPIX);
+	if (*mask != p->sca_mask || *first != p->ylo + 1 || *last != p->yhi) {
+		mask_text(*mask, got, sizeof(got));
+		mask_text(p->sca_mask, want, sizeof(want));
+		return err_set(e, EXIT_INPUT, "%s: a persistence state of SCAs %s, rows %ld-%ld; "
+			       "this run is of SCAs %s, rows %d-%d (--sca and --rows must be "
+			       "those of the run that wrote it)", in->path, got, *first, *last,
+			       want, p->ylo + 1, p->yhi);
+	}
+	if (state_line(in, "exposures N", &v, e) < 0)
+		return -1;
+	if (!(s = int_at(v, exposures)) || *s || *exposures < 0 || *exposures > INT_MAX)
+		return err_set(e, EXIT_INPUT, "%s:%d: exposures '%s': expected the count of "
+			       "exposures taken into the state, from 0 to %d", in->path,
+			       in->lineno, v, INT_MAX);
+	if (state_line(in, "end T", &v, e) < 0)
+		return -1;
+	*end = strtod(v, &stop);
+	if (stop == v || *stop || isspace((unsigned char)*v))
+		return err_set(e, EXIT_INPUT, "%s:%d: end '%s': not a number", in->path,
+			       in->lineno, v);
+	if (*exposures == 0 && !isnan(*end))
+		return err_set(e, EXIT_INPUT, "%s:%d: end '%s': expected 'nan' (the state has "
+			       "no exposures)", in->path, in->lineno, v);
+	if (*exposures > 0 && !(*end >= time_min() && *end <= time_max(*exposures)))
+		return err_set(e, EXIT_INPUT, "%s:%d: end '%s': expected the end of the last "
+			       "of its %ld exposures, a time in s (MJD x 86400) from %.15g to "
+			       "%.15g", in->path, in->lineno, v, *exposures, time_min(),
+			       time_max(*exposures));
+	return 0;
+}
+
+/* The block of SCA s into l: its line, then its pixels, amplitudes and
+ * end times, each checked against what persist_save() writes for a state
+ * of that many exposures ending at end.  0 or -1 with a message. */
+static int state_block(struct state_in *in, const struct persist *p, int s, long exposures,
+		       double end, struct persist_list *l, struct err *e)
+{
+	/* the state's rows and, at levels 1 and 2, the row either side
+	 * (persist.h), within the SCA */
+	long y0 = p->ylo > 0 ? p->ylo - 1 : 0, y1 = p->yhi < WFS_NPIX ? p->yhi : WFS_NPIX - 1;
+	uint32_t pix_lo = (uint32_t)y0 * WFS_NPIX, pix_hi = (uint32_t)(y1 + 1) * WFS_NPIX - 1;
+	long cap = exposures ? (y1 - y0 + 1) * WFS_NPIX : 0, sca, n;
+	float smax = (float)scale_max(p);
+	double late = time_late(end, exposures);
+	char form[32];
+	const char *v, *t;
+
+	snprintf(form, sizeof(form), "sca %d N", s);
+	if (state_line(in, form, &v, e) < 0)
+		return -1;
+	if (!(t = int_at(v, &sca)) || sca != s || *t != ' ' || !(t = int_at(t + 1, &n)) || *t)
+		return err_set(e, EXIT_INPUT, "%s:%d: sca '%s': expected '%d N', the block of "
+			       "SCA %d and its count of pixels", in->path, in->lineno, v, s, s);
+	if (n < 0 || n > cap) {
+		if (!cap)
+			return err_set(e, EXIT_INPUT, "%s:%d: sca '%s': expected no pixels (the "
+				       "state has no exposures)", in->path, in->lineno, v);
+		return err_set(e, EXIT_INPUT, "%s:%d: sca '%s': expected from 0 to %ld pixels "
+			       "(rows %ld-%ld of the SCA)", in->path, in->lineno, v, cap, y0 + 1,
+			       y1 + 1);
+	}
+	list_free(l);
+	if (!n)
+		return 0;
+	if (list_reserve(l, (size_t)n) < 0)
+		return err_sys(e, "%s: persistence state", in->path);
+	if (fread(l->pix, sizeof(*l->pix), (size_t)n, in->f) != (size_t)n ||
+	    fread(l->scale, sizeof(*l->scale), (size_t)n, in->f) != (size_t)n ||
+	    fread(l->tend, sizeof(*l->tend), (size_t)n, in->f) != (size_t)n) {
+		if (ferror(in->f))
+			return err_sys(e, "%s: persistence state", in->path);
+		return err_set(e, EXIT_INPUT, "%s: persistence state damaged or truncated: the "
+			       "block of sca %d (line %d) ends before its %ld pixels", in->path,
+			       s, in->lineno, n);
+	}
+	l->n = (size_t)n;
+	for (size_t i = 0; i < l->n; i++) {
+		uint32_t pix = l->pix[i];
+
+		if (pix < pix_lo || pix > pix_hi)
+			return err_set(e, EXIT_INPUT, "%s: sca %d pixel %zu of %zu: number %lu: "
+				       "expected y * %d + x from %lu to %lu (rows %ld-%ld of the "
+				       "SCA)", in->path, s, i + 1, l->n, (unsigned long)pix,
+				       WFS_NPIX, (unsigned long)pix_lo, (unsigned long)pix_hi,
+				       y0 + 1, y1 + 1);
+		if (i && pix <= l->pix[i - 1])
+			return err_set(e, EXIT_INPUT, "%s: sca %d pixel %zu of %zu: number %lu "
+				       "after %lu: expected ascending numbers, each once", in->path,
+				       s, i + 1, l->n, (unsigned long)pix,
+				       (unsigned long)l->pix[i - 1]);
+		if (!(l->scale[i] > 0 && l->scale[i] <= smax))
+			return err_set(e, EXIT_INPUT, "%s: sca %d pixel %zu of %zu (number %lu): "
+				       "amplitude %g: expected a number above 0, at most %g (that "
+				       "of the largest fluence)", in->path, s, i + 1, l->n,
+				       (unsigned long)pix, (double)l->scale[i], (double)smax);
+		if (!(l->tend[i] >= time_min() && l->tend[i] <= late))
+			return err_set(e, EXIT_INPUT, "%s: sca %d pixel %zu of %zu (number %lu): "
+				       "end time %.15g: expected a time in s (MJD x 86400) from "
+				       "%.15g to the state's end, %.15g", in->path, s, i + 1, l->n,
+				       (unsigned long)pix, l->tend[i], time_min(), end);
+	}
+	return 0;
+}
+
 int persist_load(struct persist *p, const char *path, struct err *e)
 {
-	FILE *f = fopen(path, "rb");
-	char buf[256], want[64], got[64];
+	struct state_in in = { .f = fopen(path, "rb"), .path = path };
 	unsigned mask = 0;
-	int first, last, nlist = 0, lineno = 0;
-	double end;
+	long first = 0, last = 0, exposures = 0;
+	double end = NAN;
 
-	if (!f) {
+	if (!in.f) {
 		if (errno == ENOENT)
 			return 0;
 		return err_sys(e, "%s: persistence state", path);
 	}
-	if (line(f, buf, sizeof(buf)) < 0 || strcmp(buf, PERSIST_MAGIC)) {
-		fclose(f);
-		return err_set(e, EXIT_INPUT, "%s:1: not a wfiscene persistence state (expected "
-			       "'%s')", path, PERSIST_MAGIC);
+	in.lineno = 1;
+	if (line(in.f, in.buf, sizeof(in.buf)) < 0 || strcmp(in.buf, PERSIST_MAGIC)) {
+		if (ferror(in.f))
+			err_sys(e, "%s: persistence state", path);
+		else
+			err_set(e, EXIT_INPUT, "%s:1: not a wfiscene persistence state (expected "
+				"'%s')", path, PERSIST_MAGIC);
+		goto fail;
 	}
-	lineno = 1;
-	if (line(f, buf, sizeof(buf)) < 0 || strncmp(buf, "scas", 4))
-		goto bad;
-	lineno++;
-	for (char *s = buf + 4; *s;) {
-		char *end2;
-		long v = strtol(s, &end2, 10);
-
-		if (end2 == s || v < 1 || v > WFS_NSCA)
-			goto bad;
-		mask |= 1u << (v - 1);
-		s = end2;
+	if (state_header(&in, p, &mask, &first, &last, &exposures, &end, e) < 0)
+		goto fail;
+	for (int s = 1; s <= WFS_NSCA; s++)
+		if ((mask >> (s - 1) & 1) &&
+		    state_block(&in, p, s, exposures, end, &p->now[s - 1], e) < 0)
+			goto fail;
+	if (fgetc(in.f) != EOF) {
+		err_set(e, EXIT_INPUT, "%s: persistence state damaged: more after the block of "
+			"the last SCA (line %d), expected the end of the file", path, in.lineno);
+		goto fail;
 	}
-	if (line(f, buf, sizeof(buf)) < 0 || sscanf(buf, "rows %d %d", &first, &last) != 2)
-		goto bad;
-	lineno++;
-	if (mask != p->sca_mask || first != p->ylo + 1 || last != p->yhi) {
-		mask_text(mask, got, sizeof(got));
-		mask_text(p->sca_mask, want, sizeof(want));
-		fclose(f);
-		return err_set(e, EXIT_INPUT, "%s: a persistence state of SCAs %s, rows %d-%d; "
-			       "this run is of SCAs %s, rows %d-%d (--sca and --rows must be "
-			       "those of the run that wrote it)", path, got, first, last, want,
-			       p->ylo + 1, p->yhi);
+	if (ferror(in.f)) {
+		err_sys(e, "%s: persistence state", path);
+		goto fail;
 	}
-	if (line(f, buf, sizeof(buf)) < 0 || sscanf(buf, "exposures %d", &p->exposures) != 1)
-		goto bad;
-	lineno++;
-	if (line(f, buf, sizeof(buf)) < 0 || strncmp(buf, "end ", 4))
-		goto bad;
-	lineno++;
-	end = strtod(buf + 4, NULL);
-	p->have_last = !isnan(end);
+	fclose(in.f);
+	p->exposures = (int)exposures;
+	p->have_last = exposures > 0;
 	p->last_end = p->have_last ? end : 0;
-	for (int s = 1; s <= WFS_NSCA; s++) {
-		struct persist_list *l = &p->now[s - 1];
-		int sca;
-		size_t n;
-
-		if (!(mask >> (s - 1) & 1))
-			continue;
-		if (line(f, buf, sizeof(buf)) < 0 || sscanf(buf, "sca %d %zu", &sca, &n) != 2 ||
-		    sca != s || n > (size_t)WFS_NPIX * WFS_NPIX)
-			goto bad;
-		lineno++;
-		list_free(l);
-		if (n && list_reserve(l, n) < 0) {
-			fclose(f);
-			return err_sys(e, "%s: persistence state", path);
-		}
-		if (n && (fread(l->pix, sizeof(*l->pix), n, f) != n ||
-			  fread(l->scale, sizeof(*l->scale), n, f) != n ||
-			  fread(l->tend, sizeof(*l->tend), n, f) != n))
-			goto bad;
-		l->n = n;
-		for (size_t i = 0; i < n; i++)
-			if ((i && l->pix[i] <= l->pix[i - 1]) ||
-			    l->pix[i] / WFS_NPIX + 1 < (uint32_t)p->ylo ||
-			    l->pix[i] / WFS_NPIX > (uint32_t)p->yhi ||
-			    !(l->scale[i] >= 0) || !isfinite(l->tend[i]))
-				goto bad;
-		nlist++;
-	}
-	if (fgetc(f) != EOF)
-		goto bad;
-	fclose(f);
 	return 0;
-bad:
-	fclose(f);
+fail:
+	fclose(in.f);
 	for (int s = 0; s < WFS_NSCA; s++)
 		list_free(&p->now[s]);
-	return err_set(e, EXIT_INPUT, "%s: persistence state damaged or truncated (after "
-		       "line %d, %d SCA blocks read)", path, lineno, nlist);
+	return -1;
 }

@@ -208,6 +208,133 @@ static void read_pointing(struct into *in, fitsfile *f)
 	in->has_pointing = 1;
 }
 
+/*
+ * A target cut short (a copy or a download that stopped) is bad input
+ * (exit 1), said so before anything is drawn or written, as a catalog's
+ * is (table_fits.c), naming the target and where it ends: not a read
+ * error from the copy at the end (into_compose) naming the output, nor
+ * "no image HDU" for an HDU whose header was cut.  open_failed covers a
+ * cut inside the primary header (or no file at all), check_whole the
+ * rest.
+ *
+ * cfitsio could not open the file.  One that begins as FITS does and
+ * ends inside its primary header is cut short; a plain file that does
+ * not begin so is no FITS file (a compressed one, which cfitsio opens
+ * itself, is left to its message).  Exit 1 for what the file holds, 2
+ * for one that cannot be read.
+ */
+static int open_failed(struct into *in, int status, struct err *e)
+{
+	static const char simple[] = "SIMPLE  =";
+	char head[sizeof(simple) - 1];
+	struct stat st;
+	size_t n = 0;
+	FILE *fp;
+
+	if (stat(in->path, &st) == 0 && S_ISDIR(st.st_mode))
+		return err_set(e, EXIT_INPUT, "%s: a directory, not a FITS file", in->path);
+	if (stat(in->path, &st) == 0 && S_ISREG(st.st_mode) &&
+	    (fp = fopen(in->path, "rb"))) {
+		n = fread(head, 1, sizeof(head), fp);
+		fclose(fp);
+		if (st.st_size == 0)
+			return err_set(e, EXIT_INPUT, "%s: truncated FITS file: it is empty "
+				       "(0 bytes)", in->path);
+		if (n > 0 && !memcmp(head, simple, n) &&
+		    (status == END_OF_FILE || status == READ_ERROR))
+			return err_set(e, EXIT_INPUT, "%s: truncated FITS file: it ends inside "
+				       "its primary header (%lld bytes)", in->path,
+				       (long long)st.st_size);
+		/* gzip, compress, pack; zip; bzip2 */
+		if (n > 0 && memcmp(head, simple, n) && (unsigned char)head[0] != 0x1f &&
+		    !(n >= 2 && !memcmp(head, "PK", 2)) && !(n >= 3 && !memcmp(head, "BZh", 3)))
+			return err_set(e, EXIT_INPUT, "%s: not a FITS file: it does not begin "
+				       "with 'SIMPLE  ='", in->path);
+	}
+	err_fits(e, status, "--into %s", in->path);
+	if (e->code != EXIT_OK && access(in->path, R_OK) == 0)
+		e->code = EXIT_INPUT;
+	return -1;
+}
+
+/* "HDU k 'EXTNAME'" (k 0-based, as in IMAGE[N]) of the current HDU. */
+static void hdu_label(fitsfile *f, int hdu, char *buf, size_t size)
+{
+	char name[FLEN_VALUE];
+
+	read_str(f, "EXTNAME", name);
+	if (name[0])
+		snprintf(buf, size, "HDU %d '%s'", hdu - 1, name);
+	else
+		snprintf(buf, size, "HDU %d", hdu - 1);
+}
+
+/*
+ * The file opened: cfitsio counts an HDU once its header is whole, so a
+ * cut lies in the data (or the padding) of the last HDU it counts, or
+ * after it, in the next HDU's header.  The length is cfitsio's own
+ * (logfilesize of fitsio.h's FITSfile: the file's size when it was
+ * opened, or the decompressed size of a compressed one, which cfitsio
+ * reads into memory).  0, or -1 (exit 1).
+ */
+static int check_whole(struct into *in, fitsfile *f, int nhdu, struct err *e)
+{
+	LONGLONG head, data, end, size = f->Fptr->logfilesize, extra;
+	long long naxis = 0, bitpix = 0, w = 0, h = 0;
+	char label[FLEN_VALUE + 16], tail[8], where[64];
+	int status = 0, type;
+
+	if (fits_movabs_hdu(f, nhdu, &type, &status) ||
+	    fits_get_hduaddrll(f, &head, &data, &end, &status))
+		return err_fits(e, status, "%s[%d]", in->path, nhdu - 1);
+	hdu_label(f, nhdu, label, sizeof(label));
+	if (end > size) {
+		/* the row it ends in, for a two-dimensional image or table */
+		fits_read_key(f, TLONGLONG, "NAXIS", &naxis, NULL, &status);
+		fits_read_key(f, TLONGLONG, "BITPIX", &bitpix, NULL, &status);
+		fits_read_key(f, TLONGLONG, "NAXIS1", &w, NULL, &status);
+		fits_read_key(f, TLONGLONG, "NAXIS2", &h, NULL, &status);
+		fits_clear_errmsg();
+		w *= llabs(bitpix) / 8;
+		if (size <= data)
+			snprintf(where, sizeof(where), "before its data");
+		else if (status || naxis != 2 || w <= 0 || h <= 0)
+			snprintf(where, sizeof(where), "in its data");
+		else if ((size - data) / w < h)
+			snprintf(where, sizeof(where), "in row %lld of %lld",
+				 (long long)((size - data) / w + 1), h);
+		else
+			snprintf(where, sizeof(where), "after its %lld rows", h);
+		return err_set(e, EXIT_INPUT, "%s: truncated FITS file: %s needs %lld bytes, "
+			       "the file has %lld: it ends %s", in->path, label, (long long)end,
+			       (long long)size, where);
+	}
+	if ((extra = size - end) == 0)
+		return 0;
+	/*
+	 * Bytes after the last HDU.  into_compose's copy (fits_copy_file)
+	 * reads on from there as cfitsio's own count of HDUs did: it stops
+	 * cleanly at a 2880-byte block beginning with a zero or a newline
+	 * (or at one such byte alone, an editor's end-of-file mark), and
+	 * fails on anything else.  The first bytes say which: cfitsio's
+	 * buffer holds them even when the block is short; should it not,
+	 * they are damage all the same.
+	 */
+	if (fits_read_ext(f, end - data, extra < 8 ? extra : 8, tail, &status)) {
+		fits_clear_errmsg();
+		memset(tail, 0x7f, sizeof(tail));
+	}
+	if (!memcmp(tail, "XTENSION", extra < 8 ? (size_t)extra : 8))
+		return err_set(e, EXIT_INPUT, "%s: truncated FITS file: the header of HDU %d "
+			       "ends at byte %lld, incomplete", in->path, nhdu, (long long)size);
+	if ((extra == 1 && (tail[0] == 0 || tail[0] == '\n' || tail[0] == ' ')) ||
+	    (extra >= 2880 && (tail[0] == 0 || tail[0] == '\n')))
+		return 0;
+	return err_set(e, EXIT_INPUT, "%s: damaged FITS file: the %lld byte%s after its last "
+		       "HDU (%s, from byte %lld) %s not an HDU", in->path, (long long)extra,
+		       extra == 1 ? "" : "s", label, (long long)end, extra == 1 ? "is" : "are");
+}
+
 /* Without an HDU in --into: the HDU named WFInn for each SCA of mask;
  * else the file's only image, for a scene of one SCA.  0, or -1 with e
  * set. */
@@ -283,13 +410,18 @@ struct into *into_open(const char *spec, unsigned mask, struct err *e)
 		in->has_pointing = 1;
 		return in;
 	}
-	if (fits_open_diskfile(&f, in->path, READONLY, &status) ||
-	    fits_get_num_hdus(f, &nhdu, &status)) {
+	if (fits_open_diskfile(&f, in->path, READONLY, &status)) {
+		open_failed(in, status, e);
+		goto fail;
+	}
+	if (fits_get_num_hdus(f, &nhdu, &status)) {
 		err_fits(e, status, "--into %s", in->path);
 		if (e->code != EXIT_OK && access(in->path, R_OK) == 0)
 			e->code = EXIT_INPUT;
 		goto fail;
 	}
+	if (check_whole(in, f, nhdu, e) < 0)
+		goto fail;
 	read_pointing(in, f);
 	if (hdu) {
 		/* IMAGE[N] (0 the primary) or IMAGE[EXTNAME]: the scene's one SCA */

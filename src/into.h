@@ -27,8 +27,11 @@ struct pool;
  * (the HDU's own, else the primary header's).  An HDU whose EXTNAME or
  * DETECTOR is WFInn stands for SCA nn only: mapped to another SCA (as the
  * file's only image, or named in spec) it is refused, as an ASDF image of
- * another SCA is.  NULL with a message naming the file and HDU at fault
- * (exit 1 for what the file holds). */
+ * another SCA is.  A FITS file cut short (wherever it ends), or with
+ * bytes after its last HDU that are no HDU, is refused first, as
+ * "IMAGE: truncated FITS file: ..." or "IMAGE: damaged FITS file: ...".
+ * NULL with a message naming the file and HDU at fault (exit 1 for what
+ * the file holds). */
 struct into *into_open(const char *spec, unsigned mask, struct err *e);
 
 /* The pointing to simulate: the primary header's RA_TARG, DEC_TARG,

@@ -44,14 +44,34 @@ int err_sys(struct err *e, const char *fmt, ...)
 
 int err_fits(struct err *e, int status, const char *fmt, ...)
 {
-	char text[FLEN_STATUS], line[FLEN_ERRMSG], first[FLEN_ERRMSG] = "";
+	char text[FLEN_STATUS], line[FLEN_ERRMSG], first[2 * FLEN_ERRMSG] = "";
 	va_list ap;
 	size_t len;
+	int more = 0;
 
-	/* Drain cfitsio's message stack; its first line names the cause. */
-	while (fits_read_errmsg(line))
-		if (!first[0])
+	/* Drain cfitsio's message stack; its first line names the cause.  A
+	 * first line that ends in a colon ("... from file:") goes on in the
+	 * next (the file's name), which is joined to it; with none the colon
+	 * is dropped, so no message ends in one. */
+	while (fits_read_errmsg(line)) {
+		len = strlen(first);
+		if (!len) {
 			snprintf(first, sizeof(first), "%s", line);
+			len = strlen(first);
+			while (len && first[len - 1] == ' ')
+				first[--len] = 0;
+			more = len && first[len - 1] == ':';
+		} else if (more) {
+			const char *t = line + strspn(line, " ");
+
+			if (*t)
+				snprintf(first + len, sizeof(first) - len, " %s", t);
+			more = 0;
+		}
+	}
+	len = strlen(first);
+	if (more && len)
+		first[len - 1] = 0;
 	fits_get_errstatus(status, text);
 	if (!e || e->code != EXIT_OK)
 		return -1;

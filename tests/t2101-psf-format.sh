@@ -96,6 +96,19 @@ a, b, c = (fits.getdata(f, 1) for f in (\"bi.fits\", \"ge.fits\", \"gp.fits\"))
 assert a.max() > 100 and np.array_equal(a, b) and np.array_equal(a, c)"
 '
 
+# cfitsio's first message line often ends "... of file:", its name on
+# the next: the two are joined, and no message ends in a colon.
+test_expect_success '--psf FILE cut short or empty: the message names it, no trailing colon' '
+	head -c 20000 g.fits > cut.fits &&
+	: > empty.fits &&
+	for f in cut.fits empty.fits; do
+		test_must_fail --status 2 "$WFS" --filter F129 --psf $f -o no.fits fm.csv \
+			2> err &&
+		test_grep "^wfiscene: $f: .* $f\$" err &&
+		! grep -q ":\$" err &&
+		! test -e no.fits || return 1
+	done
+'
 test_expect_success '--psf FILE of another filter or SCA: a warning (not with -q)' '
 	"$WFS" --filter F158 --psf p.fits -o w1.fits four.csv 2> err &&
 	test_grep "warning: p.fits: PSF for filter F129, the scene.s is F158" err &&

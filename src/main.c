@@ -481,7 +481,7 @@ static int check_asdf(const struct scene_opts *o, struct err *e)
 		return err_set(e, EXIT_INPUT, "-o %s: an ASDF file holds one SCA; put %%d in "
 			       "the name for one file per SCA (-o NAME_WFI%%02d.asdf)", o->output);
 	/* every file's name before anything is drawn, unless it takes an
-	 * exposure's name (checked as each file is opened: asdf_out_open) */
+	 * exposure's name (run.c checks those once the exposures are read) */
 	for (int sca = 1; sca <= WFS_NSCA && !(name_fields(o->output) & NAME_EXPOSURE); sca++) {
 		char name[4096];
 

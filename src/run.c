@@ -30,6 +30,7 @@
 #include "options.h"
 #include "fftconv.h"
 #include "into.h"
+#include "names.h"
 #include "noise.h"
 #include "persist.h"
 #include "pool.h"
@@ -421,6 +422,27 @@ static double run_bytes(const struct scene_opts *o)
 static double batch_bytes(const struct scene_opts *o)
 {
 	return 2.0 * (sizeof(struct placement) + sizeof(uint32_t)) * (double)o->chunk;
+}
+
+/* An ASDF name with an exposure's %s, every exposure's file of every SCA
+ * checked (asdf_out_target) before anything is drawn: known only once the
+ * exposures are read (main.c checks the other names), so that a series
+ * whose later exposure names a device leaves no earlier file behind. */
+static int asdf_exposure_names(const struct scene_opts *o, const struct exposure *x, int n,
+			       struct err *e)
+{
+	char name[4096];
+
+	if (o->format != FORMAT_ASDF || !(name_fields(o->output) & NAME_EXPOSURE))
+		return 0;
+	for (int i = 0; i < n; i++)
+		for (int sca = 1; sca <= WFS_NSCA; sca++)
+			if ((x[i].sca_mask >> (sca - 1) & 1) &&
+			    (name_expand(name, sizeof(name), "-o", o->output, sca,
+					 x[i].name[0] ? x[i].name : NULL, e) < 0 ||
+			     asdf_out_target(name, e) < 0))
+				return -1;
+	return 0;
 }
 
 /* Whether catalog path can be read only once: stdin ('-'), a named pipe
@@ -826,6 +848,8 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		into_free(into);
 		return -1;
 	}
+	if (asdf_exposure_names(o, x, n, e) < 0)
+		goto out;
 	/* With --into, the image says where the SCAs look (into.h). */
 	if (into)
 		into_pointing(into, &x[0].ra, &x[0].dec, &x[0].pa, &x[0].boresight);

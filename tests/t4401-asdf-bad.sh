@@ -67,7 +67,13 @@ test_expect_success 'ASDF to a named pipe or a device: refused, the node kept' '
 		test_must_fail --status 1 run --level 2 --format asdf --sca 1,2 -o "null%d" \
 			inj.csv 2> err &&
 		test_grep "^wfiscene: null2: not a regular file" err && test -c null2 &&
-		! test -e null1
+		! test -e null1 &&
+		printf "90 0 0 ea\n90.01 0 0 eb\n" > two.txt &&
+		mknod -m 666 s_eb_1 c 1 3 &&
+		test_must_fail --status 1 run --level 2 --format asdf --pointings two.txt \
+			-o "s_%s_%d" inj.csv 2> err &&
+		test_grep "^wfiscene: s_eb_1: not a regular file" err && test -c s_eb_1 &&
+		! test -e s_ea_1
 	fi
 '
 

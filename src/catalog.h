@@ -106,6 +106,10 @@ struct rows {
 /* The text of cell (col, i); see text above. */
 const char *rows_text(const struct rows *r, int col, size_t i);
 
+/* The enum flux_unit a unit's name gives (a column's unit, a fluxunit
+ * keyword, a units cell; case and blanks aside), 0 for none known. */
+int catalog_unit_code(const char *s);
+
 /* Row i's flux as the catalog gave it, for a message about it: its column,
  * the cell's text and the unit it was read in, as "column 'mag': 20 (AB
  * mag)" or "column 'f158': 1e-9 (maggies)".  Writes at most size bytes

@@ -72,10 +72,10 @@ first_error() {
 }
 test_expect_success 'two bad rows in the threads: the first is named, for any threads' '
 	awk -F, -v OFS=, "NR == 1801 || NR == 3901 { \$4 = \"1e40\" } { print }" mix.csv > bad1.csv &&
-	first_error bad1.csv "^wfiscene: bad1.csv:1801: flux 1e+40 gives"
+	first_error bad1.csv "^wfiscene: bad1.csv:1801: column .flux.: 1e40 (counts/s) gives"
 '
 test_expect_success 'a bad row in the threads before one refused on the main thread' '
-	bad 1101 3855 > bad2.csv && first_error bad2.csv "^wfiscene: bad2.csv:1101: flux 1e+40 gives"
+	bad 1101 3855 > bad2.csv && first_error bad2.csv "^wfiscene: bad2.csv:1101: column .flux.: 1e40 (counts/s) gives"
 '
 test_expect_success 'a row refused on the main thread before a bad one in the threads' '
 	bad 3901 1195 > bad3.csv &&
@@ -83,8 +83,8 @@ test_expect_success 'a row refused on the main thread before a bad one in the th
 '
 test_expect_success 'and so in chunks of 2000 rows, where they fall in later chunks' '
 	chunk="--chunk 2000" &&
-	first_error bad1.csv "^wfiscene: bad1.csv:1801: flux" &&
-	first_error bad2.csv "^wfiscene: bad2.csv:1101: flux" &&
+	first_error bad1.csv "^wfiscene: bad1.csv:1801: column .flux." &&
+	first_error bad2.csv "^wfiscene: bad2.csv:1101: column .flux." &&
 	first_error bad3.csv "^wfiscene: bad3.csv:1195: model .variable."
 '
 # The threads take 512 placements at a time (place.c, PLACE_PART): two
@@ -101,7 +101,7 @@ print(pts[0] + 2, pts[-1] + 2)
 	awk -F, -v OFS=, -v a=$a -v z=$z "NR == a || NR == z { \$4 = \"1e40\" } { print }" \
 		mix.csv > edge.csv &&
 	for k in 1 2 3 4 5; do
-		first_error edge.csv "^wfiscene: edge.csv:$a: flux 1e+40" || return 1
+		first_error edge.csv "^wfiscene: edge.csv:$a: column .flux.: 1e40" || return 1
 	done
 '
 # A model without the flag (tests/plugins/counts.c, a square) is prepared on
@@ -143,7 +143,7 @@ test_expect_success 'its refusal and a thread'"'"'s failure, in either order' '
 		test_must_fail --status 1 sq --threads $t -o b.fits sq1.csv 2> err &&
 		test_grep "^wfiscene: sq1.csv:1007: model .counts.: column .side." err &&
 		test_must_fail --status 1 sq --threads $t -o b.fits sq2.csv 2> err &&
-		test_grep "^wfiscene: sq2.csv:1000: flux 1e+40" err && ! test -e b.fits || return 1
+		test_grep "^wfiscene: sq2.csv:1000: column .flux.: 1e40" err && ! test -e b.fits || return 1
 	done
 '
 test_done

@@ -437,37 +437,6 @@ static const char *sersic_num(char buf[32], double v)
 }
 
 /*
- * src's finf (and its log intensity: lnk is ln F_inf / I0) such that the
- * truncated profile puts on the SCA's pixels the light the untruncated
- * one does, each integral exact to SERSIC_OFF_TOL / 100 of the flux, but
- * at most the whole flux (finf at most flux / pt); unchanged when the
- * truncated profile puts none there (nothing of it is drawn).
- */
-static void sersic_keep_sca_light(struct wfs_source *src, double lnk)
-{
-	double x0 = -0.5 - src->x, x1 = WFS_SCA_SIDE - 0.5 - src->x;
-	double y0 = -0.5 - src->y, y1 = WFS_SCA_SIDE - 0.5 - src->y;
-	double tol = 0.01 * SERSIC_OFF_TOL, cut, whole;
-	struct sersic_gal g;
-
-	sersic_unpack(src, &g);
-	g.finf = 1.0;
-	cut = sersic_rect_polar(&g, x0, x1, y0, y1, tol, 1);
-	g.rho_t = g.rho_t2 = INFINITY;
-	g.qt = 0.0;
-	g.pt = 1.0;
-	whole = sersic_rect_polar(&g, x0, x1, y0, y1, tol, 1);
-	if (!(cut > 0) || !(whole >= 0))
-		return;
-	/* at least the flux (the two differ by rounding where the cut holds
-	 * the whole SCA), never more than the whole flux: the SCA may see
-	 * mostly the wing beyond the cut, not to be pushed into the few
-	 * pixels inside */
-	src->aux[AUX_FINF] = src->flux * fmin(fmax(whole / cut, 1.0), 1.0 / src->aux[AUX_PT]);
-	src->aux[AUX_LNI0] = log(src->aux[AUX_FINF]) - lnk;
-}
-
-/*
  * A bound on the light of a galaxy at src's position that falls off its
  * SCA (b, n: the profile; ra, rb: the semi-axes drawn), as a fraction of
  * its flux: the light beyond the largest ellipse of its shape that fits
@@ -488,6 +457,44 @@ static double sersic_off_sca(const struct wfs_source *src, double b, double n,
 	if (!(rho > 0))
 		return 1.0;
 	return sersic_gamma_q(2 * n, b * exp(log(rho) / n));
+}
+
+/*
+ * Where more than SERSIC_OFF_TOL of the flux is both cut and possibly off
+ * the SCA (sersic_off_sca; b, n, ra, rb as there), putting all the light
+ * cut back would brighten what is drawn (by 25 % for r_e 1e5 pixels at
+ * the default sersic-noise-eps): src's finf (and its log intensity: lnk
+ * is ln F_inf / I0) is then such that the truncated profile puts on the
+ * SCA's pixels the light the whole one does, each integral exact to
+ * SERSIC_OFF_TOL / 100 of the flux, but at most the whole flux (finf at
+ * most flux / pt); unchanged when the truncated profile puts none there
+ * (nothing of it is drawn).
+ */
+static void sersic_keep_sca_light(struct wfs_source *src, double b, double n, double ra,
+				  double rb, double lnk)
+{
+	double x0 = -0.5 - src->x, x1 = WFS_SCA_SIDE - 0.5 - src->x;
+	double y0 = -0.5 - src->y, y1 = WFS_SCA_SIDE - 0.5 - src->y;
+	double tol = 0.01 * SERSIC_OFF_TOL, cut, whole;
+	struct sersic_gal g;
+
+	if (!(fmin(src->aux[AUX_QT], sersic_off_sca(src, b, n, ra, rb)) > SERSIC_OFF_TOL))
+		return;
+	sersic_unpack(src, &g);
+	g.finf = 1.0;
+	cut = sersic_rect_polar(&g, x0, x1, y0, y1, tol, 1);
+	g.rho_t = g.rho_t2 = INFINITY;
+	g.qt = 0.0;
+	g.pt = 1.0;
+	whole = sersic_rect_polar(&g, x0, x1, y0, y1, tol, 1);
+	if (!(cut > 0) || !(whole >= 0))
+		return;
+	/* at least the flux (the two differ by rounding where the cut holds
+	 * the whole SCA), never more than the whole flux: the SCA may see
+	 * mostly the wing beyond the cut, not to be pushed into the few
+	 * pixels inside */
+	src->aux[AUX_FINF] = src->flux * fmin(fmax(whole / cut, 1.0), 1.0 / src->aux[AUX_PT]);
+	src->aux[AUX_LNI0] = log(src->aux[AUX_FINF]) - lnk;
 }
 
 /*
@@ -612,13 +619,9 @@ int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
 	src->aux[AUX_QT] = qt;
 	src->aux[AUX_PSFH] = 0;
 	src->aux[AUX_PSFALL] = 0;
-	/* ... but where part of the light cut would fall off the SCA, putting
-	 * it all back would brighten what is drawn (by 25 % for r_e 1e5 pixels
-	 * at the default sersic-noise-eps): the SCA then gets the light the
-	 * whole profile puts on it, the two integrals over its pixels exact. */
-	if (!beyond && src->flux > 0 &&
-	    fmin(qt, sersic_off_sca(src, b, n, ra, rb)) > SERSIC_OFF_TOL)
-		sersic_keep_sca_light(src, lnk);
+	/* ... but for light cut that would fall off the SCA */
+	if (!beyond && src->flux > 0)
+		sersic_keep_sca_light(src, b, n, ra, rb, lnk);
 	return 0;
 }
 

@@ -227,7 +227,7 @@ fuzz: $(B)/data_tables.c
 		-D_DEFAULT_SOURCE -Isrc -DTABLE_BUF=512 -DTABLE_MAX_LINE=65536 \
 		tests/fuzz/catalog_fuzz.c src/input.c src/table.c src/table_open.c \
 		src/table_text.c src/table_lines.c src/table_header.c src/table_fits.c \
-		src/catalog.c src/catalog_number.c src/rowpool.c src/pool.c src/tree.c src/options.c \
+		src/catalog.c src/catalog_number.c src/catalog_units.c src/rowpool.c src/pool.c src/tree.c src/options.c \
 		src/tempfile.c src/err.c src/instrument.c src/data.c $(B)/data_tables.c \
 		$$($(PKG_CONFIG) --cflags --libs cfitsio libzstd zlib) -lchealpix -lm -o $(B)/catalog_fuzz
 	$(Q)mkdir -p $(B)/fuzz-corpus && cp -n tests/fuzz/corpus/* $(B)/fuzz-corpus/ 2>/dev/null; \

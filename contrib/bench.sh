@@ -508,26 +508,36 @@ echo "\`starfield -n N -x -g -m 20 -M 28 | wfiscene --filter F129 --flux-unit ab
 echo "(the default exposure is 1 s, where the pixel noise is 12 counts/s and most"
 echo "of these galaxies are below it; at 1000 s it is 0.026)"
 echo
-echo "The bright and large mix (the last row): the same rows with AB uniform in"
-echo "20-27 and r_e log-uniform in 1-15 px (awk, \`srand(17)\`; mawk's numbers)."
+echo "The bright and large mix: the same rows with AB uniform in 20-27 and r_e"
+echo "log-uniform in 1-15 px (awk, \`srand(17)\`; mawk's numbers).  The last row"
+echo "gives the deep-field rows by RA/Dec over a 0.3 degree square about SCA 1"
+echo "(\`starfield -r 10 -d 20 -w 0.3 -g\`, \`--ra 10 --dec 20 --sca 1\`): each row's"
+echo "reach is measured before it is placed; galaxies/s counts the rows read."
 echo
 echo "| model | exposure s | galaxies | wall s | CPU s | galaxies/s | CPU ms/galaxy | peak MiB |"
 echo "|---|---|---|---|---|---|---|---|"
 for m in "quick 1 1000" "quick 1 10000" "quick 1 100000" "quick 1000 10000" "precise 1 300" \
-	 "quick 1 3000 bright"; do
+	 "quick 1 3000 bright" "quick 1 100000 sky"; do
 	set -- $m
-	meth=$1 exp=$2 n=$3 mix=${4:-deep}
+	meth=$1 exp=$2 n=$3 mix=${4:-deep} where=
 	[ "$quick" = 1 ] && n=$((n / 5))
-	"$GEN" -n $n -x -g -m 20 -M 28 -s 13 > "$W/gal.csv"
+	if [ "$mix" = sky ]; then
+		"$GEN" -n $n -r 10 -d 20 -w 0.3 -g -m 20 -M 28 -s 13 > "$W/gal.csv"
+		where="--ra 10 --dec 20 --sca 1"
+	else
+		"$GEN" -n $n -x -g -m 20 -M 28 -s 13 > "$W/gal.csv"
+	fi
 	if [ "$mix" = bright ]; then
 		awk -F, 'BEGIN { OFS = ","; srand(17) } NR == 1 { print; next }
 			{ $4 = sprintf("%.3f", 20 + 7 * rand()); $7 = sprintf("%.3f", exp(log(15) * rand())); print }' \
 			"$W/gal.csv" > "$W/galb.csv" && mv "$W/galb.csv" "$W/gal.csv"
 	fi
-	set -- $(measure3 "'$WFS' --filter F129 --flux-unit abmag --sersic $meth --exptime $exp -o '$W/o.fits' '$W/gal.csv'")
+	set -- $(measure3 "'$WFS' --filter F129 --flux-unit abmag --sersic $meth --exptime $exp $where -o '$W/o.fits' '$W/gal.csv'")
 	awk -v m=$meth -v e=$exp -v n=$n -v t=$1 -v c=$2 -v k=$3 -v x=$mix 'BEGIN {
 		printf "| sersic-%s%s | %s | %d | %.1f | %.1f | %.0f | %.2f | %.0f |\n", m,
-			x == "bright" ? ", bright and large" : "", e, n, t, c, n / t, 1e3 * c / n, k / 1024 }'
+			x == "bright" ? ", bright and large" : x == "sky" ? \
+			", by RA/Dec over 0.3 degrees (rows, most off the SCA)" : "",
+			e, n, t, c, n / t, 1e3 * c / n, k / 1024 }'
 done
 rm -f "$W/gal.csv"
 rm -f "$W"/*.fits

@@ -393,6 +393,11 @@ double sersic_rect_rel(const struct sersic_gal *g, double x0, double x1, double 
  * by more than noise (sersic-noise-eps; at most SERSIC_NOISE_EPS: 0). */
 int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
 			  double eps, double noise, double noise_eps);
+
+/* After sersic_prepare_common at the row's own position on its SCA (not
+ * reach()'s stand-in): where the light cut would partly fall off the SCA,
+ * src's scale puts on it the light the whole profile does. */
+void sersic_keep_sca_light(struct wfs_source *src);
 int sersic_footprint_common(const struct wfs_host *host, const struct wfs_source *src,
 			    struct wfs_box *box, int convolve, int core_k);
 int sersic_reach_common(const struct wfs_host *host, const struct wfs_source *src,

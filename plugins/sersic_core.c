@@ -461,24 +461,27 @@ static double sersic_off_sca(const struct wfs_source *src, double b, double n,
 
 /*
  * Where more than SERSIC_OFF_TOL of the flux is both cut and possibly off
- * the SCA (sersic_off_sca; b, n, ra, rb as there), putting all the light
- * cut back would brighten what is drawn (by 25 % for r_e 1e5 pixels at
- * the default sersic-noise-eps): src's finf (and its log intensity: lnk
- * is ln F_inf / I0) is then such that the truncated profile puts on the
- * SCA's pixels the light the whole one does, each integral exact to
- * SERSIC_OFF_TOL / 100 of the flux, but at most the whole flux (finf at
- * most flux / pt); unchanged when the truncated profile puts none there
- * (nothing of it is drawn).
+ * the SCA (sersic_off_sca), putting all the light cut back would brighten
+ * what is drawn (by 25 % for r_e 1e5 pixels at the default
+ * sersic-noise-eps): src's finf (and its log intensity) is then such that
+ * the truncated profile puts on the SCA's pixels the light the whole one
+ * does, each integral exact to SERSIC_OFF_TOL / 100 of the flux, but at
+ * most the whole flux (finf at most flux / pt); unchanged when the
+ * truncated profile puts none there (nothing of it is drawn), or when
+ * nothing was put back (a cut beyond SERSIC_RT_MAX).
  */
-static void sersic_keep_sca_light(struct wfs_source *src, double b, double n, double ra,
-				  double rb, double lnk)
+void sersic_keep_sca_light(struct wfs_source *src)
 {
 	double x0 = -0.5 - src->x, x1 = WFS_SCA_SIDE - 0.5 - src->x;
 	double y0 = -0.5 - src->y, y1 = WFS_SCA_SIDE - 0.5 - src->y;
-	double tol = 0.01 * SERSIC_OFF_TOL, cut, whole;
+	double tol = 0.01 * SERSIC_OFF_TOL, finf = src->aux[AUX_FINF], ra, rb, cut, whole;
 	struct sersic_gal g;
 
-	if (!(fmin(src->aux[AUX_QT], sersic_off_sca(src, b, n, ra, rb)) > SERSIC_OFF_TOL))
+	if (!(src->flux > 0) || !(finf > src->flux))
+		return;
+	sersic_axes(src->param[SERSIC_RE], src->param[SERSIC_RATIO], &ra, &rb);
+	if (!(fmin(src->aux[AUX_QT], sersic_off_sca(src, src->aux[AUX_B], src->param[SERSIC_N],
+						    ra, rb)) > SERSIC_OFF_TOL))
 		return;
 	sersic_unpack(src, &g);
 	g.finf = 1.0;
@@ -494,7 +497,7 @@ static void sersic_keep_sca_light(struct wfs_source *src, double b, double n, do
 	 * mostly the wing beyond the cut, not to be pushed into the few
 	 * pixels inside */
 	src->aux[AUX_FINF] = src->flux * fmin(fmax(whole / cut, 1.0), 1.0 / src->aux[AUX_PT]);
-	src->aux[AUX_LNI0] = log(src->aux[AUX_FINF]) - lnk;
+	src->aux[AUX_LNI0] += log(src->aux[AUX_FINF] / finf);
 }
 
 /*
@@ -619,9 +622,6 @@ int sersic_prepare_common(const struct wfs_host *host, struct wfs_source *src,
 	src->aux[AUX_QT] = qt;
 	src->aux[AUX_PSFH] = 0;
 	src->aux[AUX_PSFALL] = 0;
-	/* ... but for light cut that would fall off the SCA */
-	if (!beyond && src->flux > 0)
-		sersic_keep_sca_light(src, b, n, ra, rb, lnk);
 	return 0;
 }
 

@@ -162,7 +162,10 @@ static int precise_prepare(void *state, struct wfs_source *src)
 {
 	struct precise *p = state;
 
-	return sersic_prepare_common(p->host, src, p->trunc, 0, 0);
+	if (sersic_prepare_common(p->host, src, p->trunc, 0, 0) < 0)
+		return -1;
+	sersic_keep_sca_light(src);
+	return 0;
 }
 
 static int precise_footprint(void *state, const struct wfs_source *src, struct wfs_box *box)

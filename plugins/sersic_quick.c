@@ -731,6 +731,7 @@ static int quick_prepare(void *state, struct wfs_source *src)
 				      "--sersic precise draws it", re, QUICK_RE_MAX);
 	if (sersic_prepare_common(p->host, src, p->trunc, p->noise_cut * p->sigma, p->noise_eps) < 0)
 		return -1;
+	sersic_keep_sca_light(src);
 	return quick_psf_cut(p, src);
 }
 

@@ -64,9 +64,11 @@ int err_fits(struct err *e, int status, const char *fmt, ...)
 		} else if (more) {
 			const char *t = line + strspn(line, " ");
 
-			if (*t)
+			/* a blank line is passed over: the subject may follow */
+			if (*t) {
 				snprintf(first + len, sizeof(first) - len, " %s", t);
-			more = 0;
+				more = 0;
+			}
 		}
 	}
 	len = strlen(first);

@@ -38,6 +38,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "data.h"
@@ -745,10 +746,19 @@ int persist_load(struct persist *p, const char *path, struct err *e)
 	long first = 0, last = 0, exposures = 0;
 	double end = NAN;
 
+	struct stat st;
+
 	if (!in.f) {
 		if (errno == ENOENT)
 			return 0;
 		return err_sys(e, "%s: persistence state", path);
+	}
+	/* a directory opens, and fails only as it is read: bad input, as a
+	 * directory given to --into is */
+	if (fstat(fileno(in.f), &st) == 0 && S_ISDIR(st.st_mode)) {
+		fclose(in.f);
+		return err_set(e, EXIT_INPUT, "%s: a directory, not a wfiscene persistence state",
+			       path);
 	}
 	in.lineno = 1;
 	if (line(in.f, in.buf, sizeof(in.buf)) < 0 || strcmp(in.buf, PERSIST_MAGIC)) {

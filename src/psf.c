@@ -153,6 +153,16 @@ static int read_sampling(fitsfile *f, double *pixscale, int *over,
 
 /* Open a PSF file and check it is a cube of square, odd-sided planes:
  * its plane side and count.  The file, or NULL with e set. */
+/* cfitsio failed on a file that could be read (open_cube checks that
+ * first): what it holds is cut short or not FITS, bad input (exit 1) as a
+ * catalog's or an --into image's is; out of memory stays a system error. */
+static void bad_cube(struct err *e, int st, const char *path)
+{
+	err_fits(e, st, "%s", path);
+	if (st != MEMORY_ALLOCATION && e->code == EXIT_SYSTEM)
+		e->code = EXIT_INPUT;
+}
+
 static fitsfile *open_cube(const char *path, long *side, int *nplane, struct err *e)
 {
 	fitsfile *f = NULL;
@@ -170,7 +180,7 @@ static fitsfile *open_cube(const char *path, long *side, int *nplane, struct err
 		/* compressed or remote files: cfitsio's general opener */
 		st = 0;
 		if (fits_open_file(&f, path, READONLY, &st)) {
-			err_fits(e, st, "%s", path);
+			bad_cube(e, st, path);
 			return NULL;
 		}
 	}
@@ -180,7 +190,7 @@ static fitsfile *open_cube(const char *path, long *side, int *nplane, struct err
 			err_set(e, EXIT_INPUT, "%s: not a PSF cube (NAXIS = %d)",
 				path, naxis);
 		else
-			err_fits(e, st, "%s", path);
+			bad_cube(e, st, path);
 		goto fail;
 	}
 	if (nax[0] != nax[1] || nax[0] % 2 == 0 || nax[0] < 5) {
@@ -253,7 +263,7 @@ static int read_planes(fitsfile *f, const char *path, struct psf_grid *g, int np
 	}
 	if (fits_read_img(f, TFLOAT, 1, (LONGLONG)(np * nplane), NULL, buf,
 			  &anynul, &st)) {
-		err_fits(e, st, "%s", path);
+		bad_cube(e, st, path);
 		goto done;
 	}
 	for (int k = 0; k < nplane; k++) {

@@ -97,12 +97,13 @@ assert a.max() > 100 and np.array_equal(a, b) and np.array_equal(a, c)"
 '
 
 # cfitsio's first message line often ends "... of file:", its name on
-# the next: the two are joined, and no message ends in a colon.
-test_expect_success '--psf FILE cut short or empty: the message names it, no trailing colon' '
+# the next: the two are joined, and no message ends in a colon.  A file
+# that can be read but holds no whole FITS cube is bad input, exit 1.
+test_expect_success '--psf FILE cut short or empty: exit 1, the message names it, no trailing colon' '
 	head -c 20000 g.fits > cut.fits &&
 	: > empty.fits &&
 	for f in cut.fits empty.fits; do
-		test_must_fail --status 2 "$WFS" --filter F129 --psf $f -o no.fits fm.csv \
+		test_must_fail --status 1 "$WFS" --filter F129 --psf $f -o no.fits fm.csv \
 			2> err &&
 		test_grep "^wfiscene: $f: .* $f\$" err &&
 		! grep -q ":\$" err &&

@@ -168,4 +168,11 @@ test_expect_success 'bytes after the last block are refused' '
 	refused run "bad.bin: persistence state damaged: more after the block of the last SCA (line 6)"
 '
 
+test_expect_success 'a directory as the state is refused as bad input' '
+	mkdir sdir &&
+	test_must_fail --status 1 run --persistence-state sdir -o out.fits 2> err &&
+	test_grep "sdir: a directory, not a wfiscene persistence state" err &&
+	! test -e out.fits && test -d sdir
+'
+
 test_done

@@ -7,15 +7,8 @@
 . "$(dirname "$0")/lib.sh"
 require_python
 
-stars() {
-	"$PY" -c "
-import random, sys
-r = random.Random(int(sys.argv[1]))
-print('ra,dec,mag')
-for i in range(int(sys.argv[2])):
-    print('%.8f,%.8f,%.3f' % (10 + r.uniform(-0.06, 0.06), 20 + r.uniform(-0.06, 0.06),
-                              r.uniform(18, 24)))" "$@"
-}
+# stars SEED N: N stars of AB 18-24 over 0.12 degrees about (10, 20)
+stars() { "$BUILD/contrib/starfield" -s "$1" -n "$2" -r 10 -d 20 -w 0.12 -m 18 -M 24; }
 
 # The target: wfiscene's own image of two SCAs, 64 rows each (float32,
 # 16352 bytes a row, the data not a whole number of 2880-byte blocks), and

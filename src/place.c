@@ -823,7 +823,10 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
 		if (r->type[i] == last_type) {
 			m = last_m;
 		} else if ((m = resolve_type(g, r->type[i])) < 0) {
-			err_prefix(g->e, "%s:%ld", r->file, r->line[i]);
+			/* the row that first needed the model, unless a value
+			 * the run was given is what it refused */
+			if (strncmp(g->e->msg, "--set ", 6))
+				err_prefix(g->e, "%s:%ld", r->file, r->line[i]);
 			return -1;
 		}
 		last_type = r->type[i];

@@ -320,6 +320,28 @@ static int load_drawer(struct plugins *ps, struct plugin *pl, const char *name,
 	return 0;
 }
 
+/*
+ * Whether a model's refusal at set-up, msg, is of a value the run was
+ * given: its first word (after "setting ", as the Sérsic models write it;
+ * the point model writes the key alone, a curve file's refusal the key
+ * and the file) up to a blank or colon is a key the host answers, an
+ * option or --set.  Such a value is the user's bad input (exit 1), not the
+ * plugin's failure; the key in key.
+ */
+static int given_setting(const struct plugins *ps, const char *msg, char *key, size_t size)
+{
+	size_t n;
+
+	if (!strncmp(msg, "setting ", 8))
+		msg += 8;
+	n = strcspn(msg, " \t:");
+	if (!n || n >= size || (msg[n] != ':' && msg[n] != ' ') || !ps->host->setting)
+		return 0;
+	memcpy(key, msg, n);
+	key[n] = 0;
+	return ps->host->setting(ps->host->ctx, key) != NULL;
+}
+
 int plugins_get(struct plugins *ps, const char *name, struct err *e)
 {
 	struct plugin *pl;
@@ -381,6 +403,13 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 		if (!plugin_column(pl, c)->name || !*plugin_column(pl, c)->name)
 			return refuse(pl, e, "column %d of the descriptor has no name", c + 1);
 	if (m->init && m->init(ps->host, &pl->state) < 0) {
+		char key[64];
+
+		if (e->code != EXIT_OK && given_setting(ps, e->msg, key, sizeof(key))) {
+			err_prefix(e, "--set %s: model '%s' refuses it", key, name);
+			e->code = EXIT_INPUT;
+			return -1;
+		}
 		err_prefix(e, "model '%s' (%s): set-up failed", name, pl->path);
 		if (e->code == EXIT_OK)
 			err_set(e, EXIT_PLUGIN, "model '%s' (%s): set-up failed", name, pl->path);

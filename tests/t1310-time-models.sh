@@ -112,10 +112,10 @@ test_expect_success 'bad parameters are refused with the row and column' '
 	test_must_fail --status 1 run -o bad.fits bad.csv 2> err &&
 	test_grep "variable-curve=FILE" err &&
 	printf "0 0\nzero 1\n" > badcurve.txt &&
-	test_must_fail --status 3 run --set variable-curve=badcurve.txt -o bad.fits bad.csv 2> err &&
+	test_must_fail --status 1 run --set variable-curve=badcurve.txt -o bad.fits bad.csv 2> err &&
 	test_grep "badcurve.txt:2: want two numbers" err &&
 	mkdir curvedir &&
-	test_must_fail --status 3 run --set variable-curve=curvedir -o bad.fits bad.csv 2> err &&
+	test_must_fail --status 1 run --set variable-curve=curvedir -o bad.fits bad.csv 2> err &&
 	test_grep "variable-curve curvedir: is a directory" err &&
 	printf "0 0\n0.5 0.3\n1.5 0\n" > mjdish.txt &&
 	test_must_fail --status 1 run --set variable-curve=mjdish.txt -o bad.fits bad.csv 2> err &&

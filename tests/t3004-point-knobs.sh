@@ -181,7 +181,7 @@ for kv in psf-interp=cubic psf-core=-1 psf-wing=-2 psf-wing=x psf-box=small psf-
 	psf-halo-colour-steps=65; do
 	key=${kv%%=*}
 	test_expect_success "--set $kv is refused, naming $key" "
-		test_must_fail --status 3 run bad.fits --set $kv 2> err &&
+		test_must_fail --status 1 run bad.fits --set $kv 2> err &&
 		test_grep \"$key: expected\" err &&
 		! test -e bad.fits
 	"
@@ -191,9 +191,9 @@ done
 # whichever row came last): a cell so small that this passes its limit is
 # refused before any row, with the smallest that fits.
 test_expect_success 'psf-cell too small for the table: refused at start, naming the least that fits' '
-	test_must_fail --status 3 run bad.fits --set psf-cell=34 2> err &&
+	test_must_fail --status 1 run bad.fits --set psf-cell=34 2> err &&
 	test_grep "psf-cell: 34 pixels .*use 35 or more" err && ! test -e bad.fits &&
-	test_must_fail --status 3 run bad.fits --set psf-blend=cell --set psf-cell=61 2> err &&
+	test_must_fail --status 1 run bad.fits --set psf-blend=cell --set psf-cell=61 2> err &&
 	test_grep "psf-cell: 61 pixels .*use 62 or more" err && ! test -e bad.fits &&
 	run c35.fits --set psf-cell=35 && run c62.fits --set psf-blend=cell --set psf-cell=62
 '

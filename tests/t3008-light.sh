@@ -275,13 +275,13 @@ assert np.array_equal(a, b), np.abs(a - b).max()
 '
 
 test_expect_success 'psf-halo-near: a negative value is refused, naming the key' '
-	test_must_fail --status 3 "$WFS" --filter F129 --sca 1 --set psf-halo-near=-1 \
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 1 --set psf-halo-near=-1 \
 		-o bad.fits one.csv 2>err &&
 	grep "psf-halo-near" err && ! test -e bad.fits
 '
 
 test_expect_success 'psf-diffuse-cell: a bad value is refused, naming the key' '
-	test_must_fail --status 3 "$WFS" --filter F129 --sca 1 --set psf-diffuse-cell=20 \
+	test_must_fail --status 1 "$WFS" --filter F129 --sca 1 --set psf-diffuse-cell=20 \
 		-o bad.fits one.csv 2>err &&
 	grep "psf-diffuse-cell" err && ! test -e bad.fits
 '

@@ -63,7 +63,7 @@ refused() {
 	shift
 	for opt in "$@"; do
 		rm -f o.fits &&
-		test_must_fail --status 3 "$WFS" --filter F129 --set "$opt" -o o.fits "$cat" 2> err &&
+		test_must_fail --status 1 "$WFS" --filter F129 --set "$opt" -o o.fits "$cat" 2> err &&
 		grep -q "${opt%%=*}" err && ! test -e o.fits || return 1
 	done
 }

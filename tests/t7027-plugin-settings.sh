@@ -127,4 +127,16 @@ test_expect_success 'a --set nothing in the run reads is named in a warning' '
 		-o c.fits one.csv 2> err &&
 	! grep -q "warning" err
 '
+# A value a model refuses as it is set up is the user's bad input: exit 1,
+# named by its key, not a plugin failure (3) at the row that loaded it.
+test_expect_success 'a --set value a model refuses: exit 1, named by its key' '
+	printf "x,y,mag,type,n,re,phi,ratio\n100.5,100.5,20,sersic,1,3,0,0.5\n" > gal.csv &&
+	for kv in psf-core=x sersic-trunc=2 sersic-noise-cut=abc; do
+		case $kv in psf-*) cat=one.csv ;; *) cat=gal.csv ;; esac &&
+		test_must_fail --status 1 "$WFS" --filter F158 --flux-unit abmag --rows 90-110 \
+			--set $kv -o bad.fits $cat 2> err &&
+		test_grep "^wfiscene: --set ${kv%%=*}: model .* refuses it: .*${kv%%=*}" err &&
+		! grep -q "csv:2" err && ! test -e bad.fits || return 1
+	done
+'
 test_done

@@ -326,7 +326,10 @@ struct wfs_host {
 
 	/* Record an error message (printf format, no trailing newline) and
 	 * return -1, so a callback can `return host->error(host->ctx, ...)`.
-	 * The host adds the place (file, line, model) in front. */
+	 * The host adds the place (file, line, model) in front.  A model
+	 * that refuses a setting's value in init() SHOULD begin the message
+	 * with its key ("KEY: ..." or "setting KEY: ..."): the host then
+	 * reports the user's bad value (exit 1), not a failed model. */
 	int (*error)(void *ctx, const char *fmt, ...)
 		WFS_PRINTF(2, 3);
 

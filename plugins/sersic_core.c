@@ -437,26 +437,25 @@ static const char *sersic_num(char buf[32], double v)
 }
 
 /*
- * A bound on the light of a galaxy at src's position that falls off its
- * SCA (b, n: the profile; ra, rb: the semi-axes drawn), as a fraction of
- * its flux: the light beyond the largest ellipse of its shape that fits
- * inside the SCA's pixels, Q(2n, x) at that ellipse.  An ellipse of radius
- * rho reaches rho sqrt(ra^2 cos^2 + rb^2 sin^2) along x (the same with sin
- * and cos swapped along y), so the one that touches the nearest edge has
- * rho its distance over that reach; 1 for a centre off the SCA.
+ * A bound on the light of galaxy g (sersic_unpack) that falls off its SCA,
+ * as a fraction of its flux: the light beyond the largest ellipse of its
+ * shape that fits inside the SCA's pixels, Q(2n, x) at that ellipse.  An
+ * ellipse of radius rho reaches rho sqrt(a^2 cos^2 + b^2 sin^2) along x
+ * (sin and cos swapped along y; sersic_halfbox), so the one that touches
+ * the nearest edge has rho its distance over that reach; 1 for a centre
+ * off the SCA.
  */
-static double sersic_off_sca(const struct wfs_source *src, double b, double n,
-			     double ra, double rb)
+static double sersic_off_sca(const struct sersic_gal *g)
 {
-	double th = (src->param[SERSIC_PHI] + 90.0) * (M_PI / 180.0), c = cos(th), s = sin(th);
-	double hx = sqrt(c * c * ra * ra + s * s * rb * rb), hy = sqrt(s * s * ra * ra + c * c * rb * rb);
+	double a = g->re, b = g->minor, ct = g->ct, st = g->st;
+	double hx = sqrt(ct * ct * a * a + st * st * b * b), hy = sqrt(st * st * a * a + ct * ct * b * b);
 	double lo = -0.5, hi = WFS_SCA_SIDE - 0.5;
-	double dx = fmin(src->x - lo, hi - src->x), dy = fmin(src->y - lo, hi - src->y);
+	double dx = fmin(g->xc - lo, hi - g->xc), dy = fmin(g->yc - lo, hi - g->yc);
 	double rho = fmin(dx / hx, dy / hy);
 
 	if (!(rho > 0))
 		return 1.0;
-	return sersic_gamma_q(2 * n, b * exp(log(rho) / n));
+	return sersic_gamma_q(2 * g->n, g->b * exp(log(rho) * g->inv_n));
 }
 
 /*
@@ -474,16 +473,14 @@ void sersic_keep_sca_light(struct wfs_source *src)
 {
 	double x0 = -0.5 - src->x, x1 = WFS_SCA_SIDE - 0.5 - src->x;
 	double y0 = -0.5 - src->y, y1 = WFS_SCA_SIDE - 0.5 - src->y;
-	double tol = 0.01 * SERSIC_OFF_TOL, finf = src->aux[AUX_FINF], ra, rb, cut, whole;
+	double tol = 0.01 * SERSIC_OFF_TOL, finf = src->aux[AUX_FINF], cut, whole;
 	struct sersic_gal g;
 
 	if (!(src->flux > 0) || !(finf > src->flux))
 		return;
-	sersic_axes(src->param[SERSIC_RE], src->param[SERSIC_RATIO], &ra, &rb);
-	if (!(fmin(src->aux[AUX_QT], sersic_off_sca(src, src->aux[AUX_B], src->param[SERSIC_N],
-						    ra, rb)) > SERSIC_OFF_TOL))
-		return;
 	sersic_unpack(src, &g);
+	if (!(fmin(g.qt, sersic_off_sca(&g)) > SERSIC_OFF_TOL))
+		return;
 	g.finf = 1.0;
 	cut = sersic_rect_polar(&g, x0, x1, y0, y1, tol, 1);
 	g.rho_t = g.rho_t2 = INFINITY;

@@ -10,7 +10,6 @@
 #include <strings.h>
 #include <unistd.h>
 
-#include "asdf.h"
 #include "background.h"
 #include "catalog.h"
 #include "commands.h"
@@ -480,17 +479,8 @@ static int check_asdf(const struct scene_opts *o, struct err *e)
 	if ((o->sca_mask & (o->sca_mask - 1)) && !(name_fields(o->output) & NAME_SCA))
 		return err_set(e, EXIT_INPUT, "-o %s: an ASDF file holds one SCA; put %%d in "
 			       "the name for one file per SCA (-o NAME_WFI%%02d.asdf)", o->output);
-	/* every file's name before anything is drawn, unless it takes an
-	 * exposure's name (run.c checks those once the exposures are read) */
-	for (int sca = 1; sca <= WFS_NSCA && !(name_fields(o->output) & NAME_EXPOSURE); sca++) {
-		char name[4096];
-
-		if (!(o->sca_mask >> (sca - 1) & 1))
-			continue;
-		if (name_expand(name, sizeof(name), "-o", o->output, sca, NULL, e) < 0 ||
-		    asdf_out_target(name, e) < 0)
-			return -1;
-	}
+	/* every file's name is checked once the exposures are read, before
+	 * anything is drawn (run.c, asdf_names) */
 	return 0;
 }
 
@@ -588,7 +578,8 @@ static int check_options(struct scene_opts *o, struct err *e)
 		if (!strcmp(o->output, "-"))
 			return err_set(e, EXIT_INPUT, "-o - with --level %s: the planes are "
 				       "written side by side and need a file, not stdout", lv);
-		if (!name_fields(o->output) && stat(o->output, &st) == 0 &&
+		if (o->format != FORMAT_ASDF && !name_fields(o->output) &&
+		    stat(o->output, &st) == 0 &&
 		    (S_ISFIFO(st.st_mode) || S_ISSOCK(st.st_mode)))
 			return err_set(e, EXIT_INPUT, "-o %s with --level %s: the planes are "
 				       "written side by side and need a file that can seek, not "

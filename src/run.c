@@ -424,16 +424,16 @@ static double batch_bytes(const struct scene_opts *o)
 	return 2.0 * (sizeof(struct placement) + sizeof(uint32_t)) * (double)o->chunk;
 }
 
-/* An ASDF name with an exposure's %s, every exposure's file of every SCA
- * checked (asdf_out_target) before anything is drawn: known only once the
- * exposures are read (main.c checks the other names), so that a series
- * whose later exposure names a device leaves no earlier file behind. */
-static int asdf_exposure_names(const struct scene_opts *o, const struct exposure *x, int n,
-			       struct err *e)
+/* Every ASDF file the run will write, each exposure's of each SCA, checked
+ * (asdf_out_target) before anything is drawn: a name with an exposure's
+ * %s is known only once the exposures are read, and a run whose later
+ * file names a device must leave no earlier file behind. */
+static int asdf_names(const struct scene_opts *o, const struct exposure *x, int n,
+		      struct err *e)
 {
 	char name[4096];
 
-	if (o->format != FORMAT_ASDF || !(name_fields(o->output) & NAME_EXPOSURE))
+	if (o->format != FORMAT_ASDF)
 		return 0;
 	for (int i = 0; i < n; i++)
 		for (int sca = 1; sca <= WFS_NSCA; sca++)
@@ -848,7 +848,7 @@ int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e)
 		into_free(into);
 		return -1;
 	}
-	if (asdf_exposure_names(o, x, n, e) < 0)
+	if (asdf_names(o, x, n, e) < 0)
 		goto out;
 	/* With --into, the image says where the SCAs look (into.h). */
 	if (into)

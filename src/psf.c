@@ -151,8 +151,6 @@ static int read_sampling(fitsfile *f, double *pixscale, int *over,
 	return 0;
 }
 
-/* Open a PSF file and check it is a cube of square, odd-sided planes:
- * its plane side and count.  The file, or NULL with e set. */
 /* cfitsio failed on a file that could be read (open_cube checks that
  * first): what it holds is cut short or not FITS, bad input (exit 1) as a
  * catalog's or an --into image's is; out of memory stays a system error. */
@@ -163,6 +161,8 @@ static void bad_cube(struct err *e, int st, const char *path)
 		e->code = EXIT_INPUT;
 }
 
+/* Open a PSF file and check it is a cube of square, odd-sided planes:
+ * its plane side and count.  The file, or NULL with e set. */
 static fitsfile *open_cube(const char *path, long *side, int *nplane, struct err *e)
 {
 	fitsfile *f = NULL;

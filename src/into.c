@@ -231,10 +231,11 @@ static int open_failed(struct into *in, int status, struct err *e)
 	size_t n = 0;
 	FILE *fp;
 
-	if (stat(in->path, &st) == 0 && S_ISDIR(st.st_mode))
+	int known = stat(in->path, &st) == 0;
+
+	if (known && S_ISDIR(st.st_mode))
 		return err_set(e, EXIT_INPUT, "%s: a directory, not a FITS file", in->path);
-	if (stat(in->path, &st) == 0 && S_ISREG(st.st_mode) &&
-	    (fp = fopen(in->path, "rb"))) {
+	if (known && S_ISREG(st.st_mode) && (fp = fopen(in->path, "rb"))) {
 		n = fread(head, 1, sizeof(head), fp);
 		fclose(fp);
 		if (st.st_size == 0)

@@ -85,7 +85,7 @@ static const struct opt scene_options[] = {
 	{ OPT("geometry", 0, "G", "siaf", "siaf (Roman's SIAF distortion) or stips (0.11\" "
 	  "square aligned pixels)", opt_choice, OFF(o.geometry)), .words = geometries },
 	{ OPT("exptime", 0, "S", "1", "exposure time in seconds", set_exptime, OFF(o.exptime)),
-	  .lo = 1e-9, .hi = 1e12 },
+	  .lo = 1e-9, .hi = SCENE_EXPTIME_MAX },
 	{ OPT("bunit", 0, "UNIT", "counts/s", "counts/s or counts", opt_choice,
 	  OFF(o.bunit_counts)), .words = bunits },
 	{ OPT("placed", 0, "FILE", NULL, "write the sources placed on each SCA (CSV)",

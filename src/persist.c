@@ -47,13 +47,13 @@
 #include "exposure.h"
 #include "options.h"
 #include "persist.h"
+#include "scene.h"
 #include "tempfile.h"
 
 #define PERSIST_MAGIC "wfiscene-persistence 1"
 #define LAG_KEEP 30.0           /* s after an exposure's end: the keep rule */
 #define GAP_MAX 1e9             /* s: --set persistence-gap's upper bound */
 #define REFERENCE_MIN 1e3       /* e-: --set persistence-reference's lower bound */
-#define EXPTIME_MAX 1e12        /* s: --exptime's upper bound (main.c) */
 #define DATE_SLACK 1e-6         /* s an exposure may begin before the last ends */
 
 static double curve_at(const struct persist_curve *c, double u)
@@ -576,8 +576,9 @@ static const char *int_at(const char *s, long *v)
  * else.  Times are s on the clock of MJD x 86400 (persist_begin): an
  * exposure with a date begins within date_parse()'s years 1800-2200, one
  * without 60 s (the gap, at most GAP_MAX) after the one before, or at 0,
- * and lasts at most --exptime's EXPTIME_MAX; so the end of the last of N
- * exposures is at most the start of 2201 plus N (GAP_MAX + EXPTIME_MAX).
+ * and lasts at most --exptime's SCENE_EXPTIME_MAX; so the end of the
+ * last of N exposures is at most the start of 2201 plus N (GAP_MAX +
+ * SCENE_EXPTIME_MAX).
  * A pixel's stimulus ended at an exposure's end: not after the state's
  * end, but for persist_begin's DATE_SLACK (with the rounding of the times
  * it compares) that each exposure may take the end back by.  Amplitudes
@@ -593,7 +594,7 @@ static double time_min(void)
 static double time_max(long exposures)
 {
 	return date_mjd(2201, 1, 1, 0, 0, 0) * 86400.0 +
-	       (double)exposures * (GAP_MAX + EXPTIME_MAX);
+	       (double)exposures * (GAP_MAX + SCENE_EXPTIME_MAX);
 }
 
 static double time_late(double end, long exposures)

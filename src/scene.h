@@ -16,6 +16,9 @@
 
 struct err;
 
+/* --exptime's upper bound, s (persist.c bounds a state's times by it) */
+#define SCENE_EXPTIME_MAX 1e12
+
 struct scene_opts {
 	int filter;                     /* enum wfs_filter */
 	unsigned sca_mask;              /* bit s-1 for SCA s */

@@ -253,7 +253,10 @@ void tile_free(double *p, int T);
 
 /* place.c */
 int place_batch(struct engine *g, const struct rows *r, struct batch *b);
+/* b binned by tile (only b written: while the pool draws another batch),
+ * then, the pool idle, its new tiles allocated */
 int place_bin(struct engine *g, struct batch *b);
+int place_tiles(struct engine *g, struct batch *b);
 
 /* render.c */
 void render_tile(void *arg, int wid, size_t task);

@@ -1108,7 +1108,8 @@ out:
 }
 
 /* Bin the placements of b by the tiles their boxes touch, in placement
- * order, and allocate the tiles they need. */
+ * order, and list the tiles they touch.  Only b is written, so this runs
+ * while the pool draws another batch; place_tiles() then allocates. */
 
 int place_bin(struct engine *g, struct batch *b)
 {
@@ -1141,14 +1142,8 @@ int place_bin(struct engine *g, struct batch *b)
 		uint32_t c = b->count[t];
 
 		b->count[t] = run;
-		if (c) {
-			struct slot *sl = &g->slot[t / g->ntile];
-			size_t lt = t % g->ntile;
-
+		if (c)
 			b->active[b->nactive++] = t;
-			if (!sl->tile[lt] && !(sl->tile[lt] = tile_alloc(T)))
-				return err_sys(g->e, "tile memory");
-		}
 		run += c;
 	}
 	b->count[ntot] = run;
@@ -1166,5 +1161,20 @@ int place_bin(struct engine *g, struct batch *b)
 		b->count[t] = b->count[t - 1];
 	b->count[0] = 0;
 	b->nitems = total;
+	return 0;
+}
+
+/* Allocate the tiles b's list names that no batch has touched yet: after
+ * the pool's wait, so that no worker sees the tile arrays change. */
+int place_tiles(struct engine *g, struct batch *b)
+{
+	for (size_t k = 0; k < b->nactive; k++) {
+		size_t t = b->active[k];
+		struct slot *sl = &g->slot[t / g->ntile];
+		size_t lt = t % g->ntile;
+
+		if (!sl->tile[lt] && !(sl->tile[lt] = tile_alloc(g->tile)))
+			return err_sys(g->e, "tile memory");
+	}
 	return 0;
 }

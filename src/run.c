@@ -145,8 +145,9 @@ static void engine_free(struct engine *g)
  * and footprint(), and PSF grids loaded on first use, all on the main
  * thread) while the pool still draws the batch started last, the
  * "pending" one: the previous engine's for this chunk, or the last
- * engine's for the previous chunk.  Only then does it wait for the pool
- * (pool_wait), bin the new batch by tile and start it.  So reading and
+ * engine's for the previous chunk, and bins the new batch by tile.  Only
+ * then does it wait for the pool (pool_wait), allocate the tiles the new
+ * batch touches first and start it.  So reading and
  * placing overlap with rendering, and the pool is never given two loops at
  * once.
  *
@@ -158,7 +159,7 @@ static void engine_free(struct engine *g)
  * alternation costs nothing.)  The tiles themselves are
  * shared by both batches; they are only written by workers, and a tile is
  * drawn by one worker at a time because only one batch is drawn at a time.
- * Tiles a batch needs are allocated in place_bin(), after the wait, so the
+ * Tiles a batch needs are allocated in place_tiles(), after the wait, so the
  * pool never sees a tile array change under it.
  *
  * A failure in the main thread stops the run after the pending batch
@@ -264,7 +265,8 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 				if (!g[i]->pass)
 					g[i]->rows_read += n;
 				/* placed while the pool draws the pending batch */
-				if (place_batch(g[i], &rows, b) < 0 || placed_chunk_end(g[i]) < 0) {
+				if (place_batch(g[i], &rows, b) < 0 || placed_chunk_end(g[i]) < 0 ||
+				    place_bin(g[i], b) < 0) {
 					/* Never a silent end of the run. */
 					err_set(e, EXIT_SYSTEM, "placing the rows of %s failed", *cat);
 					break;
@@ -282,9 +284,9 @@ static int run_catalogs(struct engine **g, int ng, char *const *catalogs,
 					}
 					pending = NULL;
 				}
-				/* the pool is idle: bin, allocate tiles, start */
+				/* the pool is idle: allocate tiles, start */
 				engine_progress(g[i], "rendering", 0);
-				if (place_bin(g[i], b) < 0)
+				if (place_tiles(g[i], b) < 0)
 					break;
 				g[i]->rendering = b;
 				pool_start_timed(g[i]->pool, render_tile, g[i], b->nactive,

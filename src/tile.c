@@ -1,6 +1,6 @@
 /*
  * tile.c - the memory of the image's tiles (struct slot, engine.h): place.c
- * allocates a tile when the first placement touches it (place_bin),
+ * allocates a tile when the first placement touches it (place_tiles),
  * render.c draws into it, write.c allocates the tiles of a strip that the
  * detector stage fills though no source touched them, and write.c and
  * run.c free them.  Tiles come from the pool's allocator of zeroed,

@@ -174,8 +174,8 @@ static const struct opt scene_options[] = {
 	  .lo = 0, .hi = 1024, .flags = OPT_SHOW_DEFAULT },
 	{ OPT("tile", 0, "N", "256", "tile side in pixels", opt_int, OFF(o.tile)),
 	  .lo = 16, .hi = WFS_NPIX },
-	{ OPT("chunk", 0, "N", NULL, "catalog rows per chunk (default 65536; on more than 4 "
-	       "SCAs 16384 an SCA, at most 262144)", opt_size, OFF(o.chunk)),
+	{ OPT("chunk", 0, "N", NULL, "catalog rows per chunk (default 262144; with --pointings "
+	       "16384 an SCA, 65536 to 262144)", opt_size, OFF(o.chunk)),
 	  .lo = 1, .hi = 1 << 24 },
 	{ OPT("quiet", 'q', NULL, NULL, "no messages but errors", opt_store_lo, OFF(o.verbose)),
 	  .lo = -1 },
@@ -507,15 +507,8 @@ static int check_options(struct scene_opts *o, struct err *e)
 {
 	if (o->filter < 0)
 		return err_set(e, EXIT_INPUT, "--filter is required (" FILTER_LIST ")");
-	/* A sky catalog over many SCAs puts few rows in each tile of a chunk
-	 * of 65536 rows, and each chunk's tile tasks, sorts and bins cost as
-	 * much: a larger chunk there (10^7 sky rows on 18 SCAs took 0.8 of the
-	 * CPU at 262144; BENCHMARKS.md, "Seventh sitting") */
-	if (!o->chunk) {
-		size_t n = (size_t)16384 * __builtin_popcount(o->sca_mask);
-
-		o->chunk = n < 65536 ? 65536 : n > 262144 ? 262144 : n;
-	}
+	if (!o->chunk)
+		o->chunk = scene_default_chunk(o);
 	if (o->bkg_model == BKG_AVG)
 		o->background = filter_get(o->filter)->bkg_avg;
 	if (o->bkg_model == BKG_SKY && isnan(o->date) && !o->pointings)

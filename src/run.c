@@ -625,6 +625,27 @@ static double default_budget(const struct scene_opts *o)
 }
 
 /*
+ * --chunk's default.  Each chunk's tile tasks, sorts and bins cost the same
+ * however few of its rows land in a tile, and each tile a chunk touches is
+ * fetched from memory once a chunk: the larger the chunk, the less both
+ * cost (against 65536 rows, 262144 took 0.8 of the CPU for 10^7 sky rows
+ * on 18 SCAs and 0.92 for 10^6 faint stars on one; BENCHMARKS.md,
+ * "Seventh" and "Eleventh sitting").  So 262144 rows; but in a series 16384
+ * an SCA, at least 65536, since each exposure drawn at once beyond the
+ * first holds its own placements of a chunk (batch_bytes()).  Not from
+ * --memory: the order of --placed goes chunk by chunk, and a run's files
+ * do not depend on its budget.
+ */
+size_t scene_default_chunk(const struct scene_opts *o)
+{
+	size_t n = (size_t)16384 * __builtin_popcount(o->sca_mask);
+
+	if (!o->pointings || n >= 262144)
+		return 262144;
+	return n < 65536 ? 65536 : n;
+}
+
+/*
  * How a run's exposures are drawn: as many exposures at once as the memory
  * budget (--memory, by default default_budget()) holds at
  * exposure_bytes() each (and batch_bytes() for each but the first)

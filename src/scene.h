@@ -81,5 +81,7 @@ struct scene_opts {
 /* Simulate the scene from the catalogs (NULL-terminated; "-" is stdin).
  * Returns 0, or -1 with the message and exit status in e. */
 int scene_run(const struct scene_opts *o, char *const *catalogs, struct err *e);
+/* --chunk's default for o (run.c), its SCAs and --pointings set. */
+size_t scene_default_chunk(const struct scene_opts *o);
 
 #endif

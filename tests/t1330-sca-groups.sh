@@ -8,8 +8,10 @@
 . "$(dirname "$0")/lib.sh"
 
 # 16 rows of each SCA: 16 x 4088 x 8 bytes of tiles and 56 MB for grids
-# and the models, 56.5 MB an SCA, and 40 MB for the run (110 at levels 1
-# and 2): --memory 1000 holds the four SCAs, 160 two, 100 one.
+# and the models, 56.5 MB an SCA, and 136 MB for the run at the default
+# chunk of 262144 rows (206 at levels 1 and 2; 40 and 110 in a series,
+# whose chunk here is 65536): --memory 1000 holds the four SCAs, 260 two,
+# 200 one.
 run() { "$WFS" --filter F158 --ra 10 --dec 20 --pointing-ref boresight --sca 1-4 \
 	--flux-unit abmag --rows 2040-2055 "$@"; }
 
@@ -34,9 +36,9 @@ print(json.dumps(r, indent=1, sort_keys=True))
 test_expect_success 'one pass, then two and four groups: said with -v' '
 	run --memory 1000 -v -o one.fits --placed one.csv --report one.json sky.csv 2> err &&
 	! grep -q "passes over" err &&
-	run --memory 160 -v -o two.fits --placed two.csv --report two.json sky.csv 2> err &&
+	run --memory 260 -v -o two.fits --placed two.csv --report two.json sky.csv 2> err &&
 	test_grep "4 SCAs in 2 passes over the catalogs, 2 at most at a time" err &&
-	run --memory 100 -v -o four.fits --placed four.csv --report four.json sky.csv 2> err &&
+	run --memory 200 -v -o four.fits --placed four.csv --report four.json sky.csv 2> err &&
 	test_grep "4 SCAs in 4 passes over the catalogs, 1 at most at a time" err
 '
 test_expect_success '... the same bytes, placed list and report' '
@@ -49,7 +51,7 @@ test_expect_success '... the same bytes, placed list and report' '
 '
 test_expect_success 'romanisim placed lists: a row once, in the order of one pass' '
 	run --set placed=romanisim -o r1.fits --placed r1.csv sky.csv &&
-	run --memory 100 --set placed=romanisim -o r4.fits --placed r4.csv sky.csv &&
+	run --memory 200 --set placed=romanisim -o r4.fits --placed r4.csv sky.csv &&
 	test_cmp r1.csv r4.csv
 '
 test_expect_success 'levels 1 and 2, one file per SCA' '
@@ -73,16 +75,16 @@ test_expect_success 'a series in groups, persistence carried from one to the nex
 	cmp s_e1.fits n_e1.fits && ! cmp -s s_e2.fits n_e2.fits
 '
 test_expect_success 'a catalog on stdin, plain or compressed, is read in every pass' '
-	run --memory 100 -v -o in.fits --placed in.csv - < sky.csv 2> err &&
+	run --memory 200 -v -o in.fits --placed in.csv - < sky.csv 2> err &&
 	test_grep "<stdin>: [0-9]* bytes kept in a temporary file for 4 passes" err &&
 	cmp one.fits in.fits && test_cmp one.csv in.csv &&
 	gzip -c sky.csv > sky.csv.gz &&
-	run --memory 100 -o gz.fits - < sky.csv.gz && cmp one.fits gz.fits
+	run --memory 200 -o gz.fits - < sky.csv.gz && cmp one.fits gz.fits
 '
 test_expect_success 'a row refused by the last group: exit 1, no file left' '
 	printf "id,x,y,sca,flux,type,n,re,ratio,phi\n1,100,2048,4,20,sersic,-1,3,0.5,0\n" \
 		> bad.csv &&
-	test_must_fail --status 1 run --memory 100 -v -o "bad_%d.fits" sky.csv bad.csv 2> err &&
+	test_must_fail --status 1 run --memory 200 -v -o "bad_%d.fits" sky.csv bad.csv 2> err &&
 	test_grep "4 SCAs in 4 passes" err &&
 	test_grep "bad.csv:2: .*Sérsic index must be > 0" err &&
 	! ls | grep -q "^bad_"
@@ -114,7 +116,7 @@ test_expect_success 'the default budget: 2000 MB at levels 1 and 2' '
 test_expect_success 'stdin that cannot be kept: exit 2, nothing written' '
 	test_must_fail --status 2 env TMPDIR=/nonexistent "$WFS" --filter F158 --ra 10 \
 		--dec 20 --pointing-ref boresight --sca 1-4 --flux-unit abmag \
-		--rows 2040-2055 --memory 100 -o no.fits - < sky.csv 2> err &&
+		--rows 2040-2055 --memory 200 -o no.fits - < sky.csv 2> err &&
 	test_grep "4 passes over the catalogs (--memory)" err &&
 	test_grep "/nonexistent" err &&
 	! test -e no.fits
@@ -126,7 +128,7 @@ test_expect_success 'a catalog with spectra: the same bytes and report' '
 	awk -F, "BEGIN { OFS = \",\"; srand(2) } NR == 1 { print \$0, \"teff\"; next }
 		{ print \$0, exp(log(2500) + rand() * log(20)) }" sky.csv > skyc.csv &&
 	run -o c1.fits --report c1.json skyc.csv &&
-	run --memory 100 -v -o c4.fits --report c4.json skyc.csv 2> err &&
+	run --memory 200 -v -o c4.fits --report c4.json skyc.csv 2> err &&
 	test_grep "4 SCAs in 4 passes over the catalogs" err &&
 	cmp c1.fits c4.fits &&
 	untimed c1.json > c1.txt && untimed c4.json > c4.txt &&

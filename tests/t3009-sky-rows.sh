@@ -64,19 +64,24 @@ ids = [p[0] for p in sky]
 assert len(ids) - len(set(ids)) < 0.05 * len(ids), (len(ids), len(set(ids)))
 "
 '
-# --chunk's default grows with the SCAs (16384 rows an SCA, from 65536 to
-# 262144): a sky catalog over the focal plane puts few rows in each tile
-# of a smaller chunk
+# --chunk's default: 262144 rows for one exposure; in a series (whose
+# exposures each hold a chunk's placements) 16384 rows an SCA, from 65536
+# to 262144
 chunk_is() {
 	"$PY" -c "import json, sys; c = json.load(open(sys.argv[1]))[\"settings\"][\"chunk\"]
 assert c == int(sys.argv[2]), c" "$1" "$2"
 }
-test_expect_success 'the default chunk is 16384 rows an SCA, 65536 to 262144' '
+test_expect_success 'the default chunk: 262144 rows, in a series 16384 an SCA' '
 	printf "id,x,y,sca,mag\n" > none.csv &&
-	for c in "1 65536" "1-4 65536" "1-8 131072" "1-18 262144"; do
+	printf "10 20 0 e1\n10 20 0.5 e2\n" > pt.txt &&
+	for c in "1 262144 65536" "1-4 262144 65536" "1-8 262144 131072" \
+		 "1-18 262144 262144"; do
 		set -- $c &&
 		run --sca $1 --report rc.json -o /dev/null none.csv &&
-		chunk_is rc.json $2 || return 1
+		chunk_is rc.json $2 &&
+		run --sca $1 --pointings pt.txt --rows 2040-2047 --report "rc_%s.json" \
+			-o "pt_%s.fits" none.csv &&
+		chunk_is rc_e1.json $3 || return 1
 	done &&
 	run --sca 1-18 --chunk 777 --report rc.json -o /dev/null none.csv &&
 	chunk_is rc.json 777 && chunk_is r1.json 262144

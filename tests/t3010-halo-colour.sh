@@ -172,12 +172,13 @@ assert abs(a / b - 1) < 1e-4, (a, b)
 # MiB; the power laws' (beta) as much, and both families (two columns, or
 # two catalogs) twice; with --rows the strip's tiles but every position's
 # cells, as every star of the SCA is prepared before the strip is cut.  So
-# the same budget splits its SCAs into more groups: each term, and none
-# without a spectrum column.
+# the same budget (516 MB: the run's 136 at the default chunk and two SCAs
+# of 184) splits its SCAs into more groups: each term, and none without a
+# spectrum column.
 test_expect_success 'the memory estimate counts the colour halos, cells and blends' '
 	printf "x,y,flux\n2000.3,2100.6,20\n" > nospec.csv &&
 	printf "x,y,flux,type,n,re,phi,ratio,teff\n2000.3,2100.6,20,sersic,1,3,0,1,4000\n" > gal.csv &&
-	est() { "$WFS" --filter F146 --sca 1,2,3,4 --memory 420 --set psf-halo-radius=$R -v \
+	est() { "$WFS" --filter F146 --sca 1,2,3,4 --memory 516 --set psf-halo-radius=$R -v \
 		-o /dev/null "$@" 2> est.err && grep passes est.err; } &&
 	est nospec.csv > err0 &&
 	est faint.csv > err1 &&
@@ -221,10 +222,10 @@ test_expect_success 'a named pipe catalog is read once, by the run' '
 # from a temporary copy by every pass
 test_expect_success 'a named pipe catalog is refused in a run of several passes' '
 	rm -f pipe2 && mkfifo pipe2 &&
-	test_must_fail --status 1 timeout 120 "$WFS" --filter F146 --sca 1,2,3,4 --memory 420 \
+	test_must_fail --status 1 timeout 120 "$WFS" --filter F146 --sca 1,2,3,4 --memory 516 \
 		--set psf-halo-radius=$R -o /dev/null pipe2 2> err &&
 	test_grep "pipe2: not a regular file, so read only once, and this run makes 2 passes" err &&
-	cat nospec.csv | timeout 120 "$WFS" --filter F146 --sca 1,2,3,4 --memory 420 \
+	cat nospec.csv | timeout 120 "$WFS" --filter F146 --sca 1,2,3,4 --memory 516 \
 		--set psf-halo-radius=$R -v -o /dev/null - 2> err &&
 	test_grep "in 2 passes over the catalogs" err && test_grep "1 rows read" err
 '

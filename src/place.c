@@ -67,7 +67,8 @@ static void type_model(struct engine *g, const char *name, char *real, size_t si
 		snprintf(real, size, "%s", name);
 }
 
-/* The index of the model drawing rows of type name, loaded on first use. */
+/* The index of the model drawing rows of type name, loaded on first use;
+ * or plugins_get()'s failure (-1 or PLUGIN_REFUSED_SETTING). */
 static int resolve_type(struct engine *g, const char *name)
 {
 	char real[64];
@@ -78,7 +79,7 @@ static int resolve_type(struct engine *g, const char *name)
 			return g->types[i].model;
 	type_model(g, name, real, sizeof(real));
 	if ((m = plugins_get(&g->plugins, real, g->e)) < 0)
-		return -1;
+		return m;
 	if (g->ntypes < PLUGIN_MAX) {
 		snprintf(g->types[g->ntypes].name, sizeof(g->types[0].name), "%s", name);
 		g->types[g->ntypes++].model = m;
@@ -825,7 +826,7 @@ static int read_models(struct engine *g, const struct rows *r, int *model, doubl
 		} else if ((m = resolve_type(g, r->type[i])) < 0) {
 			/* the row that first needed the model, unless a value
 			 * the run was given is what it refused */
-			if (strncmp(g->e->msg, "--set ", 6))
+			if (m != PLUGIN_REFUSED_SETTING)
 				err_prefix(g->e, "%s:%ld", r->file, r->line[i]);
 			return -1;
 		}

@@ -306,7 +306,9 @@ static int load_drawer(struct plugins *ps, struct plugin *pl, const char *name,
 
 	if (!strcmp(name, pl->name))
 		return refuse(pl, e, "drawn_by names the model itself");
-	if ((d = plugins_get(ps, name, e)) < 0) {
+	if ((d = plugins_get(ps, name, e)) == PLUGIN_REFUSED_SETTING)
+		return d;       /* the user's value, as it is */
+	if (d < 0) {
 		err_prefix(e, "model '%s' is drawn by '%s'", pl->name, name);
 		e->code = EXIT_PLUGIN;
 		return -1;
@@ -348,7 +350,7 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	wfs_model_entry_fn entry;
 	const struct wfs_model *m;
 	const char *drawn_by;
-	int idx;
+	int idx, r;
 	size_t need = offsetof(struct wfs_model, render) + sizeof(m->render);
 
 	for (int i = 0; i < ps->n; i++)
@@ -397,8 +399,8 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	pl->m = m;
 	if (read_appended(pl, e) < 0)
 		return -1;
-	if (drawn_by && load_drawer(ps, pl, drawn_by, e) < 0)
-		return -1;
+	if (drawn_by && (r = load_drawer(ps, pl, drawn_by, e)) < 0)
+		return r;
 	for (int c = 0; c < m->ncolumns; c++)
 		if (!plugin_column(pl, c)->name || !*plugin_column(pl, c)->name)
 			return refuse(pl, e, "column %d of the descriptor has no name", c + 1);
@@ -408,7 +410,7 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 		if (e->code != EXIT_OK && given_setting(ps, e->msg, key, sizeof(key))) {
 			err_prefix(e, "--set %s: model '%s' refuses it", key, name);
 			e->code = EXIT_INPUT;
-			return -1;
+			return PLUGIN_REFUSED_SETTING;
 		}
 		err_prefix(e, "model '%s' (%s): set-up failed", name, pl->path);
 		if (e->code == EXIT_OK)

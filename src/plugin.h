@@ -74,8 +74,12 @@ int plugins_init(struct plugins *ps, const char *user_path,
 		 const struct wfs_host *host, struct err *e);
 
 /* The index of model name, loading and initialising it on first use.
- * Returns the index or -1: EXIT_INPUT when no plugin of that name exists
- * (an unknown source type), EXIT_PLUGIN when one exists but is refused. */
+ * Returns the index; or -1: EXIT_INPUT when no plugin of that name exists
+ * (an unknown source type), EXIT_PLUGIN when one exists but is refused;
+ * or PLUGIN_REFUSED_SETTING, EXIT_INPUT, when the model (or the model that
+ * draws it) refused a value the run was given (--set or an option),
+ * the message "--set KEY: model 'M' refuses it: ...", about no row. */
+#define PLUGIN_REFUSED_SETTING (-2)
 int plugins_get(struct plugins *ps, const char *name, struct err *e);
 
 /* Call fini() of every model and unload them. */

@@ -139,4 +139,13 @@ test_expect_success 'a --set value a model refuses: exit 1, named by its key' '
 		! grep -q "csv:2" err && ! test -e bad.fits || return 1
 	done
 '
+# The same when the model that refuses it draws another's sources: a
+# variable star loads the point model as its drawer.
+test_expect_success '... and when the model refusing it draws a variable star' '
+	printf "x,y,mag,type,period,amplitude\n100.5,100.5,20,variable,1,0.5\n" > var.csv &&
+	test_must_fail --status 1 "$WFS" --filter F158 --flux-unit abmag --rows 90-110 \
+		--date 61000 --set psf-core=x -o bad.fits var.csv 2> err &&
+	test_grep "^wfiscene: --set psf-core: model .point. refuses it: psf-core" err &&
+	! grep -q "csv:2\|drawn by" err && ! test -e bad.fits
+'
 test_done

@@ -355,7 +355,8 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 
 	for (int i = 0; i < ps->n; i++)
 		if (!strcmp(ps->p[i].name, name))
-			return ps->p[i].ready ? i : -1;
+			return ps->p[i].ready ? i : err_set(e, EXIT_PLUGIN, "model '%s' was "
+							    "refused earlier in the run", name);
 	if (!valid_name(name))
 		return err_set(e, EXIT_INPUT, "unknown source type '%s'", name);
 	if (ps->n == PLUGIN_MAX)

@@ -71,7 +71,7 @@ const char *rows_flux_text(const struct rows *r, size_t i, char *buf, size_t siz
 	const char *s, *us;
 	char num[32];
 	size_t n;
-	int u = r->flux_unit;
+	int u = r->flux_unit, cu;
 
 	if (r->flux_col < 0 || r->flux_col >= r->ncol) {
 		snprintf(buf, size, "flux %.9g", r->flux[i]);
@@ -91,8 +91,8 @@ const char *rows_flux_text(const struct rows *r, size_t i, char *buf, size_t siz
 		;
 	/* the row's units cell, when it has one, else the column's unit
 	 * (read_flux() has refused any cell that names no unit) */
-	if (r->units_col >= 0 && (us = r->text[r->units_col][i]) && catalog_unit_code(us))
-		u = catalog_unit_code(us);
+	if (r->units_col >= 0 && (us = r->text[r->units_col][i]) && (cu = catalog_unit_code(us)))
+		u = cu;
 	snprintf(buf, size, "column '%s': %.*s (%s)", r->colname[r->flux_col],
 		 (int)(n < 40 ? n : 40), s, unit_name(u));
 	return buf;

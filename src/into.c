@@ -208,6 +208,16 @@ static void read_pointing(struct into *in, fitsfile *f)
 	in->has_pointing = 1;
 }
 
+/* cfitsio's failure on the target: exit 1 when the file could be read
+ * (what it holds is at fault), else cfitsio's own status.  -1. */
+static int unreadable(const struct into *in, int status, struct err *e)
+{
+	err_fits(e, status, "--into %s", in->path);
+	if (e->code != EXIT_OK && access(in->path, R_OK) == 0)
+		e->code = EXIT_INPUT;
+	return -1;
+}
+
 /*
  * A target cut short (a copy or a download that stopped) is bad input
  * (exit 1), said so before anything is drawn or written, as a catalog's
@@ -230,7 +240,6 @@ static int open_failed(struct into *in, int status, struct err *e)
 	struct stat st;
 	size_t n = 0;
 	FILE *fp;
-
 	int known = stat(in->path, &st) == 0;
 
 	if (known && S_ISDIR(st.st_mode))
@@ -252,10 +261,7 @@ static int open_failed(struct into *in, int status, struct err *e)
 			return err_set(e, EXIT_INPUT, "%s: not a FITS file: it does not begin "
 				       "with 'SIMPLE  ='", in->path);
 	}
-	err_fits(e, status, "--into %s", in->path);
-	if (e->code != EXIT_OK && access(in->path, R_OK) == 0)
-		e->code = EXIT_INPUT;
-	return -1;
+	return unreadable(in, status, e);
 }
 
 /* "HDU k 'EXTNAME'" (k 0-based, as in IMAGE[N]) of the current HDU. */
@@ -416,9 +422,7 @@ struct into *into_open(const char *spec, unsigned mask, struct err *e)
 		goto fail;
 	}
 	if (fits_get_num_hdus(f, &nhdu, &status)) {
-		err_fits(e, status, "--into %s", in->path);
-		if (e->code != EXIT_OK && access(in->path, R_OK) == 0)
-			e->code = EXIT_INPUT;
+		unreadable(in, status, e);
 		goto fail;
 	}
 	if (check_whole(in, f, nhdu, e) < 0)

@@ -679,7 +679,7 @@ static int state_block(struct state_in *in, const struct persist *p, int s, long
 	uint32_t pix_lo = (uint32_t)y0 * WFS_NPIX, pix_hi = (uint32_t)(y1 + 1) * WFS_NPIX - 1;
 	long cap = exposures ? (y1 - y0 + 1) * WFS_NPIX : 0, sca, n;
 	float smax = (float)scale_max(p);
-	double late = time_late(end, exposures);
+	double late = time_late(end, exposures), tmin = time_min();
 	char form[32];
 	const char *v, *t;
 
@@ -731,11 +731,11 @@ static int state_block(struct state_in *in, const struct persist *p, int s, long
 				       "amplitude %g: expected a number above 0, at most %g (that "
 				       "of the largest fluence)", in->path, s, i + 1, l->n,
 				       (unsigned long)pix, (double)l->scale[i], (double)smax);
-		if (!(l->tend[i] >= time_min() && l->tend[i] <= late))
+		if (!(l->tend[i] >= tmin && l->tend[i] <= late))
 			return err_set(e, EXIT_INPUT, "%s: sca %d pixel %zu of %zu (number %lu): "
 				       "end time %.15g: expected a time in s (MJD x 86400) from "
 				       "%.15g to the state's end, %.15g", in->path, s, i + 1, l->n,
-				       (unsigned long)pix, l->tend[i], time_min(), end);
+				       (unsigned long)pix, l->tend[i], tmin, end);
 	}
 	return 0;
 }
@@ -746,7 +746,6 @@ int persist_load(struct persist *p, const char *path, struct err *e)
 	unsigned mask = 0;
 	long first = 0, last = 0, exposures = 0;
 	double end = NAN;
-
 	struct stat st;
 
 	if (!in.f) {

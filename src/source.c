@@ -14,16 +14,21 @@
 
 /* The row's flux in counts/s on SCA sca: a magnitude or flux density
  * (f_nu at the filter's pivot wavelength) through the row's spectrum and
- * the SCA's throughput (spectrum.h), a flat f_nu without one. */
+ * the SCA's throughput (spectrum.h), a flat f_nu without one.  *mag is
+ * the AB magnitude of an AB magnitude's row on the SCA, from the row's
+ * own value (exact, without a round trip through the flux, which can
+ * come back an ulp brighter); NaN for other units. */
 static double counts_on(const struct engine *g, const struct rows *r, size_t i, int sca,
-			double k)
+			double k, double *mag)
 {
 	double v = r->flux[i];
 
+	*mag = NAN;
 	switch (r->unit[i]) {
 	case UNIT_COUNTS:
 		return v;
 	case UNIT_ABMAG:
+		*mag = k == 1 ? v : v - 2.5 * log10(k);
 		return pow(10.0, -0.4 * (v - filter_zeropoint(g->o->filter, sca,
 							      g->o->zp_stips))) * k;
 	default:
@@ -102,8 +107,10 @@ int source_fill(const struct engine *g, const struct rows *r, size_t i, const do
 	src->x = x;
 	src->y = y;
 	src->sca = sca;
-	src->flux = counts_on(g, r, i, sca, k);
-	src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
+	src->flux = counts_on(g, r, i, sca, k, &src->mag);
+	if (isnan(src->mag))
+		src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) -
+			   2.5 * log10(src->flux);
 	src->psf_class = source_psf_class(g, src->mag);
 	src->id = r->id[i];
 	src->param = param;

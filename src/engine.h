@@ -69,6 +69,13 @@ struct placement {
 };
 
 
+/* The tiles a placement's box meets: nx x ny of them from global tile
+ * t0 (place_bin's first pass, read again by its second). */
+struct tile_span {
+	uint32_t t0;
+	uint16_t nx, ny;
+};
+
 /* The placements of one chunk, binned by tile. */
 struct batch {
 	struct placement *p;
@@ -78,6 +85,8 @@ struct batch {
 	uint32_t *count;        /* per global tile, then start offsets */
 	uint32_t *items;        /* placement indices grouped by tile */
 	size_t nitems, capitems;
+	struct tile_span *span; /* each placement's tiles (place_bin) */
+	size_t capspan;
 	uint32_t *active;       /* global tiles with placements */
 	size_t nactive;
 };

@@ -121,6 +121,7 @@ static void engine_free(struct engine *g)
 		free(g->b[i].param);
 		free(g->b[i].count);
 		free(g->b[i].items);
+		free(g->b[i].span);
 		free(g->b[i].active);
 	}
 	free(g->fx); free(g->fy); free(g->px); free(g->py); free(g->reach); free(g->cand); free(g->mask);

@@ -80,6 +80,8 @@ struct tile_span {
 struct batch {
 	struct placement *p;
 	size_t n, cap;
+	size_t nserial;         /* placements whose model's prepare() is
+				   not WFS_PARALLEL_PREPARE */
 	double *param;
 	size_t nparam, capparam;
 	uint32_t *count;        /* per global tile, then start offsets */

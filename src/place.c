@@ -322,6 +322,12 @@ static int sky_shape(struct engine *g, const struct rows *r, size_t i, int m,
  */
 #define PLACE_PART 512
 
+/* Whether place_pool's threads may settle p (its model allows it). */
+static int in_pool(const struct engine *g, const struct placement *p)
+{
+	return g->plugins.p[p->model].flags & WFS_PARALLEL_PREPARE;
+}
+
 static int pend(struct engine *g, struct batch *b, const struct rows *r, size_t i, int m,
 		const double *param, int slot, double x, double y)
 {
@@ -352,6 +358,7 @@ static int pend(struct engine *g, struct batch *b, const struct rows *r, size_t 
 	}
 	p->model = d;
 	p->from = m;
+	b->nserial += !in_pool(g, p);
 	p->slot = slot;
 	p->row = i;
 	p->param_off = b->nparam + (size_t)(p->src.param - v);
@@ -360,10 +367,13 @@ static int pend(struct engine *g, struct batch *b, const struct rows *r, size_t 
 	return 0;
 }
 
-/* settle() of placement p, its source filled first unless pend() did. */
-static int place_settle(struct engine *g, const struct rows *r, struct placement *p,
-			struct err *e)
+/* settle() of placement p of batch b, its source filled first unless
+ * pend() did; its columns' address set here, on the thread that settles
+ * it, now that b->param has stopped moving. */
+static int place_settle(struct engine *g, const struct rows *r, struct batch *b,
+			struct placement *p, struct err *e)
 {
+	p->src.param = b->param + p->param_off;
 	if (p->from == p->model &&
 	    source_fill(g, r, p->row, p->src.param, g->slot[p->slot].sca, p->src.x, p->src.y,
 			&p->src, e) < 0)
@@ -392,11 +402,6 @@ static void settle_failed(struct settle_job *j, size_t k)
 		;
 }
 
-static int in_pool(const struct engine *g, const struct placement *p)
-{
-	return g->plugins.p[p->model].flags & WFS_PARALLEL_PREPARE;
-}
-
 /* settle_order()'s placements are scattered over the batch and their rows
  * over the chunk's columns: fetch the placement SETTLE_AHEAD * 2 ahead,
  * and the row columns source_fill() reads of the one SETTLE_AHEAD ahead
@@ -421,10 +426,8 @@ static inline __attribute__((always_inline)) void settle_prefetch(const struct s
 		const struct placement *p = &j->b->p[j->order[n + SETTLE_AHEAD]];
 		size_t i = p->row;
 
-		/* (src.param only of a placement of the pool: the main thread
-		 * may be settling the others now) */
-		if (in_pool(j->g, p))
-			__builtin_prefetch(p->src.param);
+		/* its columns (src.param is set when it is settled) */
+		__builtin_prefetch(j->b->param + p->param_off);
 		__builtin_prefetch(r->flux + i);
 		__builtin_prefetch(r->unit + i);
 		__builtin_prefetch(r->id + i);
@@ -465,7 +468,7 @@ static void settle_part(void *arg, int wid, size_t part)
 			was = w->err;
 			err_clear(&w->err);
 		}
-		if (place_settle(g, j->r, &j->b->p[k], &w->err) < 0) {
+		if (place_settle(g, j->r, j->b, &j->b->p[k], &w->err) < 0) {
 			w->err_task = k;
 			settle_failed(j, k);
 			if (!j->order)
@@ -537,17 +540,17 @@ static int settle_all(struct engine *g, const struct rows *r, struct batch *b)
 
 	atomic_init(&j.failed, SIZE_MAX);
 	if (g->place_pool)
-		for (size_t k = 0; k < b->n && npool < 2 * PLACE_PART; k++)
-			npool += in_pool(g, &b->p[k]);
+		npool = b->n - b->nserial;
 	if (npool < 2 * PLACE_PART)
 		npool = 0;
 	if (npool)
 		j.order = settle_order(g, b);
 	if (npool)
 		pool_start(g->place_pool, settle_part, &j, parts);
-	for (size_t k = 0; k < b->n && k < failed &&
+	/* (none when every placement is the pool's) */
+	for (size_t k = 0; (!npool || b->nserial) && k < b->n && k < failed &&
 	     k <= atomic_load_explicit(&j.failed, memory_order_relaxed); k++)
-		if ((!npool || !in_pool(g, &b->p[k])) && place_settle(g, r, &b->p[k], g->e) < 0) {
+		if ((!npool || !in_pool(g, &b->p[k])) && place_settle(g, r, b, &b->p[k], g->e) < 0) {
 			failed = k;
 			settle_failed(&j, k);   /* the threads need not go past it */
 		}
@@ -1044,7 +1047,7 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 	int *model, rc = -1, pended = 0;
 	struct err stopped, *perr;
 
-	b->n = b->nparam = 0;
+	b->n = b->nparam = b->nserial = 0;
 	if (r->spec_kind && place_colour_init(g) < 0)
 		return -1;
 	if (grow((void **)&g->fx, &g->cap_rows, r->n, sizeof(double)) < 0)
@@ -1085,8 +1088,6 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 			stopped = *g->e;
 			err_clear(g->e);
 		}
-	for (size_t i = 0; i < b->n; i++)
-		b->p[i].src.param = b->param + b->p[i].param_off;
 	if (settle_all(g, r, b) < 0)
 		goto out;
 	if (pended < 0) {
@@ -1098,8 +1099,8 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 
 		if (keep(g, b, r, k, &kept) < 0)
 			goto out;
-		if (kept)
-			b->p[n++] = b->p[k];
+		if (kept && n++ != k)
+			b->p[n - 1] = b->p[k];
 	}
 	b->n = n;
 	rc = 0;

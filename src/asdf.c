@@ -1,5 +1,7 @@
 /* asdf.c - writing ASDF files: the tree through libfyaml, the blocks at
  * their offsets; see asdf.h. */
+/* sync_file_range(), where Linux has it */
+#define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
 #include <libfyaml.h>
@@ -456,6 +458,26 @@ static void compress_chunk(void *arg, int worker, size_t task)
 	b->bad[k] = 0;
 }
 
+/* The n bytes at off of an output's temporary, in their final place, handed
+ * to the kernel to write back now (Linux's sync_file_range; advice, its
+ * failure ignored) when there are at least ASDF_WBACK of them: the fsync()
+ * that ends the file then waits for the last blocks only (fitsout.c does
+ * the same).  Not for the staged copies compressed later, which the file
+ * never keeps. */
+#define ASDF_WBACK (1u << 20)
+
+static void writeback(int fd, uint64_t off, uint64_t n)
+{
+#ifdef SYNC_FILE_RANGE_WRITE
+	if (n >= ASDF_WBACK)
+		(void)sync_file_range(fd, (off64_t)off, (off64_t)n, SYNC_FILE_RANGE_WRITE);
+#else
+	(void)fd;
+	(void)off;
+	(void)n;
+#endif
+}
+
 int asdf_fd_write(int fd, const void *p, size_t n, uint64_t off, const char *path,
 		  struct err *e)
 {
@@ -581,6 +603,7 @@ int asdf_block_write(int fd, uint64_t at, const struct asdf_block_src *s, struct
 		MD5Final(h + 38, &md5);
 	if (asdf_fd_write(fd, h, sizeof(h), at, path, e) < 0)
 		goto done;
+	writeback(fd, at, pos - at);
 	*end = pos;
 	r = 0;
 	goto done;
@@ -763,7 +786,11 @@ int asdf_out_put(struct asdf_out *a, int k, uint64_t off, const void *p, size_t 
 		return err_set(e, EXIT_SYSTEM, "%s: block %d: %zu bytes at %llu beyond its %llu",
 			       a->path, k, n, (unsigned long long)off,
 			       (unsigned long long)a->size[k]);
-	return write_at(a, p, n, a->data[k] + off, e);
+	if (write_at(a, p, n, a->data[k] + off, e) < 0)
+		return -1;
+	if (a->compression == ASDF_NONE)
+		writeback(a->fd, a->data[k] + off, n);
+	return 0;
 }
 
 /* A staged block's bytes, for asdf_block_write. */

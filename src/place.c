@@ -166,11 +166,14 @@ static int source_at(struct engine *g, const struct rows *r, size_t i, int m,
 		     struct wfs_source *src)
 {
 	const struct plugin *pl = &g->plugins.p[m];
+	double flux, mag;
 
 	if (source_fill(g, r, i, param, sca, x, y, src, g->e) < 0)
 		return -1;
 	if (pl->drawer < 0)
 		return 0;
+	flux = src->flux;
+	mag = src->mag;
 	if (pl->m->prepare && pl->m->prepare(pl->state, src) < 0)
 		return row_refused(g->e, r, i, pl->m, "prepare() failed" MODEL_SILENT);
 	if (source_flux_check(g, r, i, src, pl->m->name, g->e) < 0)
@@ -178,7 +181,11 @@ static int source_at(struct engine *g, const struct rows *r, size_t i, int m,
 	if (!isfinite(src->x) || !isfinite(src->y))
 		return err_set(g->e, EXIT_PLUGIN, "%s:%ld: model '%s' moved the source to "
 			       "(%g, %g)", r->file, r->line[i], pl->m->name, src->x, src->y);
-	src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
+	/* the magnitude of the flux the model left; the row's own where it
+	 * left the flux as it was (source_fill: no round trip) */
+	if (src->flux != flux)
+		mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
+	src->mag = mag;
 	src->psf_class = source_psf_class(g, src->mag);
 	src->param = param + pl->m->ncolumns;
 	return 0;

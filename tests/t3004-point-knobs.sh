@@ -261,14 +261,18 @@ sys.exit(not (np.array_equal(a[box], b[box]) and
 # A row's ePSF class follows its catalog magnitude exactly: a star at
 # --bright-limit is drawn in the bright class, one an ulp fainter in the
 # faint one, on SCAs where the flux's round trip (10^(-0.4 m) and back
-# through log10) came back an ulp brighter (1, 4).
+# through log10) came back an ulp brighter (1, 4); also a variable star of
+# no amplitude, which the point model draws (its flux left as it was).
 printf 'id,x,y,mag\n1,2000,2000,14.000000000000002\n' > ulp.csv
 printf 'id,x,y,mag\n1,2000,2000,14\n' > at.csv
+printf 'id,x,y,mag,type,period,amplitude,phase,shape\n1,2000,2000,14.000000000000002,variable,1,0,0,0\n' > vulp.csv
+printf 'id,x,y,mag,type,period,amplitude,phase,shape\n1,2000,2000,14,variable,1,0,0,0\n' > vat.csv
 test_expect_success 'the ePSF class is decided from the row magnitude itself' '
 	for s in 1 4; do
-		for c in ulp at; do
+		for c in ulp at vulp vat; do
 			for l in 13.9999 14 14.0001; do
-				"$WFS" --filter F146 --sca $s --set psf-extent=stips --bright-limit $l \
+				"$WFS" --filter F146 --sca $s --ra 268 --dec -29 --date 61500 \
+					--set psf-extent=stips --bright-limit $l \
 					-o "cl-$s-$c-$l.fits" $c.csv || return 1
 			done
 		done &&
@@ -279,10 +283,11 @@ from astropy.io import fits
 d = lambda c, l: fits.getdata(\"cl-$s-%s-%s.fits\" % (c, l), 1)
 same = lambda a, b: np.array_equal(d(*a), d(*b))
 # an ulp fainter: the faint class at the limit; at it: the bright one
-sys.exit(not (same((\"ulp\", \"14\"), (\"ulp\", \"13.9999\")) and
-              not same((\"ulp\", \"14\"), (\"ulp\", \"14.0001\")) and
-              same((\"at\", \"14\"), (\"at\", \"14.0001\")) and
-              not same((\"at\", \"14\"), (\"at\", \"13.9999\"))))
+sys.exit(not all(same((u, \"14\"), (u, \"13.9999\")) and
+                 not same((u, \"14\"), (u, \"14.0001\")) and
+                 same((a, \"14\"), (a, \"14.0001\")) and
+                 not same((a, \"14\"), (a, \"13.9999\"))
+                 for u, a in ((\"ulp\", \"at\"), (\"vulp\", \"vat\"))))
 " || return 1
 	done
 '

@@ -146,7 +146,9 @@ static void geom_of(const struct poly *q, double x, double y, struct geom *g)
 	double fx = tx - basex, fy = ty - basey;
 	long sx = q->centre + basex - 1, sy = q->centre + basey - 1;
 	/* the built-in grids' sampling is a power of two: a shift floors as
-	 * the division does (two divisions were a third of this set-up) */
+	 * the division does (two divisions were a third of this set-up), a
+	 * signed value's shift being arithmetic (checked when built) */
+	_Static_assert((-9L >> 2) == -3L, "arithmetic right shift of a signed long");
 	int k = (o & (o - 1)) == 0 ? __builtin_ctz((unsigned)o) : -1;
 	long mx0 = k >= 0 ? sx >> k : floordiv(sx, o), rx0 = sx - o * mx0;
 	long my0 = k >= 0 ? sy >> k : floordiv(sy, o), ry0 = sy - o * my0;

@@ -1,7 +1,5 @@
 /* asdf.c - writing ASDF files: the tree through libfyaml, the blocks at
  * their offsets; see asdf.h. */
-/* sync_file_range(), where Linux has it */
-#define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
 #include <libfyaml.h>
@@ -458,24 +456,17 @@ static void compress_chunk(void *arg, int worker, size_t task)
 	b->bad[k] = 0;
 }
 
-/* The n bytes at off of an output's temporary, in their final place, handed
- * to the kernel to write back now (Linux's sync_file_range; advice, its
- * failure ignored) when there are at least ASDF_WBACK of them: the fsync()
- * that ends the file then waits for the last blocks only (fitsout.c does
- * the same).  Not for the staged copies compressed later, which the file
- * never keeps. */
+/* The n bytes at off of a temporary, in their final place, handed to the
+ * kernel to write back now (tempfile_writeback) when there are at least
+ * ASDF_WBACK of them: the fsync() that ends the file then waits for the
+ * last blocks only (fitsout.c does the same).  Not the staged copies of
+ * blocks compressed later, which the file does not keep. */
 #define ASDF_WBACK (1u << 20)
 
 static void writeback(int fd, uint64_t off, uint64_t n)
 {
-#ifdef SYNC_FILE_RANGE_WRITE
 	if (n >= ASDF_WBACK)
-		(void)sync_file_range(fd, (off64_t)off, (off64_t)n, SYNC_FILE_RANGE_WRITE);
-#else
-	(void)fd;
-	(void)off;
-	(void)n;
-#endif
+		tempfile_writeback(fd, (long long)off, (long long)(off + n));
 }
 
 int asdf_fd_write(int fd, const void *p, size_t n, uint64_t off, const char *path,

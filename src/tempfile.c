@@ -2,6 +2,10 @@
  * tempfile.c - the temporary file beside an output, the registry of those
  * that exist and the fatal-signal policy; see tempfile.h.
  */
+/* sync_file_range(), where Linux has it */
+#ifndef _GNU_SOURCE
+#define _GNU_SOURCE
+#endif
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -346,4 +350,23 @@ long long tempfile_spool_stdin(struct err *e)
 fail:
 	close(fd);
 	return -1;
+}
+
+long long tempfile_writeback(int fd, long long lo, long long hi)
+{
+	static long page;
+	long long a, b;
+
+	if (!page)
+		page = sysconf(_SC_PAGESIZE) > 0 ? sysconf(_SC_PAGESIZE) : 4096;
+	a = lo / page * page;
+	b = hi / page * page;
+	if (fd < 0 || lo < 0 || b <= a)
+		return lo;
+#ifdef SYNC_FILE_RANGE_WRITE
+	(void)sync_file_range(fd, (off_t)a, (off_t)(b - a), SYNC_FILE_RANGE_WRITE);
+	return b;
+#else
+	return lo;
+#endif
 }

@@ -109,4 +109,17 @@ int tempfile_scratch(const char *what, const char *stem, char *name, size_t cap,
  */
 long long tempfile_spool_stdin(struct err *e);
 
+/*
+ * Ask the kernel to start writing back the pages of fd from the one that
+ * holds byte lo up to, but not including, the one that holds byte hi
+ * (the next write may still change that page, and on a file system that
+ * keeps pages stable under writeback would wait for it): an output's
+ * temporary, written in order, so that the fsync() that ends it waits for
+ * its last pages only.  Linux's sync_file_range(SYNC_FILE_RANGE_WRITE):
+ * advice, its failure ignored, nothing where it is absent.  Returns the
+ * offset up to which writing back was asked (the start of hi's page), or
+ * lo when nothing was.
+ */
+long long tempfile_writeback(int fd, long long lo, long long hi);
+
 #endif

@@ -263,10 +263,15 @@ static int set_setting(const struct opt_arg *a, struct err *e)
 static void warn_unread(const struct scene_cmd *c)
 {
 	for (int i = 0; i < c->nset; i++)
-		if (c->given[i] && !setting_was_read(i))
+		if (c->given[i] && !setting_was_read(i)) {
+			size_t n = (size_t)(strchr(c->settings[i], '=') - c->settings[i]);
+			const char *near = setting_nearest(c->settings[i], n);
+
 			fprintf(stderr, "wfiscene: warning: --set %.*s: nothing in this run "
-				"reads it (a model the run did not use, or a misspelt key)\n",
-				(int)(strchr(c->settings[i], '=') - c->settings[i]), c->settings[i]);
+				"reads it (a model the run did not use, or a misspelt key%s%s%s)\n",
+				(int)n, c->settings[i], near ? "; did you mean " : "",
+				near ? near : "", near ? "?" : "");
+		}
 }
 
 /* Options that are shortcuts for --set NAME=VALUE: once the value is

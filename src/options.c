@@ -7,6 +7,7 @@
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -393,6 +394,9 @@ const char *setting_last(const char *const *settings, const char *key)
 	const char *hit = NULL;
 	size_t n = strlen(key);
 
+	/* a key the run asks for is a real one, for a misspelt one's warning */
+	if (settings && settings == watched)
+		setting_declare(key);
 	for (const char *const *kv = settings; kv && *kv; kv++)
 		if (!strncmp(*kv, key, n) && (*kv)[n] == '=') {
 			hit = *kv + n + 1;
@@ -401,4 +405,78 @@ const char *setting_last(const char *const *settings, const char *key)
 						      memory_order_relaxed);
 		}
 	return hit;
+}
+
+/* The keys the run's models declare, for setting_nearest(). */
+static pthread_mutex_t declared_mu = PTHREAD_MUTEX_INITIALIZER;
+static char **declared;
+static int ndeclared, capdeclared;
+
+void setting_declare(const char *key)
+{
+	pthread_mutex_lock(&declared_mu);
+	for (int i = 0; i < ndeclared; i++)
+		if (!strcmp(declared[i], key))
+			goto out;
+	if (ndeclared == capdeclared) {
+		int cap = capdeclared ? 2 * capdeclared : 32;
+		char **d = realloc(declared, (size_t)cap * sizeof(*d));
+
+		if (!d)
+			goto out;       /* only a suggestion is lost */
+		declared = d;
+		capdeclared = cap;
+	}
+	if ((declared[ndeclared] = strdup(key)))
+		ndeclared++;
+out:
+	pthread_mutex_unlock(&declared_mu);
+}
+
+/* The optimal string alignment distance of a (n bytes) and b, or more
+ * than limit when it exceeds it (keys are short: longer ones are not
+ * compared). */
+#define NEAREST_MAX 64
+
+static int edit_distance(const char *a, size_t n, const char *b, int limit)
+{
+	size_t m = strlen(b);
+	int d[NEAREST_MAX + 1][NEAREST_MAX + 1];
+
+	if (n > NEAREST_MAX || m > NEAREST_MAX)
+		return limit + 1;
+	for (size_t i = 0; i <= n; i++)
+		d[i][0] = (int)i;
+	for (size_t j = 0; j <= m; j++)
+		d[0][j] = (int)j;
+	for (size_t i = 1; i <= n; i++)
+		for (size_t j = 1; j <= m; j++) {
+			int c = d[i - 1][j - 1] + (a[i - 1] != b[j - 1]);
+
+			c = d[i - 1][j] + 1 < c ? d[i - 1][j] + 1 : c;
+			c = d[i][j - 1] + 1 < c ? d[i][j - 1] + 1 : c;
+			if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] &&
+			    d[i - 2][j - 2] + 1 < c)
+				c = d[i - 2][j - 2] + 1;
+			d[i][j] = c;
+		}
+	return d[n][m];
+}
+
+const char *setting_nearest(const char *key, size_t len)
+{
+	const char *best = NULL;
+	int bd = 3;
+
+	pthread_mutex_lock(&declared_mu);
+	for (int i = 0; i < ndeclared; i++) {
+		int dist = edit_distance(key, len, declared[i], 2);
+
+		if (dist < bd && 3 * (size_t)dist < len) {
+			bd = dist;
+			best = declared[i];
+		}
+	}
+	pthread_mutex_unlock(&declared_mu);
+	return best;
 }

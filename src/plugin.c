@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "err.h"
+#include "options.h"
 #include "plugin.h"
 
 /* Appends dir to a colon-separated path. */
@@ -400,6 +401,9 @@ int plugins_get(struct plugins *ps, const char *name, struct err *e)
 	pl->m = m;
 	if (read_appended(pl, e) < 0)
 		return -1;
+	/* for the warning that names a misspelt --set key */
+	for (int k = 0; k < pl->nsettings; k++)
+		setting_declare(plugin_setting(pl, k)->key);
 	if (drawn_by && (r = load_drawer(ps, pl, drawn_by, e)) < 0)
 		return r;
 	for (int c = 0; c < m->ncolumns; c++)

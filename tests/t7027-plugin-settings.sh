@@ -110,15 +110,23 @@ test_expect_success 'a model reading a key it neither declares nor model.h lists
 '
 # A --set key that nothing in the run reads (a misspelt key, or a model's
 # setting in a run that does not use the model) changes nothing: the run
-# says so on standard error, and still succeeds.
+# says so on standard error, and still succeeds.  A key within two edits
+# of one the run knows (the host's or a model's) is suggested; a setting of
+# a model the run did not load, or a key like no other, is not.
 test_expect_success 'a --set nothing in the run reads is named in a warning' '
 	printf "x,y,mag\n100.5,100.5,20\n" > one.csv &&
 	printf "x,y,mag,type,n,re,phi,ratio\n100.5,100.5,20,sersic,1,3,0,0.5\n" > gal.csv &&
 	"$WFS" --filter F158 --flux-unit abmag --rows 90-110 --set psf-halo-radus=64 \
-		--set psf-core=3 --set sersic-trunc=0.01 -o a.fits one.csv 2> err &&
+		--set psf-core=3 --set sersic-trunc=0.01 --set psf-cor=2 --set pfs-wing=4 \
+		--set xyz=1 -o a.fits one.csv 2> err &&
 	test_grep "warning: --set psf-halo-radus: nothing in this run reads it" err &&
+	test_grep "psf-halo-radus: .*misspelt key; did you mean psf-halo-radius?)\$" err &&
+	test_grep "psf-cor: .*misspelt key; did you mean psf-core?)\$" err &&
+	test_grep "pfs-wing: .*misspelt key; did you mean psf-wing?)\$" err &&
 	test_grep "warning: --set sersic-trunc: nothing in this run reads it" err &&
-	! grep -q "psf-core" err &&
+	test_grep "sersic-trunc: .*misspelt key)\$" err &&
+	test_grep "xyz: .*misspelt key)\$" err &&
+	! grep -q "psf-core:" err &&
 	"$WFS" --filter F158 --flux-unit abmag --rows 90-110 --set sersic-trunc=0.01 \
 		-o b.fits gal.csv 2> err &&
 	! grep -q "warning" err &&

@@ -394,9 +394,22 @@ const char *setting_last(const char *const *settings, const char *key)
 	const char *hit = NULL;
 	size_t n = strlen(key);
 
-	/* a key the run asks for is a real one, for a misspelt one's warning */
-	if (settings && settings == watched)
-		setting_declare(key);
+	/* a key the run asks for is a real one, for a misspelt one's warning:
+	 * declared once per thread and key, by the key's address (a model
+	 * may ask in prepare(), row after row, on several threads; a key
+	 * whose address changes is only declared again) */
+	if (settings && settings == watched) {
+		static _Thread_local const char *seen[32];
+		static _Thread_local unsigned nseen;
+		unsigned k = 0;
+
+		while (k < nseen && k < 32 && seen[k] != key)
+			k++;
+		if (k == nseen || k == 32) {
+			setting_declare(key);
+			seen[nseen++ % 32] = key;
+		}
+	}
 	for (const char *const *kv = settings; kv && *kv; kv++)
 		if (!strncmp(*kv, key, n) && (*kv)[n] == '=') {
 			hit = *kv + n + 1;
@@ -433,18 +446,17 @@ out:
 	pthread_mutex_unlock(&declared_mu);
 }
 
-/* The optimal string alignment distance of a (n bytes) and b, or more
- * than limit when it exceeds it (keys are short: longer ones are not
- * compared). */
+/* The optimal string alignment distance of a (n bytes) and b (keys are
+ * short: longer ones count as far). */
 #define NEAREST_MAX 64
 
-static int edit_distance(const char *a, size_t n, const char *b, int limit)
+static int edit_distance(const char *a, size_t n, const char *b)
 {
 	size_t m = strlen(b);
 	int d[NEAREST_MAX + 1][NEAREST_MAX + 1];
 
 	if (n > NEAREST_MAX || m > NEAREST_MAX)
-		return limit + 1;
+		return NEAREST_MAX + 1;
 	for (size_t i = 0; i <= n; i++)
 		d[i][0] = (int)i;
 	for (size_t j = 0; j <= m; j++)
@@ -469,10 +481,14 @@ const char *setting_nearest(const char *key, size_t len)
 	int bd = 3;
 
 	pthread_mutex_lock(&declared_mu);
+	/* not the key itself (a model may declare a key it did not read in
+	 * this run); of equal distances the first in strcmp order, so that
+	 * the order the keys were met in does not matter */
 	for (int i = 0; i < ndeclared; i++) {
-		int dist = edit_distance(key, len, declared[i], 2);
+		int dist = edit_distance(key, len, declared[i]);
 
-		if (dist < bd && 3 * (size_t)dist < len) {
+		if (dist > 0 && 3 * (size_t)dist < len &&
+		    (dist < bd || (dist == bd && strcmp(declared[i], best) < 0))) {
 			bd = dist;
 			best = declared[i];
 		}

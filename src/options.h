@@ -135,11 +135,12 @@ void setting_watch(const char *const *settings);
 int setting_was_read(int i);
 /* A key the run knows, kept for setting_nearest(): one a model of the run
  * declares (wfs_model.settings), or any setting_last() asks the watched
- * list for; any thread. */
+ * list for (once per thread and key); any thread. */
 void setting_declare(const char *key);
-/* The declared key nearest key, for a warning's "did you mean": at most
- * two edits away (an insertion, deletion, change, or swap of neighbours)
- * and fewer than a third of its length; NULL when none is. */
+/* The declared key nearest key (len bytes), for a warning's "did you
+ * mean": one to two edits away (an insertion, deletion, change, or swap of
+ * neighbours) and fewer than a third of its length, the first in strcmp
+ * order of those nearest; NULL when none is. */
 const char *setting_nearest(const char *key, size_t len);
 int opt_parse_ll(const struct opt_arg *a, long long *out, struct err *e);
 int opt_parse_choice(const struct opt_arg *a, struct err *e);

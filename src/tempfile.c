@@ -355,9 +355,11 @@ fail:
 long long tempfile_writeback(int fd, long long lo, long long hi)
 {
 	/* (no cached copy: any thread may ask, and libc answers from memory) */
-	long page = sysconf(_SC_PAGESIZE) > 0 ? sysconf(_SC_PAGESIZE) : 4096;
+	long page = sysconf(_SC_PAGESIZE);
 	long long a, b;
 
+	if (page <= 0)
+		page = 4096;
 	a = lo / page * page;
 	b = hi / page * page;
 	if (fd < 0 || lo < 0 || b <= a)

@@ -112,7 +112,9 @@ test_expect_success 'a model reading a key it neither declares nor model.h lists
 # setting in a run that does not use the model) changes nothing: the run
 # says so on standard error, and still succeeds.  A key within two edits
 # of one the run knows (the host's or a model's) is suggested; a setting of
-# a model the run did not load, or a key like no other, is not.
+# a model the run did not load, or a key like no other, is not.  plaecd is
+# one swap from placed but two plain edits, which its six letters would
+# not allow; pnt is two edits from point, too many for three letters.
 test_expect_success 'a --set nothing in the run reads is named in a warning' '
 	printf "x,y,mag\n100.5,100.5,20\n" > one.csv &&
 	printf "x,y,mag,type,n,re,phi,ratio\n100.5,100.5,20,sersic,1,3,0,0.5\n" > gal.csv &&
@@ -127,6 +129,10 @@ test_expect_success 'a --set nothing in the run reads is named in a warning' '
 	test_grep "sersic-trunc: .*misspelt key)\$" err &&
 	test_grep "xyz: .*misspelt key)\$" err &&
 	! grep -q "psf-core:" err &&
+	"$WFS" --filter F158 --flux-unit abmag --rows 90-110 --placed p2.csv \
+		--set plaecd=1 --set pnt=1 -o d.fits one.csv 2> err &&
+	test_grep "plaecd: .*misspelt key; did you mean placed?)\$" err &&
+	test_grep "pnt: .*misspelt key)\$" err &&
 	"$WFS" --filter F158 --flux-unit abmag --rows 90-110 --set sersic-trunc=0.01 \
 		-o b.fits gal.csv 2> err &&
 	! grep -q "warning" err &&

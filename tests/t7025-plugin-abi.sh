@@ -163,4 +163,15 @@ test_expect_success '... and without the declarations, no type and no shape of r
 		--set placed=romanisim --placed bare.ecsv -o bare.fits shape-ser.csv &&
 	test "$(placed_rows bare.ecsv)" = "sersic-quick,-1,0,0,1"
 '
+# A key a model declares is known to the warning about --set keys that
+# nothing reads even when the model does not read it: a misspelling of it
+# is answered with it, and the key itself is named without a suggestion.
+test_expect_success 'a declared key the model never reads: suggested, never itself' '
+	mkdir unread && build ../unread/counts counts "$TOP/include" -DCOUNTS_UNREAD &&
+	printf "x,y,sca,flux,type\n100,100,1,1,counts\n" > unread.csv &&
+	"$WFS" --filter F158 --sca 1 --plugin-path "$TRASH/unread" --set counts-unred=1 \
+		--set counts-unread=1 -o unread.fits unread.csv 2> err &&
+	test_grep "counts-unred: .*misspelt key; did you mean counts-unread?)\$" err &&
+	test_grep "counts-unread: .*misspelt key)\$" err
+'
 test_done

@@ -15,6 +15,9 @@
  * source (column_roles) and its rows romanisim's SER (roman_type), so that
  * a test can see the host write them in romanisim's convention by what
  * the model declares, whatever the columns' names.
+ *
+ * With COUNTS_UNREAD it also declares a setting it never reads,
+ * counts-unread, for the warning about --set keys that nothing reads.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -123,6 +126,9 @@ static int reach(void *state, const struct wfs_source *src, double *pixels)
 
 static const struct wfs_setting settings[] = {
 	{ "counts-gain", "1", "number", "factor on every source's flux" },
+#ifdef COUNTS_UNREAD
+	{ "counts-unread", "0", "number", "declared, never read" },
+#endif
 };
 #endif
 
@@ -142,7 +148,7 @@ static const struct wfs_model model = {
 	.column_size = sizeof(struct wfs_column),
 	.setting_size = sizeof(struct wfs_setting),
 	.settings = settings,
-	.nsettings = 1,
+	.nsettings = sizeof(settings) / sizeof(settings[0]),
 	.reach = reach,
 #endif
 #ifdef COUNTS_SHAPE

@@ -420,7 +420,7 @@ const char *setting_last(const char *const *settings, const char *key)
 	return hit;
 }
 
-/* The keys the run's models declare, for setting_nearest(). */
+/* The keys the run knows (setting_declare), for setting_nearest(). */
 static pthread_mutex_t declared_mu = PTHREAD_MUTEX_INITIALIZER;
 static char **declared;
 static int ndeclared, capdeclared;

@@ -183,9 +183,7 @@ static int source_at(struct engine *g, const struct rows *r, size_t i, int m,
 			       "(%g, %g)", r->file, r->line[i], pl->m->name, src->x, src->y);
 	/* the magnitude of the flux the model left; the row's own where it
 	 * left the flux as it was (source_fill: no round trip) */
-	if (src->flux != flux)
-		mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(src->flux);
-	src->mag = mag;
+	src->mag = src->flux != flux ? source_mag(g, sca, src->flux) : mag;
 	src->psf_class = source_psf_class(g, src->mag);
 	src->param = param + pl->m->ncolumns;
 	return 0;
@@ -1106,8 +1104,11 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 
 		if (keep(g, b, r, k, &kept) < 0)
 			goto out;
-		if (kept && n++ != k)
-			b->p[n - 1] = b->p[k];
+		if (!kept)
+			continue;
+		if (n != k)
+			b->p[n] = b->p[k];
+		n++;
 	}
 	b->n = n;
 	rc = 0;

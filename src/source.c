@@ -43,6 +43,11 @@ static double counts_on(const struct engine *g, const struct rows *r, size_t i, 
 	}
 }
 
+double source_mag(const struct engine *g, int sca, double flux)
+{
+	return filter_zeropoint(g->o->filter, sca, g->o->zp_stips) - 2.5 * log10(flux);
+}
+
 /* Bright sources get the bigger ePSF boxes; a magnitude equal to a limit
  * counts as the brighter class (STIPS drops such sources). */
 int source_psf_class(const struct engine *g, double mag)
@@ -109,8 +114,7 @@ int source_fill(const struct engine *g, const struct rows *r, size_t i, const do
 	src->sca = sca;
 	src->flux = counts_on(g, r, i, sca, k, &src->mag);
 	if (isnan(src->mag))
-		src->mag = filter_zeropoint(g->o->filter, sca, g->o->zp_stips) -
-			   2.5 * log10(src->flux);
+		src->mag = source_mag(g, sca, src->flux);
 	src->psf_class = source_psf_class(g, src->mag);
 	src->id = r->id[i];
 	src->param = param;

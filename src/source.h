@@ -28,4 +28,8 @@ int source_flux_check(const struct engine *g, const struct rows *r, size_t i,
  * drops such sources). */
 int source_psf_class(const struct engine *g, double mag);
 
+/* The AB magnitude of flux counts/s on SCA sca, through the zeropoint the
+ * run uses. */
+double source_mag(const struct engine *g, int sca, double flux);
+
 #endif

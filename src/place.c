@@ -1104,11 +1104,9 @@ int place_batch(struct engine *g, const struct rows *r, struct batch *b)
 
 		if (keep(g, b, r, k, &kept) < 0)
 			goto out;
-		if (!kept)
-			continue;
-		if (n != k)
+		if (kept && n != k)
 			b->p[n] = b->p[k];
-		n++;
+		n += kept;
 	}
 	b->n = n;
 	rc = 0;

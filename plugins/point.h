@@ -184,13 +184,18 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
  * under[k - kmin] is the light (phase 0) of the
  * offsets within the disc and outside the box of half-width hb whose step
  * is below k: what a source of level step k leaves to the diffuse grid
- * there. */
+ * there.  pl holds the array's samples by phase: plane r (of h->over)
+ * row w column m is sample (w, over m + r), each plane n rows of nh, so
+ * that a pixel's samples of one sample row lie in two planes at the same
+ * column and a row of pixels reads each plane contiguously. */
 struct near {
 	int16_t *st, *smax, *rs;
 	int32_t *ri;
 	int rc, side, nseg, hb;
 	int kmin, kmax;
 	double *under;          /* steps kmin to kmax + 1 */
+	float *pl;
+	long nh;
 };
 
 /* A halo and what is derived from it (point_halo.c): one per SCA of the

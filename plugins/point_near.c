@@ -77,6 +77,23 @@ static int near_segments(struct near *n)
 	return 0;
 }
 
+/* The array's samples by phase (point.h, struct near: pl), each plane's
+ * rows padded with 16 zeros (a masked AVX-512 step starting near a row's
+ * end spans them, its lanes beyond the run unread). */
+static int near_planes(struct near *n, const struct halo *h)
+{
+	long o = h->over, nh = (h->n + o - 1) / o + 16;
+
+	if (!(n->pl = calloc((size_t)(o * h->n * nh), sizeof(*n->pl))))
+		return -1;
+	n->nh = nh;
+	for (long r = 0; r < o; r++)
+		for (long w = 0; w < h->n; w++)
+			for (long m = 0; o * m + r < h->n; m++)
+				n->pl[(r * h->n + w) * nh + m] = h->a[w * h->n + o * m + r];
+	return 0;
+}
+
 /* Set up n from halo h and the box half-width hb: 0, or -1 when out of
  * memory. */
 static int near_setup(struct near *n, const struct halo *h, int hb)
@@ -90,10 +107,10 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 	n->hb = hb;
 	n->kmin = INT_MAX;
 	n->kmax = INT_MIN;
-	/* the AVX-512 loop reads 8 steps from any pixel of a row, up to 7
-	 * past its end: into the next row, or into these 8 past the last
+	/* the AVX-512 loop reads 16 steps from any pixel of a row, up to 15
+	 * past its end: into the next row, or into these 16 past the last
 	 * (whose offsets, beyond the disc, have no step anyway) */
-	if (!(n->st = calloc((size_t)side * side + 8, sizeof(*n->st))) ||
+	if (!(n->st = calloc((size_t)side * side + 16, sizeof(*n->st))) ||
 	    !(n->smax = malloc((size_t)side * n->nseg * sizeof(*n->smax))))
 		return -1;
 	for (int b = 0; b < side * n->nseg; b++)
@@ -114,7 +131,7 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 		}
 	if (n->kmin > n->kmax)
 		n->kmin = n->kmax = 0;
-	if (near_segments(n) < 0)
+	if (near_segments(n) < 0 || near_planes(n, h) < 0)
 		return -1;
 	if (!(n->under = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))) ||
 	    !(bin = calloc((size_t)(n->kmax - n->kmin + 2), sizeof(double))))
@@ -141,6 +158,7 @@ void near_free(struct near *n)
 	free(n->ri);
 	free(n->rs);
 	free(n->under);
+	free(n->pl);
 	memset(n, 0, sizeof(*n));
 }
 
@@ -177,21 +195,27 @@ const struct near *near_of(struct point *p, struct hslot *s, int hb)
 }
 
 /* near_render's pixels i0 + dx of window row `row` for dx in [a, b],
- * those whose step (st, indexed by dx) reaches k. */
+ * those whose step (st, indexed by dx) reaches k.  Pixel dx's four
+ * samples are p0[dx], p1[dx] (its sample row) and p0[nh + dx], p1[nh +
+ * dx] (the next), from the phase planes (struct near: pl). */
 struct near_row {
 	const struct halo *h;
-	double flux, x, dy, rin2, w[4];
-	long i0, iu, iv;            /* iv: the row's first sample row */
+	const float *p0, *p1;
+	long nh;
+	float w[4];
+	double flux, x, dy, rin2;
+	long i0;
 };
 
 /* The bilinear value of pixel dx of row q, as every path below computes
- * it (the same products and sums in double). */
-static inline double near_value(const struct near_row *q, long dx)
+ * it (the same products and fused sums in float). */
+static inline float near_value(const struct near_row *q, long dx)
 {
-	const struct halo *h = q->h;
-	const float *s = h->a + q->iv * h->n + q->iu + h->over * dx;
+	float v = q->w[0] * q->p0[dx];
 
-	return q->w[0] * s[0] + q->w[1] * s[1] + q->w[2] * s[h->n] + q->w[3] * s[h->n + 1];
+	v = fmaf(q->w[1], q->p1[dx], v);
+	v = fmaf(q->w[2], q->p0[q->nh + dx], v);
+	return fmaf(q->w[3], q->p1[q->nh + dx], v);
 }
 
 /* Pixels dx in [a, b] of row q, every one in the array's plain part: each
@@ -200,107 +224,78 @@ static inline void near_span_c(const struct near_row *q, const int16_t *st, int 
 			       long b, double *row)
 {
 	for (long dx = a; dx <= b; dx++) {
-		double v = near_value(q, dx);
+		float v = near_value(q, dx);
 
-		row[dx] += st[dx] >= k ? v : 0;
+		row[dx] += st[dx] >= k ? (double)v : 0;
 	}
 }
 
 #ifdef SIMD_X86
-/*
- * near_span_c four pixels a step in AVX2, in the same order of products
- * and sums, so the same bits.  At the built-in two samples a pixel, four
- * pixels' samples are eight consecutive floats of each sample row: one
- * load a row, its even and odd samples sorted into halves; at other
- * samplings each pixel's two samples are one 8-byte load.
- */
-__attribute__((target("avx2"))) static inline void
+/* near_span_c eight pixels a step in AVX2 and FMA, the same operations in
+ * the same order, so the same bits. */
+__attribute__((target("avx2,fma"))) static inline void
 near_span_avx2(const struct near_row *q, const int16_t *st, int k, long a, long b, double *row)
 {
-	const struct halo *h = q->h;
-	const float *s0 = h->a + q->iv * h->n + q->iu;
-	long o = h->over, n = h->n, dx;
-	__m256d w0 = _mm256_set1_pd(q->w[0]), w1 = _mm256_set1_pd(q->w[1]);
-	__m256d w2 = _mm256_set1_pd(q->w[2]), w3 = _mm256_set1_pd(q->w[3]);
-	__m256i km = _mm256_set1_epi64x((long long)k - 1);
-	__m256i eo = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+	const float *p0 = q->p0, *p1 = q->p1, *p2 = q->p0 + q->nh, *p3 = q->p1 + q->nh;
+	__m256 w0 = _mm256_set1_ps(q->w[0]), w1 = _mm256_set1_ps(q->w[1]);
+	__m256 w2 = _mm256_set1_ps(q->w[2]), w3 = _mm256_set1_ps(q->w[3]);
+	__m256i km = _mm256_set1_epi32(k - 1);
+	long dx;
 
-	for (dx = a; dx + 3 <= b; dx += 4) {
-		__m128 e0, o0, e1, o1;
-		__m256i sv = _mm256_cvtepi16_epi64(_mm_loadl_epi64((const __m128i *)(st + dx)));
-		__m256d in = _mm256_castsi256_pd(_mm256_cmpgt_epi64(sv, km)), v;
+	for (dx = a; dx + 7 <= b; dx += 8) {
+		__m256i sv = _mm256_cvtepi16_epi32(_mm_loadu_si128((const __m128i *)(st + dx)));
+		__m256 v = _mm256_mul_ps(w0, _mm256_loadu_ps(p0 + dx));
 
-		if (o == 2) {
-			__m256 u = _mm256_permutevar8x32_ps(_mm256_loadu_ps(s0 + 2 * dx), eo);
-			__m256 l = _mm256_permutevar8x32_ps(_mm256_loadu_ps(s0 + 2 * dx + n), eo);
-
-			e0 = _mm256_castps256_ps128(u);
-			o0 = _mm256_extractf128_ps(u, 1);
-			e1 = _mm256_castps256_ps128(l);
-			o1 = _mm256_extractf128_ps(l, 1);
-		} else {
-			const float *p0 = s0 + o * dx, *p1 = p0 + o, *p2 = p1 + o, *p3 = p2 + o;
-			__m128 a01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p0),
-						  (const __m64 *)p1);
-			__m128 a23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p2),
-						  (const __m64 *)p3);
-			__m128 b01 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p0 + n)),
-						  (const __m64 *)(p1 + n));
-			__m128 b23 = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(p2 + n)),
-						  (const __m64 *)(p3 + n));
-
-			e0 = _mm_shuffle_ps(a01, a23, 0x88);
-			o0 = _mm_shuffle_ps(a01, a23, 0xdd);
-			e1 = _mm_shuffle_ps(b01, b23, 0x88);
-			o1 = _mm_shuffle_ps(b01, b23, 0xdd);
-		}
-		v = _mm256_mul_pd(w0, _mm256_cvtps_pd(e0));
-		v = _mm256_add_pd(v, _mm256_mul_pd(w1, _mm256_cvtps_pd(o0)));
-		v = _mm256_add_pd(v, _mm256_mul_pd(w2, _mm256_cvtps_pd(e1)));
-		v = _mm256_add_pd(v, _mm256_mul_pd(w3, _mm256_cvtps_pd(o1)));
+		v = _mm256_fmadd_ps(w1, _mm256_loadu_ps(p1 + dx), v);
+		v = _mm256_fmadd_ps(w2, _mm256_loadu_ps(p2 + dx), v);
+		v = _mm256_fmadd_ps(w3, _mm256_loadu_ps(p3 + dx), v);
+		v = _mm256_and_ps(v, _mm256_castsi256_ps(_mm256_cmpgt_epi32(sv, km)));
 		_mm256_storeu_pd(row + dx, _mm256_add_pd(_mm256_loadu_pd(row + dx),
-							 _mm256_and_pd(v, in)));
+							 _mm256_cvtps_pd(_mm256_castps256_ps128(v))));
+		_mm256_storeu_pd(row + dx + 4, _mm256_add_pd(_mm256_loadu_pd(row + dx + 4),
+							     _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1))));
 	}
 	near_span_c(q, st, k, dx, b, row);
 }
 
-/* near_span_c eight pixels a step in AVX-512 F, at two samples a pixel
- * (near_span_avx2 at others), the same bits, the last step masked. */
-__attribute__((target("avx512f,avx2"))) static inline void
+/* near_span_c sixteen pixels a step in AVX-512 F, the same bits; the last
+ * step masked (its steps read unmasked, up to 15 past b: see near_setup;
+ * its samples masked, within the planes' padding). */
+__attribute__((target("avx512f,avx2,fma"))) static inline void
 near_span_avx512(const struct near_row *q, const int16_t *st, int k, long a, long b, double *row)
 {
-	const struct halo *h = q->h;
-	const float *s0 = h->a + q->iv * h->n + q->iu;
-	long n = h->n, dx;
-	__m512d w0 = _mm512_set1_pd(q->w[0]), w1 = _mm512_set1_pd(q->w[1]);
-	__m512d w2 = _mm512_set1_pd(q->w[2]), w3 = _mm512_set1_pd(q->w[3]);
-	__m512i km = _mm512_set1_epi64((long long)k - 1);
-	__m512i eo = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15);
+	const float *p0 = q->p0, *p1 = q->p1, *p2 = q->p0 + q->nh, *p3 = q->p1 + q->nh;
+	__m512 w0 = _mm512_set1_ps(q->w[0]), w1 = _mm512_set1_ps(q->w[1]);
+	__m512 w2 = _mm512_set1_ps(q->w[2]), w3 = _mm512_set1_ps(q->w[3]);
+	__m512i km = _mm512_set1_epi32(k - 1);
 
-	if (h->over != 2) {
-		near_span_avx2(q, st, k, a, b, row);
-		return;
-	}
-	for (dx = a; dx <= b; dx += 8) {
-		/* the last step's pixels beyond b masked off (its steps are
-		 * read unmasked, up to 7 past b: see near_setup) */
-		__mmask8 tm = b - dx >= 7 ? 0xff : (__mmask8)((1u << (b - dx + 1)) - 1);
-		__mmask16 tf = b - dx >= 7 ? 0xffff : (__mmask16)((1u << 2 * (b - dx + 1)) - 1);
-		__m512i sv = _mm512_cvtepi16_epi64(_mm_loadu_si128((const __m128i *)(st + dx)));
-		__mmask8 in = _mm512_mask_cmpgt_epi64_mask(tm, sv, km);
-		/* even samples (s[0], s[n]) in the low halves, odd in the high */
-		__m512 u = _mm512_permutexvar_ps(eo, _mm512_maskz_loadu_ps(tf, s0 + 2 * dx));
-		__m512 l = _mm512_permutexvar_ps(eo, _mm512_maskz_loadu_ps(tf, s0 + 2 * dx + n));
-		__m256 uo = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(u), 1));
-		__m256 lo = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(l), 1));
-		__m512d v = _mm512_mul_pd(w0, _mm512_cvtps_pd(_mm512_castps512_ps256(u)));
+	for (long dx = a; dx <= b; dx += 16) {
+		__mmask16 tm = b - dx >= 15 ? 0xffff : (__mmask16)((1u << (b - dx + 1)) - 1);
+		__m512i sv = _mm512_cvtepi16_epi32(_mm256_loadu_si256((const __m256i *)(st + dx)));
+		__mmask16 in = _mm512_mask_cmpgt_epi32_mask(tm, sv, km);
+		__m512 v = _mm512_mul_ps(w0, _mm512_maskz_loadu_ps(tm, p0 + dx));
+		__m256 hi;
 
-		v = _mm512_add_pd(v, _mm512_mul_pd(w1, _mm512_cvtps_pd(uo)));
-		v = _mm512_add_pd(v, _mm512_mul_pd(w2, _mm512_cvtps_pd(_mm512_castps512_ps256(l))));
-		v = _mm512_add_pd(v, _mm512_mul_pd(w3, _mm512_cvtps_pd(lo)));
-		_mm512_mask_storeu_pd(row + dx, tm,
-				      _mm512_add_pd(_mm512_maskz_loadu_pd(tm, row + dx),
-						    _mm512_maskz_mov_pd(in, v)));
+		v = _mm512_fmadd_ps(w1, _mm512_maskz_loadu_ps(tm, p1 + dx), v);
+		v = _mm512_fmadd_ps(w2, _mm512_maskz_loadu_ps(tm, p2 + dx), v);
+		v = _mm512_fmadd_ps(w3, _mm512_maskz_loadu_ps(tm, p3 + dx), v);
+		v = _mm512_maskz_mov_ps(in, v);
+		hi = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(v), 1));
+		if (tm == 0xffff) {
+			_mm512_storeu_pd(row + dx, _mm512_add_pd(_mm512_loadu_pd(row + dx),
+								 _mm512_cvtps_pd(_mm512_castps512_ps256(v))));
+			_mm512_storeu_pd(row + dx + 8, _mm512_add_pd(_mm512_loadu_pd(row + dx + 8),
+								     _mm512_cvtps_pd(hi)));
+		} else {
+			__mmask8 m0 = (__mmask8)tm, m1 = (__mmask8)(tm >> 8);
+
+			_mm512_mask_storeu_pd(row + dx, m0, _mm512_add_pd(
+				_mm512_maskz_loadu_pd(m0, row + dx),
+				_mm512_cvtps_pd(_mm512_castps512_ps256(v))));
+			if (m1)
+				_mm512_mask_storeu_pd(row + dx + 8, m1, _mm512_add_pd(
+					_mm512_maskz_loadu_pd(m1, row + dx + 8), _mm512_cvtps_pd(hi)));
+		}
 	}
 }
 #endif
@@ -314,7 +309,7 @@ static inline void near_run(const struct near_row *q, const int16_t *st, int k, 
 
 	if (xa * xa + q->dy * q->dy < q->rin2 && xb * xb + q->dy * q->dy < q->rin2) {
 #ifdef SIMD_X86
-		if (simd_flags() & SIMD_AVX2) {
+		if ((simd_flags() & (SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX2 | SIMD_FMA)) {
 			near_span_avx2(q, st, k, a, b, row);
 			return;
 		}
@@ -328,7 +323,7 @@ static inline void near_run(const struct near_row *q, const int16_t *st, int k, 
 		if (st[dx] < k)
 			continue;
 		if (d2 < q->rin2)
-			row[dx] += near_value(q, dx);
+			row[dx] += (double)near_value(q, dx);
 		else
 			row[dx] += q->flux * halo_value(q->h, ex, q->dy);
 	}
@@ -361,14 +356,14 @@ near_runs(near_span_fn *span, const struct near_row *q, const struct near *n, in
 /* near_runs of a row whose every pixel drawn is in the array's plain
  * part, in AVX-512, AVX2 or plain C (near_plain_choose). */
 #ifdef SIMD_X86
-__attribute__((target("avx512f,avx2"))) static void
+__attribute__((target("avx512f,avx2,fma"))) static void
 near_plain_avx512(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
 		const long *cut, int nc, const int16_t *st, int k, double *row)
 {
 	near_runs(near_span_avx512, q, n, r0, r1, cut, nc, st, k, row);
 }
 
-__attribute__((target("avx2"))) static void
+__attribute__((target("avx2,fma"))) static void
 near_plain_avx2(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
 		const long *cut, int nc, const int16_t *st, int k, double *row)
 {
@@ -389,9 +384,11 @@ typedef void near_plain_fn(const struct near_row *q, const struct near *n, int32
 static near_plain_fn *near_plain_choose(void)
 {
 #ifdef SIMD_X86
-	if (simd_flags() & SIMD_AVX512)
+	int f = simd_flags();
+
+	if ((f & (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA))
 		return near_plain_avx512;
-	if (simd_flags() & SIMD_AVX2)
+	if ((f & (SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX2 | SIMD_FMA))
 		return near_plain_avx2;
 #endif
 	return near_plain_c;
@@ -410,20 +407,33 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 {
 	long i0 = lfloor(x + 0.5), j0 = lfloor(y + 0.5), o = h->over;
 	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
-	struct near_row q = { h, flux, x, 0, (h->R - h->taper) * (h->R - h->taper), { 0 }, i0, 0, 0 };
+	struct near_row q;
 	const int32_t *ri;
+	const float *b0, *b1;
 	double rp, rp2;
-	long jlo, jhi, iv0;
+	long jlo, jhi, iu, iv0, m0, r0;
 	near_plain_fn *plain_rows = near_plain_choose();
 
-	q.iu = lfloor(ux);
-	fu = ux - q.iu;
-	iv0 = q.iv = lfloor(uy);
-	fv = uy - q.iv;
-	q.w[0] = flux * h->s * (1 - fu) * (1 - fv);
-	q.w[1] = flux * h->s * fu * (1 - fv);
-	q.w[2] = flux * h->s * (1 - fu) * fv;
-	q.w[3] = flux * h->s * fu * fv;
+	iu = lfloor(ux);
+	fu = ux - iu;
+	iv0 = lfloor(uy);
+	fv = uy - iv0;
+	q.h = h;
+	q.nh = n->nh;
+	q.flux = flux;
+	q.x = x;
+	q.rin2 = (h->R - h->taper) * (h->R - h->taper);
+	q.i0 = i0;
+	q.w[0] = (float)(flux * h->s * (1 - fu) * (1 - fv));
+	q.w[1] = (float)(flux * h->s * fu * (1 - fv));
+	q.w[2] = (float)(flux * h->s * (1 - fu) * fv);
+	q.w[3] = (float)(flux * h->s * fu * fv);
+	/* sample iu + o dx of a row is plane r0's column m0 + dx; the next
+	 * sample plane r0 + 1's, or plane 0's one column on */
+	m0 = iu / o;
+	r0 = iu - o * m0;
+	b0 = n->pl + r0 * h->n * n->nh + m0;
+	b1 = r0 + 1 < o ? b0 + h->n * n->nh : n->pl + m0 + 1;
 	rm2 = r < h->R ? r * r : h->R * h->R;
 	/* beyond the steepest step nothing is drawn; below the lowest, every
 	 * offset of the disc, as at the lowest (halo_level keeps k above the
@@ -491,7 +501,8 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 		}
 		cut[nc++] = hi;
 		st = n->st + (size_t)(dyo + n->rc) * n->side + n->rc;
-		q.iv = iv0 + o * dyo;
+		q.p0 = b0 + (iv0 + o * dyo) * n->nh;
+		q.p1 = b1 + (iv0 + o * dyo) * n->nh;
 		/* each run's part in each cut range */
 		if (plain)
 			plain_rows(&q, n, r0, r1, cut, nc, st, k, row);

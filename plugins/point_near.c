@@ -14,65 +14,107 @@
 
 #include "point.h"
 
-/* The largest value of pixel offset (dx, dy) from the pixel nearest a
- * source at any phase (|phase| <= 1/2): the samples its bilinear read may
- * take, and in the hand-over to the tail the tail at its corners. */
-static double near_vmax(const struct halo *h, int dx, int dy)
+/* The largest value of each pixel offset dx in [-rc, rc] of row dy from
+ * the pixel nearest a source at any phase (|phase| <= 1/2), into v[dx +
+ * rc]: the largest of the samples its bilinear read may take (the largest
+ * sample times s, as s > 0), and in the hand-over to the tail the tail at
+ * its corners.  m: scratch of side doubles. */
+static void near_vmax_row(const struct halo *h, int rc, int dy, double *v, float *m)
 {
-	int o = h->over, hw = (o + 1) / 2;
-	double v = 0, d = sqrt((double)dx * dx + (double)dy * dy);
+	long o = h->over, hw = (o + 1) / 2, n = h->n, side = 2L * rc + 1;
 
-	for (int j = -hw; j <= hw; j++)
-		for (int i = -hw; i <= hw; i++) {
-			long u = h->c + (long)o * dx + i, w = h->c + (long)o * dy + j;
+	for (long i = 0; i < side; i++)
+		m[i] = -INFINITY;
+	/* the window's sample rows, each row's largest over its columns */
+	for (long j = -hw; j <= hw; j++) {
+		long w = h->c + o * dy + j;
+		const float *row = h->a + w * n;
 
-			if (u >= 0 && w >= 0 && u < h->n && w < h->n && h->a[w * h->n + u] * h->s > v)
-				v = h->a[w * h->n + u] * h->s;
+		if (w < 0 || w >= n)
+			continue;
+		for (long i = 0; i < side; i++) {
+			long u0 = h->c + o * (i - rc) - hw, u1 = u0 + 2 * hw;
+			float x = m[i];
+
+			u0 = u0 < 0 ? 0 : u0;
+			u1 = u1 >= n ? n - 1 : u1;
+			for (long u = u0; u <= u1; u++)
+				x = row[u] > x ? row[u] : x;
+			m[i] = x;
 		}
-	if (d + 0.75 > h->R - h->taper)
-		for (int c = 0; c < 5; c++) {
-			double t = halo_tail(h, dx + (c < 4 ? (c & 1) - 0.5 : 0),
-					     dy + (c < 4 ? (c >> 1) - 0.5 : 0));
+	}
+	for (long i = 0; i < side; i++) {
+		long dx = i - rc;
+		double d = sqrt((double)dx * dx + (double)dy * dy), t;
 
-			v = t > v ? t : v;
-		}
-	return v;
+		v[i] = m[i] * h->s > 0 ? m[i] * h->s : 0;
+		/* (beyond R + 1 the step is not taken: near_setup) */
+		if (d + 0.75 > h->R - h->taper && d < h->R + 1)
+			for (int c = 0; c < 5; c++) {
+				t = halo_tail(h, dx + (c < 4 ? (c & 1) - 0.5 : 0),
+					      dy + (c < 4 ? (c >> 1) - 0.5 : 0));
+				v[i] = t > v[i] ? t : v[i];
+			}
+	}
 }
 
 /* The runs of segments (point.h, struct near: ri, rs) of every level and
- * row, in that order: counted, then written. */
+ * row, in that order, rs grown as they are found. */
 static int near_segments(struct near *n)
 {
-	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side, t = 0;
+	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side, t = 0, cap = 1024;
+	int16_t *lim, *rs;
 
-	if (!(n->ri = malloc((nk * side + 1) * sizeof(*n->ri))))
+	if (!(n->ri = malloc((nk * side + 1) * sizeof(*n->ri))) ||
+	    !(n->rs = malloc(cap * 2 * sizeof(*n->rs))) ||
+	    !(lim = malloc(3 * side * sizeof(*lim))))
 		return -1;
-	for (int pass = 0; pass < 2; pass++) {
-		t = 0;
-		for (size_t L = 0; L < nk; L++)
-			for (size_t row = 0; row < side; row++) {
-				const int16_t *sm = n->smax + row * n->nseg;
-				int k = n->kmin + (int)L;
+	/* each row's largest step (no runs at levels above it), and its first
+	 * and last segment with any step (runs lie between) */
+	for (size_t row = 0; row < side; row++) {
+		const int16_t *sm = n->smax + row * n->nseg;
+		int16_t *l = lim + 3 * row;
 
-				if (pass)
-					n->ri[L * side + row] = (int32_t)t;
-				for (int g = 0; g < n->nseg; g++) {
-					if (sm[g] < k || (g && sm[g - 1] >= k))
-						continue;
-					if (pass) {
-						int e = g;
-
-						while (e + 1 < n->nseg && sm[e + 1] >= k)
-							e++;
-						n->rs[2 * t] = (int16_t)g;
-						n->rs[2 * t + 1] = (int16_t)e;
-					}
-					t++;
-				}
+		l[0] = INT16_MIN;
+		l[1] = (int16_t)n->nseg;
+		l[2] = -1;
+		for (int g = 0; g < n->nseg; g++)
+			if (sm[g] > INT16_MIN) {
+				l[0] = sm[g] > l[0] ? sm[g] : l[0];
+				l[1] = (int16_t)(g < l[1] ? g : l[1]);
+				l[2] = (int16_t)g;
 			}
-		if (!pass && !(n->rs = malloc((t ? t : 1) * 2 * sizeof(*n->rs))))
-			return -1;
 	}
+	for (size_t L = 0; L < nk; L++)
+		for (size_t row = 0; row < side; row++) {
+			const int16_t *sm = n->smax + row * n->nseg, *l = lim + 3 * row;
+			int k = n->kmin + (int)L;
+
+			n->ri[L * side + row] = (int32_t)t;
+			if (l[0] < k)
+				continue;
+			for (int g = l[1]; g <= l[2]; g++) {
+				int e = g;
+
+				if (sm[g] < k)
+					continue;
+				while (e + 1 <= l[2] && sm[e + 1] >= k)
+					e++;
+				if (t == cap) {
+					if (!(rs = realloc(n->rs, 2 * cap * 2 * sizeof(*rs)))) {
+						free(lim);
+						return -1;
+					}
+					n->rs = rs;
+					cap *= 2;
+				}
+				n->rs[2 * t] = (int16_t)g;
+				n->rs[2 * t + 1] = (int16_t)e;
+				t++;
+				g = e + 1;      /* sm[e + 1] < k, or beyond */
+			}
+		}
+	free(lim);
 	n->ri[nk * side] = (int32_t)t;
 	return 0;
 }
@@ -99,7 +141,8 @@ static int near_planes(struct near *n, const struct halo *h)
 static int near_setup(struct near *n, const struct halo *h, int hb)
 {
 	int rc = (int)ceil(h->R) + 1, side = 2 * rc + 1;
-	double *bin = NULL;
+	double *bin = NULL, *vrow;
+	float *mrow;
 
 	n->rc = rc;
 	n->side = side;
@@ -115,12 +158,18 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 		return -1;
 	for (int b = 0; b < side * n->nseg; b++)
 		n->smax[b] = INT16_MIN;
-	for (int dy = -rc; dy <= rc; dy++)
+	if (!(vrow = malloc((size_t)side * sizeof(*vrow))) ||
+	    !(mrow = malloc((size_t)side * sizeof(*mrow)))) {
+		free(vrow);
+		return -1;
+	}
+	for (int dy = -rc; dy <= rc; dy++) {
+		near_vmax_row(h, rc, dy, vrow, mrow);
 		for (int dx = -rc; dx <= rc; dx++) {
-			double vm = 0, d = sqrt((double)dx * dx + (double)dy * dy);
+			double vm = vrow[dx + rc], d = sqrt((double)dx * dx + (double)dy * dy);
 			int st = INT16_MIN, b = (dy + rc) * n->nseg + (dx + rc) / NEAR_SEG;
 
-			if (d < h->R + 1 && (vm = near_vmax(h, dx, dy)) > 0) {
+			if (d < h->R + 1 && vm > 0) {
 				st = (int)floor(FAR_STEPS * log2(vm));
 				st = st <= INT16_MIN ? INT16_MIN + 1 : st;
 				n->kmin = st < n->kmin ? st : n->kmin;
@@ -129,6 +178,9 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 			n->st[(size_t)(dy + rc) * side + dx + rc] = (int16_t)st;
 			n->smax[b] = (int16_t)(st > n->smax[b] ? st : n->smax[b]);
 		}
+	}
+	free(vrow);
+	free(mrow);
 	if (n->kmin > n->kmax)
 		n->kmin = n->kmax = 0;
 	if (near_segments(n) < 0 || near_planes(n, h) < 0)

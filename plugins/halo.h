@@ -30,7 +30,9 @@
 #define WFS_HALO_H
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #define HALO_NT 1024            /* direction bins of the tail */
 #define HALO_BAND 0.6           /* inner edge of the band A(t) is measured in, / R */
@@ -187,8 +189,38 @@ static inline void halo_free(struct halo *h)
 	h->env = h->cum = NULL;
 }
 
+/*
+ * What halo_setup_amplitude() reads of an array's shape alone (n, over
+ * and alpha; R follows from n and over): the same for every array of that
+ * shape, so a caller setting up many halos makes it once (halo_geom_make)
+ * and passes it to each halo_setup().  Per sample row j, the disc is |i -
+ * c| <= ur[j] (ur[j] < 0: none) and the band ub[j] <= |i - c| <= ur[j];
+ * bin[] holds the direction bin of each of the band's samples, in the
+ * order halo_setup_amplitude() visits them; cnt[k] how many fall in bin
+ * k; dpow[u (c + 1) + w] is d^alpha of sample offset (u, w) within the
+ * band.
+ */
+struct halo_geom {
+	int n, over;
+	double alpha;
+	int *ur, *ub;
+	int16_t *bin;
+	double *dpow;
+	int cnt[HALO_NT];
+};
+
+static inline void halo_geom_free(struct halo_geom *g)
+{
+	free(g->ur);
+	free(g->bin);
+	free(g->dpow);
+	g->ur = g->ub = NULL;
+	g->bin = NULL;
+	g->dpow = NULL;
+}
+
 /* The distance of sample offset (u, dy over) from the centre, in pixels,
- * as halo_setup_amplitude() tests it. */
+ * as halo_geom_make() tests it. */
 static inline double halo_dist(int u, double dy, int over)
 {
 	double dx = (double)u / over;
@@ -196,46 +228,59 @@ static inline double halo_dist(int u, double dy, int over)
 	return sqrt(dx * dx + dy * dy);
 }
 
-/* The tail's amplitude A(t): the mean of value * d^alpha over the band's
- * samples in each direction bin, from every sample of the array; *square
- * and *disc get the sample sums of the whole array and of the disc, for
- * the normalisation. */
-static inline void halo_setup_amplitude(struct halo *h, double *square_out, double *disc_out)
+/* The direction bin of sample offset (dx, dy) in pixels: halo_bin() is
+ * within 2.7e-4 bins of atan2's for any direction (its polynomial's
+ * largest error on [0, 1]), so away from a bin's edges its floor is the
+ * same; near them (0.4 % of the samples, the axes and diagonals among
+ * them), atan2 itself (a third of the set-up's time before). */
+static inline int halo_sample_bin(double dx, double dy)
 {
-	const float *a = h->a;
-	int n = h->n, over = h->over, c = h->c;
-	double R = h->R, alpha = h->alpha, square = 0, disc = 0, cnt[HALO_NT] = { 0 };
+	double t = halo_bin(dy, dx), fr = t - floor(t);
+	int k = fr > HALO_BIN_EDGE && fr < 1 - HALO_BIN_EDGE ?
+			(int)t : (int)((atan2(dy, dx) + M_PI) * (HALO_NT / (2 * M_PI)));
+
+	return k >= HALO_NT ? HALO_NT - 1 : k;
+}
+
+/* Make g for arrays of n x n samples, over per pixel, tail power alpha.
+ * 0, or -1 when out of memory. */
+static inline int halo_geom_make(struct halo_geom *g, int n, int over, double alpha)
+{
+	int c = (n - 1) / 2;
+	double R = (double)c / over - 1;        /* as halo_setup() sets it */
+	size_t nb = 0, q = 0;
+
+	memset(g, 0, sizeof(*g));
+	g->n = n;
+	g->over = over;
+	g->alpha = alpha;
+	if (!(g->ur = malloc(2 * (size_t)n * sizeof(int))) ||
+	    !(g->dpow = malloc((size_t)(c + 1) * (c + 1) * sizeof(double)))) {
+		halo_geom_free(g);
+		return -1;
+	}
+	g->ub = g->ur + n;
 	/* d^alpha depends on |i - c| and |j - c| alone, the same for the
 	 * eight samples they stand for: taken once for each, into a table of
-	 * one quadrant (without it, pow() directly) */
-	double *dpow = malloc((size_t)(c + 1) * (c + 1) * sizeof(double));
-
-	for (int k = 0; k <= HALO_NT; k++)
-		h->A[k] = 0;
-	for (int u = 0; dpow && u <= c; u++)
+	 * one quadrant; only the band's are read (the same d and test below) */
+	for (int u = 0; u <= c; u++)
 		for (int w = 0; w <= u; w++) {
 			double dx = (double)u / over, dy = (double)w / over;
 			double d = sqrt(dx * dx + dy * dy);
 
-			/* only the band's are read (the same d and test below) */
 			if (d >= HALO_BAND * R && d < R)
-				dpow[(size_t)u * (c + 1) + w] = dpow[(size_t)w * (c + 1) + u] =
+				g->dpow[(size_t)u * (c + 1) + w] = g->dpow[(size_t)w * (c + 1) + u] =
 					pow(d, alpha);
 		}
 	/* d by sqrt rather than hypot (a third of the set-up's time): for the
 	 * grids' power-of-two oversampling dx^2 + dy^2 is exact, and the two
 	 * agree.  d grows with |i - c| along a row, so the disc (d < R) and
 	 * the band (d >= HALO_BAND R) are ranges of |i - c|, found with the
-	 * same test at their ends (halo_dist), and each sum still takes its
-	 * samples in the order of the array */
+	 * same test at their ends (halo_dist) */
 	for (int j = 0; j < n; j++) {
-		const float *row = a + (size_t)j * n;
 		double dy = (double)(j - c) / over;
-		int ur = -1, ub, lo, hi;
+		int ur = -1, ub = 0;
 
-		for (int i = 0; i < n; i++)
-			square += row[i];
-		/* the disc: |i - c| <= ur; the band: ub <= |i - c| <= ur */
 		if (halo_dist(0, dy, over) < R) {
 			ur = (int)(sqrt(fmax(0, R * R - dy * dy)) * over);
 			ur = ur > c ? c : ur;
@@ -244,50 +289,85 @@ static inline void halo_setup_amplitude(struct halo *h, double *square_out, doub
 			while (ur > 0 && !(halo_dist(ur, dy, over) < R))
 				ur--;
 		}
+		if (ur >= 0) {
+			/* the first u in 0 .. ur at or beyond the band's inner
+			 * edge (ur + 1: none), from an estimate */
+			ub = (int)(sqrt(fmax(0, HALO_BAND * R * HALO_BAND * R - dy * dy)) * over);
+			ub = ub > ur + 1 ? ur + 1 : ub;
+			while (ub > 0 && halo_dist(ub - 1, dy, over) >= HALO_BAND * R)
+				ub--;
+			while (ub <= ur && !(halo_dist(ub, dy, over) >= HALO_BAND * R))
+				ub++;
+			if (ub <= ur)
+				nb += 2 * (size_t)(ur - ub + 1) - (ub == 0);
+		}
+		g->ur[j] = ur;
+		g->ub[j] = ub;
+	}
+	if (!(g->bin = malloc((nb ? nb : 1) * sizeof(*g->bin)))) {
+		halo_geom_free(g);
+		return -1;
+	}
+	/* the band's samples left of the centre, then right of it */
+	for (int j = 0; j < n; j++) {
+		double dy = (double)(j - c) / over;
+		int ur = g->ur[j], ub = g->ub[j];
+
+		if (ur < 0 || ub > ur)
+			continue;
+		for (int side = 0; side < 2; side++) {
+			int lo = side ? (ub ? c + ub : c + 1) : c - ur, hi = side ? c + ur : c - ub;
+
+			for (int i = lo; i <= hi; i++) {
+				int k = halo_sample_bin((double)(i - c) / over, dy);
+
+				g->bin[q++] = (int16_t)k;
+				g->cnt[k]++;
+			}
+		}
+	}
+	return 0;
+}
+
+/* The tail's amplitude A(t): the mean of value * d^alpha over the band's
+ * samples in each direction bin, from every sample of the array, over g
+ * (halo_geom_make, for this array's shape); *square and *disc get the
+ * sample sums of the whole array and of the disc, for the normalisation.
+ * Each sum takes its samples in the order of the array. */
+static inline void halo_setup_amplitude(struct halo *h, const struct halo_geom *g,
+					double *square_out, double *disc_out)
+{
+	const float *a = h->a;
+	int n = h->n, c = h->c;
+	double square = 0, disc = 0;
+	size_t q = 0;
+
+	for (int k = 0; k <= HALO_NT; k++)
+		h->A[k] = 0;
+	for (int j = 0; j < n; j++) {
+		const float *row = a + (size_t)j * n;
+		int ur = g->ur[j], ub = g->ub[j];
+
+		for (int i = 0; i < n; i++)
+			square += row[i];
 		if (ur < 0)
 			continue;
 		for (int i = c - ur; i <= c + ur; i++)
 			disc += row[i];
-		/* the first u in 0 .. ur at or beyond the band's inner edge (ur +
-		 * 1: none), from an estimate */
-		ub = (int)(sqrt(fmax(0, HALO_BAND * R * HALO_BAND * R - dy * dy)) * over);
-		ub = ub > ur + 1 ? ur + 1 : ub;
-		while (ub > 0 && halo_dist(ub - 1, dy, over) >= HALO_BAND * R)
-			ub--;
-		while (ub <= ur && !(halo_dist(ub, dy, over) >= HALO_BAND * R))
-			ub++;
 		if (ub > ur)
 			continue;
-		/* the band's samples left of the centre, then right of it */
 		for (int side = 0; side < 2; side++) {
-			lo = side ? (ub ? c + ub : c + 1) : c - ur;
-			hi = side ? c + ur : c - ub;
-			for (int i = lo; i <= hi; i++) {
-				double dx = (double)(i - c) / over, v = row[i];
-				/* the bin of atan2(dy, dx): halo_bin() is within
-				 * 2.7e-4 bins of it for any direction (its
-				 * polynomial's largest error on [0, 1]), so away
-				 * from a bin's edges its floor is the same; near
-				 * them (0.4 % of the samples, the axes and
-				 * diagonals among them), atan2 itself (a third of
-				 * the set-up's time before) */
-				double t = halo_bin(dy, dx), fr = t - floor(t);
-				int k = fr > HALO_BIN_EDGE && fr < 1 - HALO_BIN_EDGE ?
-						(int)t :
-						(int)((atan2(dy, dx) + M_PI) * (HALO_NT / (2 * M_PI)));
+			int lo = side ? (ub ? c + ub : c + 1) : c - ur, hi = side ? c + ur : c - ub;
+			const double *dp = g->dpow + (size_t)abs(j - c);
 
-				k = k >= HALO_NT ? HALO_NT - 1 : k;
-				h->A[k] += v * (dpow ? dpow[(size_t)abs(i - c) * (c + 1) + abs(j - c)]
-						     : pow(sqrt(dx * dx + dy * dy), alpha));
-				cnt[k]++;
-			}
+			for (int i = lo; i <= hi; i++)
+				h->A[g->bin[q++]] += row[i] * dp[(size_t)abs(i - c) * (c + 1)];
 		}
 	}
-	free(dpow);
 	/* A bin is a direction's mean; an empty one (a small array) takes
 	 * its neighbour's */
 	for (int k = 0; k < HALO_NT; k++)
-		h->A[k] = cnt[k] > 0 ? h->A[k] / cnt[k] : (k > 0 ? h->A[k - 1] : 0);
+		h->A[k] = g->cnt[k] > 0 ? h->A[k] / g->cnt[k] : (k > 0 ? h->A[k - 1] : 0);
 	/* the bins are centred half a bin on: shift so that A[k] is the value
 	 * at the bin's start, as halo_tail() reads it */
 	double prev = h->A[HALO_NT - 1];
@@ -411,23 +491,37 @@ static inline int halo_setup_envelope(struct halo *h)
 		halo_free(h);
 		return -1;
 	}
-	for (int j = 0; j < n; j++)
-		for (int i = 0; i < n; i++) {
-			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
+	/* the envelope: the rows and columns that can hold a sample within
+	 * nenv (d >= |dy|; the columns' bound by two samples generous), each
+	 * sample tested as before */
+	for (int j = 0; j < n; j++) {
+		double dy = (double)(j - c) / over;
+		int ue, ilo, ihi;
+
+		if (fabs(dy) >= h->nenv)
+			continue;
+		ue = (int)(sqrt(fmax(0, (double)h->nenv * h->nenv - dy * dy)) * over) + 2;
+		ilo = c - ue > 0 ? c - ue : 0;
+		ihi = c + ue < n - 1 ? c + ue : n - 1;
+		for (int i = ilo; i <= ihi; i++) {
+			double dx = (double)(i - c) / over;
 			double d = sqrt(dx * dx + dy * dy), v = h->s * h->a[(size_t)j * n + i];
 			int r = (int)d;
 
-			if (r >= h->nenv)
-				continue;
-			if (v > h->env[r])
+			if (r < h->nenv && v > h->env[r])
 				h->env[r] = v;
-			/* phase 0: the samples a whole number of pixels out */
-			if ((i - c) % over == 0 && (j - c) % over == 0) {
-				int rr = (int)floor(d + 0.5);
+		}
+	}
+	/* the light at phase 0: the samples a whole number of pixels out, in
+	 * the array's order */
+	for (int j = c % over; j < n; j += over)
+		for (int i = c % over; i < n; i += over) {
+			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
+			double d = sqrt(dx * dx + dy * dy), v = h->s * h->a[(size_t)j * n + i];
+			int r = (int)d, rr = (int)floor(d + 0.5);
 
-				if (rr < h->nenv)
-					h->cum[rr] += v;
-			}
+			if (r < h->nenv && rr < h->nenv)
+				h->cum[rr] += v;
 		}
 	for (int r = h->nenv - 2; r >= 0; r--)
 		if (h->env[r + 1] > h->env[r])
@@ -447,13 +541,15 @@ static inline int halo_setup_envelope(struct halo *h)
 }
 
 /* Set up the model of array a (n x n, over samples per pixel, centre at
- * (n - 1) / 2).  Returns 0, or -1 when out of memory or the array is too
- * small (R < 16 pixels). */
+ * (n - 1) / 2), with g the geometry of arrays of its shape (NULL, or one
+ * of another shape: made here for this one).  Returns 0, or -1 when out
+ * of memory or the array is too small (R < 16 pixels). */
 static inline int halo_setup(struct halo *h, const float *a, int n, int over,
-			     double alpha, double taper)
+			     double alpha, double taper, const struct halo_geom *g)
 {
 	int c = (n - 1) / 2;
 	double R = (double)c / over, square, disc;
+	struct halo_geom own;
 
 	h->a = a;
 	h->n = n;
@@ -465,7 +561,13 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 	h->s = 1;
 	if (R < 16 || alpha <= 2)
 		return -1;
-	halo_setup_amplitude(h, &square, &disc);
+	if (!g || g->n != n || g->over != over || g->alpha != alpha) {
+		if (halo_geom_make(&own, n, over, alpha) < 0)
+			return -1;
+		halo_setup_amplitude(h, &own, &square, &disc);
+		halo_geom_free(&own);
+	} else
+		halo_setup_amplitude(h, g, &square, &disc);
 	halo_setup_scale(h, square, disc);
 	halo_setup_spikes(h);
 	halo_setup_directions(h);

@@ -287,6 +287,9 @@ static int point_init(const struct wfs_host *host, void **state)
 		return host->error(host->ctx, "out of memory");
 	p->host = host;
 	pthread_mutex_init(&p->lock, NULL);
+	pthread_mutex_init(&p->geom_lock, NULL);
+	for (int i = 0; i < SET_STRIPES; i++)
+		pthread_mutex_init(&p->set_lock[i], NULL);
 	for (int i = 0; i < SCA_SLOTS; i++)
 		pthread_mutex_init(&p->hs_lock[i], NULL);
 	p->serial = atomic_fetch_add(&serials, 1) + 1;
@@ -381,6 +384,9 @@ fail:
 	poly_free_all(p);
 	free(p->chs);
 	pthread_mutex_destroy(&p->lock);
+	pthread_mutex_destroy(&p->geom_lock);
+	for (int i = 0; i < SET_STRIPES; i++)
+		pthread_mutex_destroy(&p->set_lock[i]);
 	for (int i = 0; i < SCA_SLOTS; i++)
 		pthread_mutex_destroy(&p->hs_lock[i]);
 	free(p);
@@ -415,6 +421,9 @@ static void point_fini(void *state)
 	far_free(p);
 	hslot_free_all(p);
 	pthread_mutex_destroy(&p->lock);
+	pthread_mutex_destroy(&p->geom_lock);
+	for (int i = 0; i < SET_STRIPES; i++)
+		pthread_mutex_destroy(&p->set_lock[i]);
 	for (int i = 0; i < SCA_SLOTS; i++)
 		pthread_mutex_destroy(&p->hs_lock[i]);
 	free(p);

@@ -170,6 +170,7 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
  * rounded down to FAR_STEPS steps per octave (level step k:
  * 2^(k / FAR_STEPS)) */
 #define FAR_STEPS 4
+#define SET_STRIPES 16          /* struct point: set_lock */
 #define NEAR_SEG 8              /* offsets of a row segment of the step map */
 
 /* The halo's array, pixel by pixel (point_near.c, near_setup): for every
@@ -355,6 +356,15 @@ struct point {
 	struct hslot hs[SCA_SLOTS]; /* per SCA, the default spectrum's halo */
 	pthread_mutex_t hs_lock[SCA_SLOTS]; /* each taken to set up hs[] (so that
 					     * two SCAs are set up at once) */
+	/* the halo arrays' shape's geometry (halo.h), made once under
+	 * geom_lock for every halo set up after (point_halo.c, geom_of) */
+	struct halo_geom geom;
+	_Atomic int geom_ready;
+	pthread_mutex_t geom_lock;
+	/* taken to set up a colour halo or a halo's near lists, one of them
+	 * by the object's address (set_lock_of), so that two threads set up
+	 * two halos at once */
+	pthread_mutex_t set_lock[SET_STRIPES];
 	/* per SCA and size class, the flux at or below which prepare() (k =
 	 * 0) and reach() (k = 1) need not plan a source (faint_flux,
 	 * point_halo.c), once faint_known is set (release order, under lock) */
@@ -492,6 +502,7 @@ void hslot_free_all(struct point *p);
  * (over the flux) a source of level step k leaves to the grid within the
  * array's disc, near_render() draws a source's pixels of level step k or
  * above within radius r, outside its box, into win */
+pthread_mutex_t *set_lock_of(struct point *p, const void *obj);
 const struct near *near_of(struct point *p, struct hslot *s, int hb);
 double near_under(const struct near *n, int k);
 void near_free(struct near *n);

@@ -14,12 +14,31 @@
 /* The centre pixel of an SCA (model.h's coordinates). */
 #define SCA_CENTRE ((WFS_SCA_SIDE - 1) / 2.0)
 
+/* The geometry of halo arrays of n x n samples, over per pixel (halo.h),
+ * made on first use; NULL when out of memory or for another shape than
+ * the first's (halo_setup then makes its own). */
+static const struct halo_geom *geom_of(struct point *p, int n, int over)
+{
+	if (!atomic_load_explicit(&p->geom_ready, memory_order_acquire)) {
+		pthread_mutex_lock(&p->geom_lock);
+		if (!atomic_load_explicit(&p->geom_ready, memory_order_relaxed) &&
+		    halo_geom_make(&p->geom, n, over, p->halo_power) == 0)
+			atomic_store_explicit(&p->geom_ready, 1, memory_order_release);
+		pthread_mutex_unlock(&p->geom_lock);
+		if (!atomic_load_explicit(&p->geom_ready, memory_order_acquire))
+			return NULL;
+	}
+	return p->geom.n == n && p->geom.over == over ? &p->geom : NULL;
+}
+
 /* Set up slot s's halo from the host's array a (n x n, over per pixel),
  * or with g > 0 from the blend (1 - g) a + g b into s->arr; the lock held.
  * 0, or -1 when out of memory or the array is too small. */
 static int slot_setup(struct point *p, struct hslot *s, const float *a, const float *b,
 		      double g, int n, int over)
 {
+	const struct halo_geom *geom = geom_of(p, n, over);
+
 	if (g > 0) {
 		size_t nn = (size_t)n * n;
 
@@ -29,7 +48,7 @@ static int slot_setup(struct point *p, struct hslot *s, const float *a, const fl
 			s->arr[i] = (float)((1 - g) * a[i] + g * b[i]);
 		a = s->arr;
 	}
-	return halo_setup(&s->h, a, n, over, p->halo_power, p->halo_taper);
+	return halo_setup(&s->h, a, n, over, p->halo_power, p->halo_taper, geom);
 }
 
 static int slot_fail(struct point *p, int sca, int n, int over)
@@ -89,8 +108,8 @@ static _Atomic(struct hslot *) *colour_at(const struct point *p, int sca, int id
 }
 
 /* Colour halo idx of the source's SCA: the host's halo of class a, or the
- * blend of a's and a + 1's at step j / N, set up on first use under the
- * lock (the host's arrays asked for outside it, as building them takes
+ * blend of a's and a + 1's at step j / N, set up on first use under its
+ * place's lock (the host's arrays asked for outside it, as building them takes
  * seconds). */
 static struct hslot *slot_colour(struct point *p, const struct wfs_source *src, int idx)
 {
@@ -109,7 +128,7 @@ static struct hslot *slot_colour(struct point *p, const struct wfs_source *src, 
 	if (j > 0 && (eb.n != ea.n || eb.over != ea.over))
 		return p->host->error(p->host->ctx, "halos of spectral classes %d and %d differ "
 				      "in size", a, a + 1), NULL;
-	pthread_mutex_lock(&p->lock);
+	pthread_mutex_lock(set_lock_of(p, at));
 	if (!(s = atomic_load_explicit(at, memory_order_relaxed))) {
 		if ((s = calloc(1, sizeof(*s)))) {
 			s->cls = a;
@@ -127,7 +146,7 @@ static struct hslot *slot_colour(struct point *p, const struct wfs_source *src, 
 		} else
 			atomic_store_explicit(at, s, memory_order_release);
 	}
-	pthread_mutex_unlock(&p->lock);
+	pthread_mutex_unlock(set_lock_of(p, at));
 	if (!ok)
 		slot_fail(p, src->sca, ea.n, ea.over);
 	return s;
@@ -166,6 +185,8 @@ void hslot_free_all(struct point *p)
 			     made);
 	free(p->chs);
 	p->chs = NULL;
+	halo_geom_free(&p->geom);
+	atomic_store(&p->geom_ready, 0);
 }
 
 /* The core's light within its box less one pixel all round (see

@@ -223,7 +223,15 @@ double near_under(const struct near *n, int k)
 	return n->under[(k > n->kmax + 1 ? n->kmax + 1 : k) - n->kmin];
 }
 
-/* Slot s's lists, set up on first use under the lock (the box: hb). */
+/* The lock of the set-up of obj (a colour halo's place, a slot). */
+pthread_mutex_t *set_lock_of(struct point *p, const void *obj)
+{
+	uintptr_t a = (uintptr_t)obj;
+
+	return &p->set_lock[(a ^ a >> 7 ^ a >> 13) % SET_STRIPES];
+}
+
+/* Slot s's lists, set up on first use under its lock (the box: hb). */
 const struct near *near_of(struct point *p, struct hslot *s, int hb)
 {
 	struct near *n = &s->near;
@@ -231,14 +239,14 @@ const struct near *near_of(struct point *p, struct hslot *s, int hb)
 
 	if (atomic_load_explicit(&s->near_ready, memory_order_acquire))
 		return n;
-	pthread_mutex_lock(&p->lock);
+	pthread_mutex_lock(set_lock_of(p, s));
 	if (!atomic_load_explicit(&s->near_ready, memory_order_relaxed)) {
 		if ((ok = near_setup(n, &s->h, hb) == 0))
 			atomic_store_explicit(&s->near_ready, 1, memory_order_release);
 		else
 			near_free(n);
 	}
-	pthread_mutex_unlock(&p->lock);
+	pthread_mutex_unlock(set_lock_of(p, s));
 	if (!ok) {
 		p->host->error(p->host->ctx, "out of memory for the halo's pixel lists");
 		return NULL;

@@ -105,8 +105,8 @@ int main(int argc, char **argv)
 	if (!(far = psf_build_one(filter, sca, 2 * 2 * 1024 + 1, 2, PSF_EPSF, &o, &e)))
 		return fprintf(stderr, "%s\n", e.msg), 2;
 	tr = now() - t0;
-	if (halo_setup(&h, halo->data, halo->n, halo->over, 3, 16) ||
-	    halo_setup(&hc, corner->data, corner->n, corner->over, 3, 16))
+	if (halo_setup(&h, halo->data, halo->n, halo->over, 3, 16, NULL) ||
+	    halo_setup(&hc, corner->data, corner->n, corner->over, 3, 16, NULL))
 		return fprintf(stderr, "halo_setup failed\n"), 2;
 	printf("# %s SCA %d, halo radius %d: build %.1f s (one node), "
 	       "fine reference (4x, +-384 px) %.1f s, far reference (2x, +-1024 px) %.1f s\n",

@@ -198,13 +198,16 @@ static inline void halo_free(struct halo *h)
  * bin[] holds the direction bin of each of the band's samples, in the
  * order halo_setup_amplitude() visits them; cnt[k] how many fall in bin
  * k; dpow[u (c + 1) + w] is d^alpha of sample offset (u, w) within the
- * band.
+ * band.  For halo_setup_envelope(): in row j the samples |i - c| = u at
+ * whole pixel distance r (int d) below nenv form runs of u, r from er0[j]
+ * on, the last u of each eu[eoff[j]] .. eu[eoff[j + 1] - 1] (d never
+ * falls as u grows, and grows by under a pixel a sample).
  */
 struct halo_geom {
 	int n, over;
 	double alpha;
-	int *ur, *ub;
-	int16_t *bin;
+	int *ur, *ub, *er0, *eoff;
+	int16_t *bin, *eu;
 	double *dpow;
 	int cnt[HALO_NT];
 };
@@ -214,18 +217,53 @@ static inline void halo_geom_free(struct halo_geom *g)
 	free(g->ur);
 	free(g->bin);
 	free(g->dpow);
-	g->ur = g->ub = NULL;
-	g->bin = NULL;
+	free(g->eu);
+	g->ur = g->ub = g->er0 = g->eoff = NULL;
+	g->bin = g->eu = NULL;
 	g->dpow = NULL;
 }
 
 /* The distance of sample offset (u, dy over) from the centre, in pixels,
- * as halo_geom_make() tests it. */
+ * as halo_geom_make() and the envelope test it. */
 static inline double halo_dist(int u, double dy, int over)
 {
 	double dx = (double)u / over;
 
 	return sqrt(dx * dx + dy * dy);
+}
+
+/* The envelope's runs of g (struct halo_geom: er0, eoff, eu) for nenv
+ * whole radii.  0, or -1 when out of memory. */
+static inline int halo_geom_rings(struct halo_geom *g, int nenv)
+{
+	int n = g->n, over = g->over, c = (n - 1) / 2, umax = n - 1 - c > c ? n - 1 - c : c;
+	size_t t = 0;
+
+	for (int pass = 0; pass < 2; pass++) {
+		t = 0;
+		for (int j = 0; j < n; j++) {
+			double dy = (double)(j - c) / over;
+			int u = 0, r = (int)halo_dist(0, dy, over);
+
+			if (pass) {
+				g->er0[j] = r;
+				g->eoff[j] = (int)t;
+			}
+			while (r < nenv && u <= umax) {
+				while (u + 1 <= umax && (int)halo_dist(u + 1, dy, over) == r)
+					u++;
+				if (pass)
+					g->eu[t] = (int16_t)u;
+				t++;
+				u++;
+				r = u <= umax ? (int)halo_dist(u, dy, over) : nenv;
+			}
+		}
+		if (!pass && !(g->eu = malloc((t ? t : 1) * sizeof(*g->eu))))
+			return -1;
+	}
+	g->eoff[n] = (int)t;
+	return 0;
 }
 
 /* The direction bin of sample offset (dx, dy) in pixels: halo_bin() is
@@ -254,12 +292,18 @@ static inline int halo_geom_make(struct halo_geom *g, int n, int over, double al
 	g->n = n;
 	g->over = over;
 	g->alpha = alpha;
-	if (!(g->ur = malloc(2 * (size_t)n * sizeof(int))) ||
+	if (!(g->ur = malloc((4 * (size_t)n + 1) * sizeof(int))) ||
 	    !(g->dpow = malloc((size_t)(c + 1) * (c + 1) * sizeof(double)))) {
 		halo_geom_free(g);
 		return -1;
 	}
 	g->ub = g->ur + n;
+	g->er0 = g->ub + n;
+	g->eoff = g->er0 + n;
+	if (halo_geom_rings(g, (int)ceil(R) + 1) < 0) {
+		halo_geom_free(g);
+		return -1;
+	}
 	/* d^alpha depends on |i - c| and |j - c| alone, the same for the
 	 * eight samples they stand for: taken once for each, into a table of
 	 * one quadrant; only the band's are read (the same d and test below) */
@@ -480,7 +524,7 @@ static inline void halo_setup_directions(struct halo *h)
 
 /* The envelope env[r], from every sample (any phase) and the tail, and the
  * enclosed light cum[r] at phase 0.  Returns -1 when out of memory. */
-static inline int halo_setup_envelope(struct halo *h)
+static inline int halo_setup_envelope(struct halo *h, const struct halo_geom *g)
 {
 	int n = h->n, over = h->over, c = h->c;
 	double R = h->R;
@@ -491,27 +535,37 @@ static inline int halo_setup_envelope(struct halo *h)
 		halo_free(h);
 		return -1;
 	}
-	/* the envelope: the rows and columns that can hold a sample within
-	 * nenv (d >= |dy|; the columns' bound by two samples generous), each
-	 * sample tested as before */
-	for (int j = 0; j < n; j++) {
-		double dy = (double)(j - c) / over;
-		int ue, ilo, ihi;
+	/* the envelope: each ring's run of samples in each row, on both
+	 * sides of the centre, its largest sample times s (the largest of
+	 * the products, as s > 0) */
+	for (int j = 0; h->s > 0 && j < n; j++) {
+		const float *row = h->a + (size_t)j * n;
 
-		if (fabs(dy) >= h->nenv)
-			continue;
-		ue = (int)(sqrt(fmax(0, (double)h->nenv * h->nenv - dy * dy)) * over) + 2;
-		ilo = c - ue > 0 ? c - ue : 0;
-		ihi = c + ue < n - 1 ? c + ue : n - 1;
-		for (int i = ilo; i <= ihi; i++) {
-			double dx = (double)(i - c) / over;
+		for (int t = g->eoff[j]; t < g->eoff[j + 1]; t++) {
+			int r = g->er0[j] + t - g->eoff[j], ua = t > g->eoff[j] ? g->eu[t - 1] + 1 : 0;
+			int lo = c - g->eu[t], hi = c + g->eu[t];
+			float m = -INFINITY;
+
+			lo = lo < 0 ? 0 : lo;
+			hi = hi > n - 1 ? n - 1 : hi;
+			for (int i = lo; i <= c - ua; i++)
+				m = row[i] > m ? row[i] : m;
+			for (int i = c + ua; i <= hi; i++)
+				m = row[i] > m ? row[i] : m;
+			if (h->s * m > h->env[r])
+				h->env[r] = h->s * m;
+		}
+	}
+	/* (s <= 0: every sample's product, as the envelope is defined) */
+	for (int j = 0; !(h->s > 0) && j < n; j++)
+		for (int i = 0; i < n; i++) {
+			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
 			double d = sqrt(dx * dx + dy * dy), v = h->s * h->a[(size_t)j * n + i];
 			int r = (int)d;
 
 			if (r < h->nenv && v > h->env[r])
 				h->env[r] = v;
 		}
-	}
 	/* the light at phase 0: the samples a whole number of pixels out, in
 	 * the array's order */
 	for (int j = c % over; j < n; j += over)
@@ -564,14 +618,17 @@ static inline int halo_setup(struct halo *h, const float *a, int n, int over,
 	if (!g || g->n != n || g->over != over || g->alpha != alpha) {
 		if (halo_geom_make(&own, n, over, alpha) < 0)
 			return -1;
-		halo_setup_amplitude(h, &own, &square, &disc);
-		halo_geom_free(&own);
-	} else
-		halo_setup_amplitude(h, g, &square, &disc);
+		g = &own;
+	}
+	halo_setup_amplitude(h, g, &square, &disc);
 	halo_setup_scale(h, square, disc);
 	halo_setup_spikes(h);
 	halo_setup_directions(h);
-	return halo_setup_envelope(h);
+	int rc = halo_setup_envelope(h, g);
+
+	if (g == &own)
+		halo_geom_free(&own);
+	return rc;
 }
 
 /* The largest value of the model at distance >= r. */

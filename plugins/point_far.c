@@ -261,6 +261,23 @@ static inline double wing_at(const struct halo *h, double dx, double dy, double 
 	return halo_value(h, dx, dy);
 }
 
+/* Whether cell_sum's points of the cell (p, q) (spacing b, offsets ox and
+ * oy) all fall on samples of the array within its plain part (d < R -
+ * taper, where halo_value() is the bilinear read alone) and outside the
+ * hole of half-width hb. */
+static int cell_plain(const struct halo *h, int s, long p, long q, int k, double hb, double b,
+		      double ox, double oy)
+{
+	double x0 = p * s - 0.5 * s + ox * b, y0 = q * s - 0.5 * s + oy * b;
+	double x1 = x0 + (k - 1) * b, y1 = y0 + (k - 1) * b, o = h->over;
+	double mx = fmax(fabs(x0), fabs(x1)), my = fmax(fabs(y0), fabs(y1));
+	double nx = x0 <= 0 && x1 >= 0 ? 0 : fmin(fabs(x0), fabs(x1));
+	double ny = y0 <= 0 && y1 >= 0 ? 0 : fmin(fabs(y0), fabs(y1));
+
+	return o * x0 == floor(o * x0) && o * y0 == floor(o * y0) && o * b == floor(o * b) &&
+	       sqrt(mx * mx + my * my) < h->R - h->taper && (nx >= hb || ny >= hb);
+}
+
 /* The sum of the wing over the s x s pixels of the cell (p, q) away from
  * a source at a cell's centre, on a k x k lattice of sub-blocks (k = s:
  * every pixel).  s is even, so a source at a cell's centre sits on a
@@ -279,6 +296,20 @@ static double cell_sum(const struct halo *h, int s, long p, long q, int k, doubl
 		oy = fmod(0.5 + 0.7548776662 * (double)(p * 11 + q * 5), 1.0);
 		ox += ox < 0;
 		oy += oy < 0;
+	}
+	if (cell_plain(h, s, p, q, k, hb, b, ox, oy)) {
+		/* every point a sample of the array's plain part, outside the
+		 * hole: halo_value()'s bilinear read there is the sample */
+		long o = h->over, u0 = h->c + lround(o * (p * s - 0.5 * s + ox * b));
+		long w0 = h->c + lround(o * (q * s - 0.5 * s + oy * b)), ob = lround(o * b);
+
+		for (int j = 0; j < k; j++) {
+			const float *row = h->a + (w0 + ob * j) * h->n + u0;
+
+			for (int i = 0; i < k; i++)
+				sum += h->s * row[ob * i];
+		}
+		return sum * b * b;
 	}
 	for (int j = 0; j < k; j++)
 		for (int i = 0; i < k; i++)

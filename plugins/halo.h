@@ -201,13 +201,15 @@ static inline void halo_free(struct halo *h)
  * band.  For halo_setup_envelope(): in row j the samples |i - c| = u at
  * whole pixel distance r (int d) below nenv form runs of u, r from er0[j]
  * on, the last u of each eu[eoff[j]] .. eu[eoff[j + 1] - 1] (d never
- * falls as u grows, and grows by under a pixel a sample).
+ * falls as u grows, and grows by under a pixel a sample); and rr[] the
+ * whole radius (floor(d + 1/2), -1 at nenv or beyond) of each sample a
+ * whole number of pixels from the centre, in the array's order.
  */
 struct halo_geom {
 	int n, over;
 	double alpha;
 	int *ur, *ub, *er0, *eoff;
-	int16_t *bin, *eu;
+	int16_t *bin, *eu, *rr;
 	double *dpow;
 	int cnt[HALO_NT];
 };
@@ -218,8 +220,9 @@ static inline void halo_geom_free(struct halo_geom *g)
 	free(g->bin);
 	free(g->dpow);
 	free(g->eu);
+	free(g->rr);
 	g->ur = g->ub = g->er0 = g->eoff = NULL;
-	g->bin = g->eu = NULL;
+	g->bin = g->eu = g->rr = NULL;
 	g->dpow = NULL;
 }
 
@@ -263,6 +266,18 @@ static inline int halo_geom_rings(struct halo_geom *g, int nenv)
 			return -1;
 	}
 	g->eoff[n] = (int)t;
+	/* the phase-0 samples' whole radii */
+	t = 0;
+	if (!(g->rr = malloc(((size_t)(n / over + 1) * (n / over + 1)) * sizeof(*g->rr))))
+		return -1;
+	for (int j = c % over; j < n; j += over)
+		for (int i = c % over; i < n; i += over) {
+			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
+			double d = sqrt(dx * dx + dy * dy);
+			int r = (int)d, rr = (int)floor(d + 0.5);
+
+			g->rr[t++] = (int16_t)(r < nenv && rr < nenv ? rr : -1);
+		}
 	return 0;
 }
 
@@ -388,25 +403,40 @@ static inline void halo_setup_amplitude(struct halo *h, const struct halo_geom *
 
 	for (int k = 0; k <= HALO_NT; k++)
 		h->A[k] = 0;
+	/* each row in one pass, so that the three sums' chains of additions
+	 * run side by side: before the disc, its left band, its middle, its
+	 * right band, after it */
 	for (int j = 0; j < n; j++) {
 		const float *row = a + (size_t)j * n;
-		int ur = g->ur[j], ub = g->ub[j];
+		const double *dp = g->dpow + (size_t)abs(j - c);
+		int ur = g->ur[j], ub = g->ub[j], i = 0;
+		/* the bands' ends: [c - ur, bl] and [br, c + ur], none when ub > ur */
+		int band = ur >= 0 && ub <= ur, bl = band ? c - ub : c - ur - 1;
+		int br = band ? (ub ? c + ub : c + 1) : c + ur + 1;
 
-		for (int i = 0; i < n; i++)
-			square += row[i];
-		if (ur < 0)
+		if (ur < 0) {
+			for (; i < n; i++)
+				square += row[i];
 			continue;
-		for (int i = c - ur; i <= c + ur; i++)
-			disc += row[i];
-		if (ub > ur)
-			continue;
-		for (int side = 0; side < 2; side++) {
-			int lo = side ? (ub ? c + ub : c + 1) : c - ur, hi = side ? c + ur : c - ub;
-			const double *dp = g->dpow + (size_t)abs(j - c);
-
-			for (int i = lo; i <= hi; i++)
-				h->A[g->bin[q++]] += row[i] * dp[(size_t)abs(i - c) * (c + 1)];
 		}
+		for (; i < c - ur; i++)
+			square += row[i];
+		for (; i <= bl; i++) {
+			square += row[i];
+			disc += row[i];
+			h->A[g->bin[q++]] += row[i] * dp[(size_t)(c - i) * (c + 1)];
+		}
+		for (; i < br; i++) {
+			square += row[i];
+			disc += row[i];
+		}
+		for (; i <= c + ur; i++) {
+			square += row[i];
+			disc += row[i];
+			h->A[g->bin[q++]] += row[i] * dp[(size_t)(i - c) * (c + 1)];
+		}
+		for (; i < n; i++)
+			square += row[i];
 	}
 	/* A bin is a direction's mean; an empty one (a small array) takes
 	 * its neighbour's */
@@ -568,15 +598,14 @@ static inline int halo_setup_envelope(struct halo *h, const struct halo_geom *g)
 		}
 	/* the light at phase 0: the samples a whole number of pixels out, in
 	 * the array's order */
-	for (int j = c % over; j < n; j += over)
-		for (int i = c % over; i < n; i += over) {
-			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
-			double d = sqrt(dx * dx + dy * dy), v = h->s * h->a[(size_t)j * n + i];
-			int r = (int)d, rr = (int)floor(d + 0.5);
+	{
+		size_t t = 0;
 
-			if (r < h->nenv && rr < h->nenv)
-				h->cum[rr] += v;
-		}
+		for (int j = c % over; j < n; j += over)
+			for (int i = c % over; i < n; i += over, t++)
+				if (g->rr[t] >= 0)
+					h->cum[g->rr[t]] += h->s * h->a[(size_t)j * n + i];
+	}
 	for (int r = h->nenv - 2; r >= 0; r--)
 		if (h->env[r + 1] > h->env[r])
 			h->env[r] = h->env[r + 1];

@@ -638,14 +638,19 @@ static int near_hist(const struct point *p, const struct halo *h, const struct n
 		for (int dx = -n->rc; dx <= n->rc; dx++) {
 			int st = n->st[(size_t)(dy + n->rc) * n->side + dx + n->rc];
 			long a, b;
+			double d, v;
 
 			if (st < n->kmin || (double)dx * dx + (double)dy * dy >= h->R * h->R ||
 			    (abs(dx) < hb && abs(dy) < hb))
 				continue;
 			a = lfloor((dx + 0.5 + 0.5 * s) / s);
 			b = lfloor((dy + 0.5 + 0.5 * s) / s);
-			nk->hist[(size_t)(st - n->kmin) * plane + (size_t)(b + pc) * side + a + pc] +=
-				halo_value(h, dx, dy);
+			/* within the plain part halo_value()'s read is the sample */
+			d = sqrt((double)dx * dx + (double)dy * dy);
+			v = d < h->R - h->taper ?
+				    h->s * h->a[(size_t)(h->c + h->over * dy) * h->n + h->c + h->over * dx] :
+				    halo_value(h, dx, dy);
+			nk->hist[(size_t)(st - n->kmin) * plane + (size_t)(b + pc) * side + a + pc] += v;
 		}
 	return 0;
 }

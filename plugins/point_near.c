@@ -36,6 +36,12 @@ static void near_vmax_row(const struct halo *h, int rc, int dy, double *v, float
 			long u0 = h->c + o * (i - rc) - hw, u1 = u0 + 2 * hw;
 			float x = m[i];
 
+			if (hw == 1 && u0 >= 0 && u1 < n) {     /* the usual window */
+				x = row[u0] > x ? row[u0] : x;
+				x = row[u0 + 1] > x ? row[u0 + 1] : x;
+				m[i] = row[u1] > x ? row[u1] : x;
+				continue;
+			}
 			u0 = u0 < 0 ? 0 : u0;
 			u1 = u1 >= n ? n - 1 : u1;
 			for (long u = u0; u <= u1; u++)
@@ -56,6 +62,25 @@ static void near_vmax_row(const struct halo *h, int rc, int dy, double *v, float
 				v[i] = t > v[i] ? t : v[i];
 			}
 	}
+}
+
+/* floor(FAR_STEPS log2 v), v > 0, from v's exponent and its mantissa
+ * against the steps' thresholds; by log2() itself where the mantissa lies
+ * within 1e-9 of a threshold (there the two roundings may differ). */
+_Static_assert(FAR_STEPS == 4, "near_step() holds the thresholds of four steps an octave");
+
+static int near_step(double v)
+{
+	static const double t[5] = { 1.0, 1.189207115002721, 1.4142135623730951,
+				     1.681792830507429, 2.0 };
+	int e, q = 0;
+	double m = 2 * frexp(v, &e);    /* v = m 2^(e - 1), 1 <= m < 2 */
+
+	for (int i = 0; i < 5; i++)
+		if (fabs(m - t[i]) < 1e-9 * t[i])
+			return (int)floor(FAR_STEPS * log2(v));
+	q = (m >= t[1]) + (m >= t[2]) + (m >= t[3]);
+	return FAR_STEPS * (e - 1) + q;
 }
 
 /* The runs of segments (point.h, struct near: ri, rs) of every level and
@@ -129,10 +154,24 @@ static int near_planes(struct near *n, const struct halo *h)
 	if (!(n->pl = calloc((size_t)(o * h->n * nh), sizeof(*n->pl))))
 		return -1;
 	n->nh = nh;
-	for (long r = 0; r < o; r++)
-		for (long w = 0; w < h->n; w++)
+	for (long w = 0; w < h->n; w++) {
+		const float *a = h->a + w * h->n;
+
+		if (o == 2) {   /* the built-in sampling: one loop the compiler vectorises */
+			float *p0 = n->pl + w * nh, *p1 = n->pl + (h->n + w) * nh;
+
+			for (long m = 0; 2 * m + 1 < h->n; m++) {
+				p0[m] = a[2 * m];
+				p1[m] = a[2 * m + 1];
+			}
+			if (h->n % 2)
+				p0[h->n / 2] = a[h->n - 1];
+			continue;
+		}
+		for (long r = 0; r < o; r++)
 			for (long m = 0; o * m + r < h->n; m++)
-				n->pl[(r * h->n + w) * nh + m] = h->a[w * h->n + o * m + r];
+				n->pl[(r * h->n + w) * nh + m] = a[o * m + r];
+	}
 	return 0;
 }
 
@@ -170,7 +209,7 @@ static int near_setup(struct near *n, const struct halo *h, int hb)
 			int st = INT16_MIN, b = (dy + rc) * n->nseg + (dx + rc) / NEAR_SEG;
 
 			if (d < h->R + 1 && vm > 0) {
-				st = (int)floor(FAR_STEPS * log2(vm));
+				st = near_step(vm);
 				st = st <= INT16_MIN ? INT16_MIN + 1 : st;
 				n->kmin = st < n->kmin ? st : n->kmin;
 				n->kmax = st > n->kmax ? st : n->kmax;

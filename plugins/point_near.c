@@ -14,38 +14,47 @@
 
 #include "point.h"
 
+/* x, or a where a stands beyond it: above it, or with lo below it. */
+static inline float near_pick(float a, float x, int lo)
+{
+	return lo ? (a < x ? a : x) : (a > x ? a : x);
+}
+
 /* The largest value of each pixel offset dx in [-rc, rc] of row dy from
  * the pixel nearest a source at any phase (|phase| <= 1/2), into v[dx +
- * rc]: the largest of the samples its bilinear read may take (the largest
- * sample times s, as s > 0), and in the hand-over to the tail the tail at
- * its corners.  m: scratch of side doubles. */
+ * rc]: the largest of the samples its bilinear read may take times s (the
+ * largest sample times s, or with s < 0 the least: rounding keeps the
+ * order), and in the hand-over to the tail the tail at its corners.  m:
+ * scratch of side floats. */
 static void near_vmax_row(const struct halo *h, int rc, int dy, double *v, float *m)
 {
 	long o = h->over, hw = (o + 1) / 2, n = h->n, side = 2L * rc + 1;
+	int lo = h->s < 0;
 
 	for (long i = 0; i < side; i++)
-		m[i] = -INFINITY;
-	/* the window's sample rows, each row's largest over its columns */
+		m[i] = lo ? INFINITY : -INFINITY;
+	/* the window's sample rows, each row's extreme over its columns */
 	for (long j = -hw; j <= hw; j++) {
 		long w = h->c + o * dy + j;
-		const float *row = h->a + w * n;
+		const float *row;
 
 		if (w < 0 || w >= n)
 			continue;
+		row = h->a + w * n;
 		for (long i = 0; i < side; i++) {
 			long u0 = h->c + o * (i - rc) - hw, u1 = u0 + 2 * hw;
 			float x = m[i];
 
 			if (hw == 1 && u0 >= 0 && u1 < n) {     /* the usual window */
-				x = row[u0] > x ? row[u0] : x;
-				x = row[u0 + 1] > x ? row[u0 + 1] : x;
-				m[i] = row[u1] > x ? row[u1] : x;
+				x = near_pick(row[u0], x, lo);
+				x = near_pick(row[u0 + 1], x, lo);
+				m[i] = near_pick(row[u1], x, lo);
 				continue;
 			}
 			u0 = u0 < 0 ? 0 : u0;
 			u1 = u1 >= n ? n - 1 : u1;
 			for (long u = u0; u <= u1; u++)
-				x = row[u] > x ? row[u] : x;
+				x = near_pick(row[u], x, lo);
 			m[i] = x;
 		}
 	}

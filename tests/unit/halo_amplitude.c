@@ -149,8 +149,12 @@ static void check_envelope(const float *a, int n, int over, double alpha,
 		if (neg) {
 			halo_free(&h);
 			h.s = -h.s;
-			if (halo_setup_envelope(&h, g) < 0)
+			if (halo_setup_envelope(&h, g) < 0) {
+				ok(0, "n %d, over %d: halo_setup_envelope", n, over);
+				free(env);
+				free(cum);
 				break;
+			}
 		}
 		reference_envelope(&h, h.nenv, env, cum);
 		ok(!memcmp(env, h.env, (size_t)h.nenv * sizeof(double)) &&

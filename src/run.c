@@ -497,14 +497,42 @@ static double set_number(const struct scene_opts *o, const char *key, double dfl
 	return v ? atof(v) : dflt;
 }
 
+/* What point.so adds to a halo of psf-halo-radius R (4 R + 1 samples a
+ * side, two a pixel) when it draws with psf-halo-near (above 0, as by
+ * default): its pixel lists ((2 R + 3)^2 int16) and the array split by
+ * phase (two planes of 4 R + 1 rows of 2 R + 17 floats). */
+static double halo_near_bytes(const struct scene_opts *o, double R)
+{
+	double n = 4 * R + 1;
+
+	if (!(set_number(o, "psf-halo-near", 1) > 0))
+		return 0;
+	return (2 * R + 3) * (2 * R + 3) * 2 + 2 * n * (ceil(n / 2) + 16) * sizeof(float);
+}
+
+/* The default spectrum's halo of an SCA beyond what SCA_BYTES holds (its
+ * array at the default psf-halo-radius 256): its near lists, and its
+ * array's growth at a larger radius (built-in PSF, psf-extent=noise). */
+static double default_halo_bytes(const struct scene_opts *o)
+{
+	const char *v = set_value(o, "psf-extent");
+	double R = set_number(o, "psf-halo-radius", 256);
+
+	if (strcmp(o->psf, "builtin") || (v && strcmp(v, "noise")) || !(R > 0))
+		return 0;
+	return halo_near_bytes(o, R) +
+	       (R > 256 ? ((4 * R + 1) * (4 * R + 1) - 1025.0 * 1025) * sizeof(float) : 0);
+}
+
 /*
  * The colour halos an SCA may hold (point.so, psf-extent=noise with the
  * built-in PSF) when a catalog has a spectrum column, an upper bound: the
  * class halos the host builds ((4 R + 1)^2 floats for psf-halo-radius R,
  * 2 n of them for psf-colour-classes n a family) and, for every class pair
  * of both families and every step of psf-halo-colour-steps N, the blend
- * (one more array) with its pixel lists ((2 R + 3)^2 int16) and halo
- * tables (some 40 kB): 2 ((n - 1) N + 1) of them.  The diffuse grid builds a halo's kernels while it
+ * (one more array) with its pixel lists ((2 R + 3)^2 int16), the array
+ * again split by phase (halo_near_bytes) and halo tables (some 40 kB):
+ * 2 ((n - 1) N + 1) of them.  The diffuse grid builds a halo's kernels while it
  * gathers the SCA, one halo's at a time, in the buffers of the default
  * halo's (counted in SCA_BYTES).  Measured: 1000 bright stars of every
  * temperature on one SCA held 61 MB more with 4 steps, against this
@@ -522,7 +550,7 @@ static double colour_halo_bytes(const struct scene_opts *o)
 	if (!(N > 0) || !(R > 0) || !(n >= 2))
 		return 0;
 	arr = (4 * R + 1) * (4 * R + 1) * sizeof(float);
-	return 2 * n * arr + 2 * ((n - 1) * N + 1) * (arr + (2 * R + 3) * (2 * R + 3) * 2 + 40e3);
+	return 2 * n * arr + 2 * ((n - 1) * N + 1) * (arr + halo_near_bytes(o, R) + 40e3);
 }
 
 /*
@@ -576,7 +604,7 @@ static double sca_bytes(const struct scene_opts *o, double colour)
 {
 	double rows = o->row_first ? o->row_last - o->row_first + 1 : WFS_NPIX;
 
-	return rows * WFS_NPIX * sizeof(double) + SCA_BYTES + colour;
+	return rows * WFS_NPIX * sizeof(double) + SCA_BYTES + default_halo_bytes(o) + colour;
 }
 
 static double exposure_bytes(const struct scene_opts *o, const struct exposure *x, double colour)

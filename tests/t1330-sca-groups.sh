@@ -103,7 +103,7 @@ test_expect_success 'the default budget: 2000 MB at levels 1 and 2' '
 		test_grep "bad18.csv:2: .*Sérsic index must be > 0" err &&
 		if test "$half" -ge 2000 && ! grep -q "[0-9]" /sys/fs/cgroup/memory.max 2>/dev/null
 		then
-			test_grep "18 SCAs in 2 passes over the catalogs, 9 at most at a time (184 MB each, 2000 MB of memory)" err
+			test_grep "18 SCAs in 2 passes over the catalogs, 9 at most at a time (188 MB each, 2000 MB of memory)" err
 		else
 			test_grep "18 SCAs in [0-9]* passes over the catalogs" err
 		fi || return 1

@@ -242,28 +242,30 @@ static inline int halo_geom_rings(struct halo_geom *g, int nenv)
 	int n = g->n, over = g->over, c = (n - 1) / 2, umax = n - 1 - c > c ? n - 1 - c : c;
 	size_t t = 0;
 
-	for (int pass = 0; pass < 2; pass++) {
-		t = 0;
-		for (int j = 0; j < n; j++) {
-			double dy = (double)(j - c) / over;
-			int u = 0, r = (int)halo_dist(0, dy, over);
+	/* a row holds at most nenv runs (one a radius below nenv) */
+	if (!(g->eu = malloc(((size_t)n * nenv + 1) * sizeof(*g->eu))))
+		return -1;
+	for (int j = 0; j < n; j++) {
+		double dy = (double)(j - c) / over;
+		int u = 0, r = (int)halo_dist(0, dy, over);
 
-			if (pass) {
-				g->er0[j] = r;
-				g->eoff[j] = (int)t;
-			}
-			while (r < nenv && u <= umax) {
-				while (u + 1 <= umax && (int)halo_dist(u + 1, dy, over) == r)
-					u++;
-				if (pass)
-					g->eu[t] = (int16_t)u;
-				t++;
-				u++;
-				r = u <= umax ? (int)halo_dist(u, dy, over) : nenv;
-			}
+		g->er0[j] = r;
+		g->eoff[j] = (int)t;
+		while (r < nenv && u <= umax) {
+			/* the run's last u: from where d would reach r + 1, then
+			 * moved to it by the same test as every sample's */
+			double e = (double)(r + 1) * (r + 1) - dy * dy;
+			int ue = e > 0 ? (int)(sqrt(e) * over) : u;
+
+			ue = ue < u ? u : ue > umax ? umax : ue;
+			while (ue > u && (int)halo_dist(ue, dy, over) > r)
+				ue--;
+			while (ue + 1 <= umax && (int)halo_dist(ue + 1, dy, over) == r)
+				ue++;
+			g->eu[t++] = (int16_t)ue;
+			u = ue + 1;
+			r = u <= umax ? (int)halo_dist(u, dy, over) : nenv;
 		}
-		if (!pass && !(g->eu = malloc((t ? t : 1) * sizeof(*g->eu))))
-			return -1;
 	}
 	g->eoff[n] = (int)t;
 	/* the phase-0 samples' whole radii */

@@ -226,11 +226,18 @@ static inline void halo_geom_free(struct halo_geom *g)
 	g->dpow = NULL;
 }
 
+/* u / over, by a product where over is a power of two (then exactly the
+ * quotient, without the division's latency). */
+static inline double halo_per(int u, int over)
+{
+	return over & (over - 1) ? (double)u / over : u * (1.0 / over);
+}
+
 /* The distance of sample offset (u, dy over) from the centre, in pixels,
  * as halo_geom_make() and the envelope test it. */
 static inline double halo_dist(int u, double dy, int over)
 {
-	double dx = (double)u / over;
+	double dx = halo_per(u, over);
 
 	return sqrt(dx * dx + dy * dy);
 }
@@ -246,7 +253,7 @@ static inline int halo_geom_rings(struct halo_geom *g, int nenv)
 	if (!(g->eu = malloc(((size_t)n * nenv + 1) * sizeof(*g->eu))))
 		return -1;
 	for (int j = 0; j < n; j++) {
-		double dy = (double)(j - c) / over;
+		double dy = halo_per(j - c, over);
 		int u = 0, r = (int)halo_dist(0, dy, over);
 
 		g->er0[j] = r;
@@ -274,7 +281,7 @@ static inline int halo_geom_rings(struct halo_geom *g, int nenv)
 		return -1;
 	for (int j = c % over; j < n; j += over)
 		for (int i = c % over; i < n; i += over) {
-			double dx = (double)(i - c) / over, dy = (double)(j - c) / over;
+			double dx = halo_per(i - c, over), dy = halo_per(j - c, over);
 			double d = sqrt(dx * dx + dy * dy);
 			int r = (int)d, rr = (int)floor(d + 0.5);
 
@@ -326,7 +333,7 @@ static inline int halo_geom_make(struct halo_geom *g, int n, int over, double al
 	 * one quadrant; only the band's are read (the same d and test below) */
 	for (int u = 0; u <= c; u++)
 		for (int w = 0; w <= u; w++) {
-			double dx = (double)u / over, dy = (double)w / over;
+			double dx = halo_per(u, over), dy = halo_per(w, over);
 			double d = sqrt(dx * dx + dy * dy);
 
 			if (d >= HALO_BAND * R && d < R)
@@ -380,7 +387,7 @@ static inline int halo_geom_make(struct halo_geom *g, int n, int over, double al
 			int lo = side ? (ub ? c + ub : c + 1) : c - ur, hi = side ? c + ur : c - ub;
 
 			for (int i = lo; i <= hi; i++) {
-				int k = halo_sample_bin((double)(i - c) / over, dy);
+				int k = halo_sample_bin(halo_per(i - c, over), dy);
 
 				g->bin[q++] = (int16_t)k;
 				g->cnt[k]++;

@@ -428,7 +428,9 @@ print('| %d | %d | %.1f | %.1f | %.0f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f 
 rm -f "$W/o.fits"
 
 echo
-echo "A bulge-like field with spectra: 10^6 sky rows over the same square, AB"
+nbulge=1000000
+[ "$quick" = 1 ] && nbulge=200000
+echo "A bulge-like field with spectra: $nbulge sky rows over the same square, AB"
 echo "14-28 (\`starfield -n N -r 10 -d 20 -w 0.9 -m 14 -M 28 -s 5\`; some 1 000"
 echo "stars brighter than 18, drawn with halos), with a \`teff\` column"
 echo "log-uniform in 2 500-50 000 K (awk, \`srand(7)\`) and without; F146 (four"
@@ -438,9 +440,7 @@ echo "after one run that builds any grid the PSF cache lacks."
 echo
 echo "| catalog | rows | wall s | CPU s | peak MiB | project+place s | render busy s |"
 echo "|---|---|---|---|---|---|---|"
-nb=1000000
-[ "$quick" = 1 ] && nb=200000
-"$GEN" -n $nb -r 10 -d 20 -w 0.9 -m 14 -M 28 -s 5 > "$W/bulge.csv"
+"$GEN" -n $nbulge -r 10 -d 20 -w 0.9 -m 14 -M 28 -s 5 > "$W/bulge.csv"
 awk -F, 'BEGIN { srand(7) } NR == 1 { print $0 ",teff"; next }
 	{ printf "%s,%.1f\n", $0, 2500 * exp(rand() * log(20)) }' "$W/bulge.csv" > "$W/bulget.csv"
 for cat in bulge bulget; do
@@ -454,7 +454,7 @@ for cat in bulge bulget; do
 import json
 r = json.load(open('$W/rb_$4.json'))['seconds']
 print('| %s | %d | %.2f | %.2f | %.0f | %.2f | %.2f |' % ('$cat' == 'bulge' and 'no spectra' or 'teff',
-      $nb, $1, $2, $3 / 1024, r['project_place'], r['render_busy']))"
+      $nbulge, $1, $2, $3 / 1024, r['project_place'], r['render_busy']))"
 done
 rm -f "$W/bulge.csv" "$W/bulget.csv"
 

@@ -163,6 +163,14 @@ static inline double halo_tail_base(const struct halo *h, double dx, double dy)
 	return h->alpha == 3 ? a / (d * d * d) : a * pow(d, -h->alpha);
 }
 
+/* The array's value of the pixel at whole offset (dx, dy) from a source
+ * on a pixel's centre (phase 0): its sample there, times s, which is what
+ * halo_value()'s bilinear read gives inside the array's plain part. */
+static inline double halo_pixel(const struct halo *h, long dx, long dy)
+{
+	return h->s * h->a[(size_t)(h->c + h->over * dy) * h->n + h->c + h->over * dx];
+}
+
 /* The model's value of a pixel at offset (dx, dy) from the source. */
 static inline double halo_value(const struct halo *h, double dx, double dy)
 {

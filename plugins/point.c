@@ -248,6 +248,14 @@ static _Thread_local struct {
 	struct tally *t;
 } mine;
 
+/* The lock of the set-up of obj (a colour halo's place, a slot). */
+pthread_mutex_t *set_lock_of(struct point *p, const void *obj)
+{
+	uintptr_t a = (uintptr_t)obj;
+
+	return &p->set_lock[(a ^ a >> 7 ^ a >> 13) % SET_STRIPES];
+}
+
 struct tally *tally_of(struct point *p)
 {
 	struct tally *t;

@@ -496,13 +496,14 @@ int noise_render(struct point *p, const struct wfs_source *src, const struct wfs
 int noise_reach(struct point *p, const struct wfs_source *src, double *pixels);
 double halo_level(const struct point *p, double flux, int *k);
 void hslot_free_all(struct point *p);
+/* point.c: the lock of the set-up of obj (struct point: set_lock) */
+pthread_mutex_t *set_lock_of(struct point *p, const void *obj);
 
 /* point_near.c: psf-halo-near; near_of() sets up slot s's step map and
  * runs on first use (the box's half-width hb), near_under() is the light
  * (over the flux) a source of level step k leaves to the grid within the
  * array's disc, near_render() draws a source's pixels of level step k or
  * above within radius r, outside its box, into win */
-pthread_mutex_t *set_lock_of(struct point *p, const void *obj);
 const struct near *near_of(struct point *p, struct hslot *s, int hb);
 double near_under(const struct near *n, int k);
 void near_free(struct near *n);

@@ -647,9 +647,7 @@ static int near_hist(const struct point *p, const struct halo *h, const struct n
 			b = lfloor((dy + 0.5 + 0.5 * s) / s);
 			/* within the plain part halo_value()'s read is the sample */
 			d = sqrt((double)dx * dx + (double)dy * dy);
-			v = d < h->R - h->taper ?
-				    h->s * h->a[(size_t)(h->c + h->over * dy) * h->n + h->c + h->over * dx] :
-				    halo_value(h, dx, dy);
+			v = d < h->R - h->taper ? halo_pixel(h, dx, dy) : halo_value(h, dx, dy);
 			nk->hist[(size_t)(st - n->kmin) * plane + (size_t)(b + pc) * side + a + pc] += v;
 		}
 	return 0;

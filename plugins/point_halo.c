@@ -32,7 +32,7 @@ static const struct halo_geom *geom_of(struct point *p, int n, int over)
 }
 
 /* Set up slot s's halo from the host's array a (n x n, over per pixel),
- * or with g > 0 from the blend (1 - g) a + g b into s->arr; the lock held.
+ * or with g > 0 from the blend (1 - g) a + g b into s->arr; its lock held.
  * 0, or -1 when out of memory or the array is too small. */
 static int slot_setup(struct point *p, struct hslot *s, const float *a, const float *b,
 		      double g, int n, int over)
@@ -252,9 +252,7 @@ static double core_scale(struct point *p, const struct wfs_source *src, struct h
 	for (int j = -half + 1; j < half; j++)
 		for (int i = -half + 1; i < half; i++)
 			far += abs(h->over * i) <= h->c && abs(h->over * j) <= h->c ?
-				       h->s * h->a[(size_t)(h->c + h->over * j) * h->n + h->c +
-						   h->over * i] :
-				       halo_value(h, i, j);
+				       halo_pixel(h, i, j) : halo_value(h, i, j);
 	pthread_mutex_lock(&p->lock);
 	if (!atomic_load_explicit(ready, memory_order_relaxed)) {
 		s->cfac[cls] = fine > 0 && far > 0 ? far / fine : 1;

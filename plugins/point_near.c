@@ -82,7 +82,7 @@ static int near_step(double v)
 {
 	static const double t[5] = { 1.0, 1.189207115002721, 1.4142135623730951,
 				     1.681792830507429, 2.0 };
-	int e, q = 0;
+	int e, q;
 	double m = 2 * frexp(v, &e);    /* v = m 2^(e - 1), 1 <= m < 2 */
 
 	for (int i = 0; i < 5; i++)
@@ -269,14 +269,6 @@ double near_under(const struct near *n, int k)
 	if (k <= n->kmin)
 		return 0;
 	return n->under[(k > n->kmax + 1 ? n->kmax + 1 : k) - n->kmin];
-}
-
-/* The lock of the set-up of obj (a colour halo's place, a slot). */
-pthread_mutex_t *set_lock_of(struct point *p, const void *obj)
-{
-	uintptr_t a = (uintptr_t)obj;
-
-	return &p->set_lock[(a ^ a >> 7 ^ a >> 13) % SET_STRIPES];
 }
 
 /* Slot s's lists, set up on first use under its lock (the box: hb). */

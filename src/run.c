@@ -521,7 +521,8 @@ static double default_halo_bytes(const struct scene_opts *o)
 	if (strcmp(o->psf, "builtin") || (v && strcmp(v, "noise")) || !(R > 0))
 		return 0;
 	return halo_near_bytes(o, R) +
-	       (R > 256 ? ((4 * R + 1) * (4 * R + 1) - 1025.0 * 1025) * sizeof(float) : 0);
+	       (R > 256 ? ((4 * R + 1) * (4 * R + 1) - (4 * 256 + 1.0) * (4 * 256 + 1)) *
+				  sizeof(float) : 0);
 }
 
 /*

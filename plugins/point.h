@@ -172,6 +172,7 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
 #define FAR_STEPS 4
 #define SET_STRIPES 16          /* struct point: set_lock */
 #define NEAR_SEG 8              /* offsets of a row segment of the step map */
+#define NEAR_CHUNK 16           /* offsets of a chunk (struct near: cs) */
 
 /* The halo's array, pixel by pixel (point_near.c, near_setup): for every
  * pixel offset (dx, dy) from the pixel nearest a source within the
@@ -181,7 +182,13 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
  * offsets dx + rc in [s NEAR_SEG, (s + 1) NEAR_SEG).  For k from kmin to
  * kmax, the row's runs of consecutive segments whose largest step reaches
  * k are rs[2 t] .. rs[2 t + 1] (first and last segment) for t from
- * ri[(k - kmin) side + dy + rc] up to the next entry of ri.
+ * ri[(k - kmin) side + dy + rc] up to the next entry of ri.  The same
+ * runs as chunks of NEAR_CHUNK offsets that do not overlap: chunk c starts
+ * at offset cs[c] - rc and covers the next NEAR_CHUNK, for c from
+ * ci[(k - kmin) side + dy + rc] up to the next entry of ci; every offset
+ * of the runs lies in one of them (an offset a chunk adds outside the
+ * runs has a step below k).  ry[2 (k - kmin)] and ry[2 (k - kmin) + 1]:
+ * the first and last row (dy + rc) with a run at k, or side and -1.
  * under[k - kmin] is the light (phase 0) of the
  * offsets within the disc and outside the box of half-width hb whose step
  * is below k: what a source of level step k leaves to the diffuse grid
@@ -190,8 +197,9 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
  * that a pixel's samples of one sample row lie in two planes at the same
  * column and a row of pixels reads each plane contiguously. */
 struct near {
-	int16_t *st, *smax, *rs;
-	int32_t *ri;
+	int16_t *st, *smax, *rs, *cs;
+	int32_t *ri, *ci;
+	int16_t *ry;            /* per level: its first and last row with a run */
 	int rc, side, nseg, hb;
 	int kmin, kmax;
 	double *under;          /* steps kmin to kmax + 1 */

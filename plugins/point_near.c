@@ -92,8 +92,51 @@ static int near_step(double v)
 	return FAR_STEPS * (e - 1) + q;
 }
 
+/* The runs' chunks (point.h, struct near: ci, cs) of every level and row,
+ * in that order: each run's offsets from where the last chunk ended or the
+ * run starts, whichever is later, a chunk at a time. */
+static int near_chunks(struct near *n)
+{
+	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side, m = 0, cap = 1024;
+	int16_t *cs;
+
+	if (!(n->ci = malloc((nk * side + 1) * sizeof(*n->ci))) ||
+	    !(n->cs = malloc(cap * sizeof(*n->cs))) ||
+	    !(n->ry = malloc(2 * nk * sizeof(*n->ry))))
+		return -1;
+	for (size_t q = 0; q < nk * side; q++) {
+		long at = LONG_MIN;
+		int16_t *ry = n->ry + 2 * (q / side);
+
+		if (q % side == 0) {
+			ry[0] = (int16_t)side;
+			ry[1] = -1;
+		}
+		if (n->ri[q] < n->ri[q + 1]) {
+			ry[0] = ry[0] < (int16_t)(q % side) ? ry[0] : (int16_t)(q % side);
+			ry[1] = (int16_t)(q % side);
+		}
+		n->ci[q] = (int32_t)m;
+		for (int32_t t = n->ri[q]; t < n->ri[q + 1]; t++) {
+			long a = (long)n->rs[2 * t] * NEAR_SEG, e = (n->rs[2 * t + 1] + 1L) * NEAR_SEG;
+
+			for (at = at > a ? at : a; at < e; at += NEAR_CHUNK) {
+				if (m == cap) {
+					if (!(cs = realloc(n->cs, 2 * cap * sizeof(*cs))))
+						return -1;
+					n->cs = cs;
+					cap *= 2;
+				}
+				n->cs[m++] = (int16_t)at;
+			}
+		}
+	}
+	n->ci[nk * side] = (int32_t)m;
+	return 0;
+}
+
 /* The runs of segments (point.h, struct near: ri, rs) of every level and
- * row, in that order, rs grown as they are found. */
+ * row, in that order, rs grown as they are found; then their chunks. */
 static int near_segments(struct near *n)
 {
 	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side, t = 0, cap = 1024;
@@ -150,7 +193,7 @@ static int near_segments(struct near *n)
 		}
 	free(lim);
 	n->ri[nk * side] = (int32_t)t;
-	return 0;
+	return near_chunks(n);
 }
 
 /* The array's samples by phase (point.h, struct near: pl), each plane's
@@ -257,6 +300,9 @@ void near_free(struct near *n)
 	free(n->smax);
 	free(n->ri);
 	free(n->rs);
+	free(n->ci);
+	free(n->cs);
+	free(n->ry);
 	free(n->under);
 	free(n->pl);
 	memset(n, 0, sizeof(*n));
@@ -357,47 +403,6 @@ near_span_avx2(const struct near_row *q, const int16_t *st, int k, long a, long 
 	}
 	near_span_c(q, st, k, dx, b, row);
 }
-
-/* near_span_c sixteen pixels a step in AVX-512 F, the same bits; the last
- * step masked (its steps read unmasked, up to 15 past b: see near_setup;
- * its samples masked, within the planes' padding). */
-__attribute__((target("avx512f,avx2,fma"))) static inline void
-near_span_avx512(const struct near_row *q, const int16_t *st, int k, long a, long b, double *row)
-{
-	const float *p0 = q->p0, *p1 = q->p1, *p2 = q->p0 + q->nh, *p3 = q->p1 + q->nh;
-	__m512 w0 = _mm512_set1_ps(q->w[0]), w1 = _mm512_set1_ps(q->w[1]);
-	__m512 w2 = _mm512_set1_ps(q->w[2]), w3 = _mm512_set1_ps(q->w[3]);
-	__m512i km = _mm512_set1_epi32(k - 1);
-
-	for (long dx = a; dx <= b; dx += 16) {
-		__mmask16 tm = b - dx >= 15 ? 0xffff : (__mmask16)((1u << (b - dx + 1)) - 1);
-		__m512i sv = _mm512_cvtepi16_epi32(_mm256_loadu_si256((const __m256i *)(st + dx)));
-		__mmask16 in = _mm512_mask_cmpgt_epi32_mask(tm, sv, km);
-		__m512 v = _mm512_mul_ps(w0, _mm512_maskz_loadu_ps(tm, p0 + dx));
-		__m256 hi;
-
-		v = _mm512_fmadd_ps(w1, _mm512_maskz_loadu_ps(tm, p1 + dx), v);
-		v = _mm512_fmadd_ps(w2, _mm512_maskz_loadu_ps(tm, p2 + dx), v);
-		v = _mm512_fmadd_ps(w3, _mm512_maskz_loadu_ps(tm, p3 + dx), v);
-		v = _mm512_maskz_mov_ps(in, v);
-		hi = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(v), 1));
-		if (tm == 0xffff) {
-			_mm512_storeu_pd(row + dx, _mm512_add_pd(_mm512_loadu_pd(row + dx),
-								 _mm512_cvtps_pd(_mm512_castps512_ps256(v))));
-			_mm512_storeu_pd(row + dx + 8, _mm512_add_pd(_mm512_loadu_pd(row + dx + 8),
-								     _mm512_cvtps_pd(hi)));
-		} else {
-			__mmask8 m0 = (__mmask8)tm, m1 = (__mmask8)(tm >> 8);
-
-			_mm512_mask_storeu_pd(row + dx, m0, _mm512_add_pd(
-				_mm512_maskz_loadu_pd(m0, row + dx),
-				_mm512_cvtps_pd(_mm512_castps512_ps256(v))));
-			if (m1)
-				_mm512_mask_storeu_pd(row + dx + 8, m1, _mm512_add_pd(
-					_mm512_maskz_loadu_pd(m1, row + dx + 8), _mm512_cvtps_pd(hi)));
-		}
-	}
-}
 #endif
 
 /* Any pixels dx in [a, b] of row q whose step reaches k: the bilinear
@@ -454,15 +459,9 @@ near_runs(near_span_fn *span, const struct near_row *q, const struct near *n, in
 }
 
 /* near_runs of a row whose every pixel drawn is in the array's plain
- * part, in AVX-512, AVX2 or plain C (near_plain_choose). */
+ * part, in AVX2 or plain C (near_plain_choose; with AVX-512,
+ * near_jobs_avx512). */
 #ifdef SIMD_X86
-__attribute__((target("avx512f,avx2,fma"))) static void
-near_plain_avx512(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
-		const long *cut, int nc, const int16_t *st, int k, double *row)
-{
-	near_runs(near_span_avx512, q, n, r0, r1, cut, nc, st, k, row);
-}
-
 __attribute__((target("avx2,fma"))) static void
 near_plain_avx2(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
 		const long *cut, int nc, const int16_t *st, int k, double *row)
@@ -480,18 +479,144 @@ static void near_plain_c(const struct near_row *q, const struct near *n, int32_t
 typedef void near_plain_fn(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
 			   const long *cut, int nc, const int16_t *st, int k, double *row);
 
-/* near_plain_*() in the widest vectors this process may use */
+/* A plain row's chunks for near_jobs_avx512(): the row (offset 0 at the
+ * source's pixel), its steps, its samples' offset in the planes, its
+ * chunks c0 .. c1 - 1, the offsets [lo, hi] drawn and [bx0, bx1) not
+ * (the box). */
+struct near_job {
+	double *row;
+	const int16_t *st;
+	long pv;
+	int32_t c0, c1, lo, hi, bx0, bx1;
+};
+
+#define NEAR_JOBS 64
+
+#ifdef SIMD_X86
+/* Jobs jb[0 .. nj - 1] of a source in AVX-512: of each chunk's sixteen
+ * offsets, those in [lo, hi] and outside [bx0, bx1) whose step reaches k
+ * add their bilinear value, computed as near_value() does, so with the
+ * same bits as near_plain_*() (every offset they draw lies in one chunk,
+ * and one only).  One loop over each row's chunks, their lanes picked by
+ * comparisons, with no branch per run. */
+__attribute__((target("avx512f,avx2,fma"))) static void
+near_jobs_avx512(const struct near_row *q, const struct near *n, const float *b0,
+		 const float *b1, const struct near_job *jb, int nj, int k)
+{
+	__m512 w0 = _mm512_set1_ps(q->w[0]), w1 = _mm512_set1_ps(q->w[1]);
+	__m512 w2 = _mm512_set1_ps(q->w[2]), w3 = _mm512_set1_ps(q->w[3]);
+	__m512i km = _mm512_set1_epi32(k - 1);
+	__m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+	const int16_t *cs = n->cs;
+	long rc = n->rc, nh = n->nh;
+
+	for (int t = 0; t < nj; t++) {
+		const struct near_job *g = jb + t;
+		const float *p0 = b0 + g->pv, *p1 = b1 + g->pv, *p2 = p0 + nh, *p3 = p1 + nh;
+		__m512i vlo = _mm512_set1_epi32(g->lo), vhi = _mm512_set1_epi32(g->hi);
+		__m512i vb0 = _mm512_set1_epi32(g->bx0), vb1 = _mm512_set1_epi32(g->bx1);
+		const int16_t *st = g->st;
+		double *row = g->row;
+		int32_t c0 = g->c0, c1 = g->c1;
+
+		/* the chunks wholly before lo or after hi (another window's) */
+		while (c0 < c1 && cs[c0] - rc + NEAR_CHUNK - 1 < g->lo)
+			c0++;
+		while (c1 > c0 && cs[c1 - 1] - rc > g->hi)
+			c1--;
+		for (int32_t c = c0; c < c1; c++) {
+			long dx = cs[c] - rc;
+			__m512i pos = _mm512_add_epi32(_mm512_set1_epi32((int)dx), iota);
+			__mmask16 m = _mm512_cmpge_epi32_mask(pos, vlo) &
+				      _mm512_cmple_epi32_mask(pos, vhi) &
+				      ~(_mm512_cmpge_epi32_mask(pos, vb0) &
+					_mm512_cmplt_epi32_mask(pos, vb1));
+			__m512i sv = _mm512_cvtepi16_epi32(
+				_mm256_loadu_si256((const __m256i *)(st + dx)));
+			__mmask16 in = _mm512_mask_cmpgt_epi32_mask(m, sv, km);
+			__mmask8 m0 = (__mmask8)in, m1 = (__mmask8)(in >> 8);
+			__m512 v = _mm512_mul_ps(w0, _mm512_maskz_loadu_ps(in, p0 + dx));
+			__m256 h;
+
+			v = _mm512_fmadd_ps(w1, _mm512_maskz_loadu_ps(in, p1 + dx), v);
+			v = _mm512_fmadd_ps(w2, _mm512_maskz_loadu_ps(in, p2 + dx), v);
+			v = _mm512_fmadd_ps(w3, _mm512_maskz_loadu_ps(in, p3 + dx), v);
+			h = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(v), 1));
+			_mm512_mask_storeu_pd(row + dx, m0, _mm512_add_pd(
+				_mm512_maskz_loadu_pd(m0, row + dx),
+				_mm512_cvtps_pd(_mm512_castps512_ps256(v))));
+			_mm512_mask_storeu_pd(row + dx + 8, m1, _mm512_add_pd(
+				_mm512_maskz_loadu_pd(m1, row + dx + 8), _mm512_cvtps_pd(h)));
+		}
+	}
+}
+#endif
+
+/* near_plain_*() in the widest vectors this process may use, below
+ * AVX-512 */
 static near_plain_fn *near_plain_choose(void)
+{
+#ifdef SIMD_X86
+	if ((simd_flags() & (SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX2 | SIMD_FMA))
+		return near_plain_avx2;
+#endif
+	return near_plain_c;
+}
+
+/* whether near_jobs_avx512() may run */
+static int near_jobs_ok(void)
 {
 #ifdef SIMD_X86
 	int f = simd_flags();
 
-	if ((f & (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA))
-		return near_plain_avx512;
-	if ((f & (SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX2 | SIMD_FMA))
-		return near_plain_avx2;
+	return (f & (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA);
+#else
+	return 0;
 #endif
-	return near_plain_c;
+}
+
+/* Row q's runs r0 .. r1 - 1 within offsets [lo, hi] and, in a row of the
+ * box (inbox), outside [bx0, bx1): each run's part in each range drawn by
+ * plain_rows, or with plain_rows NULL pixel by pixel (near_run). */
+static void near_row_runs(const struct near_row *q, const struct near *n, near_plain_fn *plain_rows,
+			  int32_t r0, int32_t r1, long lo, long hi, int inbox, long bx0, long bx1,
+			  const int16_t *st, int k, double *row)
+{
+	long cut[4];
+	int nc = 0;
+
+	cut[nc++] = lo;
+	if (inbox && bx1 - 1 >= lo && bx0 <= hi) {
+		if (bx0 - 1 >= lo)
+			cut[nc++] = bx0 - 1;
+		else
+			nc = 0;
+		cut[nc++] = bx1;
+	}
+	cut[nc++] = hi;
+	if (plain_rows)
+		plain_rows(q, n, r0, r1, cut, nc, st, k, row);
+	else
+		near_runs(near_run, q, n, r0, r1, cut, nc, st, k, row);
+}
+
+/* The window's rows *jlo .. *jhi (from its first) that can meet the disc
+ * of radius^2 rm2 about a source at row y (its pixel's j0), each tested by
+ * near_render, and have runs at the source's level (ry: its first and last
+ * row with any). */
+static void near_window_rows(const struct near *n, const int16_t *ry, double y, long j0,
+			     double rm2, const struct wfs_window *win, long *jlo, long *jhi)
+{
+	long a = lfloor(y - sqrt(rm2)) - 1, b = lceil(y + sqrt(rm2)) + 1;
+
+	a = a > j0 - n->rc ? a : j0 - n->rc;
+	b = b < j0 + n->rc ? b : j0 + n->rc;
+	a = a > j0 + ry[0] - n->rc ? a : j0 + ry[0] - n->rc;
+	b = b < j0 + ry[1] - n->rc ? b : j0 + ry[1] - n->rc;
+	a -= win->y0;
+	b -= win->y0;
+	*jlo = a > 0 ? a : 0;
+	*jhi = b < win->ny - 1 ? b : win->ny - 1;
 }
 
 /*
@@ -508,11 +633,13 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 	long i0 = lfloor(x + 0.5), j0 = lfloor(y + 0.5), o = h->over;
 	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
 	struct near_row q;
-	const int32_t *ri;
+	const int32_t *ri, *ci;
 	const float *b0, *b1;
 	double rp, rp2;
 	long jlo, jhi, iu, iv0, m0, r0;
 	near_plain_fn *plain_rows = near_plain_choose();
+	struct near_job jb[NEAR_JOBS];
+	int nj = 0, jobs = near_jobs_ok();
 
 	iu = lfloor(ux);
 	fu = ux - iu;
@@ -541,26 +668,21 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 	if (k > n->kmax)
 		return;
 	ri = n->ri + (size_t)(k > n->kmin ? k - n->kmin : 0) * n->side;
+	ci = n->ci + (ri - n->ri);
 	/* a row whose runs' ends lie this far inside both the chord and the
 	 * array's plain part (by more than the chord's rounding) draws all of
 	 * them as plain reads, without the chord or the per-run tests */
 	rp = sqrt(rm2 < q.rin2 ? rm2 : q.rin2) - 1e-6;
 	rp2 = rp > 0 ? rp * rp : -1;
-	/* the window's rows that can meet the disc (each is tested below) */
-	jlo = lfloor(y - sqrt(rm2)) - 1 - win->y0;
-	jhi = lceil(y + sqrt(rm2)) + 1 - win->y0;
-	jlo = jlo > j0 - n->rc - win->y0 ? jlo : j0 - n->rc - win->y0;
-	jhi = jhi < j0 + n->rc - win->y0 ? jhi : j0 + n->rc - win->y0;
-	jlo = jlo > 0 ? jlo : 0;
-	jhi = jhi < win->ny - 1 ? jhi : win->ny - 1;
+	near_window_rows(n, n->ry + 2 * (ri - n->ri) / n->side, y, j0, rm2, win, &jlo, &jhi);
 	for (long j = jlo; j <= jhi; j++) {
-		long jj = win->y0 + j, dyo = jj - j0, lo, hi, cut[4];
+		long jj = win->y0 + j, dyo = jj - j0, lo, hi, pv;
 		long wl = win->x0 - i0, wh = win->x0 + win->nx - 1 - i0;
 		double dy = jj - y, xa, xb;
 		double *row = win->pix + j * win->stride + i0 - win->x0;
 		const int16_t *st;
 		int32_t r0, r1;
-		int nc = 0, plain;
+		int plain, inbox;
 
 		if (labs(dyo) > n->rc || dy * dy >= rm2)
 			continue;
@@ -591,22 +713,29 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 			if (lo > hi)
 				continue;
 		}
-		cut[nc++] = lo;
-		if (jj >= box.y0 && jj < box.y1 && box.x1 - 1 - i0 >= lo && box.x0 - i0 <= hi) {
-			if (box.x0 - i0 - 1 >= lo)
-				cut[nc++] = box.x0 - i0 - 1;
-			else
-				nc = 0;
-			cut[nc++] = box.x1 - i0;
-		}
-		cut[nc++] = hi;
 		st = n->st + (size_t)(dyo + n->rc) * n->side + n->rc;
-		q.p0 = b0 + (iv0 + o * dyo) * n->nh;
-		q.p1 = b1 + (iv0 + o * dyo) * n->nh;
-		/* each run's part in each cut range */
-		if (plain)
-			plain_rows(&q, n, r0, r1, cut, nc, st, k, row);
-		else
-			near_runs(near_run, &q, n, r0, r1, cut, nc, st, k, row);
+		pv = (iv0 + o * dyo) * n->nh;
+		inbox = jj >= box.y0 && jj < box.y1;
+#ifdef SIMD_X86
+		if (plain && jobs) {
+			jb[nj++] = (struct near_job){ row, st, pv, ci[dyo + n->rc], ci[dyo + n->rc + 1],
+						      (int32_t)lo, (int32_t)hi,
+						      inbox ? (int32_t)(box.x0 - i0) : 0,
+						      inbox ? (int32_t)(box.x1 - i0) : 0 };
+			if (nj == NEAR_JOBS) {
+				near_jobs_avx512(&q, n, b0, b1, jb, nj, k);
+				nj = 0;
+			}
+			continue;
+		}
+#endif
+		q.p0 = b0 + pv;
+		q.p1 = b1 + pv;
+		near_row_runs(&q, n, plain ? plain_rows : NULL, r0, r1, lo, hi, inbox,
+			      box.x0 - i0, box.x1 - i0, st, k, row);
 	}
+#ifdef SIMD_X86
+	if (nj)
+		near_jobs_avx512(&q, n, b0, b1, jb, nj, k);
+#endif
 }

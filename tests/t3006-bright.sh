@@ -103,16 +103,20 @@ json.dump(r, open(\"s2.json\", \"w\"))" &&
 	"$PY" check.py edge s.fits s2.json
 '
 # The halo's pixels above the level are drawn by vector loops of two
-# widths (AVX-512 eight pixels a step, AVX2 four) and a plain loop, each
-# taken where the processor has it: the same bits, on a field whose
-# stars' halos cross tile edges, each other and their boxes, at every
-# sub-pixel phase.  Each width is compared where this processor has it.
+# widths (AVX-512 sixteen pixels a step, over each row's chunks; AVX2
+# eight, over its runs) and a plain loop, each taken where the processor
+# has it: the same bits, on a field whose stars' halos cross tile edges,
+# each other and their boxes, at every sub-pixel phase, with the default
+# tiles and with tiles of 40 pixels (a chunk then often crosses a tile's
+# edge).  Each width is compared where this processor has it.
 grep -q '^flags.* avx2' /proc/cpuinfo 2>/dev/null && has_avx2=1 || has_avx2=
 grep -q '^flags.* avx512f' /proc/cpuinfo 2>/dev/null && has_avx512=1 || has_avx512=
 test_expect_success 'bright stars: a field of halos, drawn with the plain loops' '
 	"$BUILD/contrib/starfield" -n 400 -x -m 12 -M 20 -s 9 > br.csv &&
 	WFISCENE_NO_SIMD=1 "$WFS" --filter F158 --flux-unit abmag --exptime 139.8 \
 		--rows 1-1200 -o p.fits br.csv &&
+	WFISCENE_NO_SIMD=1 "$WFS" --filter F158 --flux-unit abmag --exptime 139.8 \
+		--rows 1-1200 --tile 40 -o p40.fits br.csv &&
 	"$PY" -c "
 from astropy.io import fits
 import numpy as np
@@ -124,7 +128,10 @@ if [ -n "$has_avx2" ]; then
 	test_expect_success 'bright stars: the AVX2 loops draw the same bits as the plain ones' '
 		WFISCENE_NO_SIMD=avx512 "$WFS" --filter F158 --flux-unit abmag --exptime 139.8 \
 			--rows 1-1200 -o v2.fits br.csv &&
-		test_cmp p.fits v2.fits
+		test_cmp p.fits v2.fits &&
+		WFISCENE_NO_SIMD=avx512 "$WFS" --filter F158 --flux-unit abmag --exptime 139.8 \
+			--rows 1-1200 --tile 40 -o v240.fits br.csv &&
+		test_cmp p40.fits v240.fits
 	'
 else
 	test_skip 'bright stars: the AVX2 loops draw the same bits as the plain ones' \
@@ -133,7 +140,10 @@ fi
 if [ -n "$has_avx512" ]; then
 	test_expect_success 'bright stars: the AVX-512 loops draw the same bits as the plain ones' '
 		"$WFS" --filter F158 --flux-unit abmag --exptime 139.8 --rows 1-1200 -o v.fits br.csv &&
-		test_cmp p.fits v.fits
+		test_cmp p.fits v.fits &&
+		"$WFS" --filter F158 --flux-unit abmag --exptime 139.8 --rows 1-1200 --tile 40 \
+			-o v40.fits br.csv &&
+		test_cmp p40.fits v40.fits
 	'
 else
 	test_skip 'bright stars: the AVX-512 loops draw the same bits as the plain ones' \

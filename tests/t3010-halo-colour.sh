@@ -166,8 +166,8 @@ assert abs(a / b - 1) < 1e-4, (a, b)
 
 # --memory's per-SCA estimate counts what a catalog with a spectrum column
 # may add (upper bounds for faint sources; 4 classes a family in F146):
-# with 64-pixel halos and 4 steps 18 MiB of halos (each blend's pixel
-# lists and copy split by phase among them); the teff family's class
+# with 64-pixel halos and 4 steps 22 MiB of halos (each blend's pixel
+# lists, runs, chunks and copy split by phase among them); the teff family's class
 # grids and node copies, 15 MiB, and its 4 class cells at 100 positions,
 # 125 MiB; with a type column (galaxies) its 93 blends at 32 steps, 100
 # MiB; the power laws' (beta) as much, and both families (two columns, or
@@ -196,16 +196,16 @@ test_expect_success 'the memory estimate counts the colour halos, cells and blen
 	est --rows 2040-2055 faint.csv > err10 &&
 	cat err0 err1 err2 err3 err4 err5 err6 err7 err8 err9 err10 &&
 	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err0 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (342 MB each" err1 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (347 MB each" err1 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (324 MB each" err2 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (217 MB each" err3 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (199 MB each" err4 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (442 MB each" err5 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (342 MB each" err6 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (342 MB each" err7 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (482 MB each" err8 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (482 MB each" err9 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (215 MB each" err10
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (223 MB each" err3 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (200 MB each" err4 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (447 MB each" err5 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (347 MB each" err6 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (347 MB each" err7 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (487 MB each" err8 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (487 MB each" err9 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (220 MB each" err10
 '
 
 # A catalog given as a named pipe is not opened to look for spectra: that

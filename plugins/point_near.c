@@ -563,17 +563,15 @@ static near_plain_fn *near_plain_choose(void)
 	return near_plain_c;
 }
 
+#ifdef SIMD_X86
 /* whether near_jobs_avx512() may run */
 static int near_jobs_ok(void)
 {
-#ifdef SIMD_X86
 	int f = simd_flags();
 
 	return (f & (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA);
-#else
-	return 0;
-#endif
 }
+#endif
 
 /* Row q's runs r0 .. r1 - 1 within offsets [lo, hi] and, in a row of the
  * box (inbox), outside [bx0, bx1): each run's part in each range drawn by
@@ -633,13 +631,16 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 	long i0 = lfloor(x + 0.5), j0 = lfloor(y + 0.5), o = h->over;
 	double ux = h->c + o * (i0 - x), uy = h->c + o * (j0 - y), fu, fv, rm2;
 	struct near_row q;
-	const int32_t *ri, *ci;
+	const int32_t *ri;
 	const float *b0, *b1;
 	double rp, rp2;
 	long jlo, jhi, iu, iv0, m0, r0;
 	near_plain_fn *plain_rows = near_plain_choose();
+#ifdef SIMD_X86
+	const int32_t *ci;
 	struct near_job jb[NEAR_JOBS];
 	int nj = 0, jobs = near_jobs_ok();
+#endif
 
 	iu = lfloor(ux);
 	fu = ux - iu;
@@ -668,7 +669,9 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 	if (k > n->kmax)
 		return;
 	ri = n->ri + (size_t)(k > n->kmin ? k - n->kmin : 0) * n->side;
+#ifdef SIMD_X86
 	ci = n->ci + (ri - n->ri);
+#endif
 	/* a row whose runs' ends lie this far inside both the chord and the
 	 * array's plain part (by more than the chord's rounding) draws all of
 	 * them as plain reads, without the chord or the per-run tests */

@@ -182,8 +182,9 @@ enum { DIFFUSE_GRID, DIFFUSE_NONE };
  * offsets dx + rc in [s NEAR_SEG, (s + 1) NEAR_SEG).  For k from kmin to
  * kmax, the row's runs of consecutive segments whose largest step reaches
  * k are rs[2 t] .. rs[2 t + 1] (first and last segment) for t from
- * ri[(k - kmin) side + dy + rc] up to the next entry of ri.  The same
- * runs as chunks of NEAR_CHUNK offsets that do not overlap: chunk c starts
+ * ri[(k - kmin) side + dy + rc] up to the next entry of ri.  Where the
+ * AVX-512 loop runs (else ci and cs are NULL), the same runs as chunks
+ * of NEAR_CHUNK offsets that do not overlap: chunk c starts
  * at offset cs[c] - rc and covers the next NEAR_CHUNK, for c from
  * ci[(k - kmin) side + dy + rc] up to the next entry of ci; every offset
  * of the runs lies in one of them (an offset a chunk adds outside the

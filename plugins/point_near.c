@@ -92,17 +92,32 @@ static int near_step(double v)
 	return FAR_STEPS * (e - 1) + q;
 }
 
-/* The runs' chunks (point.h, struct near: ci, cs) of every level and row,
- * in that order: each run's offsets from where the last chunk ended or the
- * run starts, whichever is later, a chunk at a time. */
+/* whether near_jobs_avx512() may run */
+static int near_jobs_ok(void)
+{
+#ifdef SIMD_X86
+	int f = simd_flags();
+
+	return (f & (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA);
+#else
+	return 0;
+#endif
+}
+
+/* Each level's first and last row with a run (point.h, struct near: ry)
+ * and, where near_jobs_avx512() may run, the runs' chunks (ci, cs) of
+ * every level and row, in that order: each run's offsets from where the
+ * last chunk ended or the run starts, whichever is later, a chunk at a
+ * time. */
 static int near_chunks(struct near *n)
 {
 	size_t nk = (size_t)(n->kmax - n->kmin + 1), side = (size_t)n->side, m = 0, cap = 1024;
 	int16_t *cs;
+	int chunks = near_jobs_ok();
 
-	if (!(n->ci = malloc((nk * side + 1) * sizeof(*n->ci))) ||
-	    !(n->cs = malloc(cap * sizeof(*n->cs))) ||
-	    !(n->ry = malloc(2 * nk * sizeof(*n->ry))))
+	if (!(n->ry = malloc(2 * nk * sizeof(*n->ry))) ||
+	    (chunks && (!(n->ci = malloc((nk * side + 1) * sizeof(*n->ci))) ||
+			!(n->cs = malloc(cap * sizeof(*n->cs))))))
 		return -1;
 	for (size_t q = 0; q < nk * side; q++) {
 		long at = LONG_MIN;
@@ -116,6 +131,8 @@ static int near_chunks(struct near *n)
 			ry[0] = ry[0] < (int16_t)(q % side) ? ry[0] : (int16_t)(q % side);
 			ry[1] = (int16_t)(q % side);
 		}
+		if (!chunks)
+			continue;
 		n->ci[q] = (int32_t)m;
 		for (int32_t t = n->ri[q]; t < n->ri[q + 1]; t++) {
 			long a = (long)n->rs[2 * t] * NEAR_SEG, e = (n->rs[2 * t + 1] + 1L) * NEAR_SEG;
@@ -131,7 +148,8 @@ static int near_chunks(struct near *n)
 			}
 		}
 	}
-	n->ci[nk * side] = (int32_t)m;
+	if (chunks)
+		n->ci[nk * side] = (int32_t)m;
 	return 0;
 }
 
@@ -563,15 +581,6 @@ static near_plain_fn *near_plain_choose(void)
 	return near_plain_c;
 }
 
-#ifdef SIMD_X86
-/* whether near_jobs_avx512() may run */
-static int near_jobs_ok(void)
-{
-	int f = simd_flags();
-
-	return (f & (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA)) == (SIMD_AVX512 | SIMD_AVX2 | SIMD_FMA);
-}
-#endif
 
 /* Row q's runs r0 .. r1 - 1 within offsets [lo, hi] and, in a row of the
  * box (inbox), outside [bx0, bx1): each run's part in each range drawn by

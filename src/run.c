@@ -499,19 +499,19 @@ static double set_number(const struct scene_opts *o, const char *key, double dfl
 
 /* What point.so adds to a halo of psf-halo-radius R (4 R + 1 samples a
  * side, two a pixel) when it draws with psf-halo-near (above 0, as by
- * default): its step map ((2 R + 3)^2 int16); its runs and chunks, two
- * int32 a row and level (103-109 levels in F129-F213 at the default
- * radius, 138 at 1024: 150 here) and some 3 bytes an offset (measured:
- * 1.03-1.05 MB in all at the default radius, 0.25 MB at 100, 12.8 MB at
- * 1024); and the array split by phase (two planes of 4 R + 1 rows of
- * 2 R + 17 floats). */
+ * default): its step map ((2 R + 3)^2 int16); its runs and, with
+ * AVX-512, their chunks, two int32 a row and level (103-109 levels in
+ * F129-F213 at the default radius, up to 147 at 1024: 170 here) and some
+ * 3 bytes an offset (measured: 1.03-1.05 MB in all at the default radius,
+ * 0.25 MB at 100, up to 14.4 MB at 1024 in F062-F213; 3.5 here); and the
+ * array split by phase (two planes of 4 R + 1 rows of 2 R + 17 floats). */
 static double halo_near_bytes(const struct scene_opts *o, double R)
 {
 	double n = 4 * R + 1, side = 2 * R + 3;
 
 	if (!(set_number(o, "psf-halo-near", 1) > 0))
 		return 0;
-	return side * side * (2 + 3) + side * 150 * 2 * sizeof(int32_t) +
+	return side * side * (2 + 3.5) + side * 170 * 2 * sizeof(int32_t) +
 	       2 * n * (ceil(n / 2) + 16) * sizeof(float);
 }
 

@@ -196,16 +196,16 @@ test_expect_success 'the memory estimate counts the colour halos, cells and blen
 	est --rows 2040-2055 faint.csv > err10 &&
 	cat err0 err1 err2 err3 err4 err5 err6 err7 err8 err9 err10 &&
 	test_grep "in 2 passes over the catalogs, 2 at most at a time (184 MB each" err0 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (347 MB each" err1 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (348 MB each" err1 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (324 MB each" err2 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (223 MB each" err3 &&
 	test_grep "in 4 passes over the catalogs, 1 at most at a time (200 MB each" err4 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (447 MB each" err5 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (347 MB each" err6 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (347 MB each" err7 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (487 MB each" err8 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (487 MB each" err9 &&
-	test_grep "in 4 passes over the catalogs, 1 at most at a time (220 MB each" err10
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (448 MB each" err5 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (348 MB each" err6 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (348 MB each" err7 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (488 MB each" err8 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (488 MB each" err9 &&
+	test_grep "in 4 passes over the catalogs, 1 at most at a time (221 MB each" err10
 '
 
 # A catalog given as a named pipe is not opened to look for spectra: that

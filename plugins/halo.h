@@ -289,8 +289,7 @@ static inline int halo_geom_rings(struct halo_geom *g, int nenv)
 		return -1;
 	for (int j = c % over; j < n; j += over)
 		for (int i = c % over; i < n; i += over) {
-			double dx = halo_per(i - c, over), dy = halo_per(j - c, over);
-			double d = sqrt(dx * dx + dy * dy);
+			double d = halo_dist(i - c, halo_per(j - c, over), over);
 			int r = (int)d, rr = (int)floor(d + 0.5);
 
 			g->rr[t++] = (int16_t)(r < nenv && rr < nenv ? rr : -1);

@@ -127,8 +127,8 @@ static int near_chunks(struct near *n)
 			ry[0] = (int16_t)side;
 			ry[1] = -1;
 		}
-		if (n->ri[q] < n->ri[q + 1]) {
-			ry[0] = ry[0] < (int16_t)(q % side) ? ry[0] : (int16_t)(q % side);
+		if (n->ri[q] < n->ri[q + 1]) {   /* the rows come in order */
+			ry[0] = ry[1] < 0 ? (int16_t)(q % side) : ry[0];
 			ry[1] = (int16_t)(q % side);
 		}
 		if (!chunks)
@@ -497,6 +497,7 @@ static void near_plain_c(const struct near_row *q, const struct near *n, int32_t
 typedef void near_plain_fn(const struct near_row *q, const struct near *n, int32_t r0, int32_t r1,
 			   const long *cut, int nc, const int16_t *st, int k, double *row);
 
+#ifdef SIMD_X86
 /* A plain row's chunks for near_jobs_avx512(): the row (offset 0 at the
  * source's pixel), its steps, its samples' offset in the planes, its
  * chunks c0 .. c1 - 1, the offsets [lo, hi] drawn and [bx0, bx1) not
@@ -510,7 +511,6 @@ struct near_job {
 
 #define NEAR_JOBS 64
 
-#ifdef SIMD_X86
 /* Jobs jb[0 .. nj - 1] of a source in AVX-512: of each chunk's sixteen
  * offsets, those in [lo, hi] and outside [bx0, bx1) whose step reaches k
  * add their bilinear value, computed as near_value() does, so with the
@@ -580,7 +580,6 @@ static near_plain_fn *near_plain_choose(void)
 #endif
 	return near_plain_c;
 }
-
 
 /* Row q's runs r0 .. r1 - 1 within offsets [lo, hi] and, in a row of the
  * box (inbox), outside [bx0, bx1): each run's part in each range drawn by
@@ -679,7 +678,7 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 		return;
 	ri = n->ri + (size_t)(k > n->kmin ? k - n->kmin : 0) * n->side;
 #ifdef SIMD_X86
-	ci = n->ci + (ri - n->ri);
+	ci = jobs ? n->ci + (ri - n->ri) : NULL;        /* (no chunks without) */
 #endif
 	/* a row whose runs' ends lie this far inside both the chord and the
 	 * array's plain part (by more than the chord's rounding) draws all of

@@ -536,7 +536,7 @@ static double default_halo_bytes(const struct scene_opts *o)
  * class halos the host builds ((4 R + 1)^2 floats for psf-halo-radius R,
  * 2 n of them for psf-colour-classes n a family) and, for every class pair
  * of both families and every step of psf-halo-colour-steps N, the blend
- * (one more array) with its pixel lists ((2 R + 3)^2 int16), the array
+ * (one more array) with its step map, runs and chunks and the array
  * again split by phase (halo_near_bytes) and halo tables (some 40 kB):
  * 2 ((n - 1) N + 1) of them.  The diffuse grid builds a halo's kernels while it
  * gathers the SCA, one halo's at a time, in the buffers of the default

@@ -268,7 +268,7 @@ struct rows_args {
  * weights, ds the other class's weight over the nearer's.
  *
  * every product but the first of a sum fused (fmaf), in this order, so
- * that the AVX2 build and the plain one give the same bits; and K, the sum
+ * that the vector builds and the plain one give the same bits; and K, the sum
  * of kv over the core, in double (lanes l and l + 4 to accumulator l). */
 struct core_args {
 	/* tap (a, b) of core row c, pixel i: base + ty[b] + tx[a] + c m + i;

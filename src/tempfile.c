@@ -153,15 +153,60 @@ void tempfile_signals(const char *prog)
 	sigaction(SIGPIPE, &sa, NULL);
 }
 
+/* The last reference to a replaced file, dropped on its own thread. */
+static void *release(void *fd)
+{
+	close((int)(intptr_t)fd);
+	return NULL;
+}
+
+/*
+ * The file path names, if a regular one of TEMPFILE_RELEASE_MIN bytes or
+ * more, held open across the rename that replaces it: its last link then
+ * goes without freeing its blocks, which happens when the descriptor is
+ * closed.  On ext4 that freeing, inside rename(2), took 14 ms of a 67 MB
+ * image (3 % of a 0.5 s run of 10^6 stars) and 0.35 s of a 1.2 GB one.
+ * -1 when there is none (a symbolic link's target is not replaced: not
+ * followed).
+ */
+static int replaced_open(const char *path)
+{
+	struct stat st;
+	int fd;
+
+	if (lstat(path, &st) || !S_ISREG(st.st_mode) || st.st_size < TEMPFILE_RELEASE_MIN)
+		return -1;
+	fd = open(path, O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK | O_NOCTTY);
+	if (fd >= 0 && (fstat(fd, &st) || !S_ISREG(st.st_mode))) {
+		close(fd);
+		fd = -1;
+	}
+	return fd;
+}
+
 int tempfile_commit(char *tmp, const char *path, struct err *e)
 {
+	int old = replaced_open(path);
+	pthread_attr_t at;
+	pthread_t t;
+
 	if (rename(tmp, path)) {
 		err_sys(e, "%s: renaming '%s'", path, tmp);
+		if (old >= 0)
+			close(old);
 		tempfile_discard(tmp);
 		return -1;
 	}
 	live_forget(tmp);
 	tmp[0] = 0;
+	if (old >= 0 && pthread_attr_init(&at)) {
+		close(old);
+	} else if (old >= 0) {
+		if (pthread_attr_setdetachstate(&at, PTHREAD_CREATE_DETACHED) ||
+		    pthread_create(&t, &at, release, (void *)(intptr_t)old))
+			close(old);
+		pthread_attr_destroy(&at);
+	}
 	return 0;
 }
 

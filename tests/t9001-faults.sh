@@ -154,6 +154,25 @@ test_expect_success '--placed and --report name new files with the usual mode' '
 		--report report.json ../two.csv &&
 	test "$(stat -c %a placed.csv)" = 644 && test "$(stat -c %a report.json)" = 644
 '
+# A large file an output replaces is held open across the rename and
+# freed on a thread of its own (tempfile_commit): the new file whole under
+# the name, the old one intact under another link, nothing left beside.
+test_expect_success 'an output over a large file: replaced, the old one intact under its other link' '
+	d=$TRASH/replace && mkdir "$d" && cd "$d" &&
+	head -c 3000000 /dev/urandom > old.bin && cp old.bin out.fits && ln out.fits keep.bin &&
+	"$WFS" --filter F129 --psf "$PSF" -o out.fits ../two.csv &&
+	test "$(head -c 6 out.fits)" = SIMPLE && test "$(stat -c %h keep.bin)" = 1 &&
+	cmp keep.bin old.bin && test -z "$(ls -A | grep "^\.")" &&
+	"$WFS" --filter F129 --psf "$PSF" -o out.fits ../two.csv &&
+	test "$(head -c 6 out.fits)" = SIMPLE && cmp keep.bin old.bin
+'
+test_expect_success 'an output over a link to a large file: the link replaced, the file untouched' '
+	d=$TRASH/replace-link && mkdir "$d" && cd "$d" &&
+	head -c 3000000 /dev/urandom > target.bin && cp target.bin want.bin &&
+	ln -s target.bin out.fits &&
+	"$WFS" --filter F129 --psf "$PSF" -o out.fits ../two.csv &&
+	! test -L out.fits && test "$(head -c 6 out.fits)" = SIMPLE && cmp target.bin want.bin
+'
 # A FIFO reached through a symbolic link stands for /dev/stdout (a link to
 # /proc/self/fd/1) and /dev/null, which a rename would replace (as root).
 test_expect_success '--placed and --report to a FIFO through a link: written in place' '

@@ -31,7 +31,7 @@
 
 enum {
 	SIMD_AVX2 = 1,		/* AVX2 */
-	SIMD_AVX512 = 2,	/* AVX-512 F and DQ */
+	SIMD_AVX512 = 2,	/* AVX-512 F, DQ and VL */
 	SIMD_FMA = 4,		/* FMA3 */
 };
 
@@ -64,7 +64,8 @@ static inline int simd_flags(void)
 		__builtin_cpu_init();
 		if (__builtin_cpu_supports("avx2"))
 			f |= SIMD_AVX2;
-		if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") && !no)
+		if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+		    __builtin_cpu_supports("avx512vl") && !no)
 			f |= SIMD_AVX512;
 		if (__builtin_cpu_supports("fma"))
 			f |= SIMD_FMA;

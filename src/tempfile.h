@@ -49,10 +49,11 @@ int tempfile_beside(const char *path, char *tmp, size_t cap, struct err *e);
  * is harmless, where the other order could leave the temporary behind).
  * The file must be complete and closed.  On failure the temporary is
  * removed, "path: renaming 'tmp': reason" recorded (exit 2) and -1
- * returned.  tmp is "" afterwards either way.  A regular file of at least
- * TEMPFILE_RELEASE_MIN bytes that the rename replaces is freed on a thread
- * of its own (the process still waits for it at its exit), so that the
- * caller goes on while the file system gives back its blocks.
+ * returned.  tmp is "" afterwards either way.  On Linux, a regular file
+ * of at least TEMPFILE_RELEASE_MIN bytes (allocated) on a local file
+ * system, with no other link, that the rename replaces is freed on a
+ * thread of its own (the process still waits for it at its exit), so
+ * that the caller goes on while the file system gives back its blocks.
  */
 #define TEMPFILE_RELEASE_MIN (1u << 20)
 int tempfile_commit(char *tmp, const char *path, struct err *e);

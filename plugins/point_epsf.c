@@ -98,6 +98,11 @@ static int core_correction(const struct point *p, const struct wfs_source *src,
 		for (k = 0; k < n && cp[k]->key != key; k++)
 			;
 		if (k == n) {
+			/* at most 8 (cp's room): prep_colour_fit() blends a
+			 * colour source per source where its nodes and its
+			 * cell's would be more; a guard, not a path */
+			if (n == 8)
+				return p->host->error(p->host->ctx, "more than 8 ePSF nodes in a core");
 			if (!(cp[n] = poly_find(p, key)))
 				return p->host->error(p->host->ctx, "ePSF node not prepared");
 			cw[n++] = 0;

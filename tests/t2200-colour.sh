@@ -288,6 +288,17 @@ test_expect_success 'psf-colour-steps=4: within 1e-3 of the per-source blends, t
 	near_per_source p1.fits &&
 	rm p1.fits p3.fits
 '
+# The core of a colour star (its nearer class's cell and the other's,
+# with Keys' taps or bilinear ones) in each vector width and in C.
+test_expect_success 'colour stars: the AVX-512, AVX2 and plain loops give the same bytes' '
+	for interp in core bilinear; do
+		"$WFS" --filter F146 --set psf-interp=$interp -o w.fits field.csv &&
+		WFISCENE_NO_SIMD=avx512 "$WFS" --filter F146 --set psf-interp=$interp -o w2.fits field.csv &&
+		WFISCENE_NO_SIMD=1 "$WFS" --filter F146 --set psf-interp=$interp -o w0.fits field.csv &&
+		cmp w.fits w2.fits && cmp w.fits w0.fits || return 1
+	done &&
+	rm w.fits w2.fits w0.fits
+'
 
 # Spectra beyond the classes' span take the end class: the coolest and
 # hottest temperatures, slopes beyond the colour tables (|beta| > 8,

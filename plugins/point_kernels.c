@@ -239,7 +239,7 @@ core_body(const struct core_args *a, float *kvb, int ncor, int taps)
 	ptrdiff_t y11 = a->ty[1] + x1, y12 = a->ty[1] + x2, y21 = a->ty[2] + x1, y22 = a->ty[2] + x2;
 	__m256 bw0 = _mm256_set1_ps(a->bw[0]), bw1 = _mm256_set1_ps(a->bw[1]);
 	__m256 bw2 = _mm256_set1_ps(a->bw[2]), bw3 = _mm256_set1_ps(a->bw[3]);
-	__m256 ky[4], cw[4 * 8];
+	__m256 ky[4], cw[sizeof(a->cw) / sizeof(a->cw[0])];
 	ptrdiff_t ty[4];
 	double k[4];
 

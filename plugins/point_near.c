@@ -647,7 +647,7 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 #ifdef SIMD_X86
 	const int32_t *ci;
 	struct near_job jb[NEAR_JOBS];
-	int nj = 0, jobs = near_jobs_ok();
+	int nj = 0, jobs = n->ci != NULL;       /* built where the loop runs */
 #endif
 
 	iu = lfloor(ux);
@@ -678,7 +678,7 @@ void near_render(const struct halo *h, const struct near *n, double flux, double
 		return;
 	ri = n->ri + (size_t)(k > n->kmin ? k - n->kmin : 0) * n->side;
 #ifdef SIMD_X86
-	ci = jobs ? n->ci + (ri - n->ri) : NULL;        /* (no chunks without) */
+	ci = jobs ? n->ci + (ri - n->ri) : NULL;
 #endif
 	/* a row whose runs' ends lie this far inside both the chord and the
 	 * array's plain part (by more than the chord's rounding) draws all of

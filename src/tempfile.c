@@ -163,6 +163,30 @@ static void *release(void *fd)
 	return NULL;
 }
 
+/* Close fd on a detached thread, made with the fatal signals blocked (their
+ * handler then never runs on a thread held up in a slow close); at once if
+ * no thread can be made. */
+static void release_aside(int fd)
+{
+	pthread_attr_t at;
+	pthread_t t;
+	sigset_t mask;
+	int ok;
+
+	if (pthread_attr_init(&at)) {
+		close(fd);
+		return;
+	}
+	fatal_block(&mask);
+	ok = !pthread_attr_setdetachstate(&at, PTHREAD_CREATE_DETACHED) &&
+	     !pthread_attr_setstacksize(&at, 64 * 1024) &&
+	     !pthread_create(&t, &at, release, (void *)(intptr_t)fd);
+	fatal_restore(&mask);
+	pthread_attr_destroy(&at);
+	if (!ok)
+		close(fd);
+}
+
 /*
  * The file path names, if the rename will free a regular file of
  * TEMPFILE_RELEASE_MIN bytes or more on a local file system, held across
@@ -203,8 +227,6 @@ static int replaced_open(const char *path)
 int tempfile_commit(char *tmp, const char *path, struct err *e)
 {
 	int old = replaced_open(path);
-	pthread_attr_t at;
-	pthread_t t;
 
 	if (rename(tmp, path)) {
 		err_sys(e, "%s: renaming '%s'", path, tmp);
@@ -215,21 +237,8 @@ int tempfile_commit(char *tmp, const char *path, struct err *e)
 	}
 	live_forget(tmp);
 	tmp[0] = 0;
-	if (old >= 0 && pthread_attr_init(&at)) {
-		close(old);
-	} else if (old >= 0) {
-		sigset_t mask;
-
-		/* the thread with the fatal signals blocked: their handler
-		 * runs on a thread that is not held up in a slow close */
-		fatal_block(&mask);
-		if (pthread_attr_setdetachstate(&at, PTHREAD_CREATE_DETACHED) ||
-		    pthread_attr_setstacksize(&at, 64 * 1024) ||
-		    pthread_create(&t, &at, release, (void *)(intptr_t)old))
-			close(old);
-		fatal_restore(&mask);
-		pthread_attr_destroy(&at);
-	}
+	if (old >= 0)
+		release_aside(old);
 	return 0;
 }
 

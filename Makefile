@@ -119,7 +119,7 @@ FORCE:
 # The built-in PSF cache's key covers the code that computes a grid: a
 # checksum of its sources, so that changed code never reads a grid that the
 # old code cached.
-PSF_SRC := src/optics.c src/optics.h src/psf.c src/psf.h src/psfbuild.c \
+PSF_SRC := src/optics.c src/optics.h src/pupil.c src/pupil.h src/psf.c src/psf.h src/psfbuild.c \
 	src/throughput.c src/throughput.h \
 	src/spectrum.c src/spectrum.h
 $(B)/psf_src.h: $(PSF_SRC) | $(B)/obj

@@ -3,6 +3,7 @@
  * optics.h for the recipe and the conventions.
  */
 #include <complex.h>
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
@@ -18,6 +19,7 @@
 #include "err.h"
 #include "instrument.h"
 #include "optics.h"
+#include "pupil.h"
 #include "throughput.h"
 #include "spectrum.h"
 
@@ -220,103 +222,6 @@ const struct optics_pupil *optics_pupil(const struct optics *o, int sca,
 	return &o->pupil[!!wide][sca - 1];
 }
 
-void optics_pupil_annulus(struct optics_pupil *p, double r_out, double r_in)
-{
-	memset(p, 0, sizeof(*p));
-	for (int k = 0; k < OPTICS_NANG; k++) {
-		p->rout[k] = r_out;
-		p->rin[k] = r_in;
-	}
-	p->rmax = p->rout_min = r_out;
-	p->rin_max = r_in;
-	p->half = 1e9;
-}
-
-/*
- * Signed distance-like clearance of a point: positive inside the clear
- * aperture, negative outside, in metres.  For the rim and the obscuration
- * the radial gap stands in for the distance (the edges are nearly circles,
- * so it is within a few percent of it); for the struts and the clipping
- * square it is the exact perpendicular distance.
- */
-static inline double min2(double a, double b) { return a < b ? a : b; }
-static inline double max2(double a, double b) { return a > b ? a : b; }
-
-static double clearance(const struct optics_pupil *p, double x, double y)
-{
-	double r = hypot(x, y);
-	double d = min2(p->half - fabs(x), p->half - fabs(y));
-
-	for (int i = 0; i < p->nstrut; i++) {
-		const struct optics_strut *s = &p->strut[i];
-		double u = (x - s->x0) * s->c + (y - s->y0) * s->sn;
-		double v = -(x - s->x0) * s->sn + (y - s->y0) * s->c;
-		/* distance out of the strip: the largest violation of its four
-		 * half-planes (negative inside) */
-		double out = max2(max2(s->smin - u, u - s->smax),
-				  max2(s->lo_a + s->lo_b * u - v,
-				       v - s->hi_a - s->hi_b * u));
-		d = min2(d, out);
-	}
-	/* The rim and the obscuration (an interpolation in angle) cannot be
-	 * the minimum when the extreme radii already leave more room than d
-	 * (by far more than rounding, so the minimum is the same number). */
-	if (d < min2(p->rout_min - r, r - p->rin_max) - 1e-9)
-		return d;
-	double a = (atan2(y, x) + M_PI) * (OPTICS_NANG / (2 * M_PI));
-	int k0 = (int)a;
-	double f = a - k0;
-	k0 %= OPTICS_NANG;
-	int k1 = (k0 + 1) % OPTICS_NANG;
-	double ro = p->rout[k0] + f * (p->rout[k1] - p->rout[k0]);
-	double ri = p->rin[k0] + f * (p->rin[k1] - p->rin[k0]);
-
-	return min2(d, min2(ro - r, r - ri));
-}
-
-double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
-			  double d)
-{
-	double c = clearance(p, x, y);
-	/* a cell is whole when the nearest edge is beyond its corner */
-	if (c > 0.75 * d)
-		return 1;
-	if (c < -0.75 * d)
-		return 0;
-	int hit = 0;
-	for (int j = 0; j < 8; j++)
-		for (int i = 0; i < 8; i++)
-			hit += clearance(p, x + (i - 3.5) * d / 8,
-					 y + (j - 3.5) * d / 8) >= 0;
-	return hit / 64.0;
-}
-
-/* The clear fraction of the parallelogram cell b (d, 0), b (0, d) about
- * (x, y) of the Zernike plane, b = { b11, b12, b21, b22 }, the mask seen at
- * (x, -y) when flip: optics_pupil_cover() for a pupil sampled through the
- * linear map b (8 x 8 sub-samples across the cell's edges). */
-static double cover_affine(const struct optics_pupil *p, double x, double y,
-			   const double b[4], double d, int flip)
-{
-	double fy = flip ? -1 : 1;
-	double c = clearance(p, x, fy * y);
-	/* half the cell's longer diagonal */
-	double reach = 0.5 * d * fmax(hypot(b[0] + b[1], b[2] + b[3]),
-				      hypot(b[0] - b[1], b[2] - b[3]));
-	if (c > 1.01 * reach)
-		return 1;
-	if (c < -1.01 * reach)
-		return 0;
-	int hit = 0;
-	for (int j = 0; j < 8; j++)
-		for (int i = 0; i < 8; i++) {
-			double u = (i - 3.5) * d / 8, v = (j - 3.5) * d / 8;
-			hit += clearance(p, x + b[0] * u + b[1] * v,
-					 fy * (y + b[2] * u + b[3] * v)) >= 0;
-		}
-	return hit / 64.0;
-}
-
 /*
  * Field interpolation as STPSF does it (scipy griddata 'linear' over the
  * five field points): the Delaunay triangles of centre + four corners are
@@ -507,17 +412,13 @@ double optics_lam_max(const struct optics *o, int filter)
 }
 
 /* Noll index j -> (n, m), m signed: cos for even j, sin for odd j. */
-static void noll(int j, int *n, int *m)
-{
-	int nn = 0;
-
-	while (j > (nn + 1) * (nn + 2) / 2)
-		nn++;
-	int k = j - nn * (nn + 1) / 2 - 1;      /* 0-based within the row */
-	int mm = (nn % 2) + 2 * ((k + ((nn + 1) % 2)) / 2);
-	*n = nn;
-	*m = mm == 0 ? 0 : (j % 2 == 0 ? mm : -mm);
-}
+/* Noll's n and m of Z4..Z22 (Noll 1976: m > 0 takes cos |m| theta, even j;
+ * m < 0 sin |m| theta, odd j), constants so that zernike_eval()'s loops
+ * unroll into straight code */
+static const signed char zern_n[OPTICS_NZ] = { 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 4, 5, 5, 5, 5,
+					       5, 5, 6 };
+static const signed char zern_m[OPTICS_NZ] = { 0, -2, 2, -1, 1, -3, 3, 0, 2, -2, 4, -4, 1, -1,
+					       3, -3, 5, -5, 0 };
 
 /*
  * Z4..Z22 at one point, unit RMS over the unit disk (Noll 1976):
@@ -529,7 +430,7 @@ static void noll(int j, int *n, int *m)
  * products rather than pow/cos/sin.
  */
 struct zterm {
-	int n, m;               /* m signed as in noll() */
+	int n, m;               /* zern_n, zern_m */
 	int nk;
 	double c[4];            /* c[k] multiplies rho^(n-2k), norm included */
 };
@@ -540,7 +441,8 @@ static void zernike_table(struct zterm zt[OPTICS_NZ])
 
 	for (int q = 0; q < OPTICS_NZ; q++) {
 		struct zterm *z = &zt[q];
-		noll(q + 4, &z->n, &z->m);
+		z->n = zern_n[q];
+		z->m = zern_m[q];
 		int am = abs(z->m);
 		double norm = z->m == 0 ? sqrt(z->n + 1.0) : sqrt(2.0 * (z->n + 1));
 		z->nk = (z->n - am) / 2 + 1;
@@ -567,13 +469,15 @@ static void zernike_eval(const struct zterm zt[OPTICS_NZ], double x, double y,
 		cm[i] = cm[i - 1] * c1 - sm[i - 1] * s1;
 		sm[i] = sm[i - 1] * c1 + cm[i - 1] * s1;
 	}
+#pragma GCC unroll 19
 	for (int q = 0; q < OPTICS_NZ; q++) {
 		const struct zterm *z = &zt[q];
+		int n = zern_n[q], m = zern_m[q], am = m < 0 ? -m : m;
 		double v = 0;
-		for (int k = 0; k < z->nk; k++)
-			v += z->c[k] * rp[z->n - 2 * k];
-		int am = abs(z->m);
-		out[q] = z->m == 0 ? v : v * (z->m > 0 ? cm[am] : sm[am]);
+#pragma GCC unroll 4
+		for (int k = 0; k < (n - am) / 2 + 1; k++)
+			v += z->c[k] * rp[n - 2 * k];
+		out[q] = m == 0 ? v : v * (m > 0 ? cm[am] : sm[am]);
 	}
 }
 
@@ -601,6 +505,39 @@ static int good_size(int n)
 	}
 }
 
+/* hypot(x, y) <= OPTICS_ZRADIUS, r2 = x x + y y: from r2 but within
+ * 1e-12 of the radius, where the two roundings could part (hypot is
+ * within an ulp, r2 within three) */
+static inline int in_zradius(double x, double y, double r2)
+{
+	const double lo = OPTICS_ZRADIUS * OPTICS_ZRADIUS * (1 - 1e-12);
+	const double hi = OPTICS_ZRADIUS * OPTICS_ZRADIUS * (1 + 1e-12);
+
+	if (r2 < lo)
+		return 1;
+	if (r2 > hi)
+		return 0;
+	return hypot(x, y) <= OPTICS_ZRADIUS;
+}
+
+/* a e^(i th): cexp's own numbers (its exp(0) is 1, its cos and sin
+ * sincos's), without its cases for an infinite or huge argument */
+static inline fftw_complex field(double a, double th)
+{
+	double sn, cs;
+
+	if (fabs(th) > DBL_MIN) {
+		__builtin_sincos(th, &sn, &cs);
+	} else {
+		sn = th;
+		cs = 1;
+	}
+	return a * cs + I * (a * sn);
+}
+
+/* Columns or rows moved at a time between the transforms' arrays. */
+#define OPTICS_BLOCK 16
+
 /* One wavelength's pupil, shared by all positions: the lit samples, their
  * amplitude and the Zernike basis there. */
 struct mono_pupil {
@@ -611,15 +548,29 @@ struct mono_pupil {
 	double *basis;          /* [j * nlit + i] */
 };
 
+/* One wavelength of the request: its weight, its index k, its pupil
+ * raster's side p and the plans for that size. */
+struct wave {
+	double lam, wt;
+	int k, p;
+	fftw_plan rows, cols;
+};
+
 struct job {
 	const struct optics_psf_req *r;
 	int nfft, h;
-	fftw_plan rows, cols;
+	struct wave *wv;        /* r->nwave of them */
+	const struct wave *cur; /* the one being done (the shared pupil's) */
 	double *acc;            /* npos x n x n, the weighted sum */
-	double lam, wt;         /* the wavelength being done */
-	int k;
+	double *sinc;           /* sinc(pi (k - h) / nfft) of output sample k */
+	struct coarse co;       /* the mask's clear and dark cells (skewed pupils) */
+	/* acc of position pos takes wavelength turn[pos] next (in order of
+	 * wavelength whatever thread computes it, so the same sums) */
+	int *turn;
+	pthread_mutex_t turn_lock;
+	pthread_cond_t turn_cond;
 	struct mono_pupil mp;
-	int pmax;
+	int pmax, nth;
 	fftw_complex **b1, **b2;
 	double **tmp;
 	struct zterm zt[OPTICS_NZ];
@@ -672,7 +623,7 @@ static void pupil_row(struct job *j, int row, int tid)
 {
 	const struct optics_psf_req *r = j->r;
 	int p = j->mp.p;
-	double dx = j->lam * 1e-6 / (j->nfft * r->scale * ARCSEC);
+	double dx = j->cur->lam * 1e-6 / (j->nfft * r->scale * ARCSEC);
 	double y = (row - (p - 1) / 2.0) * dx;
 	double *out = j->tmp[tid];      /* amp, then basis per column */
 
@@ -690,7 +641,7 @@ static void basis_task(struct job *j, int blk, int tid)
 {
 	int i0 = blk * 4096, i1 = i0 + 4096;
 	int p = j->mp.p;
-	double dx = j->lam * 1e-6 / (j->nfft * j->r->scale * ARCSEC);
+	double dx = j->cur->lam * 1e-6 / (j->nfft * j->r->scale * ARCSEC);
 
 	if (i1 > j->mp.nlit)
 		i1 = j->mp.nlit;
@@ -699,7 +650,7 @@ static void basis_task(struct job *j, int blk, int tid)
 		double x = (col - (p - 1) / 2.0) * dx, y = (row - (p - 1) / 2.0) * dx;
 		double zv[OPTICS_NZ];
 		/* poppy's ZernikeWFE is zero beyond its radius */
-		if (hypot(x, y) <= OPTICS_ZRADIUS)
+		if (in_zradius(x, y, x * x + y * y))
 			zernike_eval(j->zt, x / OPTICS_ZRADIUS,
 				     y / OPTICS_ZRADIUS, zv);
 		else
@@ -712,17 +663,18 @@ static void basis_task(struct job *j, int blk, int tid)
 /* The pupil of position pos at the current wavelength seen through its
  * Jacobian (optics.h): sample s of the transform's grid holds the pupil and
  * the Zernike phase at r = B s, B = A^-T, into b1 (p rows of nfft). */
-static void skewed_pupil(struct job *j, int pos, fftw_complex *b1)
+static void skewed_pupil(struct job *j, const struct wave *w, int pos, fftw_complex *b1,
+			 double *zb)
 {
 	const struct optics_psf_req *r = j->r;
 	const double *a = r->jac + 4 * (size_t)pos;
-	int p = j->mp.p, nfft = j->nfft;
-	double dx = j->lam * 1e-6 / (nfft * r->scale * ARCSEC);
+	int p = w->p, nfft = j->nfft;
+	double dx = w->lam * 1e-6 / (nfft * r->scale * ARCSEC);
 	double det = a[0] * a[3] - a[1] * a[2];
 	double b[4] = { a[3] / det, -a[2] / det, -a[1] / det, a[0] / det };
-	const double *z = r->zern ? r->zern + ((size_t)pos * r->nwave + j->k) *
+	const double *z = r->zern ? r->zern + ((size_t)pos * r->nwave + w->k) *
 			  OPTICS_NZ : NULL;
-	double k2pi = 2 * M_PI / (j->lam * 1000);      /* rad per nm */
+	double k2pi = 2 * M_PI / (w->lam * 1000);      /* rad per nm */
 	/* cells wholly beyond the rim or inside the obscuration are dark:
 	 * the radius alone tells, without the cover's angle and struts */
 	double reach = 0.5 * dx * fmax(hypot(b[0] + b[1], b[2] + b[3]),
@@ -733,8 +685,16 @@ static void skewed_pupil(struct job *j, int pos, fftw_complex *b1)
 	double out2 = pow(r->pupil->rmax + 1.01 * reach, 2);
 	double in2 = rin > 1.01 * reach ? pow(rin - 1.01 * reach, 2) : -1;
 
+	/* a row's lit samples first (column, amplitude, Zernike basis or
+	 * none), then their phases four at a time (each sum in the order of
+	 * its terms, the four chains side by side), then their fields */
+	int *lc = (int *)(zb + (size_t)p * OPTICS_NZ);
+	double *la = (double *)(lc + p);
+
 	for (int row = 0; row < p; row++) {
 		double sy = (row - (p - 1) / 2.0) * dx;
+		int nl = 0;
+
 		for (int col = 0; col < p; col++) {
 			double sx = (col - (p - 1) / 2.0) * dx;
 			double x = b[0] * sx + b[1] * sy, y = b[2] * sx + b[3] * sy;
@@ -742,37 +702,60 @@ static void skewed_pupil(struct job *j, int pos, fftw_complex *b1)
 
 			if (r2 > out2 || r2 < in2)
 				continue;
-			double am = cover_affine(r->pupil, x, y, b, dx, r->flip_y);
-			double ph = 0, zv[OPTICS_NZ];
+			int cl = coarse_at(&j->co, x, r->flip_y ? -y : y);
+			double am = cl == COARSE_CLEAR ? 1 : cl == COARSE_DARK ? 0 :
+				    pupil_cover_affine(r->pupil, x, y, b, dx, r->flip_y, reach);
 
 			if (am <= 0)
 				continue;
 			/* poppy's ZernikeWFE is zero beyond its radius */
-			if (z && hypot(x, y) <= OPTICS_ZRADIUS) {
-				zernike_eval(j->zt, x / OPTICS_ZRADIUS,
-					     y / OPTICS_ZRADIUS, zv);
-				for (int q = 0; q < OPTICS_NZ; q++)
-					ph += z[q] * zv[q];
+			if (z && in_zradius(x, y, r2))
+				zernike_eval(j->zt, x / OPTICS_ZRADIUS, y / OPTICS_ZRADIUS,
+					     zb + (size_t)nl * OPTICS_NZ);
+			else
+				zb[(size_t)nl * OPTICS_NZ] = NAN;       /* no phase */
+			lc[nl] = col;
+			la[nl++] = am;
+		}
+		for (int i = 0; i < nl; i += 4) {
+			const double *v0 = zb + (size_t)i * OPTICS_NZ;
+			double ph[4] = { 0, 0, 0, 0 };
+			int m = nl - i < 4 ? nl - i : 4;
+
+			if (m == 4 && !isnan(v0[0]) && !isnan(v0[OPTICS_NZ]) &&
+			    !isnan(v0[2 * OPTICS_NZ]) && !isnan(v0[3 * OPTICS_NZ])) {
+				for (int q = 0; q < OPTICS_NZ; q++) {
+					ph[0] += z[q] * v0[q];
+					ph[1] += z[q] * v0[OPTICS_NZ + q];
+					ph[2] += z[q] * v0[2 * OPTICS_NZ + q];
+					ph[3] += z[q] * v0[3 * OPTICS_NZ + q];
+				}
+			} else {
+				for (int t = 0; t < m; t++)
+					if (!isnan(v0[t * OPTICS_NZ]))
+						for (int q = 0; q < OPTICS_NZ; q++)
+							ph[t] += z[q] * v0[t * OPTICS_NZ + q];
 			}
-			b1[(size_t)row * nfft + col] = am * cexp(I * k2pi * ph);
+			for (int t = 0; t < m; t++)
+				b1[(size_t)row * nfft + lc[i + t]] = field(la[i + t], k2pi * ph[t]);
 		}
 	}
 }
 
 /* One position at the current wavelength: field, two pruned FFT passes,
  * intensity normalised in the box, added with the wavelength's weight. */
-static void position_task(struct job *j, int pos, int tid)
+static void one_position(struct job *j, const struct wave *w, int pos, int tid)
 {
 	const struct optics_psf_req *r = j->r;
-	int n = r->n, h = j->h, nfft = j->nfft, p = j->mp.p;
+	int n = r->n, h = j->h, nfft = j->nfft, p = w->p;
 	fftw_complex *b1 = j->b1[tid], *b2 = j->b2[tid];
-	const double *z = r->zern ? r->zern + ((size_t)pos * r->nwave + j->k) *
+	const double *z = r->zern ? r->zern + ((size_t)pos * r->nwave + w->k) *
 			  OPTICS_NZ : NULL;
-	double k2pi = 2 * M_PI / (j->lam * 1000);      /* rad per nm */
+	double k2pi = 2 * M_PI / (w->lam * 1000);      /* rad per nm */
 
 	memset(b1, 0, (size_t)p * nfft * sizeof(fftw_complex));
 	if (r->jac) {
-		skewed_pupil(j, pos, b1);
+		skewed_pupil(j, w, pos, b1, j->tmp[tid]);
 	} else for (int i = 0; i < j->mp.nlit; i++) {
 		double ph = 0;
 		if (z)
@@ -780,17 +763,25 @@ static void position_task(struct job *j, int pos, int tid)
 				ph += z[q] * j->mp.basis[(size_t)q * j->mp.nlit + i];
 		int row = j->mp.idx[i] / p, col = j->mp.idx[i] % p;
 		double a = j->mp.amp[j->mp.idx[i]];
-		b1[(size_t)row * nfft + col] = a * cexp(I * k2pi * ph);
+		b1[(size_t)row * nfft + col] = field(a, k2pi * ph);
 	}
-	fftw_execute_dft(j->rows, b1, b1);
-	/* gather the n wanted frequencies of every row into columns */
-	memset(b2, 0, (size_t)n * nfft * sizeof(fftw_complex));
-	for (int c = 0; c < n; c++) {
-		int f = (c - h + nfft) % nfft;
-		for (int row = 0; row < p; row++)
-			b2[(size_t)c * nfft + row] = b1[(size_t)row * nfft + f];
+	fftw_execute_dft(w->rows, b1, b1);
+	/* gather the n wanted frequencies of every row into columns (the
+	 * columns' rows from p on zero), OPTICS_BLOCK columns at a time so
+	 * that both sides are read and written a cache line at a time */
+	for (int c0 = 0; c0 < n; c0 += OPTICS_BLOCK) {
+		int c1 = c0 + OPTICS_BLOCK < n ? c0 + OPTICS_BLOCK : n;
+
+		for (int row = 0; row < p; row++) {
+			const fftw_complex *in = b1 + (size_t)row * nfft;
+
+			for (int c = c0; c < c1; c++)
+				b2[(size_t)c * nfft + row] = in[c < h ? c - h + nfft : c - h];
+		}
+		for (int c = c0; c < c1; c++)
+			memset(b2 + (size_t)c * nfft + p, 0, (size_t)(nfft - p) * sizeof(fftw_complex));
 	}
-	fftw_execute_dft(j->cols, b2, b2);
+	fftw_execute_dft(w->cols, b2, b2);
 	/* The pupil's samples are the clear fraction of their cells, i.e. the
 	 * pupil convolved with the cell, whose transform multiplies the field
 	 * by sinc(pi u / nfft) sinc(pi v / nfft) at output sample (u, v) for
@@ -798,22 +789,54 @@ static void position_task(struct job *j, int pos, int tid)
 	 * by up to sinc^2(pi / 4) = 0.81 at the edge of a field of nfft / 2
 	 * samples (a 7% error at 230 pixels of a 256-pixel halo against a
 	 * larger computation before; BENCHMARKS.md "Halo"). */
+	/* (a block of OPTICS_BLOCK rows at a time, read along the columns;
+	 * then summed in row order) */
 	double *img = j->tmp[tid], sum = 0;
-	for (int yy = 0; yy < n; yy++) {
-		int f = (yy - h + nfft) % nfft;
-		double ay = M_PI * (yy - h) / nfft, sy = yy == h ? 1 : sin(ay) / ay;
+	for (int y0 = 0; y0 < n; y0 += OPTICS_BLOCK) {
+		int y1 = y0 + OPTICS_BLOCK < n ? y0 + OPTICS_BLOCK : n;
+
 		for (int c = 0; c < n; c++) {
-			fftw_complex v = b2[(size_t)c * nfft + f];
-			double ax = M_PI * (c - h) / nfft, sx = c == h ? 1 : sin(ax) / ax;
-			double in = (creal(v) * creal(v) + cimag(v) * cimag(v)) /
-				    (sx * sx * sy * sy);
-			img[yy * n + c] = in;
-			sum += in;
+			const fftw_complex *col = b2 + (size_t)c * nfft;
+			double sx = j->sinc[c];
+
+			for (int yy = y0; yy < y1; yy++) {
+				fftw_complex v = col[yy < h ? yy - h + nfft : yy - h];
+				double sy = j->sinc[yy];
+
+				img[(size_t)yy * n + c] = (creal(v) * creal(v) + cimag(v) * cimag(v)) /
+							  (sx * sx * sy * sy);
+			}
 		}
 	}
-	double *acc = j->acc + (size_t)pos * n * n, s = sum > 0 ? j->wt / sum : 0;
+	for (size_t i = 0; i < (size_t)n * n; i++)
+		sum += img[i];
+	double *acc = j->acc + (size_t)pos * n * n, s = sum > 0 ? w->wt / sum : 0;
+
+	/* added when the wavelengths before are, then the next one's turn */
+	pthread_mutex_lock(&j->turn_lock);
+	while (j->turn[pos] != w->k)
+		pthread_cond_wait(&j->turn_cond, &j->turn_lock);
+	pthread_mutex_unlock(&j->turn_lock);
 	for (int i = 0; i < n * n; i++)
 		acc[i] += s * img[i];
+	pthread_mutex_lock(&j->turn_lock);
+	j->turn[pos]++;
+	pthread_cond_broadcast(&j->turn_cond);
+	pthread_mutex_unlock(&j->turn_lock);
+}
+
+/* The shared pupil's wavelength at one position (task = position). */
+static void position_task(struct job *j, int pos, int tid)
+{
+	one_position(j, j->cur, pos, tid);
+}
+
+/* A skewed pupil's wavelength and position: task = k npos + pos, so that
+ * the threads take the wavelengths in order and, with few positions, two
+ * wavelengths of one position at once. */
+static void wave_task(struct job *j, int task, int tid)
+{
+	one_position(j, &j->wv[task / j->r->npos], task % j->r->npos, tid);
 }
 
 /* Gaussian jitter on an n x n image through its DFT: multiply by the
@@ -952,6 +975,135 @@ int optics_psf_fits(const struct optics_psf_req *r, struct err *e)
 	return pmax <= nfft;
 }
 
+/* The job's buffers for nth threads (j->r, nfft, pmax and h set), and the
+ * sinc table: 0, or -1 with e set (job_free() frees what was made). */
+static int job_alloc(struct job *j, int nth, struct err *e)
+{
+	const struct optics_psf_req *r = j->r;
+	/* tmp: the image, a row of the pupil, or a skewed row's lit samples
+	 * (skewed_pupil: OPTICS_NZ + 2 doubles each, at most) */
+	size_t tmpn = (size_t)r->n * r->n, rown = (size_t)j->pmax * (OPTICS_NZ + 2);
+
+	tmpn = tmpn > rown ? tmpn : rown;
+	pthread_mutex_init(&j->turn_lock, NULL);
+	pthread_cond_init(&j->turn_cond, NULL);
+	j->nth = nth;
+	j->acc = calloc((size_t)r->npos * r->n * r->n, sizeof(double));
+	j->sinc = malloc((size_t)r->n * sizeof(double));
+	j->wv = calloc(r->nwave, sizeof(*j->wv));
+	j->turn = calloc(r->npos, sizeof(*j->turn));
+	j->b1 = calloc(nth, sizeof(*j->b1));
+	j->b2 = calloc(nth, sizeof(*j->b2));
+	j->tmp = calloc(nth, sizeof(*j->tmp));
+	j->mp.amp = malloc((size_t)j->pmax * j->pmax * sizeof(double));
+	j->mp.idx = malloc((size_t)j->pmax * j->pmax * sizeof(int));
+	j->mp.basis = malloc((size_t)j->pmax * j->pmax * OPTICS_NZ * sizeof(double));
+	if (!j->acc || !j->sinc || !j->wv || !j->turn || !j->b1 || !j->b2 || !j->tmp ||
+	    !j->mp.amp || !j->mp.idx || !j->mp.basis)
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	for (int t = 0; t < nth; t++) {
+		j->b1[t] = fftw_malloc(sizeof(fftw_complex) * j->pmax * j->nfft);
+		j->b2[t] = fftw_malloc(sizeof(fftw_complex) * r->n * j->nfft);
+		j->tmp[t] = malloc(sizeof(double) * tmpn);
+		if (!j->b1[t] || !j->b2[t] || !j->tmp[t])
+			return err_set(e, EXIT_SYSTEM, "out of memory");
+	}
+	for (int k = 0; k < r->n; k++) {
+		double a = M_PI * (k - j->h) / j->nfft;
+
+		j->sinc[k] = k == j->h ? 1 : sin(a) / a;
+	}
+	return 0;
+}
+
+static void job_free(struct job *j)
+{
+	const struct optics_psf_req *r = j->r;
+
+	for (int t = 0; t < j->nth; t++) {
+		if (j->b1)
+			fftw_free(j->b1[t]);
+		if (j->b2)
+			fftw_free(j->b2[t]);
+		if (j->tmp)
+			free(j->tmp[t]);
+	}
+	for (int k = 0; j->wv && k < r->nwave; k++) {
+		pthread_mutex_lock(&plan_lock);
+		if (j->wv[k].rows)
+			fftw_destroy_plan(j->wv[k].rows);
+		if (j->wv[k].cols)
+			fftw_destroy_plan(j->wv[k].cols);
+		pthread_mutex_unlock(&plan_lock);
+	}
+	free(j->b1);
+	free(j->b2);
+	free(j->tmp);
+	free(j->acc);
+	free(j->sinc);
+	free(j->wv);
+	free(j->turn);
+	pthread_mutex_destroy(&j->turn_lock);
+	pthread_cond_destroy(&j->turn_cond);
+	free(j->co.cl);
+	free(j->mp.amp);
+	free(j->mp.idx);
+	free(j->mp.basis);
+}
+
+/* The coarse map of a skewed request's mask (pupil.h), for the largest
+ * reach of any position's cells at the longest wavelength. */
+static int job_coarse(struct job *j, double dth, struct err *e)
+{
+	const struct optics_psf_req *r = j->r;
+	double rmax = 0, lmax = 0;
+
+	for (int k = 0; k < r->nwave; k++)
+		lmax = fmax(lmax, r->lam[k]);
+	for (int pos = 0; pos < r->npos; pos++) {
+		const double *a = r->jac + 4 * (size_t)pos;
+		double det = a[0] * a[3] - a[1] * a[2];
+		double b[4] = { a[3] / det, -a[2] / det, -a[1] / det, a[0] / det };
+
+		rmax = fmax(rmax, 0.5 * (lmax * 1e-6 / (j->nfft * dth)) *
+				  fmax(hypot(b[0] + b[1], b[2] + b[3]), hypot(b[0] - b[1], b[2] - b[3])));
+	}
+	if (pupil_coarse_make(&j->co, r->pupil, rmax * (1 + 1e-6)) < 0)
+		return err_set(e, EXIT_SYSTEM, "out of memory");
+	return 0;
+}
+
+/* Each wavelength's raster side and plans: p rows, then n columns, each
+ * a length-nfft transform of a contiguous line. */
+static int job_waves(struct job *j, double dth, double stretch, struct err *e)
+{
+	const struct optics_psf_req *r = j->r;
+
+	for (int k = 0; k < r->nwave; k++) {
+		struct wave *w = &j->wv[k];
+		double dx = r->lam[k] * 1e-6 / (j->nfft * dth);
+		int p = (int)ceil(stretch * 2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
+				  dx) + 2;
+
+		w->lam = r->lam[k];
+		w->wt = r->wt[k];
+		w->k = k;
+		w->p = p > j->pmax ? j->pmax : p;
+		pthread_mutex_lock(&plan_lock);
+		w->rows = fftw_plan_many_dft(1, &j->nfft, w->p, j->b1[0], NULL, 1, j->nfft,
+					     j->b1[0], NULL, 1, j->nfft, FFTW_BACKWARD,
+					     FFTW_ESTIMATE);
+		w->cols = fftw_plan_many_dft(1, &j->nfft, r->n, j->b2[0], NULL, 1, j->nfft,
+					     j->b2[0], NULL, 1, j->nfft, FFTW_BACKWARD,
+					     FFTW_ESTIMATE);
+		pthread_mutex_unlock(&plan_lock);
+		if (!w->rows || !w->cols)
+			return err_set(e, EXIT_SYSTEM, "FFTW could not plan a %d-point transform",
+				       j->nfft);
+	}
+	return 0;
+}
+
 int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 {
 	struct job j;
@@ -974,72 +1126,31 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 			       "coarser than the shortest wavelength's lambda / D: "
 			       "the pupil does not fit the FFT (%d > %d)", r->scale,
 			       j.pmax, j.nfft);
-	j.acc = calloc((size_t)r->npos * r->n * r->n, sizeof(double));
-	j.b1 = calloc(nth, sizeof(*j.b1));
-	j.b2 = calloc(nth, sizeof(*j.b2));
-	j.tmp = calloc(nth, sizeof(*j.tmp));
-	j.mp.amp = malloc((size_t)j.pmax * j.pmax * sizeof(double));
-	j.mp.idx = malloc((size_t)j.pmax * j.pmax * sizeof(int));
-	j.mp.basis = malloc((size_t)j.pmax * j.pmax * OPTICS_NZ * sizeof(double));
-	if (!j.acc || !j.b1 || !j.b2 || !j.tmp || !j.mp.amp || !j.mp.idx ||
-	    !j.mp.basis) {
-		err_set(e, EXIT_SYSTEM, "out of memory");
-		goto done;
-	}
-	size_t tmpn = (size_t)r->n * r->n > (size_t)j.pmax ? (size_t)r->n * r->n : (size_t)j.pmax;
-	for (int t = 0; t < nth; t++) {
-		j.b1[t] = fftw_malloc(sizeof(fftw_complex) * j.pmax * j.nfft);
-		j.b2[t] = fftw_malloc(sizeof(fftw_complex) * r->n * j.nfft);
-		j.tmp[t] = malloc(sizeof(double) * tmpn);
-		if (!j.b1[t] || !j.b2[t] || !j.tmp[t]) {
-			err_set(e, EXIT_SYSTEM, "out of memory");
-			goto done;
-		}
-	}
 	pthread_once(&plan_once, plan_init);
+	if (job_alloc(&j, nth, e) < 0 ||
+	    (r->jac && !optics_plain_cover && job_coarse(&j, dth, e) < 0) ||
+	    job_waves(&j, dth, stretch, e) < 0)
+		goto done;
+	if (r->jac) {
+		/* each position makes its own pupil: every wavelength and
+		 * position a task (a lone halo's wavelengths two at a time) */
+		par_for(&j, nth, r->nwave * r->npos, wave_task);
+	} else {
+		/* the shared pupil of each wavelength, then its positions */
+		for (int k = 0; k < r->nwave; k++) {
+			int p = j.wv[k].p;
 
-	for (int k = 0; k < r->nwave; k++) {
-		double dx = r->lam[k] * 1e-6 / (j.nfft * dth);
-		int p = (int)ceil(stretch * 2 * fmin(r->pupil->rmax, r->pupil->half * M_SQRT2) /
-				  dx) + 2;
-
-		if (p > j.pmax)
-			p = j.pmax;
-		j.lam = r->lam[k];
-		j.wt = r->wt[k];
-		j.k = k;
-		j.mp.p = p;
-		/* the shared pupil; with a Jacobian each position makes its own */
-		j.mp.nlit = 0;
-		if (!r->jac) {
+			j.cur = &j.wv[k];
+			j.mp.p = p;
+			j.mp.nlit = 0;
 			par_for(&j, nth, p, pupil_row);
 			for (int i = 0; i < p * p; i++)
 				if (j.mp.amp[i] > 0)
 					j.mp.idx[j.mp.nlit++] = i;
 			if (r->zern)
 				par_for(&j, nth, (j.mp.nlit + 4095) / 4096, basis_task);
+			par_for(&j, nth, r->npos, position_task);
 		}
-		/* plans for this pupil size: p rows, then n columns, each a
-		 * length-nfft transform of a contiguous line */
-		pthread_mutex_lock(&plan_lock);
-		j.rows = fftw_plan_many_dft(1, &j.nfft, p, j.b1[0], NULL, 1, j.nfft,
-					    j.b1[0], NULL, 1, j.nfft, FFTW_BACKWARD,
-					    FFTW_ESTIMATE);
-		j.cols = fftw_plan_many_dft(1, &j.nfft, r->n, j.b2[0], NULL, 1,
-					    j.nfft, j.b2[0], NULL, 1, j.nfft,
-					    FFTW_BACKWARD, FFTW_ESTIMATE);
-		pthread_mutex_unlock(&plan_lock);
-		if (!j.rows || !j.cols) {
-			err_set(e, EXIT_SYSTEM, "FFTW could not plan a %d-point "
-				"transform", j.nfft);
-			goto done;
-		}
-		par_for(&j, nth, r->npos, position_task);
-		pthread_mutex_lock(&plan_lock);
-		fftw_destroy_plan(j.rows);
-		fftw_destroy_plan(j.cols);
-		pthread_mutex_unlock(&plan_lock);
-		j.rows = j.cols = NULL;
 	}
 	for (int pos = 0; pos < r->npos; pos++) {
 		double *img = j.acc + (size_t)pos * r->n * r->n, cov[3];
@@ -1052,20 +1163,6 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 	}
 	rc = 0;
 done:
-	for (int t = 0; t < nth; t++) {
-		if (j.b1)
-			fftw_free(j.b1[t]);
-		if (j.b2)
-			fftw_free(j.b2[t]);
-		if (j.tmp)
-			free(j.tmp[t]);
-	}
-	free(j.b1);
-	free(j.b2);
-	free(j.tmp);
-	free(j.acc);
-	free(j.mp.amp);
-	free(j.mp.idx);
-	free(j.mp.basis);
+	job_free(&j);
 	return rc;
 }

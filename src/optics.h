@@ -49,6 +49,11 @@ struct optics_pupil {
 
 struct optics;
 
+/* For tests: nonzero makes every cell's cover the plain count of its 8 x 8
+ * sub-samples by the whole clearance test, with no coarse map of the mask
+ * and no terms left out (optics.c); the numbers must be the same. */
+extern int optics_plain_cover;
+
 /* Parse the embedded tables.  NULL on error (a broken build). */
 struct optics *optics_new(struct err *e);
 void optics_free(struct optics *o);

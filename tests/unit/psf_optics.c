@@ -5,7 +5,8 @@
  * Zernikes are the textbook polynomials; the Zernikes interpolated in
  * field and wavelength as data/zernike.tsv and STPSF say; the wavelength
  * weights; the PSF on a skewed pixel grid (the Airy pattern through a
- * Jacobian, the jitter's covariance, the identity Jacobian).
+ * Jacobian, the jitter's covariance, the identity Jacobian); a cell's
+ * cover with its shortcuts against the plain count.
  */
 #include <math.h>
 #include <stdio.h>
@@ -219,6 +220,88 @@ static void identity_case(const struct optics *o)
 }
 
 /*
+ * A cell's cover with the shortcuts (the coarse map of the mask, the terms
+ * far from a cell left out, the rim's radius bounds) against the plain
+ * count of the whole clearance test (optics_plain_cover): the same
+ * numbers for random cells about the edges of the skinny and the wide
+ * pupils (the rims, the obscurations, the struts), and the same bits of
+ * a PSF through skewed Jacobians.
+ */
+static unsigned long long lcg = 88172645463325252ULL;
+
+static double unif(double a, double b)
+{
+	lcg = lcg * 6364136223846793005ULL + 1442695040888963407ULL;
+	return a + (b - a) * (double)(lcg >> 11) / 9007199254740992.0;
+}
+
+static void cover_case(const struct optics *o)
+{
+	for (int w = 0; w < 2; w++) {
+		const struct optics_pupil *p = optics_pupil(o, w ? 7 : 1, w);
+		long partial = 0, differ = 0, n = 0;
+
+		for (int i = 0; i < 300000; i++, n++) {
+			double x, y, d = unif(0.001, 0.02), a, b;
+			int kind = i % 3;
+
+			if (kind == 0) {                /* anywhere */
+				x = unif(-1.25, 1.25);
+				y = unif(-1.25, 1.25);
+			} else if (kind == 1) {         /* about the rim or the obscuration */
+				int k = (int)unif(0, OPTICS_NANG);
+				double th = -M_PI + 2 * M_PI * (k + unif(0, 1)) / OPTICS_NANG;
+				double r = (unif(0, 1) < 0.5 ? p->rout[k] : p->rin[k]) + unif(-0.03, 0.03);
+
+				x = r * cos(th);
+				y = r * sin(th);
+			} else {                        /* about a strut's edges */
+				const struct optics_strut *s = &p->strut[(int)unif(0, p->nstrut)];
+				double t = unif(s->smin - 0.02, s->smax + 0.02), v = unif(-0.06, 0.06);
+
+				x = s->x0 + t * s->c - v * s->sn;
+				y = s->y0 + t * s->sn + v * s->c;
+			}
+			optics_plain_cover = 1;
+			a = optics_pupil_cover(p, x, y, d);
+			optics_plain_cover = 0;
+			b = optics_pupil_cover(p, x, y, d);
+			partial += a > 0 && a < 1;
+			differ += a != b;
+		}
+		diag("%s pupil: %ld cells, %ld partly clear, %ld differ", w ? "wide" : "skinny", n,
+		     partial, differ);
+		ok(differ == 0 && partial > 30000, "%s pupil: every cell's cover the plain count's",
+		   w ? "wide" : "skinny");
+	}
+
+	struct err e = { 0 };
+	const int n = 45;
+	double lam[3], wt[3], zern[2 * 3 * OPTICS_NZ];
+	double jac[8] = { 1.02, 0.15, -0.05, 0.93, 0.97, -0.08, 0.11, 1.05 };
+	double *plain = malloc(sizeof(double) * 2 * n * n), *fast = malloc(sizeof(double) * 2 * n * n);
+
+	optics_weights(o, F129, 1, 3, lam, wt, &e);
+	for (int pos = 0; pos < 2; pos++)
+		for (int k = 0; k < 3; k++)
+			optics_zernike(o, 1, pos ? 3900 : 100, 2000, lam[k],
+				       zern + (pos * 3 + k) * OPTICS_NZ);
+	struct optics_psf_req r = {
+		.pupil = optics_pupil(o, 1, 0), .flip_y = 1, .n = n, .scale = 0.0275,
+		.pupil_n = 256, .nwave = 3, .lam = lam, .wt = wt, .npos = 2,
+		.zern = zern, .threads = 2, .jac = jac,
+	};
+	optics_plain_cover = 1;
+	ok(optics_psf(&r, plain, &e) == 0, "skewed PSF, plain cover: %s", e.msg);
+	optics_plain_cover = 0;
+	ok(optics_psf(&r, fast, &e) == 0, "skewed PSF, with the shortcuts: %s", e.msg);
+	ok(memcmp(plain, fast, sizeof(double) * 2 * n * n) == 0,
+	   "the skewed PSFs of two positions are the same bits either way");
+	free(plain);
+	free(fast);
+}
+
+/*
  * The Zernike interpolation against data/zernike.tsv itself (read here
  * with plain stdio, run from the top of the tree as make check runs it):
  * at a field point and a table wavelength optics_zernike() is the table
@@ -410,6 +493,7 @@ int main(void)
 	zernike_interp(o, 1);
 	zernike_interp(o, 11);
 	identity_case(o);
+	cover_case(o);
 	ok(optics_pupil_cover(p, 0, 0, 0.005) == 0 &&
 	   optics_pupil_cover(p, 0, 0.8, 0.005) == 1,
 	   "centre obscured, mid-pupil between struts clear");

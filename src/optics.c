@@ -411,7 +411,6 @@ double optics_lam_max(const struct optics *o, int filter)
 	return o->thr_lam[filter][o->nthr[filter] - 1];
 }
 
-/* Noll index j -> (n, m), m signed: cos for even j, sin for odd j. */
 /* Noll's n and m of Z4..Z22 (Noll 1976: m > 0 takes cos |m| theta, even j;
  * m < 0 sin |m| theta, odd j), constants so that zernike_eval()'s loops
  * unroll into straight code */
@@ -430,8 +429,6 @@ static const signed char zern_m[OPTICS_NZ] = { 0, -2, 2, -1, 1, -3, 3, 0, 2, -2,
  * products rather than pow/cos/sin.
  */
 struct zterm {
-	int n, m;               /* zern_n, zern_m */
-	int nk;
 	double c[4];            /* c[k] multiplies rho^(n-2k), norm included */
 };
 
@@ -440,18 +437,13 @@ static void zernike_table(struct zterm zt[OPTICS_NZ])
 	static const double fact[] = { 1, 1, 2, 6, 24, 120, 720 };
 
 	for (int q = 0; q < OPTICS_NZ; q++) {
-		struct zterm *z = &zt[q];
-		z->n = zern_n[q];
-		z->m = zern_m[q];
-		int am = abs(z->m);
-		double norm = z->m == 0 ? sqrt(z->n + 1.0) : sqrt(2.0 * (z->n + 1));
-		z->nk = (z->n - am) / 2 + 1;
-		for (int k = 0; k < z->nk; k++)
-			z->c[k] = norm * (k % 2 ? -1 : 1) * fact[z->n - k] /
-				  (fact[k] * fact[(z->n + am) / 2 - k] *
-				   fact[(z->n - am) / 2 - k]);
-	}
-}
+		int n = zern_n[q], m = zern_m[q], am = abs(m);
+		double norm = m == 0 ? sqrt(n + 1.0) : sqrt(2.0 * (n + 1));
+
+		for (int k = 0; k < (n - am) / 2 + 1; k++)
+			zt[q].c[k] = norm * (k % 2 ? -1 : 1) * fact[n - k] /
+				     (fact[k] * fact[(n + am) / 2 - k] * fact[(n - am) / 2 - k]);
+	}}
 
 static void zernike_eval(const struct zterm zt[OPTICS_NZ], double x, double y,
 			 double out[OPTICS_NZ])
@@ -563,7 +555,7 @@ struct job {
 	const struct wave *cur; /* the one being done (the shared pupil's) */
 	double *acc;            /* npos x n x n, the weighted sum */
 	double *sinc;           /* sinc(pi (k - h) / nfft) of output sample k */
-	struct coarse co;       /* the mask's clear and dark cells (skewed pupils) */
+	struct pupil_coarse co; /* the mask's clear and dark cells (skewed pupils) */
 	/* acc of position pos takes wavelength turn[pos] next (in order of
 	 * wavelength whatever thread computes it, so the same sums) */
 	int *turn;
@@ -618,7 +610,7 @@ static void par_for(struct job *j, int nthreads, int ntask,
 		pthread_join(th[t], NULL);
 }
 
-/* Rasterise rows of the pupil for the current wavelength: task = row. */
+/* Rasterise rows of the shared pupil for wavelength j->cur: task = row. */
 static void pupil_row(struct job *j, int row, int tid)
 {
 	const struct optics_psf_req *r = j->r;
@@ -631,7 +623,8 @@ static void pupil_row(struct job *j, int row, int tid)
 		double x = (c - (p - 1) / 2.0) * dx;
 		/* STPSF flips the wavefront in y after the mask: the Zernike
 		 * plane at (x, y) sees the mask at (x, -y). */
-		out[c] = optics_pupil_cover(r->pupil, x, r->flip_y ? -y : y, dx);
+		out[c] = (r->plain_cover ? optics_pupil_cover_plain : optics_pupil_cover)(
+			r->pupil, x, r->flip_y ? -y : y, dx);
 	}
 	/* stored by row into the shared amplitude image */
 	memcpy(j->mp.amp + (size_t)row * p, out, p * sizeof(double));
@@ -660,8 +653,8 @@ static void basis_task(struct job *j, int blk, int tid)
 	}
 }
 
-/* The pupil of position pos at the current wavelength seen through its
- * Jacobian (optics.h): sample s of the transform's grid holds the pupil and
+/* The pupil of position pos at wavelength w seen through its Jacobian
+ * (optics.h): sample s of the transform's grid holds the pupil and
  * the Zernike phase at r = B s, B = A^-T, into b1 (p rows of nfft). */
 static void skewed_pupil(struct job *j, const struct wave *w, int pos, fftw_complex *b1,
 			 double *zb)
@@ -688,8 +681,8 @@ static void skewed_pupil(struct job *j, const struct wave *w, int pos, fftw_comp
 	/* a row's lit samples first (column, amplitude, Zernike basis or
 	 * none), then their phases four at a time (each sum in the order of
 	 * its terms, the four chains side by side), then their fields */
-	int *lc = (int *)(zb + (size_t)p * OPTICS_NZ);
-	double *la = (double *)(lc + p);
+	double *la = zb + (size_t)p * OPTICS_NZ;
+	int *lc = (int *)(la + p);
 
 	for (int row = 0; row < p; row++) {
 		double sy = (row - (p - 1) / 2.0) * dx;
@@ -702,9 +695,10 @@ static void skewed_pupil(struct job *j, const struct wave *w, int pos, fftw_comp
 
 			if (r2 > out2 || r2 < in2)
 				continue;
-			int cl = coarse_at(&j->co, x, r->flip_y ? -y : y);
-			double am = cl == COARSE_CLEAR ? 1 : cl == COARSE_DARK ? 0 :
-				    pupil_cover_affine(r->pupil, x, y, b, dx, r->flip_y, reach);
+			int cl = pupil_coarse_at(&j->co, x, r->flip_y ? -y : y);
+			double am = cl == PUPIL_CLEAR ? 1 : cl == PUPIL_DARK ? 0 :
+				    pupil_cover_affine(r->pupil, x, y, b, dx, r->flip_y, reach,
+						       r->plain_cover);
 
 			if (am <= 0)
 				continue;
@@ -742,8 +736,10 @@ static void skewed_pupil(struct job *j, const struct wave *w, int pos, fftw_comp
 	}
 }
 
-/* One position at the current wavelength: field, two pruned FFT passes,
- * intensity normalised in the box, added with the wavelength's weight. */
+/* One position at wavelength w: field, two pruned FFT passes, intensity
+ * normalised in the box, added with the wavelength's weight after the
+ * wavelengths before it.  It has no way to fail: a return before its
+ * turn is passed on would leave the next wavelength's thread waiting. */
 static void one_position(struct job *j, const struct wave *w, int pos, int tid)
 {
 	const struct optics_psf_req *r = j->r;
@@ -1045,7 +1041,7 @@ static void job_free(struct job *j)
 	free(j->turn);
 	pthread_mutex_destroy(&j->turn_lock);
 	pthread_cond_destroy(&j->turn_cond);
-	free(j->co.cl);
+	pupil_coarse_free(&j->co);
 	free(j->mp.amp);
 	free(j->mp.idx);
 	free(j->mp.basis);
@@ -1128,7 +1124,7 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 			       j.pmax, j.nfft);
 	pthread_once(&plan_once, plan_init);
 	if (job_alloc(&j, nth, e) < 0 ||
-	    (r->jac && !optics_plain_cover && job_coarse(&j, dth, e) < 0) ||
+	    (r->jac && !r->plain_cover && job_coarse(&j, dth, e) < 0) ||
 	    job_waves(&j, dth, stretch, e) < 0)
 		goto done;
 	if (r->jac) {

@@ -49,11 +49,6 @@ struct optics_pupil {
 
 struct optics;
 
-/* For tests: nonzero makes every cell's cover the plain count of its 8 x 8
- * sub-samples by the whole clearance test, with no coarse map of the mask
- * and no terms left out (optics.c); the numbers must be the same. */
-extern int optics_plain_cover;
-
 /* Parse the embedded tables.  NULL on error (a broken build). */
 struct optics *optics_new(struct err *e);
 void optics_free(struct optics *o);
@@ -70,6 +65,9 @@ void optics_pupil_annulus(struct optics_pupil *p, double r_out, double r_in);
  * exact 0 or 1 well inside or outside, else 8 x 8 sub-samples. */
 double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
 			  double d);
+/* The same by the plain count of every sub-sample against the whole
+ * clearance test, without pupil.c's shortcuts: the tests' reference. */
+double optics_pupil_cover_plain(const struct optics_pupil *p, double x, double y, double d);
 
 /* The unit-RMS Noll Zernikes Z4..Z22 at (x, y) of the unit disk. */
 void optics_zernike_basis(double x, double y, double z[OPTICS_NZ]);
@@ -139,6 +137,9 @@ struct optics_psf_req {
 	 * pixel scale; optics_psf then samples |det A| I(scale A (i, j)),
 	 * the PSF seen through that pixel grid). */
 	const double *jac;
+	/* for tests: every cell of the pupil by the plain count
+	 * (optics_pupil_cover_plain), with no coarse map; the same numbers */
+	int plain_cover;
 };
 int optics_psf(const struct optics_psf_req *r, double *out, struct err *e);
 

@@ -3,7 +3,9 @@
  * point (the struts, the rim, the obscuration, the clipping square), the
  * clear fraction of a sample's cell, and a coarse map of the mask's
  * wholly clear and wholly dark regions, for optics.c's rasters.  The
- * shortcuts give the numbers of the plain count (optics_plain_cover).
+ * shortcuts give the numbers of the plain count of every sub-sample by the
+ * whole clearance test (optics_pupil_cover_plain, and the plain argument
+ * of pupil_cover_affine, for the tests).
  */
 #include <math.h>
 #include <stdlib.h>
@@ -23,22 +25,6 @@ void optics_pupil_annulus(struct optics_pupil *p, double r_out, double r_in)
 	p->rin_max = r_in;
 	p->half = 1e9;
 }
-
-/*
- * Signed distance-like clearance of a point: positive inside the clear
- * aperture, negative outside, in metres.  For the rim and the obscuration
- * the radial gap stands in for the distance (the edges are nearly circles,
- * so it is within a few percent of it); for the struts and the clipping
- * square it is the exact perpendicular distance.
- *
- * It is the least of its terms: the square's gap, each strut's (the
- * largest violation of its strip's four half-planes, negative inside the
- * strip) and the rim's (the least of the rim's and the obscuration's
- * radial gaps).  Each term is made by one function below, so that
- * clearance() and the cells' tests (term_bounds(), covered()) compute
- * the same numbers.
- */
-int optics_plain_cover;
 
 static inline double min2(double a, double b) { return a < b ? a : b; }
 static inline double max2(double a, double b) { return a > b ? a : b; }
@@ -71,6 +57,20 @@ static inline double rim_gap(const struct optics_pupil *p, double x, double y, d
 	return min2(ro - r, r - ri);
 }
 
+/*
+ * Signed distance-like clearance of a point: positive inside the clear
+ * aperture, negative outside, in metres.  For the rim and the obscuration
+ * the radial gap stands in for the distance (the edges are nearly circles,
+ * so it is within a few percent of it); for the struts and the clipping
+ * square it is the exact perpendicular distance.
+ *
+ * It is the least of its terms: the square's gap, each strut's (the
+ * largest violation of its strip's four half-planes, negative inside the
+ * strip) and the rim's (the least of the rim's and the obscuration's
+ * radial gaps).  Each term is made by one function below, so that
+ * clearance() and the cells' tests (term_bounds(), covered()) compute
+ * the same numbers.
+ */
 static double clearance(const struct optics_pupil *p, double x, double y)
 {
 	double r = hypot(x, y);
@@ -213,25 +213,34 @@ static inline int covered(const struct optics_pupil *p, const struct terms *t, d
 	return 1;
 }
 
+/* optics_pupil_cover() by the plain count (the tests' reference) */
+double optics_pupil_cover_plain(const struct optics_pupil *p, double x, double y, double d)
+{
+	double c = clearance(p, x, y);
+	int hit = 0;
+
+	if (c > 0.75 * d)
+		return 1;
+	if (c < -0.75 * d)
+		return 0;
+	for (int j = 0; j < 8; j++)
+		for (int i = 0; i < 8; i++)
+			hit += clearance(p, x + (i - 3.5) * d / 8, y + (j - 3.5) * d / 8) >= 0;
+	return hit / 64.0;
+}
+
 double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
 			  double d)
 {
 	double c = clearance(p, x, y);
 	struct terms t;
+	int hit = 0;
 
 	/* a cell is whole when the nearest edge is beyond its corner */
 	if (c > 0.75 * d)
 		return 1;
 	if (c < -0.75 * d)
 		return 0;
-	int hit = 0;
-	if (optics_plain_cover) {
-		for (int j = 0; j < 8; j++)
-			for (int i = 0; i < 8; i++)
-				hit += clearance(p, x + (i - 3.5) * d / 8,
-						 y + (j - 3.5) * d / 8) >= 0;
-		return hit / 64.0;
-	}
 	/* the sub-samples lie within 0.62 d of the centre */
 	if (!term_bounds(p, x, y, 0.75 * d, &t))
 		return 0;
@@ -241,13 +250,8 @@ double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
 	return hit / 64.0;
 }
 
-/* The clear fraction of the parallelogram cell b (d, 0), b (0, d) about
- * (x, y) of the Zernike plane, b = { b11, b12, b21, b22 }, the mask seen at
- * (x, -y) when flip: optics_pupil_cover() for a pupil sampled through the
- * linear map b (8 x 8 sub-samples across the cell's edges); reach, half
- * the cell's longer diagonal, 0.5 d max(|b (1, 1)|, |b (1, -1)|). */
 double pupil_cover_affine(const struct optics_pupil *p, double x, double y, const double b[4],
-			  double d, int flip, double reach)
+			  double d, int flip, double reach, int plain)
 {
 	double fy = flip ? -1 : 1;
 	double c = clearance(p, x, fy * y);
@@ -258,7 +262,7 @@ double pupil_cover_affine(const struct optics_pupil *p, double x, double y, cons
 	if (c < -1.01 * reach)
 		return 0;
 	int hit = 0;
-	if (optics_plain_cover) {
+	if (plain) {
 		for (int j = 0; j < 8; j++)
 			for (int i = 0; i < 8; i++) {
 				double u = (i - 3.5) * d / 8, v = (j - 3.5) * d / 8;
@@ -280,12 +284,12 @@ double pupil_cover_affine(const struct optics_pupil *p, double x, double y, cons
 	return hit / 64.0;
 }
 
-int pupil_coarse_make(struct coarse *co, const struct optics_pupil *p, double reach)
+int pupil_coarse_make(struct pupil_coarse *co, const struct optics_pupil *p, double reach)
 {
 	double e = fmax(p->rmax, p->half * M_SQRT2) + 4 * reach;
 	double hd, t;
 
-	co->g = COARSE_SIDE;
+	co->g = PUPIL_COARSE_SIDE;
 	co->org = -e;
 	co->cs = 2 * e / co->g;
 	co->inv = 1 / co->cs;
@@ -309,8 +313,14 @@ int pupil_coarse_make(struct coarse *co, const struct optics_pupil *p, double re
 			}
 			clear &= p->rout_min - r - hd > t && r - hd - p->rin_max > t;
 			dark |= p->rmax - r + hd < -t;
-			co->cl[(size_t)b * co->g + a] = dark ? COARSE_DARK :
-							clear ? COARSE_CLEAR : COARSE_UNKNOWN;
+			co->cl[(size_t)b * co->g + a] = dark ? PUPIL_DARK :
+							clear ? PUPIL_CLEAR : PUPIL_UNKNOWN;
 		}
 	return 0;
+}
+
+void pupil_coarse_free(struct pupil_coarse *co)
+{
+	free(co->cl);
+	co->cl = NULL;
 }

@@ -222,10 +222,11 @@ static void identity_case(const struct optics *o)
 /*
  * A cell's cover with the shortcuts (the coarse map of the mask, the terms
  * far from a cell left out, the rim's radius bounds) against the plain
- * count of the whole clearance test (optics_plain_cover): the same
- * numbers for random cells about the edges of the skinny and the wide
- * pupils (the rims, the obscurations, the struts), and the same bits of
- * a PSF through skewed Jacobians.
+ * count of the whole clearance test (optics_pupil_cover_plain, and
+ * plain_cover in a request): the same numbers for random cells about the
+ * edges of the skinny and the wide pupils (the rims, the obscurations,
+ * the struts), and the same bits of PSFs through skewed Jacobians, of
+ * both masks, with and without the flip.
  */
 static unsigned long long lcg = 88172645463325252ULL;
 
@@ -262,9 +263,7 @@ static void cover_case(const struct optics *o)
 				x = s->x0 + t * s->c - v * s->sn;
 				y = s->y0 + t * s->sn + v * s->c;
 			}
-			optics_plain_cover = 1;
-			a = optics_pupil_cover(p, x, y, d);
-			optics_plain_cover = 0;
+			a = optics_pupil_cover_plain(p, x, y, d);
 			b = optics_pupil_cover(p, x, y, d);
 			partial += a > 0 && a < 1;
 			differ += a != b;
@@ -275,30 +274,37 @@ static void cover_case(const struct optics *o)
 		   w ? "wide" : "skinny");
 	}
 
-	struct err e = { 0 };
-	const int n = 45;
-	double lam[3], wt[3], zern[2 * 3 * OPTICS_NZ];
-	double jac[8] = { 1.02, 0.15, -0.05, 0.93, 0.97, -0.08, 0.11, 1.05 };
-	double *plain = malloc(sizeof(double) * 2 * n * n), *fast = malloc(sizeof(double) * 2 * n * n);
+	for (int c = 0; c < 2; c++) {
+		struct err e = { 0 };
+		const int n = 45, sca = c ? 7 : 1;
+		double lam[3], wt[3], zern[2 * 3 * OPTICS_NZ];
+		/* a mild skew and the SIAF's flip; a strong one without it */
+		double jac[2][8] = { { 1.02, 0.15, -0.05, 0.93, 0.97, -0.08, 0.11, 1.05 },
+				     { 1.6, 0.7, -0.5, 0.8, 0.6, -0.4, 0.3, 1.9 } };
+		double *plain = malloc(sizeof(double) * 2 * n * n);
+		double *fast = malloc(sizeof(double) * 2 * n * n);
 
-	optics_weights(o, F129, 1, 3, lam, wt, &e);
-	for (int pos = 0; pos < 2; pos++)
-		for (int k = 0; k < 3; k++)
-			optics_zernike(o, 1, pos ? 3900 : 100, 2000, lam[k],
-				       zern + (pos * 3 + k) * OPTICS_NZ);
-	struct optics_psf_req r = {
-		.pupil = optics_pupil(o, 1, 0), .flip_y = 1, .n = n, .scale = 0.0275,
-		.pupil_n = 256, .nwave = 3, .lam = lam, .wt = wt, .npos = 2,
-		.zern = zern, .threads = 2, .jac = jac,
-	};
-	optics_plain_cover = 1;
-	ok(optics_psf(&r, plain, &e) == 0, "skewed PSF, plain cover: %s", e.msg);
-	optics_plain_cover = 0;
-	ok(optics_psf(&r, fast, &e) == 0, "skewed PSF, with the shortcuts: %s", e.msg);
-	ok(memcmp(plain, fast, sizeof(double) * 2 * n * n) == 0,
-	   "the skewed PSFs of two positions are the same bits either way");
-	free(plain);
-	free(fast);
+		optics_weights(o, c ? F213 : F129, sca, 3, lam, wt, &e);
+		for (int pos = 0; pos < 2; pos++)
+			for (int k = 0; k < 3; k++)
+				optics_zernike(o, sca, pos ? 3900 : 100, 2000, lam[k],
+					       zern + (pos * 3 + k) * OPTICS_NZ);
+		struct optics_psf_req r = {
+			.pupil = optics_pupil(o, sca, c), .flip_y = !c, .n = n, .scale = 0.0275,
+			.pupil_n = 256, .nwave = 3, .lam = lam, .wt = wt, .npos = 2,
+			.zern = zern, .threads = 2, .jac = jac[c], .plain_cover = 1,
+		};
+		ok(optics_psf(&r, plain, &e) == 0, "%s mask, skewed PSF, plain cover: %s",
+		   c ? "wide" : "skinny", e.msg);
+		r.plain_cover = 0;
+		ok(optics_psf(&r, fast, &e) == 0, "%s mask, with the shortcuts: %s",
+		   c ? "wide" : "skinny", e.msg);
+		ok(memcmp(plain, fast, sizeof(double) * 2 * n * n) == 0,
+		   "%s mask: the skewed PSFs of two positions the same bits either way",
+		   c ? "wide" : "skinny");
+		free(plain);
+		free(fast);
+	}
 }
 
 /*

@@ -585,4 +585,27 @@ for m in "quick 1 1000" "quick 1 10000" "quick 1 100000" "quick 1000 10000" "pre
 			e, n, t, c, n / t, 1e3 * c / n, k / 1024 }'
 done
 rm -f "$W/gal.csv"
+
+echo
+echo "## Building the PSF: a new user's first run"
+echo
+echo "The built-in grids of one SCA, computed without the cache (\`wfiscene psf"
+echo "--filter F158 --sca 1 --no-cache -o g.fits\`, the box's 177 samples at 9"
+echo "nodes, and the same with \`--halo 256\`, 1025 samples at one node); median"
+echo "of 3 by wall time, the whole process.  A run on an empty cache builds both"
+echo "for each SCA and filter it draws (and at levels 1 and 2 their kind without"
+echo "IPC)."
+echo
+echo "| grid | wall s | CPU s |"
+echo "|---|---|---|"
+for g in "box" "halo --halo 256"; do
+	set -- $g
+	name=$1
+	shift
+	for k in 1 2 3; do
+		measure3 "'$WFS' psf --filter F158 --sca 1 $* --no-cache -o '$W/g.fits'"
+	done | sort -n | sed -n 2p > "$W/g.med"
+	set -- $(cat "$W/g.med")
+	printf '| %s | %.2f | %.2f |\n' "$name" "$1" "$2"
+done
 rm -f "$W"/*.fits

@@ -12,9 +12,13 @@
  * is written under a temporary name and renamed, so concurrent runs see
  * either no file or a whole one; two runs that both miss both build and
  * the second rename wins with identical content.  A file that fails its
- * FITS checksum or whose key keyword does not match is rebuilt.
+ * FITS checksum or whose key keyword does not match is rebuilt.  A grid
+ * read from the cache has its time stamp renewed; after a grid is
+ * stored, the grids used longest ago are removed while the cache's
+ * grids take more than WFISCENE_CACHE_MAX megabytes (psfcache.c).
  */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdint.h>
@@ -33,6 +37,7 @@
 #include "instrument.h"
 #include "optics.h"
 #include "psf.h"
+#include "psfcache.h"
 #include "spectrum.h"
 
 /* The code's part of the key: a version to bump by hand, and a checksum
@@ -476,6 +481,9 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 		if ((g = cache_load(path, key, n, over, kind, grid, jac != NULL))) {
 			free(jac);
 			o->loaded++;
+			/* used now: the last the limit removes (a cache this
+			 * run cannot write keeps its stamps) */
+			utimensat(AT_FDCWD, path, NULL, 0);
 			snprintf(g->origin, sizeof(g->origin), "builtin");
 			if (o->verbose > 0)
 				fprintf(stderr, "wfiscene: PSF %s SCA%02d %d: "
@@ -535,6 +543,8 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 				fprintf(stderr, "wfiscene: PSF cache %s: %s (the grid "
 					"is used but not kept)\n",
 					dir, we.code ? we.msg : strerror(errno));
+		} else {
+			psf_cache_trim(dir, strrchr(path, '/') + 1, o->verbose);
 		}
 	}
 	return g;

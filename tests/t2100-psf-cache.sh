@@ -122,4 +122,45 @@ test_expect_success 'an unwritable cache is not an error' '
 	samedata a.fits u.fits
 '
 
+# The limit: WFISCENE_CACHE_MAX megabytes of grids, the ones used longest
+# ago removed after a grid is stored; other files are not the cache's.
+mkfake() { head -c 1048576 /dev/zero > "$1" && touch -d "$2" "$1"; }
+
+test_expect_success 'over the limit, the grids used longest ago go; the new one stays' '
+	L=$TRASH/cache-lim && mkdir $L &&
+	mkfake $L/psf-F158-sca97-177-epsf-0000000000000001.fits 2009-01-01 &&
+	mkfake $L/psf-F158-sca98-177-epsf-0000000000000002.fits 2010-01-01 &&
+	mkfake $L/notes.fits 2001-01-01 && mkfake $L/psf-notes.txt 2001-01-01 &&
+	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=3 $WFS psf $cheap -v -o l1.fits 2>err &&
+	test_grep "removed 1 grid used longest ago (1.0 MB), to keep it within 3 MB" err &&
+	! test -e $L/psf-F158-sca97-177-epsf-0000000000000001.fits &&
+	test -e $L/psf-F158-sca98-177-epsf-0000000000000002.fits &&
+	test -e $L/notes.fits && test -e $L/psf-notes.txt &&
+	test "$(ls $L/psf-F158-sca03-*.fits | wc -l)" = 1 &&
+	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=1 $WFS psf $cheap --kind psf -o l2.fits &&
+	! test -e $L/psf-F158-sca98-177-epsf-0000000000000002.fits &&
+	test "$(ls $L/psf-F158-sca03-*.fits | wc -l)" = 1 &&
+	test -e $L/notes.fits
+'
+
+test_expect_success 'a grid read from the cache is used now: the limit keeps it' '
+	L=$TRASH/cache-lru && mkdir $L &&
+	WFISCENE_CACHE=$L $WFS psf $cheap -o g1.fits &&
+	g=$(ls $L/psf-*.fits) && touch -d 2001-01-01 "$g" &&
+	mkfake $L/psf-F158-sca98-177-epsf-0000000000000003.fits 2010-01-01 &&
+	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=0 $WFS psf $cheap -v -o g2.fits 2>err &&
+	test_grep "cache" err && samedata g1.fits g2.fits &&
+	test "$(stat -c %Y "$g")" -gt "$(date -d 2020-01-01 +%s)" &&
+	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=3 $WFS psf $cheap --kind psf -o g3.fits &&
+	test -e "$g" && ! test -e $L/psf-F158-sca98-177-epsf-0000000000000003.fits
+'
+
+test_expect_success 'WFISCENE_CACHE_MAX that is not a number: said, and nothing removed' '
+	L=$TRASH/cache-bad && mkdir $L &&
+	mkfake $L/psf-F158-sca97-177-epsf-0000000000000004.fits 2009-01-01 &&
+	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=lots $WFS psf $cheap -o b1.fits 2>err &&
+	test_grep "WFISCENE_CACHE_MAX=lots: not a number of megabytes" err &&
+	test -e $L/psf-F158-sca97-177-epsf-0000000000000004.fits
+'
+
 test_done

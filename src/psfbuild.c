@@ -15,7 +15,7 @@
  * FITS checksum or whose key keyword does not match is rebuilt.  A grid
  * read from the cache has its time stamp renewed; after a grid is
  * stored, the grids used longest ago are removed while the cache's
- * grids take more than WFISCENE_CACHE_MAX megabytes (psfcache.c).
+ * grids take more than WFISCENE_CACHE_MAX mebibytes (psfcache.c).
  */
 #include <errno.h>
 #include <fcntl.h>

@@ -25,6 +25,8 @@ export WFISCENE_CACHE
 if [ -n "${WFS_TEST_CACHE:-}" ]; then WFISCENE_CACHE=$WFS_TEST_CACHE; else
 	WFISCENE_CACHE=$BUILD/test-cache; fi
 export WFISCENE_CACHE
+# the cache's bound is the default's unless a test sets it
+unset WFISCENE_CACHE_MAX
 # Pin the DATE card so that runs can be compared byte for byte.
 SOURCE_DATE_EPOCH=1700000000
 export SOURCE_DATE_EPOCH

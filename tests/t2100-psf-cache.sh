@@ -122,25 +122,36 @@ test_expect_success 'an unwritable cache is not an error' '
 	samedata a.fits u.fits
 '
 
-# The limit: WFISCENE_CACHE_MAX megabytes of grids, the ones used longest
-# ago removed after a grid is stored; other files are not the cache's.
-mkfake() { head -c 1048576 /dev/zero > "$1" && touch -d "$2" "$1"; }
+# The limit: WFISCENE_CACHE_MAX mebibytes of grids, the ones used longest
+# ago removed after a grid is stored; only this program's grids, by name
+# and by header.  A fake grid: the header of one under the key its name
+# holds, SIZE bytes (sparse), dated DATE.
+mkfake() {
+	k=$(basename "$1" .fits) && k=${k##*-} &&
+	{ printf "%-80s" "SIMPLE  =                    T" "WFSKEY  = '$k' / cache key" END; } > "$1" &&
+	truncate -s "${3:-1048576}" "$1" && touch -d "$2" "$1"
+}
 
 test_expect_success 'over the limit, the grids used longest ago go; the new one stays' '
 	L=$TRASH/cache-lim && mkdir $L &&
 	mkfake $L/psf-F158-sca97-177-epsf-0000000000000001.fits 2009-01-01 &&
 	mkfake $L/psf-F158-sca98-177-epsf-0000000000000002.fits 2010-01-01 &&
 	mkfake $L/notes.fits 2001-01-01 && mkfake $L/psf-notes.txt 2001-01-01 &&
-	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=3 $WFS psf $cheap -v -o l1.fits 2>err &&
-	test_grep "removed 1 grid used longest ago (1.0 MB), to keep it within 3 MB" err &&
+	head -c 1048576 /dev/urandom > $L/psf-F158-sca96-177-epsf-00000000000000ff.fits &&
+	touch -d 2001-01-01 $L/psf-F158-sca96-177-epsf-00000000000000ff.fits &&
+	mkfake $TRASH/target.fits 2001-01-01 &&
+	ln -s $TRASH/target.fits $L/psf-F158-sca95-177-epsf-00000000000000aa.fits &&
+	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=4 $WFS psf $cheap -v -o l1.fits 2>err &&
+	test_grep "removed 1 grid used longest ago (1.0 MiB), to keep it within 4 MiB" err &&
 	! test -e $L/psf-F158-sca97-177-epsf-0000000000000001.fits &&
 	test -e $L/psf-F158-sca98-177-epsf-0000000000000002.fits &&
-	test -e $L/notes.fits && test -e $L/psf-notes.txt &&
 	test "$(ls $L/psf-F158-sca03-*.fits | wc -l)" = 1 &&
 	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=1 $WFS psf $cheap --kind psf -o l2.fits &&
 	! test -e $L/psf-F158-sca98-177-epsf-0000000000000002.fits &&
 	test "$(ls $L/psf-F158-sca03-*.fits | wc -l)" = 1 &&
-	test -e $L/notes.fits
+	test -e $L/notes.fits && test -e $L/psf-notes.txt &&
+	test -e $L/psf-F158-sca96-177-epsf-00000000000000ff.fits &&
+	test -L $L/psf-F158-sca95-177-epsf-00000000000000aa.fits && test -s $TRASH/target.fits
 '
 
 test_expect_success 'a grid read from the cache is used now: the limit keeps it' '
@@ -155,12 +166,17 @@ test_expect_success 'a grid read from the cache is used now: the limit keeps it'
 	test -e "$g" && ! test -e $L/psf-F158-sca98-177-epsf-0000000000000003.fits
 '
 
-test_expect_success 'WFISCENE_CACHE_MAX that is not a number: said, and nothing removed' '
+test_expect_success 'WFISCENE_CACHE_MAX not a number: said once, and nothing removed' '
 	L=$TRASH/cache-bad && mkdir $L &&
-	mkfake $L/psf-F158-sca97-177-epsf-0000000000000004.fits 2009-01-01 &&
-	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=lots $WFS psf $cheap -o b1.fits 2>err &&
-	test_grep "WFISCENE_CACHE_MAX=lots: not a number of megabytes" err &&
-	test -e $L/psf-F158-sca97-177-epsf-0000000000000004.fits
+	mkfake $L/psf-F158-sca97-177-epsf-0000000000000004.fits 2009-01-01 6000000000 &&
+	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=lots $WFS psf --filter F158 --sca 3-4 --nwave 2 \
+		--pupil-n 128 -o b1.fits 2>err &&
+	test "$(grep -c "WFISCENE_CACHE_MAX=lots: not a whole number of mebibytes" err)" = 1 &&
+	test -e $L/psf-F158-sca97-177-epsf-0000000000000004.fits &&
+	WFISCENE_CACHE=$L WFISCENE_CACHE_MAX=lots "$WFS" -q --filter F129 -o b2.fits one.csv 2>err &&
+	! test -s err && test -e $L/psf-F158-sca97-177-epsf-0000000000000004.fits &&
+	WFISCENE_CACHE=$L $WFS psf $cheap --kind psf --nwave 3 -o b3.fits &&
+	! test -e $L/psf-F158-sca97-177-epsf-0000000000000004.fits
 '
 
 test_done

@@ -443,7 +443,8 @@ static void zernike_table(struct zterm zt[OPTICS_NZ])
 		for (int k = 0; k < (n - am) / 2 + 1; k++)
 			zt[q].c[k] = norm * (k % 2 ? -1 : 1) * fact[n - k] /
 				     (fact[k] * fact[(n + am) / 2 - k] * fact[(n - am) / 2 - k]);
-	}}
+	}
+}
 
 static void zernike_eval(const struct zterm zt[OPTICS_NZ], double x, double y,
 			 double out[OPTICS_NZ])
@@ -533,17 +534,16 @@ static inline fftw_complex field(double a, double th)
 /* One wavelength's pupil, shared by all positions: the lit samples, their
  * amplitude and the Zernike basis there. */
 struct mono_pupil {
-	int p;                  /* samples per side */
-	int nlit;
+	int nlit;               /* (its side: the wavelength's p) */
 	int *idx;               /* row * p + col of each lit sample */
 	double *amp;
 	double *basis;          /* [j * nlit + i] */
 };
 
 /* One wavelength of the request: its weight, its index k, its pupil
- * raster's side p and the plans for that size. */
+ * raster's step dx (m) and side p, and the plans for that size. */
 struct wave {
-	double lam, wt;
+	double lam, wt, dx;
 	int k, p;
 	fftw_plan rows, cols;
 };
@@ -614,8 +614,8 @@ static void par_for(struct job *j, int nthreads, int ntask,
 static void pupil_row(struct job *j, int row, int tid)
 {
 	const struct optics_psf_req *r = j->r;
-	int p = j->mp.p;
-	double dx = j->cur->lam * 1e-6 / (j->nfft * r->scale * ARCSEC);
+	int p = j->cur->p;
+	double dx = j->cur->dx;
 	double y = (row - (p - 1) / 2.0) * dx;
 	double *out = j->tmp[tid];      /* amp, then basis per column */
 
@@ -633,8 +633,8 @@ static void pupil_row(struct job *j, int row, int tid)
 static void basis_task(struct job *j, int blk, int tid)
 {
 	int i0 = blk * 4096, i1 = i0 + 4096;
-	int p = j->mp.p;
-	double dx = j->cur->lam * 1e-6 / (j->nfft * j->r->scale * ARCSEC);
+	int p = j->cur->p;
+	double dx = j->cur->dx;
 
 	if (i1 > j->mp.nlit)
 		i1 = j->mp.nlit;
@@ -662,7 +662,7 @@ static void skewed_pupil(struct job *j, const struct wave *w, int pos, fftw_comp
 	const struct optics_psf_req *r = j->r;
 	const double *a = r->jac + 4 * (size_t)pos;
 	int p = w->p, nfft = j->nfft;
-	double dx = w->lam * 1e-6 / (nfft * r->scale * ARCSEC);
+	double dx = w->dx;
 	double det = a[0] * a[3] - a[1] * a[2];
 	double b[4] = { a[3] / det, -a[2] / det, -a[1] / det, a[0] / det };
 	const double *z = r->zern ? r->zern + ((size_t)pos * r->nwave + w->k) *
@@ -1069,8 +1069,10 @@ static int job_coarse(struct job *j, double dth, struct err *e)
 	return 0;
 }
 
-/* Each wavelength's raster side and plans: p rows, then n columns, each
- * a length-nfft transform of a contiguous line. */
+/* Each wavelength's raster step and side and its plans: p rows, then n
+ * columns, each a length-nfft transform of a contiguous line (the side
+ * from the step as psf_sizes() sizes the rasters, whose rounding
+ * may differ in the last bit). */
 static int job_waves(struct job *j, double dth, double stretch, struct err *e)
 {
 	const struct optics_psf_req *r = j->r;
@@ -1083,6 +1085,7 @@ static int job_waves(struct job *j, double dth, double stretch, struct err *e)
 
 		w->lam = r->lam[k];
 		w->wt = r->wt[k];
+		w->dx = w->lam * 1e-6 / (j->nfft * r->scale * ARCSEC);
 		w->k = k;
 		w->p = p > j->pmax ? j->pmax : p;
 		pthread_mutex_lock(&plan_lock);
@@ -1137,7 +1140,6 @@ int optics_psf(const struct optics_psf_req *r, double *out, struct err *e)
 			int p = j.wv[k].p;
 
 			j.cur = &j.wv[k];
-			j.mp.p = p;
 			j.mp.nlit = 0;
 			par_for(&j, nth, p, pupil_row);
 			for (int i = 0; i < p * p; i++)

@@ -124,7 +124,9 @@ static int term_bounds(const struct optics_pupil *p, double x, double y, double 
 {
 	double m = reach * (1 + 1e-9) + TERM_SLACK, g, r;
 
-	t->n = 0;
+	/* (the rim's bounds are read only when it is a term) */
+	*t = (struct terms){ .out_lo = INFINITY, .in_lo = INFINITY, .out_hi = -INFINITY,
+			     .in_hi = -INFINITY };
 	g = square_gap(p, x, y);
 	if (g < -m)
 		return 0;
@@ -156,8 +158,6 @@ static int term_bounds(const struct optics_pupil *p, double x, double y, double 
 		ka = (long)floor(a - da);
 		kb = (long)floor(a + da) + 1;
 	}
-	t->out_lo = t->in_lo = INFINITY;
-	t->out_hi = t->in_hi = -INFINITY;
 	for (long k = ka; k <= kb && k - ka <= OPTICS_NANG; k++) {
 		int q = (int)(((k % OPTICS_NANG) + OPTICS_NANG) % OPTICS_NANG);
 
@@ -213,75 +213,63 @@ static inline int covered(const struct optics_pupil *p, const struct terms *t, d
 	return 1;
 }
 
-/* optics_pupil_cover() by the plain count (the tests' reference) */
-double optics_pupil_cover_plain(const struct optics_pupil *p, double x, double y, double d)
+/*
+ * The clear fraction of the cell about (x, y) of the Zernike plane whose
+ * 8 x 8 sub-samples are (x, y) + b (u, v), u, v = (i - 3.5) d / 8, the
+ * mask seen at (x, fy y): whole (1 or 0) when the centre's clearance is
+ * beyond edge either way, else the sub-samples counted, with plain by the
+ * whole clearance test, else by the terms that can change sign within
+ * reach of the centre (term_bounds(), covered()): the same count.
+ */
+static double cover_cell(const struct optics_pupil *p, double x, double y, const double b[4],
+			 double d, double fy, double edge, double reach, int plain)
 {
-	double c = clearance(p, x, y);
+	double c = clearance(p, x, fy * y), sx[64], sy[64];
+	struct terms t;
 	int hit = 0;
 
-	if (c > 0.75 * d)
+	if (c > edge)
 		return 1;
-	if (c < -0.75 * d)
+	if (c < -edge)
 		return 0;
-	for (int j = 0; j < 8; j++)
-		for (int i = 0; i < 8; i++)
-			hit += clearance(p, x + (i - 3.5) * d / 8, y + (j - 3.5) * d / 8) >= 0;
+	for (int j = 0, k = 0; j < 8; j++)
+		for (int i = 0; i < 8; i++, k++) {
+			double u = (i - 3.5) * d / 8, v = (j - 3.5) * d / 8;
+
+			sx[k] = x + b[0] * u + b[1] * v;
+			sy[k] = fy * (y + b[2] * u + b[3] * v);
+		}
+	if (plain) {
+		for (int k = 0; k < 64; k++)
+			hit += clearance(p, sx[k], sy[k]) >= 0;
+	} else if (term_bounds(p, x, fy * y, reach, &t)) {
+		for (int k = 0; k < 64; k++)
+			hit += covered(p, &t, sx[k], sy[k]);
+	}
 	return hit / 64.0;
+}
+
+/* the square cell: b the identity (x + 1 u + 0 v is x + u to the bit),
+ * whole beyond 0.75 d, its sub-samples within 0.62 d of the centre */
+static const double unit_map[4] = { 1, 0, 0, 1 };
+
+double optics_pupil_cover_plain(const struct optics_pupil *p, double x, double y, double d)
+{
+	return cover_cell(p, x, y, unit_map, d, 1, 0.75 * d, 0.75 * d, 1);
 }
 
 double optics_pupil_cover(const struct optics_pupil *p, double x, double y,
 			  double d)
 {
-	double c = clearance(p, x, y);
-	struct terms t;
-	int hit = 0;
-
-	/* a cell is whole when the nearest edge is beyond its corner */
-	if (c > 0.75 * d)
-		return 1;
-	if (c < -0.75 * d)
-		return 0;
-	/* the sub-samples lie within 0.62 d of the centre */
-	if (!term_bounds(p, x, y, 0.75 * d, &t))
-		return 0;
-	for (int j = 0; j < 8; j++)
-		for (int i = 0; i < 8; i++)
-			hit += covered(p, &t, x + (i - 3.5) * d / 8, y + (j - 3.5) * d / 8);
-	return hit / 64.0;
+	return cover_cell(p, x, y, unit_map, d, 1, 0.75 * d, 0.75 * d, 0);
 }
 
+/* the parallelogram: whole beyond 1.01 reach, its sub-samples within
+ * reach (its half diagonal) */
 double pupil_cover_affine(const struct optics_pupil *p, double x, double y, const double b[4],
 			  double d, int flip, double reach, int plain)
 {
-	double fy = flip ? -1 : 1;
-	double c = clearance(p, x, fy * y);
-	struct terms t;
-
-	if (c > 1.01 * reach)
-		return 1;
-	if (c < -1.01 * reach)
-		return 0;
-	int hit = 0;
-	if (plain) {
-		for (int j = 0; j < 8; j++)
-			for (int i = 0; i < 8; i++) {
-				double u = (i - 3.5) * d / 8, v = (j - 3.5) * d / 8;
-				hit += clearance(p, x + b[0] * u + b[1] * v,
-						 fy * (y + b[2] * u + b[3] * v)) >= 0;
-			}
-		return hit / 64.0;
-	}
-	/* the sub-samples lie within reach of the centre (the parallelogram's
-	 * half diagonal) */
-	if (!term_bounds(p, x, fy * y, reach, &t))
-		return 0;
-	for (int j = 0; j < 8; j++)
-		for (int i = 0; i < 8; i++) {
-			double u = (i - 3.5) * d / 8, v = (j - 3.5) * d / 8;
-			hit += covered(p, &t, x + b[0] * u + b[1] * v,
-				       fy * (y + b[2] * u + b[3] * v));
-		}
-	return hit / 64.0;
+	return cover_cell(p, x, y, b, d, flip ? -1 : 1, 1.01 * reach, reach, plain);
 }
 
 int pupil_coarse_make(struct pupil_coarse *co, const struct optics_pupil *p, double reach)

@@ -18,7 +18,6 @@
  * grids take more than WFISCENE_CACHE_MAX mebibytes (psfcache.c).
  */
 #include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdint.h>
@@ -481,9 +480,7 @@ static struct psf_grid *builtin(int filter, int sca, int n, int over, int kind,
 		if ((g = cache_load(path, key, n, over, kind, grid, jac != NULL))) {
 			free(jac);
 			o->loaded++;
-			/* used now: the last the limit removes (a cache this
-			 * run cannot write keeps its stamps) */
-			utimensat(AT_FDCWD, path, NULL, 0);
+			psf_cache_used(path);
 			snprintf(g->origin, sizeof(g->origin), "builtin");
 			if (o->verbose > 0)
 				fprintf(stderr, "wfiscene: PSF %s SCA%02d %d: "

@@ -1,6 +1,7 @@
 /*
  * psfcache.c - the PSF cache's bound: the grids used longest ago removed
- * while the cache's grids take more than WFISCENE_CACHE_MAX mebibytes.
+ * while the cache's grids take more than WFISCENE_CACHE_MAX mebibytes, a
+ * grid's use being its time stamp, renewed each time a run reads it.
  * Apart from psfbuild.c, whose sources are part of a grid's key: how
  * the cache is kept does not change what a grid holds.
  */
@@ -46,7 +47,6 @@ struct cached {
 	long mnsec;
 	long long bytes;
 	char name[256];
-	char key[17];
 };
 
 static int cached_cmp(const void *a, const void *b)
@@ -111,9 +111,10 @@ static int grid_name(const char *n, char key[17])
 }
 
 /* Whether the regular file name in directory fd begins with the FITS
- * header of a grid this program wrote under that key (its WFSKEY card,
- * within the first GRID_HEADER_BLOCKS blocks): checked before a file is
- * removed, so that a file of the same name that is no such grid stays. */
+ * header of a grid this program wrote under key (its WFSKEY card, within
+ * the first GRID_HEADER_BLOCKS blocks): 1, 0, or -1 when it is gone.
+ * Checked before a file is removed, so that a file of the same name that
+ * is no such grid stays. */
 #define GRID_HEADER_BLOCKS 16
 
 static int grid_header(int fd, const char *name, const char *key)
@@ -123,7 +124,7 @@ static int grid_header(int fd, const char *name, const char *key)
 	int f = openat(fd, name, O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC), yes = 0;
 
 	if (f < 0)
-		return 0;
+		return errno == ENOENT ? -1 : 0;
 	if (fstat(f, &st) || !S_ISREG(st.st_mode))
 		goto out;
 	for (int b = 0; b < GRID_HEADER_BLOCKS; b++) {
@@ -146,14 +147,20 @@ out:
 	return yes;
 }
 
+void psf_cache_used(const char *path)
+{
+	utimensat(AT_FDCWD, path, NULL, 0);
+}
+
 /*
  * After a grid was stored as `kept` in dir: while the cache's grids take
  * more than the limit, remove the one used longest ago (by time stamp:
  * written, or renewed when read), never `kept`.  Only files named as this
  * program names grids are counted, and one is removed only when its header
  * is such a grid's under the key its name holds; a file another run
- * removes first, or one that cannot be removed, is passed over.  Another run that
- * wants a removed grid builds it again, as after `rm -r` of the cache.
+ * removes first, or one that cannot be removed, is passed over.  Another
+ * run that wants a removed grid builds it again, as after `rm -r` of the
+ * cache.
  */
 void psf_cache_trim(const char *dir, const char *kept, int verbose)
 {
@@ -193,16 +200,21 @@ void psf_cache_trim(const char *dir, const char *kept, int verbose)
 		c[n].mnsec = st.st_mtim.tv_nsec;
 		c[n].bytes = (long long)st.st_size;
 		snprintf(c[n].name, sizeof(c[n].name), "%s", d->d_name);
-		memcpy(c[n].key, key, sizeof(key));
 		total += c[n++].bytes;
 	}
 	if (total > limit && n) {
 		qsort(c, n, sizeof(*c), cached_cmp);
 		for (size_t i = 0; i < n && total > limit; i++) {
-			if (!strcmp(c[i].name, kept) || !grid_header(fd, c[i].name, c[i].key))
+			char key[17];
+			int ours;
+
+			if (!strcmp(c[i].name, kept))
 				continue;
-			if (unlinkat(fd, c[i].name, 0)) {
-				if (errno == ENOENT)    /* another run's trim took it */
+			grid_name(c[i].name, key);
+			/* gone (another run's trim took it) or not a grid */
+			if ((ours = grid_header(fd, c[i].name, key)) <= 0 ||
+			    unlinkat(fd, c[i].name, 0)) {
+				if (ours < 0 || (ours > 0 && errno == ENOENT))
 					total -= c[i].bytes;
 				continue;
 			}

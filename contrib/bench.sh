@@ -602,9 +602,11 @@ for g in "box" "halo --halo 256"; do
 	set -- $g
 	name=$1
 	shift
+	# in this shell, not a pipeline's, so that a failed build stops the suite
 	for k in 1 2 3; do
-		measure3 "'$WFS' psf --filter F158 --sca 1 $* --no-cache -o '$W/g.fits'"
-	done | sort -n | sed -n 2p > "$W/g.med"
+		measure3 "'$WFS' psf --filter F158 --sca 1 $* --no-cache -o '$W/g.fits'" || exit 1
+	done > "$W/g.runs"
+	sort -n "$W/g.runs" | sed -n 2p > "$W/g.med"
 	set -- $(cat "$W/g.med")
 	printf '| %s | %.2f | %.2f |\n' "$name" "$1" "$2"
 done

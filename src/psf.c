@@ -253,39 +253,51 @@ static int read_planes(fitsfile *f, const char *path, struct psf_grid *g, int np
 		       const double *px, const double *py, struct err *e)
 {
 	size_t np = (size_t)g->n * g->n;
-	float *buf = malloc(np * nplane * sizeof(*buf));
+	float *buf = NULL;
+	int *slot = malloc(nplane * sizeof(*slot));
 	unsigned char *seen = calloc(nplane, 1);
-	int st = 0, anynul = 0, rc = -1;
+	int st = 0, anynul = 0, rc = -1, inorder = 1;
 
-	if (!buf || !seen) {
+	if (!slot || !seen) {
 		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
-		goto done;
-	}
-	if (fits_read_img(f, TFLOAT, 1, (LONGLONG)(np * nplane), NULL, buf,
-			  &anynul, &st)) {
-		bad_cube(e, st, path);
 		goto done;
 	}
 	for (int k = 0; k < nplane; k++) {
 		int ix = find_node(g->xs, g->nx, px[k]);
 		int iy = find_node(g->ys, g->ny, py[k]);
-		int slot = iy * g->nx + ix;
 
-		if (seen[slot]) {
+		slot[k] = iy * g->nx + ix;
+		if (seen[slot[k]]) {
 			err_set(e, EXIT_INPUT, "%s: two planes at (y, x) = "
 				"(%g, %g)", path, py[k] + PSF_FRAME_OFFSET,
 				px[k] + PSF_FRAME_OFFSET);
 			goto done;
 		}
-		seen[slot] = 1;
-		for (size_t i = 0; i < np; i++) {
-			float v = buf[k * np + i];
-			g->data[slot * np + i] = isfinite(v) ? v : 0.0f;
-		}
+		seen[slot[k]] = 1;
+		inorder &= slot[k] == k;
+	}
+	/* planes in the grid's order (as this program writes them) straight
+	 * into it; others through a copy */
+	if (!inorder && !(buf = malloc(np * nplane * sizeof(*buf)))) {
+		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
+		goto done;
+	}
+	if (fits_read_img(f, TFLOAT, 1, (LONGLONG)(np * nplane), NULL, buf ? buf : g->data,
+			  &anynul, &st)) {
+		bad_cube(e, st, path);
+		goto done;
+	}
+	for (int k = 0; k < nplane; k++) {
+		const float *in = (buf ? buf : g->data) + k * np;
+		float *out = g->data + (size_t)slot[k] * np;
+
+		for (size_t i = 0; i < np; i++)
+			out[i] = isfinite(in[i]) ? in[i] : 0.0f;
 	}
 	rc = 0;
 done:
 	free(buf);
+	free(slot);
 	free(seen);
 	return rc;
 }

@@ -51,8 +51,9 @@ static const struct opt psf_options[] = {
 	  opt_string, OFF(filter)) },
 	{ OPT("sca", 's', "LIST", NULL, "SCAs; with more than one, FILE gets _wfiNN before "
 	  "its .fits suffix, one file per SCA", opt_string, OFF(sca)) },
-	{ OPT("kind", 'k', "K", "epsf", "epsf (pixel and IPC kernels applied) or psf (the "
-	  "optical PSF)", set_kind, OFF(kind)) },
+	{ OPT("kind", 'k', "K", "epsf", "epsf (pixel and IPC kernels applied), epsf-noipc "
+	  "(the pixel kernel only, as levels 1 and 2 draw) or psf (the optical PSF)",
+	  set_kind, OFF(kind)) },
 	{ OPT("size", 0, "N", "177", "samples per side: 177, 353 or 705", set_size,
 	  OFF(cls)) },
 	{ OPT("halo", 0, "R", NULL, "the halo instead (the far wing of bright stars): "
@@ -138,10 +139,13 @@ static int set_kind(const struct opt_arg *a, struct err *e)
 {
 	if (!strcasecmp(a->value, "epsf"))
 		*(int *)a->field = PSF_EPSF;
+	else if (!strcasecmp(a->value, "epsf-noipc"))
+		*(int *)a->field = PSF_EPSF_NOIPC;
 	else if (!strcasecmp(a->value, "psf"))
 		*(int *)a->field = PSF_OPTICAL;
 	else
-		return err_set(e, EXIT_INPUT, "--kind: want epsf or psf, not '%s'", a->value);
+		return err_set(e, EXIT_INPUT, "--kind: want epsf, epsf-noipc or psf, not '%s'",
+			       a->value);
 	return 0;
 }
 

@@ -60,6 +60,40 @@ assert h[\"WFSKIND\"] == \"PSF\"
 assert np.allclose(d.sum(axis=(1, 2)), 1, atol=1e-5), d.sum(axis=(1, 2))"
 '
 
+test_expect_success '--kind epsf-noipc: the ePSF without IPC, WFSKIND EPSFNOIPC' '
+	$WFS psf --filter F129 --sca 1 --kind epsf-noipc -o n.fits &&
+	"$PY" - <<-\EOT
+	from astropy.io import fits
+	import numpy as np
+	h = fits.open("n.fits")[0]
+	d, e = h.data, fits.getdata("g.fits")
+	assert h.header["WFSKIND"] == "EPSFNOIPC", h.header["WFSKIND"]
+	# samples one pixel apart through the centre (88 = 4 x 22): without
+	# IPC they hold all the light; the IPC kernel of STIPS keeps 99.46 %
+	# of it and moves some light of the centre pixel to its neighbours
+	n, w = d[4, 0::4, 0::4].sum(), e[4, 0::4, 0::4].sum()
+	assert abs(n - 1) < 1e-4 and abs(w - 0.9946 * n) < 1e-4, (n, w)
+	assert d[4].max() > 1.05 * e[4].max(), (d[4].max(), e[4].max())
+	assert np.argmax(d[4]) == 88 * 177 + 88
+	EOT
+'
+
+test_expect_success 'epsf-noipc written ahead: a level-1 run builds no grid, and --psf takes it without IPC twice' '
+	mkdir nc &&
+	$WFS psf --filter F129 --sca 1 --kind epsf-noipc --cache-dir nc -o nb.fits &&
+	$WFS psf --filter F129 --sca 1 --kind epsf-noipc --halo 256 --cache-dir nc -o nh.fits &&
+	printf "x,y,mag\n2044.3,2044.8,16\n" > one.csv &&
+	WFISCENE_CACHE=$PWD/nc "$WFS" --filter F129 --flux-unit abmag --level 1 --report r.json \
+		-o l1.fits one.csv &&
+	"$PY" -c "
+import json; g = json.load(open(\"r.json\"))[\"psf_grids\"]
+assert g[\"built\"] == 0 and g[\"loaded\"] == 2, g" &&
+	"$WFS" --filter F129 --flux-unit abmag --level 1 --psf nb.fits -o l1n.fits one.csv 2> err &&
+	! grep -q "IPC" err &&
+	"$WFS" --filter F129 --flux-unit abmag --level 1 --psf g.fits -o l1e.fits one.csv 2> err &&
+	test_grep "IPC folded in" err
+'
+
 test_expect_success '--psf FILE places planes by DET_YX, not by their order' '
 	"$PY" - <<-\EOT &&
 	from astropy.io import fits
@@ -140,7 +174,7 @@ test_expect_success 'bad filter, size or kind: exit 1 naming the value, no file'
 	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 --size 100 -o bad.fits 2>err &&
 	test_grep "177, 353 or 705" err &&
 	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 --kind nope -o bad.fits 2>err &&
-	test_grep "nope" err &&
+	test_grep "want epsf, epsf-noipc or psf, not .nope." err &&
 	test_must_fail --status 1 $WFS psf --filter F129 --sca 1 --grid 1000000 -o bad.fits 2>err &&
 	test_grep "grid: not an integer from 1 to 100000: .1000000." err &&
 	test_must_fail --status 1 $WFS psf --filter F129 --sca 99 -o bad.fits 2>err &&

@@ -64,11 +64,17 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 		host_log(g, 0, "warning: %s: PSF sampled on %s pixels, the scene's "
 			 "geometry is %s", path, grid->pixgrid == PSF_PIX_SIAF ?
 			 "the SIAF's" : "square 0.11\"", geom_name(g->o->geometry));
-	/* levels 1 and 2 apply IPC to the charge: an ePSF with it, twice */
+	/* levels 1 and 2 apply IPC to the charge: an ePSF with it, twice;
+	 * the scene level has it in the ePSF: one without it, none */
 	if (g->o->level && grid->kind == PSF_EPSF)
 		host_log(g, 0, "warning: %s: an ePSF with IPC folded in (WFSKIND EPSF); "
-			 "--level %d applies IPC again to the charge (give an optical PSF: "
-			 "wfiscene psf --kind psf)", path, g->o->level);
+			 "--level %d applies IPC again to the charge (give an optical PSF "
+			 "or an ePSF without IPC: wfiscene psf --kind psf or epsf-noipc)", path,
+			 g->o->level);
+	if (!g->o->level && grid->kind == PSF_EPSF_NOIPC)
+		host_log(g, 0, "warning: %s: an ePSF without IPC (WFSKIND EPSFNOIPC); the "
+			 "scene level draws IPC in the ePSF, so this scene has none (give an "
+			 "optical PSF or an ePSF: wfiscene psf --kind psf or epsf)", path);
 }
 
 /* The halo's default radius (psf-halo-radius), pixels */

@@ -78,7 +78,7 @@ test_expect_success '--kind epsf-noipc: the ePSF without IPC, WFSKIND EPSFNOIPC'
 	EOT
 '
 
-test_expect_success 'epsf-noipc written ahead: a level-1 run builds no grid, and --psf takes it without IPC twice' '
+test_expect_success 'epsf-noipc written ahead: a level-1 run builds no grid; --psf warns where IPC is twice or missing' '
 	mkdir nc &&
 	$WFS psf --filter F129 --sca 1 --kind epsf-noipc --cache-dir nc -o nb.fits &&
 	$WFS psf --filter F129 --sca 1 --kind epsf-noipc --halo 256 --cache-dir nc -o nh.fits &&
@@ -91,7 +91,11 @@ assert g[\"built\"] == 0 and g[\"loaded\"] == 2, g" &&
 	"$WFS" --filter F129 --flux-unit abmag --level 1 --psf nb.fits -o l1n.fits one.csv 2> err &&
 	! grep -q "IPC" err &&
 	"$WFS" --filter F129 --flux-unit abmag --level 1 --psf g.fits -o l1e.fits one.csv 2> err &&
-	test_grep "IPC folded in" err
+	test_grep "IPC folded in" err &&
+	"$WFS" --filter F129 --flux-unit abmag --psf nb.fits -o sn.fits one.csv 2> err &&
+	test_grep "warning: nb.fits: an ePSF without IPC (WFSKIND EPSFNOIPC); the scene level" err &&
+	"$WFS" --filter F129 --flux-unit abmag --psf g.fits -o se.fits one.csv 2> err &&
+	! grep -q "IPC" err
 '
 
 test_expect_success '--psf FILE places planes by DET_YX, not by their order' '

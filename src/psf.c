@@ -253,10 +253,9 @@ static int read_planes(fitsfile *f, const char *path, struct psf_grid *g, int np
 		       const double *px, const double *py, struct err *e)
 {
 	size_t np = (size_t)g->n * g->n;
-	float *buf = NULL;
 	int *slot = malloc(nplane * sizeof(*slot));
 	unsigned char *seen = calloc(nplane, 1);
-	int st = 0, anynul = 0, rc = -1, inorder = 1;
+	int st = 0, anynul = 0, rc = -1;
 
 	if (!slot || !seen) {
 		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
@@ -274,29 +273,21 @@ static int read_planes(fitsfile *f, const char *path, struct psf_grid *g, int np
 			goto done;
 		}
 		seen[slot[k]] = 1;
-		inorder &= slot[k] == k;
 	}
-	/* planes in the grid's order (as this program writes them) straight
-	 * into it; others through a copy */
-	if (!inorder && !(buf = malloc(np * nplane * sizeof(*buf)))) {
-		err_set(e, EXIT_SYSTEM, "%s: out of memory", path);
-		goto done;
-	}
-	if (fits_read_img(f, TFLOAT, 1, (LONGLONG)(np * nplane), NULL, buf ? buf : g->data,
-			  &anynul, &st)) {
-		bad_cube(e, st, path);
-		goto done;
-	}
+	/* each plane straight into its node, in the file's order */
 	for (int k = 0; k < nplane; k++) {
-		const float *in = (buf ? buf : g->data) + k * np;
 		float *out = g->data + (size_t)slot[k] * np;
 
+		if (fits_read_img(f, TFLOAT, (LONGLONG)k * (LONGLONG)np + 1, (LONGLONG)np, NULL,
+				  out, &anynul, &st)) {
+			bad_cube(e, st, path);
+			goto done;
+		}
 		for (size_t i = 0; i < np; i++)
-			out[i] = isfinite(in[i]) ? in[i] : 0.0f;
+			out[i] = isfinite(out[i]) ? out[i] : 0.0f;
 	}
 	rc = 0;
 done:
-	free(buf);
 	free(slot);
 	free(seen);
 	return rc;

@@ -73,8 +73,9 @@ static void psf_file_warn(struct engine *g, const struct psf_grid *grid,
 			 g->o->level);
 	if (!g->o->level && grid->kind == PSF_EPSF_NOIPC)
 		host_log(g, 0, "warning: %s: an ePSF without IPC (WFSKIND EPSFNOIPC); the "
-			 "scene level draws IPC in the ePSF, so this scene has none (give an "
-			 "optical PSF or an ePSF: wfiscene psf --kind psf or epsf)", path);
+			 "scene level draws IPC in the ePSF, so the sources drawn with it have "
+			 "none (give an optical PSF or an ePSF: wfiscene psf --kind psf or "
+			 "epsf)", path);
 }
 
 /* The halo's default radius (psf-halo-radius), pixels */

@@ -42,6 +42,17 @@ for k in sys.argv[2:]:
 print(r)" "$@"
 }
 
+# one row of the level-2 table: level2_row LABEL WALL CPU KIB REPORT
+level2_row() {
+	/usr/bin/python3 -c "
+import json, sys
+l, t, c, k, f = sys.argv[1:6]
+a = json.load(open(f)); r = a['seconds']
+print('| %s | %.1f | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %d |' % (l, float(t), float(c),
+      float(k) / 1024, r['read_parse'], r['project_place'], r['render_busy'], r['noise'],
+      r['write'], a['psf_grids']['built']))" "$@"
+}
+
 cpu=$(sed -n 's/^model name[[:space:]]*: *//p' /proc/cpuinfo 2>/dev/null | head -n 1)
 flags=$(grep -m 1 '^flags' /proc/cpuinfo 2>/dev/null | grep -o -w -e avx2 -e fma -e avx512f | tr '\n' ' ')
 # A virtual machine's name string may say only "Intel(R) Xeon(R) Processor":
@@ -496,19 +507,11 @@ rm -f "$W"/nb_wfi*.fits "$W"/nh_wfi*.fits
 echo "| run | wall s | CPU s | peak MiB | read+parse s | project+place s | render busy s | noise s | write s | grids built |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 set -- $(measure3 "'$WFS' --filter F158 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --level 2 --background avg --report '$W/rl2.json' -o '$W/o.fits' '$W/sky.csv'")
-/usr/bin/python3 -c "
-import json
-a = json.load(open('$W/rl2.json')); r = a['seconds']
-print('| level 2, 10^7 sky rows (two passes) | %.1f | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %d |' % ($1, $2, $3 / 1024,
-      r['read_parse'], r['project_place'], r['render_busy'], r['noise'], r['write'], a['psf_grids']['built']))"
+level2_row "level 2, 10^7 sky rows (two passes)" "$1" "$2" "$3" "$W/rl2.json"
 rm -f "$W/o.fits"
 # the same in one pass, all 18 SCAs' tiles at once
 set -- $(measure3 "'$WFS' --filter F158 --ra 10 --dec 20 --pointing-ref boresight --sca 1-18 --flux-unit abmag --level 2 --background avg --memory 100000 --report '$W/rl2m.json' -o '$W/o.fits' '$W/sky.csv'")
-/usr/bin/python3 -c "
-import json
-a = json.load(open('$W/rl2m.json')); r = a['seconds']
-print('| the same in one pass, --memory 100000 | %.1f | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %d |' % ($1, $2, $3 / 1024,
-      r['read_parse'], r['project_place'], r['render_busy'], r['noise'], r['write'], a['psf_grids']['built']))"
+level2_row "the same in one pass, --memory 100000" "$1" "$2" "$3" "$W/rl2m.json"
 rm -f "$W/o.fits" "$W/sky.csv"
 for k in 1 2 3; do
 	echo "$(measure3 "'$WFS' --filter F129 --sca 1-18 --noise all --background avg --report '$W/rn_$k.json' -o '$W/o.fits' '$W/empty.csv'") $k"
@@ -526,12 +529,8 @@ rm -f "$W/o.fits"
 "$WFS" --filter F158 --flux-unit abmag --level 2 --background avg -o "$W/o.fits" "$W/c185.csv"
 for c in empty c185; do
 	set -- $(measure3 "'$WFS' --filter F158 --flux-unit abmag --level 2 --background avg --report '$W/r1_$c.json' -o '$W/o.fits' '$W/$c.csv'")
-	/usr/bin/python3 -c "
-import json
-a = json.load(open('$W/r1_$c.json')); r = a['seconds']
-print('| level 2, one SCA, %s | %.1f | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %d |' % (
-      'empty' if '$c' == 'empty' else '185 000 stars', $1, $2, $3 / 1024, r['read_parse'],
-      r['project_place'], r['render_busy'], r['noise'], r['write'], a['psf_grids']['built']))"
+	[ $c = empty ] && l=empty || l="185 000 stars"
+	level2_row "level 2, one SCA, $l" "$1" "$2" "$3" "$W/r1_$c.json"
 done
 rm -f "$W/o.fits" "$W/c185.csv"
 
